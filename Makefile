@@ -1,0 +1,26 @@
+# The two set-up commands. Both build .venv when it is missing and are quick when it exists.
+PYTHON ?= python3
+VENV   := .venv
+PY     := $(VENV)/bin/python
+# A venv Python started from another ros-wheel Python must not inherit the bootstrap marker.
+unexport _ROS_WHEELS_BOOTSTRAP_COMPLETE
+
+.PHONY: demo test venv clean-venv
+
+venv: $(VENV)/.stamp
+
+$(VENV)/.stamp: pyproject.toml rv_te_msgs_py/pyproject.toml rv_te_msgs_py/CMakeLists.txt $(wildcard rv_te_msgs_py/msg/*.msg)
+	test -x $(PY) || $(PYTHON) -m venv $(VENV)
+	$(PY) -m pip install --quiet --upgrade pip
+	$(PY) -m pip install --quiet ./rv_te_msgs_py
+	$(PY) -m pip install --quiet -e '.[test]'
+	touch $@
+
+demo: venv
+	$(VENV)/bin/rv-te demo
+
+test: venv
+	$(PY) -m pytest -q
+
+clean-venv:
+	rm -rf $(VENV)

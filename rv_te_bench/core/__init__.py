@@ -1,0 +1,6 @@
+"""Measurement-side maths: Eq. 22, streaming windows, statistics, order spectra, compensation.
+
+Pure numpy/scipy (and ``sim``); never imports rclpy.
+"""
+
+from __future__ import annotations

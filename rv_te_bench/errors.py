@@ -1,0 +1,27 @@
+"""Exceptions of rv_te_bench. Each subclass also derives from the matching builtin."""
+
+from __future__ import annotations
+
+
+class RvTeError(Exception):
+    """Base class of every error raised by rv_te_bench."""
+
+
+class TeInputError(RvTeError, ValueError):
+    """Measurement data given to the TE core is malformed (shapes, non-finite, order)."""
+
+
+class TeConfigError(RvTeError, ValueError):
+    """A TE analysis setting is invalid."""
+
+
+class CompensationError(RvTeError, ValueError):
+    """A compensation or identification request cannot be honoured."""
+
+
+class BagError(RvTeError):
+    """A bag cannot be read or written."""
+
+
+class ParameterFileError(RvTeError, ValueError):
+    """A ROS-style parameter file is invalid (names file, key and rule)."""

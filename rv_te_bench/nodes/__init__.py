@@ -1,0 +1,1 @@
+"""rv_te_bench.nodes."""
