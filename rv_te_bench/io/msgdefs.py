@@ -1,0 +1,133 @@
+"""Message definitions of rv_te_msgs for bags, found and parsed without rclpy.
+
+rosbag2 stores, for every topic type, the full ``ros2msg`` definition: the type's own
+``.msg`` text followed by each dependency as ``====...====\\nMSG: pkg/msg/Type\\n<text>``.
+This module builds the same text from the ``.msg`` files (installed share directory first,
+then the repository's ``rv_te_msgs_py/msg``), falling back to the rosbags typestore for
+dependencies that have no ``.msg`` file on this machine, and offers a rosbags typestore
+(``Stores.ROS2_JAZZY`` plus our types) for serialising and deserialising without ROS.
+"""
+
+from __future__ import annotations
+
+import functools
+import sys
+from pathlib import Path
+from typing import TYPE_CHECKING
+
+from rosbags.typesys import Stores, get_types_from_msg, get_typestore
+
+from rv_te_bench.errors import BagError
+
+if TYPE_CHECKING:
+    from rosbags.typesys.store import Typestore
+
+__all__ = [
+    'BENCH_INFO',
+    'ENCODER_BLOCK',
+    'MSG_PACKAGE',
+    'find_msg_dir',
+    'full_msgdef',
+    'load_msg_texts',
+    'rv_te_typestore',
+    'type_hash',
+]
+
+MSG_PACKAGE = 'rv_te_msgs'
+ENCODER_BLOCK = 'rv_te_msgs/msg/EncoderBlock'
+BENCH_INFO = 'rv_te_msgs/msg/BenchInfo'
+
+SEPARATOR = '=' * 80
+
+
+def _share_dirs() -> list[Path]:
+    """Candidate ``share`` directories (venv prefix first, then base prefix)."""
+    return [Path(p) / 'share' for p in dict.fromkeys((sys.prefix, sys.base_prefix))]
+
+
+def find_msg_dir() -> Path:
+    """Directory holding the ``rv_te_msgs`` ``.msg`` files.
+
+    Returns:
+        ``<sys.prefix>/share/rv_te_msgs/msg`` when installed, else the repository's
+        ``rv_te_msgs_py/msg`` next to the ``rv_te_bench`` package.
+
+    Raises:
+        BagError: Neither location holds ``.msg`` files.
+    """
+    candidates = [d / MSG_PACKAGE / 'msg' for d in _share_dirs()]
+    candidates.append(Path(__file__).resolve().parents[2] / 'rv_te_msgs_py' / 'msg')
+    for cand in candidates:
+        if cand.is_dir() and any(cand.glob('*.msg')):
+            return cand
+    msg = f'No {MSG_PACKAGE} .msg files found; looked in {[str(c) for c in candidates]}.'
+    raise BagError(msg)
+
+
+@functools.cache
+def load_msg_texts() -> dict[str, str]:
+    """Texts of our ``.msg`` files keyed by full type name (``rv_te_msgs/msg/Name``)."""
+    msg_dir = find_msg_dir()
+    return {
+        f'{MSG_PACKAGE}/msg/{p.stem}': p.read_text(encoding='utf-8')
+        for p in sorted(msg_dir.glob('*.msg'))
+    }
+
+
+@functools.cache
+def rv_te_typestore() -> Typestore:
+    """A rosbags typestore: ROS 2 Jazzy types plus every ``rv_te_msgs`` type."""
+    store = get_typestore(Stores.ROS2_JAZZY)
+    types = {}
+    for name, text in load_msg_texts().items():
+        types.update(get_types_from_msg(text, name))
+    store.register(types)
+    return store
+
+
+def _msg_file_text(msgtype: str) -> str | None:
+    """Text of ``msgtype``'s ``.msg`` file if one is installed here."""
+    if msgtype in (ours := load_msg_texts()):
+        return ours[msgtype]
+    pkg, _, name = msgtype.split('/')
+    for share in _share_dirs():
+        path = share / pkg / 'msg' / f'{name}.msg'
+        if path.is_file():
+            return path.read_text(encoding='utf-8')
+    return None
+
+
+@functools.cache
+def full_msgdef(msgtype: str) -> str:
+    """Full ``ros2msg`` definition of ``msgtype`` as rosbag2 stores it in a bag.
+
+    Args:
+        msgtype: Type name, ``pkg/msg/Name``.
+
+    Returns:
+        The type's text followed by every dependency after a separator line.
+
+    Raises:
+        BagError: The type is unknown to the typestore.
+    """
+    store = rv_te_typestore()
+    if msgtype not in store.fielddefs:
+        msg = f'Unknown message type {msgtype!r}: no definition in the typestore.'
+        raise BagError(msg)
+    subdefs: dict[str, tuple[str, str]] = {}
+    generated, _ = store.gendefhash(msgtype, subdefs, ros_version=2)
+    parts = [(_msg_file_text(msgtype) or generated).rstrip('\n') + '\n']
+    for dep, (dep_text, _) in subdefs.items():
+        text = _msg_file_text(dep) or dep_text
+        short = dep.replace('/msg/', '/')
+        parts.append(f'{SEPARATOR}\nMSG: {short}\n{text.rstrip(chr(10))}\n')
+    return ''.join(parts)
+
+
+def type_hash(msgtype: str) -> str:
+    """RIHS01 type hash of ``msgtype`` (equal to what rclpy reports for the type)."""
+    store = rv_te_typestore()
+    if msgtype not in store.fielddefs:
+        msg = f'Unknown message type {msgtype!r}: no definition in the typestore.'
+        raise BagError(msg)
+    return store.hash_rihs01(msgtype)
