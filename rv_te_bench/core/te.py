@@ -1,0 +1,258 @@
+"""Transmission error from two shaft encoders (Wang 2020, Eq. 22) and its statistics.
+
+Eq. 22 of Wang 2020 is printed in the mesh-line form
+
+    TE = (theta_2 - r_g * theta_1 / r_p) * 10800 / (r_p * pi)    [arcmin]
+
+which divides by the base radius r_p twice. Its consistent form keeps the mesh-line
+displacement r_p * theta_2 - r_g * theta_1 [m] and turns it back into an output angle by
+dividing once by r_p:
+
+    TE = (r_p * theta_2 - r_g * theta_1) / r_p = theta_2 - theta_1 * r_g / r_p    [rad]
+
+For a single mesh r_g / r_p = 1 / i. With two shaft encoders the same reasoning applies to
+the whole train: theta_1 is the input-shaft angle, theta_2 the output-shaft angle and i the
+overall ratio (input revolutions per output revolution), so
+
+    TE = theta_out - theta_in / i    [rad],    TE[arcmin] = TE[rad] * 10800 / pi.
+
+Sign convention: TE > 0 when the output shaft is ahead of where an ideal (error-free)
+reducer driven by the same input angle would put it. Both angles are unwrapped,
+multi-turn, measured positive in the same sense of rotation of their shafts.
+
+Statistics follow the papers: peak-to-peak (max - min), amplitude (max |TE|), mean and
+(population) standard deviation, preferably over whole output revolutions.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from typing import TYPE_CHECKING, Any
+
+import numpy as np
+
+from rv_te_bench.core.units import rad_to_arcmin
+from rv_te_bench.errors import TeInputError
+
+if TYPE_CHECKING:
+    import numpy.typing as npt
+
+__all__ = ['RunningStats', 'TeStats', 'te_statistics', 'transmission_error_rad']
+
+
+def _check_ratio(gear_ratio: float) -> float:
+    ratio = float(gear_ratio)
+    if not (math.isfinite(ratio) and ratio > 0.0):
+        msg = f'gear_ratio must be finite and > 0, got {gear_ratio!r}'
+        raise TeInputError(msg)
+    return ratio
+
+
+def transmission_error_rad(
+    theta_in_rad: npt.ArrayLike, theta_out_rad: npt.ArrayLike, *, gear_ratio: float,
+) -> np.ndarray:
+    """Output-side transmission error, TE = theta_out - theta_in / i (Wang 2020, Eq. 22).
+
+    Args:
+        theta_in_rad: Unwrapped input-shaft angle [rad], any shape.
+        theta_out_rad: Unwrapped output-shaft angle [rad], same shape.
+        gear_ratio: Overall ratio i, input revolutions per output revolution (> 0).
+
+    Returns:
+        TE [rad], float64, same shape. Positive: the output leads the ideal ratio.
+
+    Raises:
+        TeInputError: Shapes differ or ``gear_ratio`` is not finite and > 0.
+
+    Examples:
+        An ideal 79:1 reducer gives zero; an output 1 arcmin ahead gives +1 arcmin:
+
+        >>> import numpy as np
+        >>> from rv_te_bench.core.units import arcmin_to_rad, rad_to_arcmin
+        >>> theta_in = np.array([0.0, 1.0, 2.0]) * 2 * np.pi * 79
+        >>> transmission_error_rad(theta_in, theta_in / 79, gear_ratio=79).tolist()
+        [0.0, 0.0, 0.0]
+        >>> te = transmission_error_rad([0.0], [float(arcmin_to_rad(1.0))], gear_ratio=79)
+        >>> round(float(rad_to_arcmin(te[0])), 12)
+        1.0
+    """
+    ratio = _check_ratio(gear_ratio)
+    theta_in = np.asarray(theta_in_rad, dtype=np.float64)
+    theta_out = np.asarray(theta_out_rad, dtype=np.float64)
+    if theta_in.shape != theta_out.shape:
+        msg = f'shape mismatch: {theta_in.shape=} vs {theta_out.shape=}'
+        raise TeInputError(msg)
+    return theta_out - theta_in / ratio
+
+
+def _none_if_nan(x: float) -> float | None:
+    return x if math.isfinite(x) else None
+
+
+@dataclass(frozen=True)
+class TeStats:
+    """TE statistics over a stretch of samples (SI units).
+
+    Attributes:
+        pp_rad: Peak-to-peak, max(TE) - min(TE) [rad].
+        amplitude_rad: Amplitude as the papers define it, max |TE| [rad].
+        mean_rad: Mean TE [rad].
+        std_rad: Population standard deviation of TE [rad].
+        revolutions: Output revolutions covered (NaN when unknown).
+        n_samples: Number of samples; 0 gives NaN statistics.
+    """
+
+    pp_rad: float
+    amplitude_rad: float
+    mean_rad: float
+    std_rad: float
+    revolutions: float
+    n_samples: int
+
+    @classmethod
+    def empty(cls, revolutions: float = math.nan) -> TeStats:
+        """Statistics of no samples: every value NaN, ``n_samples`` 0."""
+        nan = math.nan
+        return cls(nan, nan, nan, nan, float(revolutions), 0)
+
+    def to_json_dict(self) -> dict[str, Any]:
+        """JSON-friendly dict with arcmin and rad keys (NaN becomes None).
+
+        Examples:
+            >>> d = TeStats(0.001, 0.0006, 0.0, 0.0003, 1.0, 10).to_json_dict()
+            >>> round(d['te_pp_arcmin'], 6), d['te_pp_rad'], d['n_samples']
+            (3.437747, 0.001, 10)
+        """
+        out: dict[str, Any] = {}
+        for name in ('pp', 'amplitude', 'mean', 'std'):
+            value_rad = float(getattr(self, f'{name}_rad'))
+            out[f'te_{name}_arcmin'] = _none_if_nan(float(rad_to_arcmin(value_rad)))
+            out[f'te_{name}_rad'] = _none_if_nan(value_rad)
+        out['revolutions'] = _none_if_nan(float(self.revolutions))
+        out['n_samples'] = int(self.n_samples)
+        return out
+
+
+def te_statistics(te_rad: npt.ArrayLike, *, revolutions: float = math.nan) -> TeStats:
+    """Peak-to-peak, amplitude, mean and standard deviation of a TE record.
+
+    Args:
+        te_rad: TE samples [rad], any shape (flattened).
+        revolutions: Output revolutions the record covers (reported, not used).
+
+    Returns:
+        The statistics; an empty record gives :meth:`TeStats.empty`.
+
+    Raises:
+        TeInputError: A sample is NaN or infinite.
+
+    Examples:
+        >>> s = te_statistics([-1.0, 0.0, 3.0])
+        >>> (s.pp_rad, s.amplitude_rad, s.mean_rad, s.n_samples)
+        (4.0, 3.0, 0.6666666666666666, 3)
+    """
+    te = np.asarray(te_rad, dtype=np.float64).ravel()
+    if te.size == 0:
+        return TeStats.empty(revolutions)
+    if not np.all(np.isfinite(te)):
+        bad = int(np.flatnonzero(~np.isfinite(te))[0])
+        msg = f'te_rad[{bad}] is not finite ({te[bad]!r})'
+        raise TeInputError(msg)
+    lo = float(te.min())
+    hi = float(te.max())
+    return TeStats(
+        pp_rad=hi - lo,
+        amplitude_rad=max(abs(lo), abs(hi)),
+        mean_rad=float(te.mean()),
+        std_rad=float(te.std()),
+        revolutions=float(revolutions),
+        n_samples=int(te.size),
+    )
+
+
+class RunningStats:
+    """Mergeable running min / max / mean / variance of TE with O(1) memory.
+
+    Blocks are combined with Chan, Golub and LeVeque's pairwise update of the sum of
+    squared deviations (M2), so the result does not depend on how the samples were cut
+    into blocks (to rounding) and does not suffer the cancellation of sum-of-squares.
+
+    Examples:
+        >>> rs = RunningStats()
+        >>> rs.update([1.0, 2.0])
+        >>> other = RunningStats()
+        >>> other.update([3.0, 4.0])
+        >>> rs.merge(other)
+        >>> s = rs.stats()
+        >>> (s.mean_rad, round(s.std_rad ** 2, 12), s.pp_rad, s.n_samples)
+        (2.5, 1.25, 3.0, 4)
+    """
+
+    __slots__ = ('_m2', '_max', '_mean', '_min', '_n')
+
+    def __init__(self) -> None:
+        """Start with no samples."""
+        self._n = 0
+        self._mean = 0.0
+        self._m2 = 0.0
+        self._min = math.inf
+        self._max = -math.inf
+
+    @property
+    def n_samples(self) -> int:
+        """Number of samples seen."""
+        return self._n
+
+    def _combine(self, n_b: int, mean_b: float, m2_b: float, min_b: float, max_b: float) -> None:
+        n_a = self._n
+        n = n_a + n_b
+        delta = mean_b - self._mean
+        self._mean += delta * (n_b / n)
+        self._m2 += m2_b + delta * delta * (n_a * n_b / n)
+        self._n = n
+        self._min = min(self._min, min_b)
+        self._max = max(self._max, max_b)
+
+    def update(self, te_rad: npt.ArrayLike) -> None:
+        """Add a block of TE samples [rad].
+
+        Raises:
+            TeInputError: The block holds NaN or infinite values (nothing is added).
+        """
+        te = np.asarray(te_rad, dtype=np.float64).ravel()
+        n_b = te.size
+        if n_b == 0:
+            return
+        mean_b = float(te.mean())
+        if not math.isfinite(mean_b):
+            msg = 'RunningStats.update: te_rad holds NaN or infinite values'
+            raise TeInputError(msg)
+        dev = te - mean_b
+        self._combine(n_b, mean_b, float(dev @ dev), float(te.min()), float(te.max()))
+
+    def merge(self, other: RunningStats) -> None:
+        """Fold in another accumulator (as if its samples had been added here)."""
+        if other._n == 0:  # noqa: SLF001 - same class
+            return
+        self._combine(other._n, other._mean, other._m2, other._min, other._max)  # noqa: SLF001
+
+    def copy(self) -> RunningStats:
+        """An independent copy."""
+        out = RunningStats()
+        out._n, out._mean, out._m2 = self._n, self._mean, self._m2
+        out._min, out._max = self._min, self._max
+        return out
+
+    def stats(self, revolutions: float = math.nan) -> TeStats:
+        """Statistics of every sample seen so far (NaN when none)."""
+        if self._n == 0:
+            return TeStats.empty(revolutions)
+        return TeStats(
+            pp_rad=self._max - self._min,
+            amplitude_rad=max(abs(self._min), abs(self._max)),
+            mean_rad=self._mean,
+            std_rad=math.sqrt(max(self._m2, 0.0) / self._n),
+            revolutions=float(revolutions),
+            n_samples=self._n,
+        )
