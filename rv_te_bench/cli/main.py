@@ -1,0 +1,77 @@
+"""The ``rv-te`` command: one subcommand per module in ``rv_te_bench.cli``.
+
+Each subcommand module has ``register(subparsers)`` (adds its parser, sets ``func``) and
+``run(args) -> int``. Exit codes: 0 ok, 1 failed (one ``ERROR: ...`` line on stderr),
+2 bad usage (argparse), 130 interrupted.
+"""
+
+from __future__ import annotations
+
+import argparse
+import importlib
+import sys
+from typing import TYPE_CHECKING
+
+from rv_te_bench import __version__
+
+if TYPE_CHECKING:
+    from collections.abc import Sequence
+
+# Order of appearance in --help.
+SUBCOMMAND_MODULES = (
+    'demo', 'launch', 'bench', 'record', 'replay', 'analyze', 'model', 'optimize_phases',
+    'compensate', 'identify', 'presets',
+)
+
+EXAMPLES = """\
+examples:
+  rv-te demo                                   full live session + report on wang2020-2kv
+  rv-te presets                                list reducer presets
+  rv-te presets wang2020-2kv                   every value with unit and source
+  rv-te model wang2020-2kv --kind nlte --json  NLTE statistics of one output revolution
+  rv-te optimize-phases wang2020-2kv --json    Eq. 21 assembly-phase optimisation
+  rv-te compensate hu2020-rv --te-arcmin 1.2   tooth-profile compensation (Hu 2020)
+  rv-te launch session.yaml                    bench + TE + compensation + recorder
+  rv-te analyze bags/sample --report out/rep   offline report from a recorded bag
+  rv-te replay bags/sample --rate 10           publish a bag with its recorded timing
+"""
+
+
+def build_parser() -> argparse.ArgumentParser:
+    """The full parser with every subcommand registered."""
+    parser = argparse.ArgumentParser(
+        prog='rv-te',
+        description='Transmission-error testing of precision robot reducers (RV, 2K-V) '
+                    'with ROS 2 Jazzy.',
+        epilog=EXAMPLES, formatter_class=argparse.RawDescriptionHelpFormatter)
+    parser.add_argument('--version', action='version', version=f'rv-te-bench {__version__}')
+    sub = parser.add_subparsers(dest='command', metavar='COMMAND')
+    for name in SUBCOMMAND_MODULES:
+        module = importlib.import_module(f'rv_te_bench.cli.{name}')
+        module.register(sub)
+    return parser
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    """Entry point of ``rv-te``; returns the exit code."""
+    from rv_te_bench.errors import RvTeError  # noqa: PLC0415
+    from sim.errors import SimError  # noqa: PLC0415
+
+    parser = build_parser()
+    args = parser.parse_args(argv)
+    func = getattr(args, 'func', None)
+    if func is None:
+        parser.print_help(sys.stderr)
+        return 2
+    try:
+        return int(func(args))
+    except (RvTeError, SimError) as exc:
+        print(f'ERROR: {exc}', file=sys.stderr)
+        return 1
+    except KeyboardInterrupt:
+        print('interrupted', file=sys.stderr)
+        return 130
+
+
+if __name__ == '__main__':
+    sys.exit(main())

@@ -1,0 +1,392 @@
+"""rclpy launch scripts: a TE test session (bench + TE node + compensation node + recorder).
+
+There is no ``launch`` / ``ros2 launch`` on PyPI, so this module does what a launch file does:
+
+* reads ROS-style parameter files (``node_name: ros__parameters: {...}``; node keys may carry
+  a namespace, ``/**`` applies to every node), merges ``--param node.key=value`` overrides,
+  and checks everything against each node's :class:`~rv_te_bench.params.ParamSpec` list
+  **before any node starts** (unknown node or key, wrong type, out of range: one error naming
+  file, key and rule);
+* starts the nodes either one process per node (default; a crash stays contained and is
+  reported with its exit code) or all in one process on one executor;
+* applies a namespace and topic remappings to every node, so two benches run side by side;
+* on Ctrl-C / SIGTERM stops the nodes in data-flow order (bench, TE, compensation, recorder
+  last, so the bag gets the final windows) and finalises the bag;
+* a session with a finite bench duration ends by itself once the bench is done.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import os
+import signal
+import subprocess
+import sys
+import tempfile
+import time
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import TYPE_CHECKING, Any
+
+import yaml
+
+from rv_te_bench.errors import ParameterFileError
+from rv_te_bench.params import ParamSpec, check_parameters, load_parameter_file
+
+if TYPE_CHECKING:
+    from collections.abc import Callable, Sequence
+
+# node name -> (module, class name); the order is the start order; shutdown runs reversed
+# except that the recorder always stops last.
+NODE_TYPES: dict[str, tuple[str, str]] = {
+    'recorder': ('rv_te_bench.nodes.recorder', 'RecorderNode'),
+    'compensation': ('rv_te_bench.nodes.compensation_node', 'CompensationNode'),
+    'te_node': ('rv_te_bench.nodes.te_node', 'TeNode'),
+    'bench': ('rv_te_bench.nodes.bench_node', 'BenchNode'),
+}
+STOP_ORDER = ('bench', 'te_node', 'compensation', 'recorder')
+
+
+def node_specs(name: str) -> tuple[ParamSpec, ...]:
+    """The parameter specs of a node type (imports the node module's PARAMS only)."""
+    module_name, _ = NODE_TYPES[name]
+    import importlib  # noqa: PLC0415
+
+    return tuple(importlib.import_module(module_name).PARAMS)
+
+
+def normalise_namespace(ns: str) -> str:
+    """'' or '/a/b' (leading slash, no trailing slash).
+
+    Raises:
+        ParameterFileError: Characters ROS does not allow in a namespace.
+    """
+    ns = ns.strip()
+    if ns in {'', '/'}:
+        return ''
+    ns = '/' + ns.strip('/')
+    allowed = set('abcdefghijklmnopqrstuvwxyzABCDEFGHIJKLMNOPQRSTUVWXYZ0123456789_/')
+    if not set(ns) <= allowed or '//' in ns or ns[1].isdigit():
+        msg = f'namespace {ns!r} is not a valid ROS namespace (letters, digits, _ and /)'
+        raise ParameterFileError(msg)
+    return ns
+
+
+@dataclass
+class SessionSpec:
+    """What to launch: nodes, their parameters, namespace, remappings, process layout."""
+
+    nodes: tuple[str, ...] = ('bench', 'te_node', 'compensation', 'recorder')
+    namespace: str = ''
+    parameters: dict[str, dict[str, Any]] = field(default_factory=dict)
+    remappings: tuple[tuple[str, str], ...] = ()
+    single_process: bool = False
+    use_sim_time: bool = False
+
+
+def parse_param_override(item: str) -> tuple[str, str, Any]:
+    """``node.key=value`` -> (node, key, YAML-typed value).
+
+    Raises:
+        ParameterFileError: Not of the form node.key=value.
+    """
+    if '=' not in item or '.' not in item.split('=', 1)[0]:
+        msg = f'--param {item!r} is not of the form node.key=value'
+        raise ParameterFileError(msg)
+    lhs, text = item.split('=', 1)
+    node, key = lhs.split('.', 1)
+    try:
+        value = yaml.safe_load(text) if text.strip() else ''
+    except yaml.YAMLError:
+        value = text
+    return node.strip(), key.strip(), value
+
+
+def build_session(param_files: Sequence[str | Path] = (), *, namespace: str = '',
+                  overrides: Sequence[str] = (), nodes: Sequence[str] | None = None,
+                  remappings: Sequence[str] = (), single_process: bool = False) -> SessionSpec:
+    """Read and validate everything a session needs; start nothing.
+
+    Raises:
+        ParameterFileError: Any invalid file, node, key, value, namespace or remapping.
+    """
+    ns = normalise_namespace(namespace)
+    wanted = tuple(nodes) if nodes else ('bench', 'te_node', 'compensation', 'recorder')
+    for n in wanted:
+        if n not in NODE_TYPES:
+            msg = f'unknown node {n!r}; known nodes: {", ".join(STOP_ORDER)}'
+            raise ParameterFileError(msg)
+    params: dict[str, dict[str, Any]] = {n: {} for n in wanted}
+    use_sim_time = False
+    for f in param_files:
+        for node_key, values in load_parameter_file(f).items():
+            targets = _match_node_key(node_key, ns, f)
+            for t in targets:
+                if t in params:
+                    where = f'parameter file {f}: node {node_key!r}'
+                    if node_key != '/**':
+                        check_parameters(node_specs(t), values, where=where)
+                    params[t].update(values)
+            if node_key == '/**':
+                use_sim_time = bool(values.get('use_sim_time', use_sim_time))
+                _check_wildcard(values, f, wanted, params)
+    for item in overrides:
+        node, key, value = parse_param_override(item)
+        if node not in NODE_TYPES:
+            msg = f'--param {item!r}: unknown node {node!r}; known nodes: {", ".join(STOP_ORDER)}'
+            raise ParameterFileError(msg)
+        if node in params:
+            if isinstance(value, int) and not isinstance(value, bool):
+                spec = {s.name: s for s in node_specs(node)}.get(key)
+                if spec is not None and spec.type == 'double':
+                    value = float(value)
+            check_parameters(node_specs(node), {key: value}, where=f'--param {item!r}')
+            params[node][key] = value
+    remaps = []
+    for r in remappings:
+        if ':=' not in r or not all(r.split(':=', 1)):
+            msg = f'remapping {r!r} is not of the form from:=to'
+            raise ParameterFileError(msg)
+        a, b = r.split(':=', 1)
+        remaps.append((a.strip(), b.strip()))
+    return SessionSpec(nodes=wanted, namespace=ns, parameters=params,
+                       remappings=tuple(remaps), single_process=single_process,
+                       use_sim_time=use_sim_time)
+
+
+def _match_node_key(node_key: str, ns: str, f: str | Path) -> list[str]:
+    if node_key == '/**':
+        return list(NODE_TYPES)
+    key = node_key if node_key.startswith('/') else f'{ns}/{node_key}' if ns else node_key
+    name = key.rsplit('/', 1)[-1]
+    key_ns = key.rsplit('/', 1)[0] if '/' in key.lstrip('/') or key.startswith('/') else ''
+    if name not in NODE_TYPES:
+        msg = (f'parameter file {f}: unknown node {node_key!r}; known nodes: '
+               f'{", ".join(STOP_ORDER)} (optionally /namespace/node or /**)')
+        raise ParameterFileError(msg)
+    if node_key.startswith('/') and key_ns not in {'', ns, '/**'}:
+        return []  # meant for another namespace (two benches in one file)
+    return [name]
+
+
+def _check_wildcard(values: dict[str, Any], f: str | Path, wanted: Sequence[str],
+                    params: dict[str, dict[str, Any]]) -> None:
+    """``/**`` parameters apply to every node that declares them; others must be common."""
+    for key, value in values.items():
+        if key == 'use_sim_time':
+            if not isinstance(value, bool):
+                msg = f'parameter file {f}: node "/**": parameter {key!r} must be a bool'
+                raise ParameterFileError(msg)
+            continue
+        owners = [n for n in wanted if any(s.name == key for s in node_specs(n))]
+        if not owners:
+            msg = f'parameter file {f}: node "/**": no node declares parameter {key!r}'
+            raise ParameterFileError(msg)
+        for n in owners:
+            check_parameters(node_specs(n), {key: value}, where=f'parameter file {f}: "/**"')
+            params[n].setdefault(key, value)
+
+
+def ros_args(spec: SessionSpec, node: str, params_file: Path | None) -> list[str]:
+    """The ``--ros-args`` for one node process."""
+    args = ['--ros-args', '-r', f'__node:={node}']
+    if spec.namespace:
+        args += ['-r', f'__ns:={spec.namespace}']
+    for a, b in spec.remappings:
+        args += ['-r', f'{a}:={b}']
+    if params_file is not None:
+        args += ['--params-file', str(params_file)]
+    return args
+
+
+def child_env() -> dict[str, str]:
+    """Environment for node processes (the ROS wheel bootstrap marker must not leak)."""
+    env = dict(os.environ)
+    env.pop('_ROS_WHEELS_BOOTSTRAP_COMPLETE', None)
+    env.setdefault('ROS_AUTOMATIC_DISCOVERY_RANGE', 'LOCALHOST')
+    env.setdefault('PYTHONUNBUFFERED', '1')
+    return env
+
+
+@dataclass
+class NodeProcess:
+    """One running node process."""
+
+    name: str
+    proc: subprocess.Popen[bytes]
+    expected_exit: bool = False
+
+
+class Session:
+    """A running session (process per node). Use as a context manager or call stop()."""
+
+    def __init__(self, spec: SessionSpec, *, log: Callable[[str], None] | None = None,
+                 stdout: Any = None) -> None:  # noqa: ANN401 - file object or None
+        """Prepare; nothing starts until :meth:`start`."""
+        self.spec = spec
+        self.log = log or (lambda s: print(s, file=sys.stderr))
+        self._stdout = stdout
+        self._tmp = tempfile.TemporaryDirectory(prefix='rv-te-session-')
+        self.procs: dict[str, NodeProcess] = {}
+        self.failures: list[str] = []
+
+    def _params_file(self, node: str) -> Path:
+        values = dict(self.spec.parameters.get(node, {}))
+        if self.spec.use_sim_time:
+            values['use_sim_time'] = True
+        fq = f'{self.spec.namespace}/{node}' if self.spec.namespace else f'/{node}'
+        path = Path(self._tmp.name) / f'{node}.yaml'
+        path.write_text(yaml.safe_dump({fq: {'ros__parameters': values}}), encoding='utf-8')
+        return path
+
+    def start(self) -> None:
+        """Start every node process (recorder first so it sees the first messages)."""
+        for node in [n for n in NODE_TYPES if n in self.spec.nodes]:
+            module, _ = NODE_TYPES[node]
+            cmd = [sys.executable, '-m', module, *ros_args(self.spec, node,
+                                                           self._params_file(node))]
+            proc = subprocess.Popen(cmd, env=child_env(), stdout=self._stdout,
+                                    stderr=self._stdout)
+            self.procs[node] = NodeProcess(node, proc)
+            if node == 'recorder':
+                time.sleep(0.5)
+
+    def poll(self) -> dict[str, int | None]:
+        """Exit codes so far (None: running). Records unexpected exits as failures."""
+        codes: dict[str, int | None] = {}
+        for name, np_ in self.procs.items():
+            code = np_.proc.poll()
+            codes[name] = code
+            if code is not None and not np_.expected_exit:
+                np_.expected_exit = True
+                if code != 0 or name != 'bench':
+                    self.failures.append(f'node {name!r} exited with code {code}')
+                    self.log(f'[launch] node {name!r} exited unexpectedly with code {code}')
+        return codes
+
+    def bench_done(self) -> bool:
+        """True once the bench process has ended with exit code 0 (finite duration)."""
+        b = self.procs.get('bench')
+        return b is not None and b.proc.poll() == 0
+
+    def stop(self, grace_s: float = 10.0, settle_s: float = 1.0) -> dict[str, int | None]:
+        """Stop nodes in data-flow order with SIGINT (then SIGTERM, SIGKILL); returns codes."""
+        codes: dict[str, int | None] = {}
+        for name in STOP_ORDER:
+            np_ = self.procs.get(name)
+            if np_ is None:
+                continue
+            np_.expected_exit = True
+            if np_.proc.poll() is None:
+                if name == 'recorder':
+                    time.sleep(settle_s)  # let the final windows and advice reach the bag
+                np_.proc.send_signal(signal.SIGINT)
+                try:
+                    np_.proc.wait(timeout=grace_s)
+                except subprocess.TimeoutExpired:
+                    np_.proc.terminate()
+                    try:
+                        np_.proc.wait(timeout=3.0)
+                    except subprocess.TimeoutExpired:
+                        np_.proc.kill()
+                        np_.proc.wait()
+                    self.failures.append(f'node {name!r} did not stop on SIGINT')
+            codes[name] = np_.proc.returncode
+        self._tmp.cleanup()
+        return codes
+
+    def __enter__(self) -> Session:
+        """Start the session."""
+        self.start()
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        """Stop the session."""
+        self.stop()
+
+
+def run_single_process(spec: SessionSpec, *, until: Callable[[], bool] | None = None) -> int:
+    """All nodes in one process on one multi-threaded executor; returns an exit code."""
+    import importlib  # noqa: PLC0415
+
+    import rclpy  # noqa: PLC0415
+    from rclpy.executors import ExternalShutdownException  # noqa: PLC0415
+    from rclpy.parameter import Parameter  # noqa: PLC0415
+
+    from rv_te_bench.nodes.common import make_executor  # noqa: PLC0415
+
+    args = ['--ros-args']
+    if spec.namespace:
+        args += ['-r', f'__ns:={spec.namespace}']
+    for a, b in spec.remappings:
+        args += ['-r', f'{a}:={b}']
+    ctx = rclpy.context.Context()
+    rclpy.init(args=args, context=ctx)
+    nodes = []
+    code = 0
+    old = signal.signal(signal.SIGTERM, lambda *_: rclpy.try_shutdown(context=ctx))
+    try:
+        for name in [n for n in NODE_TYPES if n in spec.nodes]:
+            module, cls_name = NODE_TYPES[name]
+            cls = getattr(importlib.import_module(module), cls_name)
+            values = dict(spec.parameters.get(name, {}))
+            if spec.use_sim_time:
+                values['use_sim_time'] = True
+            overrides = [Parameter(k, value=v) for k, v in values.items()]
+            nodes.append(cls(context=ctx, parameter_overrides=overrides))
+        executor = make_executor('multi', context=ctx)
+        for n in nodes:
+            executor.add_node(n)
+        bench = next((n for n in nodes if n.get_name() == 'bench'), None)
+        with contextlib.suppress(KeyboardInterrupt, ExternalShutdownException):
+            while rclpy.ok(context=ctx):
+                executor.spin_once(timeout_sec=0.1)
+                if bench is not None and getattr(bench, 'finished', False):
+                    end = time.monotonic() + 2.0
+                    while time.monotonic() < end:
+                        executor.spin_once(timeout_sec=0.05)
+                    break
+                if until is not None and until():
+                    break
+    finally:
+        for n in sorted(nodes, key=lambda n: STOP_ORDER.index(n.get_name())
+                        if n.get_name() in STOP_ORDER else 99):
+            n.destroy_node()
+        signal.signal(signal.SIGTERM, old)
+        rclpy.try_shutdown(context=ctx)
+    return code
+
+
+def run_session(spec: SessionSpec, *, log: Callable[[str], None] | None = None,
+                on_tick: Callable[[Session], None] | None = None) -> int:
+    """Run a process-per-node session until Ctrl-C, a crash, or the bench's end.
+
+    Returns:
+        0 when every node ended cleanly, 1 when a node crashed or had to be killed.
+    """
+    session = Session(spec, log=log)
+    interrupted = False
+    session.start()
+    try:
+        while True:
+            session.poll()
+            if session.failures or session.bench_done():
+                break
+            if on_tick is not None:
+                on_tick(session)
+            time.sleep(0.2)
+        if session.bench_done():
+            time.sleep(2.0)  # let the TE node drain the last blocks before stopping it
+    except KeyboardInterrupt:
+        interrupted = True
+        session.log('[launch] Ctrl-C: stopping the session')
+    finally:
+        codes = session.stop()
+    for name, c in codes.items():
+        if c not in (0, None) and not (interrupted and c in (-signal.SIGINT, 130)):
+            msg = f'node {name!r} ended with code {c}'
+            if msg not in session.failures:
+                session.failures.append(msg)
+    for f in session.failures:
+        session.log(f'[launch] {f}')
+    return 1 if session.failures else 0

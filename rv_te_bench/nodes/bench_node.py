@@ -1,0 +1,268 @@
+"""BenchNode: the simulated TE bench (reducer model + two encoders on one DAQ clock).
+
+Publishes ``bench/encoders`` (EncoderBlock, reliable), ``bench/info`` (BenchInfo,
+transient-local, once), ``/diagnostics`` and, in ``fast`` time mode, ``/clock``.
+
+Time modes:
+  * ``realtime``: blocks leave at the wall-clock rate of the DAQ; a late timer catches up
+    (several blocks in one tick) so the lag stays bounded; the lag is in the diagnostics.
+  * ``fast``: faster than real time by ``speed_factor`` (0 = as fast as possible), with the
+    simulated time published on ``/clock`` so nodes with ``use_sim_time`` follow it.
+
+All physics is in :class:`sim.bench.BenchSimulator`; this node converts and paces.
+"""
+
+from __future__ import annotations
+
+import time
+from typing import Any
+
+from diagnostic_msgs.msg import DiagnosticArray
+from rclpy.node import Node
+from rosgraph_msgs.msg import Clock
+from rv_te_msgs.msg import BenchInfo, EncoderBlock
+
+from rv_te_bench.nodes import convert, qos
+from rv_te_bench.nodes.common import (
+    OK,
+    WARN,
+    declare_from_specs,
+    diagnostic_array,
+    reject_invalid_changes,
+    run_node,
+)
+from rv_te_bench.params import ParamSpec
+
+PARAMS = (
+    ParamSpec('bench_id', 'string', 'bench0', 'Bench id (frame_id of every message) [-]'),
+    ParamSpec('preset', 'string', 'wang2020-2kv', 'Reducer preset name or TOML path [-]'),
+    ParamSpec('overrides', 'string_array', [],
+              'Preset overrides "key=value" (same keys as rv-te --set) [-]'),
+    ParamSpec('te_mode', 'string', 'nlte',
+              'Reducer model mode: nlte | ste | dte (2K-V), geometric (hu2020-rv), dte (li2023)'),
+    ParamSpec('drive_profile', 'string', 'constant', 'Input speed profile [-]',
+              choices=('constant', 'sinusoidal', 'ramp', 'forward_reverse')),
+    ParamSpec('speed_rpm', 'double', 300.0,
+              'Input speed [rpm]: constant / forward speed, sinusoidal mean C, ramp end speed',
+              min_value=-100000.0, max_value=100000.0),
+    ParamSpec('speed_amplitude_rpm', 'double', 0.0,
+              'Sinusoidal speed amplitude A [rpm] (V = A sin(B t) + C, Hu 2020)',
+              min_value=0.0, max_value=100000.0),
+    ParamSpec('speed_angular_freq_rad_s', 'double', 1.0,
+              'Sinusoidal speed angular frequency B [rad/s]', min_value=1e-6, max_value=1e4),
+    ParamSpec('ramp_start_rpm', 'double', 0.0, 'Ramp start speed [rpm]',
+              min_value=-100000.0, max_value=100000.0),
+    ParamSpec('ramp_duration_s', 'double', 5.0, 'Ramp duration [s]', min_value=1e-3,
+              max_value=1e6),
+    ParamSpec('reverse_at_s', 'double', 10.0, 'Forward-reverse: start of reversal [s]',
+              min_value=0.0, max_value=1e6),
+    ParamSpec('reverse_ramp_s', 'double', 1.0, 'Forward-reverse: reversal duration [s]',
+              min_value=1e-3, max_value=1e6),
+    ParamSpec('load_profile', 'string', 'constant', 'Load torque profile [-]',
+              choices=('constant', 'sinusoidal')),
+    ParamSpec('load_nm', 'double', 0.0, 'Constant load / sinusoidal mean load [N m]',
+              min_value=-1e6, max_value=1e6),
+    ParamSpec('load_amplitude_nm', 'double', 0.0, 'Sinusoidal load amplitude [N m]',
+              min_value=0.0, max_value=1e6),
+    ParamSpec('load_frequency_hz', 'double', 0.0,
+              'Sinusoidal load frequency [Hz]; 0 = tie it to load_tie_to', min_value=0.0,
+              max_value=1e5),
+    ParamSpec('load_tie_to', 'string', 'crank',
+              'Rate the sinusoidal load follows when load_frequency_hz = 0 [-]',
+              choices=('input', 'output', 'crank', 'crank_rel', 'mesh')),
+    ParamSpec('load_harmonic', 'double', 1.0, 'Multiple of the tied rate [1]',
+              min_value=1e-6, max_value=1e4),
+    ParamSpec('encoder_in', 'string', 'heidenhain-ron886', 'Input-shaft encoder preset [-]'),
+    ParamSpec('encoder_out', 'string', 'heidenhain-ron886', 'Output-shaft encoder preset [-]'),
+    ParamSpec('sample_rate_hz', 'double', 1000.0, 'DAQ sample rate [Hz]', min_value=1.0,
+              max_value=1e6),
+    ParamSpec('block_size', 'int', 100, 'Samples per EncoderBlock [1]', min_value=1,
+              max_value=100000),
+    ParamSpec('seed', 'int', 0, 'Random seed of the encoder noise [-]', min_value=0,
+              max_value=2**31 - 1),
+    ParamSpec('duration_s', 'double', 0.0,
+              'Session length in simulated time [s]; 0 = until stopped', min_value=0.0,
+              max_value=1e7),
+    ParamSpec('duration_output_revs', 'double', 0.0,
+              'Session length [output revolutions] (overrides duration_s when > 0)',
+              min_value=0.0, max_value=1e6),
+    ParamSpec('time_mode', 'string', 'realtime', 'realtime (wall clock) or fast (sim time)',
+              choices=('realtime', 'fast')),
+    ParamSpec('speed_factor', 'double', 20.0,
+              'fast mode: times faster than real time; 0 = as fast as possible [1]',
+              min_value=0.0, max_value=1e4, read_only=False),
+    ParamSpec('diagnostics_period_s', 'double', 1.0, 'Diagnostics period [s]',
+              min_value=0.05, max_value=60.0),
+)
+
+
+def bench_config_from_params(p: dict[str, Any]) -> Any:  # noqa: ANN401 - sim.bench.BenchConfig
+    """Node parameters -> validated :class:`sim.bench.BenchConfig` (shared with the CLI).
+
+    Raises:
+        sim.errors.SimError: An invalid combination, named by the sim validation.
+    """
+    from sim.bench import BenchConfig  # noqa: PLC0415
+    from sim.drive import drive_from_spec, load_from_spec  # noqa: PLC0415
+    from sim.kinematics import kinematics_from_preset  # noqa: PLC0415
+    from sim.presets import load_preset  # noqa: PLC0415
+
+    kind = p['drive_profile']
+    if kind == 'constant':
+        drive = drive_from_spec(kind, speed_rpm=p['speed_rpm'])
+    elif kind == 'sinusoidal':
+        drive = drive_from_spec(kind, amplitude_rpm=p['speed_amplitude_rpm'],
+                                angular_freq_rad_s=p['speed_angular_freq_rad_s'],
+                                mean_rpm=p['speed_rpm'])
+    elif kind == 'ramp':
+        drive = drive_from_spec(kind, start_rpm=p['ramp_start_rpm'], end_rpm=p['speed_rpm'],
+                                duration_s=p['ramp_duration_s'])
+    else:
+        drive = drive_from_spec(kind, speed_rpm=p['speed_rpm'], reverse_at_s=p['reverse_at_s'],
+                                ramp_s=p['reverse_ramp_s'])
+    if p['load_profile'] == 'constant':
+        load = load_from_spec('constant', torque_nm=p['load_nm'])
+    else:
+        preset = load_preset(p['preset'], list(p['overrides']))
+        kin = kinematics_from_preset(preset)
+        extra: dict[str, Any] = (
+            {'frequency_hz': p['load_frequency_hz']} if p['load_frequency_hz'] > 0
+            else {'tie_to': p['load_tie_to'], 'harmonic': p['load_harmonic']})
+        load = load_from_spec('sinusoidal', kinematics=kin, drive=drive, mean_nm=p['load_nm'],
+                              amplitude_nm=p['load_amplitude_nm'], **extra)
+    return BenchConfig(
+        preset=p['preset'], overrides=tuple(p['overrides']), te_mode=p['te_mode'],
+        drive=drive, load=load, encoder_in=p['encoder_in'], encoder_out=p['encoder_out'],
+        sample_rate_hz=p['sample_rate_hz'], block_size=p['block_size'], seed=p['seed'],
+        bench_id=p['bench_id'])
+
+
+class BenchNode(Node):
+    """Simulated bench publishing encoder blocks from :class:`sim.bench.BenchSimulator`."""
+
+    def __init__(self, **kwargs: Any) -> None:  # noqa: ANN401
+        """Declare parameters, build the simulator; ``kwargs`` go to ``Node``.
+
+        Raises:
+            InvalidParameterValueException, SimError: Bad parameters (named), at start-up.
+        """
+        super().__init__('bench', **kwargs)
+        from sim.bench import BenchSimulator  # noqa: PLC0415
+
+        self.p = declare_from_specs(self, PARAMS)
+        reject_invalid_changes(self, PARAMS)
+        self.add_post_set_parameters_callback(self._on_params_set)
+        self.sim = BenchSimulator(bench_config_from_params(self.p))
+        info = self.sim.info
+        self.block_period_s = self.p['block_size'] / self.p['sample_rate_hz']
+        self.duration_s = self.p['duration_s']
+        if self.p['duration_output_revs'] > 0:
+            nominal_hz = abs(self.sim.config.drive.nominal_speed_rpm) / 60.0
+            self.duration_s = self.p['duration_output_revs'] * info.gear_ratio / nominal_hz
+        self.finished = False
+        self.exit_code = 0
+        self.blocks_published = 0
+        self.sim_time_s = 0.0
+        self.pub_blocks = self.create_publisher(EncoderBlock, 'bench/encoders', qos.ENCODER_QOS)
+        self.pub_info = self.create_publisher(BenchInfo, 'bench/info', qos.LATCHED_QOS)
+        self.pub_diag = self.create_publisher(DiagnosticArray, '/diagnostics',
+                                              qos.DIAGNOSTICS_QOS)
+        self.fast = self.p['time_mode'] == 'fast'
+        self.pub_clock = self.create_publisher(Clock, '/clock', qos.CLOCK_QOS) if self.fast \
+            else None
+        self.wall_start = time.time()
+        self.mono_start = time.monotonic()
+        self.pub_info.publish(convert.make_bench_info(info, convert.s_to_stamp(self.wall_start)))
+        self._diag_last = (time.monotonic(), 0)
+        self._lag_s = 0.0
+        tick = self.block_period_s if not self.fast else max(
+            1e-3, self.block_period_s / self.p['speed_factor'] if self.p['speed_factor'] > 0
+            else 1e-3)
+        self.timer = self.create_timer(tick, self._on_tick)
+        self.create_timer(self.p['diagnostics_period_s'], self._publish_diagnostics)
+        self.get_logger().info(
+            f'bench {info.bench_id}: preset {info.preset} ({info.reducer_type}, '
+            f'i={info.gear_ratio:.6g}), {self.p["sample_rate_hz"]:g} Hz, blocks of '
+            f'{self.p["block_size"]}, {self.p["time_mode"]} time'
+            + (f', {self.duration_s:.3f} s' if self.duration_s > 0 else ''))
+
+    def _on_params_set(self, params: list[Any]) -> None:
+        for prm in params:
+            self.p[prm.name] = prm.value
+
+    def _due_blocks(self) -> int:
+        """How many blocks the clock says are due now (bounded catch-up)."""
+        elapsed = time.monotonic() - self.mono_start
+        if self.fast:
+            factor = self.p['speed_factor']
+            if factor <= 0:
+                return 10  # as fast as possible: several per tick, still yielding to spin
+            elapsed *= factor
+        due = int(elapsed / self.block_period_s) + 1 - self.blocks_published
+        return max(0, min(due, 100))
+
+    def _on_tick(self) -> None:
+        if self.finished:
+            return
+        for _ in range(self._due_blocks()):
+            if self.duration_s > 0 and self.sim_time_s >= self.duration_s - 1e-12:
+                self._finish()
+                return
+            self._publish_one()
+        if not self.fast:
+            self._lag_s = (time.monotonic() - self.mono_start) - self.sim_time_s
+
+    def _publish_one(self) -> None:
+        b = self.sim.next_block()
+        stamp_s = self.wall_start + b.t0_s
+        msg = convert.make_encoder_block(
+            bench_id=self.sim.info.bench_id, seq=b.seq, stamp_s=stamp_s,
+            sample_rate_hz=self.p['sample_rate_hz'], time_offset_s=b.time_offset_s,
+            theta_in_rad=b.theta_in_rad, theta_out_rad=b.theta_out_rad,
+            torque_out_nm=b.torque_out_nm)
+        self.pub_blocks.publish(msg)
+        self.blocks_published += 1
+        self.sim_time_s = b.t0_s + len(b.time_offset_s) / self.p['sample_rate_hz']
+        if self.pub_clock is not None:
+            self.pub_clock.publish(Clock(clock=convert.s_to_stamp(self.wall_start
+                                                                  + self.sim_time_s)))
+
+    def _finish(self) -> None:
+        self.finished = True
+        self.timer.cancel()
+        self._publish_diagnostics()
+        self.get_logger().info(
+            f'session complete: {self.blocks_published} blocks, {self.sim_time_s:.3f} s '
+            f'simulated in {time.monotonic() - self.mono_start:.2f} s')
+
+    def _publish_diagnostics(self) -> None:
+        now = time.monotonic()
+        t_last, n_last = self._diag_last
+        rate = (self.blocks_published - n_last) / max(now - t_last, 1e-9)
+        self._diag_last = (now, self.blocks_published)
+        wall = now - self.mono_start
+        values = {
+            'blocks_published': self.blocks_published,
+            'achieved_block_rate_hz': rate,
+            'nominal_block_rate_hz': 1.0 / self.block_period_s,
+            'sim_time_s': self.sim_time_s,
+            'realtime_factor': self.sim_time_s / wall if wall > 0 else 0.0,
+            'lag_s': self._lag_s,
+            'finished': self.finished,
+        }
+        late = (not self.fast) and self._lag_s > self.block_period_s
+        level = WARN if late else OK
+        message = 'lagging behind the clock' if late else (
+            'finished' if self.finished else 'running')
+        self.pub_diag.publish(diagnostic_array(self, 'bench', level, message, values))
+
+
+def main(args: list[str] | None = None) -> int:
+    """Run the bench node in its own process."""
+    return run_node(BenchNode, args)
+
+
+if __name__ == '__main__':
+    import sys
+
+    sys.exit(main())

@@ -1,0 +1,209 @@
+"""Helpers every node shares: parameters from specs, diagnostics, throttled drop logging, main()."""
+
+from __future__ import annotations
+
+import signal
+import sys
+import time
+from typing import TYPE_CHECKING, Any
+
+import rclpy
+from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
+from rcl_interfaces.msg import (
+    FloatingPointRange,
+    IntegerRange,
+    ParameterDescriptor,
+    ParameterType,
+    SetParametersResult,
+)
+from rclpy.executors import ExternalShutdownException
+from rclpy.parameter import Parameter
+
+if TYPE_CHECKING:
+    from collections.abc import Callable, Sequence
+
+    from rclpy.node import Node
+
+    from rv_te_bench.params import ParamSpec
+
+_PTYPE = {
+    'bool': ParameterType.PARAMETER_BOOL,
+    'int': ParameterType.PARAMETER_INTEGER,
+    'double': ParameterType.PARAMETER_DOUBLE,
+    'string': ParameterType.PARAMETER_STRING,
+    'string_array': ParameterType.PARAMETER_STRING_ARRAY,
+    'double_array': ParameterType.PARAMETER_DOUBLE_ARRAY,
+}
+
+
+def _descriptor(spec: ParamSpec) -> ParameterDescriptor:
+    d = ParameterDescriptor(
+        name=spec.name, type=_PTYPE[spec.type], read_only=spec.read_only,
+        description=spec.description,
+        additional_constraints=(f'one of {list(spec.choices)}' if spec.choices else ''),
+        dynamic_typing=False)
+    lo, hi = spec.min_value, spec.max_value
+    if spec.type == 'double' and (lo is not None or hi is not None):
+        d.floating_point_range = [FloatingPointRange(
+            from_value=float(lo if lo is not None else -1e300),
+            to_value=float(hi if hi is not None else 1e300), step=0.0)]
+    if spec.type == 'int' and (lo is not None or hi is not None):
+        d.integer_range = [IntegerRange(
+            from_value=int(lo if lo is not None else -(2**62)),
+            to_value=int(hi if hi is not None else 2**62), step=1)]
+    return d
+
+
+def declare_from_specs(node: Node, specs: Sequence[ParamSpec]) -> dict[str, Any]:
+    """Declare every parameter with its descriptor; return the effective values.
+
+    rclpy rejects an out-of-range override while declaring (a bad launch fails at start-up);
+    string choices and array contents are checked here with the same rule text as the launcher.
+
+    Raises:
+        rclpy.exceptions.InvalidParameterValueException: A value breaks its rule.
+    """
+    from rclpy.exceptions import InvalidParameterValueException  # noqa: PLC0415
+
+    values: dict[str, Any] = {}
+    for spec in specs:
+        default = list(spec.default) if isinstance(spec.default, tuple) else spec.default
+        if spec.type in {'string_array', 'double_array'} and not default:
+            p = node.declare_parameter(
+                spec.name, Parameter.Type.STRING_ARRAY if spec.type == 'string_array'
+                else Parameter.Type.DOUBLE_ARRAY, _descriptor(spec))
+            value = p.value if p.value is not None else []
+        else:
+            value = node.declare_parameter(spec.name, default, _descriptor(spec)).value
+        if spec.type == 'double' and isinstance(value, int):
+            value = float(value)
+        problem = spec.check(list(value) if isinstance(value, tuple) else value)
+        if problem:
+            raise InvalidParameterValueException(spec.name, value, problem)
+        values[spec.name] = list(value) if isinstance(value, tuple) else value
+    return values
+
+
+def reject_invalid_changes(node: Node, specs: Sequence[ParamSpec],
+                           extra_check: Callable[[str, Any], str | None] | None = None) -> None:
+    """Install an on-set callback that rejects values breaking their spec (not applied)."""
+    by_name = {s.name: s for s in specs}
+
+    def on_set(params: list[Parameter]) -> SetParametersResult:
+        for p in params:
+            spec = by_name.get(p.name)
+            if spec is None:
+                continue
+            problem = spec.check(p.value)
+            if problem is None and extra_check is not None:
+                problem = extra_check(p.name, p.value)
+            if problem:
+                return SetParametersResult(
+                    successful=False, reason=f"Parameter '{p.name}' {problem}")
+        return SetParametersResult(successful=True)
+
+    node.add_on_set_parameters_callback(on_set)
+
+
+def diagnostic_array(node: Node, name: str, level: int, message: str,
+                     values: dict[str, Any]) -> DiagnosticArray:
+    """One DiagnosticStatus named ``<node fqn>: name`` with key/values."""
+    arr = DiagnosticArray()
+    arr.header.stamp = node.get_clock().now().to_msg()
+    st = DiagnosticStatus()
+    st.level = bytes([level]) if isinstance(DiagnosticStatus().level, bytes) else level
+    st.name = f'{node.get_fully_qualified_name()}: {name}'
+    st.message = message
+    st.hardware_id = node.get_name()
+    st.values = [KeyValue(key=str(k), value=_fmt(v)) for k, v in values.items()]
+    arr.status = [st]
+    return arr
+
+
+def _fmt(v: Any) -> str:  # noqa: ANN401
+    if isinstance(v, float):
+        return f'{v:.6g}'
+    return str(v)
+
+
+OK = 0
+WARN = 1
+ERROR = 2
+
+
+class DropCounter:
+    """Counts dropped / malformed messages by reason and logs them throttled."""
+
+    def __init__(self, node: Node, throttle_s: float = 5.0) -> None:
+        """Create a counter logging through ``node``'s logger at most every ``throttle_s``."""
+        self._node = node
+        self._throttle_s = throttle_s
+        self.counts: dict[str, int] = {}
+        self._last_log = 0.0
+
+    def drop(self, reason: str, detail: str) -> None:
+        """Count one drop and log it (throttled, with the running totals)."""
+        self.counts[reason] = self.counts.get(reason, 0) + 1
+        now = time.monotonic()
+        if now - self._last_log >= self._throttle_s:
+            self._last_log = now
+            self._node.get_logger().warning(
+                f'dropped message ({reason}): {detail}; totals {self.counts}')
+
+    @property
+    def total(self) -> int:
+        """All drops so far."""
+        return sum(self.counts.values())
+
+
+def run_node(make_node: Callable[..., Node], args: Sequence[str] | None = None,
+             executor_kind: str = 'events') -> int:
+    """The Jazzy ``main`` pattern for one node in its own process.
+
+    SIGINT and SIGTERM both end spin cleanly and destroy the node (the recorder finalises its
+    bag in ``destroy_node``). A node whose constructor raises (bad parameters) reports one line
+    and returns 1.
+    """
+    from rclpy.exceptions import InvalidParameterValueException  # noqa: PLC0415
+
+    from rv_te_bench.errors import RvTeError  # noqa: PLC0415
+    from sim.errors import SimError  # noqa: PLC0415
+
+    rclpy.init(args=list(args) if args is not None else None)
+    signal.signal(signal.SIGTERM, lambda *_: rclpy.try_shutdown())
+    node = None
+    code = 0
+    try:
+        try:
+            node = make_node()
+        except (InvalidParameterValueException, RvTeError, SimError, ValueError) as exc:
+            print(f'ERROR: {exc}', file=sys.stderr)
+            return 1
+        executor = make_executor(executor_kind)
+        executor.add_node(node)
+        # A node that ends by itself (the bench after its duration) sets ``finished``.
+        while rclpy.ok() and not getattr(node, 'finished', False):
+            executor.spin_once(timeout_sec=0.1)
+        code = int(getattr(node, 'exit_code', 0) or 0)
+    except (KeyboardInterrupt, ExternalShutdownException):
+        pass
+    finally:
+        if node is not None:
+            node.destroy_node()
+        rclpy.try_shutdown()
+    return code
+
+
+def make_executor(kind: str = 'events', context: Any = None) -> Any:  # noqa: ANN401
+    """EventsExecutor on data paths (fastest measured here); single-threaded otherwise."""
+    if kind == 'events':
+        from rclpy.experimental import EventsExecutor  # noqa: PLC0415
+
+        return EventsExecutor(context=context)
+    if kind == 'multi':
+        from rclpy.executors import MultiThreadedExecutor  # noqa: PLC0415
+
+        return MultiThreadedExecutor(context=context)
+    from rclpy.executors import SingleThreadedExecutor  # noqa: PLC0415
+
+    return SingleThreadedExecutor(context=context)

@@ -1,0 +1,166 @@
+"""Message <-> plain data conversions. The only place that knows both worlds; no maths here."""
+
+from __future__ import annotations
+
+import math
+from typing import TYPE_CHECKING, Any
+
+import numpy as np
+from builtin_interfaces.msg import Time
+from rv_te_msgs.msg import (
+    BenchInfo,
+    CompensationAdvice,
+    EncoderBlock,
+    Modification,
+    SpectrumLine,
+    TeSpectrum,
+    TeStatistics,
+)
+
+if TYPE_CHECKING:
+    from rv_te_bench.core.advice import Advice
+    from rv_te_bench.core.spectrum import OrderSpectrum
+    from rv_te_bench.core.stream import EncoderBlockData
+    from rv_te_bench.core.te import TeStats
+
+
+def stamp_to_s(stamp: Time) -> float:
+    """builtin_interfaces/Time -> seconds (float)."""
+    return stamp.sec + stamp.nanosec * 1e-9
+
+
+def s_to_stamp(t_s: float) -> Time:
+    """Seconds -> builtin_interfaces/Time (floor to the nanosecond; negative clamps to 0)."""
+    ns = max(0, round(t_s * 1e9))
+    return Time(sec=ns // 1_000_000_000, nanosec=ns % 1_000_000_000)
+
+
+def _arr(values: Any) -> np.ndarray:  # noqa: ANN401 - array.array or sequence
+    """array.array('d') from a message -> float64 numpy array without a Python loop."""
+    try:
+        return np.frombuffer(values, dtype=np.float64).copy()
+    except (TypeError, ValueError):
+        return np.asarray(values, dtype=np.float64)
+
+
+def encoder_block_to_data(msg: EncoderBlock) -> EncoderBlockData:
+    """EncoderBlock message -> core EncoderBlockData (validation is the core's job)."""
+    from rv_te_bench.core.stream import EncoderBlockData  # noqa: PLC0415
+
+    return EncoderBlockData(
+        seq=int(msg.seq), stamp_s=stamp_to_s(msg.header.stamp),
+        sample_rate_hz=float(msg.sample_rate_hz),
+        time_offset_s=_arr(msg.time_offset_s), theta_in_rad=_arr(msg.theta_in_rad),
+        theta_out_rad=_arr(msg.theta_out_rad), torque_out_nm=_arr(msg.torque_out_nm))
+
+
+def make_encoder_block(*, bench_id: str, seq: int, stamp_s: float, sample_rate_hz: float,
+                       time_offset_s: np.ndarray, theta_in_rad: np.ndarray,
+                       theta_out_rad: np.ndarray, torque_out_nm: np.ndarray | None,
+                       ) -> EncoderBlock:
+    """Build an EncoderBlock message from arrays."""
+    msg = EncoderBlock()
+    msg.header.stamp = s_to_stamp(stamp_s)
+    msg.header.frame_id = bench_id
+    msg.seq = int(seq)
+    msg.sample_rate_hz = float(sample_rate_hz)
+    msg.time_offset_s = np.ascontiguousarray(time_offset_s, dtype=np.float64)
+    msg.theta_in_rad = np.ascontiguousarray(theta_in_rad, dtype=np.float64)
+    msg.theta_out_rad = np.ascontiguousarray(theta_out_rad, dtype=np.float64)
+    if torque_out_nm is not None:
+        msg.torque_out_nm = np.ascontiguousarray(torque_out_nm, dtype=np.float64)
+    return msg
+
+
+def make_bench_info(info: Any, stamp: Time) -> BenchInfo:  # noqa: ANN401 - BenchInfoData
+    """sim.bench.BenchInfoData -> BenchInfo message (field names are the same)."""
+    msg = BenchInfo()
+    msg.header.stamp = stamp
+    msg.header.frame_id = info.bench_id
+    for field in ('bench_id', 'preset', 'reducer_type', 'encoder_in_model', 'encoder_out_model',
+                  'parameters_yaml'):
+        setattr(msg, field, str(getattr(info, field)))
+    for field in ('gear_ratio', 'crank_per_input', 'crank_rel_per_input',
+                  'encoder_in_resolution_rad', 'encoder_out_resolution_rad', 'sample_rate_hz'):
+        setattr(msg, field, float(getattr(info, field)))
+    msg.mesh_orders = [float(x) for x in info.mesh_orders]
+    msg.mesh_labels = [str(x) for x in info.mesh_labels]
+    msg.block_size = int(info.block_size)
+    return msg
+
+
+def bench_info_to_dict(msg: BenchInfo) -> dict[str, Any]:
+    """BenchInfo message -> plain dict (same keys as the bag reader returns)."""
+    return {
+        'bench_id': msg.bench_id, 'preset': msg.preset, 'reducer_type': msg.reducer_type,
+        'gear_ratio': msg.gear_ratio, 'crank_per_input': msg.crank_per_input,
+        'crank_rel_per_input': msg.crank_rel_per_input,
+        'mesh_orders': list(msg.mesh_orders), 'mesh_labels': list(msg.mesh_labels),
+        'encoder_in_model': msg.encoder_in_model, 'encoder_out_model': msg.encoder_out_model,
+        'encoder_in_resolution_rad': msg.encoder_in_resolution_rad,
+        'encoder_out_resolution_rad': msg.encoder_out_resolution_rad,
+        'sample_rate_hz': msg.sample_rate_hz, 'block_size': msg.block_size,
+        'parameters_yaml': msg.parameters_yaml,
+    }
+
+
+def make_te_statistics(stats: TeStats) -> TeStatistics:
+    """core TeStats -> TeStatistics message (NaN stays NaN)."""
+    msg = TeStatistics()
+    msg.pp_rad = float(stats.pp_rad)
+    msg.amplitude_rad = float(stats.amplitude_rad)
+    msg.mean_rad = float(stats.mean_rad)
+    msg.std_rad = float(stats.std_rad)
+    rev = float(stats.revolutions)
+    msg.revolutions_covered = rev if math.isfinite(rev) else 0.0
+    msg.n_samples = int(stats.n_samples)
+    return msg
+
+
+def make_te_spectrum(spectrum: OrderSpectrum, *, window_index: int, stamp_s: float,
+                     bench_id: str) -> TeSpectrum:
+    """core OrderSpectrum -> TeSpectrum message with labelled lines."""
+    msg = TeSpectrum()
+    msg.header.stamp = s_to_stamp(stamp_s)
+    msg.header.frame_id = bench_id
+    msg.window_index = int(window_index)
+    msg.crank_hz = float(spectrum.crank_hz)
+    msg.output_hz = float(spectrum.output_hz)
+    msg.revolutions_covered = float(spectrum.revolutions)
+    lines = []
+    for ln in spectrum.lines:
+        m = SpectrumLine()
+        m.output_order = float(ln.output_order)
+        m.crank_order = float(ln.crank_order)
+        m.frequency_hz = float(ln.frequency_hz)
+        m.amplitude_rad = float(ln.amplitude_rad)
+        m.phase_rad = float(ln.phase_rad)
+        m.label = str(ln.label)
+        lines.append(m)
+    msg.lines = lines
+    return msg
+
+
+def make_compensation_advice(advice: Advice, stamp: Time, frame_id: str) -> CompensationAdvice:
+    """core Advice -> CompensationAdvice message."""
+    msg = CompensationAdvice()
+    msg.header.stamp = stamp
+    msg.header.frame_id = frame_id
+    msg.method = advice.method
+    msg.preset = advice.preset
+    msg.summary = advice.summary
+    msg.te_metric = advice.te_metric
+    msg.te_before_rad = float(advice.te_before_rad)
+    msg.te_after_rad = float(advice.te_after_rad)
+    mods = []
+    for m in advice.modifications:
+        mm = Modification()
+        mm.factor = m.factor
+        mm.symbol = m.symbol
+        mm.unit = m.unit
+        mm.current_value = float(m.current_value)
+        mm.recommended_value = float(m.recommended_value)
+        mm.sensitivity_index = float(m.sensitivity_index)
+        mods.append(mm)
+    msg.modifications = mods
+    return msg

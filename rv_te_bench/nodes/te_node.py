@@ -1,0 +1,228 @@
+"""TeNode: transmission error online (Eq. 22), window statistics and order spectra.
+
+Subscribes ``bench/encoders`` (EncoderBlock) and ``bench/info`` (BenchInfo, transient-local).
+Publishes ``te/samples`` (TransmissionError, decimated TE for live display), ``te/statistics``
+(TransmissionError with ``window_complete`` when a window closes, latched), ``te/spectrum``
+(TeSpectrum, one per complete window) and ``/diagnostics``.
+
+The gear ratio and orders come from BenchInfo, or from parameters for a real bench
+(``gear_ratio`` > 0 makes the parameters win). All maths is in :mod:`rv_te_bench.core.stream`;
+a bad block is counted, logged (throttled) and skipped, never fatal.
+"""
+
+from __future__ import annotations
+
+import time
+from typing import Any
+
+import numpy as np
+from diagnostic_msgs.msg import DiagnosticArray
+from rclpy.node import Node
+from rv_te_msgs.msg import BenchInfo, EncoderBlock, TeSpectrum, TransmissionError
+
+from rv_te_bench.core.orders import OrderSet
+from rv_te_bench.core.stream import StreamingTeAnalyzer, TeAnalysisConfig
+from rv_te_bench.nodes import convert, qos
+from rv_te_bench.nodes.common import (
+    OK,
+    WARN,
+    DropCounter,
+    declare_from_specs,
+    diagnostic_array,
+    reject_invalid_changes,
+    run_node,
+)
+from rv_te_bench.params import ParamSpec
+
+PARAMS = (
+    ParamSpec('gear_ratio', 'double', 0.0,
+              'Overall ratio i [input rev / output rev]; 0 = take it from bench/info',
+              min_value=0.0, max_value=1e5),
+    ParamSpec('crank_per_input', 'double', 0.0,
+              'Absolute crank revolutions per input revolution [1]; used when gear_ratio > 0',
+              min_value=-1e3, max_value=1e3),
+    ParamSpec('mesh_orders', 'double_array', [],
+              'Mesh frequencies as output orders [1/rev]; used when gear_ratio > 0'),
+    ParamSpec('n_crank_harmonics', 'int', 10, 'Crank harmonics k f_w reported [1]',
+              min_value=1, max_value=200),
+    ParamSpec('window_revolutions', 'double', 1.0,
+              'Analysis window length [output revolutions]', min_value=0.01, max_value=1000.0),
+    ParamSpec('decimated_rate_hz', 'double', 50.0,
+              'Rate of TE samples published on te/samples [Hz]', min_value=0.1,
+              max_value=100000.0, read_only=False),
+    ParamSpec('diagnostics_period_s', 'double', 1.0, 'Diagnostics period [s]',
+              min_value=0.05, max_value=60.0),
+)
+
+
+class TeNode(Node):
+    """Online TE analysis on top of :class:`StreamingTeAnalyzer`."""
+
+    def __init__(self, **kwargs: Any) -> None:  # noqa: ANN401
+        """Declare parameters, create topics; ``kwargs`` go to ``Node`` (context, overrides)."""
+        super().__init__('te_node', **kwargs)
+        self.p = declare_from_specs(self, PARAMS)
+        reject_invalid_changes(self, PARAMS)
+        self.add_post_set_parameters_callback(self._on_params_set)
+        self.drops = DropCounter(self)
+        self.analyzer: StreamingTeAnalyzer | None = None
+        self.bench_id = ''
+        self._gaps_total = 0
+        self._seq_samples = 0
+        self._seq_stats = 0
+        self._latency_ms: list[float] = []
+        self._blocks = 0
+        self._last_window: Any = None
+        self.pub_samples = self.create_publisher(TransmissionError, 'te/samples',
+                                                 qos.PREVIEW_QOS)
+        self.pub_stats = self.create_publisher(TransmissionError, 'te/statistics',
+                                               qos.LATCHED_QOS)
+        self.pub_spectrum = self.create_publisher(TeSpectrum, 'te/spectrum', qos.LATCHED_QOS)
+        self.pub_diag = self.create_publisher(DiagnosticArray, '/diagnostics',
+                                              qos.DIAGNOSTICS_QOS)
+        self.create_subscription(BenchInfo, 'bench/info', self._on_info, qos.LATCHED_QOS)
+        self.create_subscription(EncoderBlock, 'bench/encoders', self._on_block,
+                                 qos.ENCODER_QOS)
+        self.create_timer(self.p['diagnostics_period_s'], self._publish_diagnostics)
+        if self.p['gear_ratio'] > 0:
+            self._configure(OrderSet.from_bench_info(
+                gear_ratio=self.p['gear_ratio'], crank_per_input=self.p['crank_per_input'],
+                mesh_orders_out=tuple(self.p['mesh_orders']),
+                mesh_labels=tuple(f'mesh {o:g} f_out' for o in self.p['mesh_orders']),
+                n_crank_harmonics=self.p['n_crank_harmonics']))
+
+    # -- configuration --------------------------------------------------------------------
+    def _configure(self, orders: OrderSet) -> None:
+        config = TeAnalysisConfig(orders=orders,
+                                  window_revolutions=self.p['window_revolutions'],
+                                  decimated_rate_hz=self.p['decimated_rate_hz'])
+        if self.analyzer is None:
+            self.analyzer = StreamingTeAnalyzer(config)
+        else:
+            self._publish_windows(self.analyzer.flush())
+            self.analyzer.reconfigure(config)
+        self.get_logger().info(
+            f'TE analysis configured: i={orders.gear_ratio:.6g}, '
+            f'crank/output={orders.crank_per_output:.6g}, '
+            f'window={self.p["window_revolutions"]:g} rev')
+
+    def _on_params_set(self, params: list[Any]) -> None:
+        for prm in params:
+            self.p[prm.name] = prm.value
+        if self.analyzer is not None and any(p.name == 'decimated_rate_hz' for p in params):
+            cfg = self.analyzer.config
+            self._configure(cfg.orders)
+
+    def _on_info(self, msg: BenchInfo) -> None:
+        self.bench_id = msg.bench_id
+        if self.p['gear_ratio'] > 0:
+            return  # parameters win (real bench)
+        try:
+            orders = OrderSet.from_bench_info(
+                gear_ratio=float(msg.gear_ratio), crank_per_input=float(msg.crank_per_input),
+                mesh_orders_out=tuple(msg.mesh_orders), mesh_labels=tuple(msg.mesh_labels),
+                n_crank_harmonics=self.p['n_crank_harmonics'])
+        except ValueError as exc:
+            self.drops.drop('bad_bench_info', str(exc))
+            return
+        if self.analyzer is not None and self.analyzer.config.orders == orders:
+            return
+        self._configure(orders)
+
+    # -- data path ------------------------------------------------------------------------
+    def _on_block(self, msg: EncoderBlock) -> None:
+        t_arrival = time.perf_counter()
+        if self.analyzer is None:
+            self.drops.drop('no_config', 'no gear ratio yet (waiting for bench/info)')
+            return
+        try:
+            block = convert.encoder_block_to_data(msg)
+        except (ValueError, TypeError) as exc:
+            self.drops.drop('malformed', str(exc))
+            return
+        update = self.analyzer.push(block)
+        self._blocks += 1
+        for gap in update.gaps:
+            self._gaps_total += 1
+            if gap.kind == 'malformed':
+                self.drops.drop('malformed', gap.detail)
+            else:
+                self.get_logger().warning(f'gap ({gap.kind}) at seq {gap.seq}: {gap.detail}',
+                                          throttle_duration_sec=5.0)
+        if len(update.te_rad):
+            self._publish_samples(update, msg.header.frame_id)
+        self._publish_windows(update.windows)
+        self._latency_ms.append((time.perf_counter() - t_arrival) * 1e3)
+        if len(self._latency_ms) > 1000:
+            del self._latency_ms[:500]
+
+    def _publish_samples(self, update: Any, frame_id: str) -> None:  # noqa: ANN401
+        msg = TransmissionError()
+        msg.header.stamp = convert.s_to_stamp(update.stamp_s)
+        msg.header.frame_id = frame_id
+        msg.seq = self._seq_samples
+        self._seq_samples += 1
+        msg.window_index = self.analyzer.counters.get('windows', 0) if self.analyzer else 0
+        msg.window_complete = False
+        msg.sample_rate_hz = float(self.p['decimated_rate_hz'])
+        msg.te_rad = np.ascontiguousarray(update.te_rad, dtype=np.float64)
+        msg.theta_out_rad = np.ascontiguousarray(update.phase_out_rad, dtype=np.float64)
+        if self.analyzer is not None:
+            msg.cumulative = convert.make_te_statistics(self.analyzer.cumulative)
+        if self._last_window is not None:
+            msg.window = convert.make_te_statistics(self._last_window.stats)
+        msg.gaps = self._gaps_total
+        self.pub_samples.publish(msg)
+
+    def _publish_windows(self, windows: tuple[Any, ...]) -> None:
+        for w in windows:
+            self._last_window = w
+            msg = TransmissionError()
+            msg.header.stamp = convert.s_to_stamp(w.start_stamp_s)
+            msg.header.frame_id = self.bench_id
+            msg.seq = self._seq_stats
+            self._seq_stats += 1
+            msg.window_index = int(w.index)
+            msg.window_complete = bool(w.complete)
+            msg.window = convert.make_te_statistics(w.stats)
+            if self.analyzer is not None:
+                msg.cumulative = convert.make_te_statistics(self.analyzer.cumulative)
+            msg.gaps = self._gaps_total
+            self.pub_stats.publish(msg)
+            if w.spectrum is not None:
+                self.pub_spectrum.publish(convert.make_te_spectrum(
+                    w.spectrum, window_index=w.index, stamp_s=w.start_stamp_s,
+                    bench_id=self.bench_id))
+
+    def _publish_diagnostics(self) -> None:
+        counters = dict(self.analyzer.counters) if self.analyzer is not None else {}
+        lat = np.asarray(self._latency_ms) if self._latency_ms else np.asarray([np.nan])
+        values = {**counters, 'gaps_reported': self._gaps_total,
+                  'dropped_total': self.drops.total,
+                  **{f'dropped_{k}': v for k, v in self.drops.counts.items()},
+                  'latency_median_ms': float(np.median(lat)),
+                  'latency_max_ms': float(np.max(lat))}
+        level = OK if self.drops.total == 0 and self._gaps_total == 0 else WARN
+        message = ('waiting for bench/info' if self.analyzer is None
+                   else f'{self._blocks} blocks, {self._gaps_total} gaps')
+        self.pub_diag.publish(diagnostic_array(self, 'te analysis', level, message, values))
+
+    def destroy_node(self) -> None:
+        """Close the open (partial) window so its statistics are published, then destroy."""
+        if self.analyzer is not None:
+            try:
+                self._publish_windows(self.analyzer.flush())
+            except Exception as exc:  # noqa: BLE001 - shutting down: report, do not raise
+                self.get_logger().warning(f'final flush failed: {exc}')
+        super().destroy_node()
+
+
+def main(args: list[str] | None = None) -> int:
+    """Run the TE node in its own process."""
+    return run_node(TeNode, args)
+
+
+if __name__ == '__main__':
+    import sys
+
+    sys.exit(main())

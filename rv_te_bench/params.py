@@ -1,0 +1,178 @@
+"""Node parameter specifications, shared by the nodes and the launcher (no rclpy here).
+
+Each node lists its parameters once as :class:`ParamSpec` items. The node declares them with
+descriptors (description with unit, range, read-only) from that list, and the launcher checks a
+ROS-style parameter file against the same list *before any node starts*, so that a bad file
+(unknown key, wrong type, out of range) stops the launch with the file, key and rule named.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import yaml
+
+from rv_te_bench.errors import ParameterFileError
+
+_TYPES = ('bool', 'int', 'double', 'string', 'string_array', 'double_array')
+
+
+@dataclass(frozen=True)
+class ParamSpec:
+    """One node parameter.
+
+    Attributes:
+        name: Parameter name (same as the config field it feeds).
+        type: One of ``bool``, ``int``, ``double``, ``string``, ``string_array``,
+            ``double_array``.
+        default: Default value.
+        description: What it is, with the unit in brackets, e.g. ``'Sample rate [Hz]'``.
+        min_value: Inclusive lower bound for numbers (None: unbounded).
+        max_value: Inclusive upper bound for numbers (None: unbounded).
+        choices: Allowed values for strings (empty: any).
+        read_only: True when a change needs a restart.
+    """
+
+    name: str
+    type: str
+    default: Any
+    description: str
+    min_value: float | None = None
+    max_value: float | None = None
+    choices: tuple[str, ...] = ()
+    read_only: bool = True
+
+    def __post_init__(self) -> None:
+        """Check the spec itself (a programming error if it fails)."""
+        if self.type not in _TYPES:
+            msg = f'ParamSpec {self.name!r}: type {self.type!r} not in {_TYPES}'
+            raise ValueError(msg)
+        problem = self.check(self.default)
+        if problem:
+            msg = f'ParamSpec {self.name!r}: default {problem}'
+            raise ValueError(msg)
+
+    def check(self, value: Any) -> str | None:  # noqa: ANN401, C901, PLR0911, PLR0912
+        """Return None when ``value`` is acceptable, else the rule it breaks (one phrase)."""
+        t = self.type
+        if t == 'bool':
+            return None if isinstance(value, bool) else f'must be a bool, got {value!r}'
+        if t == 'int':
+            if isinstance(value, bool) or not isinstance(value, int):
+                return f'must be an integer, got {value!r}'
+            return self._range(value)
+        if t == 'double':
+            if isinstance(value, bool) or not isinstance(value, int | float):
+                return f'must be a number, got {value!r}'
+            if not math.isfinite(value):
+                return f'must be finite, got {value!r}'
+            return self._range(float(value))
+        if t == 'string':
+            if not isinstance(value, str):
+                return f'must be a string, got {value!r}'
+            if self.choices and value not in self.choices:
+                return f'must be one of {list(self.choices)}, got {value!r}'
+            return None
+        if t == 'string_array':
+            if not isinstance(value, list | tuple) or not all(isinstance(v, str) for v in value):
+                return f'must be a list of strings, got {value!r}'
+            return None
+        if t == 'double_array':
+            if not isinstance(value, list | tuple) or not all(
+                    isinstance(v, int | float) and not isinstance(v, bool) for v in value):
+                return f'must be a list of numbers, got {value!r}'
+            if not all(math.isfinite(v) for v in value):
+                return f'must hold finite numbers, got {value!r}'
+            return None
+        return None
+
+    def _range(self, value: float) -> str | None:
+        if self.min_value is not None and value < self.min_value:
+            return f'must be >= {self.min_value:g}, got {value!r}'
+        if self.max_value is not None and value > self.max_value:
+            return f'must be <= {self.max_value:g}, got {value!r}'
+        return None
+
+
+def check_parameters(specs: tuple[ParamSpec, ...], values: dict[str, Any], *, where: str,
+                     ) -> None:
+    """Check ``values`` against ``specs``.
+
+    Args:
+        specs: The node's parameter list.
+        values: Parameter name -> value (from a file or a command line).
+        where: Where the values come from, for the message (file and node name).
+
+    Raises:
+        ParameterFileError: Unknown key, wrong type or out of range; names where, key, rule.
+    """
+    by_name = {s.name: s for s in specs}
+    for key, value in values.items():
+        if key in {'use_sim_time'}:
+            if not isinstance(value, bool):
+                msg = f'{where}: parameter {key!r} must be a bool, got {value!r}'
+                raise ParameterFileError(msg)
+            continue
+        spec = by_name.get(key)
+        if spec is None:
+            msg = (f'{where}: unknown parameter {key!r}; known: '
+                   f'{", ".join(sorted(by_name))}')
+            raise ParameterFileError(msg)
+        problem = spec.check(value)
+        if problem:
+            msg = f'{where}: parameter {key!r} {problem}'
+            raise ParameterFileError(msg)
+
+
+def load_parameter_file(path: str | Path) -> dict[str, dict[str, Any]]:
+    """Read a ROS 2 parameter file: ``node_name: {ros__parameters: {...}}``.
+
+    Node keys may carry a namespace (``/bench1/te_node``) or be the wildcard ``/**``.
+    Loaded with ``yaml.safe_load``: nothing in the file is executed.
+
+    Returns:
+        Node key -> parameter dict.
+
+    Raises:
+        ParameterFileError: Missing file, bad YAML, or not the ROS 2 layout.
+    """
+    p = Path(path)
+    try:
+        text = p.read_text(encoding='utf-8')
+    except OSError as exc:
+        msg = f'parameter file {p}: cannot read ({exc.strerror})'
+        raise ParameterFileError(msg) from None
+    try:
+        data = yaml.safe_load(text)
+    except yaml.YAMLError as exc:
+        msg = f'parameter file {p}: not valid YAML ({exc})'.replace('\n', ' ')
+        raise ParameterFileError(msg) from None
+    if data is None:
+        return {}
+    if not isinstance(data, dict):
+        msg = f'parameter file {p}: top level must map node names to ros__parameters'
+        raise ParameterFileError(msg)
+    out: dict[str, dict[str, Any]] = {}
+    for node_key, body in data.items():
+        if not isinstance(body, dict) or set(body) != {'ros__parameters'} or not isinstance(
+                body['ros__parameters'], dict):
+            msg = (f'parameter file {p}: node {node_key!r} must contain exactly '
+                   f'"ros__parameters: {{...}}"')
+            raise ParameterFileError(msg)
+        out[str(node_key)] = _flatten_params(body['ros__parameters'])
+    return out
+
+
+def _flatten_params(params: dict[str, Any], prefix: str = '') -> dict[str, Any]:
+    """ROS 2 nests dotted parameter names as mappings; flatten them back."""
+    out: dict[str, Any] = {}
+    for k, v in params.items():
+        key = f'{prefix}{k}'
+        if isinstance(v, dict):
+            out.update(_flatten_params(v, key + '.'))
+        else:
+            out[key] = v
+    return out
