@@ -1,0 +1,228 @@
+"""CompensationNode: turns the measured TE into advice a designer or assembler can act on.
+
+Subscribes ``bench/info`` (preset and ratio), ``te/statistics`` (closed windows) and
+``te/samples`` (decimated TE with the output angle). Publishes ``compensation/advice``
+(CompensationAdvice, transient-local) and ``/diagnostics`` (search progress).
+
+* 2K-V presets (wang2020-2kv): the Eq. 21 assembly-phase optimisation of the preset
+  (predicted before/after), and, after each complete window, identification of this unit's
+  eccentricities from the measured TE with re-assembly phases for it.
+* RV presets with a tooth-profile model (hu2020-rv): the Eqs 24-27 tooth-profile
+  compensation of the measured TE.
+
+Long searches run on a worker thread, off the executor; results are published from a timer.
+"""
+
+from __future__ import annotations
+
+import math
+from concurrent.futures import Future, ThreadPoolExecutor
+from typing import Any
+
+import numpy as np
+from diagnostic_msgs.msg import DiagnosticArray
+from rclpy.node import Node
+from rv_te_msgs.msg import BenchInfo, CompensationAdvice, TransmissionError
+
+from rv_te_bench.nodes import convert, qos
+from rv_te_bench.nodes.common import (
+    OK,
+    WARN,
+    DropCounter,
+    declare_from_specs,
+    diagnostic_array,
+    reject_invalid_changes,
+    run_node,
+)
+from rv_te_bench.params import ParamSpec
+
+PARAMS = (
+    ParamSpec('preset', 'string', '',
+              'Reducer preset; empty = the preset named in bench/info [-]'),
+    ParamSpec('overrides', 'string_array', [], 'Preset overrides "key=value" [-]'),
+    ParamSpec('optimize_phases', 'bool', True,
+              'Run the Eq. 21 assembly-phase optimisation for 2K-V presets'),
+    ParamSpec('step_deg', 'double', 10.0, 'Phase grid step [deg]', min_value=0.5,
+              max_value=90.0),
+    ParamSpec('refine', 'bool', True, 'Refine the grid optimum below the grid step'),
+    ParamSpec('identify', 'bool', True,
+              'Identify eccentricities from each complete window (2K-V presets)'),
+    ParamSpec('te_metric', 'string', 'pp', 'Measured statistic given to the tooth-profile '
+              'compensation (RV presets) [-]', choices=('pp', 'amplitude')),
+    ParamSpec('diagnostics_period_s', 'double', 1.0, 'Diagnostics period [s]',
+              min_value=0.05, max_value=60.0),
+)
+
+_MAX_SAMPLES = 2_000_000  # bound on the decimated TE kept for identification
+
+
+class CompensationNode(Node):
+    """Advice from the measured TE; searches on a worker thread."""
+
+    def __init__(self, **kwargs: Any) -> None:  # noqa: ANN401
+        """Declare parameters and topics; ``kwargs`` go to ``Node``."""
+        super().__init__('compensation', **kwargs)
+        self.p = declare_from_specs(self, PARAMS)
+        reject_invalid_changes(self, PARAMS)
+        self.drops = DropCounter(self)
+        self.pool = ThreadPoolExecutor(max_workers=1, thread_name_prefix='compensation')
+        self.jobs: list[tuple[str, Future[Any]]] = []
+        self.progress: dict[str, float] = {}
+        self.preset: Any = None
+        self.model_name = ''
+        self.bench_id = ''
+        self.published: dict[str, int] = {}
+        self.errors: list[str] = []
+        self._te: list[np.ndarray] = []
+        self._phase: list[np.ndarray] = []
+        self._n_buffered = 0
+        self.pub_advice = self.create_publisher(CompensationAdvice, 'compensation/advice',
+                                                qos.LATCHED_QOS)
+        self.pub_diag = self.create_publisher(DiagnosticArray, '/diagnostics',
+                                              qos.DIAGNOSTICS_QOS)
+        self.create_subscription(BenchInfo, 'bench/info', self._on_info, qos.LATCHED_QOS)
+        self.create_subscription(TransmissionError, 'te/statistics', self._on_window,
+                                 qos.LATCHED_QOS)
+        self.create_subscription(TransmissionError, 'te/samples', self._on_samples,
+                                 qos.ENCODER_QOS)
+        self.create_timer(0.2, self._collect)
+        self.create_timer(self.p['diagnostics_period_s'], self._publish_diagnostics)
+        if self.p['preset']:
+            self._set_preset(self.p['preset'], list(self.p['overrides']))
+
+    # -- inputs ---------------------------------------------------------------------------
+    def _set_preset(self, name: str, overrides: list[str]) -> None:
+        from sim.presets import load_preset  # noqa: PLC0415
+
+        if self.preset is not None:
+            return
+        try:
+            self.preset = load_preset(name, overrides)
+        except ValueError as exc:
+            self.errors.append(str(exc))
+            self.get_logger().error(f'cannot load preset {name!r}: {exc}')
+            return
+        self.model_name = self.preset.model
+        self.get_logger().info(f'preset {self.preset.name} (model {self.model_name})')
+        if self.model_name == 'wang2020-2kv' and self.p['optimize_phases']:
+            self._submit('assembly-phases', self._job_phases)
+
+    def _on_info(self, msg: BenchInfo) -> None:
+        self.bench_id = msg.bench_id
+        if not self.p['preset']:
+            self._set_preset(msg.preset, _overrides_from_bench_info(msg.parameters_yaml))
+
+    def _on_samples(self, msg: TransmissionError) -> None:
+        te = np.asarray(msg.te_rad, dtype=np.float64)
+        ph = np.asarray(msg.theta_out_rad, dtype=np.float64)
+        if te.shape != ph.shape or not np.all(np.isfinite(te)) or not np.all(np.isfinite(ph)):
+            self.drops.drop('malformed', f'te/samples seq {msg.seq}: lengths {te.shape} vs '
+                            f'{ph.shape} or non-finite values')
+            return
+        self._te.append(te)
+        self._phase.append(ph)
+        self._n_buffered += te.size
+        while self._n_buffered > _MAX_SAMPLES and self._te:
+            self._n_buffered -= self._te.pop(0).size
+            self._phase.pop(0)
+
+    def _on_window(self, msg: TransmissionError) -> None:
+        if self.preset is None or not msg.window_complete:
+            return
+        measured = msg.window.pp_rad if self.p['te_metric'] == 'pp' else msg.window.amplitude_rad
+        if self.model_name == 'wang2020-2kv' and self.p['identify'] and self._te:
+            te = np.concatenate(self._te)
+            ph = np.concatenate(self._phase)
+            self._submit('identified-assembly-phases',
+                         lambda: self._job_identify(ph.copy(), te.copy()))
+        elif self.model_name == 'hu2020-rv' and math.isfinite(measured) and measured > 0:
+            self._submit('tooth-profile', lambda: self._job_tooth(measured))
+
+    # -- jobs (worker thread) -------------------------------------------------------------
+    def _submit(self, name: str, fn: Any) -> None:  # noqa: ANN401
+        if any(n == name and not f.done() for n, f in self.jobs):
+            return  # one search of a kind at a time
+        self.progress[name] = 0.0
+        self.jobs.append((name, self.pool.submit(fn)))
+
+    def _job_phases(self) -> Any:  # noqa: ANN401
+        from rv_te_bench.core.phases import optimize_phases  # noqa: PLC0415
+        from sim.wang2020 import Wang2kvParams  # noqa: PLC0415
+
+        params = Wang2kvParams.from_preset(self.preset)
+        result = optimize_phases(
+            params, step_deg=self.p['step_deg'], refine=self.p['refine'],
+            progress=lambda f: self.progress.__setitem__('assembly-phases', float(f)))
+        return result.to_advice(self.preset.name)
+
+    def _job_identify(self, phase_out_rad: np.ndarray, te_rad: np.ndarray) -> Any:  # noqa: ANN401
+        from rv_te_bench.core.identify import identified_advice  # noqa: PLC0415
+        from sim.wang2020 import Wang2kvParams  # noqa: PLC0415
+
+        params = Wang2kvParams.from_preset(self.preset)
+        return identified_advice(phase_out_rad, te_rad, params, preset_name=self.preset.name)
+
+    def _job_tooth(self, measured_rad: float) -> Any:  # noqa: ANN401
+        from rv_te_bench.core.tooth_compensation import tooth_profile_advice  # noqa: PLC0415
+
+        return tooth_profile_advice(self.preset, measured_rad)
+
+    # -- outputs (executor thread) --------------------------------------------------------
+    def _collect(self) -> None:
+        still = []
+        for name, fut in self.jobs:
+            if not fut.done():
+                still.append((name, fut))
+                continue
+            self.progress[name] = 1.0
+            exc = fut.exception()
+            if exc is not None:
+                self.errors.append(f'{name}: {exc}')
+                self.get_logger().error(f'{name} failed: {exc}', throttle_duration_sec=10.0)
+                continue
+            advice = fut.result()
+            self.pub_advice.publish(convert.make_compensation_advice(
+                advice, self.get_clock().now().to_msg(), self.bench_id))
+            self.published[name] = self.published.get(name, 0) + 1
+            self.get_logger().info(f'advice ({name}): {advice.summary}')
+        self.jobs = still
+
+    def _publish_diagnostics(self) -> None:
+        values: dict[str, Any] = {f'progress_{k}': v for k, v in self.progress.items()}
+        values.update({f'published_{k}': v for k, v in self.published.items()})
+        values['dropped_total'] = self.drops.total
+        values['errors'] = len(self.errors)
+        running = [n for n, f in self.jobs if not f.done()]
+        message = (f'running {", ".join(running)}' if running else
+                   'waiting for bench/info' if self.preset is None else 'idle')
+        level = WARN if self.errors else OK
+        self.pub_diag.publish(diagnostic_array(self, 'compensation', level, message, values))
+
+    def destroy_node(self) -> None:
+        """Stop the worker (running searches finish in the background thread)."""
+        self.pool.shutdown(wait=False, cancel_futures=True)
+        super().destroy_node()
+
+
+def _overrides_from_bench_info(parameters_yaml: str) -> list[str]:
+    """The bench's preset overrides, as recorded in BenchInfo.parameters_yaml."""
+    import yaml  # noqa: PLC0415
+
+    try:
+        data = yaml.safe_load(parameters_yaml) or {}
+    except yaml.YAMLError:
+        return []
+    bench = data.get('bench', {}) if isinstance(data, dict) else {}
+    ov = bench.get('overrides', []) if isinstance(bench, dict) else []
+    return [str(x) for x in ov] if isinstance(ov, list) else []
+
+
+def main(args: list[str] | None = None) -> int:
+    """Run the compensation node in its own process."""
+    return run_node(CompensationNode, args)
+
+
+if __name__ == '__main__':
+    import sys
+
+    sys.exit(main())
