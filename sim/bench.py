@@ -1,0 +1,314 @@
+"""The simulated TE bench: drive + TE model + two encoders on one clock, block by block.
+
+Sample ``n`` (counted from 0 over the whole session) is taken at
+``t_n = start_time_s + n / sample_rate_hz``. For each block the simulator evaluates
+
+* the input angle and speed from the drive profile (closed form, no integration drift),
+* the load torque from the load profile,
+* the model TE ``te = te_model.te_rad(t, theta_in, omega_in, load)`` (the model carries its
+  own state from block to block),
+* the true output angle ``theta_out = theta_in / i + te`` (i = kinematics.gear_ratio),
+* the encoder readings of both shafts (same sample instants: one DAQ clock).
+
+Nothing grows with the session length: the block is a function of its index, the drive
+and the model state, so memory is flat however long the bench runs. Same config (seed
+included) -> identical blocks; the two encoders draw their noise from two child generators
+spawned from ``np.random.default_rng(seed)``.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+from typing import TYPE_CHECKING, Any
+
+import numpy as np
+import yaml
+
+from sim.drive import ConstantLoad, profile_to_plain
+from sim.encoders import EncoderSpec, SimulatedEncoder, encoder_preset
+from sim.errors import ModelInputError
+from sim.models import build_te_model
+from sim.presets import Preset, load_preset, parse_override_items
+
+if TYPE_CHECKING:
+    from sim.drive import DriveProfile, LoadProfile
+    from sim.models import TeModel
+
+__all__ = ['BenchBlock', 'BenchConfig', 'BenchInfoData', 'BenchSimulator']
+
+
+def _readonly(a: np.ndarray) -> np.ndarray:
+    a.setflags(write=False)
+    return a
+
+
+@dataclass(frozen=True, kw_only=True)
+class BenchConfig:
+    """Settings of one simulated bench session (SI units).
+
+    Attributes:
+        preset: Reducer preset name (``sim/preset_data/<name>.toml``) or a TOML path.
+        drive: Input speed profile (:mod:`sim.drive`).
+        overrides: Preset overrides ``"key=value"``.
+        te_mode: TE model mode passed to the model factory (``'nlte'``, ``'ste'``, ``'dte'``).
+        load: Output load torque profile; no load by default.
+        encoder_in: Input-shaft encoder: an :data:`sim.encoders.ENCODER_PRESETS` name or a spec.
+        encoder_out: Output-shaft encoder, likewise.
+        sample_rate_hz: DAQ sample rate [Hz], > 0.
+        block_size: Samples per block, >= 1.
+        seed: Seed of the noise generators (int >= 0).
+        bench_id: Bench identifier (EncoderBlock frame_id), non-empty.
+        start_time_s: Time of sample 0 [s], finite (a large value tests long sessions).
+    """
+
+    preset: str
+    drive: DriveProfile
+    overrides: tuple[str, ...] = ()
+    te_mode: str = 'nlte'
+    load: LoadProfile = field(default_factory=lambda: ConstantLoad(0.0))
+    encoder_in: str | EncoderSpec = 'heidenhain-ron886'
+    encoder_out: str | EncoderSpec = 'heidenhain-ron886'
+    sample_rate_hz: float = 10_000.0
+    block_size: int = 1000
+    seed: int = 0
+    bench_id: str = 'bench'
+    start_time_s: float = 0.0
+
+    def __post_init__(self) -> None:  # noqa: C901 - one check per field
+        """Validate every field.
+
+        Raises:
+            ModelInputError: A field breaks its rule (the message names field and rule).
+            PresetError: Unknown encoder name or malformed override item.
+        """
+        if not isinstance(self.preset, str) or not self.preset.strip():
+            msg = f'BenchConfig.preset must be a non-empty string, got {self.preset!r}'
+            raise ModelInputError(msg)
+        if isinstance(self.overrides, str):
+            msg = (f'BenchConfig.overrides must be a sequence of "key=value" strings, got the '
+                   f'string {self.overrides!r}')
+            raise ModelInputError(msg)
+        object.__setattr__(self, 'overrides', tuple(str(o) for o in self.overrides))
+        parse_override_items(list(self.overrides))
+        if not isinstance(self.te_mode, str) or not self.te_mode.strip():
+            msg = f'BenchConfig.te_mode must be a non-empty string, got {self.te_mode!r}'
+            raise ModelInputError(msg)
+        for name, attrs in (('drive', ('theta_in_rad', 'omega_in_rad_s', 'nominal_speed_rpm')),
+                            ('load', ('torque_out_nm',))):
+            obj = getattr(self, name)
+            if not all(hasattr(obj, a) for a in attrs):
+                msg = (f'BenchConfig.{name} must be a {name} profile from sim.drive '
+                       f'(with {", ".join(attrs)}), got {obj!r}')
+                raise ModelInputError(msg)
+        for name in ('encoder_in', 'encoder_out'):
+            enc = getattr(self, name)
+            if not isinstance(enc, EncoderSpec):
+                encoder_preset(enc)  # raises PresetError naming the known encoders
+        rate = self.sample_rate_hz
+        if isinstance(rate, bool) or not isinstance(rate, int | float | np.integer | np.floating) \
+                or not (math.isfinite(rate) and rate > 0):
+            msg = f'BenchConfig.sample_rate_hz must be finite and > 0, got {rate!r}'
+            raise ModelInputError(msg)
+        object.__setattr__(self, 'sample_rate_hz', float(rate))
+        bs = self.block_size
+        if isinstance(bs, bool) or not isinstance(bs, int | np.integer) or bs < 1:
+            msg = f'BenchConfig.block_size must be an integer >= 1, got {bs!r}'
+            raise ModelInputError(msg)
+        object.__setattr__(self, 'block_size', int(bs))
+        sd = self.seed
+        if isinstance(sd, bool) or not isinstance(sd, int | np.integer) or sd < 0:
+            msg = f'BenchConfig.seed must be an integer >= 0, got {sd!r}'
+            raise ModelInputError(msg)
+        object.__setattr__(self, 'seed', int(sd))
+        if not isinstance(self.bench_id, str) or not self.bench_id.strip():
+            msg = f'BenchConfig.bench_id must be a non-empty string, got {self.bench_id!r}'
+            raise ModelInputError(msg)
+        st = self.start_time_s
+        if isinstance(st, bool) or not isinstance(st, int | float | np.integer | np.floating) \
+                or not math.isfinite(st):
+            msg = f'BenchConfig.start_time_s must be finite, got {st!r}'
+            raise ModelInputError(msg)
+        object.__setattr__(self, 'start_time_s', float(st))
+
+    def encoder_spec(self, which: str) -> EncoderSpec:
+        """The spec of ``'in'`` or ``'out'`` (a preset looked up by name)."""
+        enc = self.encoder_in if which == 'in' else self.encoder_out
+        return enc if isinstance(enc, EncoderSpec) else encoder_preset(enc)
+
+    def to_plain(self) -> dict[str, Any]:
+        """YAML-friendly dict of the config (profiles and encoders as dicts)."""
+        return {
+            'bench_id': self.bench_id,
+            'preset': self.preset,
+            'overrides': list(self.overrides),
+            'te_mode': self.te_mode,
+            'drive': profile_to_plain(self.drive),
+            'load': profile_to_plain(self.load),
+            'encoder_in': self.encoder_spec('in').to_plain(),
+            'encoder_out': self.encoder_spec('out').to_plain(),
+            'sample_rate_hz': self.sample_rate_hz,
+            'block_size': self.block_size,
+            'seed': self.seed,
+            'start_time_s': self.start_time_s,
+        }
+
+
+@dataclass(frozen=True)
+class BenchBlock:
+    """One block of bench samples (read-only arrays, all of length ``block_size``).
+
+    Attributes:
+        seq: Block number, contiguous from 0.
+        t0_s: Time of the first sample [s].
+        time_offset_s: Per-sample time since t0_s [s], first = 0, strictly increasing.
+        theta_in_rad: Measured (encoder) unwrapped input angle [rad].
+        theta_out_rad: Measured (encoder) unwrapped output angle [rad].
+        torque_out_nm: Output (load) torque [N m].
+        te_true_rad: Model TE = theta_out_true - theta_in_true / i [rad].
+        theta_in_true_rad: True input angle [rad].
+        theta_out_true_rad: True output angle [rad].
+    """
+
+    seq: int
+    t0_s: float
+    time_offset_s: np.ndarray
+    theta_in_rad: np.ndarray
+    theta_out_rad: np.ndarray
+    torque_out_nm: np.ndarray
+    te_true_rad: np.ndarray
+    theta_in_true_rad: np.ndarray
+    theta_out_true_rad: np.ndarray
+
+
+@dataclass(frozen=True)
+class BenchInfoData:
+    """The fields of ``rv_te_msgs/BenchInfo`` (without the header)."""
+
+    bench_id: str
+    preset: str
+    reducer_type: str
+    gear_ratio: float
+    crank_per_input: float
+    crank_rel_per_input: float
+    mesh_orders: tuple[float, ...]
+    mesh_labels: tuple[str, ...]
+    encoder_in_model: str
+    encoder_out_model: str
+    encoder_in_resolution_rad: float
+    encoder_out_resolution_rad: float
+    sample_rate_hz: float
+    block_size: int
+    parameters_yaml: str
+
+
+class BenchSimulator:
+    """Produces :class:`BenchBlock` s from a :class:`BenchConfig`.
+
+    Args:
+        config: The session settings.
+        preset: Use this preset (overrides of ``config`` still applied) instead of loading
+            ``config.preset``; for tests and custom reducers.
+        model: Use this TE model instead of ``build_te_model(preset, config.te_mode)``.
+
+    Raises:
+        PresetError: Unknown preset, bad override, unknown model, bad preset value.
+    """
+
+    def __init__(self, config: BenchConfig, *, preset: Preset | None = None,
+                 model: TeModel | None = None) -> None:
+        """Load the preset, build the model and the encoders (see class docstring)."""
+        if not isinstance(config, BenchConfig):
+            msg = f'config must be a BenchConfig, got {type(config).__name__}'
+            raise ModelInputError(msg)
+        self.config = config
+        if preset is None:
+            preset = load_preset(config.preset, list(config.overrides))
+        else:
+            preset = preset.with_overrides(list(config.overrides))
+        self.preset = preset
+        self.model = build_te_model(preset, config.te_mode) if model is None else model
+        self.kinematics = self.model.kinematics
+        self._gear_ratio = float(self.kinematics.gear_ratio)
+        self._spec_in = config.encoder_spec('in')
+        self._spec_out = config.encoder_spec('out')
+        self._offsets = _readonly(np.arange(config.block_size, dtype=np.float64)
+                                  / config.sample_rate_hz)
+        self._info: BenchInfoData | None = None
+        self._start_rngs()
+        self._seq = 0
+
+    def _start_rngs(self) -> None:
+        rng_in, rng_out = np.random.default_rng(self.config.seed).spawn(2)
+        self._enc_in = SimulatedEncoder(self._spec_in, rng_in)
+        self._enc_out = SimulatedEncoder(self._spec_out, rng_out)
+
+    @property
+    def seq(self) -> int:
+        """Sequence number of the next block."""
+        return self._seq
+
+    def reset(self) -> None:
+        """Back to block 0: sequence, noise generators and model state."""
+        self._seq = 0
+        self._start_rngs()
+        self.model.reset()
+
+    def next_block(self) -> BenchBlock:
+        """Simulate the next block of ``block_size`` samples."""
+        cfg = self.config
+        n = cfg.block_size
+        t0 = cfg.start_time_s + (self._seq * n) / cfg.sample_rate_hz
+        t = t0 + self._offsets
+        drive = cfg.drive
+        theta_in = drive.theta_in_rad(t)
+        omega_in = drive.omega_in_rad_s(t)
+        load = np.asarray(cfg.load.torque_out_nm(t), dtype=np.float64)
+        te = np.array(self.model.te_rad(t, theta_in, omega_in, load), dtype=np.float64)
+        if te.shape != t.shape:
+            msg = f'TE model returned shape {te.shape} for a block of shape {t.shape}'
+            raise ModelInputError(msg)
+        theta_out = theta_in / self._gear_ratio + te
+        block = BenchBlock(
+            seq=self._seq,
+            t0_s=float(t0),
+            time_offset_s=self._offsets,
+            theta_in_rad=_readonly(self._enc_in.measure(theta_in)),
+            theta_out_rad=_readonly(self._enc_out.measure(theta_out)),
+            torque_out_nm=_readonly(load),
+            te_true_rad=_readonly(te),
+            theta_in_true_rad=_readonly(theta_in),
+            theta_out_true_rad=_readonly(theta_out),
+        )
+        self._seq += 1
+        return block
+
+    @property
+    def info(self) -> BenchInfoData:
+        """What ``bench/info`` publishes (computed once)."""
+        if self._info is None:
+            kin = self.kinematics
+            cfg = self.config
+            record = {
+                'bench': cfg.to_plain(),
+                'preset': {'name': self.preset.name, 'model': self.preset.model,
+                           'values': self.preset.to_plain()},
+            }
+            self._info = BenchInfoData(
+                bench_id=cfg.bench_id,
+                preset=self.preset.name,
+                reducer_type=str(kin.kind),
+                gear_ratio=self._gear_ratio,
+                crank_per_input=float(kin.crank_per_input),
+                crank_rel_per_input=float(kin.crank_rel_per_input),
+                mesh_orders=tuple(float(o) for o in kin.mesh_orders_out),
+                mesh_labels=tuple(str(s) for s in kin.mesh_labels),
+                encoder_in_model=self._spec_in.name,
+                encoder_out_model=self._spec_out.name,
+                encoder_in_resolution_rad=self._spec_in.resolution_rad,
+                encoder_out_resolution_rad=self._spec_out.resolution_rad,
+                sample_rate_hz=cfg.sample_rate_hz,
+                block_size=cfg.block_size,
+                parameters_yaml=yaml.safe_dump(record, sort_keys=True),
+            )
+        return self._info
