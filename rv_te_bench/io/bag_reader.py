@@ -1,0 +1,682 @@
+"""Read rosbag2 (MCAP storage) bags without rclpy: summary, raw messages, encoder blocks.
+
+The reader scans the MCAP records itself (no summary needed) so that bags whose recorder
+was killed, or whose last file was cut short, still yield every sound message; what could
+not be read is reported. ``EncoderBlock`` messages are decoded straight from their CDR
+layout into read-only numpy arrays (``np.frombuffer``), which is several times faster than
+generic deserialisation; ``decode_encoder_block_rosbags`` is the slower cross-check.
+
+Partial results: every reader returns a ``MessageStream``. With ``strict=True`` (default)
+it raises ``BagError`` after the last sound message when part of the bag was unreadable
+(truncated file, corrupt chunk, malformed message), naming the file and the problem; with
+``strict=False`` it stops quietly and ``stream.partial`` / ``stream.problems`` say so.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import mmap
+import re
+import struct
+import zlib
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import TYPE_CHECKING, Any, Generic, TypeVar
+
+import numpy as np
+import yaml
+
+from rv_te_bench.errors import BagError
+from rv_te_bench.io.msgdefs import BENCH_INFO, ENCODER_BLOCK, rv_te_typestore
+
+if TYPE_CHECKING:
+    from collections.abc import Callable, Collection, Iterator
+
+    from rv_te_bench.core.stream import EncoderBlockData
+
+__all__ = [
+    'Bag',
+    'MessageStream',
+    'RawMessage',
+    'bag_summary',
+    'decode_encoder_block',
+    'decode_encoder_block_rosbags',
+    'iter_messages',
+    'open_bag',
+    'read_bench_info',
+    'read_encoder_blocks',
+]
+
+MAGIC = b'\x89MCAP0\r\n'
+_U16 = struct.Struct('<H')
+_U32 = struct.Struct('<I')
+_U64 = struct.Struct('<Q')
+_REC = struct.Struct('<BQ')
+_MSG = struct.Struct('<HIQQ')
+_CHUNK = struct.Struct('<QQQI')
+_OP_HEADER, _OP_FOOTER, _OP_SCHEMA, _OP_CHANNEL, _OP_MESSAGE, _OP_CHUNK = 1, 2, 3, 4, 5, 6
+_OP_METADATA, _OP_DATA_END = 0x0C, 0x0F
+
+T = TypeVar('T')
+RawMessage = tuple[str, str, int, memoryview]
+"""(topic, msgtype, timestamp_ns, cdr_bytes): one message as stored."""
+
+
+class _CorruptError(Exception):
+    """A record cannot be parsed (internal; turned into a problem or BagError)."""
+
+
+@dataclass(frozen=True, slots=True)
+class Bag:
+    """A validated bag layout.
+
+    Attributes:
+        path: The bag folder (or the lone ``.mcap`` file).
+        files: The ``.mcap`` files in recording order.
+        info: ``rosbag2_bagfile_information`` from metadata.yaml (empty for a lone file).
+        topic_types: Topic name -> type from metadata.yaml (empty for a lone file).
+    """
+
+    path: Path
+    files: tuple[Path, ...]
+    info: dict[str, Any]
+    topic_types: dict[str, str]
+
+    @property
+    def finalized(self) -> bool | None:
+        """True when the writer closed the bag, False when it did not, None if unknown."""
+        state = (self.info.get('custom_data') or {}).get('rv_te_bench.writer_state')
+        return None if state is None else state == 'closed'
+
+
+class MessageStream(Generic[T]):
+    """Iterator over a bag's messages that records whether the result is partial.
+
+    Attributes:
+        partial: True once a problem made part of the bag unreadable.
+        problems: One message per problem, each naming the file.
+    """
+
+    def __init__(self, producer: Callable[[MessageStream[T]], Iterator[T]], *,
+                 strict: bool) -> None:
+        self.partial = False
+        self.problems: list[str] = []
+        self._strict = strict
+        self._it = producer(self)
+        self._done = False
+
+    def __iter__(self) -> MessageStream[T]:
+        return self
+
+    def __next__(self) -> T:
+        if self._done:
+            raise StopIteration
+        try:
+            return next(self._it)
+        except StopIteration:
+            self._done = True
+            if self._strict and self.problems:
+                msg = '; '.join(self.problems) + ' (the messages before were read: partial)'
+                raise BagError(msg) from None
+            raise
+
+    def _problem(self, text: str) -> None:
+        self.partial = True
+        self.problems.append(text)
+
+
+# ----------------------------------------------------------------------------- layout
+def open_bag(path: str | Path) -> Bag:
+    """Validate a bag's layout and read its metadata.yaml.
+
+    Args:
+        path: A rosbag2 bag folder (metadata.yaml + .mcap files) or a single ``.mcap`` file.
+
+    Returns:
+        The bag's layout.
+
+    Raises:
+        BagError: Missing path or metadata, unreadable YAML, storage other than MCAP,
+            files missing, or a file that is not MCAP.
+    """
+    path = Path(path)
+    if path.is_file():
+        _check_magic(path)
+        return Bag(path=path, files=(path,), info={}, topic_types={})
+    if not path.is_dir():
+        msg = f'Bag {path} does not exist.'
+        raise BagError(msg)
+    meta_path = path / 'metadata.yaml'
+    if not meta_path.is_file():
+        msg = f'Bag {path} has no metadata.yaml: not a rosbag2 bag folder.'
+        raise BagError(msg)
+    try:
+        doc = yaml.safe_load(meta_path.read_text(encoding='utf-8'))
+        info = doc['rosbag2_bagfile_information']
+        storage = info['storage_identifier']
+        listed = [path / Path(str(p)).name for p in info['relative_file_paths']]
+        topics = {
+            str(t['topic_metadata']['name']): str(t['topic_metadata']['type'])
+            for t in info.get('topics_with_message_count') or []
+        }
+    except (OSError, UnicodeDecodeError, yaml.YAMLError) as exc:
+        msg = f'Cannot read {meta_path}: {exc}.'
+        raise BagError(msg) from None
+    except (KeyError, TypeError, AttributeError) as exc:
+        msg = f'{meta_path} is not rosbag2 metadata (missing or bad key {exc}).'
+        raise BagError(msg) from None
+    if storage != 'mcap':
+        msg = f'Bag {path} uses storage {storage!r}; only mcap is supported.'
+        raise BagError(msg)
+    if missing := [str(p) for p in listed if not p.is_file()]:
+        msg = f'Bag {path}: files listed in metadata.yaml are missing: {missing}.'
+        raise BagError(msg)
+    # A recorder killed while splitting may have created a file metadata.yaml does not list.
+    extra = sorted((p for p in path.glob('*.mcap') if p not in listed), key=_natural_key)
+    files = tuple(listed + extra)
+    if not files:
+        msg = f'Bag {path} has no .mcap files.'
+        raise BagError(msg)
+    for file in files:
+        _check_magic(file)
+    return Bag(path=path, files=files, info=info, topic_types=topics)
+
+
+def _natural_key(p: Path) -> list[Any]:
+    return [int(s) if s.isdigit() else s for s in re.split(r'(\d+)', p.name)]
+
+
+def _check_magic(file: Path) -> None:
+    try:
+        with file.open('rb') as fh:
+            head = fh.read(8)
+    except OSError as exc:
+        msg = f'Cannot open {file}: {exc}.'
+        raise BagError(msg) from None
+    if not head:
+        msg = f'{file} is empty (0 bytes).'
+        raise BagError(msg)
+    if head != MAGIC:
+        msg = f'{file} is not an MCAP file (bad magic {head[:8]!r}).'
+        raise BagError(msg)
+
+
+# ----------------------------------------------------------------------------- MCAP scan
+@dataclass(slots=True)
+class _ScanState:
+    schemas: dict[int, tuple[str, str]] = field(default_factory=dict)   # id -> (name, text)
+    channels: dict[int, tuple[str, int]] = field(default_factory=dict)  # id -> (topic, schema)
+    metadata: dict[str, dict[str, str]] = field(default_factory=dict)
+
+
+def _string(buf: memoryview, pos: int) -> tuple[str, int]:
+    (n,) = _U32.unpack_from(buf, pos)
+    end = pos + 4 + n
+    if end > len(buf):
+        raise _CorruptError('string runs past its record')
+    return bytes(buf[pos + 4:end]).decode('utf-8'), end
+
+
+def _map(buf: memoryview, pos: int) -> tuple[dict[str, str], int]:
+    (n,) = _U32.unpack_from(buf, pos)
+    end = pos + 4 + n
+    if end > len(buf):
+        raise _CorruptError('map runs past its record')
+    out: dict[str, str] = {}
+    pos += 4
+    while pos < end:
+        key, pos = _string(buf, pos)
+        val, pos = _string(buf, pos)
+        out[key] = val
+    return out, end
+
+
+def _parse_meta_record(op: int, body: memoryview, state: _ScanState) -> None:
+    if op == _OP_SCHEMA:
+        (sid,) = _U16.unpack_from(body, 0)
+        name, pos = _string(body, 2)
+        _, pos = _string(body, pos)
+        (n,) = _U32.unpack_from(body, pos)
+        if pos + 4 + n > len(body):
+            raise _CorruptError('schema data runs past its record')
+        state.schemas[sid] = (name, bytes(body[pos + 4:pos + 4 + n]).decode('utf-8'))
+    elif op == _OP_CHANNEL:
+        cid, sid = struct.unpack_from('<HH', body, 0)
+        topic, _ = _string(body, 4)
+        state.channels[cid] = (topic, sid)
+    elif op == _OP_METADATA:
+        name, pos = _string(body, 0)
+        state.metadata[name], _ = _map(body, pos)
+
+
+def _decompress(compression: str, data: memoryview, size: int) -> bytes:
+    if compression == '':
+        return bytes(data)
+    if compression == 'zstd':
+        import zstandard  # noqa: PLC0415
+
+        try:
+            return zstandard.ZstdDecompressor().decompress(data, max_output_size=size)
+        except zstandard.ZstdError as exc:
+            raise _CorruptError(f'zstd chunk does not decompress ({exc})') from None
+    if compression == 'lz4':
+        import lz4.frame  # noqa: PLC0415
+
+        try:
+            return lz4.frame.decompress(bytes(data))
+        except RuntimeError as exc:
+            raise _CorruptError(f'lz4 chunk does not decompress ({exc})') from None
+    raise _CorruptError(f'unsupported chunk compression {compression!r}')
+
+
+def _chunk_records(body: memoryview) -> memoryview:
+    start, end, usize, crc = _CHUNK.unpack_from(body, 0)
+    _ = start, end
+    compression, pos = _string(body, _CHUNK.size)
+    (csize,) = _U64.unpack_from(body, pos)
+    if pos + 8 + csize > len(body):
+        raise _CorruptError('chunk data runs past its record')
+    raw = _decompress(compression, body[pos + 8:pos + 8 + csize], usize)
+    if len(raw) != usize:
+        raise _CorruptError(f'chunk holds {len(raw)} bytes, header says {usize}')
+    if crc and zlib.crc32(raw) != crc:
+        raise _CorruptError('chunk CRC mismatch')
+    return memoryview(raw)
+
+
+def _iter_records(buf: memoryview, start: int) -> Iterator[tuple[int, int, memoryview]]:
+    """Yield (offset, opcode, body); raise _CorruptError at a record past the end."""
+    pos, n = start, len(buf)
+    while pos < n:
+        if pos + 9 > n:
+            raise _CorruptError(f'{n - pos} stray bytes at byte {pos} (truncated)')
+        op, length = _REC.unpack_from(buf, pos)
+        end = pos + 9 + length
+        if end > n:
+            raise _CorruptError(
+                f'record (opcode 0x{op:02x}) at byte {pos} claims {length} bytes, past the '
+                f'end at {n} (truncated or corrupt)')
+        yield pos, op, buf[pos + 9:end]
+        pos = end
+
+
+def _scan_file(  # noqa: C901, PLR0912
+    file: Path,
+    state: _ScanState,
+    report: Callable[[str], None],
+    *,
+    messages: bool = True,
+) -> Iterator[tuple[int, int, memoryview]]:
+    """Yield (channel_id, log_time_ns, data) of every sound message of one MCAP file."""
+    try:
+        with file.open('rb') as fh:
+            size = fh.seek(0, 2)
+            if size == 0:
+                report(f'{file} is empty (0 bytes)')
+                return
+            mm = mmap.mmap(fh.fileno(), 0, access=mmap.ACCESS_READ)
+    except (OSError, ValueError) as exc:
+        report(f'cannot read {file}: {exc}')
+        return
+    buf = memoryview(mm)
+    ended = False
+    try:
+        if bytes(buf[:8]) != MAGIC:
+            report(f'{file} is not an MCAP file (bad magic)')
+            return
+        records = _iter_records(buf, 8)
+        while True:
+            try:
+                item = next(records, None)
+            except _CorruptError as exc:
+                report(f'{file}: {exc}')
+                return
+            if item is None:
+                break
+            offset, op, body = item
+            try:
+                if op == _OP_MESSAGE:
+                    if messages:
+                        cid, _, log_time, _ = _MSG.unpack_from(body, 0)
+                        yield cid, log_time, memoryview(bytes(body[_MSG.size:]))
+                elif op == _OP_CHUNK:
+                    inner = _chunk_records(body)
+                    for _, iop, ibody in _iter_records(inner, 0):
+                        if iop == _OP_MESSAGE:
+                            if messages:
+                                cid, _, log_time, _ = _MSG.unpack_from(ibody, 0)
+                                yield cid, log_time, ibody[_MSG.size:]
+                        else:
+                            _parse_meta_record(iop, ibody, state)
+                elif op in (_OP_DATA_END, _OP_FOOTER):
+                    ended = True
+                    break
+                else:
+                    _parse_meta_record(op, body, state)
+            except (_CorruptError, struct.error, UnicodeDecodeError) as exc:
+                report(f'{file}: corrupt record (opcode 0x{op:02x}) at byte {offset}: {exc}; '
+                       'skipped')
+        if not ended:
+            report(f'{file} ends without a Data End record at byte {len(buf)}: the file was '
+                   'truncated')
+    finally:
+        # Views handed out are copies or slices of decompressed chunks, never of the map;
+        # a consumer holding a record body only delays the unmapping to garbage collection.
+        with contextlib.suppress(BufferError):
+            buf.release()
+            mm.close()
+
+
+def _messages(
+    bag: Bag, stream: MessageStream[Any], topics: Collection[str] | None,
+) -> Iterator[tuple[str, str, int, memoryview]]:
+    wanted = None if topics is None else set(topics)
+    for file in bag.files:
+        state = _ScanState()
+        resolved: dict[int, tuple[str, str] | None] = {}
+        for cid, log_time, data in _scan_file(file, state, stream._problem):  # noqa: SLF001
+            target = resolved.get(cid, False)
+            if target is False:
+                chan = state.channels.get(cid)
+                if chan is None:
+                    stream._problem(f'{file}: message on unknown channel {cid}; skipped')  # noqa: SLF001
+                    continue
+                topic, sid = chan
+                msgtype = state.schemas.get(sid, ('', ''))[0] or bag.topic_types.get(topic, '')
+                target = (topic, msgtype) if wanted is None or topic in wanted else None
+                resolved[cid] = target
+            if target is not None:
+                yield target[0], target[1], log_time, data
+
+
+# ----------------------------------------------------------------------------- public
+def iter_messages(
+    path: str | Path, topics: Collection[str] | None = None, *, strict: bool = True,
+) -> MessageStream[RawMessage]:
+    """Every message of a bag, raw, in recording order (file by file, as logged).
+
+    Args:
+        path: Bag folder or ``.mcap`` file.
+        topics: Topic names to keep; None keeps all.
+        strict: Raise ``BagError`` after the last sound message if part was unreadable.
+
+    Returns:
+        Stream of ``(topic, msgtype, timestamp_ns, cdr_bytes)``; ``cdr_bytes`` is a
+        read-only memoryview valid until the next item (copy with ``bytes()`` to keep it).
+
+    Raises:
+        BagError: Bad layout (at call) or unreadable parts (at the end, when strict).
+    """
+    bag = open_bag(path)
+    return MessageStream(lambda s: _messages(bag, s, topics), strict=strict)
+
+
+def _encoder_topic(bag: Bag, topic: str | None) -> str:
+    types = bag.topic_types or _scan_topic_types(bag)
+    if topic is not None:
+        if topic not in types:
+            msg = f'Bag {bag.path} has no topic {topic!r}; topics: {sorted(types)}.'
+            raise BagError(msg)
+        if types[topic] != ENCODER_BLOCK:
+            msg = (f'Bag {bag.path}: topic {topic!r} has type {types[topic]!r}, '
+                   f'expected {ENCODER_BLOCK}.')
+            raise BagError(msg)
+        return topic
+    found = sorted(t for t, ty in types.items() if ty == ENCODER_BLOCK)
+    if not found:
+        msg = f'Bag {bag.path} has no topic of type {ENCODER_BLOCK}; topics: {types}.'
+        raise BagError(msg)
+    if len(found) > 1:
+        msg = f'Bag {bag.path} has several {ENCODER_BLOCK} topics {found}; choose one.'
+        raise BagError(msg)
+    return found[0]
+
+
+def _scan_topic_types(bag: Bag) -> dict[str, str]:
+    types: dict[str, str] = {}
+    for file in bag.files:
+        state = _ScanState()
+        for _ in _scan_file(file, state, lambda _t: None, messages=False):
+            pass
+        for topic, sid in state.channels.values():
+            types[topic] = state.schemas.get(sid, ('', ''))[0]
+    return types
+
+
+def _check_encoder_definition(bag: Bag, topic: str) -> None:
+    """Refuse a bag whose EncoderBlock definition differs from ours (decode would lie)."""
+    for entry in bag.info.get('topics_with_message_count') or []:
+        meta = entry.get('topic_metadata', {})
+        if meta.get('name') == topic:
+            digest = meta.get('type_description_hash') or ''
+            ours = rv_te_typestore().hash_rihs01(ENCODER_BLOCK)
+            if digest and digest != ours:
+                msg = (f'Bag {bag.path}: {ENCODER_BLOCK} on {topic!r} has type hash {digest}, '
+                       f'this software reads {ours}: the definition changed.')
+                raise BagError(msg)
+
+
+def read_encoder_blocks(
+    path: str | Path, topic: str | None = None, *, strict: bool = True,
+) -> MessageStream[EncoderBlockData]:
+    """Encoder blocks of a bag decoded into ``EncoderBlockData`` (read-only arrays).
+
+    Args:
+        path: Bag folder or ``.mcap`` file.
+        topic: The EncoderBlock topic; None: the single topic of that type.
+        strict: Raise ``BagError`` after the last sound block if part was unreadable or a
+            message was malformed (malformed messages are skipped either way).
+
+    Returns:
+        Stream of blocks in recording order.
+
+    Raises:
+        BagError: Bad layout, no or several encoder topics, wrong type on ``topic``;
+            unreadable parts at the end when strict.
+    """
+    bag = open_bag(path)
+    name = _encoder_topic(bag, topic)
+    _check_encoder_definition(bag, name)
+
+    def produce(stream: MessageStream[EncoderBlockData]) -> Iterator[EncoderBlockData]:
+        for index, (_, msgtype, log_time, data) in enumerate(_messages(bag, stream, [name])):
+            if msgtype != ENCODER_BLOCK:
+                msg = (f'Bag {bag.path}: topic {name!r} carries {msgtype!r}, expected '
+                       f'{ENCODER_BLOCK}.')
+                raise BagError(msg)
+            try:
+                yield decode_encoder_block(data)
+            except BagError as exc:
+                stream._problem(f'{bag.path}: {name} message {index} at {log_time} ns: {exc}; '  # noqa: SLF001
+                                'skipped')
+
+    return MessageStream(produce, strict=strict)
+
+
+_ALIGN4, _ALIGN8 = 3, 7
+
+
+def decode_encoder_block(data: bytes | memoryview) -> EncoderBlockData:
+    """Decode one EncoderBlock CDR message (with encapsulation header) into numpy arrays.
+
+    Args:
+        data: Serialised message as stored in a bag or received raw.
+
+    Returns:
+        The block; arrays are float64 views of a private copy of ``data``, read-only.
+
+    Raises:
+        BagError: The bytes do not hold a well-formed EncoderBlock.
+    """
+    from rv_te_bench.core.stream import EncoderBlockData  # noqa: PLC0415
+
+    buf = bytes(data)
+    size = len(buf)
+    if size < 4 + 12 or buf[0] != 0 or buf[1] not in (0, 1):
+        msg = f'not a CDR EncoderBlock ({size} bytes, header {buf[:4].hex()})'
+        raise BagError(msg)
+    end = '<' if buf[1] == 1 else '>'
+    try:
+        sec, nsec, flen = struct.unpack_from(end + 'iII', buf, 4)
+        off = (12 + flen + _ALIGN8) & ~_ALIGN8
+        seq, rate = struct.unpack_from(end + 'Qd', buf, 4 + off)
+        off += 16
+        arrays = []
+        dtype = np.dtype(end + 'f8')
+        for _ in range(4):
+            off = (off + _ALIGN4) & ~_ALIGN4
+            (count,) = struct.unpack_from(end + 'I', buf, 4 + off)
+            off += 4
+            if count:
+                off = (off + _ALIGN8) & ~_ALIGN8
+            if 4 + off + 8 * count > size:
+                msg = f'array of {count} float64 runs past the message end ({size} bytes)'
+                raise BagError(msg)
+            arrays.append(np.frombuffer(buf, dtype, count, 4 + off))
+            off += 8 * count
+    except struct.error as exc:
+        msg = f'EncoderBlock CDR truncated ({size} bytes): {exc}'
+        raise BagError(msg) from None
+    if end == '>':
+        arrays = [a.astype(np.float64) for a in arrays]
+        for a in arrays:
+            a.setflags(write=False)
+    try:
+        return EncoderBlockData(seq=int(seq), stamp_s=sec + nsec * 1e-9,
+                                sample_rate_hz=float(rate), time_offset_s=arrays[0],
+                                theta_in_rad=arrays[1], theta_out_rad=arrays[2],
+                                torque_out_nm=arrays[3])
+    except (ValueError, TypeError) as exc:
+        msg = f'EncoderBlock content invalid: {exc}'
+        raise BagError(msg) from None
+
+
+def decode_encoder_block_rosbags(data: bytes | memoryview) -> EncoderBlockData:
+    """Decode one EncoderBlock with the rosbags typestore (slower; cross-check/fallback).
+
+    Raises:
+        BagError: The bytes do not deserialise as EncoderBlock.
+    """
+    from rv_te_bench.core.stream import EncoderBlockData  # noqa: PLC0415
+
+    try:
+        msg = rv_te_typestore().deserialize_cdr(bytes(data), ENCODER_BLOCK)
+    except Exception as exc:  # noqa: BLE001 - rosbags raises assorted errors on bad bytes
+        text = f'EncoderBlock does not deserialise: {exc}'
+        raise BagError(text) from None
+    stamp = msg.header.stamp
+    return EncoderBlockData(
+        seq=int(msg.seq), stamp_s=stamp.sec + stamp.nanosec * 1e-9,
+        sample_rate_hz=float(msg.sample_rate_hz),
+        time_offset_s=np.asarray(msg.time_offset_s, np.float64),
+        theta_in_rad=np.asarray(msg.theta_in_rad, np.float64),
+        theta_out_rad=np.asarray(msg.theta_out_rad, np.float64),
+        torque_out_nm=np.asarray(msg.torque_out_nm, np.float64))
+
+
+def read_bench_info(path: str | Path, topic: str | None = None) -> dict[str, Any] | None:
+    """The last BenchInfo message of a bag as a dict of its fields, or None if there is none.
+
+    Args:
+        path: Bag folder or ``.mcap`` file.
+        topic: BenchInfo topic; None: every topic of type BenchInfo.
+
+    Raises:
+        BagError: Bad layout, or the message does not deserialise.
+    """
+    bag = open_bag(path)
+    types = bag.topic_types or _scan_topic_types(bag)
+    names = [topic] if topic is not None else [t for t, ty in types.items() if ty == BENCH_INFO]
+    if not names:
+        return None
+    last: bytes | None = None
+    for _, msgtype, _, data in MessageStream(lambda s: _messages(bag, s, names), strict=False):
+        if msgtype == BENCH_INFO:
+            last = bytes(data)
+    if last is None:
+        return None
+    try:
+        msg = rv_te_typestore().deserialize_cdr(last, BENCH_INFO)
+    except Exception as exc:  # noqa: BLE001
+        text = f'Bag {bag.path}: BenchInfo does not deserialise: {exc}.'
+        raise BagError(text) from None
+    stamp = msg.header.stamp
+    return {
+        'stamp_s': stamp.sec + stamp.nanosec * 1e-9,
+        'frame_id': msg.header.frame_id,
+        'bench_id': msg.bench_id,
+        'preset': msg.preset,
+        'reducer_type': msg.reducer_type,
+        'gear_ratio': float(msg.gear_ratio),
+        'crank_per_input': float(msg.crank_per_input),
+        'crank_rel_per_input': float(msg.crank_rel_per_input),
+        'mesh_orders': [float(x) for x in msg.mesh_orders],
+        'mesh_labels': list(msg.mesh_labels),
+        'encoder_in_model': msg.encoder_in_model,
+        'encoder_out_model': msg.encoder_out_model,
+        'encoder_in_resolution_rad': float(msg.encoder_in_resolution_rad),
+        'encoder_out_resolution_rad': float(msg.encoder_out_resolution_rad),
+        'sample_rate_hz': float(msg.sample_rate_hz),
+        'block_size': int(msg.block_size),
+        'parameters_yaml': msg.parameters_yaml,
+    }
+
+
+def bag_summary(path: str | Path) -> dict[str, Any]:
+    """Scan a whole bag and summarise it.
+
+    Returns:
+        ``{'path', 'files', 'finalized', 'topics': {name: {'type', 'count',
+        'count_metadata_yaml'}}, 'message_count', 'start_ns', 'end_ns', 'duration_s',
+        'session', 'metadata': {record name: dict}, 'partial', 'problems'}``; never raises for damage
+        found while scanning (see ``partial`` / ``problems``).
+
+    Raises:
+        BagError: Bad layout.
+    """
+    bag = open_bag(path)
+    stream: MessageStream[Any] = MessageStream(lambda s: iter(()), strict=False)
+    counts: dict[str, int] = {}
+    types: dict[str, str] = dict(bag.topic_types)
+    meta: dict[str, dict[str, str]] = {}
+    start, stop = None, None
+    for file in bag.files:
+        state = _ScanState()
+        per_cid: dict[int, int] = {}
+        times: list[int] = []
+        for cid, log_time, _ in _scan_file(file, state, stream._problem):  # noqa: SLF001
+            per_cid[cid] = per_cid.get(cid, 0) + 1
+            times.append(log_time)
+        for cid, n in per_cid.items():
+            topic, sid = state.channels.get(cid, (f'<unknown channel {cid}>', 0))
+            counts[topic] = counts.get(topic, 0) + n
+        for topic, sid in state.channels.values():
+            types.setdefault(topic, state.schemas.get(sid, ('', ''))[0])
+        meta.update(state.metadata)
+        if times:
+            lo, hi = min(times), max(times)
+            start = lo if start is None else min(start, lo)
+            stop = hi if stop is None else max(stop, hi)
+    yaml_counts = {
+        str(t['topic_metadata']['name']): int(t.get('message_count', 0))
+        for t in bag.info.get('topics_with_message_count') or []
+    }
+    topics = {
+        name: {'type': types.get(name, ''), 'count': counts.get(name, 0),
+               'count_metadata_yaml': yaml_counts.get(name)}
+        for name in sorted(set(types) | set(counts))
+    }
+    return {
+        'path': str(bag.path),
+        'files': [str(f) for f in bag.files],
+        'finalized': bag.finalized,
+        'topics': topics,
+        'message_count': sum(counts.values()),
+        'start_ns': start,
+        'end_ns': stop,
+        'duration_s': 0.0 if start is None or stop is None else (stop - start) * 1e-9,
+        'session': meta.get('rv_te_session', {}),
+        'metadata': {k: v for k, v in meta.items() if k != 'rosbag2'},
+        'partial': stream.partial,
+        'problems': list(stream.problems),
+    }
