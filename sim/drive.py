@@ -30,7 +30,7 @@ from __future__ import annotations
 import dataclasses
 import math
 from dataclasses import dataclass
-from typing import TYPE_CHECKING, Any, ClassVar, Protocol
+from typing import TYPE_CHECKING, Any, ClassVar, Protocol, TypeAlias
 
 import numpy as np
 
@@ -42,6 +42,8 @@ if TYPE_CHECKING:
 
 __all__ = [
     'DRIVE_KINDS',
+    'AnyDrive',
+    'AnyLoad',
     'LOAD_KINDS',
     'ConstantLoad',
     'ConstantSpeed',
@@ -357,6 +359,9 @@ class SinusoidalLoad:
             2.0 * math.pi * self.frequency_hz * t + self.phase_rad)
 
 
+AnyDrive: TypeAlias = ConstantSpeed | SinusoidalSpeed | Ramp | ForwardReverse
+AnyLoad: TypeAlias = ConstantLoad | SinusoidalLoad
+
 DRIVE_KINDS: dict[str, type] = {
     'constant': ConstantSpeed,
     'sinusoidal': SinusoidalSpeed,
@@ -383,7 +388,7 @@ def _construct(kind_label: str, cls: type, params: dict[str, Any]) -> Any:  # no
     return cls(**params)
 
 
-def drive_from_spec(kind: str, **params: Any) -> ConstantSpeed | SinusoidalSpeed | Ramp | ForwardReverse:  # noqa: ANN401, E501
+def drive_from_spec(kind: str, **params: Any) -> AnyDrive:  # noqa: ANN401
     """Build a speed profile from a kind name and its parameters (e.g. node parameters).
 
     Args:
@@ -433,7 +438,7 @@ def _tied_frequency_hz(tie_to: str, harmonic: float, mesh_index: int,
 
 
 def load_from_spec(kind: str, *, kinematics: Any = None, drive: Any = None,  # noqa: ANN401
-                   **params: Any) -> ConstantLoad | SinusoidalLoad:  # noqa: ANN401
+                   **params: Any) -> AnyLoad:  # noqa: ANN401
     """Build a load profile from a kind name and its parameters.
 
     ``'constant'``: ``torque_nm``. ``'sinusoidal'``: ``mean_nm``, ``amplitude_nm``,

@@ -163,6 +163,19 @@ def test_same_seed_same_data_other_seed_other_noise() -> None:
     assert not np.array_equal(a['theta_in_rad'], c['theta_in_rad'])
 
 
+def test_data_do_not_depend_on_the_block_size() -> None:
+    """Ten blocks of 100 = one block of 1000: true angles within 1e-12 rad (t0 + offset
+    rounding), readings within one count (the noise stream is drawn in the same order)."""
+    kw = {'encoder_in': 'heidenhain-ron886', 'encoder_out': 'renishaw-resm', 'seed': 3}
+    a = run(make_sim(block_size=100, **kw)[0], 10)
+    b = run(make_sim(block_size=1000, **kw)[0], 1)
+    for key in ('theta_in_true_rad', 'theta_out_true_rad', 'te_true_rad', 't_s'):
+        np.testing.assert_allclose(a[key], b[key], rtol=0, atol=1e-12)
+    q = 2 * math.pi / 36e6
+    np.testing.assert_allclose(a['theta_in_rad'], b['theta_in_rad'], rtol=0, atol=1.01 * q)
+    np.testing.assert_allclose(a['theta_out_rad'], b['theta_out_rad'], rtol=0, atol=1.01 * q)
+
+
 def test_sequence_and_time_are_contiguous() -> None:
     sim, _ = make_sim(block_size=250, sample_rate_hz=250.0, start_time_s=1.0e5)
     blocks = [sim.next_block() for _ in range(8)]
