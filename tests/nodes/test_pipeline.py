@@ -1,0 +1,226 @@
+"""Bench node -> TE node over the real middleware (own context, own domain id).
+
+Expected values are independent of the nodes: the test collects the very blocks the bench
+published and runs the core offline on them, and checks Eq. 22 against the model's TE.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+pytestmark = pytest.mark.ros
+
+rclpy = pytest.importorskip('rclpy')
+
+from rclpy.executors import SingleThreadedExecutor  # noqa: E402
+from rclpy.parameter import Parameter  # noqa: E402
+from rv_te_msgs.msg import BenchInfo, EncoderBlock, TeSpectrum, TransmissionError  # noqa: E402
+
+from rv_te_bench.core.orders import OrderSet  # noqa: E402
+from rv_te_bench.core.stream import TeAnalysisConfig, analyze_blocks  # noqa: E402
+from rv_te_bench.nodes import qos  # noqa: E402
+from rv_te_bench.nodes.bench_node import BenchNode  # noqa: E402
+from rv_te_bench.nodes.convert import encoder_block_to_data  # noqa: E402
+from rv_te_bench.nodes.te_node import TeNode  # noqa: E402
+from tests.nodes.rosutil import spin_for, spin_until  # noqa: E402
+
+SPEED_RPM = 3000.0          # one output revolution of wang2020-2kv = 1.58 s simulated
+RATE_HZ = 2000.0
+BLOCK = 100
+
+
+def bench_params(**extra: object) -> list[Parameter]:
+    values = {'preset': 'wang2020-2kv', 'te_mode': 'nlte', 'speed_rpm': SPEED_RPM,
+              'encoder_in': 'ideal', 'encoder_out': 'ideal', 'sample_rate_hz': RATE_HZ,
+              'block_size': BLOCK, 'duration_output_revs': 2.3, 'time_mode': 'fast',
+              'speed_factor': 10.0, 'seed': 3, **extra}
+    return [Parameter(k, value=v) for k, v in values.items()]
+
+
+@pytest.fixture
+def graph(ros_context):  # noqa: ANN001, ANN201
+    nodes = []
+    ex = SingleThreadedExecutor(context=ros_context)
+
+    def add(node):  # noqa: ANN001, ANN202
+        nodes.append(node)
+        ex.add_node(node)
+        return node
+
+    yield ros_context, ex, add
+    ex.shutdown()
+    for n in nodes:
+        n.destroy_node()
+
+
+def test_bench_to_te_node_live_equals_offline(graph) -> None:  # noqa: ANN001
+    ctx, ex, add = graph
+    probe = add(rclpy.create_node('probe', context=ctx))
+    blocks: list[EncoderBlock] = []
+    windows: list[TransmissionError] = []
+    spectra: list[TeSpectrum] = []
+    probe.create_subscription(EncoderBlock, 'bench/encoders', blocks.append, qos.ENCODER_QOS)
+    probe.create_subscription(TransmissionError, 'te/statistics', windows.append,
+                              qos.LATCHED_QOS)
+    probe.create_subscription(TeSpectrum, 'te/spectrum', spectra.append, qos.LATCHED_QOS)
+    te = add(TeNode(context=ctx))
+    spin_for(ex, 0.5)
+    bench = add(BenchNode(context=ctx, parameter_overrides=bench_params()))
+    assert spin_until(ex, lambda: bench.finished, 60.0), 'bench did not finish'
+    assert spin_until(ex, lambda: len(blocks) == bench.blocks_published
+                      and len(windows) >= 2, 30.0)
+    spin_for(ex, 0.5)
+
+    # contiguous sequence, monotonic time
+    assert [b.seq for b in blocks] == list(range(len(blocks)))
+    t = np.concatenate([b.header.stamp.sec + b.header.stamp.nanosec * 1e-9
+                        + np.asarray(b.time_offset_s) for b in blocks])
+    assert np.all(np.diff(t) > 0)
+
+    # BenchInfo reaches a subscriber that joins late (transient-local)
+    infos: list[BenchInfo] = []
+    late = add(rclpy.create_node('late_joiner', context=ctx))
+    late.create_subscription(BenchInfo, 'bench/info', infos.append, qos.LATCHED_QOS)
+    assert spin_until(ex, lambda: len(infos) == 1, 10.0)
+    info = infos[0]
+    assert info.gear_ratio == pytest.approx(79.0, rel=1e-12)
+    assert abs(info.crank_per_input) * info.gear_ratio == pytest.approx(25.0, rel=1e-12)
+
+    # ideal encoders: Eq. 22 on the published angles equals the model TE (recomputed here)
+    data = [encoder_block_to_data(b) for b in blocks]
+    th_in = np.concatenate([d.theta_in_rad for d in data])
+    th_out = np.concatenate([d.theta_out_rad for d in data])
+    from sim.presets import load_preset  # noqa: PLC0415
+    from sim.wang2020 import Wang2kvParams, nlte_rad  # noqa: PLC0415
+    params = Wang2kvParams.from_preset(load_preset('wang2020-2kv'))
+    te_model = nlte_rad(th_in / 79.0, params)
+    np.testing.assert_allclose(th_out - th_in / 79.0, te_model, rtol=0, atol=1e-9)
+
+    # live windows equal the offline computation on the same blocks
+    orders = OrderSet.from_bench_info(
+        gear_ratio=info.gear_ratio, crank_per_input=info.crank_per_input,
+        mesh_orders_out=tuple(info.mesh_orders), mesh_labels=tuple(info.mesh_labels))
+    offline = analyze_blocks(data, TeAnalysisConfig(orders=orders))
+    live_complete = [w for w in windows if w.window_complete]
+    off_complete = [w for w in offline.windows if w.complete]
+    assert len(live_complete) == len(off_complete) == 2
+    for lw, ow in zip(live_complete, off_complete, strict=True):
+        assert lw.window.pp_rad == pytest.approx(ow.stats.pp_rad, rel=1e-9)
+        assert lw.window.mean_rad == pytest.approx(ow.stats.mean_rad, rel=1e-9)
+        assert lw.window.amplitude_rad == pytest.approx(ow.stats.amplitude_rad, rel=1e-9)
+    # the live spectrum's largest line is at f_w and equals the offline one
+    assert len(spectra) >= 2
+    live_lines = spectra[0].lines
+    top = max(live_lines, key=lambda ln: ln.amplitude_rad)
+    assert top.output_order == pytest.approx(25.0)
+    off_lines = {ln.label: ln for ln in off_complete[0].spectrum.lines}
+    for ln in live_lines:
+        assert ln.amplitude_rad == pytest.approx(off_lines[ln.label].amplitude_rad, rel=1e-9,
+                                                 abs=1e-15)
+    f_w = 25.0 * SPEED_RPM / 60.0 / 79.0
+    assert spectra[0].crank_hz == pytest.approx(f_w, rel=1e-3)
+    assert te.drops.total == 0
+
+
+@pytest.mark.parametrize(('name', 'value', 'needle'), [
+    ('sample_rate_hz', 0.0, 'sample_rate_hz'),
+    ('block_size', 0, 'block_size'),
+    ('time_mode', 'warp', 'time_mode'),
+])
+def test_bad_bench_parameter_stops_start_up(ros_context, name: str, value: object,
+                                            needle: str) -> None:
+    from rclpy.exceptions import InvalidParameterValueException  # noqa: PLC0415
+
+    with pytest.raises(InvalidParameterValueException, match=needle):
+        BenchNode(context=ros_context, parameter_overrides=[Parameter(name, value=value)])
+
+
+def test_unknown_preset_and_nonsense_drive_stop_start_up(ros_context) -> None:  # noqa: ANN001
+    from sim.errors import SimError  # noqa: PLC0415
+
+    with pytest.raises(SimError, match='unknown preset'):
+        BenchNode(context=ros_context,
+                  parameter_overrides=[Parameter('preset', value='no-such-reducer')])
+    with pytest.raises(SimError, match='speed_rpm'):
+        BenchNode(context=ros_context, parameter_overrides=[Parameter('speed_rpm', value=0.0)])
+
+
+def test_invalid_runtime_change_is_rejected(ros_context) -> None:  # noqa: ANN001
+    te = TeNode(context=ros_context)
+    try:
+        res = te.set_parameters([Parameter('decimated_rate_hz', value=-3.0)])[0]
+        assert not res.successful
+        assert 'decimated_rate_hz' in res.reason
+        assert te.get_parameter('decimated_rate_hz').value == 50.0
+        res = te.set_parameters([Parameter('decimated_rate_hz', value=20.0)])[0]
+        assert res.successful
+        assert te.p['decimated_rate_hz'] == 20.0
+    finally:
+        te.destroy_node()
+
+
+def test_te_node_survives_malformed_blocks(graph) -> None:  # noqa: ANN001
+    ctx, ex, add = graph
+    te = add(TeNode(context=ctx, parameter_overrides=[
+        Parameter('gear_ratio', value=79.0), Parameter('crank_per_input', value=-25.0 / 79.0)]))
+    pub_node = add(rclpy.create_node('bad_publisher', context=ctx))
+    pub = pub_node.create_publisher(EncoderBlock, 'bench/encoders', qos.ENCODER_QOS)
+    windows: list[TransmissionError] = []
+    pub_node.create_subscription(TransmissionError, 'te/statistics', windows.append,
+                                 qos.LATCHED_QOS)
+    spin_until(ex, lambda: pub.get_subscription_count() > 0, 10.0)
+
+    rate = 1000.0
+    n = 100
+    omega_in = 2 * math.pi * 3000 / 60   # 1 output rev = 1.58 s
+    amp = 1e-4
+
+    def block(seq: int, t0: float) -> EncoderBlock:
+        msg = EncoderBlock()
+        msg.seq = seq
+        msg.sample_rate_hz = rate
+        s = int(t0)
+        msg.header.stamp.sec = s
+        msg.header.stamp.nanosec = int(round((t0 - s) * 1e9))
+        off = np.arange(n) / rate
+        th_in = omega_in * (t0 + off)
+        msg.time_offset_s = off
+        msg.theta_in_rad = th_in
+        msg.theta_out_rad = th_in / 79.0 + amp * np.cos(25 * th_in / 79.0)
+        return msg
+
+    seq = 0
+    t0 = 100.0
+    bad = []
+    m = block(seq, t0)
+    m.theta_in_rad = np.full(n, np.nan)
+    bad.append(m)
+    m = block(seq + 1, t0)
+    m.theta_out_rad = np.zeros(n - 3)
+    bad.append(m)
+    m = block(seq + 2, t0 - 50.0)   # stamp going backwards
+    bad.append(m)
+    empty = EncoderBlock()
+    empty.seq = seq + 3
+    bad.append(empty)
+    for m in bad:
+        pub.publish(m)
+        spin_for(ex, 0.02)
+    seq = 10
+    for k in range(45):  # 4.5 s of clean data: at least two whole output revolutions
+        pub.publish(block(seq + k, t0 + 10 + k * n / rate))
+        spin_for(ex, 0.01)
+    spin_until(ex, lambda: any(w.window_complete for w in windows), 10.0)
+    assert te.analyzer is not None
+    counters = te.analyzer.counters
+    assert counters['malformed'] + counters['gaps'] >= 4
+    complete = [w for w in windows if w.window_complete]
+    assert complete, 'no clean window after the bad blocks'
+    # closed form: amp*cos(25 phi) over whole revolutions: p-p 2 amp, mean 0, std amp/sqrt2
+    w = complete[0].window
+    assert w.pp_rad == pytest.approx(2 * amp, rel=1e-3)
+    assert w.mean_rad == pytest.approx(0.0, abs=1e-3 * amp)
+    assert w.std_rad == pytest.approx(amp / math.sqrt(2), rel=1e-3)
