@@ -164,7 +164,7 @@ class EncoderSpec:
         Sum of a_k^2 / 2 (distinct orders, order 1 combined with the eccentricity) plus
         sigma^2; quantisation (q^2 / 12 about its mean -q/2) is not included.
         """
-        c = {}
+        c: dict[int, complex] = {}
         for n, a, p in zip(self.graduation_orders, self.graduation_amplitudes_rad,
                            self.graduation_phases_rad, strict=True):
             c[n] = c.get(n, 0.0) + a * complex(math.cos(p), math.sin(p))
