@@ -1,0 +1,756 @@
+"""Offline analysis of recorded sessions: bag(s) -> :class:`AnalysisResult`.
+
+One bag is read block by block (:func:`rv_te_bench.io.bag_reader.read_encoder_blocks`), fed
+to the TE core (:func:`rv_te_bench.core.stream.analyze_blocks`, the same windowing the TE
+node uses) and summarised:
+
+* statistics per window of whole output revolutions and cumulative over every clean sample;
+* the order spectrum of the **complete** windows, averaged: the amplitude of each labelled
+  line is the arithmetic mean of its per-window peak amplitudes, the phase the angle of the
+  mean phasor (``method`` in :class:`SpectrumSummary` says so);
+* the gaps the core reported (sequence jumps, time going backwards, non-finite data) and
+  read errors (a truncated or corrupted file ends the read; what came before is kept and
+  the result is marked ``partial``);
+* the dominant labelled harmonic and its likely physical source;
+* a recommendation from the compensation code when the preset has a model for it.
+
+Everything inside is SI (radians, seconds, hertz); arcminutes appear only in
+:meth:`AnalysisResult.to_json_dict` (keys ending in ``_arcmin``) and in the plots/HTML.
+No rclpy import: this runs on a laptop without ROS.
+"""
+
+from __future__ import annotations
+
+import math
+import time
+from dataclasses import dataclass, field, replace
+from pathlib import Path
+from typing import TYPE_CHECKING, Any
+
+import numpy as np
+
+from rv_te_bench.errors import BagError, RvTeError, TeConfigError
+from sim.units import rad_to_arcmin, rad_to_deg
+
+if TYPE_CHECKING:
+    from collections.abc import Callable, Iterable, Iterator
+
+    import numpy.typing as npt
+
+    from rv_te_bench.core.advice import Advice
+    from rv_te_bench.core.spectrum import OrderSpectrum, SpectrumLine
+    from rv_te_bench.core.stream import EncoderBlockData, GapEvent, WindowResult
+    from rv_te_bench.core.te import TeStats
+
+    FloatArray = npt.NDArray[np.float64]
+    ProgressFn = Callable[[int, int, float], None]
+
+__all__ = [
+    'AnalysisResult',
+    'BenchDescription',
+    'DominantHarmonic',
+    'Recommendation',
+    'SpectrumSummary',
+    'TeTrace',
+    'analyze_bag',
+    'compare_results',
+    'likely_source',
+]
+
+#: Most (theta_out, TE) points kept for the TE plot; the trace is thinned by 2 when exceeded.
+MAX_TRACE_POINTS = 40_000
+
+#: Relative tolerance when matching a line's output order to a known order.
+_ORDER_RTOL = 1e-6
+
+
+@dataclass(frozen=True)
+class BenchDescription:
+    """What the analysis knows about the bench that recorded a bag.
+
+    Attributes:
+        source: ``'bench_info'`` (from the bag), ``'cli'`` (from --ratio/--crank-per-output)
+            or ``'bench_info+cli'`` (bag values overridden by flags).
+        bench_id: Bench id ('' when unknown).
+        preset: Reducer preset name ('' when unknown).
+        reducer_type: ``'2kv'``, ``'rv'`` or ''.
+        gear_ratio: Overall ratio i, input revolutions per output revolution.
+        crank_per_output: |Absolute crank revolutions per output revolution|.
+        mesh_orders_out: Mesh frequencies as orders of the output rotation.
+        mesh_labels: One label per mesh order.
+        sample_rate_hz: Nominal DAQ rate from BenchInfo (NaN when unknown).
+        encoder_in_model: Input encoder model ('' when unknown).
+        encoder_out_model: Output encoder model ('' when unknown).
+        parameters_yaml: Effective preset values as YAML ('' when unknown).
+    """
+
+    source: str
+    gear_ratio: float
+    crank_per_output: float
+    bench_id: str = ''
+    preset: str = ''
+    reducer_type: str = ''
+    mesh_orders_out: tuple[float, ...] = ()
+    mesh_labels: tuple[str, ...] = ()
+    sample_rate_hz: float = math.nan
+    encoder_in_model: str = ''
+    encoder_out_model: str = ''
+    parameters_yaml: str = field(default='', repr=False)
+
+    def __post_init__(self) -> None:
+        """Validate ratio and crank order.
+
+        Raises:
+            TeConfigError: A non-finite or non-positive ratio / crank order.
+        """
+        for name in ('gear_ratio', 'crank_per_output'):
+            value = getattr(self, name)
+            if not (math.isfinite(value) and value > 0):
+                msg = f'{name} must be finite and > 0, got {value!r} (source: {self.source})'
+                raise TeConfigError(msg)
+
+    def to_json_dict(self) -> dict[str, Any]:
+        """JSON-friendly dict (unit-suffixed keys)."""
+        return {
+            'source': self.source, 'bench_id': self.bench_id, 'preset': self.preset,
+            'reducer_type': self.reducer_type, 'gear_ratio': self.gear_ratio,
+            'crank_per_output': self.crank_per_output,
+            'mesh_orders_out': list(self.mesh_orders_out), 'mesh_labels': list(self.mesh_labels),
+            'sample_rate_hz': _num(self.sample_rate_hz),
+            'encoder_in_model': self.encoder_in_model,
+            'encoder_out_model': self.encoder_out_model,
+        }
+
+
+@dataclass(frozen=True)
+class SpectrumSummary:
+    """Order spectrum of a bag: the complete windows, averaged.
+
+    Attributes:
+        method: How the lines were combined, in words (shown in reports).
+        n_windows: Complete windows averaged.
+        output_hz: Mean output rotation frequency f_out over those windows [Hz].
+        crank_hz: Mean absolute crank frequency f_w [Hz].
+        revolutions: Output revolutions covered by the averaged windows.
+        lines: Averaged labelled lines (peak amplitude [rad], phase of the cosine [rad]).
+        amplitude_spread_rad: Per line, the standard deviation of the per-window amplitudes.
+        orders: Output orders of the full spectrum (for plots), read-only.
+        amplitude_rad: Mean peak amplitude at ``orders`` [rad], read-only.
+    """
+
+    method: str
+    n_windows: int
+    output_hz: float
+    crank_hz: float
+    revolutions: float
+    lines: tuple[SpectrumLine, ...]
+    amplitude_spread_rad: tuple[float, ...]
+    orders: FloatArray = field(repr=False)
+    amplitude_rad: FloatArray = field(repr=False)
+
+    def to_json_dict(self) -> dict[str, Any]:
+        """JSON-friendly dict; line amplitudes in rad and arcmin, phases in rad and deg."""
+        return {
+            'method': self.method, 'n_windows': self.n_windows,
+            'output_hz': _num(self.output_hz), 'crank_hz': _num(self.crank_hz),
+            'revolutions': _num(self.revolutions),
+            'lines': [_line_json(ln, spread) for ln, spread in
+                      zip(self.lines, self.amplitude_spread_rad, strict=True)],
+        }
+
+
+@dataclass(frozen=True)
+class DominantHarmonic:
+    """The labelled line with the largest averaged amplitude and its likely source."""
+
+    line: SpectrumLine
+    likely_source: str
+
+    def to_json_dict(self) -> dict[str, Any]:
+        """JSON-friendly dict."""
+        return {**_line_json(self.line, math.nan), 'likely_source': self.likely_source}
+
+
+@dataclass(frozen=True)
+class Recommendation:
+    """Compensation advice, or why there is none.
+
+    Attributes:
+        available: True when ``advice`` holds a recommendation.
+        reason: Why there is no recommendation, or where the advice comes from.
+        advice: The advice (``rv_te_bench.core.advice.Advice``) or None.
+    """
+
+    available: bool
+    reason: str
+    advice: Advice | None = None
+
+    def to_json_dict(self) -> dict[str, Any]:
+        """JSON-friendly dict."""
+        return {'available': self.available, 'reason': self.reason,
+                'advice': None if self.advice is None else self.advice.to_json_dict()}
+
+
+@dataclass(frozen=True)
+class TeTrace:
+    """A thinned TE trace for plots: every ``stride``-th sample, NaN rows at gaps.
+
+    Attributes:
+        theta_out_rad: Output angle [rad] (unwrapped, as recorded).
+        te_rad: TE at those samples [rad].
+        stride: Every how many samples one was kept.
+    """
+
+    theta_out_rad: FloatArray = field(repr=False)
+    te_rad: FloatArray = field(repr=False)
+    stride: int = 1
+
+
+@dataclass(frozen=True)
+class AnalysisResult:
+    """Everything the offline analysis found in one bag.
+
+    Attributes:
+        path: The bag.
+        topic: Encoder topic asked for (None: the reader's choice).
+        bench: Ratio, orders and bench metadata used.
+        windows: Per-window results of the TE core (complete and the trailing partial one).
+        cumulative: Statistics over every clean sample.
+        spectrum: Averaged spectrum of the complete windows, or None when there is none.
+        dominant: Dominant labelled line, or None without a spectrum.
+        gaps: Gap events reported by the core.
+        counters: Counters reported by the core (blocks, samples, ...).
+        trace: Thinned TE trace for plots.
+        recommendation: Compensation advice or the reason there is none.
+        partial: True when the read ended early (see ``problems``).
+        problems: Human-readable problems met (read errors, no complete window, ...).
+        blocks_read: Encoder blocks read from the bag.
+        elapsed_s: Wall time of the analysis [s].
+    """
+
+    path: Path
+    topic: str | None
+    bench: BenchDescription
+    windows: tuple[WindowResult, ...]
+    cumulative: TeStats
+    spectrum: SpectrumSummary | None
+    dominant: DominantHarmonic | None
+    gaps: tuple[GapEvent, ...]
+    counters: dict[str, Any]
+    trace: TeTrace
+    recommendation: Recommendation
+    partial: bool
+    problems: tuple[str, ...]
+    blocks_read: int
+    elapsed_s: float
+
+    @property
+    def complete_windows(self) -> tuple[WindowResult, ...]:
+        """The windows that cover whole output revolutions."""
+        return tuple(w for w in self.windows if w.complete)
+
+    def to_json_dict(self) -> dict[str, Any]:
+        """JSON-friendly dict with unit-suffixed keys (``te_pp_arcmin``, ``frequency_hz``)."""
+        return {
+            'bag': str(self.path),
+            'topic': self.topic,
+            'partial': self.partial,
+            'problems': list(self.problems),
+            'blocks_read': self.blocks_read,
+            'bench': self.bench.to_json_dict(),
+            'cumulative': stats_json(self.cumulative),
+            'windows': [{
+                'index': int(w.index), 'complete': bool(w.complete),
+                'start_stamp_s': _num(w.start_stamp_s), 'end_stamp_s': _num(w.end_stamp_s),
+                'first_seq': int(w.first_seq), 'last_seq': int(w.last_seq),
+                **stats_json(w.stats)} for w in self.windows],
+            'spectrum': None if self.spectrum is None else self.spectrum.to_json_dict(),
+            'dominant': None if self.dominant is None else self.dominant.to_json_dict(),
+            'gaps': [{'kind': g.kind, 'seq': int(g.seq), 'detail': g.detail} for g in self.gaps],
+            'counters': {k: _jsonable(v) for k, v in self.counters.items()},
+            'recommendation': self.recommendation.to_json_dict(),
+        }
+
+
+def stats_json(stats: TeStats) -> dict[str, Any]:
+    """TE statistics as a JSON dict in arcmin (and rad), keys carrying the unit."""
+    return {
+        'te_pp_arcmin': _num(rad_to_arcmin(stats.pp_rad)),
+        'te_amplitude_arcmin': _num(rad_to_arcmin(stats.amplitude_rad)),
+        'te_mean_arcmin': _num(rad_to_arcmin(stats.mean_rad)),
+        'te_std_arcmin': _num(rad_to_arcmin(stats.std_rad)),
+        'te_pp_rad': _num(stats.pp_rad),
+        'te_amplitude_rad': _num(stats.amplitude_rad),
+        'te_mean_rad': _num(stats.mean_rad),
+        'te_std_rad': _num(stats.std_rad),
+        'revolutions': _num(stats.revolutions),
+        'n_samples': int(stats.n_samples),
+    }
+
+
+# --------------------------------------------------------------------------------------
+# analysis
+
+
+def analyze_bag(  # noqa: PLR0913 - keyword-only analysis options
+    path: str | Path,
+    *,
+    topic: str | None = None,
+    gear_ratio: float | None = None,
+    crank_per_output: float | None = None,
+    n_crank_harmonics: int = 10,
+    window_revolutions: int = 1,
+    with_advice: bool = True,
+    progress: ProgressFn | None = None,
+) -> AnalysisResult:
+    """Analyse one recorded session.
+
+    Args:
+        path: rosbag2 folder or .mcap file.
+        topic: Encoder topic (None: the reader picks the EncoderBlock topic).
+        gear_ratio: Overall ratio i (input revs per output rev); overrides BenchInfo, and
+            is required with ``crank_per_output`` for bags without BenchInfo.
+        crank_per_output: |Absolute crank revs per output rev| (25 for the Wang 2020 2K-V).
+        n_crank_harmonics: Crank harmonics to report (1 f_w .. n f_w).
+        window_revolutions: Whole output revolutions per analysis window (>= 1).
+        with_advice: Ask the compensation code for a recommendation.
+        progress: Called as ``progress(blocks, samples, elapsed_s)`` after each block.
+
+    Returns:
+        The analysis; ``partial`` is set when a read error ended the bag early.
+
+    Raises:
+        BagError: The bag cannot be opened, has no encoder topic, or no block could be read.
+        TeConfigError: Ratio/crank order missing (no BenchInfo and no flags) or invalid.
+    """
+    from rv_te_bench.core.stream import TeAnalysisConfig, analyze_blocks  # noqa: PLC0415
+    from rv_te_bench.io.bag_reader import read_bench_info, read_encoder_blocks  # noqa: PLC0415
+
+    t_start = time.monotonic()
+    path = Path(path)
+    if not path.exists():
+        msg = f'{path}: no such bag'
+        raise BagError(msg)
+    info = read_bench_info(path)
+    bench = _bench_description(path, info, gear_ratio, crank_per_output)
+    config = TeAnalysisConfig(orders=_order_set(bench, n_crank_harmonics),
+                              window_revolutions=window_revolutions)
+
+    stream = read_encoder_blocks(path, topic, strict=False)
+    reader = _GuardedBlocks(stream, bench.gear_ratio, progress=progress, t_start=t_start)
+    offline = analyze_blocks(reader, config)
+    read_problems = [*getattr(stream, 'problems', ()),
+                     *([] if reader.error is None else [reader.error])]
+    if reader.blocks == 0:
+        detail = '; '.join(read_problems) or 'the encoder topic holds no messages'
+        msg = f'{path}: no encoder block could be read ({detail})'
+        raise BagError(msg)
+
+    partial = bool(read_problems) or bool(getattr(stream, 'partial', False))
+    problems: list[str] = []
+    if partial:
+        problems.append(f'read {reader.blocks} blocks; then: ' + '; '.join(read_problems))
+    windows = tuple(offline.windows)
+    spectrum = average_spectrum(windows)
+    if spectrum is None:
+        problems.append('no complete output revolution in the bag: no spectrum, statistics '
+                        'cover a fraction of a revolution')
+    dominant = None if spectrum is None else dominant_harmonic(spectrum, bench)
+    trace = reader.trace()
+    recommendation = (_recommend(bench, offline.cumulative, trace) if with_advice
+                      else Recommendation(available=False, reason='not requested (--no-advice)'))
+    return AnalysisResult(
+        path=path, topic=topic, bench=bench, windows=windows,
+        cumulative=offline.cumulative, spectrum=spectrum, dominant=dominant,
+        gaps=tuple(offline.gaps), counters=dict(offline.counters), trace=trace,
+        recommendation=recommendation, partial=partial,
+        problems=tuple(problems), blocks_read=reader.blocks,
+        elapsed_s=time.monotonic() - t_start)
+
+
+class _GuardedBlocks:
+    """Iterator over encoder blocks that stops cleanly at a read error and keeps a trace.
+
+    A truncated or corrupted bag makes the reader raise in the middle of the iteration;
+    the TE core would lose every window already closed. This wrapper ends the iteration
+    instead and remembers the error, so the caller can report a partial result.
+    """
+
+    def __init__(self, blocks: Iterable[EncoderBlockData], gear_ratio: float, *,
+                 progress: ProgressFn | None, t_start: float) -> None:
+        self._it = iter(blocks)
+        self._ratio = gear_ratio
+        self._progress = progress
+        self._t0 = t_start
+        self.blocks = 0
+        self.samples = 0
+        self.error: str | None = None
+        self._stride = 1
+        self._last_seq: int | None = None
+        self._parts: list[tuple[npt.NDArray[np.int64], FloatArray, FloatArray]] = []
+        self._kept = 0
+
+    def __iter__(self) -> Iterator[EncoderBlockData]:
+        return self
+
+    def __next__(self) -> EncoderBlockData:
+        try:
+            block = next(self._it)
+        except BagError as exc:
+            self.error = str(exc)
+            raise StopIteration from None
+        self.blocks += 1
+        self.samples += int(np.size(block.theta_out_rad))
+        self._keep(block)
+        if self._progress is not None:
+            self._progress(self.blocks, self.samples, time.monotonic() - self._t0)
+        return block
+
+    def _keep(self, block: EncoderBlockData) -> None:
+        """Keep every ``stride``-th sample (by global sample index) and a NaN row at gaps."""
+        from rv_te_bench.core.te import transmission_error_rad  # noqa: PLC0415
+
+        th_out = np.asarray(block.theta_out_rad, dtype=np.float64)
+        th_in = np.asarray(block.theta_in_rad, dtype=np.float64)
+        n = th_out.size
+        g0 = self.samples - n
+        if th_out.shape != th_in.shape or n == 0:
+            return  # the core reports malformed blocks; the plot just skips them
+        if self._last_seq is not None and int(block.seq) != self._last_seq + 1:
+            self._parts.append((np.array([-1]), np.array([np.nan]), np.array([np.nan])))
+        self._last_seq = int(block.seq)
+        start = (-g0) % self._stride
+        th = th_out[start::self._stride]
+        te = transmission_error_rad(th_in[start::self._stride], th, gear_ratio=self._ratio)
+        g = g0 + np.arange(start, n, self._stride, dtype=np.int64)
+        self._parts.append((g, th, np.asarray(te, dtype=np.float64)))
+        self._kept += th.size
+        if self._kept > MAX_TRACE_POINTS:
+            g_all, th_all, te_all = self._joined()
+            self._stride *= 2
+            keep = (g_all < 0) | (g_all % self._stride == 0)
+            self._parts = [(g_all[keep], th_all[keep], te_all[keep])]
+            self._kept = int(np.count_nonzero(keep))
+
+    def _joined(self) -> tuple[npt.NDArray[np.int64], FloatArray, FloatArray]:
+        if not self._parts:
+            return np.zeros(0, dtype=np.int64), np.zeros(0), np.zeros(0)
+        return tuple(np.concatenate(a) for a in zip(*self._parts, strict=True))  # type: ignore[return-value]
+
+    def trace(self) -> TeTrace:
+        """The thinned trace collected so far (read-only arrays)."""
+        _, th, te = self._joined()
+        th.setflags(write=False)
+        te.setflags(write=False)
+        return TeTrace(theta_out_rad=th, te_rad=te, stride=self._stride)
+
+
+def _bench_description(path: Path, info: dict[str, Any] | None, gear_ratio: float | None,
+                       crank_per_output: float | None) -> BenchDescription:
+    """Merge BenchInfo from the bag with the command-line overrides."""
+    if info is None:
+        missing = [flag for flag, v in (('--ratio', gear_ratio),
+                                        ('--crank-per-output', crank_per_output)) if v is None]
+        if missing:
+            msg = (f'{path}: the bag has no BenchInfo message (bench/info), so the gear ratio '
+                   f'and crank order are unknown; pass {" and ".join(missing)}')
+            raise TeConfigError(msg)
+        return BenchDescription(source='cli', gear_ratio=float(gear_ratio),  # type: ignore[arg-type]
+                                crank_per_output=float(crank_per_output))  # type: ignore[arg-type]
+    try:
+        ratio = float(info['gear_ratio'])
+        cpo = abs(float(info['crank_per_input']) * ratio)
+    except (KeyError, TypeError, ValueError) as exc:
+        msg = f'{path}: BenchInfo lacks a usable gear_ratio/crank_per_input ({exc!r})'
+        raise TeConfigError(msg) from None
+    source = 'bench_info'
+    if gear_ratio is not None or crank_per_output is not None:
+        source = 'bench_info+cli'
+        ratio = float(gear_ratio) if gear_ratio is not None else ratio
+        cpo = float(crank_per_output) if crank_per_output is not None else cpo
+    return BenchDescription(
+        source=source, gear_ratio=ratio, crank_per_output=cpo,
+        bench_id=str(info.get('bench_id', '')), preset=str(info.get('preset', '')),
+        reducer_type=str(info.get('reducer_type', '')),
+        mesh_orders_out=tuple(float(o) for o in info.get('mesh_orders', ()) or ()),
+        mesh_labels=tuple(str(s) for s in info.get('mesh_labels', ()) or ()),
+        sample_rate_hz=float(info.get('sample_rate_hz', math.nan) or math.nan),
+        encoder_in_model=str(info.get('encoder_in_model', '')),
+        encoder_out_model=str(info.get('encoder_out_model', '')),
+        parameters_yaml=str(info.get('parameters_yaml', '')))
+
+
+def _order_set(bench: BenchDescription, n_crank_harmonics: int) -> Any:  # noqa: ANN401
+    """The core OrderSet for the bench (signs do not matter for frequencies)."""
+    from rv_te_bench.core.orders import OrderSet  # noqa: PLC0415
+
+    return OrderSet(gear_ratio=bench.gear_ratio, crank_per_output=bench.crank_per_output,
+                    mesh_orders_out=bench.mesh_orders_out, mesh_labels=bench.mesh_labels,
+                    n_crank_harmonics=n_crank_harmonics)
+
+
+def average_spectrum(windows: Iterable[WindowResult]) -> SpectrumSummary | None:
+    """Average the spectra of the complete windows.
+
+    Line amplitudes: arithmetic mean of the per-window peak amplitudes (robust to the phase
+    reference of each window). Line phases: angle of the mean phasor a*exp(j*phase). The
+    full amplitude spectrum is averaged bin by bin when every window has the same order
+    grid; otherwise the spectrum of the longest window is shown (the method says so).
+
+    Args:
+        windows: Window results of the TE core.
+
+    Returns:
+        The summary, or None when no complete window carries a spectrum.
+    """
+    spectra: list[OrderSpectrum] = [w.spectrum for w in windows
+                                    if w.complete and w.spectrum is not None]
+    if not spectra:
+        return None
+    n = len(spectra)
+    # Lines are matched by label: a line above a window's Nyquist order is missing there.
+    labels = [ln.label for ln in spectra[0].lines]
+    by_label = [{ln.label: ln for ln in s.lines} for s in spectra]
+    labels = [lab for lab in labels if all(lab in d for d in by_label)]
+    amps = np.array([[d[lab].amplitude_rad for lab in labels] for d in by_label],
+                    dtype=np.float64).reshape(n, len(labels))
+    phases = np.array([[d[lab].phase_rad for lab in labels] for d in by_label],
+                      dtype=np.float64).reshape(n, len(labels))
+    mean_amp = amps.mean(axis=0)
+    phasor = (amps * np.exp(1j * phases)).mean(axis=0)
+    revs = np.array([s.revolutions for s in spectra], dtype=np.float64)
+    out_hz = float(np.mean([s.output_hz for s in spectra]))
+    crank_hz = float(np.mean([s.crank_hz for s in spectra]))
+    lines = tuple(
+        replace(by_label[0][lab], amplitude_rad=float(mean_amp[k]),
+                phase_rad=float(np.angle(phasor[k])),
+                frequency_hz=float(by_label[0][lab].output_order * out_hz))
+        for k, lab in enumerate(labels))
+    what = 'the one complete window' if n == 1 else f'{n} complete windows'
+    # Windows of the same length share the order grid m / R up to their own Nyquist order.
+    size = min(np.size(s.orders) for s in spectra)
+    ref_orders = np.asarray(spectra[0].orders, dtype=np.float64)[:size]
+    same_grid = all(np.allclose(np.asarray(s.orders)[:size], ref_orders) for s in spectra)
+    if same_grid:
+        orders = ref_orders.copy()
+        amp = np.mean([np.asarray(s.amplitude_rad, dtype=np.float64)[:size] for s in spectra],
+                      axis=0)
+        method = (f'mean of {what} ({revs.sum():.3g} output revolutions): line amplitude = '
+                  'mean of the per-window peak amplitudes, phase = angle of the mean phasor')
+    else:
+        longest = spectra[int(np.argmax(revs))]
+        orders = np.asarray(longest.orders, dtype=np.float64).copy()
+        amp = np.asarray(longest.amplitude_rad, dtype=np.float64).copy()
+        method = (f'lines: mean of {what}; full spectrum: the longest window '
+                  f'({float(revs.max()):.3g} output revolutions; window grids differ)')
+    orders.setflags(write=False)
+    amp.setflags(write=False)
+    return SpectrumSummary(
+        method=method, n_windows=n, output_hz=out_hz, crank_hz=crank_hz,
+        revolutions=float(revs.sum()), lines=lines,
+        amplitude_spread_rad=tuple(float(x) for x in amps.std(axis=0)),
+        orders=orders, amplitude_rad=amp)
+
+
+def dominant_harmonic(spectrum: SpectrumSummary, bench: BenchDescription) -> DominantHarmonic | None:
+    """The labelled line with the largest averaged amplitude and its likely source."""
+    if not spectrum.lines:
+        return None
+    k = int(np.argmax([ln.amplitude_rad for ln in spectrum.lines]))
+    line = spectrum.lines[k]
+    return DominantHarmonic(line=line, likely_source=likely_source(line.output_order, bench))
+
+
+def likely_source(output_order: float, bench: BenchDescription) -> str:
+    """Name the likely physical source of a TE harmonic.
+
+    Args:
+        output_order: Cycles per output revolution of the harmonic.
+        bench: Crank order, mesh orders and reducer type.
+
+    Returns:
+        One sentence for people.
+    """
+    o = abs(float(output_order))
+    cpo = bench.crank_per_output
+
+    def near(a: float, b: float) -> bool:
+        return abs(a - b) <= _ORDER_RTOL * max(1.0, abs(b))
+
+    for mo, label in zip(bench.mesh_orders_out, bench.mesh_labels, strict=False):
+        if near(o, mo):
+            return f'tooth profile / pitch error of the {label or "gear mesh"} (mesh order)'
+    crank = 'crankshaft (eccentric) eccentricity or crank bearing clearance'
+    if bench.reducer_type == '2kv' or not bench.reducer_type:
+        crank = 'crank / 2nd-stage planet eccentricity (eccentric error, crank bearing clearance)'
+    if near(o, cpo):
+        return f'{crank} (once per crank revolution, 1 f_w)'
+    if near(o, 1.0):
+        return ('output-wheel (carrier) eccentricity or pin-circle / ring run-out '
+                '(once per output revolution, f_out)')
+    if near(o, cpo - 1.0) or near(o, cpo + 1.0):
+        return ('crank eccentricity modulated by output-wheel eccentricity or pin-circle error '
+                '(f_w +/- f_out sideband)')
+    ratio = o / cpo
+    if ratio > 1.5 and near(ratio, round(ratio)):  # noqa: PLR2004 - 2 f_w and above
+        return (f'{round(ratio)}x per crank revolution: phase mismatch between the crank '
+                'eccentrics, eccentric form error or crank bearing waviness')
+    if near(o, round(o)):
+        return (f'{round(o)}x per output revolution: output bearing / pin-circle form error')
+    return 'not assigned to a known order'
+
+
+def _recommend(bench: BenchDescription, cumulative: TeStats, trace: TeTrace) -> Recommendation:
+    """Ask the compensation code for advice on the bench's preset (lazy imports).
+
+    * ``wang2020-2kv`` model: eccentricities and assembly phases identified from the
+      measured TE (``core.identify``), else the Eq. 21 optimisation on the preset's own
+      eccentricities (``core.phases``; then the advice is model-based, not measured);
+    * ``hu2020-rv`` model: tooth-profile compensation for the measured TE amplitude
+      (``core.tooth_compensation``);
+    * any other preset: no compensation model.
+    """
+    if not bench.preset:
+        return Recommendation(available=False, reason='no recommendation available: the bag '
+                              'has no BenchInfo preset, so there is no reducer model')
+    from sim.errors import SimError  # noqa: PLC0415
+    from sim.presets import load_preset  # noqa: PLC0415
+
+    try:
+        preset = load_preset(bench.preset, _overrides_from_yaml(bench.parameters_yaml))
+    except SimError as exc:
+        return Recommendation(available=False, reason=(
+            f'no recommendation available: preset {bench.preset!r} cannot be loaded ({exc})'))
+    try:
+        if preset.model == 'wang2020-2kv':
+            return _advice_2kv(preset, trace)
+        if preset.model == 'hu2020-rv':
+            from rv_te_bench.core.tooth_compensation import (  # noqa: PLC0415
+                tooth_profile_advice,
+            )
+
+            advice = tooth_profile_advice(preset, cumulative.amplitude_rad)
+            return Recommendation(available=True, reason=(
+                'tooth-profile compensation (Hu 2020 Eqs 24-27) for the measured TE '
+                'amplitude'), advice=advice)
+    except ImportError as exc:
+        return Recommendation(available=False, reason=(
+            f'no recommendation available: the compensation code is not installed ({exc})'))
+    except (RvTeError, SimError) as exc:
+        return Recommendation(available=False, reason=(
+            f'no recommendation available for preset {bench.preset!r}: {exc}'))
+    return Recommendation(available=False, reason=(
+        f'no recommendation available: preset {bench.preset!r} (model {preset.model!r}) has '
+        'no compensation model'))
+
+
+def _advice_2kv(preset: Any, trace: TeTrace) -> Recommendation:  # noqa: ANN401
+    """Identified assembly phases when possible, else the model-based Eq. 21 optimum."""
+    from sim.wang2020 import Wang2kvParams  # noqa: PLC0415
+
+    params = Wang2kvParams.from_preset(preset)
+    ok = np.isfinite(trace.te_rad)
+    try:
+        from rv_te_bench.core.identify import identified_advice  # noqa: PLC0415
+    except ImportError:
+        identified_advice = None
+    if identified_advice is not None and np.count_nonzero(ok) > 0:
+        advice = identified_advice(np.asarray(trace.theta_out_rad)[ok],
+                                   np.asarray(trace.te_rad)[ok], params,
+                                   preset_name=preset.name)
+        return Recommendation(available=True, reason=(
+            'assembly phases from eccentricities identified in the measured TE'),
+            advice=advice)
+    from rv_te_bench.core import phases  # noqa: PLC0415
+
+    optimise = getattr(phases, 'optimize_phases', None) or phases.optimise_phases
+    advice = optimise(params).to_advice(preset.name)
+    return Recommendation(available=True, reason=(
+        "Eq. 21 assembly-phase optimum for the preset's own eccentricities (model-based, "
+        'not identified from this measurement)'), advice=advice)
+
+
+def _overrides_from_yaml(text: str) -> list[str]:
+    """Preset overrides recorded in BenchInfo.parameters_yaml (``bench.overrides``)."""
+    if not text:
+        return []
+    import yaml  # noqa: PLC0415
+
+    try:
+        record = yaml.safe_load(text)
+    except yaml.YAMLError:
+        return []
+    bench = record.get('bench') if isinstance(record, dict) else None
+    overrides = bench.get('overrides') if isinstance(bench, dict) else None
+    return [str(o) for o in overrides] if isinstance(overrides, list | tuple) else []
+
+
+def compare_results(results: list[AnalysisResult]) -> list[dict[str, Any]]:
+    """Comparison rows for several bags, the first one being the reference ("before").
+
+    Args:
+        results: Analyses in the order given on the command line.
+
+    Returns:
+        One dict per bag: cumulative statistics in arcmin, the dominant line, and the change
+        of p-p and amplitude relative to the first bag (``*_change_pct``).
+    """
+    rows: list[dict[str, Any]] = []
+    ref = results[0].cumulative if results else None
+    for res in results:
+        st = res.cumulative
+        row: dict[str, Any] = {'bag': str(res.path), 'partial': res.partial,
+                               **{k: v for k, v in stats_json(st).items()
+                                  if k.endswith('_arcmin') or k in ('revolutions', 'n_samples')}}
+        if res.dominant is not None:
+            row['dominant_label'] = res.dominant.line.label
+            row['dominant_amplitude_arcmin'] = _num(rad_to_arcmin(res.dominant.line.amplitude_rad))
+        else:
+            row['dominant_label'] = None
+            row['dominant_amplitude_arcmin'] = None
+        if ref is not None:
+            row['te_pp_change_pct'] = _pct(st.pp_rad, ref.pp_rad)
+            row['te_amplitude_change_pct'] = _pct(st.amplitude_rad, ref.amplitude_rad)
+        rows.append(row)
+    return rows
+
+
+# --------------------------------------------------------------------------------------
+# helpers
+
+
+def _line_json(line: SpectrumLine, spread_rad: float) -> dict[str, Any]:
+    out = {
+        'label': line.label,
+        'output_order': _num(line.output_order),
+        'crank_order': _num(line.crank_order),
+        'frequency_hz': _num(line.frequency_hz),
+        'amplitude_arcmin': _num(rad_to_arcmin(line.amplitude_rad)),
+        'amplitude_rad': _num(line.amplitude_rad),
+        'phase_rad': _num(line.phase_rad),
+        'phase_deg': _num(rad_to_deg(line.phase_rad)),
+    }
+    if math.isfinite(spread_rad):
+        out['amplitude_spread_arcmin'] = _num(rad_to_arcmin(spread_rad))
+    return out
+
+
+def _pct(value: float, ref: float) -> float | None:
+    if not (math.isfinite(value) and math.isfinite(ref)) or ref == 0:
+        return None
+    return 100.0 * (value - ref) / ref
+
+
+def _num(x: Any) -> float | None:  # noqa: ANN401 - numpy scalars and floats
+    v = float(x)
+    return v if math.isfinite(v) else None
+
+
+def _jsonable(v: Any) -> Any:  # noqa: ANN401
+    if isinstance(v, np.generic):
+        return v.item()
+    if isinstance(v, dict):
+        return {str(k): _jsonable(x) for k, x in v.items()}
+    if isinstance(v, list | tuple):
+        return [_jsonable(x) for x in v]
+    return v
