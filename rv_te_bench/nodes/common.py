@@ -169,8 +169,19 @@ def run_node(make_node: Callable[..., Node], args: Sequence[str] | None = None,
     from rv_te_bench.errors import RvTeError  # noqa: PLC0415
     from sim.errors import SimError  # noqa: PLC0415
 
-    rclpy.init(args=list(args) if args is not None else None)
-    signal.signal(signal.SIGTERM, lambda *_: rclpy.try_shutdown())
+    from rclpy.signals import SignalHandlerOptions  # noqa: PLC0415
+
+    # Our own signal handling: rclpy's handler would shut the context down before the node
+    # can publish its last results (the TE node's final window, the recorder's last flush).
+    rclpy.init(args=list(args) if args is not None else None,
+               signal_handler_options=SignalHandlerOptions.NO)
+    stop = {'requested': False}
+
+    def _request_stop(*_: object) -> None:
+        stop['requested'] = True
+
+    old_term = signal.signal(signal.SIGTERM, _request_stop)
+    old_int = signal.signal(signal.SIGINT, _request_stop)
     node = None
     code = 0
     try:
@@ -182,7 +193,7 @@ def run_node(make_node: Callable[..., Node], args: Sequence[str] | None = None,
         executor = make_executor(executor_kind)
         executor.add_node(node)
         # A node that ends by itself (the bench after its duration) sets ``finished``.
-        while rclpy.ok() and not getattr(node, 'finished', False):
+        while rclpy.ok() and not stop['requested'] and not getattr(node, 'finished', False):
             executor.spin_once(timeout_sec=0.1)
         code = int(getattr(node, 'exit_code', 0) or 0)
     except (KeyboardInterrupt, ExternalShutdownException):
@@ -190,6 +201,8 @@ def run_node(make_node: Callable[..., Node], args: Sequence[str] | None = None,
     finally:
         if node is not None:
             node.destroy_node()
+        signal.signal(signal.SIGTERM, old_term)
+        signal.signal(signal.SIGINT, old_int)
         rclpy.try_shutdown()
     return code
 

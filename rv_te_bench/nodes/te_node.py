@@ -13,6 +13,7 @@ a bad block is counted, logged (throttled) and skipped, never fatal.
 from __future__ import annotations
 
 import time
+from collections import deque
 from typing import Any
 
 import numpy as np
@@ -73,6 +74,8 @@ class TeNode(Node):
         self._latency_ms: list[float] = []
         self._blocks = 0
         self._last_window: Any = None
+        self._first_seq: int | None = None
+        self.recent_windows: deque[Any] = deque(maxlen=64)  # for diagnostics and tests
         self.pub_samples = self.create_publisher(TransmissionError, 'te/samples',
                                                  qos.PREVIEW_QOS)
         self.pub_stats = self.create_publisher(TransmissionError, 'te/statistics',
@@ -140,6 +143,13 @@ class TeNode(Node):
         except (ValueError, TypeError) as exc:
             self.drops.drop('malformed', str(exc))
             return
+        if self._first_seq is None:
+            self._first_seq = block.seq
+            if block.seq != 0:
+                # The bench counts from 0: joining later (e.g. after a restart) missed blocks.
+                self._gaps_total += 1
+                self.get_logger().warning(
+                    f'joined the stream at seq {block.seq}: blocks 0..{block.seq - 1} not seen')
         update = self.analyzer.push(block)
         self._blocks += 1
         for gap in update.gaps:
@@ -177,6 +187,7 @@ class TeNode(Node):
     def _publish_windows(self, windows: tuple[Any, ...]) -> None:
         for w in windows:
             self._last_window = w
+            self.recent_windows.append(w)
             msg = TransmissionError()
             msg.header.stamp = convert.s_to_stamp(w.start_stamp_s)
             msg.header.frame_id = self.bench_id
