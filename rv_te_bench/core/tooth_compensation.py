@@ -51,6 +51,7 @@ __all__ = [
     'compensate_preset',
     'eq27_errors_m',
     'te_shares_rad',
+    'tooth_profile_advice',
     'tooth_profile_compensation',
 ]
 
@@ -107,18 +108,20 @@ def _check_te(te_rad: float, fraction: float) -> None:
 
 def tooth_profile_compensation(params: HuRvParams, te_rad: float, *, preset: str = '',
                                fraction: float = 1.0, scale: str = 'eq27',
-                               with_tca: bool = True) -> Advice:
+                               te_metric: str = 'pp', with_tca: bool = True) -> Advice:
     """Recommend pin radius, shifting modification and cumulative-error modification.
 
     Args:
         params: The reducer's cycloid stage as it is now (e.g. Table 3).
-        te_rad: Measured (or simulated) total TE over one period, peak-to-peak [rad].
+        te_rad: Measured (or simulated) total TE [rad]; the paper's "value for a period"
+            (peak-to-peak) unless ``te_metric`` says otherwise.
         preset: Preset name recorded in the advice.
         fraction: Part of the TE to compensate, in (0, 1].
         scale: ``'eq27'`` (default): Eq. 27 as written. ``'table6'``: the same directions
             and ratios, scaled to the paper's Table 6, i.e. 0.0171 mm per unit sensitivity
             index for 1.4559 arcmin, proportional to the TE (an empirical calibration on
             the paper's one example, about 3.45 x Eq. 27).
+        te_metric: Which statistic ``te_rad`` is, ``'pp'`` or ``'amplitude'`` (recorded).
         with_tca: Also run the tooth contact analysis before/after (into ``details``).
 
     Returns:
@@ -142,6 +145,9 @@ def tooth_profile_compensation(params: HuRvParams, te_rad: float, *, preset: str
         [2.9721, -0.0266, -0.011]
     """
     _check_te(te_rad, fraction)
+    if te_metric not in ('pp', 'amplitude'):
+        msg = f'te_metric must be "pp" or "amplitude", got {te_metric!r}'
+        raise CompensationError(msg)
     if scale not in _SCALES:
         msg = f'scale must be one of {_SCALES}, got {scale!r}'
         raise CompensationError(msg)
@@ -196,13 +202,14 @@ def tooth_profile_compensation(params: HuRvParams, te_rad: float, *, preset: str
                f'r_rp {params.r_rp_m * 1e3:.4f} -> {new_r_rp * 1e3:.4f} mm, delta_r_p '
                f'{params.delta_r_p_m * 1e3:.4f} -> {new_shift * 1e3:.4f} mm, '
                f'delta_delta_8 {params.cumulative_mod_m * 1e3:.4f} -> {new_cum * 1e3:.4f} mm')
-    return Advice(method='tooth-profile', preset=preset, summary=summary, te_metric='pp',
+    return Advice(method='tooth-profile', preset=preset, summary=summary, te_metric=te_metric,
                   te_before_rad=float(te_rad), te_after_rad=float(te_after),
                   modifications=mods, details=details)
 
 
 def compensate_preset(preset: Preset, te_rad: float, *, fraction: float = 1.0,
-                      scale: str = 'eq27', with_tca: bool = True) -> Advice:
+                      scale: str = 'eq27', te_metric: str = 'pp',
+                      with_tca: bool = True) -> Advice:
     """:func:`tooth_profile_compensation` for a hu2020-rv preset (overrides applied).
 
     Raises:
@@ -216,4 +223,8 @@ def compensate_preset(preset: Preset, te_rad: float, *, fraction: float = 1.0,
         msg = f'preset {preset.name!r}: {exc}'
         raise CompensationError(msg) from None
     return tooth_profile_compensation(params, te_rad, preset=preset.name, fraction=fraction,
-                                      scale=scale, with_tca=with_tca)
+                                      scale=scale, te_metric=te_metric, with_tca=with_tca)
+
+
+#: Name used by the compensation node and the offline report.
+tooth_profile_advice = compensate_preset
