@@ -1,0 +1,868 @@
+"""Li 2023 lumped-parameter dynamic model of an RV reducer with machining/assembly errors.
+
+Li, Huang, Ding, Guo, Niu, *Machines* 2023, 11, 626. Two parts:
+
+1. **Loaded tooth contact analysis** of the cycloid-pin pair (Eqs 1-7, :func:`ltca`): Hertz
+   line-contact stiffness per pin (Eq. 2), compatibility (Eq. 3: unmodified profile, zero
+   initial backlash, so every pin on the loaded side touches), moment equilibrium (Eq. 4),
+   resultant force at the pitch point (Eqs 5-6) and the equivalent pressure angle
+   ``beta = atan(F_r / F_t)`` and mesh stiffness ``k_cr = F_cr cos(beta) / (e z_c dphi)``
+   (Eq. 7). Eq. 5 as printed sums the *magnitudes* of the radial components,
+   ``F_ci sqrt(1 - (l_ci / r_c)^2)``; that is what is implemented (it gives the paper's
+   ~32 deg).
+2. **Dynamic model** (Eqs 8-36, :class:`Li2023DteModel`): sun, M planets, M crankshafts,
+   N cycloid discs and the output disc, 3 DOF each (x, y, theta): 6M + 3N + 6 DOF. Every
+   elastic element is a spring on a relative displacement ``delta = g(t) . q + eps(t)``;
+   the stiffness matrix is ``K(t) = sum k(t) g g^T`` and the error force
+   ``F = -sum k g eps``. That keeps K symmetric, which the printed Eqs 29-33 are not.
+
+Coordinates: translations in a frame turning with the output at its nominal (kinematic)
+angle ``theta_in / i`` (the paper's S_i); rotations are absolute deviations from the
+kinematic motion implied by the measured input angle. The input is driven kinematically:
+``k_st`` (Table 2) is read as the input shaft between that driven angle and the sun.
+With that, TE = theta_out - theta_in / i is the output disc's rotation coordinate.
+
+Relative displacements (n_i = cos(alpha) e_t(psi_i) + sin(alpha) e_r(psi_i), phi_j the
+eccentric direction of disc j in the output frame, t_j/r_j its tangential/radial unit
+vectors, a_H the crank circle radius, r_c = e z_c):
+
+* sun-planet mesh (Eq. 23): ``n_i . (u_s - u_pi) + r_bs th_s + r_bp th_pi
+  + n_i . (d_s - d_pi)`` (sun/planet eccentricity, Eq. 12);
+* planet-crank bending/torsion (k_H, k_Ht): ``u_pi - u_Hi``, ``th_pi - th_Hi``;
+* crank support in the output disc (Eq. 26): ``u_Hi - u_o - a_H th_o e_t(psi_i) - d_oHi``
+  (hole error, Eq. 19);
+* turning-arm bearing (Eq. 25): ``u_Hi + e th_Hi t_j - u_cj - a_H th_cj e_t(psi_i)
+  + d_dj - d_cHi`` (cam and disc-hole errors, Eqs 15-16);
+* pin mesh (Eq. 28): ``-(cos(beta) t_j + sin(beta) r_j) . u_cj - r_c cos(beta) th_cj
+  + e_crj`` (composite error, Eq. 18);
+* supports (Eqs 24, 27): ``u_s - d_sa``, ``u_o - d_oa`` (assembly errors fixed in the
+  housing, Eqs 14, 21); sun torsion ``th_s`` (k_st); output torsion ``th_o`` (k_ot).
+
+The kinematic motion (input advanced by a, output a / i, cranks -z_c a / i, discs
+translated along their eccentric and turned by a / i) leaves every one of these at zero
+except the input shaft: the ratios are built in, not fitted (tests check it).
+
+Documented simplifications (the paper is unclear or silent):
+
+* Gyroscopic and centripetal terms (omega_o G, omega_o^2 K_Omega, F_c of Eqs 34-36) are
+  dropped: omega_o = 1.3 rad/s at 1500 rpm, so m omega_o^2 <= 26 N/m against stiffnesses
+  >= 4.7e7 N/m (< 1e-6 relative).
+* Inertial loads of input speed changes are not modelled: the nominal motion follows the
+  given theta_in sample by sample (cubic Hermite between samples with omega_in).
+* beta is the LTCA mean (the paper feeds the means into the dynamic model); k_cr(t) keeps
+  the LTCA harmonics (Eq. 11); both are computed at the preset's TCA torque, not the live
+  load. Tooth-profile modification is not modelled (LTCA of the unmodified profile).
+* Sun-planet mesh stiffness: rectangular wave between k1 (single pair) and 2 k1 (double
+  pair) over the contact ratio, mean from the preset, truncated Fourier series (Eq. 9).
+* Bearing clearances (Eqs 17, 20, 22) are left out: the paper gives no values, and in a
+  linear model a clearance is only a constant offset.
+* Damping: stiffness-proportional, ``C = b K_mean`` (not given in the paper).
+* The sun assembly error acts only through the sun support (Eq. 24); adding Eq. 13's mesh
+  term as well would count it twice.
+
+Integration: the mesh stiffnesses make the system stiff (natural frequencies up to ~10 kHz
+against excitation at ~300 Hz). ode45 (the paper) would need ~30 us steps. Here:
+Newmark average acceleration (trapezoidal, unconditionally stable for the linear
+time-varying system) with steps of at most ``solver.max_step_s``. ``K(t)`` is a
+trigonometric polynomial in the eccentric angles times the mesh stiffnesses, assembled for
+a whole batch of steps with one matrix product; the effective matrices are inverted in
+batch and folded into one state-transition matrix per step, so the sequential part is
+one 90 x 90 matrix-vector product per step.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, fields
+from typing import TYPE_CHECKING, Any
+
+import numpy as np
+from scipy.linalg.lapack import dposv as _dposv
+
+from sim.errors import ModelInputError, PresetError
+from sim.kinematics import kinematics_from_preset
+
+if TYPE_CHECKING:
+    import numpy.typing as npt
+
+    from sim.kinematics import ReducerKinematics
+    from sim.presets import Preset
+
+__all__ = [
+    'Li2023DteModel',
+    'Li2023Params',
+    'LtcaResult',
+    'build_te_model',
+    'ltca',
+    'params_from_preset',
+]
+
+FloatArray = 'npt.NDArray[np.float64]'
+
+# field -> (preset key, rule); rules: 'pos' > 0, 'nonneg' >= 0, 'int1' integer >= 1,
+# 'frac' in (0, 1], 'ratio' in (1, 2), 'angle' finite, 'bool'
+_FIELDS: dict[str, tuple[str, str]] = {
+    'z_sun': ('kinematics.z_sun', 'int1'),
+    'z_planet': ('kinematics.z_planet', 'int1'),
+    'z_cycloid': ('kinematics.z_gear', 'int1'),
+    'z_pin': ('kinematics.z_ring', 'int1'),
+    'n_cranks': ('layout.n_cranks', 'int1'),
+    'n_discs': ('layout.n_discs', 'int1'),
+    'module_m': ('geometry.module_m', 'pos'),
+    'pressure_angle_deg': ('geometry.pressure_angle_deg', 'pos'),
+    'pin_radius_m': ('geometry.pin_radius_m', 'pos'),
+    'pin_circle_radius_m': ('geometry.pin_circle_radius_m', 'pos'),
+    'eccentricity_m': ('geometry.eccentricity_m', 'pos'),
+    'face_width_m': ('geometry.face_width_m', 'pos'),
+    'youngs_modulus_pa': ('material.youngs_modulus_pa', 'pos'),
+    'poisson': ('material.poisson', 'frac'),
+    'tca_torque_nm': ('tca.torque_nm', 'pos'),
+    'disc_load_share': ('tca.disc_load_share', 'frac'),
+    'tca_grid_points': ('tca.grid_points', 'int1'),
+    'm_sun_kg': ('mass.sun_kg', 'pos'),
+    'm_planet_kg': ('mass.planet_kg', 'pos'),
+    'm_crank_kg': ('mass.crank_kg', 'pos'),
+    'm_disc_kg': ('mass.disc_kg', 'pos'),
+    'm_output_kg': ('mass.output_kg', 'pos'),
+    'j_sun_kg_m2': ('inertia.sun_kg_m2', 'pos'),
+    'j_planet_kg_m2': ('inertia.planet_kg_m2', 'pos'),
+    'j_crank_kg_m2': ('inertia.crank_kg_m2', 'pos'),
+    'j_disc_kg_m2': ('inertia.disc_kg_m2', 'pos'),
+    'j_output_kg_m2': ('inertia.output_kg_m2', 'pos'),
+    'k_sun_torsion_nm_rad': ('stiffness.sun_torsional_nm_rad', 'pos'),
+    'k_sun_radial_n_m': ('stiffness.sun_radial_n_m', 'pos'),
+    'k_crank_torsion_nm_rad': ('stiffness.crank_torsional_nm_rad', 'pos'),
+    'k_crank_bending_n_m': ('stiffness.crank_bending_n_m', 'pos'),
+    'k_crank_bearing_n_m': ('stiffness.crank_bearing_n_m', 'pos'),
+    'k_arm_bearing_n_m': ('stiffness.turning_arm_bearing_n_m', 'pos'),
+    'k_output_radial_n_m': ('stiffness.output_radial_n_m', 'pos'),
+    'k_output_torsion_nm_rad': ('stiffness.output_torsional_nm_rad', 'nonneg'),
+    'k_sun_planet_n_m': ('stiffness.sun_planet_mesh_n_m', 'pos'),
+    'k_pin_mesh_n_m': ('stiffness.pin_mesh_n_m', 'nonneg'),
+    'sun_planet_contact_ratio': ('stiffness.sun_planet_contact_ratio', 'ratio'),
+    'sun_planet_harmonics': ('stiffness.sun_planet_harmonics', 'int0'),
+    'pin_mesh_harmonics': ('stiffness.pin_mesh_harmonics', 'int0'),
+    'damping_zeta': ('damping.zeta', 'nonneg'),
+    'damping_ref_frequency_hz': ('damping.ref_frequency_hz', 'pos'),
+    'errors_enabled': ('errors.enabled', 'bool'),
+    'sun_ecc_m': ('errors.sun_ecc_m', 'nonneg'),
+    'sun_ecc_deg': ('errors.sun_ecc_deg', 'angle'),
+    'planet_ecc_m': ('errors.planet_ecc_m', 'nonneg'),
+    'planet_ecc_deg': ('errors.planet_ecc_deg', 'angle'),
+    'sun_assembly_m': ('errors.sun_assembly_m', 'nonneg'),
+    'sun_assembly_deg': ('errors.sun_assembly_deg', 'angle'),
+    'disc_hole_m': ('errors.disc_hole_m', 'nonneg'),
+    'disc_hole_deg': ('errors.disc_hole_deg', 'angle'),
+    'cam_ecc_m': ('errors.cam_ecc_m', 'nonneg'),
+    'cam_ecc_deg': ('errors.cam_ecc_deg', 'angle'),
+    'output_hole_m': ('errors.output_hole_m', 'nonneg'),
+    'output_hole_deg': ('errors.output_hole_deg', 'angle'),
+    'output_assembly_m': ('errors.output_assembly_m', 'nonneg'),
+    'output_assembly_deg': ('errors.output_assembly_deg', 'angle'),
+    'pin_composite_m': ('errors.pin_composite_m', 'nonneg'),
+    'pin_composite_deg': ('errors.pin_composite_deg', 'angle'),
+    'max_step_s': ('solver.max_step_s', 'pos'),
+    'chunk_steps': ('solver.chunk_steps', 'int1'),
+}
+
+
+def _check(name: str, key: str, rule: str, value: Any) -> None:  # noqa: ANN401, C901
+    """Raise PresetError naming ``key`` when ``value`` breaks ``rule``."""
+    if rule == 'bool':
+        if not isinstance(value, bool):
+            msg = f'{key} must be true or false, got {value!r}'
+            raise PresetError(msg)
+        return
+    if rule in {'int1', 'int0'}:
+        lo = 1 if rule == 'int1' else 0
+        if isinstance(value, bool) or not isinstance(value, int | np.integer) or value < lo:
+            msg = f'{key} must be an integer >= {lo}, got {value!r}'
+            raise PresetError(msg)
+        return
+    if isinstance(value, bool) or not isinstance(value, int | float) or not math.isfinite(value):
+        msg = f'{key} must be a finite number, got {value!r}'
+        raise PresetError(msg)
+    bad = {'pos': value <= 0, 'nonneg': value < 0, 'frac': not 0 < value <= 1,
+           'ratio': not 1 < value < 2, 'angle': False}[rule]
+    if bad:
+        rule_text = {'pos': '> 0', 'nonneg': '>= 0', 'frac': 'in (0, 1]', 'ratio': 'in (1, 2)'}
+        msg = f'{key} must be {rule_text[rule]}, got {value!r} ({name})'
+        raise PresetError(msg)
+
+
+@dataclass(frozen=True)
+class Li2023Params:
+    """Parameters of the Li 2023 RV model (SI units; angles in degrees only in ``*_deg``).
+
+    Field names carry their unit; each maps to one preset key (see ``_FIELDS``), and
+    ``__post_init__`` names that key when a rule is broken.
+    """
+
+    z_sun: int
+    z_planet: int
+    z_cycloid: int
+    z_pin: int
+    n_cranks: int
+    n_discs: int
+    module_m: float
+    pressure_angle_deg: float
+    pin_radius_m: float
+    pin_circle_radius_m: float
+    eccentricity_m: float
+    face_width_m: float
+    youngs_modulus_pa: float
+    poisson: float
+    tca_torque_nm: float
+    disc_load_share: float
+    tca_grid_points: int
+    m_sun_kg: float
+    m_planet_kg: float
+    m_crank_kg: float
+    m_disc_kg: float
+    m_output_kg: float
+    j_sun_kg_m2: float
+    j_planet_kg_m2: float
+    j_crank_kg_m2: float
+    j_disc_kg_m2: float
+    j_output_kg_m2: float
+    k_sun_torsion_nm_rad: float
+    k_sun_radial_n_m: float
+    k_crank_torsion_nm_rad: float
+    k_crank_bending_n_m: float
+    k_crank_bearing_n_m: float
+    k_arm_bearing_n_m: float
+    k_output_radial_n_m: float
+    k_output_torsion_nm_rad: float
+    k_sun_planet_n_m: float
+    k_pin_mesh_n_m: float
+    sun_planet_contact_ratio: float
+    sun_planet_harmonics: int
+    pin_mesh_harmonics: int
+    damping_zeta: float
+    damping_ref_frequency_hz: float
+    errors_enabled: bool
+    sun_ecc_m: float
+    sun_ecc_deg: float
+    planet_ecc_m: float
+    planet_ecc_deg: float
+    sun_assembly_m: float
+    sun_assembly_deg: float
+    disc_hole_m: float
+    disc_hole_deg: float
+    cam_ecc_m: float
+    cam_ecc_deg: float
+    output_hole_m: float
+    output_hole_deg: float
+    output_assembly_m: float
+    output_assembly_deg: float
+    pin_composite_m: float
+    pin_composite_deg: float
+    max_step_s: float
+    chunk_steps: int
+
+    def __post_init__(self) -> None:
+        """Validate every field.
+
+        Raises:
+            PresetError: A value breaks its rule (the message names the preset key), the
+                pin count is not z_cycloid + 1, or the pin circle is too small.
+        """
+        for f in fields(self):
+            key, rule = _FIELDS[f.name]
+            _check(f.name, key, rule, getattr(self, f.name))
+        if self.z_pin != self.z_cycloid + 1:
+            msg = (f'kinematics.z_ring ({self.z_pin}) must be kinematics.z_gear + 1 '
+                   f'({self.z_cycloid + 1}) for an RV cycloid stage')
+            raise PresetError(msg)
+        if not self.eccentricity_m * self.z_pin < self.pin_circle_radius_m:
+            msg = (f'geometry.pin_circle_radius_m ({self.pin_circle_radius_m!r}) must exceed '
+                   f'eccentricity_m * z_ring ({self.eccentricity_m * self.z_pin!r}): K1 < 1')
+            raise PresetError(msg)
+
+    @property
+    def gear_ratio(self) -> float:
+        """Overall ratio i = 1 + (z_planet / z_sun) z_pin."""
+        return 1.0 + self.z_planet / self.z_sun * self.z_pin
+
+    @property
+    def crank_circle_radius_m(self) -> float:
+        """Radius of the crank axes = stage-1 centre distance m (z_s + z_p) / 2 [m]."""
+        return self.module_m * (self.z_sun + self.z_planet) / 2.0
+
+
+def params_from_preset(preset: Preset) -> Li2023Params:
+    """Build validated :class:`Li2023Params` from a ``li2023-rv`` style preset.
+
+    Raises:
+        PresetError: A key is missing or a value breaks its rule (the key is named).
+    """
+    kwargs: dict[str, Any] = {}
+    for name, (key, rule) in _FIELDS.items():
+        value = preset[key]
+        if rule not in {'int1', 'int0', 'bool'} and isinstance(value, int) \
+                and not isinstance(value, bool):
+            value = float(value)
+        kwargs[name] = value
+    return Li2023Params(**kwargs)
+
+
+# --------------------------------------------------------------------------------------
+# Loaded tooth contact analysis (Eqs 1-7)
+# --------------------------------------------------------------------------------------
+
+@dataclass(frozen=True)
+class LtcaResult:
+    """Equivalent cycloid-pin mesh over one pin-mesh period (one disc).
+
+    Attributes:
+        crank_angle_rad: Absolute eccentric angle Phi (pin 0 at angle 0), shape (G,),
+            spanning one mesh period [0, 2 pi / z_pin).
+        pressure_angle_rad: Equivalent pressure angle beta (Eq. 7), shape (G,).
+        mesh_stiffness_n_m: Equivalent mesh stiffness k_cr (Eq. 7), shape (G,).
+        rotation_rad: Elastic rotation dphi_c of the disc (Eqs 3-4), shape (G,).
+        contacts: Number of loaded pins, shape (G,).
+        max_pin_force_n: Largest pin force, shape (G,).
+    """
+
+    crank_angle_rad: np.ndarray
+    pressure_angle_rad: np.ndarray
+    mesh_stiffness_n_m: np.ndarray
+    rotation_rad: np.ndarray
+    contacts: np.ndarray
+    max_pin_force_n: np.ndarray
+
+
+def _cycloid_curvature_radius(theta_rel: np.ndarray, p: Li2023Params) -> np.ndarray:
+    """Signed curvature radius of the cycloid tooth at the contact with a pin [m].
+
+    The pin-centre locus in the disc frame is ``z(Phi) = (r_p e^{i th} - e e^{i Phi})
+    e^{i Phi / z_c}``; its curvature is evaluated analytically at Phi = 0 for the pin at
+    relative angle ``theta_rel`` (pin angle minus eccentric angle). The tooth is that curve
+    offset inwards by the pin radius. Positive: convex tooth; negative: concave.
+    """
+    rp, e, zc, rr = p.pin_circle_radius_m, p.eccentricity_m, p.z_cycloid, p.pin_radius_m
+    w = rp * np.exp(1j * theta_rel) - e
+    w1 = -1j * e
+    w2 = e
+    z1 = w1 + w * (1j / zc)
+    z2 = w2 + 2.0 * w1 * (1j / zc) - w / zc**2
+    kappa = np.imag(np.conj(z1) * z2) / np.abs(z1) ** 3
+    rho0 = 1.0 / np.abs(kappa)
+    centre = w + 1j * z1 / np.abs(z1) / kappa
+    convex = np.abs(centre) < np.abs(w)
+    return np.where(convex, rho0 - rr, -(rho0 + rr))
+
+
+def _hertz_stiffness(force_n: np.ndarray, rho_c: np.ndarray, p: Li2023Params) -> np.ndarray:
+    """Hertz line-contact stiffness k_n of Eq. 2 [N/m] at a pin force (half-width b)."""
+    c = (1.0 - p.poisson**2) / p.youngs_modulus_pa
+    rr = p.pin_radius_m
+    inv_r = 1.0 / rr + 1.0 / rho_c                 # concave tooth: rho_c < 0
+    r_star = 1.0 / inv_r
+    b = np.sqrt(4.0 * np.maximum(force_n, 1e-9) * r_star * 2.0 * c
+                / (np.pi * p.face_width_m))
+    denom = c * (np.log(4.0 * np.abs(rho_c) / b) - 0.5) + c * (np.log(4.0 * rr / b) - 0.5)
+    return np.pi * p.face_width_m / (2.0 * denom)
+
+
+def ltca(params: Li2023Params, *, torque_nm: float | None = None,
+         crank_angle_rad: npt.ArrayLike | None = None) -> LtcaResult:
+    """Loaded TCA of one cycloid disc (Eqs 2-7), unmodified profile.
+
+    Every pin on the loaded side (relative angle in (pi, 2 pi)) is in contact (Eq. 3 with
+    zero backlash); its normal deflection is ``l_i dphi`` (Eq. 4), its force
+    ``k_n(F) l_i dphi`` with the load-dependent Hertz stiffness of Eq. 2; ``dphi`` is found
+    so that ``sum F_i l_i`` equals the disc torque.
+
+    Args:
+        params: Model parameters.
+        torque_nm: Disc torque [N m]; default ``tca_torque_nm * disc_load_share``.
+        crank_angle_rad: Absolute eccentric angles [rad]; default ``tca_grid_points``
+            points over one pin-mesh period.
+
+    Returns:
+        The equivalent pressure angle and mesh stiffness at each angle.
+
+    Raises:
+        ModelInputError: Torque not finite and > 0.
+    """
+    p = params
+    t_disc = p.tca_torque_nm * p.disc_load_share if torque_nm is None else float(torque_nm)
+    if not (math.isfinite(t_disc) and t_disc > 0):
+        msg = f'torque_nm must be finite and > 0, got {torque_nm!r}'
+        raise ModelInputError(msg)
+    if crank_angle_rad is None:
+        phi = np.arange(p.tca_grid_points) * (2.0 * np.pi / p.z_pin / p.tca_grid_points)
+    else:
+        phi = np.atleast_1d(np.asarray(crank_angle_rad, dtype=np.float64))
+    k1 = p.eccentricity_m * p.z_pin / p.pin_circle_radius_m
+    r_c = p.eccentricity_m * p.z_cycloid
+    th = 2.0 * np.pi * np.arange(p.z_pin)[None, :] / p.z_pin - phi[:, None]
+    s = np.sqrt(1.0 + k1**2 - 2.0 * k1 * np.cos(th))
+    lever = -r_c * np.sin(th) / s                  # > 0 on the loaded side
+    loaded = lever > 1e-9 * r_c
+    lever = np.where(loaded, lever, 0.0)
+    rho_c = _cycloid_curvature_radius(th, p)
+
+    def forces(dphi: np.ndarray) -> np.ndarray:
+        delta = lever * dphi[:, None]
+        f = 1.0e9 * delta
+        for _ in range(30):                         # F = k_n(F) delta; k_n ~ log(F)
+            f = _hertz_stiffness(f, rho_c, p) * delta
+        return np.where(loaded, f, 0.0)
+
+    lo = np.full(phi.shape, 1e-9)
+    hi = np.full(phi.shape, 1e-2)
+    for _ in range(60):                             # bisection on log(dphi)
+        mid = np.sqrt(lo * hi)
+        torque = np.sum(forces(mid) * lever, axis=1)
+        too_big = torque > t_disc
+        hi = np.where(too_big, mid, hi)
+        lo = np.where(too_big, lo, mid)
+    dphi = np.sqrt(lo * hi)
+    f = forces(dphi)
+    f_t = np.sum(f * lever, axis=1) / r_c                             # Eq. 5
+    f_r = np.sum(f * np.sqrt(np.clip(1.0 - (lever / r_c) ** 2, 0.0, None)), axis=1)
+    beta = np.arctan2(f_r, f_t)                                       # Eq. 7
+    f_cr = np.hypot(f_t, f_r)                                         # Eq. 6
+    k_cr = f_cr * np.cos(beta) / (r_c * dphi)                         # Eq. 7
+    return LtcaResult(phi, beta, k_cr, dphi, loaded.sum(axis=1), f.max(axis=1))
+
+
+# --------------------------------------------------------------------------------------
+# Dynamic model
+# --------------------------------------------------------------------------------------
+
+def _trig2(phi: np.ndarray) -> np.ndarray:
+    """Basis [1, cos, sin, cos 2, sin 2] at angles ``phi``, shape (..., 5)."""
+    return np.stack([np.ones_like(phi), np.cos(phi), np.sin(phi),
+                     np.cos(2 * phi), np.sin(2 * phi)], axis=-1)
+
+
+class _Layout:
+    """DOF indices: sun, planets, cranks, discs, output; each (x, y, theta)."""
+
+    def __init__(self, m: int, n: int) -> None:
+        self.m, self.n = m, n
+        self.sun = 0
+        self.planet = [3 + 3 * i for i in range(m)]
+        self.crank = [3 + 3 * m + 3 * i for i in range(m)]
+        self.disc = [3 + 6 * m + 3 * j for j in range(n)]
+        self.out = 3 + 6 * m + 3 * n
+        self.ndof = 6 * m + 3 * n + 6
+
+
+class Li2023DteModel:
+    """Dynamic transmission error of the Li 2023 RV model, advanced block by block.
+
+    Attributes:
+        kinematics: Ratios and mesh orders (from the preset's ``[kinematics]``).
+        params: The validated parameters.
+        beta_rad: Equivalent pressure angle used in the dynamic model (LTCA mean) [rad].
+        ndof: Number of degrees of freedom, 6 M + 3 N + 6.
+    """
+
+    def __init__(self, params: Li2023Params, kinematics: ReducerKinematics) -> None:
+        """Assemble the constant and trigonometric parts of M, C and K.
+
+        Args:
+            params: Validated parameters.
+            kinematics: Kinematics of the same reducer.
+
+        Raises:
+            PresetError: The kinematics ratio differs from the parameters' ratio.
+        """
+        p = params
+        if not math.isclose(kinematics.gear_ratio, p.gear_ratio, rel_tol=1e-12):
+            msg = (f'kinematics gear_ratio {kinematics.gear_ratio!r} differs from the '
+                   f'model ratio {p.gear_ratio!r}')
+            raise PresetError(msg)
+        self.params = p
+        self.kinematics = kinematics
+        self._lay = lay = _Layout(p.n_cranks, p.n_discs)
+        self.ndof = lay.ndof
+        tca = ltca(p)
+        self.ltca_result = tca
+        self.beta_rad = float(np.mean(tca.pressure_angle_rad))
+        # Fourier series of k_cr over the mesh period (argument z_pin * Phi)
+        spec = np.fft.rfft(tca.mesh_stiffness_n_m) / tca.mesh_stiffness_n_m.size
+        nh = min(p.pin_mesh_harmonics, spec.size - 1)
+        # k = mean + Re(sum c_l e^{i l z Phi}); a preset mean (> 0) rescales the LTCA curve
+        scale = 1.0 if p.k_pin_mesh_n_m == 0 else p.k_pin_mesh_n_m / float(spec[0].real)
+        self._kcr_mean = float(spec[0].real) * scale
+        self._kcr_harm = 2.0 * spec[1:nh + 1] * scale
+        alpha = math.radians(p.pressure_angle_deg)
+        self._alpha = alpha
+        self._r_bs = p.module_m * p.z_sun * math.cos(alpha) / 2.0
+        self._r_bp = p.module_m * p.z_planet * math.cos(alpha) / 2.0
+        self._a_h = p.crank_circle_radius_m
+        self._r_c = p.eccentricity_m * p.z_cycloid
+        self._psi = 2.0 * np.pi * np.arange(p.n_cranks) / p.n_cranks
+        self._disc_phase = 2.0 * np.pi * np.arange(p.n_discs) / p.n_discs
+        # sun-planet rectangular wave: k1 single pair, 2 k1 over (eps - 1) of the period
+        eps = p.sun_planet_contact_ratio
+        k1 = p.k_sun_planet_n_m / eps
+        width = 2.0 * np.pi * (eps - 1.0)
+        ls = np.arange(1, p.sun_planet_harmonics + 1)
+        self._ksp_harm = 2.0 * k1 / (np.pi * ls) * np.sin(ls * width / 2.0)
+        self._build_matrices()
+        self._ops_cache: dict[float, tuple[np.ndarray, np.ndarray, np.ndarray]] = {}
+        self.reset()
+
+    # ---- assembly ----------------------------------------------------------------------
+    def _g_mesh(self, i: int) -> np.ndarray:
+        lay, n = self._lay, self._n_sp(i)
+        g = np.zeros(lay.ndof)
+        g[0:2] = n
+        g[2] = self._r_bs
+        g[lay.planet[i]:lay.planet[i] + 2] = -n
+        g[lay.planet[i] + 2] = self._r_bp
+        return g
+
+    def _n_sp(self, i: int) -> np.ndarray:
+        psi, a = self._psi[i], self._alpha
+        return np.array([-math.cos(a) * math.sin(psi) + math.sin(a) * math.cos(psi),
+                         math.cos(a) * math.cos(psi) + math.sin(a) * math.sin(psi)])
+
+    def _g_carrier(self, i: int) -> np.ndarray:
+        """Crank-support bearing i, rows x and y (2, ndof)."""
+        lay, psi = self._lay, self._psi[i]
+        g = np.zeros((2, lay.ndof))
+        c = lay.crank[i]
+        g[0, c], g[1, c + 1] = 1.0, 1.0
+        g[0, lay.out], g[1, lay.out + 1] = -1.0, -1.0
+        g[0, lay.out + 2] = self._a_h * math.sin(psi)
+        g[1, lay.out + 2] = -self._a_h * math.cos(psi)
+        return g
+
+    def _g_arm(self, i: int, j: int, phi: np.ndarray) -> np.ndarray:
+        """Turning-arm bearing (crank i, disc j) at eccentric angles phi: (S, 2, ndof)."""
+        lay, psi, e = self._lay, self._psi[i], self.params.eccentricity_m
+        g = np.zeros((*phi.shape, 2, lay.ndof))
+        c, d = lay.crank[i], lay.disc[j]
+        g[..., 0, c] = 1.0
+        g[..., 1, c + 1] = 1.0
+        g[..., 0, c + 2] = -e * np.sin(phi)
+        g[..., 1, c + 2] = e * np.cos(phi)
+        g[..., 0, d] = -1.0
+        g[..., 1, d + 1] = -1.0
+        g[..., 0, d + 2] = self._a_h * math.sin(psi)
+        g[..., 1, d + 2] = -self._a_h * math.cos(psi)
+        return g
+
+    def _g_pin(self, j: int, phi: np.ndarray) -> np.ndarray:
+        """Pin mesh of disc j at eccentric angles phi: (S, ndof)."""
+        lay, b = self._lay, self.beta_rad
+        d = lay.disc[j]
+        g = np.zeros((*phi.shape, lay.ndof))
+        # n = cos(b) t + sin(b) r, t = (-sin, cos), r = (cos, sin)
+        g[..., d] = -(-math.cos(b) * np.sin(phi) + math.sin(b) * np.cos(phi))
+        g[..., d + 1] = -(math.cos(b) * np.cos(phi) + math.sin(b) * np.sin(phi))
+        g[..., d + 2] = -self._r_c * math.cos(b)
+        return g
+
+    def _build_matrices(self) -> None:
+        p, lay = self.params, self._lay
+        nd = lay.ndof
+        mass = np.zeros(nd)
+        mass[0:3] = (p.m_sun_kg, p.m_sun_kg, p.j_sun_kg_m2)
+        for i in range(lay.m):
+            mass[lay.planet[i]:lay.planet[i] + 3] = (p.m_planet_kg, p.m_planet_kg,
+                                                     p.j_planet_kg_m2)
+            mass[lay.crank[i]:lay.crank[i] + 3] = (p.m_crank_kg, p.m_crank_kg,
+                                                   p.j_crank_kg_m2)
+        for j in range(lay.n):
+            mass[lay.disc[j]:lay.disc[j] + 3] = (p.m_disc_kg, p.m_disc_kg, p.j_disc_kg_m2)
+        mass[lay.out:lay.out + 3] = (p.m_output_kg, p.m_output_kg, p.j_output_kg_m2)
+        self.mass_matrix = np.diag(mass)
+
+        k0 = np.zeros((nd, nd))
+        k0[0, 0] += p.k_sun_radial_n_m
+        k0[1, 1] += p.k_sun_radial_n_m
+        k0[2, 2] += p.k_sun_torsion_nm_rad
+        o = lay.out
+        k0[o, o] += p.k_output_radial_n_m
+        k0[o + 1, o + 1] += p.k_output_radial_n_m
+        k0[o + 2, o + 2] += p.k_output_torsion_nm_rad
+        for i in range(lay.m):
+            pl, cr = lay.planet[i], lay.crank[i]
+            for a, b, k in ((pl, cr, p.k_crank_bending_n_m), (pl + 1, cr + 1,
+                            p.k_crank_bending_n_m), (pl + 2, cr + 2,
+                            p.k_crank_torsion_nm_rad)):
+                g = np.zeros(nd)
+                g[a], g[b] = 1.0, -1.0
+                k0 += k * np.outer(g, g)
+            gc = self._g_carrier(i)
+            k0 += p.k_crank_bearing_n_m * gc.T @ gc
+        # phi-dependent parts, fitted exactly as trig polynomials of degree 2
+        samples = 2.0 * np.pi * np.arange(8) / 8
+        basis = _trig2(samples)                                       # (8, 5)
+        pinv = np.linalg.pinv(basis)                                  # (5, 8)
+        arm, pin = [], []
+        for j in range(lay.n):
+            ka = np.zeros((8, nd, nd))
+            for i in range(lay.m):
+                g = self._g_arm(i, j, samples)
+                ka += p.k_arm_bearing_n_m * np.einsum('sra,srb->sab', g, g)
+            gp = self._g_pin(j, samples)
+            kp = np.einsum('sa,sb->sab', gp, gp)                      # per unit k_cr
+            arm.append(np.tensordot(pinv, ka, axes=1).reshape(5, -1))
+            pin.append(np.tensordot(pinv, kp, axes=1).reshape(5, -1))
+        self._sp_mats = np.stack([np.outer(self._g_mesh(i), self._g_mesh(i)).ravel()
+                                  for i in range(lay.m)])
+        self._basis = np.concatenate([k0.reshape(1, -1), self._sp_mats, *arm, *pin])
+        # mean over the eccentric angles and mesh phases: the constant terms
+        k_mean = (k0 + p.k_sun_planet_n_m * self._sp_mats.sum(0).reshape(nd, nd)
+                  + sum(a[0].reshape(nd, nd) for a in arm)
+                  + self._kcr_mean * sum(b[0].reshape(nd, nd) for b in pin))
+        self.mean_stiffness_matrix = k_mean
+        b_r = 2.0 * p.damping_zeta / (2.0 * np.pi * p.damping_ref_frequency_hz)
+        self.damping_matrix = b_r * k_mean
+
+    # ---- time-varying quantities -------------------------------------------------------
+    def _angles(self, theta_in: np.ndarray) -> dict[str, np.ndarray]:
+        kin = self.kinematics
+        out = theta_in / kin.gear_ratio
+        return {'out': out, 'sun_rel': theta_in - out,
+                'crank_rel': theta_in * kin.crank_rel_per_input,
+                'crank_abs': theta_in * kin.crank_per_input}
+
+    def _mesh_stiffness(self, ang: dict[str, np.ndarray]) -> tuple[np.ndarray, np.ndarray]:
+        """k_sp (S, M) and k_cr (S, N) [N/m] (Eqs 8-11)."""
+        p = self.params
+        ls = np.arange(1, self._ksp_harm.size + 1)
+        ph = p.z_sun * (ang['sun_rel'][:, None] + self._psi[None, :])          # Eq. 8
+        ksp = p.k_sun_planet_n_m + np.cos(ls * ph[..., None]) @ self._ksp_harm
+        lc = np.arange(1, self._kcr_harm.size + 1)
+        big = ang['crank_abs'][:, None] + self._disc_phase[None, :]
+        ex = np.exp(1j * lc * p.z_pin * big[..., None])
+        kcr = self._kcr_mean + np.real(ex @ self._kcr_harm)
+        return ksp, kcr
+
+    def stiffness_matrix(self, theta_in_rad: npt.ArrayLike) -> np.ndarray:
+        """K(t) at input angles ``theta_in_rad`` (kinematic phases), shape (S, n, n)."""
+        th = np.atleast_1d(np.asarray(theta_in_rad, dtype=np.float64))
+        return (self._coeffs(th) @ self._basis).reshape(th.size, self.ndof, self.ndof)
+
+    def _coeffs(self, th: np.ndarray) -> np.ndarray:
+        ang = self._angles(th)
+        ksp, kcr = self._mesh_stiffness(ang)
+        phi = ang['crank_rel'][:, None] + self._disc_phase[None, :]           # (S, N)
+        w = _trig2(phi)                                                       # (S, N, 5)
+        s = th.size
+        return np.concatenate([np.ones((s, 1)), ksp, w.reshape(s, -1),
+                               (w * kcr[..., None]).reshape(s, -1)], axis=1)
+
+    def forces(self, theta_in_rad: np.ndarray, load_nm: np.ndarray) -> np.ndarray:
+        """Generalised force vector F(t) (load + error excitation), shape (S, n)."""
+        p, lay = self.params, self._lay
+        th = np.atleast_1d(np.asarray(theta_in_rad, dtype=np.float64))
+        f = np.zeros((th.size, lay.ndof))
+        f[:, lay.out + 2] = -np.asarray(load_nm, dtype=np.float64)
+        if not p.errors_enabled:
+            return f
+        ang = self._angles(th)
+        ksp, kcr = self._mesh_stiffness(ang)
+        rad = np.deg2rad
+
+        def vec(mag: float, angle: np.ndarray) -> np.ndarray:
+            return mag * np.stack([np.cos(angle), np.sin(angle)], axis=-1)
+
+        # sun / output assembly errors: fixed in the housing, seen from the output frame
+        d_sa = vec(p.sun_assembly_m, rad(p.sun_assembly_deg) - ang['out'])
+        f[:, 0:2] += p.k_sun_radial_n_m * d_sa
+        d_oa = vec(p.output_assembly_m, rad(p.output_assembly_deg) - ang['out'])
+        f[:, lay.out:lay.out + 2] += p.k_output_radial_n_m * d_oa
+        # sun-planet mesh: eccentricities turning with the sun and the planets (Eq. 12)
+        d_s = vec(p.sun_ecc_m, rad(p.sun_ecc_deg) + ang['sun_rel'])
+        d_p = vec(p.planet_ecc_m, rad(p.planet_ecc_deg) + ang['crank_rel'])
+        for i in range(lay.m):
+            n = self._n_sp(i)
+            eps = (d_s - d_p) @ n
+            f -= (ksp[:, i] * eps)[:, None] * self._g_mesh(i)[None, :]
+        for i in range(lay.m):
+            # crank support: hole error in the output disc, fixed in the disc (Eq. 19)
+            d_oh = vec(p.output_hole_m, np.array(self._psi[i] + rad(p.output_hole_deg)))
+            f += p.k_crank_bearing_n_m * (d_oh @ self._g_carrier(i))[None, :]
+            for j in range(lay.n):
+                phi = ang['crank_rel'] + self._disc_phase[j]
+                d_cam = vec(p.cam_ecc_m, phi + rad(p.cam_ecc_deg))                # Eq. 16
+                d_hole = vec(p.disc_hole_m, np.array(self._psi[i] + rad(p.disc_hole_deg)))
+                eps = d_cam - d_hole                                              # (S, 2)
+                g = self._g_arm(i, j, phi)                                        # (S,2,n)
+                f -= p.k_arm_bearing_n_m * np.einsum('sr,srn->sn', eps, g)
+        for j in range(lay.n):
+            phi = ang['crank_rel'] + self._disc_phase[j]
+            e_cr = p.pin_composite_m * np.sin(ang['out'] + rad(p.pin_composite_deg))  # Eq. 18
+            f -= (kcr[:, j] * e_cr)[:, None] * self._g_pin(j, phi)
+        return f
+
+    def static_response(self, theta_in_rad: float, load_nm: float) -> np.ndarray:
+        """Quasi-static displacement q = K^-1 F at one input angle, shape (n,)."""
+        k = self.stiffness_matrix(np.array([theta_in_rad]))[0]
+        f = self.forces(np.array([theta_in_rad]), np.array([load_nm]))[0]
+        return np.linalg.solve(k, f)
+
+    # ---- time integration --------------------------------------------------------------
+    def reset(self) -> None:
+        """Forget the state: the next call starts at static equilibrium."""
+        self._state: np.ndarray | None = None
+        self._last: tuple[float, float, float, float] | None = None
+
+    def te_rad(self, t_s: npt.ArrayLike, theta_in_rad: npt.ArrayLike,
+               omega_in_rad_s: npt.ArrayLike, load_nm: npt.ArrayLike) -> np.ndarray:
+        """Dynamic TE = theta_out - theta_in / i at the samples [rad]; advances the state.
+
+        The first sample of a run is the static equilibrium at that input angle and load;
+        each later sample is reached by Newmark steps of at most ``max_step_s``, with the
+        input angle interpolated by cubic Hermite (theta, omega) and the load linearly.
+
+        Args:
+            t_s: Sample times [s], 1-D, strictly increasing (also across calls).
+            theta_in_rad: Unwrapped input angle [rad], same shape.
+            omega_in_rad_s: Input speed [rad/s], same shape.
+            load_nm: Output load torque [N m] (resisting), same shape.
+
+        Returns:
+            TE [rad], shape like ``t_s``.
+
+        Raises:
+            ModelInputError: Shapes differ, non-finite values, or time not increasing.
+        """
+        t, th, om, ld = (np.asarray(a, dtype=np.float64) for a in
+                         (t_s, theta_in_rad, omega_in_rad_s, load_nm))
+        if t.ndim != 1 or not (t.shape == th.shape == om.shape == ld.shape):
+            msg = (f'inputs must be 1-D of one length: {t.shape=}, {th.shape=}, '
+                   f'{om.shape=}, {ld.shape=}')
+            raise ModelInputError(msg)
+        if t.size == 0:
+            return np.zeros(0)
+        for name, a in (('t_s', t), ('theta_in_rad', th), ('omega_in_rad_s', om),
+                        ('load_nm', ld)):
+            if not np.all(np.isfinite(a)):
+                msg = f'{name} must be finite'
+                raise ModelInputError(msg)
+        if np.any(np.diff(t) <= 0) or (self._last is not None and t[0] <= self._last[0]):
+            msg = 't_s must be strictly increasing (also from one call to the next)'
+            raise ModelInputError(msg)
+        te = np.empty(t.size)
+        start = 0
+        if self._state is None:
+            q0 = self.static_response(float(th[0]), float(ld[0]))
+            self._state = np.concatenate([q0, np.zeros(2 * self.ndof)])
+            te[0] = q0[self._lay.out + 2]
+            self._last = (float(t[0]), float(th[0]), float(om[0]), float(ld[0]))
+            start = 1
+        if start < t.size:
+            prev = self._last
+            tt = np.concatenate([[prev[0]], t[start:]])
+            tht = np.concatenate([[prev[1]], th[start:]])
+            omt = np.concatenate([[prev[2]], om[start:]])
+            ldt = np.concatenate([[prev[3]], ld[start:]])
+            te[start:] = self._advance(tt, tht, omt, ldt)
+            self._last = (float(t[-1]), float(th[-1]), float(om[-1]), float(ld[-1]))
+        return te
+
+    def _advance(self, t: np.ndarray, th: np.ndarray, om: np.ndarray,
+                 ld: np.ndarray) -> np.ndarray:
+        """Integrate over the intervals of (t, th, om, ld); TE at t[1:]."""
+        p = self.params
+        dt = np.diff(t)
+        nsub = np.maximum(1, np.ceil(dt / p.max_step_s - 1e-9)).astype(np.int64)
+        total = int(nsub.sum())
+        interval = np.repeat(np.arange(dt.size), nsub)
+        offset = np.arange(total) - np.repeat(np.cumsum(nsub) - nsub, nsub)
+        frac = (offset + 1) / nsub[interval]                    # end of each step in (0, 1]
+        h = dt[interval] / nsub[interval]
+        # cubic Hermite for theta_in, linear for the load, at the end of each step
+        s = frac
+        h00, h10 = 2 * s**3 - 3 * s**2 + 1, s**3 - 2 * s**2 + s
+        h01, h11 = -2 * s**3 + 3 * s**2, s**3 - s**2
+        d = dt[interval]
+        th_s = (h00 * th[interval] + h10 * d * om[interval] + h01 * th[interval + 1]
+                + h11 * d * om[interval + 1])
+        ld_s = ld[interval] + s * (ld[interval + 1] - ld[interval])
+        is_end = offset == nsub[interval] - 1
+        out = np.empty(dt.size)
+        ndone = 0
+        for c0 in range(0, total, p.chunk_steps):
+            c1 = min(total, c0 + p.chunk_steps)
+            traj = self._run_chunk(th_s[c0:c1], ld_s[c0:c1], h[c0:c1])
+            ends = is_end[c0:c1]
+            k = int(ends.sum())
+            out[ndone:ndone + k] = traj[ends]
+            ndone += k
+        return out
+
+    def _run_chunk(self, th: np.ndarray, ld: np.ndarray, h: np.ndarray) -> np.ndarray:
+        """Newmark (beta = 1/4, gamma = 1/2) over one batch of steps; TE after each.
+
+        The effective matrices ``K(t_n+1) + (2/h) C + (4/h^2) M`` of the whole batch come
+        from one matrix product; each step then costs one Cholesky solve (LAPACK dposv;
+        the matrix is symmetric positive definite).
+        """
+        nd = self.ndof
+        c = self.damping_matrix
+        a0 = 4.0 / h**2
+        a1 = 2.0 / h
+        coef = np.concatenate([self._coeffs(th), a0[:, None], a1[:, None]], axis=1)
+        basis = np.concatenate([self._basis, self.mass_matrix.reshape(1, -1),
+                                c.reshape(1, -1)])
+        keff = coef @ basis                                          # (S, n*n)
+        f = self.forces(th, ld)
+        x = self._state
+        io = self._lay.out + 2
+        te = np.empty(th.size)
+        h_prev = math.nan
+        for n in range(th.size):
+            if h[n] != h_prev:
+                h_prev = h[n]
+                ops = self._ops_cache.get(h_prev)
+                if ops is None:
+                    if len(self._ops_cache) > 64:
+                        self._ops_cache.clear()
+                    ops = self._ops_cache[h_prev] = self._newmark_operators(float(h_prev))
+                pmat, lmat, rmat = ops
+            _, q_new, info = _dposv(keff[n].reshape(nd, nd), f[n] + pmat @ x, lower=1,
+                                    overwrite_a=1, overwrite_b=1)
+            if info != 0:
+                msg = f'Newmark step matrix not positive definite (dposv info {info})'
+                raise ModelInputError(msg)
+            x = lmat @ q_new + rmat @ x
+            te[n] = q_new[io]
+        self._state = x
+        return te
+
+    def _newmark_operators(self, h: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Constant parts of one Newmark step of size ``h`` on x = [q, v, a].
+
+        ``rhs = F + P x``; after solving ``K_eff q' = rhs``: ``x' = L q' + R x`` with
+        ``a' = a0 (q' - q) - a2 v - a`` and ``v' = v + h/2 (a + a')``.
+        """
+        nd = self.ndof
+        m, c = self.mass_matrix, self.damping_matrix
+        a0, a1, a2 = 4.0 / h**2, 2.0 / h, 4.0 / h
+        eye, z = np.eye(nd), np.zeros((nd, nd))
+        pmat = np.concatenate([a0 * m + a1 * c, a2 * m + c, m], axis=1)
+        acc_x = np.concatenate([-a0 * eye, -a2 * eye, -eye], axis=1)     # a' = a0 q' + acc_x x
+        lmat = np.concatenate([eye, (h / 2.0) * a0 * eye, a0 * eye], axis=0)
+        v_x = np.concatenate([z, eye, (h / 2.0) * eye], axis=1) + (h / 2.0) * acc_x
+        rmat = np.concatenate([np.zeros((nd, 3 * nd)), v_x, acc_x], axis=0)
+        return pmat, lmat, rmat
+
+
+def build_te_model(preset: Preset, mode: str) -> Li2023DteModel:
+    """Factory registered for ``model = "li2023-rv"`` (see sim.models).
+
+    Args:
+        preset: A ``li2023-rv`` style preset (overrides applied).
+        mode: ``'dte'`` (dynamic transmission error) is the only mode.
+
+    Raises:
+        ModelInputError: Unknown mode.
+        PresetError: A preset value breaks its rule.
+    """
+    if mode != 'dte':
+        msg = f'model li2023-rv supports mode "dte" only, got {mode!r}'
+        raise ModelInputError(msg)
+    return Li2023DteModel(params_from_preset(preset), kinematics_from_preset(preset))
