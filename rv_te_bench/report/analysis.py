@@ -535,7 +535,7 @@ def average_spectrum(windows: Iterable[WindowResult]) -> SpectrumSummary | None:
         orders = ref_orders.copy()
         amp = np.mean([np.asarray(s.amplitude_rad, dtype=np.float64)[:size] for s in spectra],
                       axis=0)
-        method = (f'mean of {what} ({revs.sum():.3g} output revolutions): line amplitude = '
+        method = (f'mean of {what} ({revs.sum():.3g} output revolution(s)): line amplitude = '
                   'mean of the per-window peak amplitudes, phase = angle of the mean phasor')
     else:
         longest = spectra[int(np.argmax(revs))]

@@ -1,0 +1,277 @@
+"""``rv-te analyze BAG... [--json] [--report DIR] [--topic T] [--force]``: offline TE report.
+
+Reads the encoder blocks of each bag straight into numpy, runs the TE core (windows of
+whole output revolutions, order spectrum, gaps), names the dominant harmonic and asks the
+compensation code for a recommendation. Results go to stdout (a table, or JSON with
+unit-suffixed keys); progress and diagnostics go to stderr. Several bags give a comparison
+table, the first bag being the reference (before / after a modification).
+
+Exit codes: 0 ok (also for partial results, which are marked PARTIAL), 1 failed (one
+``ERROR: ...`` line on stderr), 2 bad usage.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import math
+import sys
+import time
+from pathlib import Path
+from typing import TYPE_CHECKING, Any, TextIO
+
+from rv_te_bench.errors import RvTeError
+from sim.units import rad_to_arcmin, rad_to_deg
+
+if TYPE_CHECKING:
+    from rv_te_bench.core.te import TeStats
+    from rv_te_bench.report.analysis import AnalysisResult
+
+__all__ = ['register', 'run']
+
+EXAMPLES = """\
+examples:
+  rv-te analyze bags/sample                        statistics table of the sample session
+  rv-te analyze bags/sample --json                 the same as JSON (te_pp_arcmin, ...)
+  rv-te analyze bags/sample --report out/sample    te.png, spectrum.png, report.html/.json
+  rv-te analyze before/ after/ --report out/cmp    compare two sessions (first = reference)
+  rv-te analyze real.mcap --ratio 79 --crank-per-output 25
+                                                   a bag without BenchInfo (real bench)
+"""
+
+#: Lines weaker than this fraction of the strongest line show no phase in the table.
+PHASE_MIN_FRACTION = 1e-3
+
+#: Seconds between two progress lines on stderr.
+PROGRESS_PERIOD_S = 2.0
+
+
+def _positive_float(text: str) -> float:
+    try:
+        value = float(text)
+    except ValueError:
+        msg = f'not a number: {text!r}'
+        raise argparse.ArgumentTypeError(msg) from None
+    if not (math.isfinite(value) and value > 0):
+        msg = f'must be finite and > 0, got {text!r}'
+        raise argparse.ArgumentTypeError(msg)
+    return value
+
+
+def _int_at_least(text: str, minimum: int) -> int:
+    try:
+        value = int(text)
+    except ValueError:
+        msg = f'not an integer: {text!r}'
+        raise argparse.ArgumentTypeError(msg) from None
+    if value < minimum:
+        msg = f'must be >= {minimum}, got {text!r}'
+        raise argparse.ArgumentTypeError(msg)
+    return value
+
+
+def _nonnegative_int(text: str) -> int:
+    return _int_at_least(text, 0)
+
+
+def _positive_int(text: str) -> int:
+    return _int_at_least(text, 1)
+
+
+def add_arguments(p: argparse.ArgumentParser) -> None:
+    """Add the ``analyze`` arguments to a parser (shared by ``register`` and tests)."""
+    p.add_argument('bags', nargs='+', type=Path, metavar='BAG',
+                   help='rosbag2 folder or .mcap file; several: comparison, first = reference')
+    p.add_argument('--json', action='store_true',
+                   help='print JSON (unit-suffixed keys) instead of the table')
+    p.add_argument('--report', type=Path, metavar='DIR',
+                   help='write te.png, spectrum.png, report.html and report.json into DIR')
+    p.add_argument('--force', action='store_true', help='overwrite an existing report DIR')
+    p.add_argument('--topic', metavar='T', default=None,
+                   help='encoder topic (default: the EncoderBlock topic of the bag)')
+    p.add_argument('--ratio', type=_positive_float, metavar='I', default=None,
+                   help='overall gear ratio i (input revs per output rev); required, with '
+                        '--crank-per-output, for bags without BenchInfo; overrides BenchInfo')
+    p.add_argument('--crank-per-output', type=_positive_float, metavar='C', default=None,
+                   help='absolute crank revs per output rev (25 for the Wang 2020 2K-V)')
+    p.add_argument('--harmonics', type=_nonnegative_int, default=10, metavar='K',
+                   help='crank harmonics reported (1 f_w .. K f_w)')
+    p.add_argument('--window-revolutions', type=_positive_int, default=1, metavar='W',
+                   help='whole output revolutions per analysis window')
+    p.add_argument('--no-advice', action='store_true',
+                   help='skip the compensation recommendation')
+    p.add_argument('--quiet', action='store_true', help='no progress lines on stderr')
+
+
+def register(subparsers: Any) -> None:  # noqa: ANN401 - argparse's private type
+    """Add the ``analyze`` subcommand."""
+    p = subparsers.add_parser(
+        'analyze', help='offline TE statistics, spectrum and report from recorded bags',
+        description=__doc__.split('\n\n')[1].replace('\n', ' '),
+        epilog=EXAMPLES, formatter_class=_Formatter)
+    add_arguments(p)
+    p.set_defaults(func=run)
+
+
+class _Formatter(argparse.ArgumentDefaultsHelpFormatter, argparse.RawDescriptionHelpFormatter):
+    """Defaults in the help and the examples kept as written."""
+
+
+class _Progress:
+    """A progress line on stderr every ``PROGRESS_PERIOD_S`` (blocks, samples, blocks/s)."""
+
+    def __init__(self, name: str, stream: TextIO) -> None:
+        self.name = name
+        self.stream = stream
+        self.next_s = PROGRESS_PERIOD_S
+        self.printed = False
+
+    def __call__(self, blocks: int, samples: int, elapsed_s: float) -> None:
+        if elapsed_s < self.next_s:
+            return
+        self.next_s = elapsed_s + PROGRESS_PERIOD_S
+        self.printed = True
+        rate = blocks / elapsed_s if elapsed_s > 0 else math.nan
+        print(f'{self.name}: {blocks} blocks, {samples / 1e6:.2f} M samples, '
+              f'{rate:.0f} blocks/s', file=self.stream, flush=True)
+
+
+def run(args: argparse.Namespace) -> int:
+    """Analyse the bags; 0 ok, 1 failed (``ERROR: ...`` on stderr)."""
+    try:
+        return _run(args)
+    except RvTeError as exc:
+        print(f'ERROR: {exc}', file=sys.stderr)
+        return 1
+
+
+def _run(args: argparse.Namespace) -> int:
+    from rv_te_bench.report.analysis import analyze_bag  # noqa: PLC0415
+    from rv_te_bench.report.html import ReportExistsError, report_json, write_report  # noqa: PLC0415
+
+    if args.report is not None and args.report.exists() and not args.force:
+        msg = f'Report directory {args.report} exists already; use --force to overwrite.'
+        raise ReportExistsError(msg)
+    results: list[AnalysisResult] = []
+    for bag in args.bags:
+        progress = None if args.quiet else _Progress(str(bag), sys.stderr)
+        t0 = time.monotonic()
+        res = analyze_bag(bag, topic=args.topic, gear_ratio=args.ratio,
+                          crank_per_output=args.crank_per_output,
+                          n_crank_harmonics=args.harmonics,
+                          window_revolutions=args.window_revolutions,
+                          with_advice=not args.no_advice, progress=progress)
+        if progress is not None and progress.printed:
+            dt_s = time.monotonic() - t0
+            print(f'{bag}: done, {res.blocks_read} blocks in {dt_s:.1f} s '
+                  f'({res.blocks_read / dt_s:.0f} blocks/s)', file=sys.stderr)
+        for problem in res.problems:
+            kind = 'PARTIAL' if res.partial else 'WARNING'
+            print(f'{kind}: {bag}: {problem}', file=sys.stderr)
+        if res.gaps:
+            print(f'WARNING: {bag}: {len(res.gaps)} gap(s) in the encoder stream',
+                  file=sys.stderr)
+        results.append(res)
+
+    if args.json:
+        print(json.dumps(report_json(results), indent=2))
+    else:
+        _print_tables(results, sys.stdout)
+    if args.report is not None:
+        files = write_report(results, args.report, force=args.force)
+        print(f'report written: {", ".join(str(f) for f in files)}', file=sys.stderr)
+    return 0
+
+
+# --------------------------------------------------------------------------------------
+# text output
+
+def _am(x_rad: float, width: int = 9, digits: int = 4) -> str:
+    v = float(rad_to_arcmin(x_rad))
+    return f'{v:>{width}.{digits}f}' if math.isfinite(v) else f'{"-":>{width}}'
+
+
+def _stats_row(st: TeStats) -> str:
+    revs = f'{st.revolutions:>6.3f}' if math.isfinite(st.revolutions) else f'{"-":>6}'
+    return (f'{_am(st.pp_rad)} {_am(st.amplitude_rad)} {_am(st.mean_rad)} {_am(st.std_rad)} '
+            f'{revs} {st.n_samples:>9}')
+
+
+def _print_tables(results: list[AnalysisResult], out: TextIO) -> None:
+    for res in results:
+        _print_one(res, out)
+    if len(results) > 1:
+        from rv_te_bench.report.analysis import compare_results  # noqa: PLC0415
+
+        print('comparison (first bag = reference; TE in arcmin)', file=out)
+        print(f'  {"bag":<28} {"p-p":>9} {"ampl":>9} {"mean":>9} {"std":>9} '
+              f'{"dominant":<14} {"p-p chg %":>9} {"ampl chg %":>10}', file=out)
+        for row in compare_results(results):
+            name = Path(row['bag']).name + (' (PARTIAL)' if row['partial'] else '')
+            vals = ' '.join(_fmt(row[k], 9, 4) for k in (
+                'te_pp_arcmin', 'te_amplitude_arcmin', 'te_mean_arcmin', 'te_std_arcmin'))
+            print(f'  {name:<28} {vals} {row["dominant_label"] or "-":<14} '
+                  f'{_fmt(row["te_pp_change_pct"], 9, 1)} '
+                  f'{_fmt(row["te_amplitude_change_pct"], 10, 1)}', file=out)
+
+
+def _fmt(x: float | None, width: int, digits: int) -> str:
+    return f'{"-":>{width}}' if x is None else f'{x:>{width}.{digits}f}'
+
+
+def _print_one(res: AnalysisResult, out: TextIO) -> None:
+    b = res.bench
+    flag = '  [PARTIAL]' if res.partial else ''
+    print(f'bag {res.path}{flag}', file=out)
+    print(f'  preset {b.preset or "(unknown)"} ({b.reducer_type or "-"}), i = {b.gear_ratio:.6g}, '
+          f'f_w = {b.crank_per_output:.6g} f_out, ratio from {b.source}; '
+          f'{res.blocks_read} blocks', file=out)
+    print(f'  {"window":>10} {"start[s]":>9} {"end[s]":>9} {"whole":>5} '
+          f'{"TE p-p":>9} {"ampl":>9} {"mean":>9} {"std":>9} {"revs":>6} {"samples":>9}'
+          '   (TE in arcmin)', file=out)
+    t0 = res.windows[0].start_stamp_s if res.windows else 0.0
+    for w in res.windows:
+        print(f'  {w.index:>10} {w.start_stamp_s - t0:>9.3f} {w.end_stamp_s - t0:>9.3f} '
+              f'{"yes" if w.complete else "no":>5} {_stats_row(w.stats)}', file=out)
+    print(f'  {"cumulative":>10} {"":>9} {"":>9} {"":>5} {_stats_row(res.cumulative)}', file=out)
+    spec = res.spectrum
+    if spec is None:
+        print('  spectrum: none (no complete output revolution)', file=out)
+    else:
+        print(f'  spectrum: {spec.method}; f_out = {spec.output_hz:.5g} Hz, '
+              f'f_w = {spec.crank_hz:.5g} Hz', file=out)
+        width = max([22, *(len(ln.label) for ln in spec.lines)])
+        print(f'    {"line":<{width}} {"output order":>12} {"crank order":>11} {"freq[Hz]":>10} '
+              f'{"ampl[arcmin]":>12} {"phase[deg]":>10}', file=out)
+        strongest = max((ln.amplitude_rad for ln in spec.lines), default=0.0)
+        for ln in spec.lines:
+            # The phase of a line at the noise floor means nothing: print '-'.
+            phase = (f'{float(rad_to_deg(ln.phase_rad)):>10.1f}'
+                     if ln.amplitude_rad > PHASE_MIN_FRACTION * strongest else f'{"-":>10}')
+            print(f'    {ln.label:<{width}} {ln.output_order:>12.6g} {ln.crank_order:>11.4g} '
+                  f'{ln.frequency_hz:>10.4g} {_am(ln.amplitude_rad, 12)} {phase}', file=out)
+    if res.dominant is not None:
+        d = res.dominant
+        print(f'  dominant: {d.line.label} ({_am(d.line.amplitude_rad, 0)} arcmin): '
+              f'{d.likely_source}', file=out)
+    if res.gaps:
+        print(f'  gaps: {len(res.gaps)}', file=out)
+        for g in res.gaps[:10]:
+            print(f'    {g.kind} at seq {g.seq}: {g.detail}', file=out)
+        if len(res.gaps) > 10:  # noqa: PLR2004
+            print(f'    ... {len(res.gaps) - 10} more (see --json)', file=out)
+    else:
+        print('  gaps: none', file=out)
+    rec = res.recommendation
+    if rec.advice is None:
+        print(f'  recommendation: {rec.reason}', file=out)
+    else:
+        a = rec.advice
+        print(f'  recommendation ({a.method}): {a.summary}; TE {a.te_metric} '
+              f'{_am(a.te_before_rad, 0)} -> {_am(a.te_after_rad, 0)} arcmin', file=out)
+        for m in a.modifications:
+            print(f'    {m.factor} ({m.symbol}): {m.current_value:.6g} -> '
+                  f'{m.recommended_value:.6g} {m.unit}', file=out)
+    for problem in res.problems:
+        print(f'  {"PARTIAL" if res.partial else "note"}: {problem}', file=out)
+    print(file=out)

@@ -1,0 +1,272 @@
+"""The report directory: one self-contained HTML page, its PNGs and a JSON twin.
+
+:func:`write_report` writes ``te.png``, ``spectrum.png`` (and ``comparison.png`` for
+several bags), ``report.json`` and ``report.html`` (images embedded as base64 data URIs,
+so the page can be mailed on its own).
+"""
+
+from __future__ import annotations
+
+import base64
+import datetime as dt
+import html
+import json
+import math
+from pathlib import Path
+from typing import TYPE_CHECKING, Any
+
+from rv_te_bench.errors import RvTeError
+from rv_te_bench.report.analysis import compare_results
+from rv_te_bench.report.plots import comparison_figure, save_png, spectrum_figure, te_figure
+from sim.units import rad_to_arcmin, rad_to_deg
+
+if TYPE_CHECKING:
+    from collections.abc import Sequence
+
+    from rv_te_bench.core.te import TeStats
+    from rv_te_bench.report.analysis import AnalysisResult
+
+__all__ = ['ReportExistsError', 'render_html', 'report_json', 'write_report']
+
+
+class ReportExistsError(RvTeError, FileExistsError):
+    """The report directory exists and overwriting was not allowed."""
+
+
+def report_json(results: Sequence[AnalysisResult]) -> dict[str, Any]:
+    """The JSON document of a report (also what ``rv-te analyze --json`` prints).
+
+    Args:
+        results: One or more analyses.
+
+    Returns:
+        ``{'generated_utc', 'bags': [...], 'comparison': [...] | None}``; every quantity
+        key carries its unit (``te_pp_arcmin``, ``frequency_hz``, ``output_order``).
+    """
+    return {
+        'generated_utc': dt.datetime.now(dt.UTC).isoformat(timespec='seconds'),
+        'bags': [r.to_json_dict() for r in results],
+        'comparison': compare_results(list(results)) if len(results) > 1 else None,
+    }
+
+
+def write_report(results: Sequence[AnalysisResult], directory: Path, *,
+                 force: bool = False) -> list[Path]:
+    """Write the report files into ``directory``.
+
+    Args:
+        results: One or more analyses.
+        directory: Report directory; created, or reused when ``force``.
+        force: Overwrite an existing directory's report files.
+
+    Returns:
+        The files written.
+
+    Raises:
+        ReportExistsError: ``directory`` exists and ``force`` is False.
+        RvTeError: The directory cannot be written.
+    """
+    directory = Path(directory)
+    if directory.exists() and not force:
+        msg = f'Report directory {directory} exists already; use --force to overwrite.'
+        raise ReportExistsError(msg)
+    if directory.exists() and not directory.is_dir():
+        msg = f'Report path {directory} exists and is not a directory.'
+        raise ReportExistsError(msg)
+    try:
+        directory.mkdir(parents=True, exist_ok=True)
+        images = {'te.png': save_png(te_figure(results), directory / 'te.png'),
+                  'spectrum.png': save_png(spectrum_figure(results),
+                                           directory / 'spectrum.png')}
+        if len(results) > 1:
+            images['comparison.png'] = save_png(comparison_figure(results),
+                                                directory / 'comparison.png')
+        doc = report_json(results)
+        (directory / 'report.json').write_text(json.dumps(doc, indent=2) + '\n',
+                                               encoding='utf-8')
+        (directory / 'report.html').write_text(render_html(results, images, doc),
+                                               encoding='utf-8')
+    except OSError as exc:
+        msg = f'Cannot write report into {directory}: {exc}'
+        raise RvTeError(msg) from None
+    return [directory / n for n in (*images, 'report.json', 'report.html')]
+
+
+# --------------------------------------------------------------------------------------
+# HTML
+
+_CSS = """
+body{font-family:system-ui,Segoe UI,Helvetica,Arial,sans-serif;margin:1.5em auto;
+max-width:1100px;color:#222;padding:0 1em}
+h1{font-size:1.5em}h2{font-size:1.2em;border-bottom:1px solid #ccc;padding-bottom:.2em}
+h3{font-size:1.05em}
+table{border-collapse:collapse;margin:.5em 0 1em}td,th{border:1px solid #ccc;
+padding:.2em .6em;text-align:right}th{background:#f0f0f0}td.l,th.l{text-align:left}
+img{max-width:100%;border:1px solid #ddd}.warn{background:#fff3cd;border:1px solid #e0c060;
+padding:.5em}.muted{color:#666}code{background:#f5f5f5;padding:0 .2em}
+"""
+
+
+def _e(x: Any) -> str:  # noqa: ANN401
+    return html.escape(str(x))
+
+
+def _am(x_rad: float, digits: int = 4) -> str:
+    v = float(rad_to_arcmin(x_rad))
+    return f'{v:.{digits}f}' if math.isfinite(v) else '-'
+
+
+def _stats_cells(st: TeStats) -> str:
+    revs = f'{st.revolutions:.3f}' if math.isfinite(st.revolutions) else '-'
+    return (f'<td>{_am(st.pp_rad)}</td><td>{_am(st.amplitude_rad)}</td>'
+            f'<td>{_am(st.mean_rad)}</td><td>{_am(st.std_rad)}</td>'
+            f'<td>{revs}</td><td>{st.n_samples}</td>')
+
+
+_STATS_HEAD = ('<th>TE p-p [arcmin]</th><th>amplitude max|TE| [arcmin]</th>'
+               '<th>mean [arcmin]</th><th>std [arcmin]</th><th>output revs</th>'
+               '<th>samples</th>')
+
+
+def _img(images: dict[str, bytes], name: str, alt: str) -> str:
+    data = images.get(name)
+    if data is None:
+        return ''
+    b64 = base64.b64encode(data).decode('ascii')
+    return f'<p><img alt="{_e(alt)}" src="data:image/png;base64,{b64}"></p>'
+
+
+def _bag_section(res: AnalysisResult) -> str:  # noqa: C901 - one report section per item
+    out = [f'<h2>{_e(res.path)}</h2>']
+    if res.partial or res.problems:
+        kind = 'PARTIAL result' if res.partial else 'Note'
+        out.append(f'<p class="warn"><b>{kind}:</b> '
+                   + '<br>'.join(_e(p) for p in res.problems) + '</p>')
+    b = res.bench
+    out.append('<table>')
+    rows = [('preset', b.preset or '(unknown)'), ('reducer type', b.reducer_type or '-'),
+            ('bench id', b.bench_id or '-'),
+            ('gear ratio i', f'{b.gear_ratio:.6g}'),
+            ('crank revs per output rev (f_w / f_out)', f'{b.crank_per_output:.6g}'),
+            ('mesh orders', ', '.join(f'{lab} = {o:.6g}' for o, lab in
+                                      zip(b.mesh_orders_out, b.mesh_labels, strict=False))
+             or '-'),
+            ('encoders (in / out)', f'{b.encoder_in_model or "-"} / {b.encoder_out_model or "-"}'),
+            ('ratio source', b.source), ('blocks read', str(res.blocks_read))]
+    out += [f'<tr><th class="l">{_e(k)}</th><td class="l">{_e(v)}</td></tr>' for k, v in rows]
+    out.append('</table>')
+
+    out.append('<h3>Statistics</h3><table><tr><th class="l">window</th><th>start [s]</th>'
+               f'<th>end [s]</th><th class="l">complete</th>{_STATS_HEAD}</tr>')
+    t0 = res.windows[0].start_stamp_s if res.windows else 0.0
+    for w in res.windows:
+        out.append(f'<tr><td class="l">{w.index}</td><td>{w.start_stamp_s - t0:.3f}</td>'
+                   f'<td>{w.end_stamp_s - t0:.3f}</td><td class="l">{"yes" if w.complete else "no"}'
+                   f'</td>{_stats_cells(w.stats)}</tr>')
+    out.append(f'<tr><th class="l" colspan="4">cumulative (all clean samples)</th>'
+               f'{_stats_cells(res.cumulative)}</tr></table>')
+
+    spec = res.spectrum
+    out.append('<h3>Spectrum</h3>')
+    if spec is None:
+        out.append('<p>No complete output revolution: no spectrum.</p>')
+    else:
+        out.append(f'<p class="muted">{_e(spec.method)}. f_out = {spec.output_hz:.5g} Hz, '
+                   f'f_w = {spec.crank_hz:.5g} Hz. Amplitude: peak of '
+                   'a&middot;cos(order&middot;&phi; + phase), &phi; = &theta;<sub>in</sub>/i.</p>')
+        out.append('<table><tr><th class="l">line</th><th>output order</th>'
+                   '<th>crank order</th><th>frequency [Hz]</th><th>amplitude [arcmin]</th>'
+                   '<th>spread [arcmin]</th><th>phase [deg]</th></tr>')
+        for ln, spread in zip(spec.lines, spec.amplitude_spread_rad, strict=True):
+            out.append(f'<tr><td class="l">{_e(ln.label)}</td><td>{ln.output_order:.6g}</td>'
+                       f'<td>{ln.crank_order:.4g}</td><td>{ln.frequency_hz:.5g}</td>'
+                       f'<td>{_am(ln.amplitude_rad)}</td><td>{_am(spread)}</td>'
+                       f'<td>{float(rad_to_deg(ln.phase_rad)):.1f}</td></tr>')
+        out.append('</table>')
+    if res.dominant is not None:
+        d = res.dominant
+        out.append(f'<p><b>Dominant harmonic:</b> {_e(d.line.label)} '
+                   f'(output order {d.line.output_order:.6g}, {_am(d.line.amplitude_rad)} '
+                   f'arcmin). Likely source: {_e(d.likely_source)}.</p>')
+
+    out.append('<h3>Gaps</h3>')
+    if res.gaps:
+        out.append('<table><tr><th class="l">kind</th><th>seq</th><th class="l">detail</th></tr>')
+        out += [f'<tr><td class="l">{_e(g.kind)}</td><td>{g.seq}</td>'
+                f'<td class="l">{_e(g.detail)}</td></tr>' for g in res.gaps]
+        out.append('</table>')
+    else:
+        out.append('<p>None.</p>')
+
+    out.append('<h3>Recommendation</h3>')
+    rec = res.recommendation
+    if rec.advice is None:
+        out.append(f'<p>{_e(rec.reason)}</p>')
+    else:
+        a = rec.advice
+        out.append(f'<p><b>{_e(a.method)}</b>: {_e(a.summary)}<br>TE {_e(a.te_metric)}: '
+                   f'{_am(a.te_before_rad)} &rarr; {_am(a.te_after_rad)} arcmin '
+                   f'<span class="muted">({_e(rec.reason)})</span></p>')
+        if a.modifications:
+            out.append('<table><tr><th class="l">factor</th><th class="l">symbol</th>'
+                       '<th class="l">unit</th><th>current</th><th>recommended</th>'
+                       '<th>sensitivity</th></tr>')
+            out += [f'<tr><td class="l">{_e(m.factor)}</td><td class="l">{_e(m.symbol)}</td>'
+                    f'<td class="l">{_e(m.unit)}</td><td>{m.current_value:.6g}</td>'
+                    f'<td>{m.recommended_value:.6g}</td><td>{m.sensitivity_index:.4g}</td></tr>'
+                    for m in a.modifications]
+            out.append('</table>')
+    return '\n'.join(out)
+
+
+def render_html(results: Sequence[AnalysisResult], images: dict[str, bytes],
+                doc: dict[str, Any] | None = None) -> str:
+    """One self-contained HTML page (PNGs embedded as base64).
+
+    Args:
+        results: One or more analyses.
+        images: PNG bytes by file name (``te.png``, ``spectrum.png``, ``comparison.png``).
+        doc: The report JSON (for the comparison rows); built when None.
+
+    Returns:
+        The page.
+    """
+    doc = report_json(results) if doc is None else doc
+    title = ('TE report: ' + ', '.join(r.path.name for r in results))
+    parts = [f'<!DOCTYPE html><html lang="en"><head><meta charset="utf-8">'
+             f'<title>{_e(title)}</title><style>{_CSS}</style></head><body>',
+             f'<h1>{_e(title)}</h1>',
+             f'<p class="muted">Generated {_e(doc["generated_utc"])} by rv-te analyze. '
+             'TE = &theta;<sub>out</sub> &minus; &theta;<sub>in</sub>/i (Wang 2020 Eq. 22, '
+             'consistent form); statistics as the papers define them (p-p = max &minus; min, '
+             'amplitude = max|TE|).</p>']
+    if any(r.partial for r in results):
+        parts.append('<p class="warn"><b>PARTIAL:</b> at least one bag could not be read to '
+                     'its end; its figures cover what was read before the error.</p>')
+    rows = doc.get('comparison')
+    if rows:
+        parts.append('<h2>Comparison (first bag = reference)</h2><table><tr><th class="l">bag'
+                     '</th><th>p-p [arcmin]</th><th>amplitude [arcmin]</th><th>mean [arcmin]'
+                     '</th><th>std [arcmin]</th><th class="l">dominant</th>'
+                     '<th>p-p change [%]</th><th>amplitude change [%]</th></tr>')
+        for row in rows:
+            parts.append(
+                f'<tr><td class="l">{_e(Path(row["bag"]).name)}'
+                f'{" (PARTIAL)" if row["partial"] else ""}</td>'
+                + ''.join(f'<td>{_fmt(row[k])}</td>' for k in
+                          ('te_pp_arcmin', 'te_amplitude_arcmin', 'te_mean_arcmin',
+                           'te_std_arcmin'))
+                + f'<td class="l">{_e(row["dominant_label"] or "-")}</td>'
+                f'<td>{_fmt(row["te_pp_change_pct"], 1)}</td>'
+                f'<td>{_fmt(row["te_amplitude_change_pct"], 1)}</td></tr>')
+        parts.append('</table>')
+        parts.append(_img(images, 'comparison.png', 'TE statistics per bag'))
+    parts.append(_img(images, 'te.png', 'TE against output angle'))
+    parts.append(_img(images, 'spectrum.png', 'TE order spectrum'))
+    parts += [_bag_section(r) for r in results]
+    parts.append('</body></html>\n')
+    return '\n'.join(parts)
+
+
+def _fmt(x: float | None, digits: int = 4) -> str:
+    return '-' if x is None else f'{x:.{digits}f}'

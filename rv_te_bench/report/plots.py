@@ -1,0 +1,252 @@
+"""Report figures (matplotlib, Agg; no pyplot state, safe in threads and without a display).
+
+* :func:`te_figure`: TE [arcmin] against output angle [deg] for one or several bags;
+* :func:`spectrum_figure`: the full order spectrum (log axes) with the labelled lines marked,
+  and a bar chart of the labelled lines ('1 f_w', 'f_w - f_out', 'mesh 52 f_w', ...);
+* :func:`comparison_figure`: TE statistics of several bags side by side (before / after).
+
+Values are converted from radians to arcmin here, at the edge, with :mod:`sim.units`.
+"""
+
+from __future__ import annotations
+
+import io
+import math
+from typing import TYPE_CHECKING
+
+import numpy as np
+from matplotlib.backends.backend_agg import FigureCanvasAgg
+from matplotlib.figure import Figure
+from matplotlib.ticker import FuncFormatter, NullFormatter
+
+from sim.units import rad_to_arcmin, rad_to_deg
+
+if TYPE_CHECKING:
+    from collections.abc import Sequence
+    from pathlib import Path
+
+    from rv_te_bench.report.analysis import AnalysisResult
+
+__all__ = ['comparison_figure', 'png_bytes', 'save_png', 'spectrum_figure', 'te_figure']
+
+#: Largest number of labelled lines drawn as bars (the strongest ones, in order).
+MAX_BARS = 14
+_COLORS = ('tab:blue', 'tab:orange', 'tab:green', 'tab:red', 'tab:purple', 'tab:brown')
+_DPI = 110
+
+
+def _name(res: AnalysisResult) -> str:
+    return res.path.name or str(res.path)
+
+
+def _short(label: str) -> str:
+    """A label short enough for a tick: 'stage-2 mesh (52 f_w, ...)' -> 'stage-2 mesh'."""
+    return label.split(' (')[0] if len(label) > 16 else label  # noqa: PLR2004
+
+
+def _new_figure(width_in: float, height_in: float, **adjust: float) -> Figure:
+    # Fixed margins: constrained layout costs seconds on log axes with many ticks.
+    fig = Figure(figsize=(width_in, height_in), dpi=_DPI)
+    FigureCanvasAgg(fig)
+    fig.subplots_adjust(**{'left': 0.08, 'right': 0.98, 'top': 0.92, 'bottom': 0.12, **adjust})
+    return fig
+
+
+def png_bytes(fig: Figure) -> bytes:
+    """Render a figure to PNG bytes."""
+    buf = io.BytesIO()
+    fig.savefig(buf, format='png', dpi=_DPI)
+    return buf.getvalue()
+
+
+def save_png(fig: Figure, path: Path) -> bytes:
+    """Write a figure as PNG and return the bytes written."""
+    data = png_bytes(fig)
+    path.write_bytes(data)
+    return data
+
+
+def te_figure(results: Sequence[AnalysisResult]) -> Figure:
+    """TE against output angle, one trace per bag.
+
+    The x axis is the output-shaft angle from the first sample of each bag [deg]; dotted
+    vertical lines mark whole output revolutions. Gaps in a recording show as breaks.
+
+    Args:
+        results: One or more analyses (their thinned TE traces are drawn).
+
+    Returns:
+        The figure.
+    """
+    fig = _new_figure(10.0, 4.6)
+    ax = fig.add_subplot()
+    max_deg = 0.0
+    for k, res in enumerate(results):
+        th = np.asarray(res.trace.theta_out_rad)
+        te = np.asarray(res.trace.te_rad)
+        finite = np.isfinite(th)
+        if not finite.any():
+            continue
+        x_deg = rad_to_deg(th - th[finite][0])
+        st = res.cumulative
+        label = (f'{_name(res)}: p-p {float(rad_to_arcmin(st.pp_rad)):.3f}\', '
+                 f'mean {float(rad_to_arcmin(st.mean_rad)):.3f}\'')
+        if res.partial:
+            label += ' (PARTIAL)'
+        ax.plot(x_deg, rad_to_arcmin(te), lw=0.8, color=_COLORS[k % len(_COLORS)], label=label)
+        max_deg = max(max_deg, float(np.nanmax(np.abs(x_deg))))
+    for rev in range(1, int(max_deg // 360.0) + 1):
+        ax.axvline(rev * 360.0, color='0.6', lw=0.8, ls=':')
+    ax.axhline(0.0, color='0.3', lw=0.6)
+    ax.set_xlabel('output angle from start of record [deg]  (dotted: whole output revolutions)')
+    ax.set_ylabel('transmission error TE [arcmin]')
+    stride = max(r.trace.stride for r in results) if results else 1
+    title = 'Transmission error  TE = theta_out - theta_in / i'
+    if stride > 1:
+        title += f'  (every {stride}th sample shown)'
+    ax.set_title(title)
+    ax.grid(visible=True, alpha=0.3)
+    if max_deg > 0:
+        ax.set_xlim(0.0, max_deg)
+    ax.legend(loc='upper right', fontsize=8)
+    return fig
+
+
+def _strong_labels(results: Sequence[AnalysisResult]) -> list[tuple[float, str]]:
+    """Labelled lines worth a bar: the strongest ones over all bags, in order of frequency."""
+    best: dict[str, tuple[float, float]] = {}
+    for res in results:
+        if res.spectrum is None:
+            continue
+        for ln in res.spectrum.lines:
+            old = best.get(ln.label, (ln.output_order, 0.0))
+            best[ln.label] = (ln.output_order, max(old[1], ln.amplitude_rad))
+    strongest = sorted(best.items(), key=lambda kv: -kv[1][1])[:MAX_BARS]
+    return sorted(((order, label) for label, (order, _) in strongest), key=lambda x: x[0])
+
+
+def spectrum_figure(results: Sequence[AnalysisResult]) -> Figure:
+    """Order spectrum with labelled crank harmonics, sidebands and mesh orders.
+
+    Top: full amplitude spectrum against output order (log axes), labelled lines marked.
+    Bottom: bars of the labelled lines (peak amplitude [arcmin]), grouped by bag.
+
+    Args:
+        results: One or more analyses; those without a spectrum are listed as such.
+
+    Returns:
+        The figure.
+    """
+    fig = _new_figure(10.0, 7.6, top=0.95, bottom=0.12, hspace=0.45)
+    ax_full, ax_bar = fig.subplots(2, 1, height_ratios=(1.0, 1.1))
+    with_spec = [r for r in results if r.spectrum is not None]
+    if not with_spec:
+        for ax in (ax_full, ax_bar):
+            ax.text(0.5, 0.5, 'no complete output revolution: no spectrum',
+                    ha='center', va='center', transform=ax.transAxes)
+            ax.set_axis_off()
+        return fig
+    peak = max(float(rad_to_arcmin(max((ln.amplitude_rad for ln in r.spectrum.lines),
+                                           default=0.0))) for r in with_spec
+               if r.spectrum is not None)
+    floor = peak * 1e-4 if peak > 0 else 1e-9
+    x_max = 1.0
+    for k, res in enumerate(results):
+        spec = res.spectrum
+        if spec is None:
+            continue
+        color = _COLORS[k % len(_COLORS)]
+        orders = np.asarray(spec.orders)[1:]
+        amp = np.maximum(rad_to_arcmin(np.asarray(spec.amplitude_rad)[1:]), floor)
+        ax_full.vlines(orders, floor, amp, lw=0.6, color=color, alpha=0.7,
+                       label=f'{_name(res)} ({spec.n_windows} window(s) averaged)')
+        line_o = np.array([ln.output_order for ln in spec.lines])
+        line_a = np.maximum(rad_to_arcmin(np.array([ln.amplitude_rad for ln in spec.lines])),
+                            floor)
+        ax_full.plot(line_o, line_a, 'o', ms=4, mfc='none', color=color)
+        if line_o.size:
+            x_max = max(x_max, float(line_o.max()))
+        if k == 0:
+            done: list[float] = []
+            for ln, a in sorted(zip(spec.lines, line_a, strict=True),
+                                key=lambda z: -z[1])[:6]:
+                # Skip a label that would overlap a stronger one's (within 15 % in order).
+                if a > 10 * floor and all(abs(math.log(ln.output_order / o)) > 0.14
+                                          for o in done):
+                    done.append(ln.output_order)
+                    ax_full.annotate(_short(ln.label), (ln.output_order, a), xytext=(3, 4),
+                                     textcoords='offset points', fontsize=7)
+    ax_full.set_xscale('log')
+    ax_full.set_yscale('log')
+    # Plain tick labels: readable, and much faster than mathtext's 10^k.
+    ax_full.xaxis.set_major_formatter(FuncFormatter(lambda v, _pos: f'{v:g}'))
+    ax_full.yaxis.set_major_formatter(FuncFormatter(lambda v, _pos: f'{v:g}'))
+    ax_full.xaxis.set_minor_formatter(NullFormatter())
+    ax_full.yaxis.set_minor_formatter(NullFormatter())
+    ax_full.set_xlim(0.7, x_max * 3.0)
+    ax_full.set_ylim(floor, peak * 3.0)
+    cpo = with_spec[0].bench.crank_per_output
+    ax_full.set_xlabel(f'output order [cycles per output revolution]; k f_w is order {cpo:g} k'
+                       '  (o: labelled lines)')
+    ax_full.set_ylabel('peak amplitude [arcmin] (log)')
+    ax_full.grid(visible=True, which='major', alpha=0.3)
+    ax_full.legend(loc='upper right', fontsize=8)
+    first = with_spec[0].spectrum
+    assert first is not None
+    ax_full.set_title(f'TE order spectrum: f_out = {first.output_hz:.4g} Hz, '
+                      f'f_w = {first.crank_hz:.4g} Hz (mean speed)')
+
+    chosen = _strong_labels(results)
+    n_bags = len(results)
+    width = 0.8 / max(n_bags, 1)
+    xs = np.arange(len(chosen))
+    for k, res in enumerate(results):
+        if res.spectrum is None:
+            continue
+        amp_by = {ln.label: ln.amplitude_rad for ln in res.spectrum.lines}
+        vals = rad_to_arcmin(np.array([amp_by.get(lab, math.nan) for _, lab in chosen]))
+        bars = ax_bar.bar(xs + (k - (n_bags - 1) / 2) * width, vals, width,
+                          color=_COLORS[k % len(_COLORS)], label=_name(res))
+        if n_bags == 1:  # values stay readable on single bars only
+            texts = [f'{v:.3f}' if np.isfinite(v) and v >= 0.01 * peak else '' for v in vals]
+            ax_bar.bar_label(bars, labels=texts, fontsize=7, padding=1)
+    ax_bar.set_xticks(xs, [_short(lab) for _, lab in chosen], rotation=35, ha='right',
+                      fontsize=8)
+    ax_bar.set_ylabel('peak amplitude [arcmin]')
+    ax_bar.set_title(f'The {len(chosen)} strongest labelled lines (crank harmonics k f_w, '
+                     'sidebands f_w +/- f_out, mesh orders), by frequency')
+    ax_bar.grid(visible=True, axis='y', alpha=0.3)
+    if n_bags > 1:
+        ax_bar.legend(fontsize=8)
+    return fig
+
+
+def comparison_figure(results: Sequence[AnalysisResult]) -> Figure:
+    """TE statistics of several bags side by side (the first is the reference).
+
+    Args:
+        results: Two or more analyses.
+
+    Returns:
+        The figure: grouped bars of p-p, amplitude, |mean| and std [arcmin].
+    """
+    fig = _new_figure(9.0, 4.2)
+    ax = fig.add_subplot()
+    names = ('p-p', 'amplitude max|TE|', '|mean|', 'std')
+    n_bags = len(results)
+    width = 0.8 / max(n_bags, 1)
+    xs = np.arange(len(names))
+    for k, res in enumerate(results):
+        st = res.cumulative
+        vals = rad_to_arcmin(np.array([st.pp_rad, st.amplitude_rad, abs(st.mean_rad),
+                                       st.std_rad]))
+        label = _name(res) + (' (PARTIAL)' if res.partial else '')
+        bars = ax.bar(xs + (k - (n_bags - 1) / 2) * width, vals, width,
+                      color=_COLORS[k % len(_COLORS)], label=label)
+        ax.bar_label(bars, fmt='%.3f', fontsize=7, padding=1)
+    ax.set_xticks(xs, names)
+    ax.set_ylabel('TE [arcmin]')
+    ax.set_title('TE statistics over all clean samples, bag by bag')
+    ax.grid(visible=True, axis='y', alpha=0.3)
+    ax.legend(fontsize=8)
+    return fig
