@@ -154,23 +154,42 @@ class AngleResampled:
     te_rad: np.ndarray
 
 
-def _lagrange4(x: np.ndarray, y: np.ndarray, xq: np.ndarray) -> np.ndarray:
-    """Cubic Lagrange interpolation on increasing nodes x (4 nearest nodes per query)."""
+_CHUNK = 4096  # grid points per pass: keeps the ~30 temporaries in cache and off mmap
+
+
+def _lagrange4_uniform(x: np.ndarray, y: np.ndarray, spacing: float, n_grid: int) -> np.ndarray:
+    """Cubic Lagrange interpolation of (x, y) at the grid 0, spacing, ..., (n_grid-1) spacing.
+
+    ``x`` increases strictly from 0. Each grid point uses the four nodes around it (two
+    at or below, two above; the end intervals use the first/last four nodes). The node
+    index is found by counting nodes per grid cell (bincount + cumsum, O(n)); the
+    arithmetic runs in chunks of the grid so that temporaries stay small.
+    """
     n = x.size
     if n < 4:  # noqa: PLR2004 - four nodes make a cubic
-        return np.interp(xq, x, y)
-    j = np.searchsorted(x, xq, side='right') - 2
-    np.clip(j, 0, n - 4, out=j)
-    x0, x1, x2, x3 = x[j], x[j + 1], x[j + 2], x[j + 3]
-    d0, d1, d2, d3 = xq - x0, xq - x1, xq - x2, xq - x3
-    h01, h02, h03 = x0 - x1, x0 - x2, x0 - x3
-    h12, h13, h23 = x1 - x2, x1 - x3, x2 - x3
-    d23 = d2 * d3
-    d01 = d0 * d1
-    out = y[j] * (d1 * d23 / (h01 * h02 * h03))
-    out -= y[j + 1] * (d0 * d23 / (h01 * h12 * h13))
-    out += y[j + 2] * (d01 * d3 / (h02 * h12 * h23))
-    out -= y[j + 3] * (d01 * d2 / (h03 * h13 * h23))
+        return np.interp(np.arange(n_grid) * spacing, x, y)
+    # count[m] = number of nodes with x <= m * spacing (a node that rounds onto a grid
+    # point may land one cell off, which only shifts the 4-node stencil by one)
+    cell = np.minimum(np.floor(x * (1.0 / spacing)), n_grid).astype(np.intp)
+    count = np.cumsum(np.bincount(cell, minlength=n_grid + 1)[:n_grid])
+    j_all = count - 2
+    np.clip(j_all, 0, n - 4, out=j_all)
+    out = np.empty(n_grid)
+    for a in range(0, n_grid, _CHUNK):
+        b = min(a + _CHUNK, n_grid)
+        j = j_all[a:b]
+        xq = np.arange(a, b) * spacing
+        x0, x1, x2, x3 = x[j], x[j + 1], x[j + 2], x[j + 3]
+        d0, d1, d2, d3 = xq - x0, xq - x1, xq - x2, xq - x3
+        h01, h02, h03 = x0 - x1, x0 - x2, x0 - x3
+        h12, h13, h23 = x1 - x2, x1 - x3, x2 - x3
+        d23 = d2 * d3
+        d01 = d0 * d1
+        seg = y[j] * (d1 * d23 / (h01 * h02 * h03))
+        seg -= y[j + 1] * (d0 * d23 / (h01 * h12 * h13))
+        seg += y[j + 2] * (d01 * d3 / (h02 * h12 * h23))
+        seg -= y[j + 3] * (d01 * d2 / (h03 * h13 * h23))
+        out[a:b] = seg
     return out
 
 
@@ -214,8 +233,9 @@ def resample_to_output_angle(
     if phi.size < 2:  # noqa: PLR2004
         msg = f'need at least 2 samples, got {phi.size}'
         raise TeInputError(msg)
-    if not (np.all(np.isfinite(phi)) and np.all(np.isfinite(te))):
-        msg = 'phase_out_rad or te_rad holds NaN or infinite values'
+    # a NaN or inf makes the sum non-finite (one pass, no temporary)
+    if not (math.isfinite(float(np.add.reduce(phi))) and math.isfinite(float(np.add.reduce(te)))):
+        msg = 'phase_out_rad or te_rad holds NaN or infinite values (or values beyond 1e300)'
         raise TeInputError(msg)
     step = np.diff(phi)
     if step[0] < 0.0:
@@ -247,9 +267,7 @@ def resample_to_output_angle(
             msg = f'samples_per_rev must be an int >= 2, got {samples_per_rev!r}'
             raise TeInputError(msg)
         spr = int(samples_per_rev)
-    n_grid = n_rev * spr
-    grid = np.arange(n_grid, dtype=np.float64) * (_TWO_PI / spr)
-    te_grid = _lagrange4(phi - phi0, te, grid)
+    te_grid = _lagrange4_uniform(phi - phi0, te, _TWO_PI / spr, n_rev * spr)
     return AngleResampled(phi0_rad=phi0, revolutions=n_rev, samples_per_rev=spr, te_rad=te_grid)
 
 

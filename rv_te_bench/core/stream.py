@@ -177,10 +177,15 @@ def _normalize(block: Any) -> _Clean | _Problem:  # noqa: ANN401, C901, PLR0911,
                                      f'expected 0 or {n}')
     for name, arr in (('time_offset_s', offs), ('theta_in_rad', th_in),
                       ('theta_out_rad', th_out), ('torque_out_nm', torque)):
-        if not np.isfinite(arr).all():
-            bad = int(np.flatnonzero(~np.isfinite(arr))[0])
-            return _Problem('non_finite', f'{where}: {name}[{bad}] is {float(arr[bad])!r}')
-    if n > 1 and not (np.diff(offs) > 0.0).all():
+        # one pass without a temporary: a NaN or inf makes the sum non-finite (finite
+        # values overflow only beyond 1e304, which no angle, time or torque reaches)
+        if not math.isfinite(float(np.add.reduce(arr))):
+            bad_idx = np.flatnonzero(~np.isfinite(arr))
+            if bad_idx.size:
+                bad = int(bad_idx[0])
+                return _Problem('non_finite', f'{where}: {name}[{bad}] is {float(arr[bad])!r}')
+            return _Problem('malformed', f'{where}: {name} values out of range')
+    if n > 1 and not (offs[1:] > offs[:-1]).all():
         return _Problem('malformed', f'{where}: time_offset_s not strictly increasing')
     return _Clean(int(seq), offs + stamp, th_in, th_out, rate)
 
@@ -328,11 +333,12 @@ class OfflineResult:
 class _WindowBuffer:
     """Growable (up to a cap) buffers of phi and TE of the open window."""
 
-    __slots__ = ('first_seq', 'last_seq', 'n', 'phi', 't_first', 't_last', 'te')
+    __slots__ = ('cap', 'first_seq', 'last_seq', 'n', 'phi', 't_first', 't_last', 'te')
 
-    def __init__(self) -> None:
-        self.phi = np.empty(_INITIAL_CAPACITY)
-        self.te = np.empty(_INITIAL_CAPACITY)
+    def __init__(self, cap: int) -> None:
+        self.cap = cap
+        self.phi = np.empty(min(_INITIAL_CAPACITY, cap))
+        self.te = np.empty(min(_INITIAL_CAPACITY, cap))
         self.n = 0
         self.t_first = math.nan
         self.t_last = math.nan
@@ -346,7 +352,7 @@ class _WindowBuffer:
             return
         need = self.n + m
         if need > self.phi.size:
-            cap = max(need, 2 * self.phi.size)
+            cap = min(max(need, 2 * self.phi.size), self.cap)
             self.phi = np.concatenate([self.phi[:self.n], np.empty(cap - self.n)])
             self.te = np.concatenate([self.te[:self.n], np.empty(cap - self.n)])
         self.phi[self.n:need] = phi
@@ -359,10 +365,8 @@ class _WindowBuffer:
         self.n = need
 
     def clear(self) -> None:
+        # the capacity is kept (the next window is about as long; bounded by the cap)
         self.n = 0
-        if self.phi.size > _INITIAL_CAPACITY:  # give memory back after a large window
-            self.phi = np.empty(_INITIAL_CAPACITY)
-            self.te = np.empty(_INITIAL_CAPACITY)
 
 
 def _readonly(a: np.ndarray) -> np.ndarray:
@@ -394,7 +398,7 @@ class StreamingTeAnalyzer:
         self._config = config
         self._cum = RunningStats()
         self._cum_rev = 0.0
-        self._buf = _WindowBuffer()
+        self._buf = _WindowBuffer(config.max_window_samples)
         self._pending: list[WindowResult] = []
         self._last_seq: int | None = None
         self._last_t: float | None = None
@@ -440,6 +444,8 @@ class StreamingTeAnalyzer:
         if reset_cumulative:
             self._cum = RunningStats()
             self._cum_rev = 0.0
+        if config.max_window_samples != self._config.max_window_samples:
+            self._buf = _WindowBuffer(config.max_window_samples)
         self._config = config
         self._last_phi = None
         self._decim_offset = 0
@@ -503,10 +509,11 @@ class StreamingTeAnalyzer:
         i = 0
         while i < n:
             phi_start = float(phi[i]) if buf.n == 0 else float(buf.phi[0])
-            reached = np.abs(phi[i:] - phi_start) >= bound
-            j = int(reached.argmax())
-            if not reached[j]:
-                j = -1
+            rest = phi[i:]
+            j = -1
+            if rest.max() - phi_start >= bound or phi_start - rest.min() >= bound:
+                reached = np.abs(rest - phi_start) >= bound
+                j = int(reached.argmax())
             room = cap - buf.n
             if j >= 0 and j <= room:
                 buf.append(phi[i:i + j], te[i:i + j], float(t[i]), float(t[i + j - 1]), seq)
