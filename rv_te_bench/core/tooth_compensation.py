@@ -41,6 +41,7 @@ from rv_te_bench.core.advice import Advice, Modification
 from rv_te_bench.errors import CompensationError
 from sim.errors import ModelInputError, PresetError
 from sim.hu2020 import HuRvParams, sensitivity_table, tooth_contact_analysis
+from sim.units import ARCMIN_PER_RAD
 
 if TYPE_CHECKING:
     from sim.presets import Preset
@@ -58,7 +59,6 @@ __all__ = [
 #: Factors with negative sensitivity that receive the TE (Table 2 / s.3.2).
 NEGATIVE_FACTORS: tuple[str, ...] = ('pin_radius', 'shifting_mod_error', 'cumulative_pitch')
 
-_ARCMIN_PER_RAD = 10800.0 / math.pi
 _SCALES = ('eq27', 'table6')
 
 #: Hu 2020 Table 6 (and the TE it was computed from), SI.
@@ -157,7 +157,7 @@ def tooth_profile_compensation(params: HuRvParams, te_rad: float, *, preset: str
     per_index_eq27 = errors['shifting_mod_error'] / index['shifting_mod_error']
     if scale == 'table6':
         per_index = (PAPER_TABLE6['change_m']['shifting_mod_error'] * fraction * te_rad
-                     * _ARCMIN_PER_RAD / PAPER_TABLE6['te_total_arcmin'])
+                     * ARCMIN_PER_RAD / PAPER_TABLE6['te_total_arcmin'])
         errors = {k: v * per_index / per_index_eq27 for k, v in errors.items()}
     new_r_rp = params.r_rp_m + errors['pin_radius']
     new_shift = params.delta_r_p_m - errors['shifting_mod_error']   # Table 6 direction
@@ -174,7 +174,7 @@ def tooth_profile_compensation(params: HuRvParams, te_rad: float, *, preset: str
         Modification('modification of cumulative error of circumference', 'delta_delta_8',
                      'm', params.cumulative_mod_m, new_cum, index['cumulative_pitch']),
     )
-    paper_shares = te_shares_rad(params, PAPER_TABLE6['te_total_arcmin'] / _ARCMIN_PER_RAD)
+    paper_shares = te_shares_rad(params, PAPER_TABLE6['te_total_arcmin'] / ARCMIN_PER_RAD)
     paper_eq27 = eq27_errors_m(params, paper_shares)
     details: dict[str, Any] = {
         'te_shares_rad': shares,
