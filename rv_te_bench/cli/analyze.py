@@ -147,7 +147,11 @@ def run(args: argparse.Namespace) -> int:
 
 def _run(args: argparse.Namespace) -> int:
     from rv_te_bench.report.analysis import analyze_bag  # noqa: PLC0415
-    from rv_te_bench.report.html import ReportExistsError, report_json, write_report  # noqa: PLC0415
+    from rv_te_bench.report.html import (  # noqa: PLC0415
+        ReportExistsError,
+        report_json,
+        write_report,
+    )
 
     if args.report is not None and args.report.exists() and not args.force:
         msg = f'Report directory {args.report} exists already; use --force to overwrite.'

@@ -349,12 +349,13 @@ def analyze_bag(  # noqa: PLR0913 - keyword-only analysis options
     partial = bool(read_problems) or bool(getattr(stream, 'partial', False))
     problems: list[str] = []
     if partial:
-        problems.append(f'read {reader.blocks} blocks; then: ' + '; '.join(read_problems))
+        problems.append(f'{reader.blocks} blocks read; part of the bag is unreadable: '
+                        + '; '.join(read_problems))
     windows = tuple(offline.windows)
     spectrum = average_spectrum(windows)
     if spectrum is None:
-        problems.append('no complete output revolution in the bag: no spectrum, statistics '
-                        'cover a fraction of a revolution')
+        problems.append('no complete output revolution without a gap: no spectrum, and the '
+                        'statistics do not cover whole revolutions')
     dominant = None if spectrum is None else dominant_harmonic(spectrum, bench)
     trace = reader.trace()
     recommendation = (_recommend(bench, offline.cumulative, trace) if with_advice
@@ -371,9 +372,11 @@ def analyze_bag(  # noqa: PLR0913 - keyword-only analysis options
 class _GuardedBlocks:
     """Iterator over encoder blocks that stops cleanly at a read error and keeps a trace.
 
-    A truncated or corrupted bag makes the reader raise in the middle of the iteration;
-    the TE core would lose every window already closed. This wrapper ends the iteration
-    instead and remembers the error, so the caller can report a partial result.
+    The reader (``strict=False``) stops quietly at a truncated or corrupt part and lists
+    the problem; a ``BagError`` raised in the middle of the iteration (e.g. the topic
+    carries another type further on) would make the TE core lose every window already
+    closed, so this wrapper ends the iteration instead and remembers the error. It also
+    counts blocks for the progress callback and keeps a thinned TE trace for the plot.
     """
 
     def __init__(self, blocks: Iterable[EncoderBlockData], gear_ratio: float, *,
@@ -435,7 +438,8 @@ class _GuardedBlocks:
     def _joined(self) -> tuple[npt.NDArray[np.int64], FloatArray, FloatArray]:
         if not self._parts:
             return np.zeros(0, dtype=np.int64), np.zeros(0), np.zeros(0)
-        return tuple(np.concatenate(a) for a in zip(*self._parts, strict=True))  # type: ignore[return-value]
+        g, th, te = (np.concatenate(a) for a in zip(*self._parts, strict=True))
+        return g, th, te
 
     def trace(self) -> TeTrace:
         """The thinned trace collected so far (read-only arrays)."""
@@ -455,8 +459,9 @@ def _bench_description(path: Path, info: dict[str, Any] | None, gear_ratio: floa
             msg = (f'{path}: the bag has no BenchInfo message (bench/info), so the gear ratio '
                    f'and crank order are unknown; pass {" and ".join(missing)}')
             raise TeConfigError(msg)
-        return BenchDescription(source='cli', gear_ratio=float(gear_ratio),  # type: ignore[arg-type]
-                                crank_per_output=float(crank_per_output))  # type: ignore[arg-type]
+        assert gear_ratio is not None and crank_per_output is not None  # noqa: S101 - for mypy
+        return BenchDescription(source='cli', gear_ratio=float(gear_ratio),
+                                crank_per_output=float(crank_per_output))
     try:
         ratio = float(info['gear_ratio'])
         cpo = abs(float(info['crank_per_input']) * ratio)
@@ -552,7 +557,8 @@ def average_spectrum(windows: Iterable[WindowResult]) -> SpectrumSummary | None:
         orders=orders, amplitude_rad=amp)
 
 
-def dominant_harmonic(spectrum: SpectrumSummary, bench: BenchDescription) -> DominantHarmonic | None:
+def dominant_harmonic(spectrum: SpectrumSummary,
+                      bench: BenchDescription) -> DominantHarmonic | None:
     """The labelled line with the largest averaged amplitude and its likely source."""
     if not spectrum.lines:
         return None

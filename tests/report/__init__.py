@@ -62,7 +62,8 @@ def constant_speed(output_hz: float) -> Callable[[np.ndarray], np.ndarray]:
     return lambda t: 2.0 * math.pi * output_hz * RATIO * t
 
 
-def varying_speed(output_hz: float, depth: float, mod_hz: float) -> Callable[[np.ndarray], np.ndarray]:
+def varying_speed(output_hz: float, depth: float,
+                  mod_hz: float) -> Callable[[np.ndarray], np.ndarray]:
     """theta_in(t) for an input speed C (1 + depth sin(2 pi mod_hz t)) (Hu 2020 style)."""
     w0 = 2.0 * math.pi * output_hz * RATIO
     wm = 2.0 * math.pi * mod_hz

@@ -194,3 +194,39 @@ _BENCH = BenchDescription(source='test', gear_ratio=RATIO, crank_per_output=CRAN
 ])
 def test_likely_source(order: float, words: str) -> None:
     assert words in likely_source(order, _BENCH)
+
+
+def test_rv_recommendation_wiring(tmp_path, monkeypatch) -> None:  # noqa: ANN001
+    """The RV path hands the preset and the measured amplitude to the compensation code.
+
+    The compensation module is replaced by a recorder, so this checks the wiring only
+    (the compensation maths has its own tests).
+    """
+    import sys
+    import types
+
+    from rv_te_bench.core.advice import Advice
+
+    seen = {}
+
+    def tooth_profile_advice(preset, measured_rad):  # noqa: ANN001, ANN202
+        seen['preset'], seen['measured_rad'] = preset.name, measured_rad
+        return Advice(method='tooth-profile', preset=preset.name, summary='fake',
+                      te_metric='amplitude', te_before_rad=measured_rad,
+                      te_after_rad=0.5 * measured_rad)
+
+    fake = types.ModuleType('rv_te_bench.core.tooth_compensation')
+    fake.tooth_profile_advice = tooth_profile_advice
+    monkeypatch.setitem(sys.modules, 'rv_te_bench.core.tooth_compensation', fake)
+    path = tmp_path / 'bag'
+    synth = write_bag(path, harmonics=HARMONICS, duration_s=2.5, preset='hu2020-rv',
+                      reducer_type='rv')
+    res = analyze_bag(path)
+    assert seen == {'preset': 'hu2020-rv', 'measured_rad': pytest.approx(
+        np.abs(synth.te_rad).max(), rel=1e-12)}
+    rec = res.recommendation
+    assert rec.available
+    assert rec.advice is not None and rec.advice.summary == 'fake'
+    doc = res.to_json_dict()['recommendation']
+    assert doc['advice']['te_after_arcmin'] == pytest.approx(
+        0.5 * doc['advice']['te_before_arcmin'])

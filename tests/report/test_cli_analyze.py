@@ -188,7 +188,7 @@ def test_truncated_bag_gives_partial_result(tmp_path: Path,
     assert rc == 0
     bag = json.loads(out)['bags'][0]
     assert bag['partial'] is True
-    assert bag['problems'] and 'read ' in bag['problems'][0]
+    assert bag['problems'] and 'part of the bag is unreadable' in bag['problems'][0]
     assert 0 < bag['blocks_read'] < 65
     assert 'PARTIAL' in err
     # 60 % of the file holds more than one whole revolution: what was read is sound
@@ -252,3 +252,29 @@ def test_register_sets_run() -> None:
     args = parser.parse_args(['analyze', 'some.mcap', '--json'])
     assert args.func is analyze.run
     assert args.json is True
+
+
+def test_not_a_bag_file(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    path = tmp_path / 'notes.mcap'
+    path.write_text('these are not the bytes you are looking for\n', encoding='utf-8')
+    rc, out, err = call([str(path)], capsys)
+    assert rc == 1
+    assert out == ''
+    assert err.startswith('ERROR: ') and 'notes.mcap' in err
+
+
+def test_shorter_than_one_revolution(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    path = tmp_path / 'short'
+    synth = write_bag(path, harmonics=HARMONICS, mean_rad=MEAN, duration_s=1.5)  # 0.75 rev
+    rep = tmp_path / 'rep'
+    rc, out, err = call([str(path), '--json', '--report', str(rep)], capsys)
+    assert rc == 0
+    bag = json.loads(out)['bags'][0]
+    assert bag['spectrum'] is None and bag['dominant'] is None
+    assert bag['partial'] is False
+    assert 'no complete output revolution' in err
+    te = synth.te_rad
+    assert bag['cumulative']['te_pp_arcmin'] == pytest.approx(
+        float(rad_to_arcmin(te.max() - te.min())), rel=1e-9)
+    assert (rep / 'spectrum.png').read_bytes().startswith(PNG_MAGIC)
+    assert 'No complete output revolution' in (rep / 'report.html').read_text('utf-8')

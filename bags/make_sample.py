@@ -1,0 +1,121 @@
+"""Regenerate the sample session ``bags/sample`` from the bench simulator (no ROS needed).
+
+The session: the Wang 2020 2K-V preset (``wang2020-2kv``, no-load NLTE model), input at a
+constant 300 rpm (output period 15.8 s, f_w = 1.582 Hz), Heidenhain RON 886 encoders on
+both shafts, sampled at 1 kHz in blocks of 100 samples, for 32 s (a little over two output
+revolutions). It is written the way the recorder writes a live session: ``bench/info``
+once (BenchInfo) and ``bench/encoders`` (EncoderBlock), CDR via the rosbags typestore,
+through :class:`rv_te_bench.io.bag_writer.BagWriter` (rosbag2 folder, MCAP, zstd).
+
+Usage::
+
+    .venv/bin/python bags/make_sample.py            # writes bags/sample (refuses to overwrite)
+    .venv/bin/python bags/make_sample.py --force    # replace it
+    rv-te analyze bags/sample --report /tmp/sample-report
+
+The same seed gives the same data (the simulator is deterministic per seed).
+"""
+
+from __future__ import annotations
+
+import argparse
+import shutil
+import sys
+from pathlib import Path
+
+PRESET = 'wang2020-2kv'
+INPUT_SPEED_RPM = 300.0
+SAMPLE_RATE_HZ = 1000.0
+BLOCK_SIZE = 100
+DURATION_S = 32.0
+SEED = 2020
+BENCH_ID = 'sample-bench'
+ENCODER_TOPIC = '/bench/encoders'
+INFO_TOPIC = '/bench/info'
+#: Nanoseconds since the epoch of sample 0 (a fixed date keeps the bag reproducible).
+START_NS = 1_767_225_600_000_000_000  # 2026-01-01T00:00:00Z
+
+
+def write_sample(path: Path) -> dict[str, float]:
+    """Simulate the session and write it as a bag at ``path`` (must not exist).
+
+    Returns:
+        ``{'blocks', 'samples', 'duration_s'}``.
+    """
+    import numpy as np  # noqa: PLC0415
+
+    from rv_te_bench.io.bag_writer import BagWriter  # noqa: PLC0415
+    from rv_te_bench.io.msgdefs import BENCH_INFO, ENCODER_BLOCK, rv_te_typestore  # noqa: PLC0415
+    from sim.bench import BenchConfig, BenchSimulator  # noqa: PLC0415
+    from sim.drive import ConstantSpeed  # noqa: PLC0415
+
+    sim = BenchSimulator(BenchConfig(
+        preset=PRESET, drive=ConstantSpeed(INPUT_SPEED_RPM), te_mode='nlte',
+        encoder_in='heidenhain-ron886', encoder_out='heidenhain-ron886',
+        sample_rate_hz=SAMPLE_RATE_HZ, block_size=BLOCK_SIZE, seed=SEED, bench_id=BENCH_ID))
+    store = rv_te_typestore()
+    types = store.types
+    time_cls = types['builtin_interfaces/msg/Time']
+    header_cls = types['std_msgs/msg/Header']
+
+    def header(stamp_ns: int) -> object:
+        return header_cls(stamp=time_cls(sec=stamp_ns // 1_000_000_000,
+                                         nanosec=stamp_ns % 1_000_000_000), frame_id=BENCH_ID)
+
+    info = sim.info
+    n_blocks = round(DURATION_S * SAMPLE_RATE_HZ / BLOCK_SIZE)
+    session = {'preset': PRESET, 'input_speed_rpm': INPUT_SPEED_RPM, 'seed': SEED,
+               'made_by': 'bags/make_sample.py'}
+    with BagWriter(path, compression='zstd', session_metadata=session) as writer:
+        writer.add_topic(INFO_TOPIC, BENCH_INFO)
+        writer.add_topic(ENCODER_TOPIC, ENCODER_BLOCK)
+        msg = types[BENCH_INFO](
+            header=header(START_NS), bench_id=info.bench_id, preset=info.preset,
+            reducer_type=info.reducer_type, gear_ratio=info.gear_ratio,
+            crank_per_input=info.crank_per_input, crank_rel_per_input=info.crank_rel_per_input,
+            mesh_orders=np.asarray(info.mesh_orders, dtype=np.float64),
+            mesh_labels=list(info.mesh_labels), encoder_in_model=info.encoder_in_model,
+            encoder_out_model=info.encoder_out_model,
+            encoder_in_resolution_rad=info.encoder_in_resolution_rad,
+            encoder_out_resolution_rad=info.encoder_out_resolution_rad,
+            sample_rate_hz=info.sample_rate_hz, block_size=info.block_size,
+            parameters_yaml=info.parameters_yaml)
+        writer.write(INFO_TOPIC, START_NS, store.serialize_cdr(msg, BENCH_INFO))
+        samples = 0
+        for _ in range(n_blocks):
+            block = sim.next_block()
+            stamp_ns = START_NS + round(block.t0_s * 1e9)
+            msg = types[ENCODER_BLOCK](
+                header=header(stamp_ns), seq=block.seq, sample_rate_hz=SAMPLE_RATE_HZ,
+                time_offset_s=np.asarray(block.time_offset_s, dtype=np.float64),
+                theta_in_rad=np.asarray(block.theta_in_rad, dtype=np.float64),
+                theta_out_rad=np.asarray(block.theta_out_rad, dtype=np.float64),
+                torque_out_nm=np.asarray(block.torque_out_nm, dtype=np.float64))
+            writer.write(ENCODER_TOPIC, stamp_ns, store.serialize_cdr(msg, ENCODER_BLOCK))
+            samples += len(block.theta_in_rad)
+    return {'blocks': n_blocks, 'samples': samples, 'duration_s': samples / SAMPLE_RATE_HZ}
+
+
+def main(argv: list[str] | None = None) -> int:
+    """Command line: 0 ok, 1 the bag exists (without --force), 2 bad usage."""
+    parser = argparse.ArgumentParser(description=__doc__.split('\n\n')[0],
+                                     formatter_class=argparse.ArgumentDefaultsHelpFormatter)
+    parser.add_argument('--out', type=Path, default=Path(__file__).resolve().parent / 'sample',
+                        help='bag folder to write')
+    parser.add_argument('--force', action='store_true', help='replace an existing bag')
+    args = parser.parse_args(argv)
+    if args.out.exists():
+        if not args.force:
+            print(f'ERROR: {args.out} exists already; use --force to replace it.',
+                  file=sys.stderr)
+            return 1
+        shutil.rmtree(args.out)
+    done = write_sample(args.out)
+    size = sum(f.stat().st_size for f in args.out.iterdir())
+    print(f'{args.out}: {done["blocks"]} blocks, {done["samples"]} samples '
+          f'({done["duration_s"]:.1f} s), {size / 1e6:.2f} MB')
+    return 0
+
+
+if __name__ == '__main__':
+    sys.exit(main())
