@@ -29,6 +29,9 @@ if TYPE_CHECKING:
 
 __all__ = ['comparison_figure', 'png_bytes', 'save_png', 'spectrum_figure', 'te_figure']
 
+#: Records longer than this many output revolutions are folded onto 0..360 deg.
+OVERLAY_REVOLUTIONS = 4
+
 #: Largest number of labelled lines drawn as bars (the strongest ones, in order).
 MAX_BARS = 14
 _COLORS = ('tab:blue', 'tab:orange', 'tab:green', 'tab:red', 'tab:purple', 'tab:brown')
@@ -69,8 +72,10 @@ def save_png(fig: Figure, path: Path) -> bytes:
 def te_figure(results: Sequence[AnalysisResult]) -> Figure:
     """TE against output angle, one trace per bag.
 
-    The x axis is the output-shaft angle from the first sample of each bag [deg]; dotted
-    vertical lines mark whole output revolutions. Gaps in a recording show as breaks.
+    The x axis is the output-shaft angle from the first sample of each bag [deg]. Up to
+    ``OVERLAY_REVOLUTIONS`` revolutions are drawn end to end (dotted lines mark whole
+    revolutions); longer records are folded onto 0..360 deg, one curve per revolution, so
+    that repeatability shows. Gaps in a recording show as breaks.
 
     Args:
         results: One or more analyses (their thinned TE traces are drawn).
@@ -80,36 +85,56 @@ def te_figure(results: Sequence[AnalysisResult]) -> Figure:
     """
     fig = _new_figure(10.0, 4.6)
     ax = fig.add_subplot()
-    max_deg = 0.0
+    spans = [_span_deg(r) for r in results]
+    fold = max(spans, default=0.0) > OVERLAY_REVOLUTIONS * 360.0
     for k, res in enumerate(results):
         th = np.asarray(res.trace.theta_out_rad)
-        te = np.asarray(res.trace.te_rad)
+        te_am = rad_to_arcmin(np.asarray(res.trace.te_rad))
         finite = np.isfinite(th)
         if not finite.any():
             continue
         x_deg = rad_to_deg(th - th[finite][0])
+        if fold:
+            x_deg = np.mod(x_deg, 360.0)
+            wraps = np.nonzero(np.diff(x_deg) < 0.0)[0] + 1
+            x_deg = np.insert(x_deg, wraps, np.nan)
+            te_am = np.insert(te_am, wraps, np.nan)
         st = res.cumulative
         label = (f'{_name(res)}: p-p {float(rad_to_arcmin(st.pp_rad)):.3f}\', '
                  f'mean {float(rad_to_arcmin(st.mean_rad)):.3f}\'')
         if res.partial:
             label += ' (PARTIAL)'
-        ax.plot(x_deg, rad_to_arcmin(te), lw=0.8, color=_COLORS[k % len(_COLORS)], label=label)
-        max_deg = max(max_deg, float(np.nanmax(np.abs(x_deg))))
-    for rev in range(1, int(max_deg // 360.0) + 1):
-        ax.axvline(rev * 360.0, color='0.6', lw=0.8, ls=':')
+        ax.plot(x_deg, te_am, lw=0.5 if fold else 0.8, alpha=0.6 if fold else 1.0,
+                color=_COLORS[k % len(_COLORS)], label=label)
     ax.axhline(0.0, color='0.3', lw=0.6)
-    ax.set_xlabel('output angle from start of record [deg]  (dotted: whole output revolutions)')
+    if fold:
+        ax.set_xlim(0.0, 360.0)
+        ax.set_xticks(np.arange(0.0, 361.0, 45.0))
+        ax.set_xlabel('output angle within the revolution [deg]  (all revolutions overlaid)')
+    else:
+        max_deg = max(spans, default=0.0)
+        for rev in range(1, int(max_deg // 360.0) + 1):
+            ax.axvline(rev * 360.0, color='0.6', lw=0.8, ls=':')
+        if max_deg > 0:
+            ax.set_xlim(0.0, max_deg)
+        ax.set_xlabel('output angle from start of record [deg]  '
+                      '(dotted: whole output revolutions)')
     ax.set_ylabel('transmission error TE [arcmin]')
-    stride = max(r.trace.stride for r in results) if results else 1
+    stride = max((r.trace.stride for r in results), default=1)
     title = 'Transmission error  TE = theta_out - theta_in / i'
     if stride > 1:
-        title += f'  (every {stride}th sample shown)'
+        title += f'  (1 in {stride} samples shown)'
     ax.set_title(title)
     ax.grid(visible=True, alpha=0.3)
-    if max_deg > 0:
-        ax.set_xlim(0.0, max_deg)
     ax.legend(loc='upper right', fontsize=8)
     return fig
+
+
+def _span_deg(res: AnalysisResult) -> float:
+    """Output angle covered by a bag's trace [deg] (0 when empty)."""
+    th = np.asarray(res.trace.theta_out_rad)
+    th = th[np.isfinite(th)]
+    return float(rad_to_deg(np.ptp(th))) if th.size else 0.0
 
 
 def _strong_labels(results: Sequence[AnalysisResult]) -> list[tuple[float, str]]:
