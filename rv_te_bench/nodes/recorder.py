@@ -1,0 +1,431 @@
+"""RecorderNode: record the suite's topics to a rosbag2 (MCAP) bag, raw, without decoding.
+
+Raw subscriptions (``raw=True``) hand the CDR bytes straight to ``BagWriter``; the only
+parsing on the hot path is the EncoderBlock ``seq`` (a fixed offset after the header's
+frame_id) to count sequence gaps. Topic types come from the graph (the node keeps
+discovering, so late publishers are recorded too) or from ``topic_types``; the
+subscription QoS follows the publishers (rosbag2's rule: reliable if all publishers are,
+transient-local if all are), so latched messages (bench/info) are captured.
+
+Run: ``python -m rv_te_bench.nodes.recorder --ros-args -p output_dir:=out/bags``;
+SIGINT/SIGTERM close the bag; a SIGKILL loses at most the last ``flush_interval_s``.
+"""
+
+from __future__ import annotations
+
+import datetime as dt
+import importlib
+import platform
+import signal
+import struct
+import sys
+from collections.abc import Sequence
+from importlib import metadata as importlib_metadata
+from pathlib import Path
+from typing import Any
+
+import rclpy
+import yaml
+from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
+from rcl_interfaces.msg import (
+    FloatingPointRange,
+    IntegerRange,
+    ParameterDescriptor,
+    ParameterType,
+)
+from rclpy.exceptions import InvalidParameterValueException
+from rclpy.executors import ExternalShutdownException
+from rclpy.node import Node
+from rclpy.parameter import Parameter
+from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
+from rclpy.signals import SignalHandlerOptions
+
+from rv_te_bench.errors import BagError, RvTeError
+from rv_te_bench.io.bag_writer import BagWriter, qos_profile_dict
+from rv_te_bench.io.msgdefs import ENCODER_BLOCK
+from rv_te_bench.nodes import qos
+
+__all__ = ['DEFAULT_TOPICS', 'RecorderNode', 'main']
+
+DEFAULT_TOPICS = [
+    'bench/encoders', 'bench/info', 'te/samples', 'te/statistics', 'te/spectrum',
+    'compensation/advice', '/diagnostics', '/clock',
+]
+_THROTTLE_S = 5.0
+_U32 = struct.Struct('<I')
+
+
+def _encoder_seq(data: bytes) -> int:
+    """``seq`` of a serialised EncoderBlock: after header.stamp (8 B) and frame_id."""
+    endian = '<' if data[1] == 1 else '>'
+    (flen,) = struct.unpack_from(endian + 'I', data, 12)
+    off = (12 + flen + 7) & ~7
+    return struct.unpack_from(endian + 'Q', data, 4 + off)[0]
+
+
+def _msg_class(msgtype: str) -> Any:  # noqa: ANN401 - a generated message class
+    pkg, _, name = msgtype.split('/')
+    return getattr(importlib.import_module(f'{pkg}.msg'), name)
+
+
+def _qos_dict(profile: QoSProfile) -> dict[str, Any]:
+    return qos_profile_dict(reliability=profile.reliability.name.lower(),
+                            durability=profile.durability.name.lower(),
+                            history=profile.history.name.lower(), depth=profile.depth)
+
+
+class _TopicState:
+    __slots__ = ('count', 'gaps', 'last_seq', 'malformed', 'missing', 'msgtype', 'name')
+
+    def __init__(self, name: str, msgtype: str) -> None:
+        self.name = name
+        self.msgtype = msgtype
+        self.count = 0
+        self.gaps = 0
+        self.missing = 0
+        self.malformed = 0
+        self.last_seq: int | None = None
+
+
+class RecorderNode(Node):
+    """Record topics raw into a rosbag2 bag folder (MCAP storage).
+
+    Parameters (read-only): ``output_dir``, ``bag_name``, ``topics``, ``topic_types``,
+    ``compression``, ``chunk_size_bytes``, ``flush_interval_s``, ``split_size_bytes``,
+    ``split_duration_s``, ``duration_s``, ``discovery_period_s``, ``session_metadata_yaml``.
+
+    Attributes:
+        bag_path: The bag folder being written.
+        finished: True once the bag was closed (``duration_s`` reached or ``close()``).
+
+    Raises:
+        BagError: The bag folder exists already or cannot be created.
+    """
+
+    def __init__(self, node_name: str = 'recorder', **kwargs: Any) -> None:  # noqa: ANN401
+        super().__init__(node_name, **kwargs)
+        p = self._declare_parameters()
+        self.finished = False
+        self._topics: dict[str, _TopicState] = {}
+        self._subscriptions_by_topic: dict[str, Any] = {}
+        self._wanted = [self.resolve_topic_name(t) for t in p['topics']]
+        explicit = {}
+        for item in p['topic_types']:
+            name, sep, msgtype = item.partition('=')
+            if not sep or msgtype.count('/') != 2:
+                msg = f"topic_types entry {item!r} must be 'topic=pkg/msg/Type'"
+                raise BagError(msg)
+            explicit[self.resolve_topic_name(name.strip())] = msgtype.strip()
+        self._explicit = explicit
+        stamp = dt.datetime.now(dt.UTC).strftime('%Y%m%d_%H%M%S')
+        self.bag_path = Path(p['output_dir']) / (p['bag_name'] or f'rv_te_{stamp}')
+        self._writer = BagWriter(
+            self.bag_path, compression=p['compression'],
+            chunk_size_bytes=p['chunk_size_bytes'], flush_interval_s=p['flush_interval_s'],
+            split_size_bytes=p['split_size_bytes'] or None,
+            split_duration_s=p['split_duration_s'] or None,
+            session_metadata=self._session_metadata(p))
+        self.write_errors = 0
+        self._duration_s = p['duration_s']
+        self._start = self.get_clock().now()
+        self._pub_diag = self.create_publisher(DiagnosticArray, '/diagnostics',
+                                               qos.DIAGNOSTICS_QOS)
+        self.create_timer(min(0.25, p['flush_interval_s'] / 2), self._on_flush_timer)
+        self.create_timer(1.0, self._publish_diagnostics)
+        self.create_timer(p['discovery_period_s'], self._discover)
+        self._discover()
+        self.get_logger().info(f'recording {self._wanted} to {self.bag_path}')
+
+    # ---------------------------------------------------------------- parameters
+    def _declare_parameters(self) -> dict[str, Any]:
+        def d(text: str, **extra: Any) -> ParameterDescriptor:  # noqa: ANN401
+            return ParameterDescriptor(description=text, read_only=True, **extra)
+
+        def f_range(lo: float, hi: float) -> list[FloatingPointRange]:
+            return [FloatingPointRange(from_value=lo, to_value=hi)]
+
+        def i_range(lo: int, hi: int) -> list[IntegerRange]:
+            return [IntegerRange(from_value=lo, to_value=hi)]
+
+        specs: list[tuple[str, Any, ParameterDescriptor]] = [
+            ('output_dir', 'out/bags', d('Folder in which the bag folder is created [path]')),
+            ('bag_name', '', d('Bag folder name; empty: rv_te_<UTC time> [-]')),
+            ('topics', DEFAULT_TOPICS,
+             d('Topics to record; relative names resolve under the namespace [-]')),
+            ('topic_types', Parameter.Type.STRING_ARRAY,
+             d("Explicit types 'topic=pkg/msg/Type'; others come from the graph [-]",
+               type=ParameterType.PARAMETER_STRING_ARRAY)),
+            ('compression', 'zstd', d("MCAP chunk compression: 'zstd', 'lz4' or 'none' [-]")),
+            ('chunk_size_bytes', 1 << 20,
+             d('Uncompressed chunk size that triggers a write [bytes]',
+               integer_range=i_range(1024, 1 << 30))),
+            ('flush_interval_s', 1.0,
+             d('Longest time a message stays in memory; bounds loss on a crash [s]',
+               floating_point_range=f_range(0.01, 60.0))),
+            ('split_size_bytes', 0,
+             d('Start a new .mcap file past this size; 0: never [bytes]',
+               integer_range=i_range(0, 1 << 62))),
+            ('split_duration_s', 0.0,
+             d('Start a new .mcap file after this span; 0: never [s]',
+               floating_point_range=f_range(0.0, 1e7))),
+            ('duration_s', 0.0,
+             d('Stop and close the bag after this time; 0: until stopped [s]',
+               floating_point_range=f_range(0.0, 1e7))),
+            ('discovery_period_s', 0.5,
+             d('Period of the graph scan for new publishers [s]',
+               floating_point_range=f_range(0.05, 60.0))),
+            ('session_metadata_yaml', '',
+             d('YAML mapping stored as the bag\'s rv_te_session metadata record [-]')),
+        ]
+        out = {}
+        for name, default, desc in specs:
+            value = self.declare_parameter(name, default, desc).value
+            out[name] = [] if value is None and name == 'topic_types' else value
+        if out['compression'] not in ('zstd', 'lz4', 'none'):
+            msg = (f"Parameter 'compression' with the value {out['compression']!r} must be "
+                   "'zstd', 'lz4' or 'none'")
+            raise BagError(msg)
+        return out
+
+    def _session_metadata(self, p: dict[str, Any]) -> dict[str, Any]:
+        text = p['session_metadata_yaml']
+        try:
+            given = yaml.safe_load(text) if text else {}
+        except yaml.YAMLError as exc:
+            msg = f"Parameter 'session_metadata_yaml' is not valid YAML: {exc}"
+            raise BagError(msg) from None
+        if not isinstance(given, dict):
+            given = {'session': given}
+
+        def version(dist: str) -> str:
+            try:
+                return importlib_metadata.version(dist)
+            except importlib_metadata.PackageNotFoundError:
+                return 'unknown'
+
+        meta = {
+            'recorder_node': self.get_fully_qualified_name(),
+            'namespace': self.get_namespace(),
+            'started_utc': dt.datetime.now(dt.UTC).isoformat(timespec='seconds'),
+            'software': {'rv_te_bench': version('rv-te-bench'),
+                         'rclpy': version('ros-jazzy-rclpy'),
+                         'rosbags': version('rosbags'), 'mcap': version('mcap'),
+                         'python': platform.python_version()},
+            'recorder_parameters': {k: v for k, v in p.items() if k != 'session_metadata_yaml'},
+        }
+        meta.update(given)
+        return meta
+
+    # ---------------------------------------------------------------- discovery
+    def _discover(self) -> None:
+        if self.finished:
+            return
+        missing = [t for t in self._wanted if t not in self._subscriptions_by_topic]
+        if not missing:
+            return
+        graph = dict(self.get_topic_names_and_types())
+        for topic in missing:
+            msgtype = self._explicit.get(topic)
+            if msgtype is None:
+                types = graph.get(topic, [])
+                if len(types) != 1:
+                    if len(types) > 1:
+                        self.get_logger().warning(
+                            f'{topic} has several types {types}; give one in topic_types',
+                            throttle_duration_sec=_THROTTLE_S)
+                    continue
+                msgtype = types[0]
+            self._subscribe(topic, msgtype)
+
+    def _subscription_qos(self, topic: str) -> QoSProfile:
+        infos = self.get_publishers_info_by_topic(topic)
+        reliable = bool(infos) and all(
+            i.qos_profile.reliability == ReliabilityPolicy.RELIABLE for i in infos)
+        latched = bool(infos) and all(
+            i.qos_profile.durability == DurabilityPolicy.TRANSIENT_LOCAL for i in infos)
+        if not infos:  # explicit type, no publisher yet: reliable, volatile (matches most)
+            reliable = True
+        return QoSProfile(
+            depth=qos.ENCODER_QUEUE_DEPTH,
+            reliability=ReliabilityPolicy.RELIABLE if reliable else ReliabilityPolicy.BEST_EFFORT,
+            durability=(DurabilityPolicy.TRANSIENT_LOCAL if latched
+                        else DurabilityPolicy.VOLATILE))
+
+    def _subscribe(self, topic: str, msgtype: str) -> None:
+        try:
+            cls = _msg_class(msgtype)
+        except (ImportError, AttributeError, ValueError) as exc:
+            self.get_logger().error(f'cannot record {topic}: type {msgtype} not importable '
+                                    f'({exc})', throttle_duration_sec=_THROTTLE_S)
+            return
+        profile = self._subscription_qos(topic)
+        offered = [_qos_dict(i.qos_profile) for i in self.get_publishers_info_by_topic(topic)]
+        try:
+            if topic not in self._writer.counts:
+                self._writer.add_topic(topic, msgtype, offered_qos_profiles=offered)
+        except BagError as exc:
+            self.get_logger().error(f'cannot record {topic}: {exc}',
+                                    throttle_duration_sec=_THROTTLE_S)
+            self._subscriptions_by_topic[topic] = None
+            return
+        state = _TopicState(topic, msgtype)
+        self._topics[topic] = state
+        callback = (self._make_encoder_callback(state) if msgtype == ENCODER_BLOCK
+                    else self._make_callback(state))
+        self._subscriptions_by_topic[topic] = self.create_subscription(
+            cls, topic, callback, profile, raw=True)
+        self.get_logger().info(
+            f'recording {topic} [{msgtype}] ({profile.reliability.name.lower()}, '
+            f'{profile.durability.name.lower()})')
+
+    # ---------------------------------------------------------------- hot path
+    def _make_callback(self, state: _TopicState) -> Any:  # noqa: ANN401
+        write = self._writer.write
+        now = self.get_clock().now
+        topic = state.name
+
+        def on_message(data: bytes) -> None:
+            try:
+                write(topic, now().nanoseconds, data)
+            except BagError as exc:
+                self._write_failed(exc)
+                return
+            state.count += 1
+
+        return on_message
+
+    def _make_encoder_callback(self, state: _TopicState) -> Any:  # noqa: ANN401
+        plain = self._make_callback(state)
+
+        def on_block(data: bytes) -> None:
+            plain(data)
+            try:
+                seq = _encoder_seq(data)
+            except (struct.error, IndexError):
+                state.malformed += 1
+                self.get_logger().warning(
+                    f'{state.name}: malformed EncoderBlock ({len(data)} bytes), recorded as '
+                    f'is; {state.malformed} so far', throttle_duration_sec=_THROTTLE_S)
+                return
+            last = state.last_seq
+            if last is not None and seq != last + 1:
+                state.gaps += 1
+                if seq > last:
+                    state.missing += seq - last - 1
+                self.get_logger().warning(
+                    f'{state.name}: sequence gap {last} -> {seq}; {state.gaps} gaps, '
+                    f'{state.missing} blocks missing so far', throttle_duration_sec=_THROTTLE_S)
+            state.last_seq = seq
+
+        return on_block
+
+    def _write_failed(self, exc: BagError) -> None:
+        self.write_errors += 1
+        self.get_logger().error(f'bag write failed ({self.write_errors} so far): {exc}',
+                                throttle_duration_sec=_THROTTLE_S)
+
+    # ---------------------------------------------------------------- timers
+    def _on_flush_timer(self) -> None:
+        if self.finished:
+            return
+        try:
+            self._writer.flush_if_due()
+        except BagError as exc:
+            self._write_failed(exc)
+        if self._duration_s > 0 and (
+                self.get_clock().now() - self._start).nanoseconds * 1e-9 >= self._duration_s:
+            self.get_logger().info(f'duration {self._duration_s} s reached')
+            self.close()
+
+    @property
+    def counts(self) -> dict[str, int]:
+        """Messages recorded per topic."""
+        return {t: s.count for t, s in self._topics.items()}
+
+    @property
+    def gaps(self) -> dict[str, tuple[int, int]]:
+        """(gaps, missing blocks) per EncoderBlock topic."""
+        return {t: (s.gaps, s.missing) for t, s in self._topics.items()
+                if s.msgtype == ENCODER_BLOCK}
+
+    def _publish_diagnostics(self) -> None:
+        states = list(self._topics.values())
+        bad = sum(s.gaps + s.malformed for s in states) + self.write_errors
+        status = DiagnosticStatus(
+            level=DiagnosticStatus.WARN if bad else DiagnosticStatus.OK,
+            name=f'{self.get_name()}: recorder', hardware_id=str(self.bag_path),
+            message=('closed' if self.finished else 'recording') +
+            (f', {bad} problems' if bad else ''))
+        values = [KeyValue(key='bag', value=str(self.bag_path)),
+                  KeyValue(key='write_errors', value=str(self.write_errors))]
+        for s in states:
+            values.append(KeyValue(key=f'{s.name} count', value=str(s.count)))
+            if s.msgtype == ENCODER_BLOCK:
+                values += [KeyValue(key=f'{s.name} gaps', value=str(s.gaps)),
+                           KeyValue(key=f'{s.name} missing_blocks', value=str(s.missing)),
+                           KeyValue(key=f'{s.name} malformed', value=str(s.malformed))]
+        status.values = values
+        msg = DiagnosticArray(status=[status])
+        msg.header.stamp = self.get_clock().now().to_msg()
+        self._pub_diag.publish(msg)
+
+    # ---------------------------------------------------------------- shutdown
+    def close(self) -> None:
+        """Stop recording and finalise the bag (idempotent)."""
+        if self.finished:
+            return
+        self.finished = True
+        for sub in self._subscriptions_by_topic.values():
+            if sub is not None:
+                self.destroy_subscription(sub)
+        self._subscriptions_by_topic.clear()
+        try:
+            self._writer.close()
+        except BagError as exc:
+            self.get_logger().error(f'closing {self.bag_path} failed: {exc}')
+        self.get_logger().info(f'bag {self.bag_path} closed: {self.counts}')
+
+    def destroy_node(self) -> None:
+        """Close the bag, then destroy the node."""
+        self.close()
+        super().destroy_node()
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    """Run one RecorderNode until SIGINT/SIGTERM or ``duration_s``; 0 ok, 1 error."""
+    args = list(sys.argv if argv is None else argv)
+    rclpy.init(args=args, signal_handler_options=SignalHandlerOptions.NO)
+    stop = {'requested': False}
+
+    def request_stop(*_: object) -> None:
+        stop['requested'] = True
+
+    old_int = signal.signal(signal.SIGINT, request_stop)
+    old_term = signal.signal(signal.SIGTERM, request_stop)
+    node: RecorderNode | None = None
+    try:
+        try:
+            node = RecorderNode()
+        except (RvTeError, InvalidParameterValueException) as exc:
+            print(f'ERROR: {exc}', file=sys.stderr)
+            return 1
+        from rclpy.experimental import EventsExecutor  # noqa: PLC0415
+
+        executor = EventsExecutor()
+        executor.add_node(node)
+        while rclpy.ok() and not stop['requested'] and not node.finished:
+            executor.spin_once(timeout_sec=0.1)
+        executor.shutdown()
+    except (KeyboardInterrupt, ExternalShutdownException):
+        pass
+    finally:
+        if node is not None:
+            node.destroy_node()
+        signal.signal(signal.SIGINT, old_int)
+        signal.signal(signal.SIGTERM, old_term)
+        rclpy.try_shutdown()
+    return 0
+
+
+if __name__ == '__main__':
+    sys.exit(main())

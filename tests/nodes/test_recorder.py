@@ -1,0 +1,274 @@
+"""RecorderNode with real rclpy publishers: what was published is what two independent
+readers (rosbags AnyReader, mcap + mcap_ros2) read back; SIGINT closes the bag; SIGKILL
+loses at most about the last second; a 10 kHz session (100 blocks/s) loses nothing."""
+
+from __future__ import annotations
+
+import os
+import signal
+import subprocess
+import sys
+import time
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import pytest
+import yaml
+
+pytestmark = pytest.mark.ros
+
+rclpy = pytest.importorskip('rclpy')
+
+from mcap.reader import NonSeekingReader, make_reader  # noqa: E402
+from mcap_ros2.decoder import DecoderFactory  # noqa: E402
+from rclpy.experimental import EventsExecutor  # noqa: E402
+from rclpy.parameter import Parameter  # noqa: E402
+from rosbags.highlevel import AnyReader  # noqa: E402
+from rv_te_msgs.msg import BenchInfo, EncoderBlock  # noqa: E402
+
+from rv_te_bench.io.bag_reader import bag_summary, read_encoder_blocks  # noqa: E402
+from rv_te_bench.nodes import qos  # noqa: E402
+from rv_te_bench.nodes.recorder import RecorderNode, _encoder_seq  # noqa: E402
+from tests.io import block_arrays, encoder_cdr  # noqa: E402
+
+ROOT = Path(__file__).resolve().parents[2]
+
+
+def spin_until(executor: Any, cond: Any, timeout_s: float) -> bool:  # noqa: ANN401
+    end = time.monotonic() + timeout_s
+    while time.monotonic() < end and not cond():
+        executor.spin_once(timeout_sec=0.05)
+    return bool(cond())
+
+
+def make_block(seq: int, n: int = 100) -> EncoderBlock:
+    msg = EncoderBlock()
+    msg.header.frame_id = 'bench0'
+    msg.header.stamp.sec = 1000 + seq
+    msg.seq = seq
+    msg.sample_rate_hz = 10_000.0
+    arrays = block_arrays(seq, n)
+    msg.time_offset_s = arrays['time_offset_s']
+    msg.theta_in_rad = arrays['theta_in_rad']
+    msg.theta_out_rad = arrays['theta_out_rad']
+    msg.torque_out_nm = arrays['torque_out_nm']
+    return msg
+
+
+def make_info() -> BenchInfo:
+    msg = BenchInfo()
+    msg.bench_id = 'bench0'
+    msg.preset = 'wang2020-2kv'
+    msg.gear_ratio = 79.0
+    return msg
+
+
+def read_back(bag: Path, topic: str) -> tuple[list[int], list[int], dict[str, int]]:
+    """Encoder seqs by rosbags and by mcap_ros2 (content checked), and metadata.yaml counts."""
+    with AnyReader([bag]) as reader:
+        rb = []
+        for conn, _, raw in reader.messages(
+                connections=[c for c in reader.connections if c.topic == topic]):
+            msg = reader.deserialize(raw, conn.msgtype)
+            ref = block_arrays(int(msg.seq), len(msg.theta_in_rad))
+            for key in ('time_offset_s', 'theta_in_rad', 'theta_out_rad', 'torque_out_nm'):
+                np.testing.assert_array_equal(getattr(msg, key), ref[key])
+            rb.append(int(msg.seq))
+    mc = []
+    for file in sorted(bag.glob('*.mcap')):
+        with file.open('rb') as fh:
+            for _, channel, _, msg in NonSeekingReader(
+                    fh, decoder_factories=[DecoderFactory()]).iter_decoded_messages():
+                if channel.topic == topic:
+                    np.testing.assert_array_equal(
+                        msg.theta_out_rad, block_arrays(msg.seq, 100)['theta_out_rad'])
+                    mc.append(int(msg.seq))
+    info = yaml.safe_load((bag / 'metadata.yaml').read_text())['rosbag2_bagfile_information']
+    counts = {t['topic_metadata']['name']: t['message_count']
+              for t in info['topics_with_message_count']}
+    return rb, mc, counts
+
+
+def test_encoder_seq_parser_matches_serialised_seq() -> None:
+    for frame_id in ('', 'b', 'bench-0001', 'x' * 13):
+        assert _encoder_seq(encoder_cdr(123456789, 3, frame_id=frame_id)) == 123456789
+
+
+def test_records_published_messages_and_latched_info(ros_context: Any, tmp_path: Path) -> None:
+    ns = f'/rec_{os.getpid()}'
+    pub_node = rclpy.create_node('test_pub', namespace=ns, context=ros_context)
+    info_pub = pub_node.create_publisher(BenchInfo, 'bench/info', qos.LATCHED_QOS)
+    enc_pub = pub_node.create_publisher(EncoderBlock, 'bench/encoders', qos.ENCODER_QOS)
+    info_pub.publish(make_info())  # before the recorder exists: only latching delivers it
+    recorder = RecorderNode(context=ros_context, namespace=ns, parameter_overrides=[
+        Parameter('output_dir', value=str(tmp_path)), Parameter('bag_name', value='bag'),
+        Parameter('topics', value=['bench/encoders', 'bench/info', '/diagnostics']),
+        Parameter('discovery_period_s', value=0.1), Parameter('flush_interval_s', value=0.2),
+        Parameter('session_metadata_yaml', value='preset: wang2020-2kv\nrun: 7\n')])
+    executor = EventsExecutor(context=ros_context)
+    executor.add_node(pub_node)
+    executor.add_node(recorder)
+    enc_topic, info_topic = f'{ns}/bench/encoders', f'{ns}/bench/info'
+    published = [s for s in range(41) if s != 30]  # one gap of one block
+    try:
+        assert spin_until(executor, lambda: enc_pub.get_subscription_count() >= 1
+                          and recorder.counts.get(info_topic) == 1, 15.0)
+        for seq in published:
+            enc_pub.publish(make_block(seq))
+            executor.spin_once(timeout_sec=0.005)
+        assert spin_until(executor, lambda: recorder.counts[enc_topic] == len(published), 10.0)
+        assert recorder.gaps[enc_topic] == (1, 1)
+    finally:
+        recorder.destroy_node()  # closes the bag
+        pub_node.destroy_node()
+        executor.shutdown()
+    bag = tmp_path / 'bag'
+    rb, mc, counts = read_back(bag, enc_topic)
+    assert rb == published
+    assert mc == published
+    assert counts[enc_topic] == len(published)
+    assert counts[info_topic] == 1
+    with AnyReader([bag]) as reader:
+        conn = next(c for c in reader.connections if c.topic == info_topic)
+        (info,) = [reader.deserialize(raw, conn.msgtype)
+                   for _, _, raw in reader.messages(connections=[conn])]
+        assert (info.preset, info.gear_ratio) == ('wang2020-2kv', 79.0)
+        assert conn.ext.offered_qos_profiles[0].durability.name == 'TRANSIENT_LOCAL'
+    summary = bag_summary(bag)
+    assert summary['finalized'] is True
+    assert summary['session']['preset'] == 'wang2020-2kv'
+    assert 'rv_te_bench' in summary['session']['software']
+    blocks = list(read_encoder_blocks(bag))
+    assert [b.seq for b in blocks] == published
+
+
+def test_malformed_encoder_block_is_recorded_and_counted(ros_context: Any,
+                                                         tmp_path: Path) -> None:
+    """A raw publisher sends a truncated EncoderBlock: the node neither dies nor drops it."""
+    topic = f'/malformed_{os.getpid()}/bench/encoders'
+    pub_node = rclpy.create_node('raw_pub', context=ros_context)
+    pub = pub_node.create_publisher(EncoderBlock, topic, qos.ENCODER_QOS)
+    recorder = RecorderNode(context=ros_context, parameter_overrides=[
+        Parameter('output_dir', value=str(tmp_path)), Parameter('bag_name', value='bag'),
+        Parameter('topics', value=[topic]),
+        Parameter('topic_types', value=[f'{topic}=rv_te_msgs/msg/EncoderBlock'])])
+    executor = EventsExecutor(context=ros_context)
+    executor.add_node(pub_node)
+    executor.add_node(recorder)
+    try:
+        assert spin_until(executor, lambda: pub.get_subscription_count() >= 1, 15.0)
+        pub.publish(b'\x00\x01\x00\x00\x05')  # raw bytes, cut after the encapsulation
+        pub.publish(encoder_cdr(0, 10))
+        assert spin_until(executor, lambda: recorder.counts.get(topic) == 2, 10.0)
+        assert recorder._topics[topic].malformed == 1  # noqa: SLF001
+    finally:
+        recorder.destroy_node()
+        pub_node.destroy_node()
+        executor.shutdown()
+    stream = read_encoder_blocks(tmp_path / 'bag', strict=False)
+    assert [b.seq for b in stream] == [0]
+    assert stream.partial
+
+
+def _recorder_process(tmp_path: Path, ns: str, domain: int) -> subprocess.Popen[str]:
+    env = dict(os.environ)
+    env.pop('_ROS_WHEELS_BOOTSTRAP_COMPLETE', None)
+    env['ROS_DOMAIN_ID'] = str(domain)
+    env['PYTHONPATH'] = str(ROOT)
+    return subprocess.Popen(
+        [sys.executable, '-m', 'rv_te_bench.nodes.recorder', '--ros-args',
+         '-r', f'__ns:={ns}', '-p', f'output_dir:={tmp_path}', '-p', 'bag_name:=bag',
+         '-p', "topics:=['bench/encoders']", '-p', 'discovery_period_s:=0.1',
+         '-p', 'flush_interval_s:=0.5', '--log-level', 'warn'],
+        cwd=ROOT, env=env, text=True, stderr=subprocess.PIPE)
+
+
+def _publish_while(executor: Any, pub: Any, rate_hz: float, stop: Any) -> int:  # noqa: ANN401
+    seq = 0
+    t0 = time.monotonic()
+    while not stop(seq):
+        pub.publish(make_block(seq))
+        seq += 1
+        delay = t0 + seq / rate_hz - time.monotonic()
+        executor.spin_once(timeout_sec=max(0.0, delay))
+    return seq
+
+
+@pytest.mark.parametrize('sig', [signal.SIGINT, signal.SIGTERM, signal.SIGKILL])
+def test_recorder_process_stopped_by_signal(ros_context: Any, ros_domain_id: int,
+                                            tmp_path: Path, sig: signal.Signals) -> None:
+    ns = f'/sig_{os.getpid()}_{sig.value}'
+    topic = f'{ns}/bench/encoders'
+    pub_node = rclpy.create_node('sig_pub', context=ros_context)
+    pub = pub_node.create_publisher(EncoderBlock, topic, qos.ENCODER_QOS)
+    executor = EventsExecutor(context=ros_context)
+    executor.add_node(pub_node)
+    proc = _recorder_process(tmp_path, ns, ros_domain_id)
+    try:
+        assert spin_until(executor, lambda: pub.get_subscription_count() >= 1, 30.0), \
+            'recorder did not subscribe'
+        sent = _publish_while(executor, pub, 100.0, lambda seq: seq >= 200)
+        if sig != signal.SIGKILL:
+            time.sleep(0.5)  # let the recorder take the last messages in
+        proc.send_signal(sig)
+        _, err = proc.communicate(timeout=20)
+    finally:
+        if proc.poll() is None:
+            proc.kill()
+            proc.wait()
+        pub_node.destroy_node()
+        executor.shutdown()
+    bag = tmp_path / 'bag'
+    rb, mc, counts = read_back(bag, topic)
+    assert rb == mc == list(range(len(rb)))
+    summary = bag_summary(bag)
+    if sig == signal.SIGKILL:
+        # at most the last flush interval (0.5 s = 50 blocks) + 0.5 s margin is lost
+        assert len(rb) >= sent - 100, (len(rb), sent)
+        assert counts[topic] <= len(rb)
+        assert summary['finalized'] is False
+    else:
+        assert proc.returncode == 0, err
+        assert len(rb) == sent
+        assert counts[topic] == sent
+        assert summary['finalized'] is True
+    assert not summary['partial']
+
+
+N_10KHZ_BLOCKS = 1000  # 10 s at 100 blocks/s of 100 samples: a 10 kHz session
+
+
+def test_10khz_session_recorded_without_loss(ros_context: Any, ros_domain_id: int,
+                                             tmp_path: Path) -> None:
+    from tests.msgs.block_publisher import block_arrays as pub_arrays  # noqa: PLC0415
+
+    topic = f'/khz_{os.getpid()}/bench/encoders'
+    recorder = RecorderNode(context=ros_context, parameter_overrides=[
+        Parameter('output_dir', value=str(tmp_path)), Parameter('bag_name', value='bag'),
+        Parameter('topics', value=[topic]), Parameter('discovery_period_s', value=0.1)])
+    executor = EventsExecutor(context=ros_context)
+    executor.add_node(recorder)
+    env = dict(os.environ)
+    env.pop('_ROS_WHEELS_BOOTSTRAP_COMPLETE', None)
+    env['ROS_DOMAIN_ID'] = str(ros_domain_id)
+    env['PYTHONPATH'] = str(ROOT)
+    proc = subprocess.Popen([sys.executable, str(ROOT / 'tests/msgs/block_publisher.py'),
+                             topic, str(N_10KHZ_BLOCKS), '100', '100'], env=env)
+    try:
+        assert spin_until(executor, lambda: recorder.counts.get(topic, 0) >= N_10KHZ_BLOCKS
+                          or proc.poll() not in (None, 0), 60.0)
+        assert proc.wait(timeout=30) == 0
+    finally:
+        if proc.poll() is None:
+            proc.kill()
+        recorder.destroy_node()
+        executor.shutdown()
+    blocks = list(read_encoder_blocks(tmp_path / 'bag'))
+    assert [b.seq for b in blocks] == list(range(N_10KHZ_BLOCKS))
+    assert recorder.gaps[topic] == (0, 0)
+    for b in blocks[::97]:
+        t, th_in, th_out = pub_arrays(b.seq, 100)
+        np.testing.assert_array_equal(b.theta_in_rad, th_in)
+        np.testing.assert_array_equal(b.theta_out_rad, th_out)
+        np.testing.assert_array_equal(b.time_offset_s, t)
