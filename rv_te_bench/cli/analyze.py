@@ -39,9 +39,6 @@ examples:
                                                    a bag without BenchInfo (real bench)
 """
 
-#: Lines weaker than this fraction of the strongest line show no phase in the table.
-PHASE_MIN_FRACTION = 1e-3
-
 #: Seconds between two progress lines on stderr.
 PROGRESS_PERIOD_S = 2.0
 
@@ -247,6 +244,8 @@ def _print_one(res: AnalysisResult, out: TextIO) -> None:
         width = max([22, *(len(ln.label) for ln in spec.lines)])
         print(f'    {"line":<{width}} {"output order":>12} {"crank order":>11} {"freq[Hz]":>10} '
               f'{"ampl[arcmin]":>12} {"phase[deg]":>10}', file=out)
+        from rv_te_bench.report.analysis import PHASE_MIN_FRACTION  # noqa: PLC0415
+
         strongest = max((ln.amplitude_rad for ln in spec.lines), default=0.0)
         for ln in spec.lines:
             # The phase of a line at the noise floor means nothing: print '-'.

@@ -60,6 +60,10 @@ __all__ = [
 #: Most (theta_out, TE) points kept for the TE plot; the trace is thinned by 2 when exceeded.
 MAX_TRACE_POINTS = 40_000
 
+#: Lines weaker than this fraction of the strongest line show no phase in tables (it is
+#: the phase of noise).
+PHASE_MIN_FRACTION = 1e-3
+
 #: Relative tolerance when matching a line's output order to a known order.
 _ORDER_RTOL = 1e-6
 

@@ -16,7 +16,7 @@ from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 from rv_te_bench.errors import RvTeError
-from rv_te_bench.report.analysis import compare_results
+from rv_te_bench.report.analysis import PHASE_MIN_FRACTION, compare_results
 from rv_te_bench.report.plots import comparison_figure, save_png, spectrum_figure, te_figure
 from sim.units import rad_to_arcmin, rad_to_deg
 
@@ -176,12 +176,15 @@ def _bag_section(res: AnalysisResult) -> str:  # noqa: C901 - one report section
                    'a&middot;cos(order&middot;&phi; + phase), &phi; = &theta;<sub>in</sub>/i.</p>')
         out.append('<table><tr><th class="l">line</th><th>output order</th>'
                    '<th>crank order</th><th>frequency [Hz]</th><th>amplitude [arcmin]</th>'
-                   '<th>spread [arcmin]</th><th>phase [deg]</th></tr>')
+                   '<th>spread between windows [arcmin]</th><th>phase [deg]</th></tr>')
+        strongest = max((ln.amplitude_rad for ln in spec.lines), default=0.0)
         for ln, spread in zip(spec.lines, spec.amplitude_spread_rad, strict=True):
+            phase = (f'{float(rad_to_deg(ln.phase_rad)):.1f}'
+                     if ln.amplitude_rad > PHASE_MIN_FRACTION * strongest else '-')
             out.append(f'<tr><td class="l">{_e(ln.label)}</td><td>{ln.output_order:.6g}</td>'
                        f'<td>{ln.crank_order:.4g}</td><td>{ln.frequency_hz:.5g}</td>'
-                       f'<td>{_am(ln.amplitude_rad)}</td><td>{_am(spread)}</td>'
-                       f'<td>{float(rad_to_deg(ln.phase_rad)):.1f}</td></tr>')
+                       f'<td>{_am(ln.amplitude_rad)}</td><td>{_am(spread, 5)}</td>'
+                       f'<td>{phase}</td></tr>')
         out.append('</table>')
     if res.dominant is not None:
         d = res.dominant
