@@ -1,0 +1,71 @@
+"""Real-time factor of the Li 2023 RV dynamic model (sim.li2023) at 1 kHz output sampling.
+
+Run: ``.venv/bin/python benchmarks/bench_li2023.py [--seconds 5] [--block 100]``. Prints a
+markdown table row per case. The model is fed blocks of ``--block`` samples at 1 kHz
+(1500 rpm input, 450 N m, the paper's case) the way the bench node calls ``te_rad``;
+real-time factor = simulated seconds / wall seconds (>= 1: fast enough to run live).
+The first block (LTCA, matrix assembly, caches) is not timed.
+"""
+
+from __future__ import annotations
+
+import argparse
+import os
+import platform
+import time
+
+import numpy as np
+
+from sim.li2023 import build_te_model
+from sim.presets import load_preset
+from sim.units import rpm_to_rad_s
+
+
+def _time_case(errors: bool, seconds: float, block: int, fs_hz: float) -> tuple[float, float]:
+    """Real-time factor and wall time per block [ms] over ``seconds`` of simulated time."""
+    preset = load_preset('li2023-rv', {'errors.enabled': str(errors).lower()})
+    model = build_te_model(preset, 'dte')
+    w = float(rpm_to_rad_s(1500.0))
+    k = 0
+
+    def next_block() -> None:
+        nonlocal k
+        t = (k * block + np.arange(block)) / fs_hz
+        model.te_rad(t, w * t, np.full(block, w), np.full(block, 450.0))
+        k += 1
+
+    next_block()                                     # warm-up, not timed
+    n_blocks = max(1, round(seconds * fs_hz / block))
+    t0 = time.perf_counter()
+    for _ in range(n_blocks):
+        next_block()
+    wall = time.perf_counter() - t0
+    return n_blocks * block / fs_hz / wall, 1e3 * wall / n_blocks
+
+
+def main(argv: list[str] | None = None) -> int:
+    """Time both cases (without / with the Table 3 errors) and print the table."""
+    ap = argparse.ArgumentParser(description=__doc__)
+    ap.add_argument('--seconds', type=float, default=5.0, help='simulated seconds per case')
+    ap.add_argument('--block', type=int, default=100, help='samples per te_rad call')
+    ap.add_argument('--fs', type=float, default=1000.0, help='output sampling rate [Hz]')
+    args = ap.parse_args(argv)
+    preset = load_preset('li2023-rv')
+    print(f'sim.li2023 te_rad, {args.fs:g} Hz, blocks of {args.block}, 1500 rpm, 450 N m, '
+          f'max step {preset["solver.max_step_s"]:g} s; Python {platform.python_version()}, '
+          f'numpy {np.__version__}, {os.cpu_count()} CPUs, load average '
+          f'{os.getloadavg()[0]:.1f}\n')
+    print('| model | errors | fs [Hz] | block | simulated [s] | ms/block | real-time factor |')
+    print('|---|---|---|---|---|---|---|')
+    worst = float('inf')
+    for errors in (False, True):
+        rtf, ms = _time_case(errors, args.seconds, args.block, args.fs)
+        worst = min(worst, rtf)
+        print(f'| li2023-rv dte | {"Table 3 + E_cr" if errors else "none"} | {args.fs:g} | '
+              f'{args.block} | {args.seconds:g} | {ms:.1f} | {rtf:.2f} |')
+    print(f'\nworst real-time factor: {worst:.2f} ({"ok" if worst >= 1 else "TOO SLOW"})')
+    return 0 if worst >= 1 else 1
+
+
+if __name__ == '__main__':
+    raise SystemExit(main())
