@@ -271,9 +271,12 @@ def resample_to_output_angle(
     return AngleResampled(phi0_rad=phi0, revolutions=n_rev, samples_per_rev=spr, te_rad=te_grid)
 
 
-def _wrap_pi(x: np.ndarray) -> np.ndarray:
-    """Wrap to (-pi, pi]."""
-    return np.pi - np.mod(np.pi - x, _TWO_PI)
+def _wrap_pi_inplace(x: np.ndarray) -> np.ndarray:
+    """Wrap to (-pi, pi] in place: pi - ((pi - x) mod 2 pi)."""
+    np.subtract(np.pi, x, out=x)
+    np.mod(x, _TWO_PI, out=x)
+    np.subtract(np.pi, x, out=x)
+    return x
 
 
 def order_spectrum(
@@ -333,7 +336,9 @@ def order_spectrum(
     if n_grid % 2 == 0:
         amplitude[-1] *= 0.5
     bin_orders = np.arange(spec.size, dtype=np.float64) / res.revolutions
-    phase = _wrap_pi(np.angle(spec) - bin_orders * res.phi0_rad)
+    phase = np.angle(spec)
+    phase -= bin_orders * res.phi0_rad  # refer the phase to phi = 0, not the grid start
+    _wrap_pi_inplace(phase)
     lines = []
     for order, label in orders.lines():
         m = round(order * res.revolutions)

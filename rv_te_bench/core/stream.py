@@ -157,7 +157,7 @@ def _normalize(block: Any) -> _Clean | _Problem:  # noqa: ANN401, C901, PLR0911,
         th_in = np.asarray(block.theta_in_rad, dtype=np.float64)
         th_out = np.asarray(block.theta_out_rad, dtype=np.float64)
         torque = np.asarray(block.torque_out_nm, dtype=np.float64)
-    except (AttributeError, TypeError, ValueError) as exc:
+    except (AttributeError, TypeError, ValueError, OverflowError) as exc:
         return _Problem('malformed', f'{where}: fields not convertible ({exc})')
     if not math.isfinite(stamp):
         return _Problem('malformed', f'{where}: stamp_s must be finite, got {stamp!r}')
@@ -175,16 +175,19 @@ def _normalize(block: Any) -> _Clean | _Problem:  # noqa: ANN401, C901, PLR0911,
     if torque.size not in (0, n):
         return _Problem('malformed', f'{where}: torque_out_nm has {torque.size} samples, '
                                      f'expected 0 or {n}')
-    for name, arr in (('time_offset_s', offs), ('theta_in_rad', th_in),
-                      ('theta_out_rad', th_out), ('torque_out_nm', torque)):
-        # one pass without a temporary: a NaN or inf makes the sum non-finite (finite
-        # values overflow only beyond 1e304, which no angle, time or torque reaches)
-        if not math.isfinite(float(np.add.reduce(arr))):
+    # one pass without a temporary: a NaN or inf makes the sum non-finite (finite values
+    # overflow only beyond 1e304, which no angle, time or torque reaches)
+    with np.errstate(over='ignore', invalid='ignore'):
+        totals = [float(np.add.reduce(a)) for a in (offs, th_in, th_out, torque)]
+    for name, arr, total in zip(('time_offset_s', 'theta_in_rad', 'theta_out_rad',
+                                 'torque_out_nm'), (offs, th_in, th_out, torque), totals,
+                                strict=True):
+        if not math.isfinite(total):
             bad_idx = np.flatnonzero(~np.isfinite(arr))
             if bad_idx.size:
                 bad = int(bad_idx[0])
                 return _Problem('non_finite', f'{where}: {name}[{bad}] is {float(arr[bad])!r}')
-            return _Problem('malformed', f'{where}: {name} values out of range')
+            return _Problem('malformed', f'{where}: {name} values out of range (|x| > 1e300)')
     if n > 1 and not (offs[1:] > offs[:-1]).all():
         return _Problem('malformed', f'{where}: time_offset_s not strictly increasing')
     return _Clean(int(seq), offs + stamp, th_in, th_out, rate)
@@ -511,7 +514,8 @@ class StreamingTeAnalyzer:
             phi_start = float(phi[i]) if buf.n == 0 else float(buf.phi[0])
             rest = phi[i:]
             j = -1
-            if rest.max() - phi_start >= bound or phi_start - rest.min() >= bound:
+            if (float(np.maximum.reduce(rest)) - phi_start >= bound
+                    or phi_start - float(np.minimum.reduce(rest)) >= bound):
                 reached = np.abs(rest - phi_start) >= bound
                 j = int(reached.argmax())
             room = cap - buf.n

@@ -224,12 +224,13 @@ class RunningStats:
         n_b = te.size
         if n_b == 0:
             return
-        mean_b = float(te.mean())
+        mean_b = float(np.add.reduce(te)) / n_b
         if not math.isfinite(mean_b):
             msg = 'RunningStats.update: te_rad holds NaN or infinite values'
             raise TeInputError(msg)
         dev = te - mean_b
-        self._combine(n_b, mean_b, float(dev @ dev), float(te.min()), float(te.max()))
+        self._combine(n_b, mean_b, float(dev @ dev), float(np.minimum.reduce(te)),
+                      float(np.maximum.reduce(te)))
 
     def merge(self, other: RunningStats) -> None:
         """Fold in another accumulator (as if its samples had been added here)."""

@@ -200,6 +200,9 @@ def test_garbage_never_raises() -> None:
         SimpleNamespace(seq=0),
         EncoderBlockData(0, 0.0, 1000.0, None, None, None),  # type: ignore[arg-type]
         EncoderBlockData(0, math.nan, 1000.0, np.zeros(2), np.zeros(2), np.zeros(2)),
+        EncoderBlockData(0, 10**400, 1000.0, np.zeros(2), np.zeros(2), np.zeros(2)),
+        EncoderBlockData(0, 0.0, 1000.0, [[0.0], [1.0, 2.0]], np.zeros(2), np.zeros(2)),  # type: ignore[arg-type]
+        EncoderBlockData(0, 0.0, 1000.0, np.arange(2.0), np.full(2, 1e308), np.zeros(2)),
         EncoderBlockData(0, 0.0, 0.0, np.arange(2.0), np.zeros(2), np.zeros(2)),
         EncoderBlockData(0, 0.0, 1000.0, np.zeros((2, 2)), np.zeros((2, 2)), np.zeros((2, 2))),
         EncoderBlockData(0, 0.0, 1000.0, np.array([0.0, 0.0]), np.zeros(2), np.zeros(2)),
