@@ -23,6 +23,10 @@ non-finite) are dropped whole; a block that is clean in itself but follows a seq
 goes back in time is used and starts a new window. Memory is bounded by one window buffer
 (at most ``max_window_samples`` samples of two float64 arrays); a window that reaches that
 size before completing is closed as partial (``close_reason='overflow'``).
+
+Not detected as gaps: a forward jump in time between blocks with consecutive sequence
+numbers (the DAQ clock is trusted) and a jump of the encoder angles themselves (e.g. a
+re-zeroed counter); both show up in the window statistics.
 """
 
 from __future__ import annotations
