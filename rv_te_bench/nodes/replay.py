@@ -1,0 +1,271 @@
+"""ReplayNode: publish a bag's messages raw (no decode) with the recorded timing.
+
+``Publisher.publish(bytes)`` in rclpy 7.1 publishes serialised CDR (``publish_raw``), so
+the bytes in the bag go on the wire unchanged. Timing: message i is published at
+``t_start + (stamp_i - stamp_first) / rate`` on the monotonic clock, by a playback thread
+(rclpy publishers are thread-safe), so the executor only serves the node's services.
+Topics recorded with transient-local publishers (bench/info) are republished
+transient-local, so late joiners get them as from the live bench. With ``clock`` the node
+publishes the playback time on /clock (for ``use_sim_time`` consumers) at ``clock_rate_hz``.
+
+Run: ``python -m rv_te_bench.nodes.replay --ros-args -p bag:=out/bags/x -p rate:=2.0``.
+"""
+
+from __future__ import annotations
+
+import signal
+import sys
+import threading
+import time
+from collections.abc import Sequence
+from typing import Any
+
+import rclpy
+import yaml
+from rcl_interfaces.msg import FloatingPointRange, ParameterDescriptor, ParameterType
+from rclpy.exceptions import InvalidParameterValueException
+from rclpy.executors import ExternalShutdownException
+from rclpy.node import Node
+from rclpy.parameter import Parameter
+from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
+from rclpy.signals import SignalHandlerOptions
+from rosgraph_msgs.msg import Clock
+
+from rv_te_bench.errors import BagError, RvTeError
+from rv_te_bench.io.bag_reader import iter_messages, open_bag
+from rv_te_bench.nodes import qos
+from rv_te_bench.nodes.recorder import _msg_class
+
+__all__ = ['ReplayNode', 'main']
+
+_THROTTLE_S = 5.0
+
+
+def _recorded_qos(offered: Any) -> QoSProfile:  # noqa: ANN401 - YAML from metadata.yaml
+    """Publisher QoS from a topic's recorded offered profiles (rosbag2 v8 string or v9 list)."""
+    profiles = yaml.safe_load(offered) if isinstance(offered, str) else offered
+    profiles = profiles if isinstance(profiles, list) else []
+    latched = bool(profiles) and all(
+        str(p.get('durability', '')).lower() == 'transient_local' for p in profiles)
+    best_effort = bool(profiles) and all(
+        str(p.get('reliability', '')).lower() == 'best_effort' for p in profiles)
+    if latched:
+        return qos.LATCHED_QOS
+    return QoSProfile(
+        history=HistoryPolicy.KEEP_LAST, depth=qos.ENCODER_QUEUE_DEPTH,
+        reliability=ReliabilityPolicy.BEST_EFFORT if best_effort else ReliabilityPolicy.RELIABLE,
+        durability=DurabilityPolicy.VOLATILE)
+
+
+class ReplayNode(Node):
+    """Publish a recorded bag with its timing.
+
+    Parameters (read-only): ``bag`` (path), ``rate`` (playback speed factor), ``loop``,
+    ``topics`` (empty: all), ``start_offset_s``, ``clock``, ``clock_rate_hz``,
+    ``wait_for_subscribers_s``.
+
+    Attributes:
+        finished: True when playback ended (never with ``loop`` until ``stop()``).
+        published: Messages published per topic.
+
+    Raises:
+        BagError: The bag cannot be opened or a topic type cannot be imported.
+    """
+
+    def __init__(self, node_name: str = 'replay', **kwargs: Any) -> None:  # noqa: ANN401
+        super().__init__(node_name, **kwargs)
+        p = self._declare_parameters()
+        self.bag = open_bag(p['bag'])
+        self.rate = p['rate']
+        self.loop = p['loop']
+        self.start_offset_s = p['start_offset_s']
+        self.clock_period_s = 1.0 / p['clock_rate_hz']
+        self._wait_s = p['wait_for_subscribers_s']
+        wanted = set(p['topics'] or [])
+        qos_by_topic = {
+            str(t['topic_metadata']['name']): t['topic_metadata'].get('offered_qos_profiles')
+            for t in self.bag.info.get('topics_with_message_count') or []
+        }
+        types = self.bag.topic_types
+        if not types:
+            msg = f'Bag {self.bag.path} lists no topics in metadata.yaml.'
+            raise BagError(msg)
+        if unknown := sorted(wanted - set(types)):
+            msg = f'Bag {self.bag.path} has no topics {unknown}; it has {sorted(types)}.'
+            raise BagError(msg)
+        self._replay_pubs: dict[str, Any] = {}
+        for topic, msgtype in types.items():
+            if wanted and topic not in wanted:
+                continue
+            try:
+                cls = _msg_class(msgtype)
+            except (ImportError, AttributeError, ValueError) as exc:
+                msg = f'Bag {self.bag.path}: cannot publish {topic}, type {msgtype}: {exc}'
+                raise BagError(msg) from None
+            self._replay_pubs[topic] = self.create_publisher(
+                cls, topic, _recorded_qos(qos_by_topic.get(topic)))
+        self._clock_pub = self.create_publisher(Clock, '/clock', qos.CLOCK_QOS) \
+            if p['clock'] else None
+        self.published = dict.fromkeys(self._replay_pubs, 0)
+        self.finished = False
+        self.exit_code = 0
+        self.loops_done = 0
+        self._stop = threading.Event()
+        self._thread = threading.Thread(target=self._play, name='rv_te_replay', daemon=True)
+        self._thread.start()
+        self.get_logger().info(f'replaying {self.bag.path} at {self.rate}x: '
+                               f'{sorted(self._replay_pubs)}')
+
+    def _declare_parameters(self) -> dict[str, Any]:
+        def d(text: str, **extra: Any) -> ParameterDescriptor:  # noqa: ANN401
+            return ParameterDescriptor(description=text, read_only=True, **extra)
+
+        def f_range(lo: float, hi: float) -> list[FloatingPointRange]:
+            return [FloatingPointRange(from_value=lo, to_value=hi)]
+
+        specs: list[tuple[str, Any, ParameterDescriptor]] = [
+            ('bag', '', d('Bag folder (or .mcap file) to play [path]')),
+            ('rate', 1.0, d('Playback speed factor; 2 plays twice as fast [-]',
+                            floating_point_range=f_range(0.001, 1000.0))),
+            ('loop', False, d('Start again at the end [-]')),
+            ('topics', Parameter.Type.STRING_ARRAY,
+             d('Topics to play; empty: all [-]', type=ParameterType.PARAMETER_STRING_ARRAY)),
+            ('start_offset_s', 0.0, d('Skip this much of the bag from its start [s]',
+                                      floating_point_range=f_range(0.0, 1e7))),
+            ('clock', False, d('Publish the playback time on /clock [-]')),
+            ('clock_rate_hz', 100.0, d('Rate of /clock messages [Hz]',
+                                       floating_point_range=f_range(1.0, 10_000.0))),
+            ('wait_for_subscribers_s', 0.0,
+             d('Wait up to this long for a subscriber on every topic before playing [s]',
+               floating_point_range=f_range(0.0, 3600.0))),
+        ]
+        out = {}
+        for name, default, desc in specs:
+            out[name] = self.declare_parameter(name, default, desc).value
+        if not out['bag']:
+            msg = "Parameter 'bag' is empty: give the bag folder to play"
+            raise BagError(msg)
+        return out
+
+    # ------------------------------------------------------------------ playback
+    def _sleep_until(self, due: float, bag_time_at: Any) -> bool:  # noqa: ANN401
+        """Sleep until monotonic ``due``, publishing /clock; False when stopped."""
+        while True:
+            now = time.monotonic()
+            if self._clock_pub is not None:
+                self._publish_clock(bag_time_at(now))
+            remaining = due - now
+            if remaining <= 0:
+                return not self._stop.is_set()
+            step = min(remaining, self.clock_period_s) if self._clock_pub else remaining
+            if self._stop.wait(step):
+                return False
+
+    def _publish_clock(self, stamp_ns: int) -> None:
+        msg = Clock()
+        msg.clock.sec, msg.clock.nanosec = divmod(int(stamp_ns), 1_000_000_000)
+        self._clock_pub.publish(msg)  # type: ignore[union-attr]
+
+    def _wait_for_subscribers(self) -> None:
+        end = time.monotonic() + self._wait_s
+        while time.monotonic() < end and not self._stop.is_set():
+            if all(p.get_subscription_count() > 0 for p in self._replay_pubs.values()):
+                return
+            self._stop.wait(0.05)
+
+    def _play(self) -> None:
+        try:
+            if self._wait_s > 0:
+                self._wait_for_subscribers()
+            while not self._stop.is_set():
+                self._play_once()
+                self.loops_done += 1
+                if not self.loop:
+                    break
+        except BagError as exc:
+            self.exit_code = 1
+            self.get_logger().error(f'replay stopped: {exc}')
+        except Exception as exc:  # noqa: BLE001 - the thread must report, not vanish
+            self.exit_code = 1
+            self.get_logger().error(f'replay failed: {exc!r}')
+        finally:
+            self.finished = True
+
+    def _play_once(self) -> None:
+        stream = iter_messages(self.bag.path, list(self._replay_pubs), strict=False)
+        start_ns: int | None = None
+        base_ns = 0
+        wall0 = 0.0
+        for topic, _, stamp_ns, data in stream:
+            if start_ns is None:
+                start_ns = stamp_ns
+                base_ns = start_ns + round(self.start_offset_s * 1e9)
+                wall0 = time.monotonic()
+            if stamp_ns < base_ns:
+                continue
+            due = wall0 + (stamp_ns - base_ns) * 1e-9 / self.rate
+            if not self._sleep_until(
+                    due, lambda now: base_ns + (now - wall0) * self.rate * 1e9):
+                return
+            self._replay_pubs[topic].publish(bytes(data))
+            self.published[topic] += 1
+        if stream.partial:
+            self.get_logger().warning(f'bag partly unreadable: {stream.problems}',
+                                      throttle_duration_sec=_THROTTLE_S)
+
+    def stop(self) -> None:
+        """Stop playback and wait for the playback thread (idempotent)."""
+        self._stop.set()
+        if self._thread.is_alive():
+            self._thread.join(timeout=5.0)
+
+    def destroy_node(self) -> None:
+        """Stop playback, then destroy the node."""
+        self.stop()
+        super().destroy_node()
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    """Run one ReplayNode until the bag ends (or SIGINT/SIGTERM); 0 ok, 1 error."""
+    args = list(sys.argv if argv is None else argv)
+    rclpy.init(args=args, signal_handler_options=SignalHandlerOptions.NO)
+    stop = {'requested': False}
+
+    def request_stop(*_: object) -> None:
+        stop['requested'] = True
+
+    old_int = signal.signal(signal.SIGINT, request_stop)
+    old_term = signal.signal(signal.SIGTERM, request_stop)
+    node: ReplayNode | None = None
+    code = 0
+    try:
+        try:
+            node = ReplayNode()
+        except (RvTeError, InvalidParameterValueException) as exc:
+            print(f'ERROR: {exc}', file=sys.stderr)
+            return 1
+        from rclpy.experimental import EventsExecutor  # noqa: PLC0415
+
+        executor = EventsExecutor()
+        executor.add_node(node)
+        while rclpy.ok() and not stop['requested'] and not node.finished:
+            executor.spin_once(timeout_sec=0.1)
+        # Let reliable subscribers take the last messages before the publishers go away.
+        linger_end = time.monotonic() + 0.5
+        while rclpy.ok() and not stop['requested'] and time.monotonic() < linger_end:
+            executor.spin_once(timeout_sec=0.05)
+        executor.shutdown()
+        code = node.exit_code
+    except (KeyboardInterrupt, ExternalShutdownException):
+        pass
+    finally:
+        if node is not None:
+            node.destroy_node()
+        signal.signal(signal.SIGINT, old_int)
+        signal.signal(signal.SIGTERM, old_term)
+        rclpy.try_shutdown()
+    return code
+
+
+if __name__ == '__main__':
+    sys.exit(main())
