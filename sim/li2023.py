@@ -737,6 +737,62 @@ class Li2023DteModel:
         Raises:
             ModelInputError: Shapes differ, non-finite values, or time not increasing.
         """
+        io = self._lay.out + 2
+        return self._samples(t_s, theta_in_rad, omega_in_rad_s, load_nm, np.array([io]))[:, 0]
+
+    _MEMBERS = ('sun', 'planet', 'crank', 'disc', 'output')
+
+    def state_index(self, member: str, number: int = 0, coord: str = 'theta',
+                    kind: str = 'q') -> int:
+        """Index into the state vector [q, dq/dt, d2q/dt2] for :meth:`response`.
+
+        Args:
+            member: ``'sun'``, ``'planet'``, ``'crank'``, ``'disc'`` or ``'output'``.
+            number: Planet/crank (0..M-1) or disc (0..N-1) number.
+            coord: ``'x'``, ``'y'`` [m, output frame] or ``'theta'`` [rad, deviation from
+                the kinematic angle].
+            kind: ``'q'`` displacement, ``'v'`` velocity, ``'a'`` acceleration.
+
+        Raises:
+            ModelInputError: Unknown member, number, coordinate or kind.
+        """
+        lay = self._lay
+        bases = {'sun': [lay.sun], 'planet': lay.planet, 'crank': lay.crank,
+                 'disc': lay.disc, 'output': [lay.out]}
+        if member not in bases or not 0 <= number < len(bases[member]):
+            msg = f'unknown member {member!r} number {number!r}'
+            raise ModelInputError(msg)
+        if coord not in {'x', 'y', 'theta'} or kind not in {'q', 'v', 'a'}:
+            msg = f'coord must be x, y or theta and kind q, v or a, got {coord!r}, {kind!r}'
+            raise ModelInputError(msg)
+        return (bases[member][number] + ('x', 'y', 'theta').index(coord)
+                + ('q', 'v', 'a').index(kind) * self.ndof)
+
+    def response(self, t_s: npt.ArrayLike, theta_in_rad: npt.ArrayLike,
+                 omega_in_rad_s: npt.ArrayLike, load_nm: npt.ArrayLike,
+                 state_indices: npt.ArrayLike) -> np.ndarray:
+        """Like :meth:`te_rad` but returns chosen state entries, shape (n, k).
+
+        Args:
+            t_s: Sample times [s] (see :meth:`te_rad`).
+            theta_in_rad: Input angle [rad].
+            omega_in_rad_s: Input speed [rad/s].
+            load_nm: Output load torque [N m].
+            state_indices: Indices from :meth:`state_index`.
+
+        Raises:
+            ModelInputError: As :meth:`te_rad`, or an index out of range.
+        """
+        idx = np.atleast_1d(np.asarray(state_indices, dtype=np.int64))
+        if idx.ndim != 1 or np.any(idx < 0) or np.any(idx >= 3 * self.ndof):
+            msg = f'state_indices must be in [0, {3 * self.ndof}), got {idx!r}'
+            raise ModelInputError(msg)
+        return self._samples(t_s, theta_in_rad, omega_in_rad_s, load_nm, idx)
+
+    def _samples(self, t_s: npt.ArrayLike, theta_in_rad: npt.ArrayLike,
+                 omega_in_rad_s: npt.ArrayLike, load_nm: npt.ArrayLike,
+                 watch: np.ndarray) -> np.ndarray:
+        """Validate, advance, and return state entries ``watch`` at the samples."""
         t, th, om, ld = (np.asarray(a, dtype=np.float64) for a in
                          (t_s, theta_in_rad, omega_in_rad_s, load_nm))
         if t.ndim != 1 or not (t.shape == th.shape == om.shape == ld.shape):
@@ -744,7 +800,7 @@ class Li2023DteModel:
                    f'{om.shape=}, {ld.shape=}')
             raise ModelInputError(msg)
         if t.size == 0:
-            return np.zeros(0)
+            return np.zeros((0, watch.size))
         for name, a in (('t_s', t), ('theta_in_rad', th), ('omega_in_rad_s', om),
                         ('load_nm', ld)):
             if not np.all(np.isfinite(a)):
@@ -753,12 +809,12 @@ class Li2023DteModel:
         if np.any(np.diff(t) <= 0) or (self._last is not None and t[0] <= self._last[0]):
             msg = 't_s must be strictly increasing (also from one call to the next)'
             raise ModelInputError(msg)
-        te = np.empty(t.size)
+        te = np.empty((t.size, watch.size))
         start = 0
         if self._state is None:
             q0 = self.static_response(float(th[0]), float(ld[0]))
             self._state = np.concatenate([q0, np.zeros(2 * self.ndof)])
-            te[0] = q0[self._lay.out + 2]
+            te[0] = self._state[watch]
             self._last = (float(t[0]), float(th[0]), float(om[0]), float(ld[0]))
             start = 1
         if start < t.size:
@@ -767,13 +823,13 @@ class Li2023DteModel:
             tht = np.concatenate([[prev[1]], th[start:]])
             omt = np.concatenate([[prev[2]], om[start:]])
             ldt = np.concatenate([[prev[3]], ld[start:]])
-            te[start:] = self._advance(tt, tht, omt, ldt)
+            te[start:] = self._advance(tt, tht, omt, ldt, watch)
             self._last = (float(t[-1]), float(th[-1]), float(om[-1]), float(ld[-1]))
         return te
 
     def _advance(self, t: np.ndarray, th: np.ndarray, om: np.ndarray,
-                 ld: np.ndarray) -> np.ndarray:
-        """Integrate over the intervals of (t, th, om, ld); TE at t[1:]."""
+                 ld: np.ndarray, watch: np.ndarray) -> np.ndarray:
+        """Integrate over the intervals of (t, th, om, ld); state[watch] at t[1:]."""
         p = self.params
         dt = np.diff(t)
         nsub = np.maximum(1, np.ceil(dt / p.max_step_s - 1e-9)).astype(np.int64)
@@ -791,19 +847,20 @@ class Li2023DteModel:
                 + h11 * d * om[interval + 1])
         ld_s = ld[interval] + s * (ld[interval + 1] - ld[interval])
         is_end = offset == nsub[interval] - 1
-        out = np.empty(dt.size)
+        out = np.empty((dt.size, watch.size))
         ndone = 0
         for c0 in range(0, total, p.chunk_steps):
             c1 = min(total, c0 + p.chunk_steps)
-            traj = self._run_chunk(th_s[c0:c1], ld_s[c0:c1], h[c0:c1])
+            traj = self._run_chunk(th_s[c0:c1], ld_s[c0:c1], h[c0:c1], watch)
             ends = is_end[c0:c1]
             k = int(ends.sum())
             out[ndone:ndone + k] = traj[ends]
             ndone += k
         return out
 
-    def _run_chunk(self, th: np.ndarray, ld: np.ndarray, h: np.ndarray) -> np.ndarray:
-        """Newmark (beta = 1/4, gamma = 1/2) over one batch of steps; TE after each.
+    def _run_chunk(self, th: np.ndarray, ld: np.ndarray, h: np.ndarray,
+                   watch: np.ndarray) -> np.ndarray:
+        """Newmark (beta = 1/4, gamma = 1/2) over one batch; state[watch] after each step.
 
         The effective matrices ``K(t_n+1) + (2/h) C + (4/h^2) M`` of the whole batch come
         from one matrix product; each step then costs one Cholesky solve (LAPACK dposv;
@@ -819,8 +876,9 @@ class Li2023DteModel:
         keff = coef @ basis                                          # (S, n*n)
         f = self.forces(th, ld)
         x = self._state
-        io = self._lay.out + 2
-        te = np.empty(th.size)
+        io = int(watch[0])
+        single = watch.size == 1
+        te = np.empty((th.size, watch.size))
         h_prev = math.nan
         for n in range(th.size):
             if h[n] != h_prev:
@@ -837,7 +895,10 @@ class Li2023DteModel:
                 msg = f'Newmark step matrix not positive definite (dposv info {info})'
                 raise ModelInputError(msg)
             x = lmat @ q_new + rmat @ x
-            te[n] = q_new[io]
+            if single:
+                te[n, 0] = x[io]
+            else:
+                te[n] = x[watch]
         self._state = x
         return te
 

@@ -364,3 +364,21 @@ def test_error_spectrum_has_more_orders(one_revolution) -> None:  # noqa: ANN001
     assert {1440, 1560} <= ideal
     assert ideal < err                                       # strictly more orders
     assert 1 in err                                          # once per output revolution
+
+
+def test_response_records_states_consistently(preset) -> None:  # noqa: ANN001
+    t, th, om, ld = _drive(120)
+    te = _model(preset).te_rad(t, th, om, ld)
+    model = _model(preset)
+    idx = [model.state_index('output', 0, 'theta'), model.state_index('disc', 1, 'x'),
+           model.state_index('output', 0, 'theta', 'v')]
+    resp = model.response(t, th, om, ld, idx)
+    assert resp.shape == (120, 3)
+    np.testing.assert_allclose(resp[:, 0], te, rtol=0, atol=1e-15)
+    # velocity state against the central difference of the angle (1 kHz, ~300 Hz content)
+    rate = np.gradient(resp[:, 0], t)
+    assert np.corrcoef(rate[5:-5], resp[5:-5, 2])[0, 1] > 0.9
+    with pytest.raises(ModelInputError, match='member'):
+        model.state_index('ring', 0)
+    with pytest.raises(ModelInputError, match='state_indices'):
+        model.response(t + 1.0, th, om, ld, [3 * model.ndof])
