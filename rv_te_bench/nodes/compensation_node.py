@@ -146,11 +146,11 @@ class CompensationNode(Node):
         self.jobs.append((name, self.pool.submit(fn)))
 
     def _job_phases(self) -> Any:  # noqa: ANN401
-        from rv_te_bench.core.phases import optimize_phases  # noqa: PLC0415
+        from rv_te_bench.core.phases import optimise_phases  # noqa: PLC0415
         from sim.wang2020 import Wang2kvParams  # noqa: PLC0415
 
         params = Wang2kvParams.from_preset(self.preset)
-        result = optimize_phases(
+        result = optimise_phases(
             params, step_deg=self.p['step_deg'], refine=self.p['refine'],
             progress=lambda f: self.progress.__setitem__('assembly-phases', float(f)))
         return result.to_advice(self.preset.name)
@@ -165,7 +165,7 @@ class CompensationNode(Node):
     def _job_tooth(self, measured_rad: float) -> Any:  # noqa: ANN401
         from rv_te_bench.core.tooth_compensation import tooth_profile_advice  # noqa: PLC0415
 
-        return tooth_profile_advice(self.preset, measured_rad)
+        return tooth_profile_advice(self.preset, measured_rad, te_metric=self.p['te_metric'])
 
     # -- outputs (executor thread) --------------------------------------------------------
     def _collect(self) -> None:

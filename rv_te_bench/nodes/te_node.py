@@ -46,8 +46,8 @@ PARAMS = (
               'Mesh frequencies as output orders [1/rev]; used when gear_ratio > 0'),
     ParamSpec('n_crank_harmonics', 'int', 10, 'Crank harmonics k f_w reported [1]',
               min_value=1, max_value=200),
-    ParamSpec('window_revolutions', 'double', 1.0,
-              'Analysis window length [output revolutions]', min_value=0.01, max_value=1000.0),
+    ParamSpec('window_revolutions', 'int', 1,
+              'Analysis window length [whole output revolutions]', min_value=1, max_value=1000),
     ParamSpec('decimated_rate_hz', 'double', 50.0,
               'Rate of TE samples published on te/samples [Hz]', min_value=0.1,
               max_value=100000.0, read_only=False),
@@ -97,7 +97,7 @@ class TeNode(Node):
     # -- configuration --------------------------------------------------------------------
     def _configure(self, orders: OrderSet) -> None:
         config = TeAnalysisConfig(orders=orders,
-                                  window_revolutions=self.p['window_revolutions'],
+                                  window_revolutions=float(self.p['window_revolutions']),
                                   decimated_rate_hz=self.p['decimated_rate_hz'])
         if self.analyzer is None:
             self.analyzer = StreamingTeAnalyzer(config)

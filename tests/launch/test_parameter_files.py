@@ -18,7 +18,7 @@ bench:
     time_mode: fast
 te_node:
   ros__parameters:
-    window_revolutions: 1.0
+    window_revolutions: 1
 /bench2/bench:
   ros__parameters:
     speed_rpm: 600.0
@@ -53,8 +53,10 @@ def test_good_file_is_accepted_and_namespaced_keys_select(tmp_path: Path) -> Non
     ('bench:\n  ros__parameters:\n    time_mode: warp\n', ["'time_mode'", 'one of']),
     ('bench:\n  ros__parameters:\n    overrides: gear.z_sun=13\n',
      ["'overrides'", 'list of strings']),
-    ('te_node:\n  ros__parameters:\n    window_revolutions: .nan\n',
-     ["'window_revolutions'", 'finite']),
+    ('te_node:\n  ros__parameters:\n    decimated_rate_hz: .nan\n',
+     ["'decimated_rate_hz'", 'finite']),
+    ('te_node:\n  ros__parameters:\n    window_revolutions: 1.5\n',
+     ["'window_revolutions'", 'integer']),
     ('benchh:\n  ros__parameters:\n    speed_rpm: 1.0\n', ["'benchh'", 'unknown node']),
     ('bench:\n  parameters:\n    speed_rpm: 1.0\n', ['ros__parameters']),
     ('bench: [1, 2\n', ['not valid YAML']),
