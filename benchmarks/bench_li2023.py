@@ -48,22 +48,27 @@ def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(description=__doc__)
     ap.add_argument('--seconds', type=float, default=5.0, help='simulated seconds per case')
     ap.add_argument('--block', type=int, default=100, help='samples per te_rad call')
-    ap.add_argument('--fs', type=float, default=1000.0, help='output sampling rate [Hz]')
+    ap.add_argument('--fs', default='1000,10000',
+                    help='output sampling rates [Hz], comma separated; 1 kHz decides')
     args = ap.parse_args(argv)
     preset = load_preset('li2023-rv')
-    print(f'sim.li2023 te_rad, {args.fs:g} Hz, blocks of {args.block}, 1500 rpm, 450 N m, '
+    rates = [float(x) for x in args.fs.split(',')]
+    print(f'sim.li2023 te_rad, blocks of {args.block}, 1500 rpm, 450 N m, '
           f'max step {preset["solver.max_step_s"]:g} s; Python {platform.python_version()}, '
           f'numpy {np.__version__}, {os.cpu_count()} CPUs, load average '
           f'{os.getloadavg()[0]:.1f}\n')
     print('| model | errors | fs [Hz] | block | simulated [s] | ms/block | real-time factor |')
     print('|---|---|---|---|---|---|---|')
     worst = float('inf')
-    for errors in (False, True):
-        rtf, ms = _time_case(errors, args.seconds, args.block, args.fs)
-        worst = min(worst, rtf)
-        print(f'| li2023-rv dte | {"Table 3 + E_cr" if errors else "none"} | {args.fs:g} | '
-              f'{args.block} | {args.seconds:g} | {ms:.1f} | {rtf:.2f} |')
-    print(f'\nworst real-time factor: {worst:.2f} ({"ok" if worst >= 1 else "TOO SLOW"})')
+    for fs in rates:
+        for errors in (False, True):
+            rtf, ms = _time_case(errors, args.seconds, args.block, fs)
+            if fs == rates[0]:
+                worst = min(worst, rtf)
+            print(f'| li2023-rv dte | {"Table 3 + E_cr" if errors else "none"} | {fs:g} | '
+                  f'{args.block} | {args.seconds:g} | {ms:.1f} | {rtf:.2f} |')
+    print(f'\nworst real-time factor at {rates[0]:g} Hz: {worst:.2f} '
+          f'({"ok" if worst >= 1 else "TOO SLOW"})')
     return 0 if worst >= 1 else 1
 
 

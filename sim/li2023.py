@@ -437,6 +437,18 @@ def _ltca_cached(params: Li2023Params) -> LtcaResult:
     return ltca(params)
 
 
+def _quantise(h: np.ndarray) -> np.ndarray:
+    """Round step sizes to 6 significant digits.
+
+    Sample clocks far from t = 0 give intervals that differ in their last bits; rounding
+    lets consecutive steps share one set of Newmark operators (the kinematic phases still
+    use the exact sample times; a 1e-6 relative step change is far below the scheme's
+    own error).
+    """
+    e = np.floor(np.log10(h))
+    return np.round(h / 10.0**e, 5) * 10.0**e
+
+
 # --------------------------------------------------------------------------------------
 # Dynamic model
 # --------------------------------------------------------------------------------------
@@ -837,7 +849,7 @@ class Li2023DteModel:
         interval = np.repeat(np.arange(dt.size), nsub)
         offset = np.arange(total) - np.repeat(np.cumsum(nsub) - nsub, nsub)
         frac = (offset + 1) / nsub[interval]                    # end of each step in (0, 1]
-        h = dt[interval] / nsub[interval]
+        h = _quantise(dt[interval] / nsub[interval])
         # cubic Hermite for theta_in, linear for the load, at the end of each step
         s = frac
         h00, h10 = 2 * s**3 - 3 * s**2 + 1, s**3 - 2 * s**2 + s
