@@ -19,7 +19,9 @@ import platform
 import signal
 import struct
 import sys
-from collections.abc import Sequence
+import threading
+import time
+from collections.abc import Callable, Sequence
 from importlib import metadata as importlib_metadata
 from pathlib import Path
 from typing import Any
@@ -33,6 +35,7 @@ from rcl_interfaces.msg import (
     ParameterDescriptor,
     ParameterType,
 )
+from rclpy.context import Context
 from rclpy.exceptions import InvalidParameterValueException
 from rclpy.executors import ExternalShutdownException
 from rclpy.node import Node
@@ -45,7 +48,7 @@ from rv_te_bench.io.bag_writer import BagWriter, qos_profile_dict
 from rv_te_bench.io.msgdefs import ENCODER_BLOCK
 from rv_te_bench.nodes import qos
 
-__all__ = ['DEFAULT_TOPICS', 'RecorderNode', 'main']
+__all__ = ['DEFAULT_TOPICS', 'RecorderNode', 'main', 'run_node']
 
 DEFAULT_TOPICS = [
     'bench/encoders', 'bench/info', 'te/samples', 'te/statistics', 'te/spectrum',
@@ -391,40 +394,70 @@ class RecorderNode(Node):
         super().destroy_node()
 
 
-def main(argv: Sequence[str] | None = None) -> int:
-    """Run one RecorderNode until SIGINT/SIGTERM or ``duration_s``; 0 ok, 1 error."""
-    args = list(sys.argv if argv is None else argv)
-    rclpy.init(args=args, signal_handler_options=SignalHandlerOptions.NO)
+def run_node(
+    factory: Callable[[Context], Any],
+    args: Sequence[str] | None = None,
+    *,
+    linger_s: float = 0.0,
+) -> int:
+    """Run one node in its own Context until it is ``finished`` or SIGINT/SIGTERM arrives.
+
+    Args:
+        factory: Builds the node in the given context (may raise RvTeError).
+        args: Command line (ROS arguments after ``--ros-args`` apply to the node).
+        linger_s: Keep spinning this long after ``finished`` (reliable delivery) [s].
+
+    Returns:
+        0 ok, 1 error (printed as one ``ERROR: ...`` line on stderr), or the node's
+        ``exit_code``.
+    """
+    context = Context()
+    rclpy.init(args=list(args) if args is not None else None, context=context,
+               signal_handler_options=SignalHandlerOptions.NO)
     stop = {'requested': False}
 
     def request_stop(*_: object) -> None:
         stop['requested'] = True
 
-    old_int = signal.signal(signal.SIGINT, request_stop)
-    old_term = signal.signal(signal.SIGTERM, request_stop)
-    node: RecorderNode | None = None
+    main_thread = threading.current_thread() is threading.main_thread()
+    if main_thread:
+        old_int = signal.signal(signal.SIGINT, request_stop)
+        old_term = signal.signal(signal.SIGTERM, request_stop)
+    node: Any = None
+    code = 0
     try:
         try:
-            node = RecorderNode()
-        except (RvTeError, InvalidParameterValueException) as exc:
+            node = factory(context)
+        except (RvTeError, InvalidParameterValueException, ValueError) as exc:
             print(f'ERROR: {exc}', file=sys.stderr)
             return 1
         from rclpy.experimental import EventsExecutor  # noqa: PLC0415
 
-        executor = EventsExecutor()
+        executor = EventsExecutor(context=context)
         executor.add_node(node)
-        while rclpy.ok() and not stop['requested'] and not node.finished:
+        while context.ok() and not stop['requested'] and not node.finished:
             executor.spin_once(timeout_sec=0.1)
+        end = time.monotonic() + linger_s
+        while context.ok() and not stop['requested'] and time.monotonic() < end:
+            executor.spin_once(timeout_sec=0.05)
         executor.shutdown()
+        code = int(getattr(node, 'exit_code', 0) or 0)
     except (KeyboardInterrupt, ExternalShutdownException):
         pass
     finally:
         if node is not None:
             node.destroy_node()
-        signal.signal(signal.SIGINT, old_int)
-        signal.signal(signal.SIGTERM, old_term)
-        rclpy.try_shutdown()
-    return 0
+        if main_thread:
+            signal.signal(signal.SIGINT, old_int)
+            signal.signal(signal.SIGTERM, old_term)
+        rclpy.try_shutdown(context=context)
+    return code
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    """Run one RecorderNode until SIGINT/SIGTERM or ``duration_s``; 0 ok, 1 error."""
+    return run_node(lambda ctx: RecorderNode(context=ctx),
+                    list(sys.argv if argv is None else argv))
 
 
 if __name__ == '__main__':

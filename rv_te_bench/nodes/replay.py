@@ -13,28 +13,23 @@ Run: ``python -m rv_te_bench.nodes.replay --ros-args -p bag:=out/bags/x -p rate:
 
 from __future__ import annotations
 
-import signal
 import sys
 import threading
 import time
 from collections.abc import Sequence
 from typing import Any
 
-import rclpy
 import yaml
 from rcl_interfaces.msg import FloatingPointRange, ParameterDescriptor, ParameterType
-from rclpy.exceptions import InvalidParameterValueException
-from rclpy.executors import ExternalShutdownException
 from rclpy.node import Node
 from rclpy.parameter import Parameter
 from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
-from rclpy.signals import SignalHandlerOptions
 from rosgraph_msgs.msg import Clock
 
-from rv_te_bench.errors import BagError, RvTeError
+from rv_te_bench.errors import BagError
 from rv_te_bench.io.bag_reader import iter_messages, open_bag
 from rv_te_bench.nodes import qos
-from rv_te_bench.nodes.recorder import _msg_class
+from rv_te_bench.nodes.recorder import _msg_class, run_node
 
 __all__ = ['ReplayNode', 'main']
 
@@ -227,44 +222,8 @@ class ReplayNode(Node):
 
 def main(argv: Sequence[str] | None = None) -> int:
     """Run one ReplayNode until the bag ends (or SIGINT/SIGTERM); 0 ok, 1 error."""
-    args = list(sys.argv if argv is None else argv)
-    rclpy.init(args=args, signal_handler_options=SignalHandlerOptions.NO)
-    stop = {'requested': False}
-
-    def request_stop(*_: object) -> None:
-        stop['requested'] = True
-
-    old_int = signal.signal(signal.SIGINT, request_stop)
-    old_term = signal.signal(signal.SIGTERM, request_stop)
-    node: ReplayNode | None = None
-    code = 0
-    try:
-        try:
-            node = ReplayNode()
-        except (RvTeError, InvalidParameterValueException) as exc:
-            print(f'ERROR: {exc}', file=sys.stderr)
-            return 1
-        from rclpy.experimental import EventsExecutor  # noqa: PLC0415
-
-        executor = EventsExecutor()
-        executor.add_node(node)
-        while rclpy.ok() and not stop['requested'] and not node.finished:
-            executor.spin_once(timeout_sec=0.1)
-        # Let reliable subscribers take the last messages before the publishers go away.
-        linger_end = time.monotonic() + 0.5
-        while rclpy.ok() and not stop['requested'] and time.monotonic() < linger_end:
-            executor.spin_once(timeout_sec=0.05)
-        executor.shutdown()
-        code = node.exit_code
-    except (KeyboardInterrupt, ExternalShutdownException):
-        pass
-    finally:
-        if node is not None:
-            node.destroy_node()
-        signal.signal(signal.SIGINT, old_int)
-        signal.signal(signal.SIGTERM, old_term)
-        rclpy.try_shutdown()
-    return code
+    return run_node(lambda ctx: ReplayNode(context=ctx),
+                    list(sys.argv if argv is None else argv), linger_s=0.5)
 
 
 if __name__ == '__main__':

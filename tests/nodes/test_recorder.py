@@ -272,3 +272,73 @@ def test_10khz_session_recorded_without_loss(ros_context: Any, ros_domain_id: in
         np.testing.assert_array_equal(b.theta_in_rad, th_in)
         np.testing.assert_array_equal(b.theta_out_rad, th_out)
         np.testing.assert_array_equal(b.time_offset_s, t)
+
+
+CLI = r'''
+import argparse, sys
+from rv_te_bench.cli import record, replay
+parser = argparse.ArgumentParser(prog='rv-te')
+sub = parser.add_subparsers(required=True)
+record.register(sub)
+replay.register(sub)
+args = parser.parse_args(sys.argv[1:])
+sys.exit(args.func(args))
+'''
+
+
+def cli_process(argv: list[str], domain: int) -> subprocess.Popen[str]:
+    """``rv-te <argv>`` in a child process (cli/main.py belongs to the integrator)."""
+    env = dict(os.environ)
+    env.pop('_ROS_WHEELS_BOOTSTRAP_COMPLETE', None)
+    env['ROS_DOMAIN_ID'] = str(domain)
+    env['PYTHONPATH'] = str(ROOT)
+    return subprocess.Popen([sys.executable, '-c', CLI, *argv], cwd=ROOT, env=env, text=True,
+                            stdout=subprocess.PIPE, stderr=subprocess.PIPE)
+
+
+def test_cli_record_refuses_existing_bag(tmp_path: Path, capsys: Any) -> None:
+    import argparse  # noqa: PLC0415
+
+    from rv_te_bench.cli import record  # noqa: PLC0415
+
+    (tmp_path / 'taken').mkdir()
+    parser = argparse.ArgumentParser()
+    record.register(parser.add_subparsers())
+    args = parser.parse_args(['record', '--out', str(tmp_path), '--name', 'taken'])
+    assert args.func(args) == 1
+    err = capsys.readouterr().err
+    assert [line for line in err.splitlines() if line.startswith('ERROR:')] == [
+        f'ERROR: Bag {tmp_path / "taken"} exists already, not overwriting.']
+
+
+def test_cli_record_for_a_duration(ros_context: Any, ros_domain_id: int,
+                                   tmp_path: Path) -> None:
+    ns = f'/cli_{os.getpid()}'
+    topic = f'{ns}/bench/encoders'
+    pub_node = rclpy.create_node('cli_pub', context=ros_context)
+    pub = pub_node.create_publisher(EncoderBlock, topic, qos.ENCODER_QOS)
+    executor = EventsExecutor(context=ros_context)
+    executor.add_node(pub_node)
+    proc = cli_process(['record', '--out', str(tmp_path), '--name', 'bag', '--namespace', ns,
+                        '--topics', 'bench/encoders', '--duration', '3', '--compression',
+                        'lz4', '--metadata', 'operator: test'], ros_domain_id)
+    try:
+        assert spin_until(executor, lambda: pub.get_subscription_count() >= 1, 30.0)
+        sent = _publish_while(executor, pub, 100.0, lambda _: proc.poll() is not None)
+        out, err = proc.communicate(timeout=20)
+    finally:
+        if proc.poll() is None:
+            proc.kill()
+            proc.wait()
+        pub_node.destroy_node()
+        executor.shutdown()
+    assert proc.returncode == 0, err
+    bag = tmp_path / 'bag'
+    rb, mc, counts = read_back(bag, topic)
+    assert rb == mc == list(range(len(rb)))
+    assert 0 < len(rb) <= sent
+    assert f'bag: {bag}' in out
+    assert f'{topic}: {len(rb)} messages' in out
+    summary = bag_summary(bag)
+    assert summary['finalized'] is True
+    assert summary['session']['operator'] == 'test'

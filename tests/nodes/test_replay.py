@@ -138,3 +138,30 @@ def test_replay_refuses_unknown_topic_and_missing_bag(ros_context: Any, bag_and_
         _replay(ros_context, bag, topics=['/nope'])
     with pytest.raises(BagError, match='does not exist'):
         _replay(ros_context, tmp_path / 'missing')
+
+
+def test_cli_replay_process(ros_context: Any, ros_domain_id: int, bag_and_topics: Any) -> None:
+    from tests.nodes.test_recorder import cli_process  # noqa: PLC0415
+
+    bag, enc, _ = bag_and_topics
+    sub_node = rclpy.create_node('cli_replay_sub', context=ros_context)
+    got: list[bytes] = []
+    sub_node.create_subscription(EncoderBlock, enc, got.append, qos.ENCODER_QOS, raw=True)
+    executor = EventsExecutor(context=ros_context)
+    executor.add_node(sub_node)
+    proc = cli_process(['replay', str(bag), '--rate', '3', '--topics', enc,
+                        '--wait-for-subscribers', '20'], ros_domain_id)
+    try:
+        assert spin_until(executor, lambda: len(got) == N_BLOCKS or proc.poll() is not None,
+                          30.0)
+        spin_until(executor, lambda: len(got) == N_BLOCKS, 2.0)
+        out, err = proc.communicate(timeout=20)
+    finally:
+        if proc.poll() is None:
+            proc.kill()
+            proc.wait()
+        sub_node.destroy_node()
+        executor.shutdown()
+    assert proc.returncode == 0, err
+    assert got == [bytes(d) for _, _, _, d in iter_messages(bag, [enc])]
+    assert f'{enc}: {N_BLOCKS} messages published' in out
