@@ -1,0 +1,92 @@
+"""rv-te model: statistics of a preset's TE model through the argparse layer."""
+
+from __future__ import annotations
+
+import argparse
+import json
+import math
+
+import numpy as np
+import pytest
+
+from rv_te_bench.cli import model
+
+
+def _run(argv: list[str]) -> int:
+    parser = argparse.ArgumentParser(prog='rv-te')
+    sub = parser.add_subparsers()
+    model.register(sub)
+    args = parser.parse_args(['model', *argv])
+    return args.func(args)
+
+
+def test_nlte_json_matches_paper(capsys: pytest.CaptureFixture[str]) -> None:
+    assert _run(['wang2020-2kv', '--json', '--sample-rate-hz', '2000']) == 0
+    stats = json.loads(capsys.readouterr().out)
+    # Wang 2020 Fig. 5a: p-p 2.23', amplitude 1.22', mean -0.15' (5 % / 6 % / 0.02')
+    assert stats['te_pp_arcmin'] == pytest.approx(2.23, rel=0.05)
+    assert stats['te_amplitude_arcmin'] == pytest.approx(1.22, rel=0.06)
+    assert stats['te_mean_arcmin'] == pytest.approx(-0.15, abs=0.02)
+    # DESIGN.md s.4: i = 79, period 15.8 s, f_w = 1.582 Hz, largest line at f_w
+    assert stats['gear_ratio'] == pytest.approx(79.0)
+    assert stats['output_period_s'] == pytest.approx(15.8)
+    assert stats['crank_hz'] == pytest.approx(1.582, abs=5e-4)
+    assert stats['spectrum_peak_hz'] == pytest.approx(stats['crank_hz'], rel=1e-9)
+    assert stats['n_samples'] == 31_600
+
+
+def test_ste_table_and_phases(capsys: pytest.CaptureFixture[str]) -> None:
+    assert _run(['wang2020-2kv', '--kind', 'ste', '--load-nm', '300',
+                 '--sample-rate-hz', '2000']) == 0
+    out = capsys.readouterr().out
+    rows = dict(line.split(None, 1) for line in out.strip().splitlines())
+    assert float(rows['te_mean_arcmin']) == pytest.approx(-2.19511, rel=0.03)  # Fig. 5b
+    # optimised phases of Eq. 21: Table 4 NLTE p-p 1.072' (10 %)
+    assert _run(['wang2020-2kv', '--phases-deg=-70,120,110,40', '--json',
+                 '--sample-rate-hz', '2000']) == 0
+    assert json.loads(capsys.readouterr().out)['te_pp_arcmin'] == pytest.approx(1.072, rel=0.1)
+
+
+def test_dte_sinusoidal_load_csv_and_plot(tmp_path, capsys: pytest.CaptureFixture[str]) -> None:  # noqa: ANN001
+    csv = tmp_path / 'dte.csv'
+    png = tmp_path / 'dte.png'
+    assert _run(['wang2020-2kv', '--kind', 'dte', '--load-nm', '30', '--load-hz', 'crank',
+                 '--revolutions', '0.05', '--json', '--csv', str(csv), '--plot', str(png)]) == 0
+    stats = json.loads(capsys.readouterr().out)
+    assert stats['load_hz'] == pytest.approx(stats['crank_hz'])
+    data = np.loadtxt(csv, delimiter=',', skiprows=1)
+    header = csv.read_text().splitlines()[0].split(',')
+    assert header == ['t_s', 'theta_in_rad', 'load_nm', 'te_rad', 'te_arcmin']
+    assert data.shape == (stats['n_samples'], 5)
+    assert np.ptp(data[:, 4]) == pytest.approx(stats['te_pp_arcmin'], rel=1e-9)
+    assert np.allclose(data[:, 4], data[:, 3] * 10800 / math.pi, rtol=1e-9)
+    assert png.stat().st_size > 1000
+    # refuses to overwrite without --force
+    assert _run(['wang2020-2kv', '--revolutions', '0.01', '--csv', str(csv)]) == 1
+    assert 'exists already' in capsys.readouterr().err
+
+
+@pytest.mark.parametrize(('argv', 'needle'), [
+    (['wang2020-2kv', '--kind', 'fem'], "unknown mode 'fem'"),
+    (['wang2020-2kv', '--set', 'mesh.nope=1'], "no key 'mesh.nope'"),
+    (['wang2020-2kv', '--set', 'kinematics.z_ring=49'], 'kinematics.z_ring'),
+    (['no-such-preset'], "unknown preset 'no-such-preset'"),
+    (['wang2020-2kv', '--revolutions', '1e9'], 'samples'),
+])
+def test_domain_errors_exit_1(argv: list[str], needle: str,
+                              capsys: pytest.CaptureFixture[str]) -> None:
+    assert _run(argv) == 1
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and err[0].startswith('ERROR: ') and needle in err[0]
+
+
+@pytest.mark.parametrize('argv', [
+    ['wang2020-2kv', '--phases-deg', '1,2,3'],
+    ['wang2020-2kv', '--load-hz', 'fast'],
+    ['wang2020-2kv', '--rpm', '-5'],
+])
+def test_bad_usage_exit_2(argv: list[str], capsys: pytest.CaptureFixture[str]) -> None:
+    with pytest.raises(SystemExit) as info:
+        _run(argv)
+    assert info.value.code == 2
+    capsys.readouterr()
