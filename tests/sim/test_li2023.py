@@ -390,3 +390,21 @@ def test_dte_without_errors_below_one_arcsec_at_10khz(preset) -> None:  # noqa: 
     t, th, om, ld = _drive(4000, fs_hz=10_000.0)
     dte = rad_to_arcsec(_model(preset, **{'errors.enabled': 'false'}).te_rad(t, th, om, ld))
     assert np.ptp(dte[1500:]) < 1.0
+
+
+def test_mesh_stiffness_waves(preset) -> None:  # noqa: ANN001
+    # Eq. 9: rectangular wave k1 / 2 k1 with the double-pair zone (eps - 1) of the period;
+    # Eq. 11: the pin-mesh curve scaled to the preset mean (paper 1.24e9 N/m)
+    model = _model(preset, **{'stiffness.sun_planet_harmonics': '60'})
+    p = model.params
+    n = 4000
+    sun_rel = np.arange(n) / n * 2 * np.pi / p.z_sun           # one stage-1 mesh period
+    theta_in = sun_rel * p.gear_ratio / (p.gear_ratio - 1)
+    ksp, _ = model._mesh_stiffness(model._angles(theta_in))
+    k1 = p.k_sun_planet_n_m / p.sun_planet_contact_ratio
+    assert ksp[:, 0].mean() == pytest.approx(p.k_sun_planet_n_m, rel=1e-9)
+    assert np.mean(ksp[:, 0] > 1.5 * k1) == pytest.approx(p.sun_planet_contact_ratio - 1,
+                                                          abs=0.02)
+    crank = np.arange(n) / n * 2 * np.pi / p.z_pin             # one pin-mesh period
+    _, kcr = model._mesh_stiffness(model._angles(crank / model.kinematics.crank_per_input))
+    assert kcr.mean() == pytest.approx(preset['stiffness.pin_mesh_n_m'], rel=1e-9)
