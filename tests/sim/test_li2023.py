@@ -12,6 +12,8 @@ import math
 
 import numpy as np
 import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
 from scipy.linalg import eigh
 
 from sim.errors import ModelInputError, PresetError
@@ -408,3 +410,17 @@ def test_mesh_stiffness_waves(preset) -> None:  # noqa: ANN001
     crank = np.arange(n) / n * 2 * np.pi / p.z_pin             # one pin-mesh period
     _, kcr = model._mesh_stiffness(model._angles(crank / model.kinematics.crank_per_input))
     assert kcr.mean() == pytest.approx(preset['stiffness.pin_mesh_n_m'], rel=1e-9)
+
+
+@settings(max_examples=8, deadline=None)
+@given(cuts=st.lists(st.integers(1, 239), max_size=4, unique=True))
+def test_any_block_split_equals_one_shot(cuts: list[int]) -> None:
+    preset = load_preset('li2023-rv')
+    t, th, om, ld = _drive(240, fs_hz=2000.0, rpm=700.0, load_nm=200.0)
+    ld = ld * (1.0 + 0.3 * np.sin(7.0 * t))                    # varying load as well
+    one = _model(preset).te_rad(t, th, om, ld)
+    model = _model(preset)
+    edges = [0, *sorted(cuts), 240]
+    parts = [model.te_rad(t[a:b], th[a:b], om[a:b], ld[a:b])
+             for a, b in zip(edges[:-1], edges[1:], strict=True)]
+    np.testing.assert_allclose(np.concatenate(parts), one, rtol=0, atol=1e-15)
