@@ -67,8 +67,8 @@ def plot_ltca(out: Path) -> tuple[Path, dict[str, float]]:
 def simulate() -> dict[str, dict[str, np.ndarray]]:
     """One output revolution (+ run-in) per case, recording the states plotted."""
     base = load_preset('li2023-rv')
-    w = float(rpm_to_rad_s(base['operating.input_speed_rpm']))
-    load = base['operating.output_torque_nm']
+    w = float(rpm_to_rad_s(base['drive.input_speed_rpm']))
+    load = base['drive.load_nm']
     n_rev = round(FS_HZ * 2 * np.pi * 121 / w)
     t = np.arange(RUN_IN + n_rev) / FS_HZ
     runs = {}
