@@ -44,7 +44,7 @@ from __future__ import annotations
 
 import cmath
 import math
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from typing import TYPE_CHECKING, Any, NamedTuple
 
 import numpy as np
@@ -471,7 +471,7 @@ class _State:
     v_m_s: float = 0.0
     started: bool = False
     switches: int = 0
-    extra: dict[str, Any] = field(default_factory=dict)
+    chunk: int = _FIRST_CHUNK
 
 
 class Wang2kvDynamics:
@@ -776,7 +776,7 @@ class Wang2kvDynamics:
         xs = np.empty(npts)
         xs[0] = x0
         i, x, v = 0, x0, v0
-        chunk = _FIRST_CHUNK
+        chunk = self.state.chunk            # carried across blocks: steady runs stay long
         while i < npts - 1:
             mode = int(_mode_of(np.array([x]), g.u[:, i:i + 1])[0])
             j = min(npts - 1, i + chunk)
@@ -795,6 +795,7 @@ class Wang2kvDynamics:
             xs[i + 1:i + q + 1] = xt[1:q + 1]
             i, x, v = self._scalar_run(g, i + q, float(xt[q]), float(vt[q]), xs)
             chunk = _FIRST_CHUNK
+        self.state.chunk = chunk
         return xs, v
 
     # ---- public
