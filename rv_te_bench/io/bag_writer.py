@@ -64,6 +64,9 @@ _OP_CHUNK = 0x06
 _OP_MESSAGE_INDEX = 0x07
 _OP_FOOTER = 0x02
 _MAX_TIME_NS = 2**63 - 1
+# Data End (no CRC) + Footer without summary + magic: keeps the file valid between chunks.
+_TRAILER = (struct.pack('<BQI', 0x0F, 4, 0) + struct.pack('<BQQQI', 0x02, 20, 0, 0, 0)
+            + MAGIC)
 _YamlDumper = getattr(yaml, 'CSafeDumper', yaml.SafeDumper)  # libyaml: ~20x faster
 
 
@@ -227,6 +230,8 @@ class BagWriter:
         self._chunk_start_ns = _MAX_TIME_NS
         self._chunk_end_ns = 0
         self._last_flush_mono = time.monotonic()
+        self._last_yaml_mono = self._last_flush_mono
+        self._yaml_dirty = False
         self._closed = False
         self._open_file()
         self._write_metadata_yaml(state='recording')
@@ -332,9 +337,9 @@ class BagWriter:
         if file.start_ns == _MAX_TIME_NS:
             file.start_ns = timestamp_ns
         if len(chunk) >= self.chunk_size_bytes:
-            self.flush()
+            self._flush(update_yaml=False)
         elif time.monotonic() - self._last_flush_mono >= self.flush_interval_s:
-            self.flush()
+            self._flush(update_yaml=True)
 
     def flush_if_due(self) -> bool:
         """Flush when ``flush_interval_s`` has passed since the last flush.
@@ -349,12 +354,20 @@ class BagWriter:
 
     def flush(self) -> None:
         """Write the open chunk, a valid trailer and an updated metadata.yaml."""
+        self._flush(update_yaml=True)
+
+    def _flush(self, *, update_yaml: bool) -> None:
+        """Write the open chunk; rewrite metadata.yaml when asked or when it is older than
+        ``flush_interval_s`` (a rename costs milliseconds on some file systems, so chunks
+        closed for size do not each rewrite it; readers scan the .mcap, not the counts)."""
         self._check_open()
-        self._last_flush_mono = time.monotonic()
-        if not self._chunk:
-            return
-        self._write_chunk()
-        self._write_metadata_yaml(state='recording')
+        now = time.monotonic()
+        self._last_flush_mono = now
+        if self._chunk:
+            self._write_chunk()
+        if self._yaml_dirty and (
+                update_yaml or now - self._last_yaml_mono >= self.flush_interval_s):
+            self._write_metadata_yaml(state='recording')
         file = self._file
         assert file is not None
         if self.split_size_bytes is not None and file.data_end >= self.split_size_bytes:
@@ -439,52 +452,54 @@ class BagWriter:
         assert self._file is not None
         self._raw_append(self._file, payload)
 
-    def _raw_append(self, file: _File, payload: bytes) -> None:
-        trailer = _record_bytes(DataEnd(data_section_crc=0),
-                                Footer(summary_start=0, summary_offset_start=0,
-                                       summary_crc=0)) + MAGIC
-        data = payload + trailer
+    def _raw_append(self, file: _File, *parts: bytes | bytearray) -> None:
+        """Write parts at the data end, then a valid trailer, in one vectored write."""
+        size = sum(len(p) for p in parts)
+        fd = file.fd.fileno()
         try:
-            written = os.pwrite(file.fd.fileno(), data, file.data_end)
-            while written < len(data):
-                written += os.pwrite(file.fd.fileno(), data[written:], file.data_end + written)
+            written = os.pwritev(fd, [*parts, _TRAILER], file.data_end)
+            if written < size + len(_TRAILER):  # short write (rare): finish it plainly
+                rest = b''.join([*parts, _TRAILER])[written:]
+                while rest:
+                    n = os.pwrite(fd, rest, file.data_end + written)
+                    written += n
+                    rest = rest[n:]
         except OSError as exc:
             msg = f'Cannot write {file.path}: {exc}.'
             raise BagError(msg) from None
-        file.data_end += len(payload)
+        file.data_end += size
 
     def _write_chunk(self) -> None:
         file = self._file
         assert file is not None
-        raw = bytes(self._chunk)
-        compressed = self._compress(raw)
+        raw = self._chunk
+        compressed = raw if self.compression == 'none' else self._compress(raw)
         comp = self._compression_name.encode()
-        chunk_rec = bytearray()
         body_len = _CHUNK_HEADER.size + 4 + len(comp) + 8 + len(compressed)
-        chunk_rec += struct.pack('<BQ', _OP_CHUNK, body_len)
-        chunk_rec += _CHUNK_HEADER.pack(self._chunk_start_ns, self._chunk_end_ns, len(raw),
-                                        zlib.crc32(raw))
-        chunk_rec += struct.pack('<I', len(comp)) + comp
-        chunk_rec += struct.pack('<Q', len(compressed))
-        chunk_rec += compressed
+        head = b''.join((
+            struct.pack('<BQ', _OP_CHUNK, body_len),
+            _CHUNK_HEADER.pack(self._chunk_start_ns, self._chunk_end_ns, len(raw),
+                               zlib.crc32(raw)),
+            struct.pack('<I', len(comp)), comp, struct.pack('<Q', len(compressed))))
+        chunk_len = len(head) + len(compressed)
         chunk_start = file.data_end
-        out = bytearray(chunk_rec)
+        index = bytearray()
         index_offsets: dict[int, int] = {}
         for cid, flat in self._index.items():
             if not flat:
                 continue
-            index_offsets[cid] = chunk_start + len(out)
+            index_offsets[cid] = chunk_start + chunk_len + len(index)
             pairs = struct.pack(f'<{len(flat)}Q', *flat)
-            out += struct.pack('<BQHI', _OP_MESSAGE_INDEX, 2 + 4 + len(pairs), cid, len(pairs))
-            out += pairs
+            index += struct.pack('<BQHI', _OP_MESSAGE_INDEX, 2 + 4 + len(pairs), cid, len(pairs))
+            index += pairs
         file.chunk_indexes.append(ChunkIndex(
             message_start_time=self._chunk_start_ns, message_end_time=self._chunk_end_ns,
-            chunk_start_offset=chunk_start, chunk_length=len(chunk_rec),
-            message_index_offsets=index_offsets,
-            message_index_length=len(out) - len(chunk_rec),
+            chunk_start_offset=chunk_start, chunk_length=chunk_len,
+            message_index_offsets=index_offsets, message_index_length=len(index),
             compression=self._compression_name, compressed_size=len(compressed),
             uncompressed_size=len(raw)))
-        self._append(bytes(out))
+        self._raw_append(file, head, compressed, index)
+        self._yaml_dirty = True
         # Only now, with the chunk on disk, do the counts include it.
         for topic in self._topics.values():
             if topic.pending:
@@ -605,6 +620,8 @@ class BagWriter:
         }
 
     def _write_metadata_yaml(self, *, state: str) -> None:
+        self._yaml_dirty = False
+        self._last_yaml_mono = time.monotonic()
         text = _dump_yaml({'rosbag2_bagfile_information': self._bag_info(state=state)})
         target = self.path / 'metadata.yaml'
         tmp = self.path / '.metadata.yaml.tmp'
