@@ -44,7 +44,7 @@ def write_sample(path: Path) -> dict[str, float]:
     """
     import numpy as np  # noqa: PLC0415
 
-    from rv_te_bench.io.bag_writer import BagWriter  # noqa: PLC0415
+    from rv_te_bench.io.bag_writer import BagWriter, qos_profile_dict  # noqa: PLC0415
     from rv_te_bench.io.msgdefs import BENCH_INFO, ENCODER_BLOCK, rv_te_typestore  # noqa: PLC0415
     from sim.bench import BenchConfig, BenchSimulator  # noqa: PLC0415
     from sim.drive import ConstantSpeed  # noqa: PLC0415
@@ -67,8 +67,11 @@ def write_sample(path: Path) -> dict[str, float]:
     session = {'preset': PRESET, 'input_speed_rpm': INPUT_SPEED_RPM, 'seed': SEED,
                'made_by': 'bags/make_sample.py'}
     with BagWriter(path, compression='zstd', session_metadata=session) as writer:
-        writer.add_topic(INFO_TOPIC, BENCH_INFO)
-        writer.add_topic(ENCODER_TOPIC, ENCODER_BLOCK)
+        # The QoS the bench node offers (rv_te_bench.nodes.qos), as a recorder stores it.
+        writer.add_topic(INFO_TOPIC, BENCH_INFO, offered_qos_profiles=[qos_profile_dict(
+            durability='transient_local', depth=1)])
+        writer.add_topic(ENCODER_TOPIC, ENCODER_BLOCK,
+                         offered_qos_profiles=[qos_profile_dict(depth=1000)])
         msg = types[BENCH_INFO](
             header=header(START_NS), bench_id=info.bench_id, preset=info.preset,
             reducer_type=info.reducer_type, gear_ratio=info.gear_ratio,

@@ -616,8 +616,8 @@ def _recommend(bench: BenchDescription, cumulative: TeStats, trace: TeTrace) -> 
     * ``wang2020-2kv`` model: eccentricities and assembly phases identified from the
       measured TE (``core.identify``), else the Eq. 21 optimisation on the preset's own
       eccentricities (``core.phases``; then the advice is model-based, not measured);
-    * ``hu2020-rv`` model: tooth-profile compensation for the measured TE amplitude
-      (``core.tooth_compensation``);
+    * ``hu2020-rv`` model: tooth-profile compensation for the measured TE peak-to-peak
+      over all clean samples (``core.tooth_compensation``);
     * any other preset: no compensation model.
     """
     if not bench.preset:
@@ -639,10 +639,11 @@ def _recommend(bench: BenchDescription, cumulative: TeStats, trace: TeTrace) -> 
                 tooth_profile_advice,
             )
 
-            advice = tooth_profile_advice(preset, cumulative.amplitude_rad)
+            # Hu 2020 compensates the TE "value for a period", a peak-to-peak value.
+            advice = tooth_profile_advice(preset, cumulative.pp_rad, te_metric='pp')
             return Recommendation(available=True, reason=(
                 'tooth-profile compensation (Hu 2020 Eqs 24-27) for the measured TE '
-                'amplitude'), advice=advice)
+                'peak-to-peak'), advice=advice)
     except ImportError as exc:
         return Recommendation(available=False, reason=(
             f'no recommendation available: the compensation code is not installed ({exc})'))

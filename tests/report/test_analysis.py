@@ -197,7 +197,7 @@ def test_likely_source(order: float, words: str) -> None:
 
 
 def test_rv_recommendation_wiring(tmp_path, monkeypatch) -> None:  # noqa: ANN001
-    """The RV path hands the preset and the measured amplitude to the compensation code.
+    """The RV path hands the preset and the measured p-p to the compensation code.
 
     The compensation module is replaced by a recorder, so this checks the wiring only
     (the compensation maths has its own tests).
@@ -209,10 +209,11 @@ def test_rv_recommendation_wiring(tmp_path, monkeypatch) -> None:  # noqa: ANN00
 
     seen = {}
 
-    def tooth_profile_advice(preset, measured_rad):  # noqa: ANN001, ANN202
+    def tooth_profile_advice(preset, measured_rad, *, te_metric):  # noqa: ANN001, ANN202
         seen['preset'], seen['measured_rad'] = preset.name, measured_rad
+        seen['te_metric'] = te_metric
         return Advice(method='tooth-profile', preset=preset.name, summary='fake',
-                      te_metric='amplitude', te_before_rad=measured_rad,
+                      te_metric=te_metric, te_before_rad=measured_rad,
                       te_after_rad=0.5 * measured_rad)
 
     fake = types.ModuleType('rv_te_bench.core.tooth_compensation')
@@ -222,11 +223,27 @@ def test_rv_recommendation_wiring(tmp_path, monkeypatch) -> None:  # noqa: ANN00
     synth = write_bag(path, harmonics=HARMONICS, duration_s=2.5, preset='hu2020-rv',
                       reducer_type='rv')
     res = analyze_bag(path)
-    assert seen == {'preset': 'hu2020-rv', 'measured_rad': pytest.approx(
-        np.abs(synth.te_rad).max(), rel=1e-12)}
+    te = synth.te_rad
+    assert seen == {'preset': 'hu2020-rv', 'te_metric': 'pp',
+                    'measured_rad': pytest.approx(te.max() - te.min(), rel=1e-12)}
     rec = res.recommendation
     assert rec.available
     assert rec.advice is not None and rec.advice.summary == 'fake'
     doc = res.to_json_dict()['recommendation']
     assert doc['advice']['te_after_arcmin'] == pytest.approx(
         0.5 * doc['advice']['te_before_arcmin'])
+
+
+def test_rv_recommendation_from_the_real_compensation_code(tmp_path) -> None:  # noqa: ANN001
+    pytest.importorskip('rv_te_bench.core.tooth_compensation')
+    path = tmp_path / 'bag'
+    synth = write_bag(path, harmonics=HARMONICS, duration_s=2.5, preset='hu2020-rv',
+                      reducer_type='rv')
+    rec = analyze_bag(path).recommendation
+    assert rec.available, rec.reason
+    assert rec.advice is not None
+    assert rec.advice.method == 'tooth-profile'
+    assert rec.advice.te_metric == 'pp'
+    te = synth.te_rad
+    assert rec.advice.te_before_rad == pytest.approx(te.max() - te.min(), rel=1e-12)
+    assert len(rec.advice.modifications) == 3

@@ -1,0 +1,49 @@
+"""The committed sample session ``bags/sample`` against the model that made it.
+
+The sample is the wang2020-2kv no-load NLTE model (sim.wang2020, Eq. 8) seen through two
+simulated RON 886 encoders (+-1" each). Expectations come from the model itself, evaluated
+on a uniform grid of one output revolution with numpy (independent of the TE core):
+
+* p-p, amplitude and mean within 0.05' (the encoders add up to ~2 x 1" = 0.033');
+* the 1 f_w, 2 f_w, f_out and f_w - f_out lines within 0.003' and 0.02 rad of the model's
+  Fourier coefficients (the output encoder's own once-per-turn error is ~0.0005').
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from rv_te_bench.report.analysis import analyze_bag
+from sim.units import rad_to_arcmin
+
+SAMPLE = Path(__file__).resolve().parents[2] / 'bags' / 'sample'
+
+pytestmark = pytest.mark.skipif(not SAMPLE.is_dir(), reason='bags/sample not generated')
+
+
+def test_sample_matches_its_model() -> None:
+    from sim.presets import load_preset
+    from sim.wang2020 import Wang2kvParams, nlte_rad
+
+    params = Wang2kvParams.from_preset(load_preset('wang2020-2kv'))
+    n = 1 << 16
+    phi = 2 * np.pi * np.arange(n) / n
+    model = nlte_rad(phi, params)
+    coef = np.fft.rfft(model) / n * 2  # peak amplitudes at orders 0..n/2
+
+    res = analyze_bag(SAMPLE, with_advice=False)
+    assert not res.partial and res.gaps == ()
+    assert len(res.complete_windows) == 2
+    st = res.cumulative
+    am = rad_to_arcmin
+    assert am(st.pp_rad) == pytest.approx(am(np.ptp(model)), abs=0.05)
+    assert am(st.amplitude_rad) == pytest.approx(am(np.abs(model).max()), abs=0.05)
+    assert am(st.mean_rad) == pytest.approx(am(model.mean()), abs=0.05)
+    lines = {ln.label: ln for ln in res.spectrum.lines}
+    for label, order in (('1 f_w', 25), ('2 f_w', 50), ('f_out', 1), ('f_w - f_out', 24)):
+        assert am(lines[label].amplitude_rad) == pytest.approx(am(abs(coef[order])), abs=0.003)
+        assert lines[label].phase_rad == pytest.approx(np.angle(coef[order]), abs=0.02)
+    assert res.dominant is not None and res.dominant.line.label == '1 f_w'
