@@ -250,23 +250,27 @@ def _parse_meta_record(op: int, body: memoryview, state: _ScanState) -> None:
         state.metadata[name], _ = _map(body, pos)
 
 
+_MAX_CHUNK_BYTES = 1 << 32  # a larger uncompressed size is a corrupt header, not data
+
+
 def _decompress(compression: str, data: memoryview, size: int) -> bytes:
+    if size > _MAX_CHUNK_BYTES:
+        raise _CorruptError(f'chunk claims {size} uncompressed bytes')
     if compression == '':
         return bytes(data)
-    if compression == 'zstd':
-        import zstandard  # noqa: PLC0415
+    try:
+        if compression == 'zstd':
+            import zstandard  # noqa: PLC0415
 
-        try:
             return zstandard.ZstdDecompressor().decompress(data, max_output_size=size)
-        except zstandard.ZstdError as exc:
-            raise _CorruptError(f'zstd chunk does not decompress ({exc})') from None
-    if compression == 'lz4':
-        import lz4.frame  # noqa: PLC0415
+        if compression == 'lz4':
+            import lz4.frame  # noqa: PLC0415
 
-        try:
             return lz4.frame.decompress(bytes(data))
-        except RuntimeError as exc:
-            raise _CorruptError(f'lz4 chunk does not decompress ({exc})') from None
+    except MemoryError:
+        raise _CorruptError(f'{compression} chunk does not fit in memory') from None
+    except Exception as exc:  # noqa: BLE001 - codecs raise assorted errors on bad input
+        raise _CorruptError(f'{compression} chunk does not decompress ({exc})') from None
     raise _CorruptError(f'unsupported chunk compression {compression!r}')
 
 
@@ -354,7 +358,7 @@ def _scan_file(  # noqa: C901, PLR0912
                     break
                 else:
                     _parse_meta_record(op, body, state)
-            except (_CorruptError, struct.error, UnicodeDecodeError) as exc:
+            except (_CorruptError, struct.error, UnicodeDecodeError, ValueError) as exc:
                 report(f'{file}: corrupt record (opcode 0x{op:02x}) at byte {offset}: {exc}; '
                        'skipped')
         if not ended:
@@ -403,7 +407,7 @@ def iter_messages(
 
     Returns:
         Stream of ``(topic, msgtype, timestamp_ns, cdr_bytes)``; ``cdr_bytes`` is a
-        read-only memoryview valid until the next item (copy with ``bytes()`` to keep it).
+        read-only memoryview into the decompressed chunk (``bytes()`` makes a copy).
 
     Raises:
         BagError: Bad layout (at call) or unreadable parts (at the end, when strict).
@@ -629,8 +633,9 @@ def bag_summary(path: str | Path) -> dict[str, Any]:
     Returns:
         ``{'path', 'files', 'finalized', 'topics': {name: {'type', 'count',
         'count_metadata_yaml'}}, 'message_count', 'start_ns', 'end_ns', 'duration_s',
-        'session', 'metadata': {record name: dict}, 'partial', 'problems'}``; never raises for damage
-        found while scanning (see ``partial`` / ``problems``).
+        'session', 'metadata': {record name: dict}, 'partial', 'problems'}``, where
+        ``session`` is the rv_te_session metadata record; damage found while scanning is
+        reported in ``partial`` / ``problems``, not raised.
 
     Raises:
         BagError: Bad layout.

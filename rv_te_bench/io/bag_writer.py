@@ -13,8 +13,9 @@ the file valid at every flush:
   in the same ``write()`` call, and the next chunk overwrites it; readers that need the end
   magic (rosbags) or scan the records (mcap's stream reader) both read the file;
 * ``metadata.yaml`` is written at open and replaced atomically (tmp file + ``os.replace``)
-  after every flush with the counts written so far, so a SIGKILLed recorder loses at most
-  the messages of the last ``flush_interval_s`` and the bag opens with any rosbag2 reader;
+  with the counts on disk at least every ``flush_interval_s`` while messages arrive, so a
+  SIGKILLed recorder loses at most the messages of the last ``flush_interval_s`` and the
+  bag opens with any rosbag2 reader (its counts may trail the .mcap by one interval);
 * ``close()`` writes the full summary (schemas, channels, statistics, chunk and metadata
   indexes, summary offsets, CRC) and the final ``metadata.yaml``.
 """

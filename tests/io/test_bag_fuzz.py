@@ -4,7 +4,6 @@ the non-strict reader never raises while scanning (damage is reported as partial
 from __future__ import annotations
 
 import shutil
-import tempfile
 from pathlib import Path
 
 import pytest
@@ -21,19 +20,18 @@ from rv_te_bench.io.bag_reader import (
 )
 from tests.io import encoder_cdr, write_sample_bag
 
-_TEMPLATES: dict[str, tuple[Path, bytes]] = {}
-
-
-def _template(compression: str) -> tuple[Path, bytes]:
-    """A small real bag per compression, written once per test session."""
-    if compression not in _TEMPLATES:
-        root = Path(tempfile.mkdtemp(prefix='rv_te_fuzz_'))
-        bag = root / 'bag'
+@pytest.fixture(scope='module')
+def templates(tmp_path_factory: pytest.TempPathFactory) -> dict[str, tuple[Path, bytes]]:
+    """A small real bag per compression (6 blocks of 20 samples, 1 KiB chunks)."""
+    root = tmp_path_factory.mktemp('fuzz_templates')
+    out = {}
+    for compression in ('none', 'zstd', 'lz4'):
+        bag = root / compression
         write_sample_bag(bag, n_blocks=6, block=20, compression=compression,
                          chunk_size_bytes=1024)
         (file,) = bag.glob('*.mcap')
-        _TEMPLATES[compression] = (bag, file.read_bytes())
-    return _TEMPLATES[compression]
+        out[compression] = (bag, file.read_bytes())
+    return out
 
 
 def _read_everything(bag: Path) -> None:
@@ -49,18 +47,16 @@ def _read_everything(bag: Path) -> None:
 
 
 @pytest.fixture(scope='module')
-def scratch() -> Path:
-    path = Path(tempfile.mkdtemp(prefix='rv_te_fuzz_scratch_'))
-    yield path
-    shutil.rmtree(path, ignore_errors=True)
+def scratch(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    return tmp_path_factory.mktemp('fuzz_scratch')
 
 
 @given(compression=st.sampled_from(['none', 'zstd', 'lz4']),
        cut=st.floats(0.0, 1.0),
        flips=st.lists(st.tuples(st.floats(0.0, 1.0), st.integers(0, 7)), max_size=4))
-def test_damaged_bag_raises_only_bag_error(scratch: Path, compression: str, cut: float,
-                                           flips: list[tuple[float, int]]) -> None:
-    bag, data = _template(compression)
+def test_damaged_bag_raises_only_bag_error(templates: dict, scratch: Path, compression: str,
+                                           cut: float, flips: list[tuple[float, int]]) -> None:
+    bag, data = templates[compression]
     damaged = bytearray(data[: int(len(data) * cut) if cut < 0.999 else len(data)])
     for pos, bit in flips:
         if damaged:
