@@ -20,7 +20,8 @@ pytestmark = pytest.mark.ros
 
 rclpy = pytest.importorskip('rclpy')
 
-from mcap.reader import NonSeekingReader, make_reader  # noqa: E402
+from diagnostic_msgs.msg import DiagnosticArray  # noqa: E402
+from mcap.reader import NonSeekingReader  # noqa: E402
 from mcap_ros2.decoder import DecoderFactory  # noqa: E402
 from rclpy.experimental import EventsExecutor  # noqa: E402
 from rclpy.parameter import Parameter  # noqa: E402
@@ -119,6 +120,18 @@ def test_records_published_messages_and_latched_info(ros_context: Any, tmp_path:
             executor.spin_once(timeout_sec=0.005)
         assert spin_until(executor, lambda: recorder.counts[enc_topic] == len(published), 10.0)
         assert recorder.gaps[enc_topic] == (1, 1)
+        diag: dict[str, str] = {}
+
+        def on_diag(msg: DiagnosticArray) -> None:
+            for status in msg.status:
+                if status.name.startswith('recorder'):
+                    diag.update({kv.key: kv.value for kv in status.values})
+
+        pub_node.create_subscription(DiagnosticArray, '/diagnostics', on_diag,
+                                     qos.DIAGNOSTICS_QOS)
+        assert spin_until(executor, lambda: diag.get(f'{enc_topic} count')
+                          == str(len(published)), 5.0)
+        assert (diag[f'{enc_topic} gaps'], diag[f'{enc_topic} missing_blocks']) == ('1', '1')
     finally:
         recorder.destroy_node()  # closes the bag
         pub_node.destroy_node()
