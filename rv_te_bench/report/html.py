@@ -215,8 +215,9 @@ def _bag_section(res: AnalysisResult) -> str:  # noqa: C901 - one report section
                        '<th class="l">unit</th><th>current</th><th>recommended</th>'
                        '<th>sensitivity</th></tr>')
             out += [f'<tr><td class="l">{_e(m.factor)}</td><td class="l">{_e(m.symbol)}</td>'
-                    f'<td class="l">{_e(m.unit)}</td><td>{m.current_value:.6g}</td>'
-                    f'<td>{m.recommended_value:.6g}</td><td>{m.sensitivity_index:.4g}</td></tr>'
+                    f'<td class="l">{_e(m.unit)}</td><td>{_value(m.current_value, m.unit)}</td>'
+                    f'<td>{_value(m.recommended_value, m.unit)}</td>'
+                    f'<td>{m.sensitivity_index:.4g}</td></tr>'
                     for m in a.modifications]
             out.append('</table>')
     return '\n'.join(out)
@@ -269,6 +270,15 @@ def render_html(results: Sequence[AnalysisResult], images: dict[str, bytes],
     parts += [_bag_section(r) for r in results]
     parts.append('</body></html>\n')
     return '\n'.join(parts)
+
+
+def _value(x: float, unit: str) -> str:
+    """A modification value for people: radians also in degrees, metres also in mm."""
+    if unit == 'rad':
+        return f'{x:.6g} ({float(rad_to_deg(x)):.2f}&deg;)'
+    if unit == 'm':
+        return f'{x:.6g} ({x * 1e3:.4f} mm)'
+    return f'{x:.6g}'
 
 
 def _fmt(x: float | None, digits: int = 4) -> str:

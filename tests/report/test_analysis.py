@@ -247,3 +247,15 @@ def test_rv_recommendation_from_the_real_compensation_code(tmp_path) -> None:  #
     te = synth.te_rad
     assert rec.advice.te_before_rad == pytest.approx(te.max() - te.min(), rel=1e-12)
     assert len(rec.advice.modifications) == 3
+
+
+def test_2kv_recommendation_from_the_real_compensation_code(tmp_path) -> None:  # noqa: ANN001
+    path = tmp_path / 'bag'
+    write_bag(path, harmonics=HARMONICS, duration_s=2.5, preset='wang2020-2kv')
+    rec = analyze_bag(path).recommendation
+    assert rec.available, rec.reason
+    assert rec.advice is not None
+    assert rec.advice.preset == 'wang2020-2kv'
+    assert rec.advice.method in {'assembly-phases', 'identified-assembly-phases'}
+    assert len(rec.advice.modifications) == 4  # theta_p1, theta_p2, theta_g, theta_ot
+    assert rec.advice.te_after_rad < rec.advice.te_before_rad
