@@ -121,7 +121,8 @@ class MessageStream(Generic[T]):
                 raise BagError(msg) from None
             raise
 
-    def _problem(self, text: str) -> None:
+    def report_problem(self, text: str) -> None:
+        """Mark the result partial and record why (used by the producers)."""
         self.partial = True
         self.problems.append(text)
 
@@ -379,12 +380,12 @@ def _messages(
     for file in bag.files:
         state = _ScanState()
         resolved: dict[int, tuple[str, str] | None] = {}
-        for cid, log_time, data in _scan_file(file, state, stream._problem):  # noqa: SLF001
+        for cid, log_time, data in _scan_file(file, state, stream.report_problem):
             target = resolved.get(cid, False)
             if target is False:
                 chan = state.channels.get(cid)
                 if chan is None:
-                    stream._problem(f'{file}: message on unknown channel {cid}; skipped')  # noqa: SLF001
+                    stream.report_problem(f'{file}: message on unknown channel {cid}; skipped')
                     continue
                 topic, sid = chan
                 msgtype = state.schemas.get(sid, ('', ''))[0] or bag.topic_types.get(topic, '')
@@ -486,14 +487,14 @@ def read_encoder_blocks(
     def produce(stream: MessageStream[EncoderBlockData]) -> Iterator[EncoderBlockData]:
         for index, (_, msgtype, log_time, data) in enumerate(_messages(bag, stream, [name])):
             if msgtype != ENCODER_BLOCK:
-                stream._problem(f'Bag {bag.path}: topic {name!r} message {index} is stored '  # noqa: SLF001
+                stream.report_problem(f'Bag {bag.path}: topic {name!r} message {index} is stored '
                                 f'as {msgtype!r}, expected {ENCODER_BLOCK}; skipped')
                 continue
             try:
                 yield decode_encoder_block(data)
             except BagError as exc:
-                stream._problem(f'{bag.path}: {name} message {index} at {log_time} ns: {exc}; '  # noqa: SLF001
-                                'skipped')
+                stream.report_problem(
+                    f'{bag.path}: {name} message {index} at {log_time} ns: {exc}; skipped')
 
     return MessageStream(produce, strict=strict)
 
@@ -650,7 +651,7 @@ def bag_summary(path: str | Path) -> dict[str, Any]:
         state = _ScanState()
         per_cid: dict[int, int] = {}
         times: list[int] = []
-        for cid, log_time, _ in _scan_file(file, state, stream._problem):  # noqa: SLF001
+        for cid, log_time, _ in _scan_file(file, state, stream.report_problem):
             per_cid[cid] = per_cid.get(cid, 0) + 1
             times.append(log_time)
         for cid, n in per_cid.items():

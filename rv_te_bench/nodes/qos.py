@@ -1,12 +1,12 @@
 """QoS profiles of the suite, by purpose (STYLE.md section 7). Every node imports these.
 
-| profile          | policy                                        | used for                        |
-|------------------|-----------------------------------------------|---------------------------------|
-| ENCODER_QOS      | reliable, keep last 1000, volatile            | bench/encoders (every sample)   |
-| LATCHED_QOS      | reliable, keep last 1, transient local        | bench/info, te/statistics, ...  |
-| PREVIEW_QOS      | sensor data: best effort, keep last 5         | live plots, decimated previews  |
-| DIAGNOSTICS_QOS  | reliable, keep last 10, volatile              | /diagnostics                    |
-| CLOCK_QOS        | best effort, keep last 1 (rclcpp ClockQoS)    | /clock                          |
+| profile         | policy                                  | used for                       |
+|-----------------|-----------------------------------------|--------------------------------|
+| ENCODER_QOS     | reliable, keep last 1000, volatile      | bench/encoders (every sample)  |
+| LATCHED_QOS     | reliable, keep last 1, transient local  | bench/info, te/statistics, ... |
+| PREVIEW_QOS     | sensor data: best effort, keep last 5   | live plots, previews           |
+| DIAGNOSTICS_QOS | reliable, keep last 10, volatile        | /diagnostics                   |
+| CLOCK_QOS       | best effort, keep last 1 (ClockQoS)     | /clock                         |
 
 The encoder depth (1000 messages = 10 s at 100 blocks/s) covers the largest burst a
 subscriber can fall behind by on a loaded 2-core machine; depth 10 drops bursts (DESIGN.md).

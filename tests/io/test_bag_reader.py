@@ -255,3 +255,25 @@ def test_definition_change_is_refused(sample_bag: Path, tmp_path: Path) -> None:
     meta.write_text(meta.read_text().replace('RIHS01_12298', 'RIHS01_00000'))
     with pytest.raises(BagError, match='definition changed'):
         read_encoder_blocks(copy)
+
+
+def test_reads_a_bag_folder_written_by_rosbags(tmp_path: Path) -> None:
+    """rosbags' own rosbag2 writer (metadata.yaml + <name>.mcap) is an independent layout."""
+    from rosbags.rosbag2 import StoragePlugin, Writer  # noqa: PLC0415
+
+    bag = tmp_path / 'rb'
+    store = rv_te_typestore()
+    with Writer(bag, version=9, storage_plugin=StoragePlugin.MCAP) as writer:
+        conn = writer.add_connection(ENCODER_TOPIC, ENCODER_BLOCK, typestore=store)
+        info = writer.add_connection(INFO_TOPIC, BENCH_INFO, typestore=store)
+        writer.write(info, T0_NS, bench_info_cdr())
+        for seq in range(8):
+            writer.write(conn, T0_NS + seq, encoder_cdr(seq, 30))
+    blocks = list(read_encoder_blocks(bag))
+    assert [b.seq for b in blocks] == list(range(8))
+    for block in blocks:
+        _assert_block(block, block.seq, 30)
+    assert read_bench_info(bag)['preset'] == 'wang2020-2kv'  # type: ignore[index]
+    summary = bag_summary(bag)
+    assert summary['topics'][ENCODER_TOPIC]['count'] == 8
+    assert summary['finalized'] is None  # not written by BagWriter: state unknown
