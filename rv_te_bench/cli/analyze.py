@@ -15,6 +15,7 @@ from __future__ import annotations
 import argparse
 import json
 import math
+import os
 import sys
 import time
 from pathlib import Path
@@ -37,6 +38,9 @@ examples:
   rv-te analyze before/ after/ --report out/cmp    compare two sessions (first = reference)
   rv-te analyze real.mcap --ratio 79 --crank-per-output 25
                                                    a bag without BenchInfo (real bench)
+
+exit codes: 0 ok (partial results are marked PARTIAL), 1 failed (one ERROR: line on
+stderr), 2 bad usage
 """
 
 #: Seconds between two progress lines on stderr.
@@ -85,7 +89,7 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
                    help='write te.png, spectrum.png, report.html and report.json into DIR')
     p.add_argument('--force', action='store_true', help='overwrite an existing report DIR')
     p.add_argument('--topic', metavar='T', default=None,
-                   help='encoder topic (default: the EncoderBlock topic of the bag)')
+                   help='encoder topic (default: the one EncoderBlock topic of the bag)')
     p.add_argument('--ratio', type=_positive_float, metavar='I', default=None,
                    help='overall gear ratio i (input revs per output rev); required, with '
                         '--crank-per-output, for bags without BenchInfo; overrides BenchInfo')
@@ -96,7 +100,8 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument('--window-revolutions', type=_positive_int, default=1, metavar='W',
                    help='whole output revolutions per analysis window')
     p.add_argument('--no-advice', action='store_true',
-                   help='skip the compensation recommendation')
+                   help='skip the compensation recommendation (the 2K-V assembly-phase '
+                        'search takes several seconds)')
     p.add_argument('--quiet', action='store_true', help='no progress lines on stderr')
 
 
@@ -104,14 +109,19 @@ def register(subparsers: Any) -> None:  # noqa: ANN401 - argparse's private type
     """Add the ``analyze`` subcommand."""
     p = subparsers.add_parser(
         'analyze', help='offline TE statistics, spectrum and report from recorded bags',
-        description=__doc__.split('\n\n')[1].replace('\n', ' '),
+        description=__doc__.split('\n\n')[1],
         epilog=EXAMPLES, formatter_class=_Formatter)
     add_arguments(p)
     p.set_defaults(func=run)
 
 
 class _Formatter(argparse.ArgumentDefaultsHelpFormatter, argparse.RawDescriptionHelpFormatter):
-    """Defaults in the help and the examples kept as written."""
+    """Defaults in the help (except empty ones) and the examples kept as written."""
+
+    def _get_help_string(self, action: argparse.Action) -> str | None:
+        if action.default in (None, False):
+            return action.help
+        return super()._get_help_string(action)
 
 
 class _Progress:
@@ -140,6 +150,12 @@ def run(args: argparse.Namespace) -> int:
     except RvTeError as exc:
         print(f'ERROR: {exc}', file=sys.stderr)
         return 1
+    except BrokenPipeError:
+        # stdout closed early (``rv-te analyze bag | head``): not an error of the analysis.
+        # Point stdout at devnull so that the interpreter's final flush stays quiet.
+        devnull = os.open(os.devnull, os.O_WRONLY)
+        os.dup2(devnull, sys.stdout.fileno())
+        return 0
 
 
 def _run(args: argparse.Namespace) -> int:
