@@ -541,7 +541,7 @@ class Li2023DteModel:
         ls = np.arange(1, p.sun_planet_harmonics + 1)
         self._ksp_harm = 2.0 * k1 / (np.pi * ls) * np.sin(ls * width / 2.0)
         self._build_matrices()
-        self._ops_cache: dict[float, tuple[np.ndarray, np.ndarray, np.ndarray]] = {}
+        self._ops_cache: dict[float, tuple[np.ndarray, np.ndarray]] = {}
         self.reset()
 
     # ---- assembly ----------------------------------------------------------------------
@@ -646,6 +646,8 @@ class Li2023DteModel:
         self._sp_mats = np.stack([np.outer(self._g_mesh(i), self._g_mesh(i)).ravel()
                                   for i in range(lay.m)])
         self._basis = np.concatenate([k0.reshape(1, -1), self._sp_mats, *arm, *pin])
+        self._vary_cols = np.nonzero(np.any(self._basis[1:] != 0, axis=0))[0]
+        self._vary_basis = self._basis[1:, self._vary_cols]
         # mean over the eccentric angles and mesh phases: the constant terms
         k_mean = (k0 + p.k_sun_planet_n_m * self._sp_mats.sum(0).reshape(nd, nd)
                   + sum(a[0].reshape(nd, nd) for a in arm)
@@ -897,10 +899,13 @@ class Li2023DteModel:
         c = self.damping_matrix
         a0 = 4.0 / h**2
         a1 = 2.0 / h
-        coef = np.concatenate([self._coeffs(th), a0[:, None], a1[:, None]], axis=1)
-        basis = np.concatenate([self._basis, self.mass_matrix.reshape(1, -1),
-                                c.reshape(1, -1)])
-        keff = coef @ basis                                          # (S, n*n)
+        # K_eff = K0 + a0 M + a1 C + (time-varying part, nonzero on few entries only)
+        m_flat, c_flat = self.mass_matrix.ravel(), c.ravel()
+        if np.all(h == h[0]):
+            keff = np.tile(self._basis[0] + a0[0] * m_flat + a1[0] * c_flat, (th.size, 1))
+        else:
+            keff = self._basis[0] + a0[:, None] * m_flat + a1[:, None] * c_flat
+        keff[:, self._vary_cols] += self._coeffs(th)[:, 1:] @ self._vary_basis
         f = self.forces(th, ld)
         x = self._state
         io = int(watch[0])
@@ -914,14 +919,20 @@ class Li2023DteModel:
                 if ops is None:
                     if len(self._ops_cache) > 64:
                         self._ops_cache.clear()
-                    ops = self._ops_cache[h_prev] = self._newmark_operators(float(h_prev))
-                pmat, lmat, rmat = ops
-            _, q_new, info = _dposv(keff[n].reshape(nd, nd), f[n] + pmat @ x, lower=1,
+                    pmat, lmat, rmat = self._newmark_operators(float(h_prev))
+                    # [P; R] x in one product
+                    ops = self._ops_cache[h_prev] = (np.concatenate([pmat, rmat]), lmat)
+                stacked, lmat = ops
+            y = stacked @ x
+            rhs = y[:nd]
+            rhs += f[n]
+            _, q_new, info = _dposv(keff[n].reshape(nd, nd), rhs, lower=1,
                                     overwrite_a=1, overwrite_b=1)
             if info != 0:
                 msg = f'Newmark step matrix not positive definite (dposv info {info})'
                 raise ModelInputError(msg)
-            x = lmat @ q_new + rmat @ x
+            x = lmat @ q_new
+            x += y[nd:]
             if single:
                 te[n, 0] = x[io]
             else:
