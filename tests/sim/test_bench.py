@@ -359,7 +359,7 @@ def test_wang2020_static_te_mean_under_30_nm() -> None:
 @pytest.mark.usefixtures('wang')
 def test_wang2020_dte_state_is_carried_across_blocks() -> None:
     """20 blocks of 100 vs 2 blocks of 1000 at 10 kHz: the DTE agrees within 1e-7 rad
-    (measured ~2e-8), far below the dynamic part (DTE - STE ~1e-5 rad) that a restart at each
+    (measured ~4e-10), far below the dynamic part (DTE - STE ~1e-5 rad) that a restart at each
     block would disturb."""
     kw = {'load': ConstantLoad(30.0), 'sample_rate_hz': 10_000.0}
     a = run(wang_sim('dte', block_size=100, **kw), 20)
