@@ -17,6 +17,7 @@ import math
 import os
 import platform
 import time
+from collections.abc import Callable
 
 import numpy as np
 
@@ -26,7 +27,8 @@ from sim.wang2020 import Wang2kvDynamics, Wang2kvParams
 FS_HZ = 10_000.0
 
 
-def _case(params: Wang2kvParams, load_fn, block: int, runs: int) -> tuple[float, int]:  # noqa: ANN001
+def _case(params: Wang2kvParams, load_fn: Callable[[np.ndarray], np.ndarray], block: int,
+          runs: int) -> tuple[float, int]:
     """Median wall time [s] over ``runs`` runs of one output revolution, and switches."""
     f_in = params.input_speed_rpm / 60.0
     n = round(params.kinematics.output_period_s(f_in) * FS_HZ)

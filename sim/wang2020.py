@@ -28,16 +28,34 @@ flank (negative backlash), none (inside the backlash), one back flank, both back
 k(t) = k0 (1 + sum_n r_n cos(n phi_mesh + phi_n)) with phi_mesh the 2nd-stage mesh angle
 (Eq. 20 written in the angle domain so that it holds at any speed).
 
-Integrator (:class:`Wang2kvDynamics`): between contact changes the equation is linear. With
-the stiffness split into its mean k0 and a ripple, the mean part is discretised exactly
-(modal form, matrix exponential, first-order hold on the forcing) and run over whole
-stretches with ``scipy.signal.lfilter``; the ripple term ``-n k~(t) x`` is moved to the
-forcing and evaluated with a Picard pass (first guess: the quasi-static solution, second
-pass: the first pass' trajectory). The contact mode is checked on the result; at the first
-change, the crossing instant is found on the cubic Hermite interpolant of x inside the
-step, the step is split there and the run restarts in the new mode. Look-ahead stretches
-grow geometrically while nothing changes. The internal step is the sample interval divided
-into ``ceil(dt / max_step_s)`` equal sub-steps. Paper: 4th-order Runge-Kutta.
+Integrator (:class:`Wang2kvDynamics`). Between contact changes Eq. 19 is linear. The
+stiffness is split into its mean k0 and the ripple; the mean part is discretised exactly
+(closed-form matrix exponential of the 2x2 system, first-order hold on the forcing), the
+ripple term ``-n k~(t) x`` is moved to the forcing. Two paths share these exact steps:
+
+* Vectorised stretches: the response over a stretch in one contact mode is a complex
+  first-order recursion per mode (``scipy.signal.lfilter``); the ripple term is found by
+  Picard passes (first guess the quasi-static solution) until two passes agree to 1e-10 m
+  (else the stretch is halved). The contact set is checked on the result; stretch lengths
+  grow geometrically while nothing changes and are carried across blocks.
+* Scalar stepping, from the first contact change of a stretch until 200 steps pass without
+  one (impacts, rattling inside the backlash): plain-float steps with the same exact
+  matrices (predictor-corrector for the ripple); a change inside a step is located on the
+  cubic Hermite interpolant of x and the step is split there.
+
+The internal step is the sample interval divided into ``ceil(dt / max_step_s)`` sub-steps
+(preset: 25 us). Accuracy (tests): a constant load with constant stiffness gives the STE
+of Eq. 18 to 3e-4 arcmin; against an independent RK4 at 1 us through repeated impacts,
+~0.07 arcmin at 25 us and 0.005 arcmin at 2.5 us (the error is in the impact timing,
+first order in the step). Speed (2 shared cores, under load):
+one output revolution at 10 kHz (158,000 samples) with 30 N m takes ~0.5-0.6 s, 25-30x
+real time, the same in 1000-sample blocks; a load reversing at f_w (Fig. 7a) ~1-1.5 s; a
+load reversing at the mesh frequency (Fig. 7b, ~28,500 contact changes per revolution)
+~9 s (1.7x real time). The paper used a 4th-order Runge-Kutta scheme.
+
+At zero load nothing holds the flanks together: the DTE follows the drive flank while it
+pushes and floats inside the backlash when it pulls away (physically right for Eq. 19,
+which has no drag). A bench run in 'dte' mode should apply some load.
 """
 
 from __future__ import annotations
@@ -298,20 +316,26 @@ def mesh_increments_m(theta_out_rad: npt.ArrayLike, params: Wang2kvParams, *,
     Returns:
         The four increments, broadcast shape of the inputs.
     """
+    d1, d2 = _increments(theta_out_rad, params, phases_rad, back=False)
+    b1, b2 = _increments(theta_out_rad, params, phases_rad, back=True)
+    return MeshIncrements(d1, d2, b1, b2)
+
+
+def _increments(theta_out_rad: npt.ArrayLike, params: Wang2kvParams,
+                phases_rad: Any,  # noqa: ANN401
+                *, back: bool) -> tuple[np.ndarray, np.ndarray]:
+    """Eqs 1-2 (drive flanks) or Eqs 3-4 (tooth backs, ``back=True``) [m]."""
     th = _check_theta(theta_out_rad)
     p1, p2, g, ot = _phases(params, phases_rad)
     rc = params.kinematics.crank_per_input * params.kinematics.gear_ratio  # -25 for Wang
     cc, sc = np.cos(rc * th), np.sin(rc * th)
     co, so = np.cos(th), np.sin(th)
-    a, pi = params.pressure_angle_rad, math.pi
-    out = []
-    for s in (-a, a):   # drive flank (theta - alpha), tooth back (theta + alpha)
-        d1 = (_term(params.e_p1_m, p1, s, cc, sc) + _term(params.e_g_m, g, s, cc, sc)
-              + _term(params.e_ot_m, ot, s, co, so))
-        d2 = (_term(params.e_p2_m, p2, s, cc, sc) + _term(params.e_g_m, g, s + pi, cc, sc)
-              + _term(params.e_ot_m, ot, s + pi, co, so))
-        out += [d1, d2]
-    return MeshIncrements(out[0], out[1], out[2], out[3])
+    s, pi = (params.pressure_angle_rad if back else -params.pressure_angle_rad), math.pi
+    d1 = (_term(params.e_p1_m, p1, s, cc, sc) + _term(params.e_g_m, g, s, cc, sc)
+          + _term(params.e_ot_m, ot, s, co, so))
+    d2 = (_term(params.e_p2_m, p2, s, cc, sc) + _term(params.e_g_m, g, s + pi, cc, sc)
+          + _term(params.e_ot_m, ot, s + pi, co, so))
+    return d1, d2
 
 
 def nlte_pairs_rad(theta_out_rad: npt.ArrayLike, params: Wang2kvParams, *,
@@ -321,8 +345,8 @@ def nlte_pairs_rad(theta_out_rad: npt.ArrayLike, params: Wang2kvParams, *,
     Broadcasting: see :func:`mesh_increments_m` (phases of shape (n_comb, 1) against
     theta of shape (n_time,) give (n_comb, n_time)).
     """
-    inc = mesh_increments_m(theta_out_rad, params, phases_rad=phases_rad)
-    return inc.delta1_m / params.r_p_m, inc.delta2_m / params.r_p_m
+    d1, d2 = _increments(theta_out_rad, params, phases_rad, back=False)
+    return d1 / params.r_p_m, d2 / params.r_p_m
 
 
 def nlte_rad(theta_out_rad: npt.ArrayLike, params: Wang2kvParams, *,

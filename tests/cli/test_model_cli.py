@@ -5,6 +5,7 @@ from __future__ import annotations
 import argparse
 import json
 import math
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -47,7 +48,8 @@ def test_ste_table_and_phases(capsys: pytest.CaptureFixture[str]) -> None:
     assert json.loads(capsys.readouterr().out)['te_pp_arcmin'] == pytest.approx(1.072, rel=0.1)
 
 
-def test_dte_sinusoidal_load_csv_and_plot(tmp_path, capsys: pytest.CaptureFixture[str]) -> None:  # noqa: ANN001
+def test_dte_sinusoidal_load_csv_and_plot(tmp_path: Path,
+                                          capsys: pytest.CaptureFixture[str]) -> None:
     csv = tmp_path / 'dte.csv'
     png = tmp_path / 'dte.png'
     assert _run(['wang2020-2kv', '--kind', 'dte', '--load-nm', '30', '--load-hz', 'crank',
