@@ -216,9 +216,9 @@ def kinematics_2kv(z_sun: int, z_planet: int, z_gear: int, z_ring: int,
         msg = (f'{p}z_ring ({z_ring}) must be greater than {p}z_gear ({z_gear}) for a 2K-V '
                'reducer (internal ring around the planet gear)')
         raise PresetError(msg)
-    k = (z_planet * z_ring) / (z_sun * (z_ring - z_gear))
-    w_abs_order = z_ring / (z_ring - z_gear)
-    labels = (f'stage-1 mesh ({z_planet} x crank rel., {k:g} f_out)',
+    w_rel_order = z_ring / (z_ring - z_gear)   # |crank rel. to carrier| per output rev
+    w_abs_order = z_gear / (z_ring - z_gear)   # |absolute crank| per output rev (f_w / f_out)
+    labels = (f'stage-1 mesh ({z_planet} x crank rel., {z_planet * w_rel_order:g} f_out)',
               f'stage-2 mesh ({z_ring} f_w, {z_ring * w_abs_order:g} f_out)')
     return _build('2kv', z_sun, z_planet, z_gear, z_ring, labels)
 
