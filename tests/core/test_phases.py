@@ -112,10 +112,10 @@ def test_pair_exchange_symmetry(ph: list[float], e: list[float]) -> None:
 def test_output_wheel_only_closed_form() -> None:
     """Only e_ot: NLTE = |e_ot (sin(th + phi - a) - sin(th - a))| / r_p, whose maximum over a
     revolution is e_ot (1 + |sin(th - a)|) / r_p: the best grid phase is the one nearest to
-    a (mod pi), 40 deg or -140 deg (both 4.734 deg from a = 35.266 deg on a 10 deg grid)."""
+    a (mod pi), 40 deg or -140 deg (both 4.734 deg from a = 35.266 deg on a 20 deg grid)."""
     e_ot = 1e-5
     g = EccentricGeometry((0.0, 0.0, 0.0, e_ot), (0.0,) * 4, alpha_rad=ALPHA, r_p_m=R_P)
-    res = optimise_phases(g, step_deg=10.0)
+    res = optimise_phases(g, step_deg=20.0)
     expected = e_ot * (1 + math.sin(deg_to_rad(40.0) - ALPHA)) / R_P
     assert res.objective_after_rad == pytest.approx(expected, rel=1e-6)
     th_ot = float(rad_to_deg(res.phases_after_rad[3]))
@@ -126,23 +126,24 @@ def test_output_wheel_only_closed_form() -> None:
 
 
 def test_output_wheel_only_refined_reaches_alpha() -> None:
-    """Refinement below the grid step reaches th_ot = a (mod pi) within the 0.4 deg step."""
+    """Refinement below the grid step reaches th_ot = a (mod pi) within the final step
+    (20 -> 4 -> 0.8 deg)."""
     e_ot = 1e-5
     g = EccentricGeometry((0.0, 0.0, 0.0, e_ot), (0.0,) * 4, alpha_rad=ALPHA, r_p_m=R_P)
-    res = optimise_phases(g, step_deg=10.0, refine=True, refine_tol_deg=0.5)
+    res = optimise_phases(g, step_deg=20.0, refine=True, refine_tol_deg=1.0)
     assert res.refined
-    # 1 + |sin(d)| with |d| <= 0.2 deg (half of the final 0.4 deg step)
-    assert res.objective_after_rad <= e_ot * (1 + math.sin(deg_to_rad(0.2))) / R_P * (1 + 1e-9)
+    # 1 + |sin(d)| with |d| <= 0.4 deg (half of the final 0.8 deg step)
+    assert res.objective_after_rad <= e_ot * (1 + math.sin(deg_to_rad(0.4))) / R_P * (1 + 1e-9)
     assert res.objective_after_rad >= e_ot / R_P * (1 - 1e-9)
 
 
 def test_grid_search_equals_brute_force(params, geom) -> None:  # noqa: ANN001
-    """90 deg grid (5^4 = 625 sets): the winner's S equals the brute-force minimum of the
+    """120 deg grid (4^4 = 256 sets): the winner's S equals the brute-force minimum of the
     independent sim.wang2020 evaluation (2^15 samples per revolution; a sampled maximum
     is low by at most L h / 2 = 0.2 % of S here, so rel. 2e-3)."""
-    axis = np.deg2rad(np.arange(-180.0, 181.0, 90.0))
+    axis = np.deg2rad(np.arange(-180.0, 181.0, 120.0))
     best, s_best, n = grid_search_phases(geom, [axis] * 4)
-    assert n == 5**4
+    assert n == 4**4
     mesh = np.meshgrid(axis, axis, axis, axis, indexing='ij')
     sets = np.stack([m.ravel() for m in mesh], axis=-1)
     ref = np.concatenate([_ref_objective(params, sets[i:i + 500])
@@ -218,14 +219,14 @@ def test_paper_ste_means(paper_result: PhaseOptimisation) -> None:
 
 @pytest.mark.slow
 def test_refinement_improves_and_is_consistent(params) -> None:  # noqa: ANN001
-    """Refining a 20 deg grid never worsens S, and the reported S is S at the reported
+    """Refining a 30 deg grid never worsens S, and the reported S is S at the reported
     phases (independent evaluation, 2^17 samples: rel. 1e-4)."""
-    plain = optimise_phases(params, step_deg=20.0)
-    res = optimise_phases(params, step_deg=20.0, refine=True, refine_tol_deg=1.0)
+    plain = optimise_phases(params, step_deg=30.0)
+    res = optimise_phases(params, step_deg=30.0, refine=True, refine_tol_deg=2.0)
     assert res.objective_after_rad <= plain.objective_after_rad
     ref = _ref_objective(params, np.array([res.phases_after_rad]), n=2**17)[0]
     assert res.objective_after_rad == pytest.approx(ref, rel=1e-4)
-    assert res.n_combinations == 19**4 + 2 * 11**4
+    assert res.n_combinations == 13**4 + 2 * 11**4
 
 
 # ---------------------------------------------------------------- advice, progress, errors
