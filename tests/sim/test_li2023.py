@@ -75,11 +75,12 @@ def test_ratio_is_table1_value(preset) -> None:  # noqa: ANN001
     assert _model(preset).kinematics.gear_ratio == pytest.approx(121.0, abs=1e-12)
 
 
-def test_contact_ratio_matches_involute_geometry(params) -> None:  # noqa: ANN001
+def test_contact_ratio_matches_involute_geometry(preset, params) -> None:  # noqa: ANN001
     # standard contact ratio of an external involute pair, computed from Table 1 here
     m, a = params.module_m, math.radians(params.pressure_angle_deg)
     r1, r2 = m * params.z_sun / 2, m * params.z_planet / 2
-    ra1, ra2 = r1 + m, r2 + m
+    ha = preset['geometry.addendum_coefficient']
+    ra1, ra2 = r1 + ha * m, r2 + ha * m
     rb1, rb2 = r1 * math.cos(a), r2 * math.cos(a)
     eps = (math.sqrt(ra1**2 - rb1**2) + math.sqrt(ra2**2 - rb2**2)
            - (r1 + r2) * math.sin(a)) / (math.pi * m * math.cos(a))
