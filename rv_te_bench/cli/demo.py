@@ -143,9 +143,50 @@ def run(args: argparse.Namespace) -> int:  # noqa: C901, PLR0915
 
 def _report(bag_dir: Path, report_dir: Path) -> str:
     """Offline analysis of the recorded bag -> report files; returns the summary text."""
-    from rv_te_bench.report.analysis import analyze_bag, summary_text  # noqa: PLC0415
+    from rv_te_bench.report.analysis import analyze_bag  # noqa: PLC0415
     from rv_te_bench.report.html import write_report  # noqa: PLC0415
 
     result = analyze_bag(bag_dir)
     write_report([result], report_dir)
     return summary_text(result)
+
+
+def summary_text(result: Any) -> str:  # noqa: ANN401 - report.analysis.AnalysisResult
+    """The short summary people read at the end of the demo."""
+    from sim.units import rad_to_arcmin, rad_to_deg  # noqa: PLC0415
+
+    def am(x: float) -> str:
+        return 'n/a' if not math.isfinite(x) else f"{float(rad_to_arcmin(x)):.3f}'"
+
+    c = result.cumulative
+    lines = ['', '=== rv-te demo summary ===',
+             f'reducer: {result.bench.preset or "?"} (i = {result.bench.gear_ratio:.6g}); '
+             f'{c.revolutions:.2f} output revolutions, {c.n_samples} samples, '
+             f'{len(result.complete_windows)} complete windows, {len(result.gaps)} gaps'
+             + (' (PARTIAL)' if result.partial else ''),
+             f'TE: peak-to-peak {am(c.pp_rad)}, amplitude {am(c.amplitude_rad)}, '
+             f'mean {am(c.mean_rad)}, std {am(c.std_rad)}']
+    if result.spectrum is not None:
+        top = sorted(result.spectrum.lines, key=lambda ln: -ln.amplitude_rad)[:3]
+        lines.append('spectrum (largest lines): ' + ', '.join(
+            f'{ln.label} ({ln.frequency_hz:.3f} Hz) {am(ln.amplitude_rad)}' for ln in top))
+    if result.dominant is not None:
+        d = result.dominant
+        lines.append(f'dominant harmonic: {d.line.label} at {d.line.frequency_hz:.3f} Hz, '
+                     f'{am(d.line.amplitude_rad)}; likely source: {d.likely_source}')
+    rec = result.recommendation
+    if rec.available and rec.advice is not None:
+        a = rec.advice
+        lines.append(f'recommendation ({a.method}): {a.summary}')
+        for m in a.modifications:
+            if m.unit == 'rad':
+                lines.append(f'  {m.factor} ({m.symbol}): {float(rad_to_deg(m.current_value)):.1f}'
+                             f' deg -> {float(rad_to_deg(m.recommended_value)):.1f} deg')
+            else:
+                lines.append(f'  {m.factor} ({m.symbol}): {m.current_value:.6g} -> '
+                             f'{m.recommended_value:.6g} {m.unit}')
+        lines.append(f'predicted max |TE| ({a.te_metric}): {am(a.te_before_rad)} -> '
+                     f'{am(a.te_after_rad)}')
+    else:
+        lines.append(f'recommendation: none ({rec.reason})')
+    return '\n'.join(lines)

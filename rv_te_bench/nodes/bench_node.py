@@ -50,6 +50,8 @@ PARAMS = (
               min_value=0.0, max_value=100000.0),
     ParamSpec('speed_angular_freq_rad_s', 'double', 1.0,
               'Sinusoidal speed angular frequency B [rad/s]', min_value=1e-6, max_value=1e4),
+    ParamSpec('drive_allow_reversal', 'bool', False,
+              'Allow sinusoidal/ramp profiles whose speed changes sign (Hu 2020: A > C)'),
     ParamSpec('ramp_start_rpm', 'double', 0.0, 'Ramp start speed [rpm]',
               min_value=-100000.0, max_value=100000.0),
     ParamSpec('ramp_duration_s', 'double', 5.0, 'Ramp duration [s]', min_value=1e-3,
@@ -113,10 +115,12 @@ def bench_config_from_params(p: dict[str, Any]) -> Any:  # noqa: ANN401 - sim.be
     elif kind == 'sinusoidal':
         drive = drive_from_spec(kind, amplitude_rpm=p['speed_amplitude_rpm'],
                                 angular_freq_rad_s=p['speed_angular_freq_rad_s'],
-                                mean_rpm=p['speed_rpm'])
+                                mean_rpm=p['speed_rpm'],
+                                allow_reversal=p['drive_allow_reversal'])
     elif kind == 'ramp':
         drive = drive_from_spec(kind, start_rpm=p['ramp_start_rpm'], end_rpm=p['speed_rpm'],
-                                duration_s=p['ramp_duration_s'])
+                                duration_s=p['ramp_duration_s'],
+                                allow_reversal=p['drive_allow_reversal'])
     else:
         drive = drive_from_spec(kind, speed_rpm=p['speed_rpm'], reverse_at_s=p['reverse_at_s'],
                                 ramp_s=p['reverse_ramp_s'])
