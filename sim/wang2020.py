@@ -38,7 +38,7 @@ ripple term ``-n k~(t) x`` is moved to the forcing. Two paths share these exact 
   Picard passes (first guess the quasi-static solution) until two passes agree to 1e-10 m
   (else the stretch is halved). The contact set is checked on the result; stretch lengths
   grow geometrically while nothing changes and are carried across blocks.
-* Scalar stepping, from the first contact change of a stretch until 200 steps pass without
+* Scalar stepping, from the first contact change of a stretch until 400 steps pass without
   one (impacts, rattling inside the backlash): plain-float steps with the same exact
   matrices (predictor-corrector for the ripple); a change inside a step is located on the
   cubic Hermite interpolant of x and the step is split there.
@@ -464,7 +464,7 @@ _MAX_CHUNK = 1 << 15
 _MIN_CHUNK = 8
 _PICARD_PASSES = 4
 _PICARD_TOL_M = 1e-10        # ~6e-6 arcmin at r_p = 61 mm
-_QUIET_STEPS = 200           # scalar stepping ends after this many steps without a change
+_QUIET_STEPS = 400           # scalar stepping ends after this many steps without a change
 _SCALAR_SPAN = 4096          # scalar stepping works on stretches of this many steps
 
 
