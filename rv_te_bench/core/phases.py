@@ -623,10 +623,13 @@ def optimise_phases(geom_or_params: Any, *, step_deg: float = 10.0,  # noqa: ANN
             ste.append(SteComparison(
                 load, _stats(static_te_from_phases_rad(phi, load, geom)),
                 _stats(static_te_from_phases_rad(phi, load, geom, phases_rad=after))))
+    # Both objectives on the same fine sampling (the search certified the winner; its
+    # value may come from a coarser level of the cascade).
     s_before = float(phase_objective_rad(np.asarray(geom.phases_rad), geom))
+    s_after = float(phase_objective_rad(np.asarray(after), geom))
     return PhaseOptimisation(
         phases_before_rad=geom.phases_rad, phases_after_rad=after,  # type: ignore[arg-type]
-        objective_before_rad=s_before, objective_after_rad=float(s_best),
+        objective_before_rad=s_before, objective_after_rad=s_after,
         nlte_before=_stats(before_te), nlte_after=_stats(after_te), ste=tuple(ste),
         grid_step_rad=step_rad, refined=bool(refine), n_combinations=int(n_comb),
         elapsed_s=time.perf_counter() - t0, e_m=geom.e_m)
