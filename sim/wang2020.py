@@ -457,6 +457,7 @@ def stiffness_n_m(theta_out_rad: npt.ArrayLike, params: Wang2kvParams) -> np.nda
 # --------------------------------------------------------------------------- Eqs 19-20
 
 _N_CONTACTS = 4
+_ACTIVE = tuple(tuple(j for j in range(_N_CONTACTS) if m & (1 << j)) for m in range(16))
 _BITS = np.array([1, 2, 4, 8], dtype=np.int64)
 _SIGN = np.array([1, 1, -1, -1], dtype=np.float64)   # drive: x < u, back: x > u
 _FIRST_CHUNK = 128
@@ -724,20 +725,17 @@ class Wang2kvDynamics:
             return b
 
         def force(mode: int, a: int, xe: float, frac: float = 0.0) -> tuple[int, float]:
-            n, su, sud = 0, 0.0, 0.0
-            for j in range(_N_CONTACTS):
-                if mode & (1 << j):
-                    n += 1
-                    if frac:
-                        su += u[j][a] + frac * (u[j][a + 1] - u[j][a])
-                        sud += ud[j][a] + frac * (ud[j][a + 1] - ud[j][a])
-                    else:
-                        su += u[j][a]
-                        sud += ud[j][a]
+            act = _ACTIVE[mode]
+            n = len(act)
             if frac:
-                k = kk[a] + frac * (kk[a + 1] - kk[a])
-                f_t = fl[a] + frac * (fl[a + 1] - fl[a])
+                b = a + 1
+                su = sum(u[j][a] + frac * (u[j][b] - u[j][a]) for j in act)
+                sud = sum(ud[j][a] + frac * (ud[j][b] - ud[j][a]) for j in act)
+                k = kk[a] + frac * (kk[b] - kk[a])
+                f_t = fl[a] + frac * (fl[b] - fl[a])
             else:
+                su = sum(u[j][a] for j in act)
+                sud = sum(ud[j][a] for j in act)
                 k, f_t = kk[a], fl[a]
             if n == 0:
                 return 0, -f_t
@@ -755,8 +753,8 @@ class Wang2kvDynamics:
         quiet = 0
         a = 0
         mode = bits(x, 0)
+        n, f0 = force(mode, 0, x)
         while a < stop - lo and quiet < _QUIET_STEPS:
-            n, f0 = force(mode, a, x)
             _, f1 = force(mode, a + 1, x + v * h)
             x1, v1 = step(mats[n], x, v, f0, f1)
             if ripple and n:                    # corrector for the ripple term
@@ -765,6 +763,7 @@ class Wang2kvDynamics:
             new = bits(x1, a + 1)
             if new == mode:
                 x, v = x1, v1
+                f0 = f1 if not ripple else force(mode, a + 1, x1)[1]
                 quiet += 1
             else:
                 # first flank change on the cubic Hermite of x inside the step
@@ -788,6 +787,7 @@ class Wang2kvDynamics:
                 else:
                     x, v = xm, vm
                 mode = bits(x, a + 1)
+                n, f0 = force(mode, a + 1, x)
                 quiet = 0
                 self.state.switches += 1
             a += 1
