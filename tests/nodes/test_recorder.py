@@ -208,7 +208,8 @@ def _publish_while(executor: Any, pub: Any, rate_hz: float, stop: Any) -> int:  
     return seq
 
 
-@pytest.mark.parametrize('sig', [signal.SIGINT, signal.SIGTERM, signal.SIGKILL])
+@pytest.mark.parametrize('sig', [signal.SIGINT, signal.SIGKILL,
+                                 pytest.param(signal.SIGTERM, marks=pytest.mark.slow)])
 def test_recorder_process_stopped_by_signal(ros_context: Any, ros_domain_id: int,
                                             tmp_path: Path, sig: signal.Signals) -> None:
     ns = f'/sig_{os.getpid()}_{sig.value}'
@@ -219,9 +220,13 @@ def test_recorder_process_stopped_by_signal(ros_context: Any, ros_domain_id: int
     executor.add_node(pub_node)
     proc = _recorder_process(tmp_path, ns, ros_domain_id)
     try:
-        assert spin_until(executor, lambda: pub.get_subscription_count() >= 1, 30.0), \
-            'recorder did not subscribe'
-        sent = _publish_while(executor, pub, 100.0, lambda seq: seq >= 200)
+        subscribed = spin_until(executor, lambda: pub.get_subscription_count() >= 1
+                                or proc.poll() is not None, 60.0)
+        if not subscribed or proc.poll() is not None:
+            proc.kill()
+            _, err = proc.communicate(timeout=10)
+            pytest.fail(f'recorder did not subscribe (exit {proc.returncode}): {err[-2000:]}')
+        sent = _publish_while(executor, pub, 100.0, lambda seq: seq >= 150)
         if sig != signal.SIGKILL:
             time.sleep(0.5)  # let the recorder take the last messages in
         proc.send_signal(sig)
@@ -333,10 +338,15 @@ def test_cli_record_for_a_duration(ros_context: Any, ros_domain_id: int,
     executor = EventsExecutor(context=ros_context)
     executor.add_node(pub_node)
     proc = cli_process(['record', '--out', str(tmp_path), '--name', 'bag', '--namespace', ns,
-                        '--topics', 'bench/encoders', '--duration', '3', '--compression',
+                        '--topics', 'bench/encoders', '--duration', '2', '--compression',
                         'lz4', '--metadata', 'operator: test'], ros_domain_id)
     try:
-        assert spin_until(executor, lambda: pub.get_subscription_count() >= 1, 30.0)
+        subscribed = spin_until(executor, lambda: pub.get_subscription_count() >= 1
+                                or proc.poll() is not None, 60.0)
+        if not subscribed or proc.poll() is not None:
+            proc.kill()
+            _, err = proc.communicate(timeout=10)
+            pytest.fail(f'recorder did not subscribe (exit {proc.returncode}): {err[-2000:]}')
         sent = _publish_while(executor, pub, 100.0, lambda _: proc.poll() is not None)
         out, err = proc.communicate(timeout=20)
     finally:
