@@ -47,13 +47,14 @@ with ``scipy.optimize.least_squares`` (Jacobian = the design matrix of the activ
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from typing import Any
 
 import numpy as np
 import numpy.typing as npt
 from scipy.optimize import least_squares
 
+from rv_te_bench.core.advice import Advice
 from rv_te_bench.core.phases import (
     PHASE_NAMES,
     EccentricGeometry,
@@ -66,7 +67,8 @@ from rv_te_bench.core.phases import (
 from rv_te_bench.errors import CompensationError
 from sim.units import rad_to_arcmin, rad_to_arcsec, rad_to_deg
 
-__all__ = ['LABEL_RATIO_RESOLVED', 'Identification', 'identify_eccentricities', 'recommend_reassembly']
+__all__ = ['LABEL_RATIO_RESOLVED', 'Identification', 'identified_advice',
+           'identify_eccentricities', 'recommend_reassembly']
 
 FloatArray = npt.NDArray[np.float64]
 _MIN_SAMPLES = 64
@@ -386,3 +388,23 @@ def recommend_reassembly(identification: Identification, params: Any, *,  # noqa
         (a['e_p1'], a['e_p2'], a['e_g'], identification.e_m['e_ot'])).with_phases(
         [identification.phases_rad[n] for n in PHASE_NAMES])
     return optimise_phases(unit, step_deg=step_deg, refine=refine, progress=progress)
+
+
+def identified_advice(phase_out_rad: npt.ArrayLike, te_rad: npt.ArrayLike, params: Any, *,  # noqa: ANN401
+                      preset_name: str, step_deg: float = 10.0,
+                      progress: ProgressCallback | None = None) -> Advice:
+    """Identify this unit from its TE record and recommend re-assembly phases, as Advice.
+
+    The one call the compensation node and the offline report make: identification
+    (:func:`identify_eccentricities`), then :func:`recommend_reassembly`, then the advice
+    with method ``'identified-assembly-phases'`` (current = identified phases).
+
+    Raises:
+        CompensationError: The record cannot be identified (see the two functions).
+    """
+    ident = identify_eccentricities(phase_out_rad, te_rad, params)
+    result = recommend_reassembly(ident, params, step_deg=step_deg, progress=progress)
+    advice = result.to_advice(preset_name, method='identified-assembly-phases')
+    details = dict(advice.details)
+    details['identification'] = ident.to_json_dict()
+    return replace(advice, details=details)

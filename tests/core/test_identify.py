@@ -223,3 +223,25 @@ def test_reassembly_needs_split(base) -> None:  # noqa: ANN001
     d = idf.to_json_dict()
     assert d['split_residual_um'] is None
     assert d['e_um']['e_ot'] == pytest.approx(10.0, rel=1e-6)
+
+
+def test_identified_advice_recovers_the_preset_unit() -> None:
+    """The one-call advice on a noiseless NLTE record of the Table 2 unit: the identified
+    (current) phases are the Table 2 phases and the recommendation is the paper's optimum."""
+    from rv_te_bench.core.identify import identified_advice  # noqa: PLC0415
+    from sim.presets import load_preset  # noqa: PLC0415
+    from sim.wang2020 import Wang2kvParams, nlte_rad  # noqa: PLC0415
+
+    params = Wang2kvParams.from_preset(load_preset('wang2020-2kv'))
+    phi = np.linspace(0.0, 2 * np.pi, 20_000, endpoint=False)
+    advice = identified_advice(phi, nlte_rad(phi, params), params, preset_name='wang2020-2kv')
+    assert advice.method == 'identified-assembly-phases'
+    current = np.rad2deg([m.current_value for m in advice.modifications])
+    recommended = np.rad2deg([m.recommended_value for m in advice.modifications])
+    # Table 2 phases (p1, p2, g, ot) and the paper's Eq. 21 optimum
+    np.testing.assert_allclose(np.mod(current - [90, 180, -135, 90] + 180, 360) - 180, 0,
+                               atol=0.5)
+    np.testing.assert_allclose(np.mod(recommended - [-70, 120, 110, 40] + 180, 360) - 180, 0,
+                               atol=1e-6)
+    assert advice.te_after_rad < 0.6 * advice.te_before_rad
+    assert 'identification' in advice.details
