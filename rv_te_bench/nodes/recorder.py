@@ -262,10 +262,15 @@ class RecorderNode(Node):
                                     f'({exc})', throttle_duration_sec=_THROTTLE_S)
             return
         profile = self._subscription_qos(topic)
-        offered = [_qos_dict(i.qos_profile) for i in self.get_publishers_info_by_topic(topic)]
+        infos = self.get_publishers_info_by_topic(topic)
+        offered = [_qos_dict(i.qos_profile) for i in infos]
+        # The publisher's own RIHS01 hash where the graph reports one (else the typestore's).
+        hashes = {str(i.topic_type_hash) for i in infos if i.topic_type_hash.version > 0}
+        digest = hashes.pop() if len(hashes) == 1 else None
         try:
             if topic not in self._writer.counts:
-                self._writer.add_topic(topic, msgtype, offered_qos_profiles=offered)
+                self._writer.add_topic(topic, msgtype, offered_qos_profiles=offered,
+                                       digest=digest)
         except BagError as exc:
             self.get_logger().error(f'cannot record {topic}: {exc}',
                                     throttle_duration_sec=_THROTTLE_S)

@@ -29,6 +29,7 @@ from rosbags.highlevel import AnyReader  # noqa: E402
 from rv_te_msgs.msg import BenchInfo, EncoderBlock  # noqa: E402
 
 from rv_te_bench.io.bag_reader import bag_summary, read_encoder_blocks  # noqa: E402
+from rv_te_bench.io.msgdefs import ENCODER_BLOCK, type_hash  # noqa: E402
 from rv_te_bench.nodes import qos  # noqa: E402
 from rv_te_bench.nodes.recorder import RecorderNode, _encoder_seq  # noqa: E402
 from tests.io import block_arrays, encoder_cdr  # noqa: E402
@@ -115,6 +116,7 @@ def test_records_published_messages_and_latched_info(ros_context: Any, tmp_path:
     try:
         assert spin_until(executor, lambda: enc_pub.get_subscription_count() >= 1
                           and recorder.counts.get(info_topic) == 1, 15.0)
+        rclpy_hash = str(pub_node.get_publishers_info_by_topic(enc_topic)[0].topic_type_hash)
         for seq in published:
             enc_pub.publish(make_block(seq))
             executor.spin_once(timeout_sec=0.005)
@@ -142,6 +144,10 @@ def test_records_published_messages_and_latched_info(ros_context: Any, tmp_path:
     assert mc == published
     assert counts[enc_topic] == len(published)
     assert counts[info_topic] == 1
+    meta = yaml.safe_load((bag / 'metadata.yaml').read_text())['rosbag2_bagfile_information']
+    hashes = {t['topic_metadata']['name']: t['topic_metadata']['type_description_hash']
+              for t in meta['topics_with_message_count']}
+    assert hashes[enc_topic] == rclpy_hash == type_hash(ENCODER_BLOCK)
     with AnyReader([bag]) as reader:
         conn = next(c for c in reader.connections if c.topic == info_topic)
         (info,) = [reader.deserialize(raw, conn.msgtype)
