@@ -223,6 +223,16 @@ def test_dte_slow_constant_load_equals_ste(params_const_k: Wang2kvParams,
     assert np.max(np.abs(dte - ste)) <= 0.02 * np.ptp(ste)
 
 
+def test_dte_30nm_table4(params: Wang2kvParams) -> None:
+    # Table 4 (before optimisation), 30 N m DTE: p-p 2.088', amplitude 1.338' (5 %).
+    # With the preset's assumed m_e, C_g and 10 % stiffness ripple the 100 N m case also
+    # agrees (1.90' vs 1.899' p-p) but 300 N m does not (p-p 1.59' vs the paper's 2.58'):
+    # the paper's dynamic inputs are not given, so only the light-load case is asserted.
+    pp, amp, _ = _stats(_run(params, np.full(N_REV, 30.0), N_REV))
+    assert pp == pytest.approx(2.088, rel=0.05)
+    assert amp == pytest.approx(1.338, rel=0.05)
+
+
 def test_dte_with_stiffness_ripple_follows_quasi_static(params: Wang2kvParams) -> None:
     # Independent quasi-static solution with k(t) at 300 N m (both pairs touch):
     # x = (D1 + D2)/2 - T / (2 r_p k(t)); the mesh-frequency ripple is 16x below f_n.
