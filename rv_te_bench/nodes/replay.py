@@ -82,6 +82,10 @@ class ReplayNode(Node):
             for t in self.bag.info.get('topics_with_message_count') or []
         }
         types = self.bag.topic_types
+        if self.bag.path.is_file():
+            msg = (f'{self.bag.path} is a lone .mcap file; replay needs a rosbag2 bag folder '
+                   '(metadata.yaml holds the topics and their recorded QoS).')
+            raise BagError(msg)
         if not types:
             msg = f'Bag {self.bag.path} lists no topics in metadata.yaml.'
             raise BagError(msg)

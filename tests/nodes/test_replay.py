@@ -138,6 +138,9 @@ def test_replay_refuses_unknown_topic_and_missing_bag(ros_context: Any, bag_and_
         _replay(ros_context, bag, topics=['/nope'])
     with pytest.raises(BagError, match='does not exist'):
         _replay(ros_context, tmp_path / 'missing')
+    (lone,) = bag.glob('*.mcap')
+    with pytest.raises(BagError, match='lone .mcap file'):
+        _replay(ros_context, lone)
 
 
 def test_cli_replay_process(ros_context: Any, ros_domain_id: int, bag_and_topics: Any) -> None:
