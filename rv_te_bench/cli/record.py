@@ -47,7 +47,8 @@ def run(args: argparse.Namespace) -> int:
     try:
         from rclpy.parameter import Parameter  # noqa: PLC0415
 
-        from rv_te_bench.nodes.recorder import RecorderNode, run_node  # noqa: PLC0415
+        from rv_te_bench.nodes.common import run_node  # noqa: PLC0415
+        from rv_te_bench.nodes.recorder import RecorderNode  # noqa: PLC0415
     except ImportError as exc:
         print(f'ERROR: recording needs ROS 2 (rclpy): {exc}', file=sys.stderr)
         return 1

@@ -40,7 +40,7 @@ def run(args: argparse.Namespace) -> int:
     try:
         from rclpy.parameter import Parameter  # noqa: PLC0415
 
-        from rv_te_bench.nodes.recorder import run_node  # noqa: PLC0415
+        from rv_te_bench.nodes.common import run_node  # noqa: PLC0415
         from rv_te_bench.nodes.replay import ReplayNode  # noqa: PLC0415
     except ImportError as exc:
         print(f'ERROR: replay needs ROS 2 (rclpy): {exc}', file=sys.stderr)

@@ -187,6 +187,28 @@ def _check_wildcard(values: dict[str, Any], f: str | Path, wanted: Sequence[str]
             params[n].setdefault(key, value)
 
 
+def node_parameters(spec: SessionSpec, node: str) -> dict[str, Any]:
+    """A node's parameters in a session: the validated ones plus the session's defaults."""
+    values = dict(spec.parameters.get(node, {}))
+    if node == 'bench':
+        # the bench's clock starts once the session's encoder subscribers are up
+        values.setdefault('wait_for_nodes',
+                          [n for n in ('te_node', 'recorder') if n in spec.nodes])
+    if node == 'recorder':
+        values.setdefault('session_metadata_yaml', session_metadata_yaml(spec))
+    if spec.use_sim_time:
+        values['use_sim_time'] = True
+    return values
+
+
+def session_metadata_yaml(spec: SessionSpec) -> str:
+    """What the recorder stores in the bag's metadata record: every node's parameters."""
+    return yaml.safe_dump({'namespace': spec.namespace or '/', 'nodes': list(spec.nodes),
+                           'parameters': spec.parameters,
+                           'remappings': [f'{a}:={b}' for a, b in spec.remappings]},
+                          sort_keys=True)
+
+
 def ros_args(spec: SessionSpec, node: str, params_file: Path | None) -> list[str]:
     """The ``--ros-args`` for one node process."""
     args = ['--ros-args', '-r', f'__node:={node}']
@@ -231,9 +253,7 @@ class Session:
         self.failures: list[str] = []
 
     def _params_file(self, node: str) -> Path:
-        values = dict(self.spec.parameters.get(node, {}))
-        if self.spec.use_sim_time:
-            values['use_sim_time'] = True
+        values = node_parameters(self.spec, node)
         fq = f'{self.spec.namespace}/{node}' if self.spec.namespace else f'/{node}'
         path = Path(self._tmp.name) / f'{node}.yaml'
         path.write_text(yaml.safe_dump({fq: {'ros__parameters': values}}), encoding='utf-8')
@@ -329,9 +349,7 @@ def run_single_process(spec: SessionSpec, *, until: Callable[[], bool] | None = 
         for name in [n for n in NODE_TYPES if n in spec.nodes]:
             module, cls_name = NODE_TYPES[name]
             cls = getattr(importlib.import_module(module), cls_name)
-            values = dict(spec.parameters.get(name, {}))
-            if spec.use_sim_time:
-                values['use_sim_time'] = True
+            values = node_parameters(spec, name)
             overrides = [Parameter(k, value=v) for k, v in values.items()]
             nodes.append(cls(context=ctx, parameter_overrides=overrides))
         executor = make_executor('multi', context=ctx)

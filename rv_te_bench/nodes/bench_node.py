@@ -14,6 +14,7 @@ All physics is in :class:`sim.bench.BenchSimulator`; this node converts and pace
 
 from __future__ import annotations
 
+import sys
 import time
 from typing import Any
 
@@ -93,6 +94,11 @@ PARAMS = (
     ParamSpec('speed_factor', 'double', 20.0,
               'fast mode: times faster than real time; 0 = as fast as possible [1]',
               min_value=0.0, max_value=1e4, read_only=False),
+    ParamSpec('wait_for_nodes', 'string_array', [],
+              'Start the clock once these nodes (same namespace) subscribe bench/encoders [-]'),
+    ParamSpec('wait_timeout_s', 'double', 20.0,
+              'Start anyway after this long when subscribers are missing [s]',
+              min_value=0.0, max_value=3600.0),
     ParamSpec('diagnostics_period_s', 'double', 1.0, 'Diagnostics period [s]',
               min_value=0.05, max_value=60.0),
 )
@@ -176,6 +182,7 @@ class BenchNode(Node):
             else None
         self.wall_start = time.time()
         self.mono_start = time.monotonic()
+        self.started = not self.p['wait_for_nodes']
         self.pub_info.publish(convert.make_bench_info(info, convert.s_to_stamp(self.wall_start)))
         self._diag_last = (time.monotonic(), 0)
         self._lag_s = 0.0
@@ -205,8 +212,26 @@ class BenchNode(Node):
         due = int(elapsed / self.block_period_s) + 1 - self.blocks_published
         return max(0, min(due, 100))
 
+    def _wait_for_subscribers(self) -> bool:
+        """True once the named subscriber nodes are there (or the wait timed out)."""
+        ns = self.get_namespace()
+        topic = self.pub_blocks.topic_name
+        have = {i.node_name for i in self.get_subscriptions_info_by_topic(topic)
+                if i.node_namespace == ns}
+        missing = sorted(set(self.p['wait_for_nodes']) - have)
+        waited = time.monotonic() - self.mono_start
+        if missing and waited < self.p['wait_timeout_s']:
+            return False
+        if missing:
+            self.get_logger().warning(
+                f'starting without {missing} on {topic} after {waited:.1f} s')
+        self.started = True
+        self.wall_start = time.time()
+        self.mono_start = time.monotonic()
+        return True
+
     def _on_tick(self) -> None:
-        if self.finished:
+        if self.finished or (not self.started and not self._wait_for_subscribers()):
             return
         for _ in range(self._due_blocks()):
             if self.duration_s > 0 and self.sim_time_s >= self.duration_s - 1e-12:
@@ -263,10 +288,8 @@ class BenchNode(Node):
 
 def main(args: list[str] | None = None) -> int:
     """Run the bench node in its own process."""
-    return run_node(BenchNode, args)
+    return run_node(lambda ctx: BenchNode(context=ctx), list(sys.argv if args is None else args))
 
 
 if __name__ == '__main__':
-    import sys
-
     sys.exit(main())

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import signal
 import sys
+import threading
 import time
 from typing import TYPE_CHECKING, Any
 
@@ -22,6 +23,7 @@ from rclpy.parameter import Parameter
 if TYPE_CHECKING:
     from collections.abc import Callable, Sequence
 
+    from rclpy.context import Context
     from rclpy.node import Node
 
     from rv_te_bench.params import ParamSpec
@@ -156,54 +158,68 @@ class DropCounter:
         return sum(self.counts.values())
 
 
-def run_node(make_node: Callable[..., Node], args: Sequence[str] | None = None,
-             executor_kind: str = 'events') -> int:
-    """The Jazzy ``main`` pattern for one node in its own process.
+def run_node(factory: Callable[[Context], Node], args: Sequence[str] | None = None, *,
+             linger_s: float = 0.0, executor_kind: str = 'events') -> int:
+    """Run one node in its own Context until it is ``finished`` or SIGINT/SIGTERM arrives.
 
-    SIGINT and SIGTERM both end spin cleanly and destroy the node (the recorder finalises its
-    bag in ``destroy_node``). A node whose constructor raises (bad parameters) reports one line
-    and returns 1.
+    Our own signal handling: rclpy's handler would shut the context down before the node
+    could publish its last results (the TE node's final window, the recorder's last flush),
+    so SIGINT/SIGTERM only request a stop and ``destroy_node`` runs with a live context.
+
+    Args:
+        factory: Builds the node in the given context (may raise on bad parameters).
+        args: Command line (ROS arguments after ``--ros-args`` apply to the node).
+        linger_s: Keep spinning this long after ``finished`` (reliable delivery) [s].
+        executor_kind: ``'events'`` (data paths), ``'single'`` or ``'multi'``.
+
+    Returns:
+        0 ok, 1 error (printed as one ``ERROR: ...`` line on stderr), or the node's
+        ``exit_code``.
     """
+    from rclpy.context import Context  # noqa: PLC0415
     from rclpy.exceptions import InvalidParameterValueException  # noqa: PLC0415
-
-    from rv_te_bench.errors import RvTeError  # noqa: PLC0415
-    from sim.errors import SimError  # noqa: PLC0415
-
     from rclpy.signals import SignalHandlerOptions  # noqa: PLC0415
 
-    # Our own signal handling: rclpy's handler would shut the context down before the node
-    # can publish its last results (the TE node's final window, the recorder's last flush).
-    rclpy.init(args=list(args) if args is not None else None,
+    from rv_te_bench.errors import RvTeError  # noqa: PLC0415
+
+    context = Context()
+    rclpy.init(args=list(args) if args is not None else None, context=context,
                signal_handler_options=SignalHandlerOptions.NO)
     stop = {'requested': False}
 
-    def _request_stop(*_: object) -> None:
+    def request_stop(*_: object) -> None:
         stop['requested'] = True
 
-    old_term = signal.signal(signal.SIGTERM, _request_stop)
-    old_int = signal.signal(signal.SIGINT, _request_stop)
-    node = None
+    main_thread = threading.current_thread() is threading.main_thread()
+    if main_thread:
+        old_int = signal.signal(signal.SIGINT, request_stop)
+        old_term = signal.signal(signal.SIGTERM, request_stop)
+    node: Any = None
     code = 0
     try:
         try:
-            node = make_node()
-        except (InvalidParameterValueException, RvTeError, SimError, ValueError) as exc:
+            node = factory(context)
+        except (RvTeError, InvalidParameterValueException, ValueError) as exc:
             print(f'ERROR: {exc}', file=sys.stderr)
             return 1
-        executor = make_executor(executor_kind)
+        executor = make_executor(executor_kind, context=context)
         executor.add_node(node)
-        # A node that ends by itself (the bench after its duration) sets ``finished``.
-        while rclpy.ok() and not stop['requested'] and not getattr(node, 'finished', False):
+        while context.ok() and not stop['requested'] and not getattr(node, 'finished', False):
             executor.spin_once(timeout_sec=0.1)
+        end = time.monotonic() + linger_s
+        while context.ok() and not stop['requested'] and time.monotonic() < end:
+            executor.spin_once(timeout_sec=0.05)
+        executor.shutdown()
         code = int(getattr(node, 'exit_code', 0) or 0)
     except (KeyboardInterrupt, ExternalShutdownException):
         pass
     finally:
         if node is not None:
             node.destroy_node()
-        signal.signal(signal.SIGTERM, old_term)
-        signal.signal(signal.SIGINT, old_int)
-        rclpy.try_shutdown()
+        if main_thread:
+            signal.signal(signal.SIGINT, old_int)
+            signal.signal(signal.SIGTERM, old_term)
+        rclpy.try_shutdown(context=context)
     return code
 
 

@@ -15,6 +15,7 @@ Long searches run on a worker thread, off the executor; results are published fr
 
 from __future__ import annotations
 
+import sys
 import math
 from concurrent.futures import Future, ThreadPoolExecutor
 from typing import Any
@@ -219,10 +220,8 @@ def _overrides_from_bench_info(parameters_yaml: str) -> list[str]:
 
 def main(args: list[str] | None = None) -> int:
     """Run the compensation node in its own process."""
-    return run_node(CompensationNode, args)
+    return run_node(lambda ctx: CompensationNode(context=ctx), list(sys.argv if args is None else args))
 
 
 if __name__ == '__main__':
-    import sys
-
     sys.exit(main())

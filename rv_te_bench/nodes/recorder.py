@@ -16,44 +16,62 @@ from __future__ import annotations
 import datetime as dt
 import importlib
 import platform
-import signal
 import struct
 import sys
-import threading
-import time
-from collections.abc import Callable, Sequence
+from collections.abc import Sequence
 from importlib import metadata as importlib_metadata
 from pathlib import Path
 from typing import Any
 
-import rclpy
 import yaml
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
-from rcl_interfaces.msg import (
-    FloatingPointRange,
-    IntegerRange,
-    ParameterDescriptor,
-    ParameterType,
-)
-from rclpy.context import Context
-from rclpy.exceptions import InvalidParameterValueException
-from rclpy.executors import ExternalShutdownException
 from rclpy.node import Node
-from rclpy.parameter import Parameter
 from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
-from rclpy.signals import SignalHandlerOptions
 
-from rv_te_bench.errors import BagError, RvTeError
+from rv_te_bench.errors import BagError
 from rv_te_bench.io.bag_writer import BagWriter, qos_profile_dict
 from rv_te_bench.io.msgdefs import ENCODER_BLOCK
 from rv_te_bench.nodes import qos
+from rv_te_bench.nodes.common import declare_from_specs, run_node
+from rv_te_bench.params import ParamSpec
 
-__all__ = ['DEFAULT_TOPICS', 'RecorderNode', 'main', 'run_node']
+__all__ = ['DEFAULT_TOPICS', 'PARAMS', 'RecorderNode', 'main']
 
 DEFAULT_TOPICS = [
     'bench/encoders', 'bench/info', 'te/samples', 'te/statistics', 'te/spectrum',
     'compensation/advice', '/diagnostics', '/clock',
 ]
+PARAMS = (
+    ParamSpec('output_dir', 'string', 'out/bags',
+              'Folder in which the bag folder is created [path]'),
+    ParamSpec('bag_name', 'string', '', 'Bag folder name; empty: rv_te_<UTC time> [-]'),
+    ParamSpec('topics', 'string_array', DEFAULT_TOPICS,
+              'Topics to record; relative names resolve under the namespace [-]'),
+    ParamSpec('topic_types', 'string_array', [],
+              "Explicit types 'topic=pkg/msg/Type'; others come from the graph [-]"),
+    ParamSpec('compression', 'string', 'zstd', 'MCAP chunk compression [-]',
+              choices=('zstd', 'lz4', 'none')),
+    ParamSpec('chunk_size_bytes', 'int', 1 << 20,
+              'Uncompressed chunk size that triggers a write [bytes]', min_value=1024,
+              max_value=1 << 30),
+    ParamSpec('flush_interval_s', 'double', 1.0,
+              'Longest time a message stays in memory; bounds loss on a crash [s]',
+              min_value=0.01, max_value=60.0),
+    ParamSpec('split_size_bytes', 'int', 0,
+              'Start a new .mcap file past this size; 0: never [bytes]', min_value=0,
+              max_value=1 << 62),
+    ParamSpec('split_duration_s', 'double', 0.0,
+              'Start a new .mcap file after this span; 0: never [s]', min_value=0.0,
+              max_value=1e7),
+    ParamSpec('duration_s', 'double', 0.0,
+              'Stop and close the bag after this time; 0: until stopped [s]', min_value=0.0,
+              max_value=1e7),
+    ParamSpec('discovery_period_s', 'double', 0.5,
+              'Period of the graph scan for new publishers [s]', min_value=0.05,
+              max_value=60.0),
+    ParamSpec('session_metadata_yaml', 'string', '',
+              "YAML mapping stored as the bag's rv_te_session metadata record [-]"),
+)
 _THROTTLE_S = 5.0
 _U32 = struct.Struct('<I')
 
@@ -141,54 +159,7 @@ class RecorderNode(Node):
 
     # ---------------------------------------------------------------- parameters
     def _declare_parameters(self) -> dict[str, Any]:
-        def d(text: str, **extra: Any) -> ParameterDescriptor:  # noqa: ANN401
-            return ParameterDescriptor(description=text, read_only=True, **extra)
-
-        def f_range(lo: float, hi: float) -> list[FloatingPointRange]:
-            return [FloatingPointRange(from_value=lo, to_value=hi)]
-
-        def i_range(lo: int, hi: int) -> list[IntegerRange]:
-            return [IntegerRange(from_value=lo, to_value=hi)]
-
-        specs: list[tuple[str, Any, ParameterDescriptor]] = [
-            ('output_dir', 'out/bags', d('Folder in which the bag folder is created [path]')),
-            ('bag_name', '', d('Bag folder name; empty: rv_te_<UTC time> [-]')),
-            ('topics', DEFAULT_TOPICS,
-             d('Topics to record; relative names resolve under the namespace [-]')),
-            ('topic_types', Parameter.Type.STRING_ARRAY,
-             d("Explicit types 'topic=pkg/msg/Type'; others come from the graph [-]",
-               type=ParameterType.PARAMETER_STRING_ARRAY)),
-            ('compression', 'zstd', d("MCAP chunk compression: 'zstd', 'lz4' or 'none' [-]")),
-            ('chunk_size_bytes', 1 << 20,
-             d('Uncompressed chunk size that triggers a write [bytes]',
-               integer_range=i_range(1024, 1 << 30))),
-            ('flush_interval_s', 1.0,
-             d('Longest time a message stays in memory; bounds loss on a crash [s]',
-               floating_point_range=f_range(0.01, 60.0))),
-            ('split_size_bytes', 0,
-             d('Start a new .mcap file past this size; 0: never [bytes]',
-               integer_range=i_range(0, 1 << 62))),
-            ('split_duration_s', 0.0,
-             d('Start a new .mcap file after this span; 0: never [s]',
-               floating_point_range=f_range(0.0, 1e7))),
-            ('duration_s', 0.0,
-             d('Stop and close the bag after this time; 0: until stopped [s]',
-               floating_point_range=f_range(0.0, 1e7))),
-            ('discovery_period_s', 0.5,
-             d('Period of the graph scan for new publishers [s]',
-               floating_point_range=f_range(0.05, 60.0))),
-            ('session_metadata_yaml', '',
-             d('YAML mapping stored as the bag\'s rv_te_session metadata record [-]')),
-        ]
-        out = {}
-        for name, default, desc in specs:
-            value = self.declare_parameter(name, default, desc).value
-            out[name] = [] if value is None and name == 'topic_types' else value
-        if out['compression'] not in ('zstd', 'lz4', 'none'):
-            msg = (f"Parameter 'compression' with the value {out['compression']!r} must be "
-                   "'zstd', 'lz4' or 'none'")
-            raise BagError(msg)
-        return out
+        return declare_from_specs(self, PARAMS)
 
     def _session_metadata(self, p: dict[str, Any]) -> dict[str, Any]:
         text = p['session_metadata_yaml']
@@ -397,66 +368,6 @@ class RecorderNode(Node):
         """Close the bag, then destroy the node."""
         self.close()
         super().destroy_node()
-
-
-def run_node(
-    factory: Callable[[Context], Any],
-    args: Sequence[str] | None = None,
-    *,
-    linger_s: float = 0.0,
-) -> int:
-    """Run one node in its own Context until it is ``finished`` or SIGINT/SIGTERM arrives.
-
-    Args:
-        factory: Builds the node in the given context (may raise RvTeError).
-        args: Command line (ROS arguments after ``--ros-args`` apply to the node).
-        linger_s: Keep spinning this long after ``finished`` (reliable delivery) [s].
-
-    Returns:
-        0 ok, 1 error (printed as one ``ERROR: ...`` line on stderr), or the node's
-        ``exit_code``.
-    """
-    context = Context()
-    rclpy.init(args=list(args) if args is not None else None, context=context,
-               signal_handler_options=SignalHandlerOptions.NO)
-    stop = {'requested': False}
-
-    def request_stop(*_: object) -> None:
-        stop['requested'] = True
-
-    main_thread = threading.current_thread() is threading.main_thread()
-    if main_thread:
-        old_int = signal.signal(signal.SIGINT, request_stop)
-        old_term = signal.signal(signal.SIGTERM, request_stop)
-    node: Any = None
-    code = 0
-    try:
-        try:
-            node = factory(context)
-        except (RvTeError, InvalidParameterValueException, ValueError) as exc:
-            print(f'ERROR: {exc}', file=sys.stderr)
-            return 1
-        from rclpy.experimental import EventsExecutor  # noqa: PLC0415
-
-        executor = EventsExecutor(context=context)
-        executor.add_node(node)
-        while context.ok() and not stop['requested'] and not node.finished:
-            executor.spin_once(timeout_sec=0.1)
-        end = time.monotonic() + linger_s
-        while context.ok() and not stop['requested'] and time.monotonic() < end:
-            executor.spin_once(timeout_sec=0.05)
-        executor.shutdown()
-        code = int(getattr(node, 'exit_code', 0) or 0)
-    except (KeyboardInterrupt, ExternalShutdownException):
-        pass
-    finally:
-        if node is not None:
-            node.destroy_node()
-        if main_thread:
-            signal.signal(signal.SIGINT, old_int)
-            signal.signal(signal.SIGTERM, old_term)
-        rclpy.try_shutdown(context=context)
-    return code
 
 
 def main(argv: Sequence[str] | None = None) -> int:

@@ -29,7 +29,8 @@ from rosgraph_msgs.msg import Clock
 from rv_te_bench.errors import BagError
 from rv_te_bench.io.bag_reader import iter_messages, open_bag
 from rv_te_bench.nodes import qos
-from rv_te_bench.nodes.recorder import _msg_class, run_node
+from rv_te_bench.nodes.common import run_node
+from rv_te_bench.nodes.recorder import _msg_class
 
 __all__ = ['ReplayNode', 'main']
 

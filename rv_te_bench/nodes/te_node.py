@@ -12,6 +12,7 @@ a bad block is counted, logged (throttled) and skipped, never fatal.
 
 from __future__ import annotations
 
+import sys
 import time
 from collections import deque
 from typing import Any
@@ -230,10 +231,8 @@ class TeNode(Node):
 
 def main(args: list[str] | None = None) -> int:
     """Run the TE node in its own process."""
-    return run_node(TeNode, args)
+    return run_node(lambda ctx: TeNode(context=ctx), list(sys.argv if args is None else args))
 
 
 if __name__ == '__main__':
-    import sys
-
     sys.exit(main())
