@@ -77,7 +77,7 @@ def run(args: argparse.Namespace) -> int:  # noqa: C901, PLR0915
         print(f'ERROR: session folder {session_dir} exists already', file=sys.stderr)
         return 1
     session_dir.mkdir(parents=True)
-    overrides = [f'recorder.output_dir={bag_dir}',
+    overrides = [f'recorder.output_dir={session_dir}', f'recorder.bag_name={bag_dir.name}',
                  f'bench.duration_output_revs={args.revolutions}', *args.params]
     spec = build_session([default_session_file()], namespace=args.namespace,
                          overrides=overrides, remappings=args.remap)

@@ -168,7 +168,9 @@ class BenchNode(Node):
         self.duration_s = self.p['duration_s']
         if self.p['duration_output_revs'] > 0:
             nominal_hz = abs(self.sim.config.drive.nominal_speed_rpm) / 60.0
-            self.duration_s = self.p['duration_output_revs'] * info.gear_ratio / nominal_hz
+            # + one sample: the sample at exactly N revolutions closes the last window
+            self.duration_s = (self.p['duration_output_revs'] * info.gear_ratio / nominal_hz
+                               + 1.0 / self.p['sample_rate_hz'])
         self.finished = False
         self.exit_code = 0
         self.blocks_published = 0

@@ -77,8 +77,10 @@ class TeNode(Node):
         self._last_window: Any = None
         self._first_seq: int | None = None
         self.recent_windows: deque[Any] = deque(maxlen=64)  # for diagnostics and tests
+        # reliable: the compensation node identifies the unit from these samples and the
+        # recorder keeps them; best-effort viewers are still compatible
         self.pub_samples = self.create_publisher(TransmissionError, 'te/samples',
-                                                 qos.PREVIEW_QOS)
+                                                 qos.ENCODER_QOS)
         self.pub_stats = self.create_publisher(TransmissionError, 'te/statistics',
                                                qos.LATCHED_QOS)
         self.pub_spectrum = self.create_publisher(TeSpectrum, 'te/spectrum', qos.LATCHED_QOS)
