@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import argparse
+import sys
 from importlib import resources
 from typing import Any
 
@@ -59,7 +60,7 @@ def run(args: argparse.Namespace) -> int:
     if args.default:
         files.insert(0, default_session_file())
     if not files:
-        print('ERROR: give a parameter file or --default', flush=True)
+        print('ERROR: give a parameter file or --default', file=sys.stderr)
         return 2
     spec = build_session(files, namespace=args.namespace, overrides=args.params,
                          nodes=[n.strip() for n in args.nodes.split(',') if n.strip()],
