@@ -36,8 +36,12 @@ INFO_TOPIC = '/bench/info'
 START_NS = 1_767_225_600_000_000_000  # 2026-01-01T00:00:00Z
 
 
-def write_sample(path: Path) -> dict[str, float]:
+def write_sample(path: Path, *, duration_s: float = DURATION_S,
+                 sample_rate_hz: float = SAMPLE_RATE_HZ, block_size: int = BLOCK_SIZE,
+                 compression: str = 'zstd') -> dict[str, float]:
     """Simulate the session and write it as a bag at ``path`` (must not exist).
+
+    The keyword arguments let benchmarks write longer or faster sessions the same way.
 
     Returns:
         ``{'blocks', 'samples', 'duration_s'}``.
@@ -52,7 +56,7 @@ def write_sample(path: Path) -> dict[str, float]:
     sim = BenchSimulator(BenchConfig(
         preset=PRESET, drive=ConstantSpeed(INPUT_SPEED_RPM), te_mode='nlte',
         encoder_in='heidenhain-ron886', encoder_out='heidenhain-ron886',
-        sample_rate_hz=SAMPLE_RATE_HZ, block_size=BLOCK_SIZE, seed=SEED, bench_id=BENCH_ID))
+        sample_rate_hz=sample_rate_hz, block_size=block_size, seed=SEED, bench_id=BENCH_ID))
     store = rv_te_typestore()
     types = store.types
     time_cls = types['builtin_interfaces/msg/Time']
@@ -63,10 +67,10 @@ def write_sample(path: Path) -> dict[str, float]:
                                          nanosec=stamp_ns % 1_000_000_000), frame_id=BENCH_ID)
 
     info = sim.info
-    n_blocks = round(DURATION_S * SAMPLE_RATE_HZ / BLOCK_SIZE)
+    n_blocks = round(duration_s * sample_rate_hz / block_size)
     session = {'preset': PRESET, 'input_speed_rpm': INPUT_SPEED_RPM, 'seed': SEED,
                'made_by': 'bags/make_sample.py'}
-    with BagWriter(path, compression='zstd', session_metadata=session) as writer:
+    with BagWriter(path, compression=compression, session_metadata=session) as writer:
         # The QoS the bench node offers (rv_te_bench.nodes.qos), as a recorder stores it.
         writer.add_topic(INFO_TOPIC, BENCH_INFO, offered_qos_profiles=[qos_profile_dict(
             durability='transient_local', depth=1)])
@@ -89,14 +93,14 @@ def write_sample(path: Path) -> dict[str, float]:
             block = sim.next_block()
             stamp_ns = START_NS + round(block.t0_s * 1e9)
             msg = types[ENCODER_BLOCK](
-                header=header(stamp_ns), seq=block.seq, sample_rate_hz=SAMPLE_RATE_HZ,
+                header=header(stamp_ns), seq=block.seq, sample_rate_hz=sample_rate_hz,
                 time_offset_s=np.asarray(block.time_offset_s, dtype=np.float64),
                 theta_in_rad=np.asarray(block.theta_in_rad, dtype=np.float64),
                 theta_out_rad=np.asarray(block.theta_out_rad, dtype=np.float64),
                 torque_out_nm=np.asarray(block.torque_out_nm, dtype=np.float64))
             writer.write(ENCODER_TOPIC, stamp_ns, store.serialize_cdr(msg, ENCODER_BLOCK))
             samples += len(block.theta_in_rad)
-    return {'blocks': n_blocks, 'samples': samples, 'duration_s': samples / SAMPLE_RATE_HZ}
+    return {'blocks': n_blocks, 'samples': samples, 'duration_s': samples / sample_rate_hz}
 
 
 def main(argv: list[str] | None = None) -> int:
