@@ -200,6 +200,10 @@ class RecorderNode(Node):
         graph = dict(self.get_topic_names_and_types())
         for topic in missing:
             msgtype = self._explicit.get(topic)
+            if msgtype is None and not self.get_publishers_info_by_topic(topic):
+                # Only subscribers so far: wait for a publisher, whose QoS (reliability,
+                # transient-local) the subscription must match to get latched messages.
+                continue
             if msgtype is None:
                 types = graph.get(topic, [])
                 if len(types) != 1:

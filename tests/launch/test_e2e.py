@@ -46,6 +46,7 @@ def test_demo_session_bag_statistics_and_advice_are_consistent(  # noqa: PLR0915
         for conn, _t, raw in reader.messages():
             msgs.setdefault(conn.topic, []).append(reader.deserialize(raw, conn.msgtype))
     assert {t: len(m) for t, m in msgs.items()} == {t: c for t, c in counts.items() if c}
+    assert counts['/bench/info'] == 1            # latched: recorded however late it joined
     seqs = [m.seq for m in msgs['/bench/encoders']]
     assert seqs == list(range(len(seqs)))        # the bench waited for the recorder
 
