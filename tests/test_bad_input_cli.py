@@ -65,7 +65,7 @@ CASES = [
     (['bench', '--param', 'speed_rpm=fast'], 1, "'speed_rpm' must be a number"),
     (['model', 'no-such'], 1, "unknown preset 'no-such'"),
     (['model', 'wang2020-2kv', '--kind', 'xyz'], 1, "unknown mode 'xyz'"),
-    (['model', 'wang2020-2kv', '--revolutions', '-1'], 2, "'-1' must be finite and > 0"),
+    (['model', 'wang2020-2kv', '--revolutions', '-1'], 2, "must be finite and > 0, got '-1'"),
     (['model', 'wang2020-2kv', '--set', 'kinematics.z_ring=49'], 1,
      'must be greater than kinematics.z_gear'),
     (['model', 'wang2020-2kv', '--set', 'kinematics.z_sun=0'], 1,

@@ -21,6 +21,7 @@ import time
 from pathlib import Path
 from typing import TYPE_CHECKING, Any, TextIO
 
+from rv_te_bench.cli.argtypes import nonnegative_int, positive_float, positive_int
 from rv_te_bench.errors import RvTeError
 from sim.units import rad_to_arcmin, rad_to_deg
 
@@ -47,38 +48,6 @@ stderr), 2 bad usage
 PROGRESS_PERIOD_S = 2.0
 
 
-def _positive_float(text: str) -> float:
-    try:
-        value = float(text)
-    except ValueError:
-        msg = f'not a number: {text!r}'
-        raise argparse.ArgumentTypeError(msg) from None
-    if not (math.isfinite(value) and value > 0):
-        msg = f'must be finite and > 0, got {text!r}'
-        raise argparse.ArgumentTypeError(msg)
-    return value
-
-
-def _int_at_least(text: str, minimum: int) -> int:
-    try:
-        value = int(text)
-    except ValueError:
-        msg = f'not an integer: {text!r}'
-        raise argparse.ArgumentTypeError(msg) from None
-    if value < minimum:
-        msg = f'must be >= {minimum}, got {text!r}'
-        raise argparse.ArgumentTypeError(msg)
-    return value
-
-
-def _nonnegative_int(text: str) -> int:
-    return _int_at_least(text, 0)
-
-
-def _positive_int(text: str) -> int:
-    return _int_at_least(text, 1)
-
-
 def add_arguments(p: argparse.ArgumentParser) -> None:
     """Add the ``analyze`` arguments to a parser (shared by ``register`` and tests)."""
     p.add_argument('bags', nargs='+', type=Path, metavar='BAG',
@@ -90,14 +59,14 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument('--force', action='store_true', help='overwrite an existing report DIR')
     p.add_argument('--topic', metavar='T', default=None,
                    help='encoder topic (default: the one EncoderBlock topic of the bag)')
-    p.add_argument('--ratio', type=_positive_float, metavar='I', default=None,
+    p.add_argument('--ratio', type=positive_float, metavar='I', default=None,
                    help='overall gear ratio i (input revs per output rev); required, with '
                         '--crank-per-output, for bags without BenchInfo; overrides BenchInfo')
-    p.add_argument('--crank-per-output', type=_positive_float, metavar='C', default=None,
+    p.add_argument('--crank-per-output', type=positive_float, metavar='C', default=None,
                    help='absolute crank revs per output rev (25 for the Wang 2020 2K-V)')
-    p.add_argument('--harmonics', type=_nonnegative_int, default=10, metavar='K',
+    p.add_argument('--harmonics', type=nonnegative_int, default=10, metavar='K',
                    help='crank harmonics reported (1 f_w .. K f_w)')
-    p.add_argument('--window-revolutions', type=_positive_int, default=1, metavar='W',
+    p.add_argument('--window-revolutions', type=positive_int, default=1, metavar='W',
                    help='whole output revolutions per analysis window')
     p.add_argument('--no-advice', action='store_true',
                    help='skip the compensation recommendation (the 2K-V assembly-phase '

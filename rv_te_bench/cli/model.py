@@ -20,6 +20,8 @@ from typing import Any
 
 import numpy as np
 
+from rv_te_bench.cli.argtypes import positive_float
+
 EXAMPLES = """\
 examples:
   rv-te model wang2020-2kv                             NLTE of one output revolution
@@ -64,18 +66,6 @@ def _load_hz(text: str) -> float | str:
     return value
 
 
-def _positive(text: str) -> float:
-    try:
-        value = float(text)
-    except ValueError:
-        msg = f'{text!r} is not a number'
-        raise argparse.ArgumentTypeError(msg) from None
-    if not (math.isfinite(value) and value > 0):
-        msg = f'{text!r} must be finite and > 0'
-        raise argparse.ArgumentTypeError(msg)
-    return value
-
-
 def register(subparsers: Any) -> None:  # noqa: ANN401 - argparse's private type
     """Add the ``model`` subcommand."""
     p = subparsers.add_parser(
@@ -94,11 +84,11 @@ def register(subparsers: Any) -> None:  # noqa: ANN401 - argparse's private type
     p.add_argument('--phases-deg', type=_phases, default=None, metavar='P1,P2,G,OT',
                    help='eccentricity phases theta_p1, theta_p2, theta_g, theta_ot [deg] '
                         '(Wang 2020 Table 2 / Eq. 21)')
-    p.add_argument('--revolutions', type=_positive, default=1.0, metavar='N',
+    p.add_argument('--revolutions', type=positive_float, default=1.0, metavar='N',
                    help='output revolutions to simulate (default 1)')
-    p.add_argument('--rpm', type=_positive, default=None, metavar='R',
+    p.add_argument('--rpm', type=positive_float, default=None, metavar='R',
                    help='input speed [rpm] (default: preset drive.input_speed_rpm or 300)')
-    p.add_argument('--sample-rate-hz', type=_positive, default=10_000.0, metavar='F',
+    p.add_argument('--sample-rate-hz', type=positive_float, default=10_000.0, metavar='F',
                    help='output sampling rate [Hz] (default 10000)')
     p.add_argument('--set', dest='overrides', action='append', default=[], metavar='KEY=VALUE',
                    help='override a preset value (repeatable)')

@@ -111,7 +111,9 @@ class CompensationNode(Node):
     def _on_info(self, msg: BenchInfo) -> None:
         self.bench_id = msg.bench_id
         if not self.p['preset']:
-            self._set_preset(msg.preset, _overrides_from_bench_info(msg.parameters_yaml))
+            from sim.bench import overrides_from_parameters_yaml  # noqa: PLC0415
+
+            self._set_preset(msg.preset, overrides_from_parameters_yaml(msg.parameters_yaml))
 
     def _on_samples(self, msg: TransmissionError) -> None:
         te = np.asarray(msg.te_rad, dtype=np.float64)
@@ -203,19 +205,6 @@ class CompensationNode(Node):
         """Stop the worker (running searches finish in the background thread)."""
         self.pool.shutdown(wait=False, cancel_futures=True)
         super().destroy_node()
-
-
-def _overrides_from_bench_info(parameters_yaml: str) -> list[str]:
-    """The bench's preset overrides, as recorded in BenchInfo.parameters_yaml."""
-    import yaml  # noqa: PLC0415
-
-    try:
-        data = yaml.safe_load(parameters_yaml) or {}
-    except yaml.YAMLError:
-        return []
-    bench = data.get('bench', {}) if isinstance(data, dict) else {}
-    ov = bench.get('overrides', []) if isinstance(bench, dict) else []
-    return [str(x) for x in ov] if isinstance(ov, list) else []
 
 
 def main(args: list[str] | None = None) -> int:

@@ -623,11 +623,12 @@ def _recommend(bench: BenchDescription, cumulative: TeStats, trace: TeTrace) -> 
     if not bench.preset:
         return Recommendation(available=False, reason='no recommendation available: the bag '
                               'has no BenchInfo preset, so there is no reducer model')
+    from sim.bench import overrides_from_parameters_yaml  # noqa: PLC0415
     from sim.errors import SimError  # noqa: PLC0415
     from sim.presets import load_preset  # noqa: PLC0415
 
     try:
-        preset = load_preset(bench.preset, _overrides_from_yaml(bench.parameters_yaml))
+        preset = load_preset(bench.preset, overrides_from_parameters_yaml(bench.parameters_yaml))
     except SimError as exc:
         return Recommendation(available=False, reason=(
             f'no recommendation available: preset {bench.preset!r} cannot be loaded ({exc})'))
@@ -679,21 +680,6 @@ def _advice_2kv(preset: Any, trace: TeTrace) -> Recommendation:  # noqa: ANN401
     return Recommendation(available=True, reason=(
         "Eq. 21 assembly-phase optimum for the preset's own eccentricities (model-based, "
         'not identified from this measurement)'), advice=advice)
-
-
-def _overrides_from_yaml(text: str) -> list[str]:
-    """Preset overrides recorded in BenchInfo.parameters_yaml (``bench.overrides``)."""
-    if not text:
-        return []
-    import yaml  # noqa: PLC0415
-
-    try:
-        record = yaml.safe_load(text)
-    except yaml.YAMLError:
-        return []
-    bench = record.get('bench') if isinstance(record, dict) else None
-    overrides = bench.get('overrides') if isinstance(bench, dict) else None
-    return [str(o) for o in overrides] if isinstance(overrides, list | tuple) else []
 
 
 def compare_results(results: list[AnalysisResult]) -> list[dict[str, Any]]:

@@ -1,0 +1,42 @@
+"""argparse ``type=`` converters shared by the subcommands (a bad value is a usage error)."""
+
+from __future__ import annotations
+
+import argparse
+import math
+
+
+def positive_float(text: str) -> float:
+    """A finite number > 0."""
+    try:
+        value = float(text)
+    except ValueError:
+        msg = f'not a number: {text!r}'
+        raise argparse.ArgumentTypeError(msg) from None
+    if not (math.isfinite(value) and value > 0):
+        msg = f'must be finite and > 0, got {text!r}'
+        raise argparse.ArgumentTypeError(msg)
+    return value
+
+
+def int_at_least(text: str, minimum: int) -> int:
+    """An integer >= ``minimum``."""
+    try:
+        value = int(text)
+    except ValueError:
+        msg = f'not an integer: {text!r}'
+        raise argparse.ArgumentTypeError(msg) from None
+    if value < minimum:
+        msg = f'must be >= {minimum}, got {text!r}'
+        raise argparse.ArgumentTypeError(msg)
+    return value
+
+
+def nonnegative_int(text: str) -> int:
+    """An integer >= 0."""
+    return int_at_least(text, 0)
+
+
+def positive_int(text: str) -> int:
+    """An integer >= 1."""
+    return int_at_least(text, 1)
