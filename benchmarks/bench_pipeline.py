@@ -50,7 +50,7 @@ def run_one(rate_hz: float, block: int, duration_s: float, out_dir: Path) -> dic
     spec = build_session([], nodes=['bench', 'te_node', 'recorder'], overrides=[
         'bench.te_mode=nlte', f'bench.sample_rate_hz={rate_hz}', f'bench.block_size={block}',
         f'bench.duration_s={duration_s}', 'bench.time_mode=realtime',
-        f'recorder.output_dir={bag}'])
+        f'recorder.output_dir={out_dir}', f'recorder.bag_name={bag.name}'])
     ctx = rclpy.context.Context()
     rclpy.init(context=ctx)
     probe = rclpy.create_node('pipeline_probe', context=ctx)
@@ -78,8 +78,9 @@ def run_one(rate_hz: float, block: int, duration_s: float, out_dir: Path) -> dic
     session = Session(spec, log=lambda s: print(s, file=sys.stderr))
     session.start()
     t0 = time.monotonic()
-    cpu0 = {}
-    cpu_end = {}
+    cpu0: dict[str, tuple[float, float]] = {}
+    cpu_end: dict[str, tuple[float, float]] = {}
+    last_sample = 0.0
     crashed = False
     try:
         while True:
@@ -87,13 +88,19 @@ def run_one(rate_hz: float, block: int, duration_s: float, out_dir: Path) -> dic
             if not cpu0 and time.monotonic() - t0 > 3.0:
                 cpu0 = {n: (cpu_s(p.proc.pid), time.monotonic())
                         for n, p in session.procs.items()}
+            if cpu0 and time.monotonic() - last_sample > 1.0:
+                # keep the last reading of each live process (the bench exits at its end)
+                last_sample = time.monotonic()
+                for n, p in session.procs.items():
+                    c = cpu_s(p.proc.pid)
+                    if c > 0 and p.proc.poll() is None:
+                        cpu_end[n] = (c, last_sample)
             session.poll()
             if session.failures:
                 crashed = True
                 break
             if session.procs['bench'].proc.poll() is not None:
                 break
-        cpu_end = {n: (cpu_s(p.proc.pid), time.monotonic()) for n, p in session.procs.items()}
         end = time.monotonic() + 3.0
         while time.monotonic() < end:
             ex.spin_once(timeout_sec=0.05)
@@ -105,8 +112,6 @@ def run_one(rate_hz: float, block: int, duration_s: float, out_dir: Path) -> dic
     cpu_pct = {}
     for n, (c1, w1) in cpu_end.items():
         c0, w0 = cpu0.get(n, (0.0, t0))
-        if n == 'bench' and c1 == 0.0:
-            continue
         cpu_pct[n] = 100.0 * (c1 - c0) / max(w1 - w0, 1e-9)
     expected = int(round(duration_s * rate_hz / block))
     summary = bag_summary(bag)
