@@ -36,6 +36,8 @@ from rv_te_bench.nodes.common import (
 )
 from rv_te_bench.params import ParamSpec
 
+_MAX_PENDING_BLOCKS = 1000   # blocks kept while waiting for bench/info
+
 PARAMS = (
     ParamSpec('gear_ratio', 'double', 0.0,
               'Overall ratio i [input rev / output rev]; 0 = take it from bench/info',
@@ -76,6 +78,9 @@ class TeNode(Node):
         self._blocks = 0
         self._last_window: Any = None
         self._first_seq: int | None = None
+        # blocks that arrive before the gear ratio is known (bench/info is latched but may
+        # land after the first blocks): kept, bounded, and analysed once configured
+        self._pending: deque[EncoderBlock] = deque()
         self.recent_windows: deque[Any] = deque(maxlen=64)  # for diagnostics and tests
         # reliable: the compensation node identifies the unit from these samples and the
         # recorder keeps them; best-effort viewers are still compatible
@@ -104,6 +109,9 @@ class TeNode(Node):
                                   decimated_rate_hz=self.p['decimated_rate_hz'])
         if self.analyzer is None:
             self.analyzer = StreamingTeAnalyzer(config)
+            pending, self._pending = self._pending, deque()
+            for msg in pending:
+                self._on_block(msg)
         else:
             self._publish_windows(self.analyzer.flush())
             self.analyzer.reconfigure(config)
@@ -139,7 +147,11 @@ class TeNode(Node):
     def _on_block(self, msg: EncoderBlock) -> None:
         t_arrival = time.perf_counter()
         if self.analyzer is None:
-            self.drops.drop('no_config', 'no gear ratio yet (waiting for bench/info)')
+            if len(self._pending) >= _MAX_PENDING_BLOCKS:
+                self._pending.popleft()
+                self.drops.drop('no_config', 'no gear ratio yet (waiting for bench/info); '
+                                f'kept the last {_MAX_PENDING_BLOCKS} blocks')
+            self._pending.append(msg)
             return
         try:
             block = convert.encoder_block_to_data(msg)

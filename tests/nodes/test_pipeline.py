@@ -224,3 +224,37 @@ def test_te_node_survives_malformed_blocks(graph) -> None:  # noqa: ANN001
     assert w.pp_rad == pytest.approx(2 * amp, rel=1e-3)
     assert w.mean_rad == pytest.approx(0.0, abs=1e-3 * amp)
     assert w.std_rad == pytest.approx(amp / math.sqrt(2), rel=1e-3)
+
+
+def test_blocks_before_bench_info_are_kept_and_analysed(graph) -> None:  # noqa: ANN001
+    """bench/info may land after the first blocks: they wait, nothing is dropped."""
+    ctx, ex, add = graph
+    te = add(TeNode(context=ctx))
+    pub_node = add(rclpy.create_node('early_publisher', context=ctx))
+    pub = pub_node.create_publisher(EncoderBlock, 'bench/encoders', qos.ENCODER_QOS)
+    info_pub = pub_node.create_publisher(BenchInfo, 'bench/info', qos.LATCHED_QOS)
+    spin_until(ex, lambda: pub.get_subscription_count() > 0, 10.0)
+    n, rate = 100, 1000.0
+    omega = 2 * math.pi * 3000 / 60
+    for seq in range(20):
+        m = EncoderBlock()
+        m.seq = seq
+        m.sample_rate_hz = rate
+        m.header.stamp.sec = 10
+        m.header.stamp.nanosec = seq * 100_000_000
+        off = np.arange(n) / rate
+        th = omega * (10 + seq * n / rate + off)
+        m.time_offset_s = off
+        m.theta_in_rad = th
+        m.theta_out_rad = th / 79.0
+        pub.publish(m)
+    assert spin_until(ex, lambda: len(te._pending) == 20, 10.0)
+    assert te.analyzer is None
+    info = BenchInfo()
+    info.gear_ratio = 79.0
+    info.crank_per_input = -25.0 / 79.0
+    info_pub.publish(info)
+    assert spin_until(ex, lambda: te.analyzer is not None, 10.0)
+    assert te.analyzer.counters['blocks'] == 20
+    assert te.drops.total == 0
+    assert te._gaps_total == 0
