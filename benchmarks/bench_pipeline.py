@@ -50,7 +50,8 @@ def run_one(rate_hz: float, block: int, duration_s: float, out_dir: Path) -> dic
     spec = build_session([], nodes=['bench', 'te_node', 'recorder'], overrides=[
         'bench.te_mode=nlte', f'bench.sample_rate_hz={rate_hz}', f'bench.block_size={block}',
         f'bench.duration_s={duration_s}', 'bench.time_mode=realtime',
-        f'recorder.output_dir={out_dir}', f'recorder.bag_name={bag.name}'])
+        f'recorder.output_dir={out_dir}', f'recorder.bag_name={bag.name}',
+        'bench.wait_for_nodes=[te_node, recorder, pipeline_probe]'])
     ctx = rclpy.context.Context()
     rclpy.init(context=ctx)
     probe = rclpy.create_node('pipeline_probe', context=ctx)
