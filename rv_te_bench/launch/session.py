@@ -192,13 +192,32 @@ def node_parameters(spec: SessionSpec, node: str) -> dict[str, Any]:
     values = dict(spec.parameters.get(node, {}))
     if node == 'bench':
         # the bench's clock starts once the session's encoder subscribers are up
-        values.setdefault('wait_for_nodes',
-                          [n for n in ('te_node', 'recorder') if n in spec.nodes])
+        waits = [n for n in ('te_node', 'recorder') if n in spec.nodes]
+        if waits:
+            values.setdefault('wait_for_nodes', waits)
     if node == 'recorder':
         values.setdefault('session_metadata_yaml', session_metadata_yaml(spec))
     if spec.use_sim_time:
         values['use_sim_time'] = True
     return values
+
+
+def typed_parameter(name: str, value: Any, specs: tuple[ParamSpec, ...]) -> Any:  # noqa: ANN401
+    """An rclpy Parameter with the declared type (an empty list would infer BYTE_ARRAY)."""
+    from rclpy.parameter import Parameter  # noqa: PLC0415
+
+    kinds = {'bool': Parameter.Type.BOOL, 'int': Parameter.Type.INTEGER,
+             'double': Parameter.Type.DOUBLE, 'string': Parameter.Type.STRING,
+             'string_array': Parameter.Type.STRING_ARRAY,
+             'double_array': Parameter.Type.DOUBLE_ARRAY}
+    spec = next((s for s in specs if s.name == name), None)
+    if spec is None:
+        return Parameter(name, value=value)
+    if spec.type == 'double':
+        value = float(value)
+    elif spec.type == 'double_array':
+        value = [float(v) for v in value]
+    return Parameter(name, kinds[spec.type], value)
 
 
 def session_metadata_yaml(spec: SessionSpec) -> str:
@@ -330,8 +349,8 @@ def run_single_process(spec: SessionSpec, *, until: Callable[[], bool] | None = 
     import importlib  # noqa: PLC0415
 
     import rclpy  # noqa: PLC0415
+    from rclpy.exceptions import ParameterException  # noqa: PLC0415
     from rclpy.executors import ExternalShutdownException  # noqa: PLC0415
-    from rclpy.parameter import Parameter  # noqa: PLC0415
 
     from rv_te_bench.nodes.common import make_executor  # noqa: PLC0415
 
@@ -350,8 +369,12 @@ def run_single_process(spec: SessionSpec, *, until: Callable[[], bool] | None = 
             module, cls_name = NODE_TYPES[name]
             cls = getattr(importlib.import_module(module), cls_name)
             values = node_parameters(spec, name)
-            overrides = [Parameter(k, value=v) for k, v in values.items()]
-            nodes.append(cls(context=ctx, parameter_overrides=overrides))
+            overrides = [typed_parameter(k, v, node_specs(name)) for k, v in values.items()]
+            try:
+                nodes.append(cls(context=ctx, parameter_overrides=overrides))
+            except ParameterException as exc:
+                msg = f'node {name!r}: {exc}'
+                raise ParameterFileError(msg) from None
         executor = make_executor('multi', context=ctx)
         for n in nodes:
             executor.add_node(n)
