@@ -168,9 +168,10 @@ def _lagrange4_uniform(x: np.ndarray, y: np.ndarray, spacing: float, n_grid: int
     n = x.size
     if n < 4:  # noqa: PLR2004 - four nodes make a cubic
         return np.interp(np.arange(n_grid) * spacing, x, y)
-    # count[m] = number of nodes with x <= m * spacing (a node that rounds onto a grid
-    # point may land one cell off, which only shifts the 4-node stencil by one)
-    cell = np.minimum(np.floor(x * (1.0 / spacing)), n_grid).astype(np.intp)
+    # count[m] = number of nodes with x <= m * spacing: a node in ((m-1) s, m s] goes to
+    # cell m (ceil; a node that rounds onto a grid point may land one cell off, which only
+    # shifts the 4-node stencil by one)
+    cell = np.minimum(np.ceil(x * (1.0 / spacing)), n_grid).astype(np.intp)
     count = np.cumsum(np.bincount(cell, minlength=n_grid + 1)[:n_grid])
     j_all = count - 2
     np.clip(j_all, 0, n - 4, out=j_all)

@@ -180,12 +180,12 @@ def _normalize(block: Any) -> _Clean | _Problem:  # noqa: ANN401, C901, PLR0911,
         return _Problem('malformed', f'{where}: torque_out_nm has {torque.size} samples, '
                                      f'expected 0 or {n}')
     # one pass without a temporary: a NaN or inf makes the sum non-finite (finite values
-    # overflow only beyond 1e304, which no angle, time or torque reaches)
+    # overflow only beyond 1e304, which no angle or time reaches). The torque is not used
+    # by the TE analysis: a bad torque sample must not cost the block its angles.
     with np.errstate(over='ignore', invalid='ignore'):
-        totals = [float(np.add.reduce(a)) for a in (offs, th_in, th_out, torque)]
-    for name, arr, total in zip(('time_offset_s', 'theta_in_rad', 'theta_out_rad',
-                                 'torque_out_nm'), (offs, th_in, th_out, torque), totals,
-                                strict=True):
+        totals = [float(np.add.reduce(a)) for a in (offs, th_in, th_out)]
+    for name, arr, total in zip(('time_offset_s', 'theta_in_rad', 'theta_out_rad'),
+                                (offs, th_in, th_out), totals, strict=True):
         if not math.isfinite(total):
             bad_idx = np.flatnonzero(~np.isfinite(arr))
             if bad_idx.size:
@@ -414,7 +414,8 @@ class StreamingTeAnalyzer:
         self._n_windows = 0
         self._counters = dict.fromkeys(
             ('blocks', 'samples', 'gaps', 'malformed', 'non_finite', 'seq_jumps',
-             'time_backwards', 'dropped_blocks', 'windows', 'complete_windows'), 0)
+             'time_backwards', 'dropped_blocks', 'windows', 'complete_windows',
+             'spectrum_failures'), 0)
 
     @property
     def config(self) -> TeAnalysisConfig:
@@ -432,7 +433,8 @@ class StreamingTeAnalyzer:
     @property
     def counters(self) -> dict[str, int]:
         """Counts: blocks, samples (clean), gaps (events), malformed, non_finite, seq_jumps,
-        time_backwards, dropped_blocks (malformed + non_finite), windows, complete_windows."""  # noqa: D205, D209
+        time_backwards, dropped_blocks (malformed + non_finite), windows, complete_windows,
+        spectrum_failures (complete windows whose angle grid could not be resampled)."""  # noqa: D205, D209
         return dict(self._counters)
 
     def reconfigure(self, config: TeAnalysisConfig, *, reset_cumulative: bool | None = None) -> None:
@@ -492,6 +494,7 @@ class StreamingTeAnalyzer:
                         revolutions=round(w_rev))
                 except TeInputError:
                     spectrum = None
+                    self._counters['spectrum_failures'] += 1
         else:
             stats = te_statistics(te, revolutions=abs(float(phi[-1] - phi[0])) / _TWO_PI)
         result = WindowResult(

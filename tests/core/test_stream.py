@@ -362,3 +362,19 @@ def test_benchmark_script_quick_run(capsys: pytest.CaptureFixture[str]) -> None:
     rows = [r for r in capsys.readouterr().out.splitlines() if r.startswith('|')]
     assert len(rows) == 7
     assert 'M samples/s' in rows[2]
+
+
+def test_non_finite_torque_does_not_cost_the_angles() -> None:
+    """The TE analysis does not use torque: a NaN torque sample keeps the block."""
+    orders = OrderSet(gear_ratio=79.0, crank_per_output=25.0)
+    an = StreamingTeAnalyzer(TeAnalysisConfig(orders=orders))
+    n = 100
+    th = np.linspace(0.0, 1.0, n)
+    torque = np.zeros(n)
+    torque[3] = np.nan
+    upd = an.push(EncoderBlockData(seq=0, stamp_s=0.0, sample_rate_hz=1000.0,
+                                   time_offset_s=np.arange(n) / 1000.0, theta_in_rad=th,
+                                   theta_out_rad=th / 79.0, torque_out_nm=torque))
+    assert upd.gaps == ()
+    assert an.counters['blocks'] == 1
+    assert an.counters['samples'] == n
