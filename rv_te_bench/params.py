@@ -97,6 +97,26 @@ class ParamSpec:
         return None
 
 
+def coerce_value(spec: ParamSpec, value: Any) -> Any:  # noqa: ANN401
+    """The value in the declared type where that is lossless (an int for a double).
+
+    ROS parameter files write ``300`` for 300.0; rclpy would reject the integer for a
+    double parameter, so every path (files, ``--param``, single process) coerces here.
+    """
+    if spec.type == 'double' and isinstance(value, int) and not isinstance(value, bool):
+        return float(value)
+    if spec.type == 'double_array' and isinstance(value, list | tuple):
+        return [float(v) if isinstance(v, int) and not isinstance(v, bool) else v
+                for v in value]
+    return value
+
+
+def coerce_parameters(specs: tuple[ParamSpec, ...], values: dict[str, Any]) -> dict[str, Any]:
+    """:func:`coerce_value` for every known key of ``values``."""
+    by_name = {s.name: s for s in specs}
+    return {k: coerce_value(by_name[k], v) if k in by_name else v for k, v in values.items()}
+
+
 def check_parameters(specs: tuple[ParamSpec, ...], values: dict[str, Any], *, where: str,
                      ) -> None:
     """Check ``values`` against ``specs``.

@@ -17,7 +17,6 @@ There is no ``launch`` / ``ros2 launch`` on PyPI, so this module does what a lau
 
 from __future__ import annotations
 
-import contextlib
 import os
 import signal
 import subprocess
@@ -31,7 +30,12 @@ from typing import TYPE_CHECKING, Any
 import yaml
 
 from rv_te_bench.errors import ParameterFileError
-from rv_te_bench.params import ParamSpec, check_parameters, load_parameter_file
+from rv_te_bench.params import (
+    ParamSpec,
+    check_parameters,
+    coerce_parameters,
+    load_parameter_file,
+)
 
 if TYPE_CHECKING:
     from collections.abc import Callable, Sequence
@@ -126,7 +130,7 @@ def build_session(param_files: Sequence[str | Path] = (), *, namespace: str = ''
                     where = f'parameter file {f}: node {node_key!r}'
                     if node_key != '/**':
                         check_parameters(node_specs(t), values, where=where)
-                    params[t].update(values)
+                    params[t].update(coerce_parameters(node_specs(t), values))
             if node_key == '/**':
                 use_sim_time = bool(values.get('use_sim_time', use_sim_time))
                 _check_wildcard(values, f, wanted, params)
@@ -136,12 +140,8 @@ def build_session(param_files: Sequence[str | Path] = (), *, namespace: str = ''
             msg = f'--param {item!r}: unknown node {node!r}; known nodes: {", ".join(STOP_ORDER)}'
             raise ParameterFileError(msg)
         if node in params:
-            if isinstance(value, int) and not isinstance(value, bool):
-                spec = {s.name: s for s in node_specs(node)}.get(key)
-                if spec is not None and spec.type == 'double':
-                    value = float(value)
             check_parameters(node_specs(node), {key: value}, where=f'--param {item!r}')
-            params[node][key] = value
+            params[node].update(coerce_parameters(node_specs(node), {key: value}))
     remaps = []
     for r in remappings:
         if ':=' not in r or not all(r.split(':=', 1)):
@@ -184,7 +184,7 @@ def _check_wildcard(values: dict[str, Any], f: str | Path, wanted: Sequence[str]
             raise ParameterFileError(msg)
         for n in owners:
             check_parameters(node_specs(n), {key: value}, where=f'parameter file {f}: "/**"')
-            params[n].setdefault(key, value)
+            params[n].setdefault(key, coerce_parameters(node_specs(n), {key: value})[key])
 
 
 def node_parameters(spec: SessionSpec, node: str) -> dict[str, Any]:
@@ -197,7 +197,7 @@ def node_parameters(spec: SessionSpec, node: str) -> dict[str, Any]:
             values.setdefault('wait_for_nodes', waits)
     if node == 'recorder':
         values.setdefault('session_metadata_yaml', session_metadata_yaml(spec))
-    if spec.use_sim_time:
+    if spec.use_sim_time and node != 'bench':   # the bench is the /clock source
         values['use_sim_time'] = True
     return values
 
@@ -206,18 +206,13 @@ def typed_parameter(name: str, value: Any, specs: tuple[ParamSpec, ...]) -> Any:
     """An rclpy Parameter with the declared type (an empty list would infer BYTE_ARRAY)."""
     from rclpy.parameter import Parameter  # noqa: PLC0415
 
-    kinds = {'bool': Parameter.Type.BOOL, 'int': Parameter.Type.INTEGER,
-             'double': Parameter.Type.DOUBLE, 'string': Parameter.Type.STRING,
-             'string_array': Parameter.Type.STRING_ARRAY,
-             'double_array': Parameter.Type.DOUBLE_ARRAY}
+    from rv_te_bench.nodes.common import PARAMETER_TYPES  # noqa: PLC0415
+    from rv_te_bench.params import coerce_value  # noqa: PLC0415
+
     spec = next((s for s in specs if s.name == name), None)
     if spec is None:
         return Parameter(name, value=value)
-    if spec.type == 'double':
-        value = float(value)
-    elif spec.type == 'double_array':
-        value = [float(v) for v in value]
-    return Parameter(name, kinds[spec.type], value)
+    return Parameter(name, PARAMETER_TYPES[spec.type], coerce_value(spec, value))
 
 
 def session_metadata_yaml(spec: SessionSpec) -> str:
@@ -284,8 +279,10 @@ class Session:
             module, _ = NODE_TYPES[node]
             cmd = [sys.executable, '-m', module, *ros_args(self.spec, node,
                                                            self._params_file(node))]
+            # own process group: a terminal Ctrl-C reaches the launcher only, which then
+            # stops the nodes in data-flow order (recorder last)
             proc = subprocess.Popen(cmd, env=child_env(), stdout=self._stdout,
-                                    stderr=self._stdout)
+                                    stderr=self._stdout, start_new_session=True)
             self.procs[node] = NodeProcess(node, proc)
             if node == 'recorder':
                 time.sleep(0.5)
@@ -345,12 +342,18 @@ class Session:
 
 
 def run_single_process(spec: SessionSpec, *, until: Callable[[], bool] | None = None) -> int:
-    """All nodes in one process on one multi-threaded executor; returns an exit code."""
+    """All nodes in one process on one executor; returns an exit code.
+
+    The EventsExecutor (single-threaded; the fastest receiver measured here, DESIGN s.3):
+    the compensation node's searches run on its own worker thread. SIGINT/SIGTERM request a
+    stop; the nodes are then destroyed in data-flow order with the executor spinning in
+    between, so the TE node's final window reaches the recorder before the bag closes.
+    """
     import importlib  # noqa: PLC0415
 
     import rclpy  # noqa: PLC0415
     from rclpy.exceptions import ParameterException  # noqa: PLC0415
-    from rclpy.executors import ExternalShutdownException  # noqa: PLC0415
+    from rclpy.signals import SignalHandlerOptions  # noqa: PLC0415
 
     from rv_te_bench.nodes.common import make_executor  # noqa: PLC0415
 
@@ -360,10 +363,22 @@ def run_single_process(spec: SessionSpec, *, until: Callable[[], bool] | None = 
     for a, b in spec.remappings:
         args += ['-r', f'{a}:={b}']
     ctx = rclpy.context.Context()
-    rclpy.init(args=args, context=ctx)
-    nodes = []
-    code = 0
-    old = signal.signal(signal.SIGTERM, lambda *_: rclpy.try_shutdown(context=ctx))
+    rclpy.init(args=args, context=ctx, signal_handler_options=SignalHandlerOptions.NO)
+    stop = {'requested': False}
+
+    def request_stop(*_: object) -> None:
+        stop['requested'] = True
+
+    old_int = signal.signal(signal.SIGINT, request_stop)
+    old_term = signal.signal(signal.SIGTERM, request_stop)
+    nodes: list[Any] = []
+    executor = make_executor('events', context=ctx)
+
+    def settle(seconds: float) -> None:
+        end = time.monotonic() + seconds
+        while ctx.ok() and time.monotonic() < end:
+            executor.spin_once(timeout_sec=0.05)
+
     try:
         for name in [n for n in NODE_TYPES if n in spec.nodes]:
             module, cls_name = NODE_TYPES[name]
@@ -375,27 +390,32 @@ def run_single_process(spec: SessionSpec, *, until: Callable[[], bool] | None = 
             except ParameterException as exc:
                 msg = f'node {name!r}: {exc}'
                 raise ParameterFileError(msg) from None
-        executor = make_executor('multi', context=ctx)
-        for n in nodes:
-            executor.add_node(n)
+            executor.add_node(nodes[-1])
         bench = next((n for n in nodes if n.get_name() == 'bench'), None)
-        with contextlib.suppress(KeyboardInterrupt, ExternalShutdownException):
-            while rclpy.ok(context=ctx):
-                executor.spin_once(timeout_sec=0.1)
-                if bench is not None and getattr(bench, 'finished', False):
-                    end = time.monotonic() + 2.0
-                    while time.monotonic() < end:
-                        executor.spin_once(timeout_sec=0.05)
-                    break
-                if until is not None and until():
-                    break
+        while ctx.ok() and not stop['requested']:
+            executor.spin_once(timeout_sec=0.1)
+            if bench is not None and getattr(bench, 'finished', False):
+                settle(2.0)   # the TE node takes the last blocks
+                break
+            if until is not None and until():
+                break
     finally:
         for n in sorted(nodes, key=lambda n: STOP_ORDER.index(n.get_name())
                         if n.get_name() in STOP_ORDER else 99):
+            if n.get_name() == 'recorder':
+                settle(1.0)   # the final windows and advice reach the bag
+            executor.remove_node(n)
             n.destroy_node()
-        signal.signal(signal.SIGTERM, old)
+            settle(0.2)
+        signal.signal(signal.SIGINT, old_int)
+        signal.signal(signal.SIGTERM, old_term)
         rclpy.try_shutdown(context=ctx)
-    return code
+    return 0
+
+
+def _raise_keyboard_interrupt(*_: object) -> None:
+    """SIGTERM handler of the launcher: stop the session like Ctrl-C does."""
+    raise KeyboardInterrupt
 
 
 def run_session(spec: SessionSpec, *, log: Callable[[str], None] | None = None,
@@ -407,6 +427,7 @@ def run_session(spec: SessionSpec, *, log: Callable[[str], None] | None = None,
     """
     session = Session(spec, log=log)
     interrupted = False
+    old_term = signal.signal(signal.SIGTERM, _raise_keyboard_interrupt)
     session.start()
     try:
         while True:
@@ -423,6 +444,7 @@ def run_session(spec: SessionSpec, *, log: Callable[[str], None] | None = None,
         session.log('[launch] Ctrl-C: stopping the session')
     finally:
         codes = session.stop()
+        signal.signal(signal.SIGTERM, old_term)
     for name, c in codes.items():
         if c not in (0, None) and not (interrupted and c in (-signal.SIGINT, 130)):
             msg = f'node {name!r} ended with code {c}'

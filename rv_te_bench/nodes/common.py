@@ -14,7 +14,6 @@ from rcl_interfaces.msg import (
     FloatingPointRange,
     IntegerRange,
     ParameterDescriptor,
-    ParameterType,
     SetParametersResult,
 )
 from rclpy.executors import ExternalShutdownException
@@ -28,19 +27,22 @@ if TYPE_CHECKING:
 
     from rv_te_bench.params import ParamSpec
 
-_PTYPE = {
-    'bool': ParameterType.PARAMETER_BOOL,
-    'int': ParameterType.PARAMETER_INTEGER,
-    'double': ParameterType.PARAMETER_DOUBLE,
-    'string': ParameterType.PARAMETER_STRING,
-    'string_array': ParameterType.PARAMETER_STRING_ARRAY,
-    'double_array': ParameterType.PARAMETER_DOUBLE_ARRAY,
+
+
+#: rclpy parameter types by ParamSpec.type (for typed overrides).
+PARAMETER_TYPES = {
+    'bool': Parameter.Type.BOOL,
+    'int': Parameter.Type.INTEGER,
+    'double': Parameter.Type.DOUBLE,
+    'string': Parameter.Type.STRING,
+    'string_array': Parameter.Type.STRING_ARRAY,
+    'double_array': Parameter.Type.DOUBLE_ARRAY,
 }
 
 
 def _descriptor(spec: ParamSpec) -> ParameterDescriptor:
     d = ParameterDescriptor(
-        name=spec.name, type=_PTYPE[spec.type], read_only=spec.read_only,
+        name=spec.name, type=PARAMETER_TYPES[spec.type].value, read_only=spec.read_only,
         description=spec.description,
         additional_constraints=(f'one of {list(spec.choices)}' if spec.choices else ''),
         dynamic_typing=False)
@@ -128,6 +130,8 @@ def _fmt(v: Any) -> str:  # noqa: ANN401
     return str(v)
 
 
+_DRAIN_S = 0.5   # how long a stopping node keeps taking its queued messages [s]
+
 OK = 0
 WARN = 1
 ERROR = 2
@@ -177,7 +181,7 @@ def run_node(factory: Callable[[Context], Node], args: Sequence[str] | None = No
         ``exit_code``.
     """
     from rclpy.context import Context  # noqa: PLC0415
-    from rclpy.exceptions import InvalidParameterValueException  # noqa: PLC0415
+    from rclpy.exceptions import ParameterException  # noqa: PLC0415
     from rclpy.signals import SignalHandlerOptions  # noqa: PLC0415
 
     from rv_te_bench.errors import RvTeError  # noqa: PLC0415
@@ -199,15 +203,17 @@ def run_node(factory: Callable[[Context], Node], args: Sequence[str] | None = No
     try:
         try:
             node = factory(context)
-        except (RvTeError, InvalidParameterValueException, ValueError) as exc:
+        except (RvTeError, ParameterException, ValueError) as exc:
             print(f'ERROR: {exc}', file=sys.stderr)
             return 1
         executor = make_executor(executor_kind, context=context)
         executor.add_node(node)
         while context.ok() and not stop['requested'] and not getattr(node, 'finished', False):
             executor.spin_once(timeout_sec=0.1)
-        end = time.monotonic() + linger_s
-        while context.ok() and not stop['requested'] and time.monotonic() < end:
+        # Linger (reliable delivery of our last messages), and on a stop request drain what
+        # is already queued for us so that it is analysed / recorded, not dropped.
+        end = time.monotonic() + max(linger_s, _DRAIN_S if stop['requested'] else 0.0)
+        while context.ok() and time.monotonic() < end:
             executor.spin_once(timeout_sec=0.05)
         executor.shutdown()
         code = int(getattr(node, 'exit_code', 0) or 0)
@@ -226,9 +232,16 @@ def run_node(factory: Callable[[Context], Node], args: Sequence[str] | None = No
 def make_executor(kind: str = 'events', context: Any = None) -> Any:  # noqa: ANN401
     """EventsExecutor on data paths (fastest measured here); single-threaded otherwise."""
     if kind == 'events':
+        import io  # noqa: PLC0415
+
         from rclpy.experimental import EventsExecutor  # noqa: PLC0415
 
-        return EventsExecutor(context=context)
+        try:
+            return EventsExecutor(context=context)
+        except io.UnsupportedOperation:
+            # it enables faulthandler, which needs a real stderr file (not so under a
+            # captured stderr, e.g. in tests): the single-threaded executor is the fallback
+            kind = 'single'
     if kind == 'multi':
         from rclpy.executors import MultiThreadedExecutor  # noqa: PLC0415
 

@@ -116,3 +116,13 @@ def test_packaged_default_session_is_valid() -> None:
     spec = build_session([default_session_file()])
     assert spec.parameters['bench']['preset'] == 'wang2020-2kv'
     assert spec.parameters['bench']['sample_rate_hz'] == 1000.0
+
+
+def test_integer_in_a_file_for_a_double_is_coerced(tmp_path: Path) -> None:
+    # ROS users write 300 for 300.0; rclpy would reject the integer for a double parameter
+    f = write(tmp_path, 'bench:\n  ros__parameters:\n    speed_rpm: 600\n'
+                        'te_node:\n  ros__parameters:\n    mesh_orders: [936, 1300]\n')
+    spec = build_session([f])
+    assert spec.parameters['bench']['speed_rpm'] == 600.0
+    assert isinstance(spec.parameters['bench']['speed_rpm'], float)
+    assert all(isinstance(x, float) for x in spec.parameters['te_node']['mesh_orders'])
