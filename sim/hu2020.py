@@ -586,6 +586,10 @@ def tooth_contact_analysis(params: HuRvParams, torque_nm: float | None = None, *
     def step(f_n: float) -> tuple[float, float, np.ndarray]:
         d_max = _delta_max_m(params, f_n, rho_abs)
         mesh = lever / rc * d_max > clearance
+        if not mesh.any():
+            msg = (f'tooth contact analysis: at torque {t!r} N m no pin closes its initial '
+                   f'clearance (smallest {float(np.min(clearance)):.3g} m); raise tca.torque_nm')
+            raise ModelInputError(msg)
         denom = float(np.sum((lever[mesh] / rc - clearance[mesh] / d_max) * lever[mesh]))
         return t_c / denom, d_max, mesh                                          # Eq. 44
 

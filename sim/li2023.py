@@ -114,7 +114,7 @@ __all__ = [
 ]
 
 # field -> (preset key, rule); rules: 'pos' > 0, 'nonneg' >= 0, 'int1'|'int0' integer >= 1|0,
-# 'frac' in (0, 1], 'ratio' in (1, 2), 'angle' finite, 'bool'
+# 'frac' in (0, 1], 'poisson' in (0, 0.5), 'ratio' in (1, 2), 'angle' finite, 'bool'
 _FIELDS: dict[str, tuple[str, str]] = {
     'z_sun': ('kinematics.z_sun', 'int1'),
     'z_planet': ('kinematics.z_planet', 'int1'),
@@ -129,7 +129,7 @@ _FIELDS: dict[str, tuple[str, str]] = {
     'eccentricity_m': ('geometry.eccentricity_m', 'pos'),
     'face_width_m': ('geometry.face_width_m', 'pos'),
     'youngs_modulus_pa': ('material.youngs_modulus_pa', 'pos'),
-    'poisson': ('material.poisson', 'frac'),
+    'poisson': ('material.poisson', 'poisson'),
     'tca_torque_nm': ('tca.torque_nm', 'pos'),
     'disc_load_share': ('tca.disc_load_share', 'frac'),
     'tca_grid_points': ('tca.grid_points', 'int1'),
@@ -197,9 +197,10 @@ def _check(name: str, key: str, rule: str, value: Any) -> None:  # noqa: ANN401,
         msg = f'{key} must be a finite number, got {value!r}'
         raise PresetError(msg)
     bad = {'pos': value <= 0, 'nonneg': value < 0, 'frac': not 0 < value <= 1,
-           'ratio': not 1 < value < 2, 'angle': False}[rule]
+           'poisson': not 0 < value < 0.5, 'ratio': not 1 < value < 2, 'angle': False}[rule]
     if bad:
-        rule_text = {'pos': '> 0', 'nonneg': '>= 0', 'frac': 'in (0, 1]', 'ratio': 'in (1, 2)'}
+        rule_text = {'pos': '> 0', 'nonneg': '>= 0', 'frac': 'in (0, 1]',
+                     'poisson': 'in (0, 0.5) (a Poisson ratio)', 'ratio': 'in (1, 2)'}
         msg = f'{key} must be {rule_text[rule]}, got {value!r} ({name})'
         raise PresetError(msg)
 

@@ -881,8 +881,10 @@ class Wang2kvDynamics:
         ome = np.concatenate(([st.omega_in_rad_s], om))
         lde = np.concatenate(([st.load_nm], ld))
         dt = np.diff(te)
-        # runs of (nearly) equal sample interval
-        brk = np.nonzero(np.abs(np.diff(dt)) > 1e-6 * dt[1:])[0] + 1
+        # runs of (nearly) equal sample interval; far from t = 0 float64 timestamps jitter
+        # in their last bits (1e-10 s at t = 1e6 s), so the tolerance is 1e-4 of the step,
+        # not 1e-6 (which split every block into hundreds of runs after days of running)
+        brk = np.nonzero(np.abs(np.diff(dt)) > 1e-4 * dt[1:])[0] + 1
         starts = np.concatenate(([0], brk))
         ends = np.concatenate((brk, [dt.size]))
         for s0, s1 in zip(starts, ends, strict=True):
