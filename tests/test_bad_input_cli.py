@@ -37,7 +37,7 @@ def work(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> Path:
     (tmp_path / 'notabag.mcap').write_bytes(b'garbage\n' * 10)
     (tmp_path / 'emptydir').mkdir()
     shutil.copytree(SAMPLE, tmp_path / 'sample')
-    trunc = tmp_path / 'truncated'
+    trunc = tmp_path / 'cut_bag'
     shutil.copytree(SAMPLE, trunc)
     mcap = next(trunc.glob('*.mcap'))
     data = mcap.read_bytes()
@@ -88,7 +88,12 @@ CASES = [
     (['analyze', 'notabag.mcap'], 1, 'not an MCAP file'),
     (['analyze', 'emptydir'], 1, 'no metadata.yaml'),
     (['analyze', 'sample', '--topic', '/bench/info'], 1, '/bench/info'),
-    (['analyze', 'truncated'], 1, 'truncated'),
+    (['analyze', 'cut_bag'], 1, 'truncated'),
+    (['identify', 'cut_bag'], 1, 'truncated'),
+    (['optimize-phases', 'wang2020-2kv', '--step-deg', '1'], 1, 'combinations'),
+    (['record', '--namespace', '1x'], 1, 'not a valid ROS namespace'),
+    (['model', 'wang2020-2kv', '--csv', 'notabag.mcap/x.csv'], 1, 'ERROR'),
+    (['demo', '--out-dir', 'notabag.mcap/sub'], 1, 'ERROR'),
     (['replay', 'nothere'], 1, 'does not exist'),
     (['replay', 'emptydir'], 1, 'no metadata.yaml'),
     (['replay', 'sample', '--rate', '0'], 1, '--rate must be > 0'),

@@ -49,7 +49,7 @@ def register(subparsers: Any) -> None:  # noqa: ANN401
     p.add_argument('--session', default=None, help='session folder name (default: time-based)')
     p.add_argument('--advice-timeout-s', type=float, default=90.0,
                    help='how long to wait for the compensation advice after the run')
-    add_session_arguments(p)
+    add_session_arguments(p, single_process=False)
     p.set_defaults(func=run)
 
 
@@ -86,11 +86,11 @@ def run(args: argparse.Namespace) -> int:  # noqa: C901, PLR0915
     if session_dir.exists():
         print(f'ERROR: session folder {session_dir} exists already', file=sys.stderr)
         return 1
-    session_dir.mkdir(parents=True)
     overrides = [f'recorder.output_dir={session_dir}', f'recorder.bag_name={bag_dir.name}',
                  f'bench.duration_output_revs={args.revolutions}', *args.params]
     spec = build_session([default_session_file()], namespace=args.namespace,
                          overrides=overrides, remappings=args.remap)
+    session_dir.mkdir(parents=True)   # only once everything is valid
     print(f'[demo] session {name}: {", ".join(spec.nodes)} '
           f'(namespace {spec.namespace or "/"}), bag -> {bag_dir}', file=sys.stderr)
     t_start = time.monotonic()

@@ -114,15 +114,21 @@ def run(args: argparse.Namespace) -> int:
     try:
         check_search_arguments(args)
         theta_in, theta_out, info = load_record(args.bag, args.topic)
+        from sim.bench import overrides_from_parameters_yaml  # noqa: PLC0415
+
+        # the bench's own overrides (recorded in BenchInfo) first, then --set
+        recorded = ([] if args.preset else
+                    overrides_from_parameters_yaml(str(info.get('parameters_yaml', ''))))
         preset, params = load_wang_params(args.preset or str(info.get('preset', '')),
-                                          list(args.overrides))
+                                          [*recorded, *args.overrides])
         te = transmission_error_rad(theta_in, theta_out, gear_ratio=float(info['gear_ratio']))
         idf = identify_eccentricities(theta_out, te, params,
                                       rng=np.random.default_rng(args.seed))
         if not args.no_recommend:
             bar = None if args.quiet else ProgressBar('re-assembly grid')
             rec = recommend_reassembly(idf, params, step_deg=args.step_deg,
-                                       refine=args.refine, progress=bar)
+                                       refine=args.refine,
+                                       refine_tol_deg=args.refine_tol_deg, progress=bar)
     except (SimError, RvTeError) as exc:
         if bar is not None:
             bar.close()

@@ -20,15 +20,16 @@ bench, te_node, compensation, recorder (optionally /namespace/node, or /** for a
 """
 
 
-def add_session_arguments(p: argparse.ArgumentParser) -> None:
-    """Arguments shared by ``launch`` and ``demo``."""
+def add_session_arguments(p: argparse.ArgumentParser, *, single_process: bool = True) -> None:
+    """Arguments shared by ``launch`` and ``demo`` (the demo always runs a process per node)."""
     p.add_argument('--namespace', default='', help='namespace of every node, e.g. bench1')
     p.add_argument('--param', dest='params', action='append', default=[],
                    metavar='NODE.KEY=VALUE', help='override one node parameter (repeatable)')
     p.add_argument('--remap', action='append', default=[], metavar='FROM:=TO',
                    help='topic remapping applied to every node (repeatable)')
-    p.add_argument('--single-process', action='store_true',
-                   help='all nodes in one process on one executor (default: one per node)')
+    if single_process:
+        p.add_argument('--single-process', action='store_true',
+                       help='all nodes in one process on one executor (default: one per node)')
 
 
 def register(subparsers: Any) -> None:  # noqa: ANN401

@@ -68,6 +68,10 @@ def main(argv: Sequence[str] | None = None) -> int:
     except (RvTeError, SimError) as exc:
         print(f'ERROR: {exc}', file=sys.stderr)
         return 1
+    except OSError as exc:   # files and folders: unwritable, a file where a folder goes...
+        print(f'ERROR: {exc.strerror or exc}: {exc.filename or ""}'.rstrip(': '),
+              file=sys.stderr)
+        return 1
     except KeyboardInterrupt:
         print('interrupted', file=sys.stderr)
         return 130

@@ -87,6 +87,11 @@ def add_search_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument('--quiet', action='store_true', help='no progress bar')
 
 
+#: Largest phase grid the CLI runs (step 4 deg: 91^4 = 6.9e7); finer phases come from
+#: --refine, which searches locally.
+MAX_GRID_COMBINATIONS = 7e7
+
+
 def check_search_arguments(args: argparse.Namespace) -> None:
     """Validate the grid options before any work (so that errors come as one line).
 
@@ -100,6 +105,12 @@ def check_search_arguments(args: argparse.Namespace) -> None:
         raise CompensationError(msg)
     if not (math.isfinite(args.refine_tol_deg) and args.refine_tol_deg > 0):
         msg = f'--refine-tol-deg must be finite and > 0, got {args.refine_tol_deg!r}'
+        raise CompensationError(msg)
+    n_axis = math.floor(360.0 / args.step_deg) + 1
+    if n_axis**4 > MAX_GRID_COMBINATIONS:
+        msg = (f'--step-deg {args.step_deg:g} makes a grid of {n_axis}^4 = {n_axis**4:.3g} '
+               f'combinations (at most {MAX_GRID_COMBINATIONS:.0e}); use a coarser step with '
+               '--refine for finer phases')
         raise CompensationError(msg)
 
 

@@ -44,6 +44,9 @@ def register(subparsers: Any) -> None:  # noqa: ANN401 - argparse's private acti
 
 def run(args: argparse.Namespace) -> int:
     """Record until ``--duration`` passes or SIGINT/SIGTERM; 0 ok, 1 error."""
+    from rv_te_bench.launch.session import normalise_namespace  # noqa: PLC0415
+
+    args.namespace = normalise_namespace(args.namespace) or '/'   # one line if invalid
     try:
         from rclpy.parameter import Parameter  # noqa: PLC0415
 

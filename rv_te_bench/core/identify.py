@@ -361,6 +361,7 @@ def identify_eccentricities(phase_out_rad: npt.ArrayLike, te_rad: npt.ArrayLike,
 
 def recommend_reassembly(identification: Identification, params: Any, *,  # noqa: ANN401
                          step_deg: float = 10.0, refine: bool = False,
+                         refine_tol_deg: float = 0.5,
                          progress: ProgressCallback | None = None) -> PhaseOptimisation:
     """Re-assembly phases for an identified unit (Eq. 21 with its eccentricities).
 
@@ -373,6 +374,7 @@ def recommend_reassembly(identification: Identification, params: Any, *,  # noqa
         params: Wang2kvParams or EccentricGeometry (alpha, r_p, crank order, stiffness).
         step_deg: Grid step [deg] (see :func:`optimise_phases`).
         refine: Refine below the grid step.
+        refine_tol_deg: Final local grid step of the refinement [deg].
         progress: Fraction-done callback.
 
     Raises:
@@ -387,7 +389,8 @@ def recommend_reassembly(identification: Identification, params: Any, *,  # noqa
     unit = geom.with_eccentricities(
         (a['e_p1'], a['e_p2'], a['e_g'], identification.e_m['e_ot'])).with_phases(
         [identification.phases_rad[n] for n in PHASE_NAMES])
-    return optimise_phases(unit, step_deg=step_deg, refine=refine, progress=progress)
+    return optimise_phases(unit, step_deg=step_deg, refine=refine,
+                           refine_tol_deg=refine_tol_deg, progress=progress)
 
 
 def identified_advice(phase_out_rad: npt.ArrayLike, te_rad: npt.ArrayLike, params: Any, *,  # noqa: ANN401

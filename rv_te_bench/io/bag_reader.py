@@ -596,10 +596,15 @@ def read_bench_info(path: str | Path, topic: str | None = None) -> dict[str, Any
     if not names:
         return None
     last: bytes | None = None
-    for _, msgtype, _, data in MessageStream(lambda s: _messages(bag, s, names), strict=False):
+    stream = MessageStream(lambda s: _messages(bag, s, names), strict=False)
+    for _, msgtype, _, data in stream:
         if msgtype == BENCH_INFO:
             last = bytes(data)
     if last is None:
+        if stream.partial:   # the BenchInfo may be in the part that cannot be read
+            text = (f'Bag {bag.path}: no readable BenchInfo; the bag is damaged: '
+                    f'{"; ".join(stream.problems)}')
+            raise BagError(text)
         return None
     try:
         msg = rv_te_typestore().deserialize_cdr(last, BENCH_INFO)
