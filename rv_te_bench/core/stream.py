@@ -32,7 +32,7 @@ re-zeroed counter); both show up in the window statistics.
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from typing import TYPE_CHECKING, Any, Literal
 
 import numpy as np
@@ -457,6 +457,15 @@ class StreamingTeAnalyzer:
             self._buf = _WindowBuffer(config.max_window_samples)
         self._config = config
         self._last_phi = None
+        self._decim_offset = 0
+
+    def set_decimated_rate(self, decimated_rate_hz: float) -> None:
+        """Change only the rate of the TE handed back for display; the window stays open.
+
+        Raises:
+            TeConfigError: The rate is not finite and > 0.
+        """
+        self._config = replace(self._config, decimated_rate_hz=decimated_rate_hz)
         self._decim_offset = 0
 
     def flush(self) -> tuple[WindowResult, ...]:

@@ -93,7 +93,7 @@ PARAMS = (
               choices=('realtime', 'fast')),
     ParamSpec('speed_factor', 'double', 20.0,
               'fast mode: times faster than real time; 0 = as fast as possible [1]',
-              min_value=0.0, max_value=1e4, read_only=False),
+              min_value=0.0, max_value=1e4),
     ParamSpec('wait_for_nodes', 'string_array', [],
               'Start the clock once these nodes (same namespace) subscribe bench/encoders [-]'),
     ParamSpec('wait_timeout_s', 'double', 20.0,

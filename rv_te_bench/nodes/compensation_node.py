@@ -15,8 +15,9 @@ Long searches run on a worker thread, off the executor; results are published fr
 
 from __future__ import annotations
 
-import sys
 import math
+import sys
+import threading
 from concurrent.futures import Future, ThreadPoolExecutor
 from typing import Any
 
@@ -57,6 +58,10 @@ PARAMS = (
 _MAX_SAMPLES = 2_000_000  # bound on the decimated TE kept for identification
 
 
+class _Cancelled(Exception):  # noqa: N818 - a control-flow signal, not an error
+    """Raised inside a search's progress callback when the node shuts down."""
+
+
 class CompensationNode(Node):
     """Advice from the measured TE; searches on a worker thread."""
 
@@ -67,6 +72,7 @@ class CompensationNode(Node):
         reject_invalid_changes(self, PARAMS)
         self.drops = DropCounter(self)
         self.pool = ThreadPoolExecutor(max_workers=1, thread_name_prefix='compensation')
+        self._cancel = threading.Event()
         self.jobs: list[tuple[str, Future[Any]]] = []
         self.progress: dict[str, float] = {}
         self.preset: Any = None
@@ -88,11 +94,12 @@ class CompensationNode(Node):
                                  qos.ENCODER_QOS)
         self.create_timer(0.2, self._collect)
         self.create_timer(self.p['diagnostics_period_s'], self._publish_diagnostics)
-        if self.p['preset']:
-            self._set_preset(self.p['preset'], list(self.p['overrides']))
+        if self.p['preset']:   # a bad preset parameter stops the node at start-up
+            self._set_preset(self.p['preset'], list(self.p['overrides']), strict=True)
 
     # -- inputs ---------------------------------------------------------------------------
-    def _set_preset(self, name: str, overrides: list[str]) -> None:
+    def _set_preset(self, name: str, overrides: list[str], *, strict: bool = False) -> None:
+        """Load the preset; ``strict`` (our own parameter) raises, a bench's is logged."""
         from sim.presets import load_preset  # noqa: PLC0415
 
         if self.preset is not None:
@@ -100,6 +107,8 @@ class CompensationNode(Node):
         try:
             self.preset = load_preset(name, overrides)
         except ValueError as exc:
+            if strict:
+                raise
             self.errors.append(str(exc))
             self.get_logger().error(f'cannot load preset {name!r}: {exc}')
             return
@@ -142,6 +151,14 @@ class CompensationNode(Node):
             self._submit('tooth-profile', lambda: self._job_tooth(measured))
 
     # -- jobs (worker thread) -------------------------------------------------------------
+    def _progress(self, name: str) -> Any:  # noqa: ANN401
+        """A progress callback for job ``name`` that also aborts it on shutdown."""
+        def report(fraction: float) -> None:
+            if self._cancel.is_set():
+                raise _Cancelled
+            self.progress[name] = float(fraction)
+        return report
+
     def _submit(self, name: str, fn: Any) -> None:  # noqa: ANN401
         if any(n == name and not f.done() for n, f in self.jobs):
             return  # one search of a kind at a time
@@ -155,7 +172,7 @@ class CompensationNode(Node):
         params = Wang2kvParams.from_preset(self.preset)
         result = optimise_phases(
             params, step_deg=self.p['step_deg'], refine=self.p['refine'],
-            progress=lambda f: self.progress.__setitem__('assembly-phases', float(f)))
+            progress=self._progress('assembly-phases'))
         return result.to_advice(self.preset.name)
 
     def _job_identify(self, phase_out_rad: np.ndarray, te_rad: np.ndarray) -> Any:  # noqa: ANN401
@@ -163,7 +180,8 @@ class CompensationNode(Node):
         from sim.wang2020 import Wang2kvParams  # noqa: PLC0415
 
         params = Wang2kvParams.from_preset(self.preset)
-        return identified_advice(phase_out_rad, te_rad, params, preset_name=self.preset.name)
+        return identified_advice(phase_out_rad, te_rad, params, preset_name=self.preset.name,
+                                 progress=self._progress('identified-assembly-phases'))
 
     def _job_tooth(self, measured_rad: float) -> Any:  # noqa: ANN401
         from rv_te_bench.core.tooth_compensation import tooth_profile_advice  # noqa: PLC0415
@@ -179,6 +197,8 @@ class CompensationNode(Node):
                 continue
             self.progress[name] = 1.0
             exc = fut.exception()
+            if isinstance(exc, _Cancelled):
+                continue
             if exc is not None:
                 self.errors.append(f'{name}: {exc}')
                 self.get_logger().error(f'{name} failed: {exc}', throttle_duration_sec=10.0)
@@ -202,8 +222,9 @@ class CompensationNode(Node):
         self.pub_diag.publish(diagnostic_array(self, 'compensation', level, message, values))
 
     def destroy_node(self) -> None:
-        """Stop the worker (running searches finish in the background thread)."""
-        self.pool.shutdown(wait=False, cancel_futures=True)
+        """Abort a running search at its next progress tick and stop the worker."""
+        self._cancel.set()
+        self.pool.shutdown(wait=True, cancel_futures=True)
         super().destroy_node()
 
 

@@ -32,6 +32,7 @@ __all__ = [
 ]
 
 ENCODER_QUEUE_DEPTH = 1000
+LATCHED_DEPTH = 20
 
 ENCODER_QOS = QoSProfile(
     history=HistoryPolicy.KEEP_LAST,
@@ -42,7 +43,9 @@ ENCODER_QOS = QoSProfile(
 
 LATCHED_QOS = QoSProfile(
     history=HistoryPolicy.KEEP_LAST,
-    depth=1,
+    # not 1: a burst (two windows, or two advice methods finishing together) must not
+    # overwrite itself, and a late joiner gets every advice method, not only the last
+    depth=LATCHED_DEPTH,
     reliability=ReliabilityPolicy.RELIABLE,
     durability=DurabilityPolicy.TRANSIENT_LOCAL,
 )

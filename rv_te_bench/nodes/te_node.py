@@ -124,8 +124,7 @@ class TeNode(Node):
         for prm in params:
             self.p[prm.name] = prm.value
         if self.analyzer is not None and any(p.name == 'decimated_rate_hz' for p in params):
-            cfg = self.analyzer.config
-            self._configure(cfg.orders)
+            self.analyzer.set_decimated_rate(self.p['decimated_rate_hz'])  # window stays
 
     def _on_info(self, msg: BenchInfo) -> None:
         self.bench_id = msg.bench_id

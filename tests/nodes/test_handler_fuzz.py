@@ -28,8 +28,9 @@ def nodes():  # noqa: ANN201
     rclpy.init(context=ctx)
     te = TeNode(context=ctx, parameter_overrides=[
         Parameter('gear_ratio', value=79.0), Parameter('crank_per_input', value=-25.0 / 79)])
+    # an RV preset: complete windows go to the (fast) tooth-profile compensation
     comp = CompensationNode(context=ctx, parameter_overrides=[
-        Parameter('optimize_phases', value=False)])
+        Parameter('preset', value='hu2020-rv'), Parameter('optimize_phases', value=False)])
     yield te, comp
     te.destroy_node()
     comp.destroy_node()
@@ -71,3 +72,8 @@ def test_compensation_node_handles_any_te_message(nodes, te_rad: np.ndarray, th:
     msg.window.pp_rad = pp
     comp._on_samples(msg)
     comp._on_window(msg)
+    for _, fut in comp.jobs:
+        exc = fut.exception(timeout=30)
+        # a bad TE value is a clear CompensationError (a ValueError), nothing else
+        assert exc is None or isinstance(exc, ValueError), repr(exc)
+    comp._collect()

@@ -258,3 +258,29 @@ def test_blocks_before_bench_info_are_kept_and_analysed(graph) -> None:  # noqa:
     assert te.analyzer.counters['blocks'] == 20
     assert te.drops.total == 0
     assert te._gaps_total == 0
+
+
+def test_compensation_node_bad_preset_stops_start_up(ros_context) -> None:  # noqa: ANN001
+    from rv_te_bench.nodes.compensation_node import CompensationNode  # noqa: PLC0415
+    from sim.errors import PresetError  # noqa: PLC0415
+
+    with pytest.raises(PresetError, match="unknown preset 'nope'"):
+        CompensationNode(context=ros_context, parameter_overrides=[
+            Parameter('preset', value='nope')])
+
+
+def test_compensation_node_aborts_a_running_search_on_shutdown(ros_context) -> None:  # noqa: ANN001
+    import time  # noqa: PLC0415
+
+    from rv_te_bench.nodes.compensation_node import CompensationNode  # noqa: PLC0415
+
+    node = CompensationNode(context=ros_context, parameter_overrides=[
+        Parameter('preset', value='wang2020-2kv'), Parameter('step_deg', value=5.0)])
+    # the 73^4 grid runs for a while; destroying the node must not wait for it
+    end = time.monotonic() + 10.0
+    while node.progress.get('assembly-phases', 0.0) <= 0.0 and time.monotonic() < end:
+        time.sleep(0.05)
+    t0 = time.monotonic()
+    node.destroy_node()
+    assert time.monotonic() - t0 < 5.0
+    assert node.published == {}
