@@ -192,31 +192,34 @@ def test_te_node_survives_malformed_blocks(graph) -> None:  # noqa: ANN001
         msg.theta_out_rad = th_in / 79.0 + amp * np.cos(25 * th_in / 79.0)
         return msg
 
-    seq = 0
     t0 = 100.0
-    bad = []
-    m = block(seq, t0)
-    m.theta_in_rad = np.full(n, np.nan)
-    bad.append(m)
-    m = block(seq + 1, t0)
-    m.theta_out_rad = np.zeros(n - 3)
-    bad.append(m)
-    m = block(seq + 2, t0 - 50.0)   # stamp going backwards
-    bad.append(m)
+    sent = [block(0, t0)]                       # clean: the reference for what follows
+    m = block(1, t0 + 0.1)
+    m.theta_in_rad = np.full(n, np.nan)         # non-finite -> dropped
+    sent.append(m)
+    m = block(2, t0 + 0.2)
+    m.theta_out_rad = np.zeros(n - 3)           # lengths differ -> malformed
+    sent.append(m)
+    sent.append(block(3, t0 - 50.0))            # clean data, stamp going backwards
     empty = EncoderBlock()
-    empty.seq = seq + 3
-    bad.append(empty)
-    for m in bad:
+    empty.seq = 4                               # empty -> malformed
+    sent.append(empty)
+    for m in sent:
         pub.publish(m)
         spin_for(ex, 0.02)
-    seq = 10
+    first_clean = 10                            # 3 -> 10: a sequence jump
     for k in range(45):  # 4.5 s of clean data: at least two whole output revolutions
-        pub.publish(block(seq + k, t0 + 10 + k * n / rate))
+        pub.publish(block(first_clean + k, t0 + 10 + k * n / rate))
         spin_for(ex, 0.01)
     spin_until(ex, lambda: any(w.window_complete for w in windows), 10.0)
     assert te.analyzer is not None
     counters = te.analyzer.counters
-    assert counters['malformed'] + counters['gaps'] >= 4
+    assert counters['non_finite'] == 1
+    assert counters['malformed'] == 2
+    assert counters['time_backwards'] == 1
+    assert counters['seq_jumps'] == 1
+    assert counters['blocks'] == len(sent) + 45
+    assert counters['samples'] == (2 + 45) * n  # the clean blocks: 0, 3 and 10..54
     complete = [w for w in windows if w.window_complete]
     assert complete, 'no clean window after the bad blocks'
     # closed form: amp*cos(25 phi) over whole revolutions: p-p 2 amp, mean 0, std amp/sqrt2
