@@ -188,6 +188,7 @@ class BenchNode(Node):
         self.pub_info.publish(convert.make_bench_info(info, convert.s_to_stamp(self.wall_start)))
         self._diag_last = (time.monotonic(), 0)
         self._lag_s = 0.0
+        self._lag_max_s = 0.0
         tick = self.block_period_s if not self.fast else max(
             1e-3, self.block_period_s / self.p['speed_factor'] if self.p['speed_factor'] > 0
             else 1e-3)
@@ -242,6 +243,7 @@ class BenchNode(Node):
             self._publish_one()
         if not self.fast:
             self._lag_s = (time.monotonic() - self.mono_start) - self.sim_time_s
+            self._lag_max_s = max(self._lag_max_s, self._lag_s)
 
     def _publish_one(self) -> None:
         b = self.sim.next_block()
@@ -279,6 +281,7 @@ class BenchNode(Node):
             'sim_time_s': self.sim_time_s,
             'realtime_factor': self.sim_time_s / wall if wall > 0 else 0.0,
             'lag_s': self._lag_s,
+            'lag_max_s': self._lag_max_s,
             'finished': self.finished,
         }
         late = (not self.fast) and self._lag_s > self.block_period_s
