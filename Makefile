@@ -1,5 +1,6 @@
 # The two set-up commands. Both build .venv when it is missing and are quick when it exists.
-PYTHON ?= python3
+# The ros-jazzy wheels are built for Python 3.11: prefer python3.11 when python3 is another.
+PYTHON ?= $(shell command -v python3.11 2>/dev/null || command -v python3)
 VENV   := .venv
 PY     := $(VENV)/bin/python
 # A venv Python started from another ros-wheel Python must not inherit the bootstrap marker.

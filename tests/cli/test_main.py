@@ -25,7 +25,9 @@ def test_every_subcommand_has_help_with_examples(name: str,
     with pytest.raises(SystemExit) as info:
         main([name, '--help'])
     assert info.value.code == 0
-    assert 'usage: rv-te' in capsys.readouterr().out
+    out = capsys.readouterr().out
+    assert 'usage: rv-te' in out
+    assert 'example' in out.lower()
 
 
 def test_no_command_and_bad_usage_exit_2(capsys: pytest.CaptureFixture[str]) -> None:

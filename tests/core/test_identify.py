@@ -22,9 +22,8 @@ from rv_te_bench.core.phases import PHASE_NAMES, EccentricGeometry, phase_object
 from rv_te_bench.errors import CompensationError
 from sim.units import arcsec_to_rad
 
-wang = pytest.importorskip('sim.wang2020')
-presets = pytest.importorskip('sim.presets')
-encoders = pytest.importorskip('sim.encoders')
+from sim import encoders, presets
+from sim import wang2020 as wang
 
 RATIO = 79.0
 N_SAMPLES = 6000          # one output revolution (15.8 s at 300 rpm: ~380 Hz)

@@ -25,10 +25,9 @@ from rv_te_bench.core.phases import (
     static_te_from_phases_rad,
 )
 from rv_te_bench.errors import CompensationError
+from sim import presets
+from sim import wang2020 as wang
 from sim.units import arcmin_to_rad, deg_to_rad, rad_to_arcmin, rad_to_deg
-
-wang = pytest.importorskip('sim.wang2020')
-presets = pytest.importorskip('sim.presets')
 
 ALPHA = float(deg_to_rad(35.266))
 R_P = 0.06108

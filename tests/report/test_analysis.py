@@ -235,7 +235,6 @@ def test_rv_recommendation_wiring(tmp_path, monkeypatch) -> None:  # noqa: ANN00
 
 
 def test_rv_recommendation_from_the_real_compensation_code(tmp_path) -> None:  # noqa: ANN001
-    pytest.importorskip('rv_te_bench.core.tooth_compensation')
     path = tmp_path / 'bag'
     synth = write_bag(path, harmonics=HARMONICS, duration_s=2.5, preset='hu2020-rv',
                       reducer_type='rv')
