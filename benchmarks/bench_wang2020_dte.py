@@ -1,6 +1,6 @@
 """Real-time factor of the Wang 2020 2K-V DTE (sim.wang2020, Eq. 19) at 10 kHz.
 
-Run: ``.venv/bin/python benchmarks/bench_wang2020_dte.py [--runs 5] [--block 0]``.
+Run: ``.venv/bin/python benchmarks/bench_wang2020_dte.py [--runs 5] [--all]``.
 Acceptance case: one output revolution (15.8 s at 300 rpm input) sampled at 10 kHz
 (158,000 samples) must be computed at least 10x faster than real time (< 1.6 s).
 Cases: constant 30 N m (the preset's drive) in one call and in 1000-sample blocks (the
