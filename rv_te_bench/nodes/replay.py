@@ -94,6 +94,7 @@ class ReplayNode(Node):
             msg = f'Bag {self.bag.path} has no topics {unknown}; it has {sorted(types)}.'
             raise BagError(msg)
         self._replay_pubs: dict[str, Any] = {}
+        self._latched_topics: set[str] = set()
         for topic, msgtype in types.items():
             if wanted and topic not in wanted:
                 continue
@@ -102,8 +103,10 @@ class ReplayNode(Node):
             except (ImportError, AttributeError, ValueError) as exc:
                 msg = f'Bag {self.bag.path}: cannot publish {topic}, type {msgtype}: {exc}'
                 raise BagError(msg) from None
-            self._replay_pubs[topic] = self.create_publisher(
-                cls, topic, _recorded_qos(qos_by_topic.get(topic)))
+            profile = _recorded_qos(qos_by_topic.get(topic))
+            self._replay_pubs[topic] = self.create_publisher(cls, topic, profile)
+            if profile.durability == DurabilityPolicy.TRANSIENT_LOCAL:
+                self._latched_topics.add(topic)
         self._clock_pub = self.create_publisher(Clock, '/clock', qos.CLOCK_QOS) \
             if p['clock'] else None
         self.published = dict.fromkeys(self._replay_pubs, 0)
@@ -202,6 +205,11 @@ class ReplayNode(Node):
                 base_ns = start_ns + round(self.start_offset_s * 1e9)
                 wall0 = time.monotonic()
             if stamp_ns < base_ns:
+                # skipped by --start-offset; latched state (bench/info) still holds then,
+                # as it would for a late joiner of the live session
+                if topic in self._latched_topics:
+                    self._replay_pubs[topic].publish(bytes(data))
+                    self.published[topic] += 1
                 continue
             due = wall0 + (stamp_ns - base_ns) * 1e-9 / self.rate
             if not self._sleep_until(

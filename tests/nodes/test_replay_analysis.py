@@ -93,3 +93,27 @@ def test_bench_node_runs_rv_presets(ros_context, preset: str, mode: str,  # noqa
     assert infos[0].gear_ratio == pytest.approx(ratio, rel=1e-9)
     assert [b.seq for b in blocks] == list(range(len(blocks)))
     assert len(blocks) >= 5
+
+
+def test_replay_with_start_offset_still_gives_the_latched_bench_info(ros_context) -> None:  # noqa: ANN001
+    ctx = ros_context
+    ex = SingleThreadedExecutor(context=ctx)
+    probe = rclpy.create_node('probe', context=ctx)
+    infos: list[BenchInfo] = []
+    blocks: list[EncoderBlock] = []
+    probe.create_subscription(BenchInfo, 'bench/info', infos.append, qos.LATCHED_QOS)
+    probe.create_subscription(EncoderBlock, 'bench/encoders', blocks.append, qos.ENCODER_QOS)
+    ex.add_node(probe)
+    replay = ReplayNode(context=ctx, parameter_overrides=[
+        Parameter('bag', value=str(SAMPLE)), Parameter('rate', value=20.0),
+        Parameter('start_offset_s', value=30.0), Parameter('wait_for_subscribers_s', value=5.0)])
+    ex.add_node(replay)
+    try:
+        assert spin_until(ex, lambda: replay.finished, 30.0)
+        spin_for(ex, 0.3)
+    finally:
+        ex.shutdown()
+        replay.destroy_node()
+        probe.destroy_node()
+    assert len(infos) == 1              # recorded at the start, before the offset
+    assert blocks and blocks[0].seq >= 290   # 30 s into a 1 kHz, 100-sample session
