@@ -174,12 +174,14 @@ def open_bag(path: str | Path) -> Bag:
         msg = f'Bag {path}: files listed in metadata.yaml are missing: {missing}.'
         raise BagError(msg)
     # A recorder killed while splitting may have created a file metadata.yaml does not list.
-    extra = sorted((p for p in path.glob('*.mcap') if p not in listed), key=_natural_key)
+    # An empty one (killed between creating it and writing its header) holds nothing: skip it.
+    extra = sorted((p for p in path.glob('*.mcap')
+                    if p not in listed and p.stat().st_size > 0), key=_natural_key)
     files = tuple(listed + extra)
     if not files:
         msg = f'Bag {path} has no .mcap files.'
         raise BagError(msg)
-    for file in files:
+    for file in listed:
         _check_magic(file)
     return Bag(path=path, files=files, info=info, topic_types=topics)
 

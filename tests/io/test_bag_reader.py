@@ -277,3 +277,17 @@ def test_reads_a_bag_folder_written_by_rosbags(tmp_path: Path) -> None:
     summary = bag_summary(bag)
     assert summary['topics'][ENCODER_TOPIC]['count'] == 8
     assert summary['finalized'] is None  # not written by BagWriter: state unknown
+
+
+def test_empty_unlisted_split_file_does_not_hide_the_bag(tmp_path) -> None:  # noqa: ANN001
+    """A recorder killed right after creating the next split file leaves it empty."""
+    import shutil  # noqa: PLC0415
+    from pathlib import Path  # noqa: PLC0415
+
+    from rv_te_bench.io.bag_reader import read_encoder_blocks  # noqa: PLC0415
+
+    sample = Path(__file__).resolve().parents[2] / 'bags' / 'sample'
+    bag = tmp_path / 'bag'
+    shutil.copytree(sample, bag)
+    (bag / 'sample_1.mcap').write_bytes(b'')
+    assert sum(1 for _ in read_encoder_blocks(bag)) == 320   # 32 s at 1 kHz, blocks of 100
