@@ -47,3 +47,16 @@ def test_sample_matches_its_model() -> None:
         assert am(lines[label].amplitude_rad) == pytest.approx(am(abs(coef[order])), abs=0.003)
         assert lines[label].phase_rad == pytest.approx(np.angle(coef[order]), abs=0.02)
     assert res.dominant is not None and res.dominant.line.label == '1 f_w'
+
+
+def test_sample_bench_info_agrees_with_the_kinematics() -> None:
+    """The recorded BenchInfo (orders and their labels) is what sim.kinematics says now."""
+    from rv_te_bench.io.bag_reader import read_bench_info  # noqa: PLC0415
+    from sim.kinematics import kinematics_from_preset  # noqa: PLC0415
+    from sim.presets import load_preset  # noqa: PLC0415
+
+    info = read_bench_info(Path(__file__).resolve().parents[2] / 'bags' / 'sample')
+    kin = kinematics_from_preset(load_preset(info['preset']))
+    assert info['mesh_orders'] == pytest.approx(list(kin.mesh_orders_out))
+    assert info['mesh_labels'] == list(kin.mesh_labels)
+    assert info['gear_ratio'] == pytest.approx(kin.gear_ratio)
