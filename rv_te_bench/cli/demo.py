@@ -167,11 +167,9 @@ def _report(bag_dir: Path, report_dir: Path) -> str:
 
 def summary_text(result: Any) -> str:  # noqa: ANN401 - report.analysis.AnalysisResult
     """The short summary people read at the end of the demo."""
-    from sim.units import rad_to_arcmin, rad_to_deg  # noqa: PLC0415
+    from sim.units import rad_to_deg  # noqa: PLC0415
 
-    def am(x: float) -> str:
-        return 'n/a' if not math.isfinite(x) else f"{float(rad_to_arcmin(x)):.3f}'"
-
+    am = _fmt_arcmin
     c = result.cumulative
     lines = ['', '=== rv-te demo summary ===',
              f'reducer: {result.bench.preset or "?"} (i = {result.bench.gear_ratio:.6g}); '

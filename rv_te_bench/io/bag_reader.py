@@ -504,6 +504,23 @@ def read_encoder_blocks(
 _ALIGN4, _ALIGN8 = 3, 7
 
 
+def _seq_offset(buf: bytes | memoryview, end: str) -> int:
+    """Offset (after the 4-byte encapsulation) of EncoderBlock.seq: header.stamp (8 B),
+    frame_id (length + bytes), padding to 8."""
+    (flen,) = struct.unpack_from(end + 'I', buf, 12)
+    return (12 + flen + _ALIGN8) & ~_ALIGN8
+
+
+def encoder_block_seq(data: bytes | memoryview) -> int:
+    """``seq`` of a serialised EncoderBlock, without decoding the arrays (recorder hot path).
+
+    Raises:
+        struct.error, IndexError: The bytes are too short to hold it.
+    """
+    end = '<' if data[1] == 1 else '>'
+    return struct.unpack_from(end + 'Q', data, 4 + _seq_offset(data, end))[0]
+
+
 def decode_encoder_block(data: bytes | memoryview) -> EncoderBlockData:
     """Decode one EncoderBlock CDR message (with encapsulation header) into numpy arrays.
 
@@ -525,8 +542,8 @@ def decode_encoder_block(data: bytes | memoryview) -> EncoderBlockData:
         raise BagError(msg)
     end = '<' if buf[1] == 1 else '>'
     try:
-        sec, nsec, flen = struct.unpack_from(end + 'iII', buf, 4)
-        off = (12 + flen + _ALIGN8) & ~_ALIGN8
+        sec, nsec = struct.unpack_from(end + 'iI', buf, 4)
+        off = _seq_offset(buf, end)
         seq, rate = struct.unpack_from(end + 'Qd', buf, 4 + off)
         off += 16
         arrays = []

@@ -29,6 +29,7 @@ from rclpy.node import Node
 from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
 
 from rv_te_bench.errors import BagError
+from rv_te_bench.io.bag_reader import encoder_block_seq
 from rv_te_bench.io.bag_writer import BagWriter, qos_profile_dict
 from rv_te_bench.io.msgdefs import ENCODER_BLOCK
 from rv_te_bench.nodes import qos
@@ -73,15 +74,6 @@ PARAMS = (
               "YAML mapping stored as the bag's rv_te_session metadata record [-]"),
 )
 _THROTTLE_S = 5.0
-_U32 = struct.Struct('<I')
-
-
-def _encoder_seq(data: bytes) -> int:
-    """``seq`` of a serialised EncoderBlock: after header.stamp (8 B) and frame_id."""
-    endian = '<' if data[1] == 1 else '>'
-    (flen,) = struct.unpack_from(endian + 'I', data, 12)
-    off = (12 + flen + 7) & ~7
-    return struct.unpack_from(endian + 'Q', data, 4 + off)[0]
 
 
 def _msg_class(msgtype: str) -> Any:  # noqa: ANN401 - a generated message class
@@ -283,7 +275,7 @@ class RecorderNode(Node):
         def on_block(data: bytes) -> None:
             plain(data)
             try:
-                seq = _encoder_seq(data)
+                seq = encoder_block_seq(data)
             except (struct.error, IndexError):
                 state.malformed += 1
                 self.get_logger().warning(

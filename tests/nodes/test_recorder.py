@@ -31,7 +31,8 @@ from rv_te_msgs.msg import BenchInfo, EncoderBlock  # noqa: E402
 from rv_te_bench.io.bag_reader import bag_summary, read_encoder_blocks  # noqa: E402
 from rv_te_bench.io.msgdefs import ENCODER_BLOCK, type_hash  # noqa: E402
 from rv_te_bench.nodes import qos  # noqa: E402
-from rv_te_bench.nodes.recorder import RecorderNode, _encoder_seq  # noqa: E402
+from rv_te_bench.io.bag_reader import encoder_block_seq  # noqa: E402
+from rv_te_bench.nodes.recorder import RecorderNode  # noqa: E402
 from tests.io import block_arrays, encoder_cdr  # noqa: E402
 
 ROOT = Path(__file__).resolve().parents[2]
@@ -94,7 +95,7 @@ def read_back(bag: Path, topic: str) -> tuple[list[int], list[int], dict[str, in
 
 def test_encoder_seq_parser_matches_serialised_seq() -> None:
     for frame_id in ('', 'b', 'bench-0001', 'x' * 13):
-        assert _encoder_seq(encoder_cdr(123456789, 3, frame_id=frame_id)) == 123456789
+        assert encoder_block_seq(encoder_cdr(123456789, 3, frame_id=frame_id)) == 123456789
 
 
 def test_records_published_messages_and_latched_info(ros_context: Any, tmp_path: Path) -> None:
