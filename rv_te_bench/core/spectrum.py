@@ -35,8 +35,9 @@ revolutions of a periodic TE needs no window.
 
 from __future__ import annotations
 
+import functools
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, field, replace
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
@@ -55,6 +56,10 @@ __all__ = ['AngleResampled', 'OrderSpectrum', 'SpectrumLine', 'order_spectrum',
 
 _TWO_PI = 2.0 * math.pi
 _REV_TOL = 1e-9
+_EMPTY_F = np.empty(0, dtype=np.float64)
+_EMPTY_F.setflags(write=False)
+_EMPTY_C = np.empty(0, dtype=np.complex128)
+_EMPTY_C.setflags(write=False)
 
 
 @dataclass(frozen=True)
@@ -100,20 +105,44 @@ class OrderSpectrum:
         orders: Output order of each bin, m / R, read-only.
         amplitude_rad: One-sided peak amplitude per bin [rad] (scaling in the module
             docstring), read-only.
-        phase_rad: Cosine phase per bin referred to phi = 0 [rad], read-only.
+        bins: rfft(TE on the angle grid) / N, complex, phases referred to the grid start
+            ``phi0_rad``, read-only (``phase_rad`` is derived from it on first use).
         mean_rad: Mean TE over the grid [rad] (signed order 0).
         samples_per_rev: Grid points per output revolution.
+        phi0_rad: Output angle of the first grid point [rad].
+
+    ``orders``, ``amplitude_rad`` and ``bins`` are empty in a copy made by
+    :meth:`lines_only` (the lines and scalars are kept).
     """
 
     output_hz: float
     crank_hz: float
     revolutions: float
     lines: tuple[SpectrumLine, ...]
-    orders: np.ndarray
-    amplitude_rad: np.ndarray
-    phase_rad: np.ndarray
+    orders: np.ndarray = field(repr=False)
+    amplitude_rad: np.ndarray = field(repr=False)
+    bins: np.ndarray = field(repr=False)
     mean_rad: float
     samples_per_rev: int
+    phi0_rad: float = 0.0
+
+    @functools.cached_property
+    def phase_rad(self) -> np.ndarray:
+        """Cosine phase per bin referred to phi = 0 [rad], in (-pi, pi], read-only.
+
+        Computed on first use (the lines carry their phases already; the full array is
+        rarely needed and costs an angle and a wrap per bin).
+        """
+        phase = np.angle(self.bins)
+        phase -= self.orders * self.phi0_rad  # refer the phase to phi = 0, not the grid start
+        _wrap_pi_inplace(phase)
+        phase.setflags(write=False)
+        return phase
+
+    def lines_only(self) -> OrderSpectrum:
+        """A copy without the per-bin arrays (a few hundred bytes instead of ~2 MB for a
+        one-revolution window at 10 kHz): what a long offline analysis keeps per window."""  # noqa: D205, D209
+        return replace(self, orders=_EMPTY_F, amplitude_rad=_EMPTY_F, bins=_EMPTY_C)
 
     def line(self, label: str) -> SpectrumLine:
         """The line with this label.
@@ -154,7 +183,7 @@ class AngleResampled:
     te_rad: np.ndarray
 
 
-_CHUNK = 4096  # grid points per pass: keeps the ~30 temporaries in cache and off mmap
+_CHUNK = 16384  # grid points per pass: keeps the temporaries in cache and off mmap
 
 
 def _lagrange4_uniform(x: np.ndarray, y: np.ndarray, spacing: float, n_grid: int) -> np.ndarray:
@@ -162,8 +191,14 @@ def _lagrange4_uniform(x: np.ndarray, y: np.ndarray, spacing: float, n_grid: int
 
     ``x`` increases strictly from 0. Each grid point uses the four nodes around it (two
     at or below, two above; the end intervals use the first/last four nodes). The node
-    index is found by counting nodes per grid cell (bincount + cumsum, O(n)); the
-    arithmetic runs in chunks of the grid so that temporaries stay small.
+    index is found by counting nodes per grid cell (bincount + cumsum, O(n)). The cubic
+    through nodes j..j+3 is evaluated in Newton form,
+
+        p(x) = y_j + (x - x_j) (f[j,j+1] + (x - x_j+1) (f[j..j+2] + (x - x_j+2) f[j..j+3])),
+
+    with the divided differences f[...] computed once per node (the same polynomial as the
+    Lagrange form, about half the arithmetic and no division per grid point); the
+    evaluation runs in chunks of the grid so that temporaries stay small.
     """
     n = x.size
     if n < 4:  # noqa: PLR2004 - four nodes make a cubic
@@ -175,22 +210,25 @@ def _lagrange4_uniform(x: np.ndarray, y: np.ndarray, spacing: float, n_grid: int
     count = np.cumsum(np.bincount(cell, minlength=n_grid + 1)[:n_grid])
     j_all = count - 2
     np.clip(j_all, 0, n - 4, out=j_all)
+    dd1 = np.diff(y)
+    dd1 /= np.diff(x)
+    dd2 = np.diff(dd1)
+    dd2 /= x[2:] - x[:-2]
+    dd3 = np.diff(dd2)
+    dd3 /= x[3:] - x[:-3]
     out = np.empty(n_grid)
     for a in range(0, n_grid, _CHUNK):
         b = min(a + _CHUNK, n_grid)
         j = j_all[a:b]
         xq = np.arange(a, b) * spacing
-        x0, x1, x2, x3 = x[j], x[j + 1], x[j + 2], x[j + 3]
-        d0, d1, d2, d3 = xq - x0, xq - x1, xq - x2, xq - x3
-        h01, h02, h03 = x0 - x1, x0 - x2, x0 - x3
-        h12, h13, h23 = x1 - x2, x1 - x3, x2 - x3
-        d23 = d2 * d3
-        d01 = d0 * d1
-        seg = y[j] * (d1 * d23 / (h01 * h02 * h03))
-        seg -= y[j + 1] * (d0 * d23 / (h01 * h12 * h13))
-        seg += y[j + 2] * (d01 * d3 / (h02 * h12 * h23))
-        seg -= y[j + 3] * (d01 * d2 / (h03 * h13 * h23))
-        out[a:b] = seg
+        acc = xq - x[j + 2]
+        acc *= dd3[j]
+        acc += dd2[j]
+        acc *= xq - x[j + 1]
+        acc += dd1[j]
+        acc *= xq - x[j]
+        acc += y[j]
+        out[a:b] = acc
     return out
 
 
@@ -337,22 +375,21 @@ def order_spectrum(
     if n_grid % 2 == 0:
         amplitude[-1] *= 0.5
     bin_orders = np.arange(spec.size, dtype=np.float64) / res.revolutions
-    phase = np.angle(spec)
-    phase -= bin_orders * res.phi0_rad  # refer the phase to phi = 0, not the grid start
-    _wrap_pi_inplace(phase)
     lines = []
     for order, label in orders.lines():
         m = round(order * res.revolutions)
         if m >= spec.size:
             continue
+        # phase referred to phi = 0, not to the grid start
+        phase = np.array([math.atan2(spec[m].imag, spec[m].real) - bin_orders[m] * res.phi0_rad])
         lines.append(SpectrumLine(
             output_order=order, crank_order=orders.crank_order(order),
             frequency_hz=order * output_hz, amplitude_rad=float(amplitude[m]),
-            phase_rad=float(phase[m]), label=label))
-    for arr in (bin_orders, amplitude, phase):
+            phase_rad=float(_wrap_pi_inplace(phase)[0]), label=label))
+    for arr in (bin_orders, amplitude, spec):
         arr.setflags(write=False)
     return OrderSpectrum(
         output_hz=output_hz, crank_hz=output_hz * orders.crank_per_output,
         revolutions=float(res.revolutions), lines=tuple(lines), orders=bin_orders,
-        amplitude_rad=amplitude, phase_rad=phase, mean_rad=float(spec[0].real),
-        samples_per_rev=res.samples_per_rev)
+        amplitude_rad=amplitude, bins=spec, mean_rad=float(spec[0].real),
+        samples_per_rev=res.samples_per_rev, phi0_rad=res.phi0_rad)
