@@ -43,10 +43,11 @@ from rv_te_bench.core.te import RunningStats, TeStats, te_statistics
 from rv_te_bench.errors import TeConfigError, TeInputError
 
 if TYPE_CHECKING:
-    from collections.abc import Iterable
+    from collections.abc import Callable, Iterable
 
-__all__ = ['EncoderBlockData', 'GapEvent', 'OfflineResult', 'StreamUpdate',
-           'StreamingTeAnalyzer', 'TeAnalysisConfig', 'WindowResult', 'analyze_blocks']
+__all__ = ['BatchUpdate', 'EncoderBatch', 'EncoderBlockData', 'GapEvent', 'OfflineResult',
+           'StreamUpdate', 'StreamingTeAnalyzer', 'TeAnalysisConfig', 'WindowResult',
+           'analyze_blocks']
 
 GapKind = Literal['seq_jump', 'time_backwards', 'non_finite', 'malformed']
 CloseReason = Literal['complete', 'gap', 'overflow', 'flush', 'reconfigure']
@@ -56,6 +57,7 @@ _EMPTY = np.empty(0, dtype=np.float64)
 _EMPTY.setflags(write=False)
 _INITIAL_CAPACITY = 1 << 16
 _MIN_WINDOW_SAMPLES = 16
+_SCAN_PIECE = 1 << 16  # samples examined at a time when looking for a window's end
 
 
 def _empty_array() -> np.ndarray:
@@ -146,6 +148,103 @@ class _Clean:
     theta_in_rad: np.ndarray
     theta_out_rad: np.ndarray
     sample_rate_hz: float
+
+
+@dataclass(frozen=True)
+class EncoderBatch:
+    """Consecutive encoder blocks with their samples concatenated (offline reading).
+
+    A bag reader hands over all the blocks of one MCAP chunk at once, so that checks,
+    Eq. 22 and statistics run over long arrays instead of block by block.
+    :meth:`StreamingTeAnalyzer.push_batch` gives the same windows, gaps, statistics and
+    counters as pushing :meth:`block` 0, 1, ... one by one (it only skips the decimated
+    display TE). Only structure is checked on construction (values are the analyzer's job,
+    as for :class:`EncoderBlockData`); the torque is not carried (TE does not use it).
+
+    Attributes:
+        seq: Sequence number per block, int64, shape (B,).
+        stamp_s: Reference time per block [s], shape (B,).
+        sample_rate_hz: Nominal rate per block [Hz], shape (B,).
+        starts: Sample index where each block starts, plus the total: int64, shape (B + 1,),
+            starts[0] = 0, strictly increasing (no empty block).
+        time_offset_s: Sample times relative to their block's stamp [s], shape (N,).
+        theta_in_rad: Input-shaft angles [rad], shape (N,).
+        theta_out_rad: Output-shaft angles [rad], shape (N,).
+
+    Raises:
+        TeInputError: The arrays do not fit together (names the sizes).
+    """
+
+    seq: np.ndarray
+    stamp_s: np.ndarray
+    sample_rate_hz: np.ndarray
+    starts: np.ndarray
+    time_offset_s: np.ndarray
+    theta_in_rad: np.ndarray
+    theta_out_rad: np.ndarray
+
+    def __post_init__(self) -> None:
+        """Check the structure."""
+        n_blocks = np.size(self.seq)
+        n = np.size(self.theta_in_rad)
+        shapes = {name: np.shape(getattr(self, name)) for name in (
+            'seq', 'stamp_s', 'sample_rate_hz', 'starts', 'time_offset_s', 'theta_in_rad',
+            'theta_out_rad')}
+        want = {'seq': (n_blocks,), 'stamp_s': (n_blocks,), 'sample_rate_hz': (n_blocks,),
+                'starts': (n_blocks + 1,), 'time_offset_s': (n,), 'theta_in_rad': (n,),
+                'theta_out_rad': (n,)}
+        if n_blocks == 0 or shapes != want:
+            msg = f'EncoderBatch arrays do not fit together: shapes {shapes}'
+            raise TeInputError(msg)
+        starts = np.asarray(self.starts)
+        if starts[0] != 0 or starts[-1] != n or not (starts[1:] > starts[:-1]).all():
+            msg = (f'EncoderBatch starts must run from 0 to {n} in strictly increasing steps, '
+                   f'got {starts[:5].tolist()}...{starts[-2:].tolist()}')
+            raise TeInputError(msg)
+
+    @property
+    def n_blocks(self) -> int:
+        """Number of blocks B."""
+        return int(np.size(self.seq))
+
+    @property
+    def n_samples(self) -> int:
+        """Number of samples N."""
+        return int(np.size(self.theta_in_rad))
+
+    def block(self, k: int) -> EncoderBlockData:
+        """Block ``k`` as an :class:`EncoderBlockData` (views, no copy)."""
+        a, b = int(self.starts[k]), int(self.starts[k + 1])
+        return EncoderBlockData(int(self.seq[k]), float(self.stamp_s[k]),
+                                float(self.sample_rate_hz[k]), self.time_offset_s[a:b],
+                                self.theta_in_rad[a:b], self.theta_out_rad[a:b])
+
+    @classmethod
+    def from_blocks(cls, blocks: Iterable[EncoderBlockData]) -> EncoderBatch:
+        """Concatenate blocks (each must have equal-length 1-D arrays, at least one sample).
+
+        Raises:
+            TeInputError: No block, or a block whose arrays do not fit.
+        """
+        blocks = list(blocks)
+        if not blocks:
+            msg = 'EncoderBatch.from_blocks: no block'
+            raise TeInputError(msg)
+        sizes = [np.size(b.theta_in_rad) for b in blocks]
+        for b, n in zip(blocks, sizes, strict=True):
+            if n == 0 or np.size(b.time_offset_s) != n or np.size(b.theta_out_rad) != n:
+                msg = f'EncoderBatch.from_blocks: block seq {b.seq} has arrays of unequal size'
+                raise TeInputError(msg)
+
+        def cat(name: str) -> np.ndarray:
+            return np.concatenate([np.asarray(getattr(b, name), dtype=np.float64).ravel()
+                                   for b in blocks])
+        return cls(seq=np.array([int(b.seq) for b in blocks], dtype=np.int64),
+                   stamp_s=np.array([b.stamp_s for b in blocks], dtype=np.float64),
+                   sample_rate_hz=np.array([b.sample_rate_hz for b in blocks], dtype=np.float64),
+                   starts=np.concatenate([[0], np.cumsum(sizes)]).astype(np.int64),
+                   time_offset_s=cat('time_offset_s'), theta_in_rad=cat('theta_in_rad'),
+                   theta_out_rad=cat('theta_out_rad'))
 
 
 def _normalize(block: Any) -> _Clean | _Problem:  # noqa: ANN401, C901, PLR0911, PLR0912
@@ -321,11 +420,25 @@ class StreamUpdate:
 
 
 @dataclass(frozen=True)
+class BatchUpdate:
+    """What one :meth:`StreamingTeAnalyzer.push_batch` produced.
+
+    Attributes:
+        windows: Windows closed by the batch (and by a preceding ``reconfigure``).
+        gaps: Problems met in the batch, in block order.
+    """
+
+    windows: tuple[WindowResult, ...]
+    gaps: tuple[GapEvent, ...]
+
+
+@dataclass(frozen=True)
 class OfflineResult:
     """Result of :func:`analyze_blocks`.
 
     Attributes:
-        windows: Every window closed, the last one by the final flush.
+        windows: Every window closed, the last one by the final flush (empty when the
+            windows went to an ``on_window`` callback instead).
         cumulative: Statistics over every clean sample.
         counters: Final :attr:`StreamingTeAnalyzer.counters`.
         gaps: Every gap event.
@@ -352,8 +465,8 @@ class _WindowBuffer:
         self.first_seq = -1
         self.last_seq = -1
 
-    def append(self, phi: np.ndarray, te: np.ndarray, t_first: float, t_last: float,
-               seq: int) -> None:
+    def append(self, phi: np.ndarray, te: np.ndarray, t_first: float, t_last: float,  # noqa: PLR0913
+               seq_first: int, seq_last: int) -> None:
         m = phi.size
         if m == 0:
             return
@@ -366,9 +479,9 @@ class _WindowBuffer:
         self.te[self.n:need] = te
         if self.n == 0:
             self.t_first = t_first
-            self.first_seq = seq
+            self.first_seq = seq_first
         self.t_last = t_last
-        self.last_seq = seq
+        self.last_seq = seq_last
         self.n = need
 
     def clear(self) -> None:
@@ -379,6 +492,48 @@ class _WindowBuffer:
 def _readonly(a: np.ndarray) -> np.ndarray:
     a.setflags(write=False)
     return a
+
+
+def _first_reach(phi: np.ndarray, start: float, bound: float) -> int:
+    """Index of the first sample with |phi - start| >= bound, or -1.
+
+    Scans piece by piece, so the cost grows with the distance to that sample, not with the
+    length of ``phi`` (a long batch holds many windows).
+    """
+    for a in range(0, phi.size, _SCAN_PIECE):
+        piece = phi[a:a + _SCAN_PIECE]
+        if (float(np.maximum.reduce(piece)) - start >= bound
+                or start - float(np.minimum.reduce(piece)) >= bound):
+            return a + int((np.abs(piece - start) >= bound).argmax())
+    return -1
+
+
+def _batch_flags(batch: EncoderBatch) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """Per block of a batch: (bad, breaks, t_first, t_last).
+
+    ``bad``: the block has a problem of its own (non-finite stamp or values, rate <= 0,
+    time offsets not strictly increasing); ``breaks``: the block does not continue the one
+    before it in the batch (seq jump or time not after it; False for block 0).
+    """
+    starts = np.asarray(batch.starts, dtype=np.intp)
+    stamp = np.asarray(batch.stamp_s, dtype=np.float64)
+    rate = np.asarray(batch.sample_rate_hz, dtype=np.float64)
+    offs = np.asarray(batch.time_offset_s, dtype=np.float64)
+    with np.errstate(over='ignore', invalid='ignore'):
+        bad = ~(np.isfinite(stamp) & np.isfinite(rate) & (rate > 0.0))
+        for arr in (offs, batch.theta_in_rad, batch.theta_out_rad):
+            # a NaN or inf makes its block's sum non-finite (as in _normalize)
+            bad |= ~np.isfinite(np.add.reduceat(np.asarray(arr, dtype=np.float64), starts[:-1]))
+    increasing = offs[1:] > offs[:-1]
+    increasing[starts[1:-1] - 1] = True   # across block boundaries offsets restart
+    if not increasing.all():
+        bad[np.searchsorted(starts, np.flatnonzero(~increasing), side='right') - 1] = True
+    t_first = stamp + offs[starts[:-1]]
+    t_last = stamp + offs[starts[1:] - 1]
+    seq = np.asarray(batch.seq, dtype=np.int64)
+    breaks = np.zeros(seq.size, dtype=bool)
+    breaks[1:] = (seq[1:] != seq[:-1] + 1) | ~(t_first[1:] > t_last[:-1])
+    return bad, breaks, t_first, t_last
 
 
 class StreamingTeAnalyzer:
@@ -518,9 +673,12 @@ class StreamingTeAnalyzer:
             self._pending.append(result)
         return result
 
-    def _feed(self, phi: np.ndarray, te: np.ndarray, t: np.ndarray, seq: int,
-              out: list[WindowResult]) -> None:
-        """Append clean samples to windows, closing those that reach W revolutions."""
+    def _feed(self, phi: np.ndarray, te: np.ndarray, time_at: Callable[[int], float],
+              seq_at: Callable[[int], int], out: list[WindowResult]) -> None:
+        """Append clean samples to windows, closing those that reach W revolutions.
+
+        ``time_at(i)`` and ``seq_at(i)`` give the time and block seq of sample ``i``.
+        """
         buf = self._buf
         bound = _TWO_PI * self._config.window_revolutions
         cap = self._config.max_window_samples
@@ -528,26 +686,25 @@ class StreamingTeAnalyzer:
         i = 0
         while i < n:
             phi_start = float(phi[i]) if buf.n == 0 else float(buf.phi[0])
-            rest = phi[i:]
-            j = -1
-            if (float(np.maximum.reduce(rest)) - phi_start >= bound
-                    or phi_start - float(np.minimum.reduce(rest)) >= bound):
-                reached = np.abs(rest - phi_start) >= bound
-                j = int(reached.argmax())
             room = cap - buf.n
-            if j >= 0 and j <= room:
-                buf.append(phi[i:i + j], te[i:i + j], float(t[i]), float(t[i + j - 1]), seq)
+            # only the samples that still fit are searched: a later end is an overflow
+            j = _first_reach(phi[i:i + room + 1], phi_start, bound)
+            if j >= 0:
+                if j > 0:
+                    buf.append(phi[i:i + j], te[i:i + j], time_at(i), time_at(i + j - 1),
+                               seq_at(i), seq_at(i + j - 1))
                 closed = self._close('complete')
                 if closed is not None:
                     out.append(closed)
                 i += j
-            elif j < 0 and n - i <= room:
-                buf.append(phi[i:], te[i:], float(t[i]), float(t[-1]), seq)
+            elif n - i <= room:
+                buf.append(phi[i:], te[i:], time_at(i), time_at(n - 1), seq_at(i),
+                           seq_at(n - 1))
                 i = n
             else:
                 if room > 0:
-                    buf.append(phi[i:i + room], te[i:i + room], float(t[i]),
-                               float(t[i + room - 1]), seq)
+                    buf.append(phi[i:i + room], te[i:i + room], time_at(i),
+                               time_at(i + room - 1), seq_at(i), seq_at(i + room - 1))
                 closed = self._close('overflow')
                 if closed is not None:
                     out.append(closed)
@@ -562,10 +719,95 @@ class StreamingTeAnalyzer:
         Returns:
             Decimated TE of the block, windows closed, gap events.
         """
-        self._counters['blocks'] += 1
         windows: list[WindowResult] = list(self._pending)
         self._pending.clear()
         gaps: list[GapEvent] = []
+        return self._push_one(block, windows, gaps)
+
+    def push_batch(self, batch: EncoderBatch) -> BatchUpdate:
+        """Analyse consecutive blocks at once; the same result as pushing them one by one.
+
+        Windows, gaps, counters and statistics equal those of :meth:`push` over
+        ``batch.block(0)``, ``batch.block(1)``, ... (cumulative statistics to rounding); the
+        decimated display TE is not produced. Runs of clean, continuous blocks are analysed
+        as one array; a block with a problem, or one that breaks the continuity, goes
+        through :meth:`push` on its own. Never raises on bad data.
+
+        Args:
+            batch: The next blocks of the stream.
+
+        Returns:
+            Windows closed and gap events.
+        """
+        windows: list[WindowResult] = list(self._pending)
+        self._pending.clear()
+        gaps: list[GapEvent] = []
+        bad, breaks, t_first, t_last = _batch_flags(batch)
+        special = np.flatnonzero(bad | breaks)
+        seq = np.asarray(batch.seq, dtype=np.int64)
+        n_blocks = seq.size
+        k = 0
+        while k < n_blocks:
+            if bad[k] or (self._last_seq is not None and int(seq[k]) != self._last_seq + 1) \
+                    or (self._last_t is not None and not float(t_first[k]) > self._last_t):
+                self._push_one(batch.block(k), windows, gaps)
+                k += 1
+                continue
+            nxt = int(np.searchsorted(special, k, side='right'))
+            end = int(special[nxt]) if nxt < special.size else n_blocks
+            self._push_run(batch, k, end, t_last, windows)
+            k = end
+        return BatchUpdate(tuple(windows), tuple(gaps))
+
+    def _push_run(self, batch: EncoderBatch, k0: int, k1: int, t_last: np.ndarray,
+                  windows: list[WindowResult]) -> None:
+        """Blocks k0..k1-1 of ``batch``: clean and continuous (checked by the caller)."""
+        starts = np.asarray(batch.starts, dtype=np.intp)
+        a, b = int(starts[k0]), int(starts[k1])
+        ratio = self._config.gear_ratio
+        phi = np.asarray(batch.theta_in_rad[a:b], dtype=np.float64) / ratio
+        te = np.asarray(batch.theta_out_rad[a:b], dtype=np.float64) - phi
+        self._counters['blocks'] += k1 - k0
+        self._cum.update(te)
+        rel = starts[k0:k1 + 1] - a
+        # angle travelled: within each block first -> last, and between blocks (as push does)
+        ends = np.empty(2 * (k1 - k0))
+        ends[0::2] = phi[rel[:-1]]
+        ends[1::2] = phi[rel[1:] - 1]
+        travelled = float(np.abs(np.diff(ends)).sum())
+        if self._last_phi is not None:
+            travelled += abs(float(ends[0]) - self._last_phi)
+        self._cum_rev += travelled
+        self._last_phi = float(phi[-1])
+        seq = batch.seq
+        stamp = batch.stamp_s
+        offs = batch.time_offset_s
+        self._last_seq = int(seq[k1 - 1])
+        self._last_t = float(t_last[k1 - 1])
+        self._counters['samples'] += b - a
+
+        def block_of(i: int) -> int:
+            return k0 + int(np.searchsorted(rel, i, side='right')) - 1
+
+        def time_at(i: int) -> float:
+            return float(stamp[block_of(i)] + offs[a + i])
+
+        def seq_at(i: int) -> int:
+            return int(seq[block_of(i)])
+
+        self._feed(phi, te, time_at, seq_at, windows)
+        # the decimation phase moves on as if the blocks had been pushed one by one
+        rates = np.asarray(batch.sample_rate_hz[k0:k1], dtype=np.float64)
+        q = np.maximum(1, np.round(rates / self._config.decimated_rate_hz)).astype(np.int64)
+        if (q == q[0]).all():
+            self._decim_offset = (self._decim_offset - (b - a)) % int(q[0])
+        else:
+            for q_k, n_k in zip(q.tolist(), np.diff(rel).tolist(), strict=True):
+                self._decim_offset = (self._decim_offset % q_k - n_k) % q_k
+
+    def _push_one(self, block: EncoderBlockData, windows: list[WindowResult],
+                  gaps: list[GapEvent]) -> StreamUpdate:
+        self._counters['blocks'] += 1
         clean = _normalize(block)
         if isinstance(clean, _Problem):
             seq = getattr(block, 'seq', -1)
@@ -596,7 +838,7 @@ class StreamingTeAnalyzer:
             self._cum_rev += abs(float(phi[0]) - self._last_phi)
         self._last_phi = float(phi[-1])
         self._counters['samples'] += phi.size
-        self._feed(phi, te, t, seq, windows)
+        self._feed(phi, te, lambda i: float(t[i]), lambda _i: seq, windows)
         q = max(1, round(clean.sample_rate_hz / self._config.decimated_rate_hz))
         start = self._decim_offset % q
         idx = slice(start, None, q)
@@ -616,24 +858,29 @@ class StreamingTeAnalyzer:
         self._decim_offset = 0
 
 
-def analyze_blocks(blocks: Iterable[EncoderBlockData], config: TeAnalysisConfig) -> OfflineResult:
+def analyze_blocks(blocks: Iterable[EncoderBlockData | EncoderBatch], config: TeAnalysisConfig,
+                   *, on_window: Callable[[WindowResult], None] | None = None) -> OfflineResult:
     """Run a whole recording through a :class:`StreamingTeAnalyzer` (offline analysis).
 
     Args:
-        blocks: The blocks in recording order.
+        blocks: The blocks (or batches of consecutive blocks) in recording order.
         config: Analysis settings.
+        on_window: Called with each window as it closes; the windows are then not kept
+            (memory stays bounded by one window however long the recording).
 
     Returns:
-        All windows (the last, partial one from the final flush), cumulative statistics,
-        counters and gap events.
+        All windows (the last, partial one from the final flush; none with ``on_window``),
+        cumulative statistics, counters and gap events.
     """
     analyzer = StreamingTeAnalyzer(config)
     windows: list[WindowResult] = []
     gaps: list[GapEvent] = []
-    for block in blocks:
-        update = analyzer.push(block)
-        windows.extend(update.windows)
+    keep = windows.extend if on_window is None else (lambda ws: [on_window(w) for w in ws])
+    for item in blocks:
+        update = analyzer.push_batch(item) if isinstance(item, EncoderBatch) \
+            else analyzer.push(item)
+        keep(update.windows)
         gaps.extend(update.gaps)
-    windows.extend(analyzer.flush())
+    keep(analyzer.flush())
     return OfflineResult(windows=tuple(windows), cumulative=analyzer.cumulative,
                          counters=analyzer.counters, gaps=tuple(gaps))
