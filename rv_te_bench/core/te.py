@@ -229,7 +229,10 @@ class RunningStats:
             msg = 'RunningStats.update: te_rad holds NaN or infinite values'
             raise TeInputError(msg)
         dev = te - mean_b
-        self._combine(n_b, mean_b, float(dev @ dev), float(np.minimum.reduce(te)),
+        # square in place and sum (pairwise): no BLAS call, whose worker threads would
+        # spin on the other cores after every block
+        np.multiply(dev, dev, out=dev)
+        self._combine(n_b, mean_b, float(np.add.reduce(dev)), float(np.minimum.reduce(te)),
                       float(np.maximum.reduce(te)))
 
     def merge(self, other: RunningStats) -> None:

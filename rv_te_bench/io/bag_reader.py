@@ -14,6 +14,7 @@ it raises ``BagError`` after the last sound message when part of the bag was unr
 
 from __future__ import annotations
 
+import collections
 import contextlib
 import mmap
 import re
@@ -32,7 +33,7 @@ from rv_te_bench.io.msgdefs import BENCH_INFO, ENCODER_BLOCK, rv_te_typestore
 if TYPE_CHECKING:
     from collections.abc import Callable, Collection, Iterator
 
-    from rv_te_bench.core.stream import EncoderBlockData
+    from rv_te_bench.core.stream import EncoderBatch, EncoderBlockData
 
 __all__ = [
     'Bag',
@@ -44,6 +45,7 @@ __all__ = [
     'iter_messages',
     'open_bag',
     'read_bench_info',
+    'read_encoder_batches',
     'read_encoder_blocks',
 ]
 
@@ -308,14 +310,59 @@ def _iter_records(buf: memoryview, start: int) -> Iterator[tuple[int, int, memor
         pos = end
 
 
-def _scan_file(  # noqa: C901, PLR0912
+_Unit = tuple[memoryview, list[tuple[int, int, int, int]]]
+"""A decompressed chunk (or one loose message) and its messages as
+(channel_id, log_time_ns, data_start, data_end) byte positions in it."""
+
+#: Chunks decompressed ahead of the one being consumed (by one worker thread: zstd, lz4 and
+#: crc32 release the GIL, so reading overlaps with the analysis on a second core).
+PREFETCH_CHUNKS = 2
+_AHEAD_RECORDS = 64
+
+
+def _walk_chunk(inner: memoryview, state: _ScanState,
+                out: list[tuple[int, int, int, int]]) -> None:
+    """Collect the messages of a decompressed chunk into ``out``, parse its other records.
+
+    Raises:
+        _CorruptError, struct.error, UnicodeDecodeError, ValueError: A record is damaged
+            (the messages before it are in ``out``).
+    """
+    pos, n = 0, len(inner)
+    rec, msg, op_message = _REC.unpack_from, _MSG.unpack_from, _OP_MESSAGE
+    head = 9 + _MSG.size
+    while pos < n:
+        if pos + 9 > n:
+            raise _CorruptError(f'{n - pos} stray bytes at byte {pos} (truncated)')
+        op, length = rec(inner, pos)
+        end = pos + 9 + length
+        if end > n:
+            raise _CorruptError(
+                f'record (opcode 0x{op:02x}) at byte {pos} claims {length} bytes, past the '
+                f'end at {n} (truncated or corrupt)')
+        if op == op_message:
+            if length < _MSG.size:
+                raise _CorruptError(f'message record at byte {pos} is {length} bytes long')
+            cid, _, log_time, _ = msg(inner, pos + 9)
+            out.append((cid, log_time, pos + head, end))
+        else:
+            _parse_meta_record(op, inner[pos + 9:end], state)
+        pos = end
+
+
+def _scan_units(  # noqa: C901, PLR0912, PLR0915
     file: Path,
     state: _ScanState,
     report: Callable[[str], None],
     *,
     messages: bool = True,
-) -> Iterator[tuple[int, int, memoryview]]:
-    """Yield (channel_id, log_time_ns, data) of every sound message of one MCAP file."""
+    prefetch: bool = True,
+) -> Iterator[_Unit]:
+    """Yield every sound message of one MCAP file, grouped by chunk (see ``_Unit``).
+
+    With ``prefetch`` the next chunks are decompressed and CRC-checked by a worker thread
+    while the caller works on the current one.
+    """
     try:
         with file.open('rb') as fh:
             size = fh.seek(0, 2)
@@ -328,34 +375,66 @@ def _scan_file(  # noqa: C901, PLR0912
         return
     buf = memoryview(mm)
     ended = False
+    pool = None
+    if prefetch and messages:
+        from concurrent.futures import ThreadPoolExecutor  # noqa: PLC0415
+
+        pool = ThreadPoolExecutor(max_workers=1, thread_name_prefix='mcap-read')
+    ahead: collections.deque[tuple[int, int, memoryview, Any]] = collections.deque()
     try:
         if bytes(buf[:8]) != MAGIC:
             report(f'{file} is not an MCAP file (bad magic)')
             return
         records = _iter_records(buf, 8)
+        exhausted = False
         while True:
-            try:
-                item = next(records, None)
-            except _CorruptError as exc:
-                report(f'{file}: {exc}')
-                return
-            if item is None:
+            # read records ahead until PREFETCH_CHUNKS chunks are being decompressed (loose
+            # records are cheap views of the map; at most _AHEAD_RECORDS of them are held)
+            while not exhausted and (not ahead or (
+                    pool is not None and len(ahead) < _AHEAD_RECORDS
+                    and sum(1 for r in ahead if r[1] == _OP_CHUNK) <= PREFETCH_CHUNKS)):
+                try:
+                    item = next(records, None)
+                except _CorruptError as exc:
+                    ahead.append((-1, -1, memoryview(b''), str(exc)))
+                    exhausted = True
+                    break
+                if item is None:
+                    exhausted = True
+                    break
+                offset, op, body = item
+                job = None
+                if op == _OP_CHUNK and messages and pool is not None:
+                    job = pool.submit(_chunk_records, body)
+                ahead.append((offset, op, body, job))
+                if op in (_OP_DATA_END, _OP_FOOTER):
+                    exhausted = True
+            if not ahead:
                 break
-            offset, op, body = item
+            offset, op, body, job = ahead.popleft()
+            if offset < 0:   # the record walk itself failed
+                report(f'{file}: {job}')
+                return
             try:
                 if op == _OP_MESSAGE:
                     if messages:
+                        if len(body) < _MSG.size:
+                            raise _CorruptError(f'message record is {len(body)} bytes long')
                         cid, _, log_time, _ = _MSG.unpack_from(body, 0)
-                        yield cid, log_time, memoryview(bytes(body[_MSG.size:]))
+                        yield memoryview(bytes(body)), [(cid, log_time, _MSG.size, len(body))]
                 elif op == _OP_CHUNK:
-                    inner = _chunk_records(body)
-                    for _, iop, ibody in _iter_records(inner, 0):
-                        if iop == _OP_MESSAGE:
-                            if messages:
-                                cid, _, log_time, _ = _MSG.unpack_from(ibody, 0)
-                                yield cid, log_time, ibody[_MSG.size:]
-                        else:
-                            _parse_meta_record(iop, ibody, state)
+                    # (a metadata-only scan decompresses too: schemas and channels live there)
+                    inner = _chunk_records(body) if job is None else job.result()
+                    found: list[tuple[int, int, int, int]] = []
+                    damage = None
+                    try:
+                        _walk_chunk(inner, state, found)
+                    except (_CorruptError, struct.error, UnicodeDecodeError, ValueError) as exc:
+                        damage = exc   # the messages before the damaged record are sound
+                    if found and messages:
+                        yield inner, found
+                    if damage is not None:
+                        raise damage
                 elif op in (_OP_DATA_END, _OP_FOOTER):
                     ended = True
                     break
@@ -368,6 +447,12 @@ def _scan_file(  # noqa: C901, PLR0912
             report(f'{file} ends without a Data End record at byte {len(buf)}: the file was '
                    'truncated')
     finally:
+        if pool is not None:
+            for *_, job in ahead:
+                if job is not None:
+                    job.cancel()
+            pool.shutdown(wait=True)
+        ahead.clear()
         # Views handed out are copies or slices of decompressed chunks, never of the map;
         # a consumer holding a record body only delays the unmapping to garbage collection.
         with contextlib.suppress(BufferError):
@@ -375,26 +460,52 @@ def _scan_file(  # noqa: C901, PLR0912
             mm.close()
 
 
-def _messages(
+def _scan_file(
+    file: Path,
+    state: _ScanState,
+    report: Callable[[str], None],
+    *,
+    messages: bool = True,
+) -> Iterator[tuple[int, int, memoryview]]:
+    """Yield (channel_id, log_time_ns, data) of every sound message of one MCAP file."""
+    for inner, found in _scan_units(file, state, report, messages=messages):
+        for cid, log_time, start, end in found:
+            yield cid, log_time, inner[start:end]
+
+
+def _units(
     bag: Bag, stream: MessageStream[Any], topics: Collection[str] | None,
-) -> Iterator[tuple[str, str, int, memoryview]]:
+) -> Iterator[tuple[memoryview, list[tuple[str, str, int, int, int]]]]:
+    """Per chunk: the buffer and its wanted messages (topic, msgtype, log_time, start, end)."""
     wanted = None if topics is None else set(topics)
     for file in bag.files:
         state = _ScanState()
         resolved: dict[int, tuple[str, str] | None] = {}
-        for cid, log_time, data in _scan_file(file, state, stream.report_problem):
-            target = resolved.get(cid, False)
-            if target is False:
-                chan = state.channels.get(cid)
-                if chan is None:
-                    stream.report_problem(f'{file}: message on unknown channel {cid}; skipped')
-                    continue
-                topic, sid = chan
-                msgtype = state.schemas.get(sid, ('', ''))[0] or bag.topic_types.get(topic, '')
-                target = (topic, msgtype) if wanted is None or topic in wanted else None
-                resolved[cid] = target
-            if target is not None:
-                yield target[0], target[1], log_time, data
+        for inner, found in _scan_units(file, state, stream.report_problem):
+            out = []
+            for cid, log_time, start, end in found:
+                target = resolved.get(cid, False)
+                if target is False:
+                    chan = state.channels.get(cid)
+                    if chan is None:
+                        stream.report_problem(f'{file}: message on unknown channel {cid}; skipped')
+                        continue
+                    topic, sid = chan
+                    msgtype = state.schemas.get(sid, ('', ''))[0] or bag.topic_types.get(topic, '')
+                    target = (topic, msgtype) if wanted is None or topic in wanted else None
+                    resolved[cid] = target
+                if target is not None:
+                    out.append((target[0], target[1], log_time, start, end))
+            if out:
+                yield inner, out
+
+
+def _messages(
+    bag: Bag, stream: MessageStream[Any], topics: Collection[str] | None,
+) -> Iterator[tuple[str, str, int, memoryview]]:
+    for inner, found in _units(bag, stream, topics):
+        for topic, msgtype, log_time, start, end in found:
+            yield topic, msgtype, log_time, inner[start:end]
 
 
 # ----------------------------------------------------------------------------- public
@@ -576,6 +687,161 @@ def decode_encoder_block(data: bytes | memoryview) -> EncoderBlockData:
         raise BagError(msg) from None
 
 
+def _gather_le(u8: np.ndarray, pos: np.ndarray, dtype: str) -> np.ndarray:
+    """Little-endian values of ``dtype`` at byte positions ``pos`` (any alignment)."""
+    width = np.dtype(dtype).itemsize
+    return u8[pos[:, None] + np.arange(width)].view(dtype).ravel()
+
+
+@dataclass(frozen=True, slots=True)
+class _ParsedBlocks:
+    """Header fields and array positions of EncoderBlock messages parsed side by side."""
+
+    ok: np.ndarray          # bool: well-formed little-endian, batchable (equal lengths, n > 0)
+    seq: np.ndarray         # uint64
+    stamp_s: np.ndarray
+    rate_hz: np.ndarray
+    count: np.ndarray       # samples per block
+    data: tuple[np.ndarray, np.ndarray, np.ndarray]  # byte position of time/in/out arrays
+
+
+def _parse_encoder_blocks(u8: np.ndarray, starts: np.ndarray, ends: np.ndarray) -> _ParsedBlocks:
+    """Parse the EncoderBlock CDR of messages [starts, ends) of one buffer, vectorised.
+
+    The layout is the one :func:`decode_encoder_block` walks. A message that is big-endian,
+    runs short, has arrays of unequal length, no sample or a torque array of another
+    length gets ``ok`` False: the caller decodes it on its own (and so reports it exactly
+    as the single-message path does).
+    """
+    size = ends - starts
+    ok = size >= 4 + 12 + 4  # noqa: PLR2004 - encapsulation, stamp, frame_id length
+
+    def at(pos: np.ndarray, dtype: str) -> np.ndarray:
+        nonlocal ok
+        ok &= pos + np.dtype(dtype).itemsize <= ends
+        return _gather_le(u8, np.where(ok, pos, 0), dtype)
+
+    head = _gather_le(u8, np.where(ok, starts, 0), '<u2')
+    ok &= head == 0x0100   # bytes 00 01: CDR little-endian
+    p = starts + 4
+    sec = at(p, '<i4')
+    nsec = at(p + 4, '<u4')
+    off = (12 + at(p + 8, '<u4').astype(np.int64) + _ALIGN8) & ~_ALIGN8
+    seq = at(p + off, '<u8')
+    rate = at(p + off + 8, '<f8')
+    off += 16
+    counts, data = [], []
+    for _ in range(4):
+        off = (off + _ALIGN4) & ~_ALIGN4
+        c = at(p + off, '<u4').astype(np.int64)
+        off = off + 4
+        off = np.where(c > 0, (off + _ALIGN8) & ~_ALIGN8, off)
+        data.append(p + off)
+        counts.append(c)
+        off = off + 8 * c
+        ok &= p + off <= ends
+    n = counts[1]
+    ok &= (counts[0] == n) & (counts[2] == n) & (n > 0) & ((counts[3] == 0) | (counts[3] == n))
+    ok &= seq < np.uint64(1 << 63)
+    stamp = sec.astype(np.float64) + nsec.astype(np.float64) * 1e-9
+    return _ParsedBlocks(ok, seq, stamp, rate, n, (data[0], data[1], data[2]))
+
+
+def _concat_f64(u8: np.ndarray, pos: np.ndarray, counts: np.ndarray) -> np.ndarray:
+    """Concatenate little-endian float64 arrays of ``counts[k]`` values at byte ``pos[k]``.
+
+    The bytes are copied message by message (one slice each, any alignment) and viewed as
+    float64 once: faster than an element gather when the sources are not 8-byte aligned.
+    """
+    ends = pos + 8 * counts
+    return np.concatenate([u8[a:b] for a, b in zip(pos.tolist(), ends.tolist(),
+                                                     strict=True)]).view('<f8')
+
+
+def _encoder_items(buf: memoryview, starts: np.ndarray,
+                   ends: np.ndarray) -> Iterator[EncoderBatch | int]:
+    """Runs of well-formed messages as EncoderBatch, other messages by their index."""
+    from rv_te_bench.core.stream import EncoderBatch  # noqa: PLC0415
+
+    u8 = np.frombuffer(buf, np.uint8)
+    parsed = _parse_encoder_blocks(u8, starts, ends)
+    ok = parsed.ok
+    # cut into runs of ok messages; a bad one is handed over by index
+    edges = np.flatnonzero(np.diff(np.concatenate([[False], ok, [False]]).astype(np.int8)))
+    bad = np.flatnonzero(~ok).tolist()
+    runs = list(zip(edges[0::2].tolist(), edges[1::2].tolist(), strict=True))
+    bi = 0
+    for a, b in runs:
+        while bi < len(bad) and bad[bi] < a:
+            yield bad[bi]
+            bi += 1
+        n = parsed.count[a:b]
+        arrays = [_concat_f64(u8, d[a:b], n) for d in parsed.data]
+        yield EncoderBatch(seq=parsed.seq[a:b].astype(np.int64), stamp_s=parsed.stamp_s[a:b],
+                           sample_rate_hz=parsed.rate_hz[a:b],
+                           starts=np.concatenate([[0], np.cumsum(n)]).astype(np.int64),
+                           time_offset_s=arrays[0], theta_in_rad=arrays[1],
+                           theta_out_rad=arrays[2])
+    yield from bad[bi:]
+
+
+def read_encoder_batches(
+    path: str | Path, topic: str | None = None, *, strict: bool = True,
+) -> MessageStream[EncoderBatch | EncoderBlockData]:
+    """Encoder blocks of a bag, a whole MCAP chunk at a time (the fast offline path).
+
+    Well-formed consecutive blocks of a chunk come as one
+    :class:`~rv_te_bench.core.stream.EncoderBatch` (decoded side by side, no per-message
+    Python work beyond the record walk); a block that does not fit a batch (big-endian
+    CDR, arrays of unequal length, no sample) comes as an ``EncoderBlockData`` of its
+    own, exactly as :func:`read_encoder_blocks` decodes it, so the TE core reports it the
+    same way. Undecodable messages are reported and skipped as there.
+
+    Args:
+        path: Bag folder or ``.mcap`` file.
+        topic: The EncoderBlock topic; None: the single topic of that type.
+        strict: Raise ``BagError`` after the last sound block if part was unreadable.
+
+    Returns:
+        Stream of batches and single blocks in recording order.
+
+    Raises:
+        BagError: As :func:`read_encoder_blocks`.
+    """
+    bag = open_bag(path)
+    name = _encoder_topic(bag, topic)
+    _check_encoder_definition(bag, name)
+
+    def produce(stream: MessageStream[Any]) -> Iterator[EncoderBatch | EncoderBlockData]:
+        index = 0
+        for buf, found in _units(bag, stream, [name]):
+            typed = []
+            for _, msgtype, log_time, start, end in found:
+                if msgtype != ENCODER_BLOCK:
+                    stream.report_problem(
+                        f'Bag {bag.path}: topic {name!r} message {index} is stored as '
+                        f'{msgtype!r}, expected {ENCODER_BLOCK}; skipped')
+                else:
+                    typed.append((index, log_time, start, end))
+                index += 1
+            if not typed:
+                continue
+            starts = np.array([t[2] for t in typed], dtype=np.int64)
+            ends = np.array([t[3] for t in typed], dtype=np.int64)
+            for item in _encoder_items(buf, starts, ends):
+                if not isinstance(item, int):
+                    yield item
+                    continue
+                k, log_time, start, end = typed[item]
+                try:
+                    yield decode_encoder_block(buf[start:end])
+                except BagError as exc:
+                    stream.report_problem(
+                        f'{bag.path}: {name} message {k} at {log_time} ns: {exc}; skipped')
+
+    return MessageStream(produce, strict=strict)
+
+
 def decode_encoder_block_rosbags(data: bytes | memoryview) -> EncoderBlockData:
     """Decode one EncoderBlock with the rosbags typestore (slower; cross-check/fallback).
 
@@ -599,6 +865,78 @@ def decode_encoder_block_rosbags(data: bytes | memoryview) -> EncoderBlockData:
         torque_out_nm=np.asarray(msg.torque_out_nm, np.float64))
 
 
+_OP_CHUNK_INDEX = 0x08
+_FOOTER_TAIL = 1 + 8 + 20 + 8   # footer record (opcode, length, 8 + 8 + 4) and magic
+
+
+def _indexed_messages(file: Path, topics: Collection[str]) -> list[tuple[str, bytes]] | None:
+    """Messages of ``topics`` in one MCAP file, found through its summary's chunk indexes.
+
+    Only the chunks that hold those channels are decompressed (a BenchInfo is one small
+    message in a long bag). Returns ``(schema name, cdr bytes)`` in file order, or None
+    when the file has no usable summary (a recorder that was killed writes none) and the
+    caller must scan it.
+    """
+    try:
+        with file.open('rb') as fh:
+            size = fh.seek(0, 2)
+            if size < 8 + _FOOTER_TAIL:
+                return None
+            mm = mmap.mmap(fh.fileno(), 0, access=mmap.ACCESS_READ)
+    except (OSError, ValueError):
+        return None
+    buf = memoryview(mm)
+    try:
+        foot = size - _FOOTER_TAIL
+        if bytes(buf[size - 8:]) != MAGIC or buf[foot] != _OP_FOOTER:
+            return None
+        summary_start, _, crc = struct.unpack_from('<QQI', buf, foot + 9)
+        if not 8 < summary_start < foot:
+            return None
+        if crc and zlib.crc32(buf[summary_start:foot + 9 + 16]) != crc:
+            return None
+        state = _ScanState()
+        chunks: list[tuple[int, set[int]]] = []
+        for _, op, body in _iter_records(buf[:foot], summary_start):
+            if op == _OP_CHUNK_INDEX:
+                (offset,) = _U64.unpack_from(body, 16)
+                index, _ = _map_u16_u64(body, 32)
+                chunks.append((offset, set(index)))
+            else:
+                _parse_meta_record(op, body, state)
+        wanted = {cid for cid, (topic, _) in state.channels.items() if topic in topics}
+        out: list[tuple[str, bytes]] = []
+        for offset, cids in chunks:
+            if not cids & wanted:
+                continue
+            op, length = _REC.unpack_from(buf, offset)
+            if op != _OP_CHUNK or offset + 9 + length > foot:
+                return None
+            inner = _chunk_records(buf[offset + 9:offset + 9 + length])
+            found: list[tuple[int, int, int, int]] = []
+            _walk_chunk(inner, state, found)
+            for cid, _, start, end in found:
+                if cid in wanted:
+                    sid = state.channels[cid][1]
+                    out.append((state.schemas.get(sid, ('', ''))[0], bytes(inner[start:end])))
+        return out
+    except (_CorruptError, struct.error, UnicodeDecodeError, ValueError, KeyError):
+        return None   # a damaged summary: the full scan decides what is readable
+    finally:
+        with contextlib.suppress(BufferError):
+            buf.release()
+            mm.close()
+
+
+def _map_u16_u64(buf: memoryview, pos: int) -> tuple[dict[int, int], int]:
+    """An MCAP map<uint16, uint64> (message index offsets by channel id)."""
+    (n,) = _U32.unpack_from(buf, pos)
+    end = pos + 4 + n
+    if end > len(buf) or n % 10:
+        raise _CorruptError('chunk index map runs past its record')
+    return {cid: off for cid, off in struct.iter_unpack('<HQ', buf[pos + 4:end])}, end
+
+
 def read_bench_info(path: str | Path, topic: str | None = None) -> dict[str, Any] | None:
     """The last BenchInfo message of a bag as a dict of its fields, or None if there is none.
 
@@ -615,10 +953,18 @@ def read_bench_info(path: str | Path, topic: str | None = None) -> dict[str, Any
     if not names:
         return None
     last: bytes | None = None
-    stream = MessageStream(lambda s: _messages(bag, s, names), strict=False)
-    for _, msgtype, _, data in stream:
-        if msgtype == BENCH_INFO:
-            last = bytes(data)
+    stream: MessageStream[Any] = MessageStream(lambda s: iter(()), strict=False)
+    for file in bag.files:
+        # the summary's chunk index finds the few chunks that hold the topic; without a
+        # summary (killed recorder) the file is scanned
+        indexed = _indexed_messages(file, names)
+        if indexed is None:
+            one = Bag(path=bag.path, files=(file,), info=bag.info, topic_types=bag.topic_types)
+            indexed = [(msgtype, bytes(data))
+                       for _, msgtype, _, data in _messages(one, stream, names)]
+        for msgtype, data in indexed:
+            if msgtype == BENCH_INFO:
+                last = data
     if last is None:
         if stream.partial:   # the BenchInfo may be in the part that cannot be read
             text = (f'Bag {bag.path}: no readable BenchInfo; the bag is damaged: '

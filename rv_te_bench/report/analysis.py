@@ -21,6 +21,7 @@ No rclpy import: this runs on a laptop without ROS.
 
 from __future__ import annotations
 
+import itertools
 import math
 import time
 from dataclasses import dataclass, field, replace
@@ -39,7 +40,7 @@ if TYPE_CHECKING:
 
     from rv_te_bench.core.advice import Advice
     from rv_te_bench.core.spectrum import OrderSpectrum, SpectrumLine
-    from rv_te_bench.core.stream import EncoderBlockData, GapEvent, WindowResult
+    from rv_te_bench.core.stream import EncoderBatch, EncoderBlockData, GapEvent, WindowResult
     from rv_te_bench.core.te import TeStats
 
     FloatArray = npt.NDArray[np.float64]
@@ -50,6 +51,7 @@ __all__ = [
     'BenchDescription',
     'DominantHarmonic',
     'Recommendation',
+    'SpectrumAverager',
     'SpectrumSummary',
     'TeTrace',
     'analyze_bag',
@@ -218,7 +220,10 @@ class AnalysisResult:
         path: The bag.
         topic: Encoder topic asked for (None: the reader's choice).
         bench: Ratio, orders and bench metadata used.
-        windows: Per-window results of the TE core (complete and the trailing partial one).
+        windows: Per-window results of the TE core (complete and the trailing partial one);
+            their spectra keep the labelled lines only (``OrderSpectrum.lines_only``: the
+            per-bin arrays are folded into ``spectrum`` as the windows close, so memory
+            does not grow with the length of the recording).
         cumulative: Statistics over every clean sample.
         spectrum: Averaged spectrum of the complete windows, or None when there is none.
         dominant: Dominant labelled line, or None without a spectrum.
@@ -328,7 +333,7 @@ def analyze_bag(  # noqa: PLR0913 - keyword-only analysis options
         TeConfigError: Ratio/crank order missing (no BenchInfo and no flags) or invalid.
     """
     from rv_te_bench.core.stream import TeAnalysisConfig, analyze_blocks  # noqa: PLC0415
-    from rv_te_bench.io.bag_reader import read_bench_info, read_encoder_blocks  # noqa: PLC0415
+    from rv_te_bench.io.bag_reader import read_bench_info, read_encoder_batches  # noqa: PLC0415
 
     t_start = time.monotonic()
     path = Path(path)
@@ -340,9 +345,20 @@ def analyze_bag(  # noqa: PLR0913 - keyword-only analysis options
     config = TeAnalysisConfig(orders=_order_set(bench, n_crank_harmonics),
                               window_revolutions=window_revolutions)
 
-    stream = read_encoder_blocks(path, topic, strict=False)
+    stream = read_encoder_batches(path, topic, strict=False)
     reader = _GuardedBlocks(stream, bench.gear_ratio, progress=progress, t_start=t_start)
-    offline = analyze_blocks(reader, config)
+    averager = SpectrumAverager()
+    kept: list[WindowResult] = []
+
+    def on_window(w: WindowResult) -> None:
+        # fold the spectrum into the average; keep the window without its per-bin arrays
+        if w.spectrum is not None:
+            if w.complete:
+                averager.add(w.spectrum)
+            w = replace(w, spectrum=w.spectrum.lines_only())
+        kept.append(w)
+
+    offline = analyze_blocks(reader, config, on_window=on_window)
     read_problems = [*getattr(stream, 'problems', ()),
                      *([] if reader.error is None else [reader.error])]
     if reader.blocks == 0:
@@ -355,8 +371,8 @@ def analyze_bag(  # noqa: PLR0913 - keyword-only analysis options
     if partial:
         problems.append(f'{reader.blocks} blocks read; part of the bag is unreadable: '
                         + '; '.join(read_problems))
-    windows = tuple(offline.windows)
-    spectrum = average_spectrum(windows)
+    windows = tuple(kept)
+    spectrum = averager.result()
     if spectrum is None:
         problems.append('no complete output revolution without a gap: no spectrum, and the '
                         'statistics do not cover whole revolutions')
@@ -374,7 +390,7 @@ def analyze_bag(  # noqa: PLR0913 - keyword-only analysis options
 
 
 class _GuardedBlocks:
-    """Iterator over encoder blocks that stops cleanly at a read error and keeps a trace.
+    """Iterator over encoder blocks/batches that stops cleanly at a read error, keeps a trace.
 
     The reader (``strict=False``) stops quietly at a truncated or corrupt part and lists
     the problem; a ``BagError`` raised in the middle of the iteration (e.g. the topic
@@ -383,8 +399,8 @@ class _GuardedBlocks:
     counts blocks for the progress callback and keeps a thinned TE trace for the plot.
     """
 
-    def __init__(self, blocks: Iterable[EncoderBlockData], gear_ratio: float, *,
-                 progress: ProgressFn | None, t_start: float) -> None:
+    def __init__(self, blocks: Iterable[EncoderBlockData | EncoderBatch], gear_ratio: float,
+                 *, progress: ProgressFn | None, t_start: float) -> None:
         self._it = iter(blocks)
         self._ratio = gear_ratio
         self._progress = progress
@@ -397,42 +413,64 @@ class _GuardedBlocks:
         self._parts: list[tuple[npt.NDArray[np.int64], FloatArray, FloatArray]] = []
         self._kept = 0
 
-    def __iter__(self) -> Iterator[EncoderBlockData]:
+    def __iter__(self) -> Iterator[EncoderBlockData | EncoderBatch]:
         return self
 
-    def __next__(self) -> EncoderBlockData:
+    def __next__(self) -> EncoderBlockData | EncoderBatch:
+        from rv_te_bench.core.stream import EncoderBatch  # noqa: PLC0415
+
         try:
-            block = next(self._it)
+            item = next(self._it)
         except BagError as exc:
             self.error = str(exc)
             raise StopIteration from None
-        self.blocks += 1
-        self.samples += int(np.size(block.theta_out_rad))
-        self._keep(block)
+        if isinstance(item, EncoderBatch):
+            self.blocks += item.n_blocks
+            self.samples += item.n_samples
+            self._keep_batch(item)
+        else:
+            self.blocks += 1
+            self.samples += int(np.size(item.theta_out_rad))
+            self._keep(item)
         if self._progress is not None:
             self._progress(self.blocks, self.samples, time.monotonic() - self._t0)
-        return block
+        return item
 
     def _keep(self, block: EncoderBlockData) -> None:
         """Keep every ``stride``-th sample (by global sample index) and a NaN row at gaps."""
-        from rv_te_bench.core.te import transmission_error_rad  # noqa: PLC0415
-
         th_out = np.asarray(block.theta_out_rad, dtype=np.float64)
         th_in = np.asarray(block.theta_in_rad, dtype=np.float64)
         n = th_out.size
-        g0 = self.samples - n
         if th_out.shape != th_in.shape or n == 0:
             return  # the core reports malformed blocks; the plot just skips them
-        if self._last_seq is not None and int(block.seq) != self._last_seq + 1:
+        self._keep_run(int(block.seq), int(block.seq), th_in, th_out, self.samples - n)
+
+    def _keep_batch(self, batch: EncoderBatch) -> None:
+        """As ``_keep`` for each block of a batch, one run of continuous blocks at a time."""
+        seq = np.asarray(batch.seq, dtype=np.int64)
+        starts = np.asarray(batch.starts, dtype=np.intp)
+        g0 = self.samples - batch.n_samples
+        cuts = [0, *(np.flatnonzero(seq[1:] != seq[:-1] + 1) + 1).tolist(), seq.size]
+        for k0, k1 in itertools.pairwise(cuts):
+            a, b = int(starts[k0]), int(starts[k1])
+            self._keep_run(int(seq[k0]), int(seq[k1 - 1]), batch.theta_in_rad[a:b],
+                           batch.theta_out_rad[a:b], g0 + a)
+
+    def _keep_run(self, seq_first: int, seq_last: int, th_in: FloatArray,  # noqa: PLR0913
+                  th_out: FloatArray, g0: int) -> None:
+        """Samples of consecutive blocks seq_first..seq_last, the first at global index g0."""
+        from rv_te_bench.core.te import transmission_error_rad  # noqa: PLC0415
+
+        if self._last_seq is not None and seq_first != self._last_seq + 1:
             self._parts.append((np.array([-1]), np.array([np.nan]), np.array([np.nan])))
-        self._last_seq = int(block.seq)
+        self._last_seq = seq_last
         start = (-g0) % self._stride
         th = th_out[start::self._stride]
         te = transmission_error_rad(th_in[start::self._stride], th, gear_ratio=self._ratio)
-        g = g0 + np.arange(start, n, self._stride, dtype=np.int64)
-        self._parts.append((g, th, np.asarray(te, dtype=np.float64)))
+        g = g0 + np.arange(start, th_out.size, self._stride, dtype=np.int64)
+        self._parts.append((g, np.array(th, dtype=np.float64), np.asarray(te, dtype=np.float64)))
         self._kept += th.size
-        if self._kept > MAX_TRACE_POINTS:
+        while self._kept > MAX_TRACE_POINTS:
             g_all, th_all, te_all = self._joined()
             self._stride *= 2
             keep = (g_all < 0) | (g_all % self._stride == 0)
@@ -498,67 +536,125 @@ def _order_set(bench: BenchDescription, n_crank_harmonics: int) -> Any:  # noqa:
                     n_crank_harmonics=n_crank_harmonics)
 
 
-def average_spectrum(windows: Iterable[WindowResult]) -> SpectrumSummary | None:
-    """Average the spectra of the complete windows.
+class SpectrumAverager:
+    """Running average of the spectra of complete windows (memory of one window's bins).
 
     Line amplitudes: arithmetic mean of the per-window peak amplitudes (robust to the phase
     reference of each window). Line phases: angle of the mean phasor a*exp(j*phase). The
     full amplitude spectrum is averaged bin by bin when every window has the same order
     grid; otherwise the spectrum of the longest window is shown (the method says so).
 
+    Examples:
+        >>> import numpy as np
+        >>> from rv_te_bench.core.orders import OrderSet
+        >>> from rv_te_bench.core.spectrum import order_spectrum
+        >>> phi = 2 * np.pi * np.arange(512) / 512
+        >>> avg = SpectrumAverager()
+        >>> for a in (1e-4, 3e-4):
+        ...     avg.add(order_spectrum(phi, a * np.cos(25 * phi), OrderSet(79.0, 25.0)))
+        >>> s = avg.result()
+        >>> line = next(ln for ln in s.lines if ln.label == '1 f_w')
+        >>> s.n_windows, round(line.amplitude_rad, 12), round(float(s.amplitude_rad[25]), 12)
+        (2, 0.0002, 0.0002)
+    """
+
+    def __init__(self) -> None:
+        """Start with no window."""
+        self._first: OrderSpectrum | None = None
+        self._line_amps: list[dict[str, float]] = []
+        self._line_phases: list[dict[str, float]] = []
+        self._revs: list[float] = []
+        self._out_hz: list[float] = []
+        self._crank_hz: list[float] = []
+        self._sum: FloatArray | None = None
+        self._ref_orders: FloatArray | None = None
+        self._same_grid = True
+        self._longest: tuple[float, FloatArray, FloatArray] | None = None
+
+    def add(self, spectrum: OrderSpectrum) -> None:
+        """Fold in the spectrum of one complete window (it is not kept)."""
+        if self._first is None:
+            self._first = spectrum.lines_only()
+        self._line_amps.append({ln.label: ln.amplitude_rad for ln in spectrum.lines})
+        self._line_phases.append({ln.label: ln.phase_rad for ln in spectrum.lines})
+        self._revs.append(float(spectrum.revolutions))
+        self._out_hz.append(float(spectrum.output_hz))
+        self._crank_hz.append(float(spectrum.crank_hz))
+        orders = np.asarray(spectrum.orders, dtype=np.float64)
+        amp = np.asarray(spectrum.amplitude_rad, dtype=np.float64)
+        if self._longest is None or spectrum.revolutions > self._longest[0]:
+            self._longest = (float(spectrum.revolutions), orders.copy(), amp.copy())
+        if self._sum is None or self._ref_orders is None:
+            self._sum = amp.copy()
+            self._ref_orders = orders.copy()
+            return
+        # windows of the same length share the order grid m / R up to their own Nyquist order
+        size = min(self._sum.size, amp.size)
+        if self._same_grid and not np.allclose(orders[:size], self._ref_orders[:size]):
+            self._same_grid = False
+        self._sum = self._sum[:size] + amp[:size]
+        self._ref_orders = self._ref_orders[:size]
+
+    def result(self) -> SpectrumSummary | None:
+        """The average so far, or None when no window was added."""
+        first = self._first
+        if first is None or self._sum is None or self._ref_orders is None \
+                or self._longest is None:
+            return None
+        n = len(self._revs)
+        # lines are matched by label: a line above a window's Nyquist order is missing there
+        labels = [ln.label for ln in first.lines
+                  if all(ln.label in d for d in self._line_amps)]
+        amps = np.array([[d[lab] for lab in labels] for d in self._line_amps],
+                        dtype=np.float64).reshape(n, len(labels))
+        phases = np.array([[d[lab] for lab in labels] for d in self._line_phases],
+                          dtype=np.float64).reshape(n, len(labels))
+        mean_amp = amps.mean(axis=0)
+        phasor = (amps * np.exp(1j * phases)).mean(axis=0)
+        revs = np.array(self._revs)
+        out_hz = float(np.mean(self._out_hz))
+        crank_hz = float(np.mean(self._crank_hz))
+        by_label = {ln.label: ln for ln in first.lines}
+        lines = tuple(
+            replace(by_label[lab], amplitude_rad=float(mean_amp[k]),
+                    phase_rad=float(np.angle(phasor[k])),
+                    frequency_hz=float(by_label[lab].output_order * out_hz))
+            for k, lab in enumerate(labels))
+        what = 'the one complete window' if n == 1 else f'{n} complete windows'
+        if self._same_grid:
+            orders = self._ref_orders.copy()
+            amp = self._sum / n
+            method = (f'mean of {what} ({revs.sum():.3g} output revolution(s)): line amplitude '
+                      '= mean of the per-window peak amplitudes, phase = angle of the mean '
+                      'phasor')
+        else:
+            orders = self._longest[1].copy()
+            amp = self._longest[2].copy()
+            method = (f'lines: mean of {what}; full spectrum: the longest window '
+                      f'({float(revs.max()):.3g} output revolutions; window grids differ)')
+        orders.setflags(write=False)
+        amp.setflags(write=False)
+        return SpectrumSummary(
+            method=method, n_windows=n, output_hz=out_hz, crank_hz=crank_hz,
+            revolutions=float(revs.sum()), lines=lines,
+            amplitude_spread_rad=tuple(float(x) for x in amps.std(axis=0)),
+            orders=orders, amplitude_rad=amp)
+
+
+def average_spectrum(windows: Iterable[WindowResult]) -> SpectrumSummary | None:
+    """Average the spectra of the complete windows (see :class:`SpectrumAverager`).
+
     Args:
-        windows: Window results of the TE core.
+        windows: Window results of the TE core (with their per-bin arrays).
 
     Returns:
         The summary, or None when no complete window carries a spectrum.
     """
-    spectra: list[OrderSpectrum] = [w.spectrum for w in windows
-                                    if w.complete and w.spectrum is not None]
-    if not spectra:
-        return None
-    n = len(spectra)
-    # Lines are matched by label: a line above a window's Nyquist order is missing there.
-    labels = [ln.label for ln in spectra[0].lines]
-    by_label = [{ln.label: ln for ln in s.lines} for s in spectra]
-    labels = [lab for lab in labels if all(lab in d for d in by_label)]
-    amps = np.array([[d[lab].amplitude_rad for lab in labels] for d in by_label],
-                    dtype=np.float64).reshape(n, len(labels))
-    phases = np.array([[d[lab].phase_rad for lab in labels] for d in by_label],
-                      dtype=np.float64).reshape(n, len(labels))
-    mean_amp = amps.mean(axis=0)
-    phasor = (amps * np.exp(1j * phases)).mean(axis=0)
-    revs = np.array([s.revolutions for s in spectra], dtype=np.float64)
-    out_hz = float(np.mean([s.output_hz for s in spectra]))
-    crank_hz = float(np.mean([s.crank_hz for s in spectra]))
-    lines = tuple(
-        replace(by_label[0][lab], amplitude_rad=float(mean_amp[k]),
-                phase_rad=float(np.angle(phasor[k])),
-                frequency_hz=float(by_label[0][lab].output_order * out_hz))
-        for k, lab in enumerate(labels))
-    what = 'the one complete window' if n == 1 else f'{n} complete windows'
-    # Windows of the same length share the order grid m / R up to their own Nyquist order.
-    size = min(np.size(s.orders) for s in spectra)
-    ref_orders = np.asarray(spectra[0].orders, dtype=np.float64)[:size]
-    same_grid = all(np.allclose(np.asarray(s.orders)[:size], ref_orders) for s in spectra)
-    if same_grid:
-        orders = ref_orders.copy()
-        amp = np.mean([np.asarray(s.amplitude_rad, dtype=np.float64)[:size] for s in spectra],
-                      axis=0)
-        method = (f'mean of {what} ({revs.sum():.3g} output revolution(s)): line amplitude = '
-                  'mean of the per-window peak amplitudes, phase = angle of the mean phasor')
-    else:
-        longest = spectra[int(np.argmax(revs))]
-        orders = np.asarray(longest.orders, dtype=np.float64).copy()
-        amp = np.asarray(longest.amplitude_rad, dtype=np.float64).copy()
-        method = (f'lines: mean of {what}; full spectrum: the longest window '
-                  f'({float(revs.max()):.3g} output revolutions; window grids differ)')
-    orders.setflags(write=False)
-    amp.setflags(write=False)
-    return SpectrumSummary(
-        method=method, n_windows=n, output_hz=out_hz, crank_hz=crank_hz,
-        revolutions=float(revs.sum()), lines=lines,
-        amplitude_spread_rad=tuple(float(x) for x in amps.std(axis=0)),
-        orders=orders, amplitude_rad=amp)
+    averager = SpectrumAverager()
+    for w in windows:
+        if w.complete and w.spectrum is not None:
+            averager.add(w.spectrum)
+    return averager.result()
 
 
 def dominant_harmonic(spectrum: SpectrumSummary,

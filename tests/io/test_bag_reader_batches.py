@@ -1,0 +1,160 @@
+"""read_encoder_batches (the fast offline path) gives exactly the blocks read_encoder_blocks
+gives; read_bench_info through the summary index equals a full scan; prefetching changes
+nothing but the speed."""
+
+from __future__ import annotations
+
+import threading
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from rv_te_bench.core.stream import EncoderBatch, EncoderBlockData
+from rv_te_bench.errors import BagError
+from rv_te_bench.io import bag_reader
+from rv_te_bench.io.bag_reader import (
+    open_bag,
+    read_bench_info,
+    read_encoder_batches,
+    read_encoder_blocks,
+)
+from rv_te_bench.io.bag_writer import BagWriter
+from rv_te_bench.io.msgdefs import BENCH_INFO, ENCODER_BLOCK, rv_te_typestore
+from tests.io import (
+    ENCODER_TOPIC,
+    INFO_TOPIC,
+    T0_NS,
+    bench_info_cdr,
+    encoder_cdr,
+    write_sample_bag,
+)
+
+FIELDS = ('time_offset_s', 'theta_in_rad', 'theta_out_rad')
+
+
+def _flatten(items: list[EncoderBatch | EncoderBlockData]) -> list[EncoderBlockData]:
+    out: list[EncoderBlockData] = []
+    for item in items:
+        if isinstance(item, EncoderBatch):
+            out += [item.block(k) for k in range(item.n_blocks)]
+        else:
+            out.append(item)
+    return out
+
+
+def _assert_same_blocks(got: list[EncoderBlockData], ref: list[EncoderBlockData]) -> None:
+    assert len(got) == len(ref)
+    for a, b in zip(got, ref, strict=True):
+        assert (a.seq, a.stamp_s, a.sample_rate_hz) == (b.seq, b.stamp_s, b.sample_rate_hz)
+        for name in FIELDS:
+            np.testing.assert_array_equal(getattr(a, name), getattr(b, name), err_msg=name)
+
+
+def _big_endian(seq: int, n: int) -> bytes:
+    store = rv_te_typestore()
+    msg = store.deserialize_cdr(encoder_cdr(seq, n), ENCODER_BLOCK)
+    return bytes(store.serialize_cdr(msg, ENCODER_BLOCK, little_endian=False))
+
+
+def _mixed_bag(path: Path) -> None:
+    """Encoder blocks of many sizes (records at every byte alignment), other topics in
+    between, and messages that cannot be batched or decoded."""
+    with BagWriter(path, chunk_size_bytes=6000) as w:
+        w.add_topic(INFO_TOPIC, BENCH_INFO)
+        w.add_topic(ENCODER_TOPIC, ENCODER_BLOCK)
+        w.add_topic('/other', 'std_msgs/msg/String')
+        store = rv_te_typestore()
+        text = store.types['std_msgs/msg/String']
+        w.write(INFO_TOPIC, T0_NS, bench_info_cdr())
+        t = T0_NS
+        for seq in range(60):
+            t += 1000
+            n = 1 + (seq * 37) % 90
+            if seq == 13:
+                data = _big_endian(seq, n)                  # decoded alone
+            elif seq == 21:
+                data = encoder_cdr(seq, n)[:40]             # cut short: reported, skipped
+            elif seq == 34:
+                data = encoder_cdr(seq, n, torque=False)    # no torque: still batchable
+            else:
+                data = encoder_cdr(seq, n, frame_id='b' * (seq % 9))
+            w.write(ENCODER_TOPIC, t, data)
+            if seq % 4 == 0:
+                w.write('/other', t, bytes(store.serialize_cdr(text(data='x' * seq),
+                                                               'std_msgs/msg/String')))
+
+
+@pytest.mark.parametrize('prefetch', [True, False])
+def test_batches_equal_blocks_on_a_mixed_bag(tmp_path: Path, prefetch: bool,
+                                             monkeypatch: pytest.MonkeyPatch) -> None:
+    monkeypatch.setitem(bag_reader._scan_units.__kwdefaults__, 'prefetch', prefetch)  # noqa: SLF001
+    bag = tmp_path / 'mixed'
+    _mixed_bag(bag)
+    ref_stream = read_encoder_blocks(bag, strict=False)
+    ref = list(ref_stream)
+    stream = read_encoder_batches(bag, strict=False)
+    items = list(stream)
+    assert any(isinstance(i, EncoderBatch) and i.n_blocks > 1 for i in items)
+    _assert_same_blocks(_flatten(items), ref)
+    assert [b.seq for b in ref] == [s for s in range(60) if s != 21]
+    assert stream.problems == ref_stream.problems
+    assert len(stream.problems) == 1
+    assert 'message 21' in stream.problems[0]
+    assert stream.partial
+
+
+def test_batches_stop_at_truncation_like_blocks(tmp_path: Path) -> None:
+    bag = tmp_path / 'bag'
+    write_sample_bag(bag, n_blocks=30, compression='zstd', chunk_size_bytes=4096)
+    (file,) = bag.glob('*.mcap')
+    data = file.read_bytes()
+    file.write_bytes(data[: len(data) // 2])
+    ref = read_encoder_blocks(bag, strict=False)
+    got = read_encoder_batches(bag, strict=False)
+    _assert_same_blocks(_flatten(list(got)), list(ref))
+    assert got.problems == ref.problems
+    assert got.partial
+    with pytest.raises(BagError, match='truncated'):
+        list(read_encoder_batches(bag))
+
+
+def test_abandoned_read_leaves_no_worker_thread(tmp_path: Path) -> None:
+    bag = tmp_path / 'bag'
+    write_sample_bag(bag, n_blocks=40, compression='zstd', chunk_size_bytes=2048)
+    before = {t.name for t in threading.enumerate()}
+    stream = read_encoder_batches(bag)
+    next(stream)
+    stream._it.close()  # noqa: SLF001 - what garbage collection does to a dropped reader
+    assert not {t.name for t in threading.enumerate()
+                if t.name.startswith('mcap-read')} - before
+
+
+def test_bench_info_from_the_summary_equals_a_scan(tmp_path: Path) -> None:
+    bag = tmp_path / 'bag'
+    write_sample_bag(bag, n_blocks=30, compression='zstd', chunk_size_bytes=4096)
+    (file,) = open_bag(bag).files
+    indexed = bag_reader._indexed_messages(file, [INFO_TOPIC])  # noqa: SLF001
+    assert indexed == [(BENCH_INFO, bench_info_cdr())]
+    fast = read_bench_info(bag)
+    # a damaged summary (CRC mismatch) is not trusted: the reader scans the file instead
+    data = bytearray(file.read_bytes())
+    data[-8 - 37 + 9 + 16] ^= 0xFF   # the footer's summary CRC
+    file.write_bytes(bytes(data))
+    assert bag_reader._indexed_messages(file, [INFO_TOPIC]) is None  # noqa: SLF001
+    assert read_bench_info(bag) == fast
+    assert fast is not None
+    assert fast['preset'] == 'wang2020-2kv'
+
+
+def test_bench_info_of_a_killed_recording(tmp_path: Path) -> None:
+    """No summary (the recorder never closed the file): found by scanning."""
+    bag = tmp_path / 'bag'
+    writer = write_sample_bag(bag, n_blocks=10, close=False, chunk_size_bytes=2048)
+    writer.flush()
+    (file,) = open_bag(bag).files
+    assert bag_reader._indexed_messages(file, [INFO_TOPIC]) is None  # noqa: SLF001
+    info = read_bench_info(bag)
+    assert info is not None
+    assert info['gear_ratio'] == 79.0
+    writer.close()
