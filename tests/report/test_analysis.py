@@ -258,3 +258,60 @@ def test_2kv_recommendation_from_the_real_compensation_code(tmp_path) -> None:  
     assert rec.advice.method in {'assembly-phases', 'identified-assembly-phases'}
     assert len(rec.advice.modifications) == 4  # theta_p1, theta_p2, theta_g, theta_ot
     assert rec.advice.te_after_rad < rec.advice.te_before_rad
+
+
+def _retained_bytes(path: object) -> tuple[int, analysis.AnalysisResult]:
+    """Bytes still allocated (tracemalloc: Python and numpy) while the result is alive."""
+    import gc  # noqa: PLC0415
+    import tracemalloc  # noqa: PLC0415
+
+    analyze_bag(path, with_advice=False)  # imports and caches are not what is measured
+    gc.collect()
+    tracemalloc.start()
+    try:
+        base = tracemalloc.get_traced_memory()[0]
+        res = analyze_bag(path, with_advice=False)
+        gc.collect()
+        return tracemalloc.get_traced_memory()[0] - base, res
+    finally:
+        tracemalloc.stop()
+
+
+def test_memory_does_not_grow_with_the_number_of_windows(tmp_path) -> None:  # noqa: ANN001
+    """Each window's per-bin spectrum (here ~20k bins, ~0.6 MB) is folded into the average
+    and dropped: 16 windows retain about what 4 do (the old code kept ~7.7 MB more)."""
+    sizes = {}
+    for n_windows in (4, 16):
+        path = tmp_path / f'bag{n_windows}'
+        write_bag(path, harmonics=HARMONICS, mean_rad=MEAN, duration_s=2.0 * n_windows + 0.5,
+                  sample_rate_hz=20_000.0, block_size=1000, chunk_size_bytes=1 << 20)
+        sizes[n_windows], res = _retained_bytes(path)
+        assert len(res.complete_windows) == n_windows
+        assert all(w.spectrum is not None and w.spectrum.orders.size == 0
+                   and w.spectrum.lines for w in res.complete_windows)
+    assert sizes[16] - sizes[4] < 1_000_000, sizes
+
+
+def test_running_average_equals_the_mean_of_the_window_spectra(constant_bag: tuple) -> None:
+    """The incremental average against numpy's mean over every window's full spectrum."""
+    from rv_te_bench.core.stream import TeAnalysisConfig, analyze_blocks  # noqa: PLC0415
+    from rv_te_bench.io.bag_reader import read_encoder_blocks  # noqa: PLC0415
+
+    path, _ = constant_bag
+    res = analyze_bag(path, with_advice=False)
+    full = analyze_blocks(read_encoder_blocks(path), TeAnalysisConfig(
+        orders=analysis._order_set(res.bench, 10)))  # noqa: SLF001
+    spectra = [w.spectrum for w in full.windows if w.complete and w.spectrum is not None]
+    assert res.spectrum is not None
+    assert len(spectra) == res.spectrum.n_windows == 3
+    assert_allclose(res.spectrum.amplitude_rad,
+                    np.mean([s.amplitude_rad for s in spectra], axis=0), rtol=1e-12, atol=1e-18)
+    assert_allclose(res.spectrum.orders, spectra[0].orders, rtol=0, atol=0)
+    for k, line in enumerate(res.spectrum.lines):
+        amps = [s.lines[k].amplitude_rad for s in spectra]
+        phasor = np.mean([a * np.exp(1j * s.lines[k].phase_rad) for a, s in zip(amps, spectra,
+                                                                                strict=True)])
+        assert line.label == spectra[0].lines[k].label
+        assert_allclose(line.amplitude_rad, np.mean(amps), rtol=1e-12, atol=1e-18)
+        if abs(phasor) > 1e-12:
+            assert_allclose(line.phase_rad, np.angle(phasor), atol=1e-9)
