@@ -206,7 +206,10 @@ def _lagrange4_uniform(x: np.ndarray, y: np.ndarray, spacing: float, n_grid: int
     # count[m] = number of nodes with x <= m * spacing: a node in ((m-1) s, m s] goes to
     # cell m (ceil; a node that rounds onto a grid point may land one cell off, which only
     # shifts the 4-node stencil by one)
-    cell = np.minimum(np.ceil(x * (1.0 / spacing)), n_grid).astype(np.intp)
+    cell_f = x * (1.0 / spacing)
+    np.ceil(cell_f, out=cell_f)
+    np.minimum(cell_f, n_grid, out=cell_f)
+    cell = cell_f.astype(np.intp)
     count = np.cumsum(np.bincount(cell, minlength=n_grid + 1)[:n_grid])
     j_all = count - 2
     np.clip(j_all, 0, n - 4, out=j_all)
@@ -369,8 +372,10 @@ def order_spectrum(
             raise TeInputError(msg)
         output_hz = abs(float(phi[-1]) - float(phi[0])) / _TWO_PI / float(duration_s)
     n_grid = res.te_rad.size
-    spec = sp_fft.rfft(res.te_rad) / n_grid
-    amplitude = 2.0 * np.abs(spec)
+    spec = sp_fft.rfft(res.te_rad)
+    spec *= 1.0 / n_grid
+    amplitude = np.abs(spec)
+    amplitude *= 2.0
     amplitude[0] *= 0.5
     if n_grid % 2 == 0:
         amplitude[-1] *= 0.5

@@ -39,7 +39,7 @@ import numpy as np
 
 from rv_te_bench.core.orders import OrderSet
 from rv_te_bench.core.spectrum import OrderSpectrum, order_spectrum
-from rv_te_bench.core.te import RunningStats, TeStats, te_statistics
+from rv_te_bench.core.te import RunningStats, TeStats, stats_of_finite
 from rv_te_bench.errors import TeConfigError, TeInputError
 
 if TYPE_CHECKING:
@@ -453,7 +453,8 @@ class OfflineResult:
 class _WindowBuffer:
     """Growable (up to a cap) buffers of phi and TE of the open window."""
 
-    __slots__ = ('cap', 'first_seq', 'last_seq', 'n', 'phi', 't_first', 't_last', 'te')
+    __slots__ = ('_scratch', 'cap', 'first_seq', 'last_seq', 'n', 'phi', 't_first', 't_last',
+                 'te')
 
     def __init__(self, cap: int) -> None:
         self.cap = cap
@@ -464,6 +465,7 @@ class _WindowBuffer:
         self.t_last = math.nan
         self.first_seq = -1
         self.last_seq = -1
+        self._scratch = _EMPTY
 
     def append(self, phi: np.ndarray, te: np.ndarray, t_first: float, t_last: float,  # noqa: PLR0913
                seq_first: int, seq_last: int) -> None:
@@ -487,6 +489,12 @@ class _WindowBuffer:
     def clear(self) -> None:
         # the capacity is kept (the next window is about as long; bounded by the cap)
         self.n = 0
+
+    def scratch(self) -> np.ndarray:
+        """A work array as long as the buffers (kept: no new pages per window)."""
+        if self._scratch.size < self.phi.size:
+            self._scratch = np.empty(self.phi.size)
+        return self._scratch
 
 
 def _readonly(a: np.ndarray) -> np.ndarray:
@@ -649,7 +657,7 @@ class StreamingTeAnalyzer:
         w_rev = self._config.window_revolutions
         spectrum = None
         if complete:
-            stats = te_statistics(te, revolutions=w_rev)
+            stats = stats_of_finite(te, revolutions=w_rev, scratch=buf.scratch())
             if self._config.compute_spectrum:
                 try:
                     spectrum = order_spectrum(
@@ -660,7 +668,8 @@ class StreamingTeAnalyzer:
                     spectrum = None
                     self._counters['spectrum_failures'] += 1
         else:
-            stats = te_statistics(te, revolutions=abs(float(phi[-1] - phi[0])) / _TWO_PI)
+            stats = stats_of_finite(te, revolutions=abs(float(phi[-1] - phi[0])) / _TWO_PI,
+                                    scratch=buf.scratch())
         result = WindowResult(
             index=self._n_windows, start_stamp_s=buf.t_first, end_stamp_s=buf.t_last,
             complete=complete, stats=stats, spectrum=spectrum, first_seq=buf.first_seq,

@@ -38,7 +38,8 @@ from rv_te_bench.errors import TeInputError
 if TYPE_CHECKING:
     import numpy.typing as npt
 
-__all__ = ['RunningStats', 'TeStats', 'te_statistics', 'transmission_error_rad']
+__all__ = ['RunningStats', 'TeStats', 'stats_of_finite', 'te_statistics',
+           'transmission_error_rad']
 
 
 def _check_ratio(gear_ratio: float) -> float:
@@ -159,15 +160,31 @@ def te_statistics(te_rad: npt.ArrayLike, *, revolutions: float = math.nan) -> Te
         bad = int(np.flatnonzero(~np.isfinite(te))[0])
         msg = f'te_rad[{bad}] is not finite ({te[bad]!r})'
         raise TeInputError(msg)
-    lo = float(te.min())
-    hi = float(te.max())
+    return stats_of_finite(te, revolutions=revolutions)
+
+
+def stats_of_finite(te_rad: np.ndarray, *, revolutions: float = math.nan,
+                    scratch: np.ndarray | None = None) -> TeStats:
+    """:func:`te_statistics` of a non-empty 1-D float64 record known to be finite.
+
+    For callers that checked the samples already (the streaming analysis): no finiteness
+    pass, and the deviations go into ``scratch`` (at least as long as ``te_rad``) instead
+    of a new array. The arithmetic is numpy's ``mean``/``std`` (pairwise sums), so the
+    values equal those of :func:`te_statistics` bit for bit.
+    """
+    n = te_rad.size
+    lo = float(np.minimum.reduce(te_rad))
+    hi = float(np.maximum.reduce(te_rad))
+    mean = float(np.add.reduce(te_rad)) / n
+    dev = np.subtract(te_rad, mean, out=None if scratch is None else scratch[:n])
+    np.multiply(dev, dev, out=dev)
     return TeStats(
         pp_rad=hi - lo,
         amplitude_rad=max(abs(lo), abs(hi)),
-        mean_rad=float(te.mean()),
-        std_rad=float(te.std()),
+        mean_rad=mean,
+        std_rad=math.sqrt(float(np.add.reduce(dev)) / n),
         revolutions=float(revolutions),
-        n_samples=int(te.size),
+        n_samples=int(n),
     )
 
 
