@@ -829,12 +829,13 @@ class StreamingTeAnalyzer:
                 self._last_seq = seq_int
             return StreamUpdate(math.nan, _EMPTY, _EMPTY, tuple(windows), tuple(gaps))
         seq, t = clean.seq, clean.t_s
+        n_gaps = len(gaps)   # (push_batch passes one list for all its blocks)
         if self._last_seq is not None and seq != self._last_seq + 1:
             self._gap(gaps, 'seq_jump', seq, f'expected seq {self._last_seq + 1}, got {seq}')
         if self._last_t is not None and t[0] <= self._last_t:
             self._gap(gaps, 'time_backwards', seq,
                       f'block seq {seq} starts at {t[0]!r} s, not after {self._last_t!r} s')
-        if gaps:
+        if len(gaps) > n_gaps:
             self._end_stretch(windows)
         self._last_seq = seq
         self._last_t = float(t[-1])
