@@ -209,28 +209,37 @@ def _lagrange4_uniform(x: np.ndarray, y: np.ndarray, spacing: float, n_grid: int
     cell_f = x * (1.0 / spacing)
     np.ceil(cell_f, out=cell_f)
     np.minimum(cell_f, n_grid, out=cell_f)
-    cell = cell_f.astype(np.intp)
-    count = np.cumsum(np.bincount(cell, minlength=n_grid + 1)[:n_grid])
-    j_all = count - 2
+    j_all = np.cumsum(np.bincount(cell_f.astype(np.intp), minlength=n_grid + 1)[:n_grid])
+    j_all -= 2
     np.clip(j_all, 0, n - 4, out=j_all)
+    dx = np.diff(x)
     dd1 = np.diff(y)
-    dd1 /= np.diff(x)
+    dd1 /= dx
     dd2 = np.diff(dd1)
-    dd2 /= x[2:] - x[:-2]
+    np.subtract(x[2:], x[:-2], out=dx[:-1])
+    dd2 /= dx[:-1]
     dd3 = np.diff(dd2)
-    dd3 /= x[3:] - x[:-3]
+    np.subtract(x[3:], x[:-3], out=dx[:-2])
+    dd3 /= dx[:-2]
+    x1, x2 = x[1:], x[2:]           # x[j + 1], x[j + 2] without index arithmetic
     out = np.empty(n_grid)
     for a in range(0, n_grid, _CHUNK):
         b = min(a + _CHUNK, n_grid)
         j = j_all[a:b]
-        xq = np.arange(a, b) * spacing
-        acc = xq - x[j + 2]
-        acc *= dd3[j]
-        acc += dd2[j]
-        acc *= xq - x[j + 1]
-        acc += dd1[j]
-        acc *= xq - x[j]
-        acc += y[j]
+        xq = np.arange(a, b, dtype=np.float64)
+        xq *= spacing
+        acc = x2.take(j)
+        np.subtract(xq, acc, out=acc)
+        acc *= dd3.take(j)
+        acc += dd2.take(j)
+        t = x1.take(j)
+        np.subtract(xq, t, out=t)
+        acc *= t
+        acc += dd1.take(j)
+        x.take(j, out=t)
+        np.subtract(xq, t, out=t)
+        acc *= t
+        acc += y.take(j)
         out[a:b] = acc
     return out
 

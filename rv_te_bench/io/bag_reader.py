@@ -705,6 +705,65 @@ class _ParsedBlocks:
     data: tuple[np.ndarray, np.ndarray, np.ndarray]  # byte position of time/in/out arrays
 
 
+def _layout(msg: bytes | memoryview) -> tuple[int, int, tuple[int, ...], tuple[int, ...]] | None:
+    """Byte layout of one little-endian EncoderBlock: (seq offset, length, count offsets,
+    data offsets), or None when it is not a plain batchable one."""  # noqa: D205, D209
+    size = len(msg)
+    if size < 4 + 12 + 4 or msg[0] != 0 or msg[1] != 1:  # noqa: PLR2004
+        return None
+    try:
+        (flen,) = _U32.unpack_from(msg, 12)
+        seq_at = 4 + ((12 + flen + _ALIGN8) & ~_ALIGN8)
+        off = seq_at - 4 + 16
+        count_at, data_at, counts = [], [], []
+        for _ in range(4):
+            off = (off + _ALIGN4) & ~_ALIGN4
+            (c,) = _U32.unpack_from(msg, 4 + off)
+            count_at.append(4 + off)
+            off += 4
+            if c:
+                off = (off + _ALIGN8) & ~_ALIGN8
+            data_at.append(4 + off)
+            counts.append(c)
+            off += 8 * c
+    except struct.error:
+        return None
+    n = counts[1]
+    if 4 + off > size or not (n > 0 and counts[0] == n == counts[2] and counts[3] in (0, n)):
+        return None
+    return seq_at, 4 + off, tuple(count_at), tuple(data_at)
+
+
+def _parse_same_layout(u8: np.ndarray, starts: np.ndarray,
+                       ends: np.ndarray) -> _ParsedBlocks | None:
+    """Fast path of :func:`_parse_encoder_blocks`: every message laid out like the first
+    (same frame_id length and array lengths, the usual case), checked with one gather of
+    the bytes that decide the layout. None when they differ."""  # noqa: D205, D209
+    first = _layout(u8[int(starts[0]):int(ends[0])].data)
+    if first is None:
+        return None
+    seq_at, length, count_at, data_at = first
+    if not ((ends - starts) >= length).all():
+        return None
+    deciding = np.array([0, 1, 12, 13, 14, 15,
+                         *(c + k for c in count_at for k in range(4))], dtype=np.int64)
+    rows = u8[starts[:, None] + deciding]
+    if not (rows == rows[0]).all():
+        return None
+    head = u8[starts[:, None] + np.arange(4, 12)].view('<u4')
+    tail = u8[starts[:, None] + np.arange(seq_at, seq_at + 16)]
+    seq = tail[:, :8].copy().view('<u8').ravel()
+    if not (seq < np.uint64(1 << 63)).all():
+        return None
+    stamp = head[:, 0].view('<i4').astype(np.float64) + head[:, 1].astype(np.float64) * 1e-9
+    n = int(_U32.unpack_from(u8[int(starts[0]):].data, count_at[1])[0])
+    return _ParsedBlocks(
+        ok=np.ones(starts.size, dtype=bool), seq=seq, stamp_s=stamp,
+        rate_hz=tail[:, 8:].copy().view('<f8').ravel(),
+        count=np.full(starts.size, n, dtype=np.int64),
+        data=(starts + data_at[0], starts + data_at[1], starts + data_at[2]))
+
+
 def _parse_encoder_blocks(u8: np.ndarray, starts: np.ndarray, ends: np.ndarray) -> _ParsedBlocks:
     """Parse the EncoderBlock CDR of messages [starts, ends) of one buffer, vectorised.
 
@@ -713,6 +772,9 @@ def _parse_encoder_blocks(u8: np.ndarray, starts: np.ndarray, ends: np.ndarray) 
     length gets ``ok`` False: the caller decodes it on its own (and so reports it exactly
     as the single-message path does).
     """
+    same = _parse_same_layout(u8, starts, ends)
+    if same is not None:
+        return same
     size = ends - starts
     ok = size >= 4 + 12 + 4  # noqa: PLR2004 - encapsulation, stamp, frame_id length
 

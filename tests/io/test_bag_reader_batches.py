@@ -158,3 +158,29 @@ def test_bench_info_of_a_killed_recording(tmp_path: Path) -> None:
     assert info is not None
     assert info['gear_ratio'] == 79.0
     writer.close()
+
+
+@pytest.mark.parametrize('odd', ['first_big_endian', 'other_length', 'no_torque', 'short'])
+def test_one_message_off_the_common_layout(tmp_path: Path, odd: str) -> None:
+    """Messages laid out alike take the fast path; one that differs sends the chunk through
+    the general parse, with the same blocks and problems as the one-by-one reader."""
+    bag = tmp_path / 'bag'
+    with BagWriter(bag, chunk_size_bytes=1 << 20) as w:
+        w.add_topic(ENCODER_TOPIC, ENCODER_BLOCK)
+        for seq in range(12):
+            data = encoder_cdr(seq, 50)
+            if seq == 5 and odd == 'other_length':
+                data = encoder_cdr(seq, 49)
+            elif seq == 5 and odd == 'no_torque':
+                data = encoder_cdr(seq, 50, torque=False)
+            elif seq == 5 and odd == 'short':
+                data = data[:60]
+            elif seq == 0 and odd == 'first_big_endian':
+                data = _big_endian(seq, 50)
+            w.write(ENCODER_TOPIC, T0_NS + seq, data)
+    ref = read_encoder_blocks(bag, strict=False)
+    ref_blocks = list(ref)
+    got = read_encoder_batches(bag, strict=False)
+    _assert_same_blocks(_flatten(list(got)), ref_blocks)
+    assert got.problems == ref.problems
+    assert len(ref_blocks) == (11 if odd == 'short' else 12)
