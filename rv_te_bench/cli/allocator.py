@@ -1,4 +1,4 @@
-"""Process-wide allocator settings for the batch commands (``rv-te analyze``, ``identify``).
+"""Process-wide allocator settings for the batch command ``rv-te analyze``.
 
 The offline analysis allocates and frees arrays of one analysis window (~1.3 MB per
 output revolution at 10 kHz) dozens of times per window. glibc's malloc serves blocks of
