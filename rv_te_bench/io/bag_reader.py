@@ -966,11 +966,14 @@ def _indexed_messages(file: Path, topics: Collection[str]) -> list[tuple[str, by
                 chunks.append((offset, set(index)))
             else:
                 _parse_meta_record(op, body, state)
+        if not chunks or not state.channels:
+            # no chunk index (messages outside chunks) or no channels repeated in the
+            # summary (a writer option): only a scan can tell
+            return None
         wanted = {cid for cid, (topic, _) in state.channels.items() if topic in topics}
+        holding = [offset for offset, cids in chunks if cids & wanted]
         out: list[tuple[str, bytes]] = []
-        for offset, cids in chunks:
-            if not cids & wanted:
-                continue
+        for offset in holding:
             op, length = _REC.unpack_from(buf, offset)
             if op != _OP_CHUNK or offset + 9 + length > foot:
                 return None

@@ -184,3 +184,18 @@ def test_one_message_off_the_common_layout(tmp_path: Path, odd: str) -> None:
     _assert_same_blocks(_flatten(list(got)), ref_blocks)
     assert got.problems == ref.problems
     assert len(ref_blocks) == (11 if odd == 'short' else 12)
+
+
+def test_bench_info_in_the_first_of_split_files(tmp_path: Path) -> None:
+    """A later split file without BenchInfo is answered from its summary (no scan)."""
+    bag = tmp_path / 'bag'
+    write_sample_bag(bag, n_blocks=200, compression='zstd', chunk_size_bytes=4096,
+                     split_size_bytes=20_000)
+    files = open_bag(bag).files
+    assert len(files) > 1
+    assert bag_reader._indexed_messages(files[0], [INFO_TOPIC]) == [  # noqa: SLF001
+        (BENCH_INFO, bench_info_cdr())]
+    assert bag_reader._indexed_messages(files[-1], [INFO_TOPIC]) == []  # noqa: SLF001
+    info = read_bench_info(bag)
+    assert info is not None
+    assert info['preset'] == 'wang2020-2kv'
