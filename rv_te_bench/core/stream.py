@@ -24,6 +24,11 @@ goes back in time is used and starts a new window. Memory is bounded by one wind
 (at most ``max_window_samples`` samples of two float64 arrays); a window that reaches that
 size before completing is closed as partial (``close_reason='overflow'``).
 
+Offline, :meth:`StreamingTeAnalyzer.push_batch` takes many consecutive blocks at once (an
+:class:`EncoderBatch`, one MCAP chunk) and analyses runs of clean, continuous blocks as one
+array, with the same windows, gaps and counters as block by block; :func:`analyze_blocks`
+can hand each window to a callback instead of keeping them all.
+
 Not detected as gaps: a forward jump in time between blocks with consecutive sequence
 numbers (the DAQ clock is trusted) and a jump of the encoder angles themselves (e.g. a
 re-zeroed counter); both show up in the window statistics.

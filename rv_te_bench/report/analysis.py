@@ -1,8 +1,9 @@
 """Offline analysis of recorded sessions: bag(s) -> :class:`AnalysisResult`.
 
-One bag is read block by block (:func:`rv_te_bench.io.bag_reader.read_encoder_blocks`), fed
-to the TE core (:func:`rv_te_bench.core.stream.analyze_blocks`, the same windowing the TE
-node uses) and summarised:
+One bag is read an MCAP chunk at a time (:func:`rv_te_bench.io.bag_reader.read_encoder_batches`),
+fed to the TE core (:func:`rv_te_bench.core.stream.analyze_blocks`, the same windowing the TE
+node uses, with the same result as block by block) and summarised in memory that does not
+grow with the recording (each window's spectrum is folded into a running average):
 
 * statistics per window of whole output revolutions and cumulative over every clean sample;
 * the order spectrum of the **complete** windows, averaged: the amplitude of each labelled
@@ -323,7 +324,8 @@ def analyze_bag(  # noqa: PLR0913 - keyword-only analysis options
         n_crank_harmonics: Crank harmonics to report (1 f_w .. n f_w).
         window_revolutions: Whole output revolutions per analysis window (>= 1).
         with_advice: Ask the compensation code for a recommendation.
-        progress: Called as ``progress(blocks, samples, elapsed_s)`` after each block.
+        progress: Called as ``progress(blocks, samples, elapsed_s)`` after each chunk of
+            blocks read.
 
     Returns:
         The analysis; ``partial`` is set when a read error ended the bag early.
