@@ -3,6 +3,7 @@
 | profile         | policy                                  | used for                       |
 |-----------------|-----------------------------------------|--------------------------------|
 | ENCODER_QOS     | reliable, keep last 1000, volatile      | bench/encoders (every sample)  |
+| TE_SAMPLES_QOS  | reliable, keep last 1000, transient local | te/samples (decimated TE)    |
 | LATCHED_QOS     | reliable, keep last 1, transient local  | bench/info, te/statistics, ... |
 | PREVIEW_QOS     | sensor data: best effort, keep last 5   | live plots, previews           |
 | DIAGNOSTICS_QOS | reliable, keep last 10, volatile        | /diagnostics                   |
@@ -10,6 +11,12 @@
 
 The encoder depth (1000 messages = 10 s at 100 blocks/s) covers the largest burst a
 subscriber can fall behind by on a loaded 2-core machine; depth 10 drops bursts (DESIGN.md).
+
+te/samples keeps its last 1000 messages for late joiners: the session's recorder may
+discover the TE node's publisher seconds after it started (DDS participants that miss each
+other's first announcements meet at the next one, ~3 s later), and a fast session is over
+by then; with this history the recording still starts at the first decimated sample.
+Volatile subscribers (live plots) are compatible and get no history.
 """
 
 from __future__ import annotations
@@ -29,6 +36,7 @@ __all__ = [
     'ENCODER_QUEUE_DEPTH',
     'LATCHED_QOS',
     'PREVIEW_QOS',
+    'TE_SAMPLES_QOS',
 ]
 
 ENCODER_QUEUE_DEPTH = 1000
@@ -39,6 +47,13 @@ ENCODER_QOS = QoSProfile(
     depth=ENCODER_QUEUE_DEPTH,
     reliability=ReliabilityPolicy.RELIABLE,
     durability=DurabilityPolicy.VOLATILE,
+)
+
+TE_SAMPLES_QOS = QoSProfile(
+    history=HistoryPolicy.KEEP_LAST,
+    depth=ENCODER_QUEUE_DEPTH,
+    reliability=ReliabilityPolicy.RELIABLE,
+    durability=DurabilityPolicy.TRANSIENT_LOCAL,
 )
 
 LATCHED_QOS = QoSProfile(

@@ -85,7 +85,7 @@ class TeNode(Node):
         # reliable: the compensation node identifies the unit from these samples and the
         # recorder keeps them; best-effort viewers are still compatible
         self.pub_samples = self.create_publisher(TransmissionError, 'te/samples',
-                                                 qos.ENCODER_QOS)
+                                                 qos.TE_SAMPLES_QOS)
         self.pub_stats = self.create_publisher(TransmissionError, 'te/statistics',
                                                qos.LATCHED_QOS)
         self.pub_spectrum = self.create_publisher(TeSpectrum, 'te/spectrum', qos.LATCHED_QOS)

@@ -49,6 +49,11 @@ def test_demo_session_bag_statistics_and_advice_are_consistent(  # noqa: PLR0915
     assert counts['/bench/info'] == 1            # latched: recorded however late it joined
     seqs = [m.seq for m in msgs['/bench/encoders']]
     assert seqs == list(range(len(seqs)))        # the bench waited for the recorder
+    # the decimated TE from its first message on (the recorder may discover the TE node's
+    # publisher after it started publishing; the topic keeps a history for late joiners)
+    te_seqs = [m.seq for m in msgs['/te/samples']]
+    assert te_seqs == list(range(len(te_seqs)))
+    assert len(te_seqs) == len(seqs)             # one decimated message per encoder block
 
     # Eq. 22 on the recorded angles equals the NLTE model within the encoder error budget
     params = Wang2kvParams.from_preset(load_preset('wang2020-2kv'))
