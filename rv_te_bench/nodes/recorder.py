@@ -74,6 +74,9 @@ PARAMS = (
               "YAML mapping stored as the bag's rv_te_session metadata record [-]"),
 )
 _THROTTLE_S = 5.0
+#: Messages held while a sim-time recorder waits for its first /clock (10 s at 100 blocks/s
+#: on every suite topic); beyond that they are written at time 0.
+MAX_HELD_MESSAGES = 10_000
 
 
 def _msg_class(msgtype: str) -> Any:  # noqa: ANN401 - a generated message class
@@ -107,6 +110,10 @@ class RecorderNode(Node):
     ``compression``, ``chunk_size_bytes``, ``flush_interval_s``, ``split_size_bytes``,
     ``split_duration_s``, ``duration_s``, ``discovery_period_s``, ``session_metadata_yaml``.
 
+    Messages are logged at the node's clock. With ``use_sim_time`` a message that arrives
+    before the first ``/clock`` (a latched BenchInfo, typically) is held and written at the
+    first clock time, so no message of the session lies at time 0 (1970).
+
     Attributes:
         bag_path: The bag folder being written.
         finished: True once the bag was closed (``duration_s`` reached or ``close()``).
@@ -120,6 +127,8 @@ class RecorderNode(Node):
         p = self._declare_parameters()
         self.finished = False
         self._topics: dict[str, _TopicState] = {}
+        # messages that arrived in sim time before the first /clock, written at its time
+        self._held: list[tuple[_TopicState, bytes]] = []
         self._subscriptions_by_topic: dict[str, Any] = {}
         self._wanted = [self.resolve_topic_name(t) for t in p['topics']]
         explicit = {}
@@ -260,14 +269,40 @@ class RecorderNode(Node):
         topic = state.name
 
         def on_message(data: bytes) -> None:
+            t_ns = now().nanoseconds
+            if t_ns == 0:   # sim time before the first /clock: no time to log it at yet
+                self._hold(state, data)
+                return
+            if self._held:
+                self._release_held(t_ns)
             try:
-                write(topic, now().nanoseconds, data)
+                write(topic, t_ns, data)
             except BagError as exc:
                 self._write_failed(exc)
                 return
             state.count += 1
 
         return on_message
+
+    def _hold(self, state: _TopicState, data: bytes) -> None:
+        """Keep a message that arrived before the first /clock (sim time), bounded."""
+        if len(self._held) >= MAX_HELD_MESSAGES:
+            self._release_held(0)
+            self.get_logger().warning(
+                f'no /clock after {MAX_HELD_MESSAGES} messages (use_sim_time): recorded them '
+                'at time 0', throttle_duration_sec=_THROTTLE_S)
+        self._held.append((state, data))
+
+    def _release_held(self, t_ns: int) -> None:
+        """Write the held messages, in arrival order, at the first clock time ``t_ns``."""
+        held, self._held = self._held, []
+        for state, data in held:
+            try:
+                self._writer.write(state.name, t_ns, data)
+            except BagError as exc:
+                self._write_failed(exc)
+                continue
+            state.count += 1
 
     def _make_encoder_callback(self, state: _TopicState) -> Any:  # noqa: ANN401
         plain = self._make_callback(state)
@@ -303,6 +338,10 @@ class RecorderNode(Node):
     def _on_flush_timer(self) -> None:
         if self.finished:
             return
+        if self._held:
+            t_ns = self.get_clock().now().nanoseconds
+            if t_ns:   # the clock has started
+                self._release_held(t_ns)
         try:
             self._writer.flush_if_due()
         except BagError as exc:
@@ -354,6 +393,12 @@ class RecorderNode(Node):
             if sub is not None:
                 self.destroy_subscription(sub)
         self._subscriptions_by_topic.clear()
+        if self._held:   # (sim time and /clock never came: time 0 is all there is)
+            t_ns = self.get_clock().now().nanoseconds
+            if not t_ns:
+                self.get_logger().warning(f'no /clock received (use_sim_time): '
+                                          f'{len(self._held)} messages recorded at time 0')
+            self._release_held(t_ns)
         try:
             self._writer.close()
         except BagError as exc:

@@ -372,3 +372,50 @@ def test_cli_record_for_a_duration(ros_context: Any, ros_domain_id: int,
     summary = bag_summary(bag)
     assert summary['finalized'] is True
     assert summary['session']['operator'] == 'test'
+
+
+def test_sim_time_messages_before_the_first_clock_get_its_time(ros_context: Any,
+                                                              tmp_path: Path) -> None:
+    """use_sim_time: the latched BenchInfo arrives before any /clock; it is written at the
+    first clock time (not at 0), ahead of the blocks that follow, and nothing is lost."""
+    from rosgraph_msgs.msg import Clock  # noqa: PLC0415
+
+    ns = f'/simrec_{os.getpid()}'
+    pub_node = rclpy.create_node('test_pub', namespace=ns, context=ros_context)
+    info_pub = pub_node.create_publisher(BenchInfo, 'bench/info', qos.LATCHED_QOS)
+    enc_pub = pub_node.create_publisher(EncoderBlock, 'bench/encoders', qos.ENCODER_QOS)
+    clock_pub = pub_node.create_publisher(Clock, '/clock', qos.CLOCK_QOS)
+    info_pub.publish(make_info())
+    recorder = RecorderNode(context=ros_context, namespace=ns, parameter_overrides=[
+        Parameter('output_dir', value=str(tmp_path)), Parameter('bag_name', value='bag'),
+        Parameter('topics', value=['bench/encoders', 'bench/info']),
+        Parameter('discovery_period_s', value=0.1), Parameter('flush_interval_s', value=0.2),
+        Parameter('use_sim_time', value=True)])
+    executor = EventsExecutor(context=ros_context)
+    executor.add_node(pub_node)
+    executor.add_node(recorder)
+    info_topic, enc_topic = f'{ns}/bench/info', f'{ns}/bench/encoders'
+    first_clock_ns = 123_456_000_000
+    try:
+        # the info is received (held: no clock yet), the block subscription is up
+        assert spin_until(executor, lambda: len(recorder._held) == 1  # noqa: SLF001
+                          and enc_pub.get_subscription_count() >= 1, 15.0)
+        assert recorder.counts.get(info_topic, 0) == 0
+        clock = Clock()
+        clock.clock.sec, clock.clock.nanosec = divmod(first_clock_ns, 1_000_000_000)
+        assert spin_until(executor, lambda: (clock_pub.publish(clock) or True)
+                          and recorder.get_clock().now().nanoseconds == first_clock_ns, 10.0)
+        for seq in range(5):
+            enc_pub.publish(make_block(seq))
+        assert spin_until(executor, lambda: recorder.counts.get(enc_topic) == 5, 10.0)
+        assert recorder.counts[info_topic] == 1
+    finally:
+        recorder.destroy_node()
+        pub_node.destroy_node()
+        executor.shutdown()
+    from rv_te_bench.io.bag_reader import iter_messages  # noqa: PLC0415
+
+    logged = [(topic, t_ns) for topic, _, t_ns, _ in iter_messages(tmp_path / 'bag')]
+    assert logged[0] == (info_topic, first_clock_ns)
+    assert [t for _, t in logged] == [first_clock_ns] * 6
+    assert [topic for topic, _ in logged[1:]] == [enc_topic] * 5
