@@ -40,6 +40,7 @@ __all__ = [
     'MessageStream',
     'RawMessage',
     'bag_summary',
+    'bag_topics',
     'decode_encoder_block',
     'decode_encoder_block_rosbags',
     'iter_messages',
@@ -213,6 +214,7 @@ class _ScanState:
     schemas: dict[int, tuple[str, str]] = field(default_factory=dict)   # id -> (name, text)
     channels: dict[int, tuple[str, int]] = field(default_factory=dict)  # id -> (topic, schema)
     metadata: dict[str, dict[str, str]] = field(default_factory=dict)
+    channel_meta: dict[int, dict[str, str]] = field(default_factory=dict)  # id -> metadata
 
 
 def _string(buf: memoryview, pos: int) -> tuple[str, int]:
@@ -248,8 +250,10 @@ def _parse_meta_record(op: int, body: memoryview, state: _ScanState) -> None:
         state.schemas[sid] = (name, bytes(body[pos + 4:pos + 4 + n]).decode('utf-8'))
     elif op == _OP_CHANNEL:
         cid, sid = struct.unpack_from('<HH', body, 0)
-        topic, _ = _string(body, 4)
+        topic, pos = _string(body, 4)
         state.channels[cid] = (topic, sid)
+        _, pos = _string(body, pos)   # message encoding
+        state.channel_meta[cid], _ = _map(body, pos)
     elif op == _OP_METADATA:
         name, pos = _string(body, 0)
         state.metadata[name], _ = _map(body, pos)
@@ -551,15 +555,55 @@ def _encoder_topic(bag: Bag, topic: str | None) -> str:
     return found[0]
 
 
-def _scan_topic_types(bag: Bag) -> dict[str, str]:
-    types: dict[str, str] = {}
-    for file in bag.files:
+def _file_channels(file: Path) -> _ScanState:
+    """Schemas and channels of one MCAP file: from its summary, else by a scan."""
+    state = _summary(file)
+    if state is None:
         state = _ScanState()
         for _ in _scan_file(file, state, lambda _t: None, messages=False):
             pass
-        for topic, sid in state.channels.values():
-            types[topic] = state.schemas.get(sid, ('', ''))[0]
-    return types
+    else:
+        state = state[0]
+    return state
+
+
+def _scan_topic_types(bag: Bag) -> dict[str, str]:
+    return {topic: info['type'] for topic, info in _mcap_topics(bag).items()}
+
+
+def _mcap_topics(bag: Bag) -> dict[str, dict[str, Any]]:
+    """Topic -> {'type', 'offered_qos_profiles'} from the MCAP channels of every file."""
+    out: dict[str, dict[str, Any]] = {}
+    for file in bag.files:
+        state = _file_channels(file)
+        for cid, (topic, sid) in state.channels.items():
+            meta = state.channel_meta.get(cid, {})
+            out.setdefault(topic, {'type': state.schemas.get(sid, ('', ''))[0],
+                                   'offered_qos_profiles': meta.get('offered_qos_profiles')})
+    return out
+
+
+def bag_topics(path: str | Path) -> dict[str, dict[str, Any]]:
+    """Topics of a bag with their type and recorded offered QoS profiles.
+
+    From metadata.yaml for a bag folder; from the MCAP channels (their rosbag2
+    ``offered_qos_profiles`` metadata) for a lone ``.mcap`` file, read from the summary
+    when the file has one.
+
+    Returns:
+        ``{topic: {'type': 'pkg/msg/Type', 'offered_qos_profiles': YAML text, a list, or
+        None}}``.
+
+    Raises:
+        BagError: Bad layout.
+    """
+    bag = open_bag(path)
+    if bag.info:
+        return {str(t['topic_metadata']['name']): {
+            'type': str(t['topic_metadata']['type']),
+            'offered_qos_profiles': t['topic_metadata'].get('offered_qos_profiles')}
+            for t in bag.info.get('topics_with_message_count') or []}
+    return _mcap_topics(bag)
 
 
 def _check_encoder_definition(bag: Bag, topic: str) -> None:
@@ -931,13 +975,12 @@ _OP_CHUNK_INDEX = 0x08
 _FOOTER_TAIL = 1 + 8 + 20 + 8   # footer record (opcode, length, 8 + 8 + 4) and magic
 
 
-def _indexed_messages(file: Path, topics: Collection[str]) -> list[tuple[str, bytes]] | None:
-    """Messages of ``topics`` in one MCAP file, found through its summary's chunk indexes.
+def _summary(file: Path) -> tuple[_ScanState, list[tuple[int, set[int]]]] | None:
+    """Schemas, channels and chunk index (offset, channel ids) from a file's MCAP summary.
 
-    Only the chunks that hold those channels are decompressed (a BenchInfo is one small
-    message in a long bag). Returns ``(schema name, cdr bytes)`` in file order, or None
-    when the file has no usable summary (a recorder that was killed writes none) and the
-    caller must scan it.
+    None when the file has no usable summary (a recorder that was killed writes none; a
+    summary whose CRC does not match is not trusted; a summary without channels or chunk
+    indexes cannot answer for the file) and the caller must scan it.
     """
     try:
         with file.open('rb') as fh:
@@ -967,15 +1010,42 @@ def _indexed_messages(file: Path, topics: Collection[str]) -> list[tuple[str, by
             else:
                 _parse_meta_record(op, body, state)
         if not chunks or not state.channels:
-            # no chunk index (messages outside chunks) or no channels repeated in the
-            # summary (a writer option): only a scan can tell
             return None
-        wanted = {cid for cid, (topic, _) in state.channels.items() if topic in topics}
-        holding = [offset for offset, cids in chunks if cids & wanted]
-        out: list[tuple[str, bytes]] = []
+        return state, chunks
+    except (_CorruptError, struct.error, UnicodeDecodeError, ValueError):
+        return None
+    finally:
+        with contextlib.suppress(BufferError):
+            buf.release()
+            mm.close()
+
+
+def _indexed_messages(file: Path, topics: Collection[str]) -> list[tuple[str, bytes]] | None:
+    """Messages of ``topics`` in one MCAP file, found through its summary's chunk indexes.
+
+    Only the chunks that hold those channels are decompressed (a BenchInfo is one small
+    message in a long bag). Returns ``(schema name, cdr bytes)`` in file order, or None
+    when the file has no usable summary (see :func:`_summary`) and the caller must scan it.
+    """
+    found_summary = _summary(file)
+    if found_summary is None:
+        return None
+    state, chunks = found_summary
+    wanted = {cid for cid, (topic, _) in state.channels.items() if topic in topics}
+    holding = [offset for offset, cids in chunks if cids & wanted]
+    out: list[tuple[str, bytes]] = []
+    if not holding:
+        return out
+    try:
+        with file.open('rb') as fh:
+            mm = mmap.mmap(fh.fileno(), 0, access=mmap.ACCESS_READ)
+    except (OSError, ValueError):
+        return None
+    buf = memoryview(mm)
+    try:
         for offset in holding:
             op, length = _REC.unpack_from(buf, offset)
-            if op != _OP_CHUNK or offset + 9 + length > foot:
+            if op != _OP_CHUNK or offset + 9 + length > len(buf):
                 return None
             inner = _chunk_records(buf[offset + 9:offset + 9 + length])
             found: list[tuple[int, int, int, int]] = []
@@ -986,7 +1056,7 @@ def _indexed_messages(file: Path, topics: Collection[str]) -> list[tuple[str, by
                     out.append((state.schemas.get(sid, ('', ''))[0], bytes(inner[start:end])))
         return out
     except (_CorruptError, struct.error, UnicodeDecodeError, ValueError, KeyError):
-        return None   # a damaged summary: the full scan decides what is readable
+        return None   # damaged: the full scan decides what is readable
     finally:
         with contextlib.suppress(BufferError):
             buf.release()

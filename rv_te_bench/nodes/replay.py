@@ -27,7 +27,7 @@ from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPo
 from rosgraph_msgs.msg import Clock
 
 from rv_te_bench.errors import BagError
-from rv_te_bench.io.bag_reader import iter_messages, open_bag
+from rv_te_bench.io.bag_reader import bag_topics, iter_messages, open_bag
 from rv_te_bench.nodes import qos
 from rv_te_bench.nodes.common import run_node
 from rv_te_bench.nodes.recorder import _msg_class
@@ -78,17 +78,14 @@ class ReplayNode(Node):
         self.clock_period_s = 1.0 / p['clock_rate_hz']
         self._wait_s = p['wait_for_subscribers_s']
         wanted = set(p['topics'] or [])
-        qos_by_topic = {
-            str(t['topic_metadata']['name']): t['topic_metadata'].get('offered_qos_profiles')
-            for t in self.bag.info.get('topics_with_message_count') or []
-        }
-        types = self.bag.topic_types
-        if self.bag.path.is_file():
-            msg = (f'{self.bag.path} is a lone .mcap file; replay needs a rosbag2 bag folder '
-                   '(metadata.yaml holds the topics and their recorded QoS).')
-            raise BagError(msg)
+        # metadata.yaml of a bag folder, or the MCAP channels of a lone .mcap file (rosbag2
+        # keeps the offered QoS in each channel's metadata there too)
+        topics = bag_topics(self.bag.path)
+        qos_by_topic = {t: info['offered_qos_profiles'] for t, info in topics.items()}
+        types = {t: info['type'] for t, info in topics.items() if info['type']}
         if not types:
-            msg = f'Bag {self.bag.path} lists no topics in metadata.yaml.'
+            where = 'its MCAP channels' if self.bag.path.is_file() else 'metadata.yaml'
+            msg = f'Bag {self.bag.path} lists no topics in {where}.'
             raise BagError(msg)
         if unknown := sorted(wanted - set(types)):
             msg = f'Bag {self.bag.path} has no topics {unknown}; it has {sorted(types)}.'

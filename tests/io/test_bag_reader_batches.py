@@ -199,3 +199,31 @@ def test_bench_info_in_the_first_of_split_files(tmp_path: Path) -> None:
     info = read_bench_info(bag)
     assert info is not None
     assert info['preset'] == 'wang2020-2kv'
+
+
+def test_bag_topics_of_a_folder_and_of_its_lone_file(tmp_path: Path) -> None:
+    """A lone .mcap file answers with the types and offered QoS its channels carry, the
+    same as metadata.yaml; from the summary, and by a scan when there is none."""
+    import yaml  # noqa: PLC0415
+
+    from rv_te_bench.io.bag_reader import bag_topics  # noqa: PLC0415
+
+    def parsed(topics: dict) -> dict:
+        return {t: (v['type'], yaml.safe_load(v['offered_qos_profiles'])
+                    if isinstance(v['offered_qos_profiles'], str) else v['offered_qos_profiles'])
+                for t, v in topics.items()}
+
+    bag = tmp_path / 'bag'
+    write_sample_bag(bag, n_blocks=5, chunk_size_bytes=2048)
+    (file,) = open_bag(bag).files
+    folder = parsed(bag_topics(bag))
+    assert set(folder) == {ENCODER_TOPIC, INFO_TOPIC}
+    assert folder[INFO_TOPIC][1][0]['durability'] == 'transient_local'
+    assert parsed(bag_topics(file)) == folder
+    killed = tmp_path / 'killed'
+    writer = write_sample_bag(killed, n_blocks=5, close=False, chunk_size_bytes=2048)
+    writer.flush()
+    (kfile,) = open_bag(killed).files
+    assert bag_reader._summary(kfile) is None  # noqa: SLF001
+    assert parsed(bag_topics(kfile)) == folder
+    writer.close()
