@@ -11,6 +11,7 @@ dependencies that have no ``.msg`` file on this machine, and offers a rosbags ty
 from __future__ import annotations
 
 import functools
+import os
 import sys
 from pathlib import Path
 from typing import TYPE_CHECKING
@@ -28,6 +29,7 @@ __all__ = [
     'MSG_PACKAGE',
     'find_msg_dir',
     'full_msgdef',
+    'learn_type',
     'load_msg_texts',
     'rv_te_typestore',
     'type_hash',
@@ -41,8 +43,11 @@ SEPARATOR = '=' * 80
 
 
 def _share_dirs() -> list[Path]:
-    """Candidate ``share`` directories (venv prefix first, then base prefix)."""
-    return [Path(p) / 'share' for p in dict.fromkeys((sys.prefix, sys.base_prefix))]
+    """Candidate ``share`` directories: the venv prefix, the base prefix, then every prefix
+    of ``AMENT_PREFIX_PATH`` (a sourced ROS 2 install or colcon workspace)."""
+    prefixes = [sys.prefix, sys.base_prefix,
+                *(p for p in os.environ.get('AMENT_PREFIX_PATH', '').split(os.pathsep) if p)]
+    return [Path(p) / 'share' for p in dict.fromkeys(prefixes)]
 
 
 def find_msg_dir() -> Path:
@@ -111,9 +116,7 @@ def full_msgdef(msgtype: str) -> str:
         BagError: The type is unknown to the typestore.
     """
     store = rv_te_typestore()
-    if msgtype not in store.fielddefs:
-        msg = f'Unknown message type {msgtype!r}: no definition in the typestore.'
-        raise BagError(msg)
+    learn_type(msgtype)
     subdefs: dict[str, tuple[str, str]] = {}
     generated, _ = store.gendefhash(msgtype, subdefs, ros_version=2)
     parts = [(_msg_file_text(msgtype) or generated).rstrip('\n') + '\n']
@@ -127,7 +130,53 @@ def full_msgdef(msgtype: str) -> str:
 def type_hash(msgtype: str) -> str:
     """RIHS01 type hash of ``msgtype`` (equal to what rclpy reports for the type)."""
     store = rv_te_typestore()
-    if msgtype not in store.fielddefs:
-        msg = f'Unknown message type {msgtype!r}: no definition in the typestore.'
-        raise BagError(msg)
+    learn_type(msgtype)
     return store.hash_rihs01(msgtype)
+
+
+def _referenced(node: object) -> list[str]:
+    """Type names a rosbags field definition refers to (also inside arrays/sequences)."""
+    kind, detail = node  # type: ignore[misc]
+    if getattr(kind, 'name', '') == 'NAME':
+        return [str(detail)]
+    if getattr(kind, 'name', '') in ('ARRAY', 'SEQUENCE'):
+        return _referenced(detail[0])
+    return []
+
+
+def learn_type(msgtype: str) -> None:
+    """Make ``msgtype`` known to :func:`rv_te_typestore`, with its dependencies.
+
+    Types outside ROS 2 Jazzy's standard set and ``rv_te_msgs`` (a vendor's message on the
+    bench) are read from their installed ``.msg`` files (``share/<pkg>/msg``, also under
+    ``AMENT_PREFIX_PATH``) and registered, so that they can be recorded with their full
+    definition.
+
+    Raises:
+        BagError: No definition of the type (or of a type it uses) on this machine.
+    """
+    store = rv_te_typestore()
+    todo = [msgtype]
+    found: dict[str, object] = {}
+    while todo:
+        name = todo.pop()
+        if name in store.fielddefs or name in found:
+            continue
+        parts = name.split('/')
+        text = _msg_file_text(name) if len(parts) == 3 else None  # noqa: PLR2004
+        if text is None:
+            where = ', '.join(str(d) for d in _share_dirs())
+            msg = (f'Unknown message type {name!r}'
+                   + (f' (used by {msgtype!r})' if name != msgtype else '')
+                   + f': not a standard ROS 2 Jazzy type and no .msg file under {where}.')
+            raise BagError(msg)
+        try:
+            parsed = get_types_from_msg(text, name)
+        except Exception as exc:  # noqa: BLE001 - rosbags raises its own parse errors
+            msg = f'Cannot parse the .msg file of {name!r}: {exc}'
+            raise BagError(msg) from None
+        found.update(parsed)
+        for _, node in parsed[name][1]:
+            todo.extend(_referenced(node))
+    if found:
+        store.register(found)
