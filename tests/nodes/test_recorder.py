@@ -34,15 +34,9 @@ from rv_te_bench.nodes import qos  # noqa: E402
 from rv_te_bench.io.bag_reader import encoder_block_seq  # noqa: E402
 from rv_te_bench.nodes.recorder import RecorderNode  # noqa: E402
 from tests.io import block_arrays, encoder_cdr  # noqa: E402
+from tests.nodes.rosutil import spin_until  # noqa: E402
 
 ROOT = Path(__file__).resolve().parents[2]
-
-
-def spin_until(executor: Any, cond: Any, timeout_s: float) -> bool:  # noqa: ANN401
-    end = time.monotonic() + timeout_s
-    while time.monotonic() < end and not cond():
-        executor.spin_once(timeout_sec=0.05)
-    return bool(cond())
 
 
 def make_block(seq: int, n: int = 100) -> EncoderBlock:

@@ -27,16 +27,10 @@ from rv_te_bench.io.msgdefs import BENCH_INFO, ENCODER_BLOCK  # noqa: E402
 from rv_te_bench.nodes import qos  # noqa: E402
 from rv_te_bench.nodes.replay import ReplayNode  # noqa: E402
 from tests.io import T0_NS, bench_info_cdr, encoder_cdr  # noqa: E402
+from tests.nodes.rosutil import spin_until  # noqa: E402
 
 N_BLOCKS = 60
 PERIOD_NS = 20_000_000  # blocks 20 ms apart in the bag: 1.18 s of recording
-
-
-def spin_until(executor: Any, cond: Any, timeout_s: float) -> bool:  # noqa: ANN401
-    end = time.monotonic() + timeout_s
-    while time.monotonic() < end and not cond():
-        executor.spin_once(timeout_sec=0.02)
-    return bool(cond())
 
 
 @pytest.fixture
