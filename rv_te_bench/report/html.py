@@ -17,7 +17,6 @@ from typing import TYPE_CHECKING, Any
 
 from rv_te_bench.errors import RvTeError
 from rv_te_bench.report.analysis import PHASE_MIN_FRACTION, compare_results
-from rv_te_bench.report.plots import comparison_figure, save_png, spectrum_figure, te_figure
 from sim.units import rad_to_arcmin, rad_to_deg
 
 if TYPE_CHECKING:
@@ -73,6 +72,14 @@ def write_report(results: Sequence[AnalysisResult], directory: Path, *,
     if directory.exists() and not directory.is_dir():
         msg = f'Report path {directory} exists and is not a directory.'
         raise ReportExistsError(msg)
+    # matplotlib (0.4 s to import) only when a report is written, not for --json or a table
+    from rv_te_bench.report.plots import (  # noqa: PLC0415
+        comparison_figure,
+        save_png,
+        spectrum_figure,
+        te_figure,
+    )
+
     try:
         directory.mkdir(parents=True, exist_ok=True)
         images = {'te.png': save_png(te_figure(results), directory / 'te.png'),
