@@ -14,6 +14,10 @@ itself (rv_te_bench/cli/allocator.py), so every path, rosbags included, runs as 
 command; `--allocator default` keeps glibc's defaults (every path again). Wall time is
 the measure; the analysis also reports its CPU time (it reads ahead on a second thread).
 
+Then, as whole commands in fresh processes (interpreter start and imports included): the
+`rv-te analyze BAG --json --no-advice` command against a Python process that imports
+rosbags and reads the bag as above.
+
     .venv/bin/python benchmarks/bench_analyze.py [--minutes 10] [--blocks 100 1000]
         [--repeats 5] [--allocator tuned|default]
 """
@@ -42,6 +46,8 @@ def main(argv: list[str] | None = None) -> int:  # noqa: PLR0915
     ap.add_argument('--blocks', type=int, nargs='+', default=[100, 1000])
     ap.add_argument('--repeats', type=int, default=5)
     ap.add_argument('--allocator', choices=('tuned', 'default'), default='tuned')
+    ap.add_argument('--process-repeats', type=int, default=3,
+                    help='repeats of the whole-command comparison (0: skip it)')
     args = ap.parse_args(argv)
 
     from rv_te_bench.cli.allocator import tune_for_batch_work  # noqa: PLC0415
@@ -58,6 +64,7 @@ def main(argv: list[str] | None = None) -> int:  # noqa: PLR0915
     store = rv_te_typestore()
     tmp = Path(tempfile.mkdtemp(prefix='rv-te-analyze-bench-'))
     rows = []
+    proc_rows: list[tuple[int, dict[str, float]]] = []
     for block in args.blocks:
         bag = tmp / f'bag{block}'
         t0 = time.perf_counter()
@@ -100,6 +107,8 @@ def main(argv: list[str] | None = None) -> int:  # noqa: PLR0915
         med_cpu = {k: statistics.median(v) for k, v in cpu.items()}
         ratios = sorted(a / r for a, r in zip(wall['analyze'], wall['rosbags'], strict=True))
         rows.append((block, n, size_mb, med, med_cpu, ratios))
+        if args.process_repeats > 0:
+            proc_rows.append((block, _whole_commands(bag, args.process_repeats)))
 
     print(f'\nmachine: {platform.node()} {platform.machine()}, {os.cpu_count()} cores, '
           f'python {platform.python_version()}, date {time.strftime("%Y-%m-%d")}; '
@@ -117,7 +126,48 @@ def main(argv: list[str] | None = None) -> int:  # noqa: PLR0915
             print(f'| {block} ({size_mb:.0f} MB) | {label} | {med[name]:.2f} | '
                   f'{med_cpu[name]:.2f} | {n / med[name] / 1e6:.2f} M | '
                   f'{med[name] / med["rosbags"]:.2f}{extra} |')
+    if proc_rows:
+        print('\nWhole commands in fresh processes (median of '
+              f'{args.process_repeats}; interpreter start and imports included):\n')
+        print('| block | rosbags read script [s] | `rv-te analyze --json --no-advice` [s] | '
+              'ratio |')
+        print('|---|---|---|---|')
+        for block, t in proc_rows:
+            print(f'| {block} | {t["rosbags"]:.2f} | {t["analyze"]:.2f} | '
+                  f'{t["analyze"] / t["rosbags"]:.2f} |')
     return 0
+
+
+_ROSBAGS_SCRIPT = """
+import sys
+from pathlib import Path
+from rosbags.highlevel import AnyReader
+from rv_te_bench.io.msgdefs import rv_te_typestore
+n = 0
+with AnyReader([Path(sys.argv[1])], default_typestore=rv_te_typestore()) as reader:
+    conns = [c for c in reader.connections if c.topic.endswith('bench/encoders')]
+    for conn, _t, raw in reader.messages(connections=conns):
+        n += len(reader.deserialize(raw, conn.msgtype).theta_in_rad)
+print(n)
+"""
+
+
+def _whole_commands(bag: Path, repeats: int) -> dict[str, float]:
+    """Median wall time of the two commands, interleaved."""
+    import subprocess  # noqa: PLC0415
+
+    commands = {
+        'rosbags': [sys.executable, '-c', _ROSBAGS_SCRIPT, str(bag)],
+        'analyze': [sys.executable, '-m', 'rv_te_bench.cli.main', 'analyze', str(bag),
+                    '--json', '--no-advice', '--quiet'],
+    }
+    times: dict[str, list[float]] = {k: [] for k in commands}
+    for _ in range(repeats):
+        for name, cmd in commands.items():
+            t0 = time.perf_counter()
+            subprocess.run(cmd, check=True, capture_output=True, cwd=ROOT, timeout=600)
+            times[name].append(time.perf_counter() - t0)
+    return {k: statistics.median(v) for k, v in times.items()}
 
 
 if __name__ == '__main__':
