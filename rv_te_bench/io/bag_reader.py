@@ -48,6 +48,7 @@ __all__ = [
     'read_bench_info',
     'read_encoder_batches',
     'read_encoder_blocks',
+    'summarize_problems',
 ]
 
 MAGIC = b'\x89MCAP0\r\n'
@@ -64,6 +65,26 @@ T = TypeVar('T')
 _YamlLoader = getattr(yaml, 'CSafeLoader', yaml.SafeLoader)  # libyaml: ~20x faster
 RawMessage = tuple[str, str, int, memoryview]
 """(topic, msgtype, timestamp_ns, cdr_bytes): one message as stored."""
+
+
+#: Problems named one by one in a one-line message; the rest are counted.
+PROBLEMS_SHOWN = 3
+
+
+def summarize_problems(problems: list[str] | tuple[str, ...]) -> str:
+    """The problems as one line: the first few, then how many more (a bag damaged all
+    through has one problem per chunk, hundreds of them).
+
+    Examples:
+        >>> summarize_problems(['a', 'b'])
+        'a; b'
+        >>> summarize_problems([f'chunk {i} bad' for i in range(10)])
+        'chunk 0 bad; chunk 1 bad; chunk 2 bad; ... and 7 more problems'
+    """  # noqa: D205
+    shown = '; '.join(problems[:PROBLEMS_SHOWN])
+    if len(problems) > PROBLEMS_SHOWN:
+        shown += f'; ... and {len(problems) - PROBLEMS_SHOWN} more problems'
+    return shown
 
 
 class _CorruptError(Exception):
@@ -120,7 +141,8 @@ class MessageStream(Generic[T]):
         except StopIteration:
             self._done = True
             if self._strict and self.problems:
-                msg = '; '.join(self.problems) + ' (the messages before were read: partial)'
+                msg = (summarize_problems(self.problems)
+                       + ' (the messages before were read: partial)')
                 raise BagError(msg) from None
             raise
 
@@ -1103,7 +1125,7 @@ def read_bench_info(path: str | Path, topic: str | None = None) -> dict[str, Any
     if last is None:
         if stream.partial:   # the BenchInfo may be in the part that cannot be read
             text = (f'Bag {bag.path}: no readable BenchInfo; the bag is damaged: '
-                    f'{"; ".join(stream.problems)}')
+                    f'{summarize_problems(stream.problems)}')
             raise BagError(text)
         return None
     try:

@@ -233,9 +233,11 @@ class AnalysisResult:
         trace: Thinned TE trace for plots.
         recommendation: Compensation advice or the reason there is none.
         partial: True when the read ended early (see ``problems``).
-        problems: Human-readable problems met (read errors, no complete window, ...).
+        problems: Human-readable problems met (read errors, no complete window, ...), one
+            line each; a long list of read errors is shortened (all are in ``read_problems``).
         blocks_read: Encoder blocks read from the bag.
         elapsed_s: Wall time of the analysis [s].
+        read_problems: Every problem the reader met (file, byte offset, what), in order.
     """
 
     path: Path
@@ -253,6 +255,7 @@ class AnalysisResult:
     problems: tuple[str, ...]
     blocks_read: int
     elapsed_s: float
+    read_problems: tuple[str, ...] = ()
 
     @property
     def complete_windows(self) -> tuple[WindowResult, ...]:
@@ -266,6 +269,7 @@ class AnalysisResult:
             'topic': self.topic,
             'partial': self.partial,
             'problems': list(self.problems),
+            'read_problems': list(self.read_problems),
             'blocks_read': self.blocks_read,
             'bench': self.bench.to_json_dict(),
             'cumulative': stats_json(self.cumulative),
@@ -335,7 +339,11 @@ def analyze_bag(  # noqa: PLR0913 - keyword-only analysis options
         TeConfigError: Ratio/crank order missing (no BenchInfo and no flags) or invalid.
     """
     from rv_te_bench.core.stream import TeAnalysisConfig, analyze_blocks  # noqa: PLC0415
-    from rv_te_bench.io.bag_reader import read_bench_info, read_encoder_batches  # noqa: PLC0415
+    from rv_te_bench.io.bag_reader import (  # noqa: PLC0415
+        read_bench_info,
+        read_encoder_batches,
+        summarize_problems,
+    )
 
     t_start = time.monotonic()
     path = Path(path)
@@ -364,7 +372,7 @@ def analyze_bag(  # noqa: PLR0913 - keyword-only analysis options
     read_problems = [*getattr(stream, 'problems', ()),
                      *([] if reader.error is None else [reader.error])]
     if reader.blocks == 0:
-        detail = '; '.join(read_problems) or 'the encoder topic holds no messages'
+        detail = summarize_problems(read_problems) or 'the encoder topic holds no messages'
         msg = f'{path}: no encoder block could be read ({detail})'
         raise BagError(msg)
 
@@ -372,7 +380,7 @@ def analyze_bag(  # noqa: PLR0913 - keyword-only analysis options
     problems: list[str] = []
     if partial:
         problems.append(f'{reader.blocks} blocks read; part of the bag is unreadable: '
-                        + '; '.join(read_problems))
+                        + summarize_problems(read_problems))
     windows = tuple(kept)
     spectrum = averager.result()
     if spectrum is None:
@@ -388,7 +396,7 @@ def analyze_bag(  # noqa: PLR0913 - keyword-only analysis options
         gaps=tuple(offline.gaps), counters=dict(offline.counters), trace=trace,
         recommendation=recommendation, partial=partial,
         problems=tuple(problems), blocks_read=reader.blocks,
-        elapsed_s=time.monotonic() - t_start)
+        elapsed_s=time.monotonic() - t_start, read_problems=tuple(read_problems))
 
 
 class _GuardedBlocks:

@@ -227,3 +227,47 @@ def test_bag_topics_of_a_folder_and_of_its_lone_file(tmp_path: Path) -> None:
     assert bag_reader._summary(kfile) is None  # noqa: SLF001
     assert parsed(bag_topics(kfile)) == folder
     writer.close()
+
+
+def test_a_bag_damaged_all_through_gives_one_readable_line(tmp_path: Path) -> None:
+    """Every chunk corrupt: the error names the first problems and counts the rest; the
+    analysis keeps the full list for the JSON."""
+    from rv_te_bench.report.analysis import analyze_bag  # noqa: PLC0415
+
+    bag = tmp_path / 'bag'
+    write_sample_bag(bag, n_blocks=40, compression='none', chunk_size_bytes=2048)
+    (file,) = bag.glob('*.mcap')
+    data = bytearray(file.read_bytes())
+    for seq in range(40):   # flip a byte inside every block's theta_in_rad
+        at = data.find(encoder_cdr(seq, 100)[1000:1040])
+        data[at + 5] ^= 0xFF
+    file.write_bytes(bytes(data))
+    with pytest.raises(BagError) as err:
+        list(read_encoder_batches(bag))
+    text = str(err.value)
+    assert text.count('CRC mismatch') == 3
+    assert '... and ' in text
+    assert len(text) < 1000
+    with pytest.raises(BagError, match=r'damaged: .*; \.\.\. and 37 more problems$'):
+        analyze_bag(bag, with_advice=False)
+
+
+def test_partial_analysis_keeps_every_read_problem(tmp_path: Path) -> None:
+    from rv_te_bench.report.analysis import analyze_bag  # noqa: PLC0415
+
+    bag = tmp_path / 'bag'
+    write_sample_bag(bag, n_blocks=40, compression='none', chunk_size_bytes=2048)
+    (file,) = bag.glob('*.mcap')
+    data = bytearray(file.read_bytes())
+    for seq in range(20, 40):
+        at = data.find(encoder_cdr(seq, 100)[1000:1040])
+        data[at + 5] ^= 0xFF
+    file.write_bytes(bytes(data))
+    res = analyze_bag(bag, with_advice=False, gear_ratio=79.0, crank_per_output=25.0)
+    assert res.partial
+    n_bad = len(res.read_problems)
+    assert n_bad >= 10   # one per damaged chunk
+    assert all('CRC mismatch' in p for p in res.read_problems)
+    assert res.problems[0].endswith(f'... and {n_bad - 3} more problems')
+    assert res.to_json_dict()['read_problems'] == list(res.read_problems)
+    assert res.blocks_read == 20
