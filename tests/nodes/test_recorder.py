@@ -338,8 +338,10 @@ def test_cli_record_for_a_duration(ros_context: Any, ros_domain_id: int,
     pub = pub_node.create_publisher(EncoderBlock, topic, qos.ENCODER_QOS)
     executor = EventsExecutor(context=ros_context)
     executor.add_node(pub_node)
+    # --duration counts from the recorder's start; DDS discovery of the publisher can take
+    # ~3 s (participants that miss each other's first announcements meet at the next one)
     proc = cli_process(['record', '--out', str(tmp_path), '--name', 'bag', '--namespace', ns,
-                        '--topics', 'bench/encoders', '--duration', '2', '--compression',
+                        '--topics', 'bench/encoders', '--duration', '6', '--compression',
                         'lz4', '--metadata', 'operator: test'], ros_domain_id)
     try:
         subscribed = spin_until(executor, lambda: pub.get_subscription_count() >= 1
