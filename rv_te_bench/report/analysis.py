@@ -651,22 +651,6 @@ class SpectrumAverager:
             orders=orders, amplitude_rad=amp)
 
 
-def average_spectrum(windows: Iterable[WindowResult]) -> SpectrumSummary | None:
-    """Average the spectra of the complete windows (see :class:`SpectrumAverager`).
-
-    Args:
-        windows: Window results of the TE core (with their per-bin arrays).
-
-    Returns:
-        The summary, or None when no complete window carries a spectrum.
-    """
-    averager = SpectrumAverager()
-    for w in windows:
-        if w.complete and w.spectrum is not None:
-            averager.add(w.spectrum)
-    return averager.result()
-
-
 def dominant_harmonic(spectrum: SpectrumSummary,
                       bench: BenchDescription) -> DominantHarmonic | None:
     """The labelled line with the largest averaged amplitude and its likely source."""

@@ -7,9 +7,6 @@ our reader (or another reader) gets out.
 
 from __future__ import annotations
 
-import dataclasses
-import sys
-import types
 from pathlib import Path
 from typing import Any
 
@@ -18,28 +15,6 @@ import numpy as np
 from rv_te_bench.io.bag_writer import BagWriter, qos_profile_dict
 from rv_te_bench.io.msgdefs import BENCH_INFO, ENCODER_BLOCK, rv_te_typestore
 
-
-def _install_stream_standin() -> None:
-    """Stand-in for rv_te_bench.core.stream.EncoderBlockData until that module exists."""
-    try:
-        import rv_te_bench.core.stream  # noqa: F401, PLC0415
-    except ImportError:
-        @dataclasses.dataclass(frozen=True)
-        class EncoderBlockData:
-            seq: int
-            stamp_s: float
-            sample_rate_hz: float
-            time_offset_s: np.ndarray
-            theta_in_rad: np.ndarray
-            theta_out_rad: np.ndarray
-            torque_out_nm: np.ndarray
-
-        mod = types.ModuleType('rv_te_bench.core.stream')
-        mod.EncoderBlockData = EncoderBlockData  # type: ignore[attr-defined]
-        sys.modules['rv_te_bench.core.stream'] = mod
-
-
-_install_stream_standin()
 
 ENCODER_TOPIC = '/bench/encoders'
 INFO_TOPIC = '/bench/info'
