@@ -698,6 +698,54 @@ def encoder_block_seq(data: bytes | memoryview) -> int:
     return struct.unpack_from(end + 'Q', data, 4 + _seq_offset(data, end))[0]
 
 
+@dataclass(frozen=True, slots=True)
+class _Layout:
+    """Where the fields of one serialised EncoderBlock lie (byte offsets from its start,
+    the 4-byte encapsulation included)."""  # noqa: D205, D209
+
+    order: str                          # struct byte order: '<' or '>'
+    seq_at: int                         # seq (uint64), then sample_rate_hz (float64)
+    count_at: tuple[int, ...]           # element count of each of the four arrays
+    counts: tuple[int, ...]
+    data_at: tuple[int, ...]            # first element of each array
+    length: int                         # bytes the message uses
+
+
+def _layout(buf: bytes | memoryview) -> _Layout:
+    """Walk the CDR layout of one EncoderBlock (header, seq, rate, four float64 arrays).
+
+    Raises:
+        BagError: Not a CDR EncoderBlock, truncated, or an array runs past the end.
+    """
+    size = len(buf)
+    if size < 4 + 12 or buf[0] != 0 or buf[1] not in (0, 1):
+        msg = f'not a CDR EncoderBlock ({size} bytes, header {bytes(buf[:4]).hex()})'
+        raise BagError(msg)
+    order = '<' if buf[1] == 1 else '>'
+    try:
+        off = _seq_offset(buf, order)
+        seq_at = 4 + off
+        off += 16
+        count_at, counts, data_at = [], [], []
+        for _ in range(4):
+            off = (off + _ALIGN4) & ~_ALIGN4
+            (count,) = struct.unpack_from(order + 'I', buf, 4 + off)
+            count_at.append(4 + off)
+            off += 4
+            if count:
+                off = (off + _ALIGN8) & ~_ALIGN8
+            if 4 + off + 8 * count > size:
+                msg = f'array of {count} float64 runs past the message end ({size} bytes)'
+                raise BagError(msg)
+            counts.append(count)
+            data_at.append(4 + off)
+            off += 8 * count
+    except struct.error as exc:
+        msg = f'EncoderBlock CDR truncated ({size} bytes): {exc}'
+        raise BagError(msg) from None
+    return _Layout(order, seq_at, tuple(count_at), tuple(counts), tuple(data_at), 4 + off)
+
+
 def decode_encoder_block(data: bytes | memoryview) -> EncoderBlockData:
     """Decode one EncoderBlock CDR message (with encapsulation header) into numpy arrays.
 
@@ -713,33 +761,13 @@ def decode_encoder_block(data: bytes | memoryview) -> EncoderBlockData:
     from rv_te_bench.core.stream import EncoderBlockData  # noqa: PLC0415
 
     buf = bytes(data)
-    size = len(buf)
-    if size < 4 + 12 or buf[0] != 0 or buf[1] not in (0, 1):
-        msg = f'not a CDR EncoderBlock ({size} bytes, header {buf[:4].hex()})'
-        raise BagError(msg)
-    end = '<' if buf[1] == 1 else '>'
-    try:
-        sec, nsec = struct.unpack_from(end + 'iI', buf, 4)
-        off = _seq_offset(buf, end)
-        seq, rate = struct.unpack_from(end + 'Qd', buf, 4 + off)
-        off += 16
-        arrays = []
-        dtype = np.dtype(end + 'f8')
-        for _ in range(4):
-            off = (off + _ALIGN4) & ~_ALIGN4
-            (count,) = struct.unpack_from(end + 'I', buf, 4 + off)
-            off += 4
-            if count:
-                off = (off + _ALIGN8) & ~_ALIGN8
-            if 4 + off + 8 * count > size:
-                msg = f'array of {count} float64 runs past the message end ({size} bytes)'
-                raise BagError(msg)
-            arrays.append(np.frombuffer(buf, dtype, count, 4 + off))
-            off += 8 * count
-    except struct.error as exc:
-        msg = f'EncoderBlock CDR truncated ({size} bytes): {exc}'
-        raise BagError(msg) from None
-    if end == '>':
+    lay = _layout(buf)
+    sec, nsec = struct.unpack_from(lay.order + 'iI', buf, 4)
+    seq, rate = struct.unpack_from(lay.order + 'Qd', buf, lay.seq_at)
+    dtype = np.dtype(lay.order + 'f8')
+    arrays = [np.frombuffer(buf, dtype, n, at) for n, at in zip(lay.counts, lay.data_at,
+                                                                  strict=True)]
+    if lay.order == '>':
         arrays = [a.astype(np.float64) for a in arrays]
         for a in arrays:
             a.setflags(write=False)
@@ -771,45 +799,21 @@ class _ParsedBlocks:
     data: tuple[np.ndarray, np.ndarray, np.ndarray]  # byte position of time/in/out arrays
 
 
-def _layout(msg: bytes | memoryview) -> tuple[int, int, tuple[int, ...], tuple[int, ...]] | None:
-    """Byte layout of one little-endian EncoderBlock: (seq offset, length, count offsets,
-    data offsets), or None when it is not a plain batchable one."""  # noqa: D205, D209
-    size = len(msg)
-    if size < 4 + 12 + 4 or msg[0] != 0 or msg[1] != 1:  # noqa: PLR2004
-        return None
-    try:
-        (flen,) = _U32.unpack_from(msg, 12)
-        seq_at = 4 + ((12 + flen + _ALIGN8) & ~_ALIGN8)
-        off = seq_at - 4 + 16
-        count_at, data_at, counts = [], [], []
-        for _ in range(4):
-            off = (off + _ALIGN4) & ~_ALIGN4
-            (c,) = _U32.unpack_from(msg, 4 + off)
-            count_at.append(4 + off)
-            off += 4
-            if c:
-                off = (off + _ALIGN8) & ~_ALIGN8
-            data_at.append(4 + off)
-            counts.append(c)
-            off += 8 * c
-    except struct.error:
-        return None
-    n = counts[1]
-    if 4 + off > size or not (n > 0 and counts[0] == n == counts[2] and counts[3] in (0, n)):
-        return None
-    return seq_at, 4 + off, tuple(count_at), tuple(data_at)
-
-
 def _parse_same_layout(u8: np.ndarray, starts: np.ndarray,
                        ends: np.ndarray) -> _ParsedBlocks | None:
     """Fast path of :func:`_parse_encoder_blocks`: every message laid out like the first
     (same frame_id length and array lengths, the usual case), checked with one gather of
     the bytes that decide the layout. None when they differ."""  # noqa: D205, D209
-    first = _layout(u8[int(starts[0]):int(ends[0])].data)
-    if first is None:
+    try:
+        first = _layout(u8[int(starts[0]):int(ends[0])].data)
+    except BagError:
         return None
-    seq_at, length, count_at, data_at = first
-    if not ((ends - starts) >= length).all():
+    n = first.counts[1]
+    if first.order != '<' or not (n > 0 and first.counts[0] == n == first.counts[2]
+                                  and first.counts[3] in (0, n)):
+        return None   # not batchable: the general parse sorts the messages out
+    seq_at, count_at, data_at = first.seq_at, first.count_at, first.data_at
+    if not ((ends - starts) >= first.length).all():
         return None
     deciding = np.array([0, 1, 12, 13, 14, 15,
                          *(c + k for c in count_at for k in range(4))], dtype=np.int64)
@@ -822,7 +826,6 @@ def _parse_same_layout(u8: np.ndarray, starts: np.ndarray,
     if not (seq < np.uint64(1 << 63)).all():
         return None
     stamp = head[:, 0].view('<i4').astype(np.float64) + head[:, 1].astype(np.float64) * 1e-9
-    n = int(_U32.unpack_from(u8[int(starts[0]):].data, count_at[1])[0])
     return _ParsedBlocks(
         ok=np.ones(starts.size, dtype=bool), seq=seq, stamp_s=stamp,
         rate_hz=tail[:, 8:].copy().view('<f8').ravel(),
