@@ -1000,24 +1000,36 @@ _OP_CHUNK_INDEX = 0x08
 _FOOTER_TAIL = 1 + 8 + 20 + 8   # footer record (opcode, length, 8 + 8 + 4) and magic
 
 
-def _summary(file: Path) -> tuple[_ScanState, list[tuple[int, set[int]]]] | None:
-    """Schemas, channels and chunk index (offset, channel ids) from a file's MCAP summary.
+@contextlib.contextmanager
+def _mapped(file: Path) -> Iterator[memoryview | None]:
+    """The file mapped read-only, or None when it cannot be (missing, empty, unreadable)."""
+    try:
+        with file.open('rb') as fh:
+            mm = mmap.mmap(fh.fileno(), 0, access=mmap.ACCESS_READ)
+    except (OSError, ValueError):
+        yield None
+        return
+    buf = memoryview(mm)
+    try:
+        yield buf
+    finally:
+        with contextlib.suppress(BufferError):
+            buf.release()
+            mm.close()
+
+
+def _summary_in(buf: memoryview) -> tuple[_ScanState, list[tuple[int, set[int]]]] | None:
+    """Schemas, channels and chunk index (offset, channel ids) from an MCAP file's summary.
 
     None when the file has no usable summary (a recorder that was killed writes none; a
     summary whose CRC does not match is not trusted; a summary without channels or chunk
     indexes cannot answer for the file) and the caller must scan it.
     """
-    try:
-        with file.open('rb') as fh:
-            size = fh.seek(0, 2)
-            if size < 8 + _FOOTER_TAIL:
-                return None
-            mm = mmap.mmap(fh.fileno(), 0, access=mmap.ACCESS_READ)
-    except (OSError, ValueError):
+    size = len(buf)
+    if size < 8 + _FOOTER_TAIL:
         return None
-    buf = memoryview(mm)
+    foot = size - _FOOTER_TAIL
     try:
-        foot = size - _FOOTER_TAIL
         if bytes(buf[size - 8:]) != MAGIC or buf[foot] != _OP_FOOTER:
             return None
         summary_start, _, crc = struct.unpack_from('<QQI', buf, foot + 9)
@@ -1034,15 +1046,17 @@ def _summary(file: Path) -> tuple[_ScanState, list[tuple[int, set[int]]]] | None
                 chunks.append((offset, set(index)))
             else:
                 _parse_meta_record(op, body, state)
-        if not chunks or not state.channels:
-            return None
-        return state, chunks
     except (_CorruptError, struct.error, UnicodeDecodeError, ValueError):
         return None
-    finally:
-        with contextlib.suppress(BufferError):
-            buf.release()
-            mm.close()
+    if not chunks or not state.channels:
+        return None
+    return state, chunks
+
+
+def _summary(file: Path) -> tuple[_ScanState, list[tuple[int, set[int]]]] | None:
+    """:func:`_summary_in` of a file (None also when it cannot be mapped)."""
+    with _mapped(file) as buf:
+        return None if buf is None else _summary_in(buf)
 
 
 def _indexed_messages(file: Path, topics: Collection[str]) -> list[tuple[str, bytes]] | None:
@@ -1050,42 +1064,34 @@ def _indexed_messages(file: Path, topics: Collection[str]) -> list[tuple[str, by
 
     Only the chunks that hold those channels are decompressed (a BenchInfo is one small
     message in a long bag). Returns ``(schema name, cdr bytes)`` in file order, or None
-    when the file has no usable summary (see :func:`_summary`) and the caller must scan it.
+    when the file has no usable summary (see :func:`_summary_in`) and the caller must scan
+    it.
     """
-    found_summary = _summary(file)
-    if found_summary is None:
-        return None
-    state, chunks = found_summary
-    wanted = {cid for cid, (topic, _) in state.channels.items() if topic in topics}
-    holding = [offset for offset, cids in chunks if cids & wanted]
-    out: list[tuple[str, bytes]] = []
-    if not holding:
+    with _mapped(file) as buf:
+        found_summary = None if buf is None else _summary_in(buf)
+        if buf is None or found_summary is None:
+            return None
+        state, chunks = found_summary
+        wanted = {cid for cid, (topic, _) in state.channels.items() if topic in topics}
+        out: list[tuple[str, bytes]] = []
+        try:
+            for offset, cids in chunks:
+                if not cids & wanted:
+                    continue
+                op, length = _REC.unpack_from(buf, offset)
+                if op != _OP_CHUNK or offset + 9 + length > len(buf):
+                    return None
+                inner = _chunk_records(buf[offset + 9:offset + 9 + length])
+                found: list[tuple[int, int, int, int]] = []
+                _walk_chunk(inner, state, found)
+                for cid, _, start, end in found:
+                    if cid in wanted:
+                        sid = state.channels[cid][1]
+                        out.append((state.schemas.get(sid, ('', ''))[0],
+                                    bytes(inner[start:end])))
+        except (_CorruptError, struct.error, UnicodeDecodeError, ValueError, KeyError):
+            return None   # damaged: the full scan decides what is readable
         return out
-    try:
-        with file.open('rb') as fh:
-            mm = mmap.mmap(fh.fileno(), 0, access=mmap.ACCESS_READ)
-    except (OSError, ValueError):
-        return None
-    buf = memoryview(mm)
-    try:
-        for offset in holding:
-            op, length = _REC.unpack_from(buf, offset)
-            if op != _OP_CHUNK or offset + 9 + length > len(buf):
-                return None
-            inner = _chunk_records(buf[offset + 9:offset + 9 + length])
-            found: list[tuple[int, int, int, int]] = []
-            _walk_chunk(inner, state, found)
-            for cid, _, start, end in found:
-                if cid in wanted:
-                    sid = state.channels[cid][1]
-                    out.append((state.schemas.get(sid, ('', ''))[0], bytes(inner[start:end])))
-        return out
-    except (_CorruptError, struct.error, UnicodeDecodeError, ValueError, KeyError):
-        return None   # damaged: the full scan decides what is readable
-    finally:
-        with contextlib.suppress(BufferError):
-            buf.release()
-            mm.close()
 
 
 def _map_u16_u64(buf: memoryview, pos: int) -> tuple[dict[int, int], int]:
