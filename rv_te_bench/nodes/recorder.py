@@ -264,9 +264,8 @@ class RecorderNode(Node):
 
     # ---------------------------------------------------------------- hot path
     def _make_callback(self, state: _TopicState) -> Any:  # noqa: ANN401
-        write = self._writer.write
         now = self.get_clock().now
-        topic = state.name
+        record = self._record
 
         def on_message(data: bytes) -> None:
             t_ns = now().nanoseconds
@@ -275,14 +274,18 @@ class RecorderNode(Node):
                 return
             if self._held:
                 self._release_held(t_ns)
-            try:
-                write(topic, t_ns, data)
-            except BagError as exc:
-                self._write_failed(exc)
-                return
-            state.count += 1
+            record(state, t_ns, data)
 
         return on_message
+
+    def _record(self, state: _TopicState, t_ns: int, data: bytes) -> None:
+        """Write one message at log time ``t_ns`` and count it (a failed write is logged)."""
+        try:
+            self._writer.write(state.name, t_ns, data)
+        except BagError as exc:
+            self._write_failed(exc)
+            return
+        state.count += 1
 
     def _hold(self, state: _TopicState, data: bytes) -> None:
         """Keep a message that arrived before the first /clock (sim time), bounded."""
@@ -297,12 +300,7 @@ class RecorderNode(Node):
         """Write the held messages, in arrival order, at the first clock time ``t_ns``."""
         held, self._held = self._held, []
         for state, data in held:
-            try:
-                self._writer.write(state.name, t_ns, data)
-            except BagError as exc:
-                self._write_failed(exc)
-                continue
-            state.count += 1
+            self._record(state, t_ns, data)
 
     def _make_encoder_callback(self, state: _TopicState) -> Any:  # noqa: ANN401
         plain = self._make_callback(state)
