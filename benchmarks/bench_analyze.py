@@ -54,14 +54,11 @@ def main(argv: list[str] | None = None) -> int:  # noqa: PLR0915
 
     tuned = tune_for_batch_work() if args.allocator == 'tuned' else False
     from make_sample import write_sample  # noqa: PLC0415
-    from rosbags.highlevel import AnyReader  # noqa: PLC0415
 
     from rv_te_bench.core.stream import EncoderBatch  # noqa: PLC0415
     from rv_te_bench.io.bag_reader import read_encoder_batches  # noqa: PLC0415
-    from rv_te_bench.io.msgdefs import rv_te_typestore  # noqa: PLC0415
     from rv_te_bench.report.analysis import analyze_bag  # noqa: PLC0415
 
-    store = rv_te_typestore()
     tmp = Path(tempfile.mkdtemp(prefix='rv-te-analyze-bench-'))
     rows = []
     proc_rows: list[tuple[int, dict[str, float]]] = []
@@ -75,15 +72,6 @@ def main(argv: list[str] | None = None) -> int:  # noqa: PLR0915
         print(f'bag: {info["blocks"]} blocks of {block}, {n} samples, {size_mb:.1f} MB '
               f'(written in {time.perf_counter() - t0:.1f} s)', file=sys.stderr)
 
-        def rosbags_read(bag: Path = bag) -> int:
-            count = 0
-            with AnyReader([bag], default_typestore=store) as reader:
-                conns = [c for c in reader.connections if c.topic.endswith('bench/encoders')]
-                for conn, _t, raw in reader.messages(connections=conns):
-                    msg = reader.deserialize(raw, conn.msgtype)
-                    count += len(msg.theta_in_rad)
-            return count
-
         def ours_read(bag: Path = bag) -> int:
             return sum(it.n_samples if isinstance(it, EncoderBatch) else len(it.theta_in_rad)
                        for it in read_encoder_batches(bag))
@@ -94,7 +82,7 @@ def main(argv: list[str] | None = None) -> int:  # noqa: PLR0915
         wall: dict[str, list[float]] = {'rosbags': [], 'read': [], 'analyze': []}
         cpu: dict[str, list[float]] = {'rosbags': [], 'read': [], 'analyze': []}
         for _ in range(args.repeats):   # interleaved, so machine noise hits all alike
-            for name, fn in (('rosbags', rosbags_read), ('read', ours_read),
+            for name, fn in (('rosbags', lambda bag=bag: rosbags_read(bag)), ('read', ours_read),
                              ('analyze', analyze)):
                 c0, t0 = time.process_time(), time.perf_counter()
                 got = fn()
@@ -138,18 +126,23 @@ def main(argv: list[str] | None = None) -> int:  # noqa: PLR0915
     return 0
 
 
-_ROSBAGS_SCRIPT = """
-import sys
-from pathlib import Path
-from rosbags.highlevel import AnyReader
-from rv_te_bench.io.msgdefs import rv_te_typestore
-n = 0
-with AnyReader([Path(sys.argv[1])], default_typestore=rv_te_typestore()) as reader:
-    conns = [c for c in reader.connections if c.topic.endswith('bench/encoders')]
-    for conn, _t, raw in reader.messages(connections=conns):
-        n += len(reader.deserialize(raw, conn.msgtype).theta_in_rad)
-print(n)
-"""
+def rosbags_read(bag: str | Path) -> int:
+    """The floor: rosbags AnyReader reads and deserialises every EncoderBlock; samples seen."""
+    from rosbags.highlevel import AnyReader  # noqa: PLC0415
+
+    from rv_te_bench.io.msgdefs import rv_te_typestore  # noqa: PLC0415
+
+    count = 0
+    with AnyReader([Path(bag)], default_typestore=rv_te_typestore()) as reader:
+        conns = [c for c in reader.connections if c.topic.endswith('bench/encoders')]
+        for conn, _t, raw in reader.messages(connections=conns):
+            count += len(reader.deserialize(raw, conn.msgtype).theta_in_rad)
+    return count
+
+
+# the floor as a command: this file's rosbags_read in a fresh interpreter
+_ROSBAGS_SCRIPT = ('import sys; sys.path[:0] = sys.argv[2:]; '
+                   'from bench_analyze import rosbags_read; print(rosbags_read(sys.argv[1]))')
 
 
 def _whole_commands(bag: Path, repeats: int) -> dict[str, float]:
@@ -157,7 +150,8 @@ def _whole_commands(bag: Path, repeats: int) -> dict[str, float]:
     import subprocess  # noqa: PLC0415
 
     commands = {
-        'rosbags': [sys.executable, '-c', _ROSBAGS_SCRIPT, str(bag)],
+        'rosbags': [sys.executable, '-c', _ROSBAGS_SCRIPT, str(bag), str(ROOT / 'benchmarks'),
+                    str(ROOT)],
         'analyze': [sys.executable, '-m', 'rv_te_bench.cli.main', 'analyze', str(bag),
                     '--json', '--no-advice', '--quiet'],
     }
