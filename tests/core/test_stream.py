@@ -349,16 +349,9 @@ _SPLIT_SAMPLES = _samples(9 * BLOCK)
 
 def test_benchmark_script_quick_run(capsys: pytest.CaptureFixture[str]) -> None:
     # smoke test of benchmarks/bench_te_core.py (numbers not checked: shared machine)
-    import importlib.util  # noqa: PLC0415
-    from pathlib import Path  # noqa: PLC0415
+    from tests import load_benchmark  # noqa: PLC0415
 
-    path = Path(__file__).resolve().parents[2] / 'benchmarks' / 'bench_te_core.py'
-    spec = importlib.util.spec_from_file_location('bench_te_core', path)
-    assert spec is not None
-    assert spec.loader is not None
-    module = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(module)
-    assert module.main(['--quick']) == 0
+    assert load_benchmark('bench_te_core').main(['--quick']) == 0
     rows = [r for r in capsys.readouterr().out.splitlines() if r.startswith('|')]
     assert len(rows) == 7
     assert 'M samples/s' in rows[2]

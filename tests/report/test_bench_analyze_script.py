@@ -3,21 +3,15 @@ timings belong to the benchmark run on a quiet machine, not to the test suite)."
 
 from __future__ import annotations
 
-import importlib.util
-from pathlib import Path
-
 import pytest
+
+from tests import load_benchmark
 
 
 def test_bench_analyze_quick_run(capsys: pytest.CaptureFixture[str]) -> None:
-    path = Path(__file__).resolve().parents[2] / 'benchmarks' / 'bench_analyze.py'
-    spec = importlib.util.spec_from_file_location('bench_analyze', path)
-    assert spec is not None
-    assert spec.loader is not None
-    module = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(module)
-    assert module.main(['--minutes', '0.05', '--blocks', '100', '--repeats', '1',
-                        '--allocator', 'default', '--process-repeats', '1']) == 0
+    bench = load_benchmark('bench_analyze')
+    assert bench.main(['--minutes', '0.05', '--blocks', '100', '--repeats', '1',
+                       '--allocator', 'default', '--process-repeats', '1']) == 0
     rows = [r for r in capsys.readouterr().out.splitlines() if r.startswith('| 100')]
     assert [r.split('|')[2].strip()[:7] for r in rows[:3]] == ['rosbags', 'read_en', 'analyze']
     assert len(rows) == 4  # and the whole-command row
