@@ -18,7 +18,6 @@ available (musl, macOS, Windows).
 from __future__ import annotations
 
 import ctypes
-import ctypes.util
 import sys
 
 __all__ = ['tune_for_batch_work']
@@ -47,8 +46,9 @@ def tune_for_batch_work() -> bool:
     if not sys.platform.startswith('linux'):
         return False
     try:
-        libc = ctypes.CDLL(ctypes.util.find_library('c') or 'libc.so.6')
-        mallopt = libc.mallopt
+        # the process's own symbols: glibc's malloc when it is the allocator in use (no
+        # ctypes.util.find_library, which may start ldconfig or a compiler to look)
+        mallopt = ctypes.CDLL(None).mallopt
     except (OSError, AttributeError):
         return False
     mallopt.argtypes = [ctypes.c_int, ctypes.c_int]
