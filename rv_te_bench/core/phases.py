@@ -45,6 +45,7 @@ import numpy.typing as npt
 
 from rv_te_bench.core.advice import Advice, Modification
 from rv_te_bench.core.te import TeStats, te_statistics
+from rv_te_bench.core.units import json_deg
 from rv_te_bench.errors import CompensationError
 from sim.units import deg_to_rad, rad_to_arcmin, rad_to_deg
 
@@ -516,7 +517,7 @@ class PhaseOptimisation:
                       te_metric='amplitude', te_before_rad=self.objective_before_rad,
                       te_after_rad=self.objective_after_rad, modifications=mods,
                       details={'table': self.table_rows(), 'refined': self.refined,
-                               'grid_step_deg': float(rad_to_deg(self.grid_step_rad)),
+                               'grid_step_deg': json_deg(self.grid_step_rad),
                                'n_combinations': self.n_combinations,
                                'e_m': list(self.e_m), **self.details})
 
@@ -525,13 +526,13 @@ class PhaseOptimisation:
         return {
             'phases_before_rad': list(self.phases_before_rad),
             'phases_after_rad': list(self.phases_after_rad),
-            'phases_before_deg': [float(rad_to_deg(p)) for p in self.phases_before_rad],
-            'phases_after_deg': [float(rad_to_deg(p)) for p in self.phases_after_rad],
+            'phases_before_deg': [json_deg(p) for p in self.phases_before_rad],
+            'phases_after_deg': [json_deg(p) for p in self.phases_after_rad],
             'objective_before_arcmin': float(rad_to_arcmin(self.objective_before_rad)),
             'objective_after_arcmin': float(rad_to_arcmin(self.objective_after_rad)),
             'objective_before_rad': self.objective_before_rad,
             'objective_after_rad': self.objective_after_rad,
-            'grid_step_deg': float(rad_to_deg(self.grid_step_rad)),
+            'grid_step_deg': json_deg(self.grid_step_rad),
             'refined': self.refined, 'n_combinations': self.n_combinations,
             'elapsed_s': self.elapsed_s, 'e_m': list(self.e_m),
             'table': self.table_rows(),
