@@ -1,7 +1,8 @@
 """Eccentricity identification of a 2K-V unit from a measured TE record (Wang 2020 Eqs 1-8).
 
-Model (see :mod:`rv_te_bench.core.phases`): with the output angle ``phi`` measured from the
-assembly reference (t0) and ``k_c`` the signed crank order (-25 for Wang's unit),
+Model (see :mod:`rv_te_bench.core.phases`): with ``phi`` the *kinematic* output angle
+``theta_in / i`` measured from the assembly reference (t0) and ``k_c`` the signed crank
+order (-25 for Wang's unit),
 
     TE(phi) = max(Delta_1, Delta_2) / r_p + c + noise                          [rad]
     Delta_1 = Im[Q1 e^{-i a} (e^{i k_c phi} - 1)] + Im[E e^{-i a} (e^{i phi} - 1)]
@@ -9,20 +10,24 @@ assembly reference (t0) and ``k_c`` the signed crank order (-25 for Wang's unit)
     Q1 = e_p1 e^{i theta_p1} + e_g e^{i theta_g},   Q2 = e_p2 e^{i theta_p2} - e_g e^{i theta_g}
     E  = e_ot e^{i theta_ot}
 
-``c`` is the unknown zero of the encoders (Eq. 22 TE has an arbitrary offset).
+``c`` is the unknown zero of the encoders (Eq. 22 TE has an arbitrary offset). The angle
+must be ``theta_in / i``, not the measured ``theta_out = theta_in / i + TE``: the latter
+shifts the crank phase by ``|k_c| TE`` (1.3 deg for 3' of TE) and biases the result by
+per cents (issue #15).
 
-What one TE record can tell (observability):
+What one TE record can tell (observability, :data:`OBSERVABILITY`):
 
 * The output-wheel eccentricity acts at the output order: ``E`` (e_ot, theta_ot) is
   identified, up to the label swap below.
 * e_p1, e_p2 and e_g all turn at the crank rate (DESIGN.md s.4), so the record only holds
-  the two *pair phasors* Q1 and Q2 (4 numbers for 6 unknowns): adding any phasor z to
+  the two *pair sums* Q1 and Q2 (4 numbers for 6 unknowns): adding any phasor z to
   e_g e^{i theta_g} and compensating in the planets leaves the TE unchanged. The split
   between planet and revolution eccentricity is **not observable** from one record of one
   assembly. It becomes so with the magnitudes of the parts (runout inspection, or the
   preset's tolerance-class values): then theta_g solves |Q1 - g| = e_p1, |Q2 + g| = e_p2,
-  |g| = e_g, and theta_p1 = arg(Q1 - g), theta_p2 = arg(Q2 + g). (A second record after
-  turning one part by a known angle would identify it too; not implemented.)
+  |g| = e_g, and theta_p1 = arg(Q1 - g), theta_p2 = arg(Q2 + g) (:mod:`._split`, with its
+  conditioning). (A second record after turning one part by a known angle would identify
+  it too; not implemented.)
 * Label swap: (Q1, Q2, E) -> (Q2, Q1, -E) gives the same TE exactly (pair 1 and pair 2 are
   told apart only by convention). With unequal planet magnitudes the split above picks the
   labelling that fits them; with equal ones both labellings are the same physical unit
@@ -30,12 +35,24 @@ What one TE record can tell (observability):
 * A pair that never touches (its increment always below the other's) leaves its phasor
   unobservable; ``contact_fraction`` reports how much of the record each pair carried.
 
+Data reduction: the model is periodic in phi with one output revolution, so the record is
+folded onto 2^15 bins of one revolution (:class:`~rv_te_bench.core.angle_fold.AngleFold`,
+streamed, memory independent of the length); the fit uses the bin means weighted by their
+counts, and the residual is evaluated at the sample level from the per-bin sums.
+
 Noise model: white read-head noise and quantisation of both encoders (RON 886: 36,000 lines
-x interpolation, q = 0.036", sigma ~0.01-0.3") enter the TE as independent, zero-mean (after
-the offset c takes the -q/2 bias of truncating counts) noise of a few 0.1", small against
-the eccentricity TE (~30"); least squares is then the maximum-likelihood estimate. The
-encoders' graduation errors (harmonics 2-4 of the output, <= 1") are not modelled: the
-order-2..4 content does not alias onto orders 1 and 25, but leaks a few per cent into E.
+x interpolation, q = 0.036", sigma ~0.01-0.3") enter the TE as independent, zero-mean noise
+of a few 0.1", small against the eccentricity TE (~30"); least squares is then the
+maximum-likelihood estimate, and the 1-sigma errors reported come from its covariance.
+The encoders' graduation errors (harmonics 2-4 of the output, <= 1") are not modelled:
+they stay in the residual and leak a few per cent into E.
+
+Fit quality: every result carries the sample-level residual, the TE standard deviation, the
+explained fraction ``1 - RSS / TSS`` and a model-free noise estimate
+(:class:`FitQuality`). Re-assembly advice is withheld (:class:`PoorFitError`) when the model
+explains less than :data:`MIN_EXPLAINED_FRACTION` of the TE variance: the TE is then not
+dominated by the eccentricities this model knows (load sharing under torque, other
+errors), and phases turned by the advice would not do what it predicts.
 
 Fit: the model is linear in (Q1, Q2, E, c) once it is known which pair touches at each
 sample, so an alternating scheme (assign samples to the touching pair, solve the linear
@@ -52,9 +69,18 @@ from typing import Any
 
 import numpy as np
 import numpy.typing as npt
-from scipy.optimize import least_squares
 
+from rv_te_bench.core._eccentric_fit import (
+    deltas,
+    design,
+    polish,
+    q_covariance,
+    search,
+    slope_basis,
+)
+from rv_te_bench.core._split import split_pairs
 from rv_te_bench.core.advice import Advice
+from rv_te_bench.core.angle_fold import DEFAULT_BINS, AngleFold, FoldedTe
 from rv_te_bench.core.phases import (
     PHASE_NAMES,
     EccentricGeometry,
@@ -62,20 +88,106 @@ from rv_te_bench.core.phases import (
     ProgressCallback,
     _basis,
     optimise_phases,
-    wrap_rad,
 )
-from rv_te_bench.errors import CompensationError
-from sim.units import rad_to_arcmin, rad_to_arcsec, rad_to_deg
+from rv_te_bench.core.units import json_deg, rad_to_arcmin, rad_to_arcsec
+from rv_te_bench.errors import CompensationError, TeInputError
 
-__all__ = ['LABEL_RATIO_RESOLVED', 'Identification', 'identified_advice',
-           'identify_eccentricities', 'recommend_reassembly']
+__all__ = ['LABEL_MISFIT_FLOOR', 'LABEL_RATIO_RESOLVED', 'MIN_EXPLAINED_FRACTION', 'OBSERVABILITY',
+           'SPLIT_WELL_POSED_DEG_PER_PCT', 'FitQuality', 'Identification', 'PoorFitError',
+           'check_fit',
+           'identified_advice', 'identify_eccentricities', 'identify_folded',
+           'recommend_reassembly']
 
 FloatArray = npt.NDArray[np.float64]
 _MIN_SAMPLES = 64
 _MIN_CRANK_REVS = 2.0
-_MAX_ALTERNATIONS = 60
-#: label_ratio above which pair 1 and pair 2 count as told apart.
+#: label_ratio above which pair 1 and pair 2 count as told apart ...
 LABEL_RATIO_RESOLVED = 2.0
+#: ... provided the other labelling misfits the magnitudes by at least this share of the
+#: largest magnitude (inspection measures magnitudes to about that).
+LABEL_MISFIT_FLOOR = 0.01
+#: Re-assembly advice needs the model to explain at least this share of the TE variance
+#: (residual rms <= 10 % of the TE standard deviation).
+MIN_EXPLAINED_FRACTION = 0.99
+#: A split counts as well posed when a 1 % vector error turns no part phase by more.
+SPLIT_WELL_POSED_DEG_PER_PCT = 5.0
+
+#: What one TE record identifies and what needs the measured part magnitudes (for output).
+OBSERVABILITY: dict[str, Any] = {
+    'identified_from_te': [
+        'Q1 = e_p1 e^(i theta_p1) + e_g e^(i theta_g): pair-1 sum of planet and revolution '
+        'eccentricity',
+        'Q2 = e_p2 e^(i theta_p2) - e_g e^(i theta_g): pair-2 sum',
+        'E = e_ot e^(i theta_ot): output-wheel eccentricity',
+        'up to the exact label swap (Q1, Q2, E) -> (Q2, Q1, -E)',
+    ],
+    'needs_part_magnitudes': [
+        'theta_p1, theta_p2, theta_g (the split of Q1, Q2 into planet and revolution '
+        'eccentricity) and so the re-assembly advice: they need e_p1, e_p2, e_g measured on '
+        'the parts (runout inspection); one TE record cannot separate them',
+        'which pair is pair 1 (resolved only when the planet magnitudes differ)',
+    ],
+}
+
+
+class PoorFitError(CompensationError):
+    """The eccentricity model explains too little of the TE: advice withheld.
+
+    Attributes:
+        identification: The identification (with its fit quality) that was judged.
+    """
+
+    def __init__(self, message: str, identification: Identification) -> None:
+        """Keep the identification for callers that report it anyway."""
+        super().__init__(message)
+        self.identification = identification
+
+
+@dataclass(frozen=True)
+class FitQuality:
+    """How well the identified model explains the record (sample level).
+
+    Attributes:
+        residual_rms_rad: RMS of measured minus fitted TE over all samples [rad].
+        te_std_rad: Standard deviation of the measured TE [rad].
+        explained_fraction: 1 - residual sum of squares / total sum of squares (0..1).
+        noise_rms_rad: Sample-to-sample TE noise estimated without the model [rad] (NaN when
+            the record is too coarse to tell noise from signal, e.g. decimated).
+        min_explained_fraction: Threshold below which advice is withheld.
+    """
+
+    residual_rms_rad: float
+    te_std_rad: float
+    explained_fraction: float
+    noise_rms_rad: float = math.nan
+    min_explained_fraction: float = MIN_EXPLAINED_FRACTION
+
+    @property
+    def acceptable(self) -> bool:
+        """The model explains enough of the TE for re-assembly advice."""
+        return self.explained_fraction >= self.min_explained_fraction
+
+    def describe(self) -> str:
+        """One line for people."""
+        noise = ('' if not math.isfinite(self.noise_rms_rad) else
+                 f', encoder noise {float(rad_to_arcsec(self.noise_rms_rad)):.3f}"')
+        return (f'fit residual {float(rad_to_arcsec(self.residual_rms_rad)):.3f}" rms{noise}, '
+                f'TE std {float(rad_to_arcsec(self.te_std_rad)):.2f}": the model explains '
+                f'{100 * self.explained_fraction:.3f} % of the TE variance')
+
+    def to_json_dict(self) -> dict[str, Any]:
+        """JSON-friendly dict (arcsec for people, rad kept)."""
+        return {
+            'residual_rms_arcsec': _num(rad_to_arcsec(self.residual_rms_rad), 4),
+            'te_std_arcsec': _num(rad_to_arcsec(self.te_std_rad), 4),
+            'noise_rms_arcsec': _num(rad_to_arcsec(self.noise_rms_rad), 4),
+            'explained_fraction': _num(self.explained_fraction, 6),
+            'min_explained_fraction': self.min_explained_fraction,
+            'acceptable': self.acceptable,
+            'residual_rms_rad': _num(self.residual_rms_rad),
+            'te_std_rad': _num(self.te_std_rad),
+            'noise_rms_rad': _num(self.noise_rms_rad),
+        }
 
 
 @dataclass(frozen=True)
@@ -83,12 +195,12 @@ class Identification:
     """Eccentricities of one 2K-V unit identified from a TE record.
 
     Attributes:
-        e_m: Identified magnitudes [m]: ``e_ot`` and the pair eccentricities ``pair1``
-            (|Q1|) and ``pair2`` (|Q2|).
+        e_m: Identified magnitudes [m]: ``e_ot`` and the pair sums ``pair1`` (|Q1|) and
+            ``pair2`` (|Q2|).
         phases_rad: Identified phases [rad]: ``theta_ot``, ``pair1`` (arg Q1), ``pair2``
             (arg Q2), and ``theta_p1``, ``theta_p2``, ``theta_g`` when the part magnitudes
             resolve the split (see ``assumed_e_m``).
-        residual_rms_rad: RMS of measured minus fitted TE [rad].
+        residual_rms_rad: RMS of measured minus fitted TE over all samples [rad].
         offset_rad: Fitted TE offset c (encoder zeros) [rad].
         contact_fraction: Share of samples where pair 1 / pair 2 carries the TE.
         output_revolutions: Output revolutions the record spans.
@@ -100,7 +212,15 @@ class Identification:
         label_ratio: Split misfit of the other labelling over that of the chosen one
             (>= 1; below :data:`LABEL_RATIO_RESOLVED` the labels are ambiguous: planets of
             nearly equal eccentricity; the advice is then nearly the same either way).
+        label_misfit_m: Split misfit of the other labelling [m] (below
+            :data:`LABEL_MISFIT_FLOOR` of the largest magnitude the labels are ambiguous
+            too: an error of the measured magnitudes could swap them).
         geometry: Geometry (alpha, r_p, crank order) used for the fit.
+        fit: Fit quality (residual, explained fraction, noise estimate).
+        sigma_m: 1-sigma vector error of ``pair1``, ``pair2``, ``e_ot`` from the noise [m].
+        sigma_rad: 1-sigma error of the phases from the noise [rad] (split phases too).
+        split_deg_per_pct: Largest turn of a split phase per 1 % vector error [deg].
+        split_deg_per_um: Largest turn of a split phase per 1 um magnitude error [deg].
     """
 
     e_m: dict[str, float]
@@ -114,7 +234,13 @@ class Identification:
     split_residual_m: float = math.nan
     labels_swapped: bool = False
     label_ratio: float = math.nan
+    label_misfit_m: float = math.nan
     geometry: EccentricGeometry | None = field(default=None, repr=False)
+    fit: FitQuality | None = None
+    sigma_m: dict[str, float] = field(default_factory=dict)
+    sigma_rad: dict[str, float] = field(default_factory=dict)
+    split_deg_per_pct: float = math.nan
+    split_deg_per_um: float = math.nan
 
     @property
     def pair_phasors_m(self) -> tuple[complex, complex, complex]:
@@ -126,32 +252,84 @@ class Identification:
 
     @property
     def labels_resolved(self) -> bool:
-        """Whether the part magnitudes told pair 1 from pair 2 (label_ratio large)."""
-        return self.label_ratio >= LABEL_RATIO_RESOLVED
+        """Whether the part magnitudes told pair 1 from pair 2 (see ``label_misfit_m``)."""
+        big = max(self.assumed_e_m.values(), default=0.0)
+        return (self.label_ratio >= LABEL_RATIO_RESOLVED
+                and not self.label_misfit_m < LABEL_MISFIT_FLOOR * big)
 
     @property
     def split_resolved(self) -> bool:
         """Whether theta_p1, theta_p2 and theta_g are available."""
         return all(n in self.phases_rad for n in PHASE_NAMES)
 
+    @property
+    def split_well_posed(self) -> bool:
+        """Split available, labels resolved and a 1 % vector error turns it <= 5 deg."""
+        return (self.split_resolved and self.labels_resolved
+                and self.split_deg_per_pct <= SPLIT_WELL_POSED_DEG_PER_PCT)
+
+    def notes(self) -> list[str]:
+        """Warnings for people about what this result can and cannot be trusted for."""
+        out = []
+        if self.fit is not None and not self.fit.acceptable:
+            out.append(f'poor fit: {self.fit.describe()} (advice needs '
+                       f'{100 * self.fit.min_explained_fraction:g} %)')
+        if self.output_revolutions < 0.99:  # noqa: PLR2004 - n samples span (n-1)/n rev
+            out.append('less than one output revolution: e_ot is poorly determined')
+        if min(self.contact_fraction) < 0.02:  # noqa: PLR2004
+            out.append(f'one pair carried only {100 * min(self.contact_fraction):.1f} % of the '
+                       'record: its sum is poorly determined')
+        if self.split_resolved:
+            if not self.labels_resolved:
+                out.append('planets of nearly equal eccentricity: pair labels ambiguous')
+            if self.split_deg_per_pct > SPLIT_WELL_POSED_DEG_PER_PCT:
+                out.append(f'ill-posed split: a 1 % error of Q1/Q2 turns the part phases by up '
+                           f'to {self.split_deg_per_pct:.1f} deg')
+            if self.split_deg_per_um > SPLIT_WELL_POSED_DEG_PER_PCT:
+                out.append(f'a 1 um error of a part magnitude turns the part phases by up to '
+                           f'{self.split_deg_per_um:.1f} deg: the split needs well measured '
+                           'magnitudes')
+            big = max(self.assumed_e_m.values(), default=0.0)
+            if big > 0 and self.split_residual_m > 0.05 * big:
+                out.append(f'the part magnitudes do not fit the identified sums (misfit '
+                           f'{self.split_residual_m * 1e6:.2f} um): measure the parts')
+        return out
+
     def to_json_dict(self) -> dict[str, Any]:
         """JSON-friendly dict with unit suffixes (um, deg, arcsec for people)."""
         return {
-            'e_um': {k: v * 1e6 for k, v in self.e_m.items()},
+            'e_um': {k: _num(v * 1e6, 6) for k, v in self.e_m.items()},
             'e_m': dict(self.e_m),
-            'phases_deg': {k: float(rad_to_deg(v)) for k, v in self.phases_rad.items()},
+            'phases_deg': {k: json_deg(v) for k, v in self.phases_rad.items()},
             'phases_rad': dict(self.phases_rad),
-            'residual_rms_arcsec': float(rad_to_arcsec(self.residual_rms_rad)),
-            'offset_arcmin': float(rad_to_arcmin(self.offset_rad)),
-            'contact_fraction': list(self.contact_fraction),
-            'output_revolutions': self.output_revolutions,
+            'sigma_um': {k: _num(v * 1e6, 6) for k, v in self.sigma_m.items()},
+            'sigma_deg': {k: json_deg(v) for k, v in self.sigma_rad.items()},
+            'residual_rms_arcsec': _num(rad_to_arcsec(self.residual_rms_rad), 4),
+            'offset_arcmin': _num(rad_to_arcmin(self.offset_rad), 6),
+            'fit': None if self.fit is None else self.fit.to_json_dict(),
+            'contact_fraction': [_num(c, 4) for c in self.contact_fraction],
+            'output_revolutions': _num(self.output_revolutions, 6),
             'n_samples': self.n_samples,
-            'assumed_e_um': {k: v * 1e6 for k, v in self.assumed_e_m.items()},
-            'split_residual_um': (self.split_residual_m * 1e6
-                                  if math.isfinite(self.split_residual_m) else None),
+            'assumed_e_um': {k: _num(v * 1e6, 6) for k, v in self.assumed_e_m.items()},
+            'split_residual_um': _num(self.split_residual_m * 1e6, 6),
+            'split_deg_per_pct_vector_error': _num(self.split_deg_per_pct, 4),
+            'split_deg_per_um_magnitude_error': _num(self.split_deg_per_um, 4),
+            'split_well_posed': self.split_well_posed if self.split_resolved else None,
             'labels_swapped': self.labels_swapped,
-            'label_ratio': self.label_ratio if math.isfinite(self.label_ratio) else None,
+            'label_ratio': _num(self.label_ratio, 4),
+            'label_misfit_um': _num(self.label_misfit_m * 1e6, 6),
+            'labels_resolved': self.labels_resolved if self.split_resolved else None,
+            'observability': OBSERVABILITY,
+            'notes': self.notes(),
         }
+
+
+def _num(x: Any, digits: int | None = None) -> float | None:  # noqa: ANN401
+    """A finite float (rounded to ``digits`` decimals for the JSON edge) or None."""
+    v = float(x)
+    if not math.isfinite(v):
+        return None
+    return round(v, digits) if digits is not None else v
 
 
 def _geometry(params: Any) -> EccentricGeometry:  # noqa: ANN401
@@ -160,8 +338,8 @@ def _geometry(params: Any) -> EccentricGeometry:  # noqa: ANN401
     return EccentricGeometry.from_params(params)
 
 
-def _check_record(phase_out_rad: npt.ArrayLike, te_rad: npt.ArrayLike,
-                  crank_order: float) -> tuple[FloatArray, FloatArray]:
+def _fold_record(phase_out_rad: npt.ArrayLike, te_rad: npt.ArrayLike,
+                 n_bins: int) -> FoldedTe:
     phi = np.asarray(phase_out_rad, dtype=np.float64)
     te = np.asarray(te_rad, dtype=np.float64)
     if phi.ndim != 1 or phi.shape != te.shape:
@@ -172,191 +350,146 @@ def _check_record(phase_out_rad: npt.ArrayLike, te_rad: npt.ArrayLike,
         if bad.size:
             msg = f'{name}[{int(bad[0])}] is not finite ({arr[bad[0]]!r})'
             raise CompensationError(msg)
-    if phi.size < _MIN_SAMPLES:
-        msg = f'need at least {_MIN_SAMPLES} samples, got {phi.size}'
+    fold = AngleFold(n_bins=n_bins)
+    fold.add(phi, te)
+    return fold.result()
+
+
+def _check_folded(folded: FoldedTe, crank_order: float) -> None:
+    if folded.n_samples < _MIN_SAMPLES:
+        msg = f'need at least {_MIN_SAMPLES} samples, got {folded.n_samples}'
         raise CompensationError(msg)
-    span = float(phi.max() - phi.min())
-    crank_revs = span * abs(crank_order) / (2 * math.pi)
+    crank_revs = folded.span_rad * abs(crank_order) / (2 * math.pi)
     if crank_revs < _MIN_CRANK_REVS:
         msg = (f'the record spans {crank_revs:.2f} crank revolutions; identification needs '
                f'at least {_MIN_CRANK_REVS:g} (better: one output revolution)')
         raise CompensationError(msg)
-    return phi, te
-
-
-def _design(bas: FloatArray, mask1: npt.NDArray[np.bool_]) -> FloatArray:
-    """Design matrix (n, 7) for x = (a1, b1, a2, b2, ao, bo, c) given the touching pair."""
-    n = bas.shape[1]
-    d = np.zeros((n, 7))
-    m1 = mask1.astype(np.float64)
-    m2 = 1.0 - m1
-    d[:, 0] = bas[0] * m1
-    d[:, 1] = bas[1] * m1
-    d[:, 2] = bas[0] * m2
-    d[:, 3] = bas[1] * m2
-    sign = m1 - m2
-    d[:, 4] = bas[2] * sign
-    d[:, 5] = bas[3] * sign
-    d[:, 6] = 1.0
-    return d
-
-
-def _deltas(x: FloatArray, bas: FloatArray) -> tuple[FloatArray, FloatArray]:
-    d1 = x[0] * bas[0] + x[1] * bas[1] + x[4] * bas[2] + x[5] * bas[3]
-    d2 = x[2] * bas[0] + x[3] * bas[1] - x[4] * bas[2] - x[5] * bas[3]
-    return d1, d2
-
-
-def _solve_normal(a: FloatArray, b: FloatArray) -> FloatArray:
-    """Least-squares solution from the normal equations (min-norm if a pair is empty)."""
-    try:
-        return np.linalg.solve(a, b)
-    except np.linalg.LinAlgError:
-        return np.linalg.lstsq(a, b, rcond=None)[0]
-
-
-def _alternate(x: FloatArray, bas: FloatArray, y: FloatArray) -> tuple[FloatArray, float]:
-    """Assign-and-solve iterations from ``x``; returns (x, sum of squares)."""
-    prev = None
-    for _ in range(_MAX_ALTERNATIONS):
-        d1, d2 = _deltas(x, bas)
-        mask = d1 >= d2
-        if prev is not None and np.array_equal(mask, prev):
-            break
-        prev = mask
-        d = _design(bas, mask)
-        x = _solve_normal(d.T @ d, d.T @ y)
-    d1, d2 = _deltas(x, bas)
-    r = np.maximum(d1, d2) + x[6] - y
-    return x, float(r @ r)
-
-
-def _starts(bas: FloatArray, y: FloatArray, rng: np.random.Generator, n_random: int,
-            ) -> list[FloatArray]:
-    """Initial parameter vectors: a linear sinusoid fit, its variants, and random ones."""
-    lin = np.linalg.lstsq(np.column_stack([bas.T, np.ones(bas.shape[1])]), y, rcond=None)[0]
-    a, b, ao, bo, c = lin
-    out = [np.array([a, b, a, b, ao, bo, c]), np.array([a, b, -a, -b, ao, bo, c]),
-           np.array([2 * a, 2 * b, 0.0, 0.0, ao, bo, c]),
-           np.array([0.0, 0.0, 2 * a, 2 * b, ao, bo, c])]
-    scale = max(float(np.std(y)), 1e-12)
-    for _ in range(n_random):
-        mag = scale * rng.uniform(0.2, 2.5, size=3)
-        ph = rng.uniform(-math.pi, math.pi, size=3)
-        out.append(np.array([mag[0] * math.sin(ph[0]), mag[0] * math.cos(ph[0]),
-                             mag[1] * math.sin(ph[1]), mag[1] * math.cos(ph[1]),
-                             mag[2] * math.sin(ph[2]), mag[2] * math.cos(ph[2]),
-                             float(np.mean(y))]))
-    return out
-
-
-def _split(q1: complex, q2: complex, e_p1: float, e_p2: float, e_g: float,
-           ) -> tuple[float, float, float, float]:
-    """theta_p1, theta_p2, theta_g [rad] and RMS misfit [m] from Q1, Q2 and magnitudes."""
-    th = np.linspace(-math.pi, math.pi, 7201)
-    for _ in range(3):   # dense grid, then two zooms around the best
-        g = e_g * np.exp(1j * th)
-        cost = (np.abs(q1 - g) - e_p1) ** 2 + (np.abs(q2 + g) - e_p2) ** 2
-        j = int(np.argmin(cost))
-        width = 2 * (th[1] - th[0])
-        th = np.linspace(th[j] - width, th[j] + width, 401)
-    tg = float(th[200])
-    g = e_g * complex(math.cos(tg), math.sin(tg))
-    res = math.sqrt(((abs(q1 - g) - e_p1) ** 2 + (abs(q2 + g) - e_p2) ** 2) / 2.0)
-    p1 = q1 - g if e_p1 > 0 else complex(1.0, 0.0)
-    p2 = q2 + g if e_p2 > 0 else complex(1.0, 0.0)
-    return (float(np.angle(p1)), float(np.angle(p2)), float(wrap_rad(tg)), res)
 
 
 def identify_eccentricities(phase_out_rad: npt.ArrayLike, te_rad: npt.ArrayLike,
                             params: Any, *, rng: np.random.Generator | None = None,  # noqa: ANN401
-                            n_starts: int = 16, split: bool = True) -> Identification:
+                            n_starts: int = 16, split: bool = True,
+                            n_bins: int = DEFAULT_BINS) -> Identification:
     """Fit the Eqs 1-8 model to a TE record and identify the unit's eccentricities.
 
     Args:
-        phase_out_rad: Output angle of each sample, measured from the assembly reference
-            (t0) [rad], 1-D, unwrapped; ideally one whole output revolution or more.
+        phase_out_rad: Kinematic output angle ``theta_in / i`` of each sample, measured from
+            the assembly reference (t0) [rad], 1-D; ideally one whole output revolution or
+            more. Not the measured output angle (see the module docstring).
         te_rad: Measured TE (Eq. 22, any constant offset) [rad], same shape.
         params: ``sim.wang2020.Wang2kvParams`` or :class:`EccentricGeometry`: alpha, r_p
             and the crank order are used; its e_p1, e_p2 and e_g are taken as the *known
-            part magnitudes* that split the pair phasors (see module docstring). Its phases
+            part magnitudes* that split the pair sums (see module docstring). Its phases
             and e_ot are not used.
         rng: Generator for the random starts (default: ``np.random.default_rng(0)``).
         n_starts: Random starts in addition to four deterministic ones (>= 0).
         split: Resolve theta_p1, theta_p2, theta_g with the part magnitudes.
+        n_bins: Bins per output revolution of the fold.
 
     Returns:
-        The identification (observable quantities, and the split when requested).
+        The identification (observable quantities, fit quality, and the split when
+        requested).
 
     Raises:
         CompensationError: Arrays of different shape, non-finite values, too few samples,
             a record shorter than two crank revolutions, or ``n_starts < 0``.
     """
+    try:
+        folded = _fold_record(phase_out_rad, te_rad, n_bins)
+    except TeInputError as exc:
+        raise CompensationError(str(exc)) from None
+    return identify_folded(folded, params, rng=rng, n_starts=n_starts, split=split)
+
+
+def identify_folded(folded: FoldedTe, params: Any, *,  # noqa: ANN401
+                    rng: np.random.Generator | None = None, n_starts: int = 16,
+                    split: bool = True) -> Identification:
+    """As :func:`identify_eccentricities`, for a record folded by an ``AngleFold``.
+
+    The way to identify a long record (a bag) without holding it: feed its samples to
+    :meth:`AngleFold.add_encoders` as they are read, then call this.
+    """
     geom = _geometry(params)
-    phi, te = _check_record(phase_out_rad, te_rad, geom.crank_order)
+    _check_folded(folded, geom.crank_order)
     if isinstance(n_starts, bool) or not isinstance(n_starts, int) or n_starts < 0:
         msg = f'n_starts must be an integer >= 0, got {n_starts!r}'
         raise CompensationError(msg)
     gen = np.random.default_rng(0) if rng is None else rng
     r_p = geom.r_p_m
-    bas = _basis(phi, geom.crank_order)
-    y = te * r_p                                       # work along the mesh line [m]
-    best_x, best_cost = None, math.inf
-    for x0 in _starts(bas, y, gen, n_starts):
-        x, cost = _alternate(x0, bas, y)
-        if cost < best_cost:
-            best_x, best_cost = x, cost
-    assert best_x is not None  # noqa: S101 - at least the four deterministic starts ran
+    w = np.sqrt(folded.counts.astype(np.float64))
+    bas0 = _basis(np.asarray(folded.phi_rad), geom.crank_order)
+    bas = bas0 * w
+    y = np.asarray(folded.te_rad) * r_p * w               # along the mesh line [m]
+    x = polish(search(folded, geom, gen, n_starts), bas, w, y)
 
-    def resid(x: FloatArray) -> FloatArray:
-        d1, d2 = _deltas(x, bas)
-        return np.maximum(d1, d2) + x[6] - y
-
-    def jac(x: FloatArray) -> FloatArray:
-        d1, d2 = _deltas(x, bas)
-        return _design(bas, d1 >= d2)
-
-    scale = max(float(np.abs(best_x).max()), 1e-12)
-    sol = least_squares(lambda u: resid(u * scale), best_x / scale,
-                        jac=lambda u: jac(u * scale) * scale, method='trf',
-                        xtol=1e-12, ftol=1e-12)
-    x = sol.x * scale if 2 * sol.cost <= best_cost else best_x
-    x, _ = _alternate(x, bas, y)
-    r = resid(x)
-    d1, d2 = _deltas(x, bas)
-    frac1 = float(np.mean(d1 >= d2))
+    # sample-level fit quality from the fold
+    d1, d2 = deltas(x, bas0)
+    mask = d1 >= d2
+    model = (np.maximum(d1, d2) + x[6]) / r_p
+    dbas = slope_basis(np.asarray(folded.phi_rad), geom.crank_order)
+    s1, s2 = deltas(x, dbas)
+    rss = folded.rss_rad2(model, np.where(mask, s1, s2) / r_p)
+    n = folded.n_samples
+    frac1 = float(np.sum(folded.counts[mask]) / n)
     rot = complex(math.cos(geom.alpha_rad), math.sin(geom.alpha_rad))
     q1 = complex(x[1], x[0]) * rot            # b + i a = Q e^{-i alpha}
     q2 = complex(x[3], x[2]) * rot
     ee = complex(x[5], x[4]) * rot
+    curvature = (geom.crank_order ** 2 * max(abs(q1), abs(q2)) + abs(ee)) / r_p
+    fit = FitQuality(
+        residual_rms_rad=math.sqrt(rss / n), te_std_rad=folded.te_std_rad,
+        explained_fraction=(1.0 - rss / folded.te_ss_rad2 if folded.te_ss_rad2 > 0
+                            else math.nan),
+        noise_rms_rad=folded.noise_rms_rad(curvature))
+
+    # noise covariance of x (sample-level information J^T J of the weighted bins)
+    jw = design(bas, mask, w)
+    dof = max(n - 7, 1)
+    cov = (rss * r_p * r_p / dof) * np.linalg.pinv(jw.T @ jw)
+    # (a, b) -> Q e^{-i alpha} = b + i a; the rotation keeps vector errors
+    sig = {k: math.sqrt(max(cov[i, i] + cov[j, j], 0.0))
+           for k, (i, j) in (('pair1', (0, 1)), ('pair2', (2, 3)), ('e_ot', (4, 5)))}
+    cov_q = q_covariance(cov, geom.alpha_rad)
+    return _finish(geom, folded, x, q1, q2, ee, frac1, fit, sig, cov_q, split=split)
+
+
+def _finish(geom: EccentricGeometry, folded: FoldedTe, x: FloatArray,  # noqa: PLR0913
+            q1: complex, q2: complex, ee: complex, frac1: float, fit: FitQuality,
+            sig: dict[str, float], cov_q: FloatArray, *, split: bool) -> Identification:
+    """Labels, split and the result object."""
     swapped = False
     assumed: dict[str, float] = {}
-    split_res = math.nan
-    ratio = math.nan
+    split_res = ratio = other = per_pct = per_um = math.nan
     extra: dict[str, float] = {}
+    sig_ph: dict[str, float] = {}
     if split:
         e_p1, e_p2, e_g, _ = geom.e_m
         assumed = {'e_p1': e_p1, 'e_p2': e_p2, 'e_g': e_g}
-        a = _split(q1, q2, e_p1, e_p2, e_g)
-        b = _split(q2, q1, e_p1, e_p2, e_g)
-        if b[3] < a[3]:
+        swap = np.array([[0, 0, 1, 0], [0, 0, 0, 1], [1, 0, 0, 0], [0, 1, 0, 0]], dtype=float)
+        a = split_pairs(q1, q2, (e_p1, e_p2, e_g), cov_m2=cov_q)
+        b = split_pairs(q2, q1, (e_p1, e_p2, e_g), cov_m2=swap @ cov_q @ swap.T)
+        if b.misfit_m < a.misfit_m:
             swapped = True
             q1, q2, ee = q2, q1, -ee
             frac1 = 1.0 - frac1
+            sig = {'pair1': sig['pair2'], 'pair2': sig['pair1'], 'e_ot': sig['e_ot']}
             a, b = b, a
-        ratio = b[3] / a[3] if a[3] > 0 else math.inf
-        extra = {'theta_p1': a[0], 'theta_p2': a[1], 'theta_g': a[2]}
-        split_res = a[3]
+        ratio = b.misfit_m / a.misfit_m if a.misfit_m > 0 else math.inf
+        other = b.misfit_m
+        extra = dict(zip(('theta_p1', 'theta_p2', 'theta_g'), a.phases_rad, strict=True))
+        sig_ph = dict(zip(('theta_p1', 'theta_p2', 'theta_g'), a.sigma_rad, strict=True))
+        split_res, per_pct, per_um = a.misfit_m, a.deg_per_pct, a.deg_per_um
+    sig_ph['theta_ot'] = sig['e_ot'] / abs(ee) / math.sqrt(2) if abs(ee) > 0 else math.nan
     e_m = {'e_ot': abs(ee), 'pair1': abs(q1), 'pair2': abs(q2)}
     phases = {'theta_ot': float(np.angle(ee)), 'pair1': float(np.angle(q1)),
               'pair2': float(np.angle(q2)), **extra}
-    span = float(phi.max() - phi.min())
     return Identification(
-        e_m=e_m, phases_rad=phases, residual_rms_rad=float(np.sqrt(np.mean(r * r))) / r_p,
-        offset_rad=float(x[6]) / r_p, contact_fraction=(frac1, 1.0 - frac1),
-        output_revolutions=span / (2 * math.pi), n_samples=int(phi.size),
+        e_m=e_m, phases_rad=phases, residual_rms_rad=fit.residual_rms_rad,
+        offset_rad=float(x[6]) / geom.r_p_m, contact_fraction=(frac1, 1.0 - frac1),
+        output_revolutions=folded.output_revolutions, n_samples=folded.n_samples,
         assumed_e_m=assumed, split_residual_m=split_res, labels_swapped=swapped,
-        label_ratio=ratio, geometry=geom)
+        label_ratio=ratio, label_misfit_m=other, geometry=geom, fit=fit, sigma_m=sig, sigma_rad=sig_ph,
+        split_deg_per_pct=per_pct, split_deg_per_um=per_um)
 
 
 def recommend_reassembly(identification: Identification, params: Any, *,  # noqa: ANN401
@@ -368,6 +501,7 @@ def recommend_reassembly(identification: Identification, params: Any, *,  # noqa
     The magnitudes are e_p1, e_p2, e_g as assumed in the identification (part
     magnitudes) and the identified e_ot; the current phases are the identified ones, so
     the advice's ``current_value`` -> ``recommended_value`` is how far to turn each part.
+    This does not judge the fit: :func:`identified_advice` withholds advice on a poor one.
 
     Args:
         identification: Result of :func:`identify_eccentricities` with the split resolved.
@@ -393,21 +527,44 @@ def recommend_reassembly(identification: Identification, params: Any, *,  # noqa
                            refine_tol_deg=refine_tol_deg, progress=progress)
 
 
-def identified_advice(phase_out_rad: npt.ArrayLike, te_rad: npt.ArrayLike, params: Any, *,  # noqa: ANN401
-                      preset_name: str, step_deg: float = 10.0,
+def check_fit(identification: Identification) -> None:
+    """Raise :class:`PoorFitError` when the fit is too poor for re-assembly advice."""
+    fit = identification.fit
+    if fit is not None and not fit.acceptable:
+        msg = (f're-assembly advice withheld: {fit.describe()}, below the '
+               f'{100 * fit.min_explained_fraction:g} % the advice needs (the TE is not '
+               'dominated by the eccentricities of Wang 2020 Eqs 1-8: load sharing under '
+               'torque, or other errors)')
+        raise PoorFitError(msg, identification)
+
+
+def identified_advice(phase_out_rad: npt.ArrayLike | FoldedTe, te_rad: npt.ArrayLike | None,
+                      params: Any, *, preset_name: str, step_deg: float = 10.0,  # noqa: ANN401
                       progress: ProgressCallback | None = None) -> Advice:
     """Identify this unit from its TE record and recommend re-assembly phases, as Advice.
 
     The one call the compensation node and the offline report make: identification
-    (:func:`identify_eccentricities`), then :func:`recommend_reassembly`, then the advice
-    with method ``'identified-assembly-phases'`` (current = identified phases).
+    (:func:`identify_eccentricities`, or :func:`identify_folded` when given a
+    :class:`FoldedTe` and ``te_rad=None``), the fit-quality check, then
+    :func:`recommend_reassembly`, then the advice with method
+    ``'identified-assembly-phases'`` (current = identified phases; details hold the
+    identification with its fit quality).
 
     Raises:
+        PoorFitError: The model explains less than :data:`MIN_EXPLAINED_FRACTION` of the TE.
         CompensationError: The record cannot be identified (see the two functions).
     """
-    ident = identify_eccentricities(phase_out_rad, te_rad, params)
+    if isinstance(phase_out_rad, FoldedTe):
+        ident = identify_folded(phase_out_rad, params)
+    else:
+        ident = identify_eccentricities(phase_out_rad, np.asarray(te_rad), params)
+    check_fit(ident)
     result = recommend_reassembly(ident, params, step_deg=step_deg, progress=progress)
     advice = result.to_advice(preset_name, method='identified-assembly-phases')
+    assert ident.fit is not None  # noqa: S101 - identify_folded always sets it
     details = dict(advice.details)
     details['identification'] = ident.to_json_dict()
-    return replace(advice, details=details)
+    details['fit'] = ident.fit.to_json_dict()
+    summary = (f'{advice.summary} (this unit, identified from its TE; '
+               f'{ident.fit.describe()})')
+    return replace(advice, details=details, summary=summary)

@@ -42,7 +42,7 @@ def _unit(base, e: np.ndarray, ph: np.ndarray):  # noqa: ANN001, ANN202
 
 
 def _measure(unit, rng: np.random.Generator) -> tuple[np.ndarray, np.ndarray]:  # noqa: ANN001
-    """One output revolution through two RON 886 encoders; (output angle, Eq. 22 TE)."""
+    """One output revolution through two RON 886 encoders; (theta_in / i, Eq. 22 TE)."""
     spec = encoders.encoder_spec_with(encoders.encoder_preset('heidenhain-ron886'),
                                       noise_sigma_rad=float(arcsec_to_rad(0.3)))
     th_in = np.linspace(0.0, RATIO * 2 * math.pi, N_SAMPLES, endpoint=False) + 0.1
@@ -50,7 +50,7 @@ def _measure(unit, rng: np.random.Generator) -> tuple[np.ndarray, np.ndarray]:  
     th_out = phi + wang.nlte_rad(phi, unit)
     m_in = encoders.SimulatedEncoder(spec, rng).measure(th_in)
     m_out = encoders.SimulatedEncoder(spec, rng).measure(th_out)
-    return m_out, m_out - m_in / RATIO
+    return m_in / RATIO, m_out - m_in / RATIO
 
 
 def _dphase_deg(a: float, b: float) -> float:

@@ -248,16 +248,18 @@ def test_rv_recommendation_from_the_real_compensation_code(tmp_path) -> None:  #
     assert len(rec.advice.modifications) == 3
 
 
-def test_2kv_recommendation_from_the_real_compensation_code(tmp_path) -> None:  # noqa: ANN001
+def test_2kv_advice_withheld_when_the_model_does_not_fit(tmp_path) -> None:  # noqa: ANN001
+    """A 2K-V bag whose TE is a sum of arbitrary harmonics, not eccentricity TE: the
+    identification explains ~94 % of the TE variance (residual ~6.7" against a TE std of
+    27"), so no re-assembly advice is given, and the reason says so with the numbers
+    (issue #15: advice used to be printed on such a fit)."""
     path = tmp_path / 'bag'
     write_bag(path, harmonics=HARMONICS, duration_s=2.5, preset='wang2020-2kv')
     rec = analyze_bag(path).recommendation
-    assert rec.available, rec.reason
-    assert rec.advice is not None
-    assert rec.advice.preset == 'wang2020-2kv'
-    assert rec.advice.method in {'assembly-phases', 'identified-assembly-phases'}
-    assert len(rec.advice.modifications) == 4  # theta_p1, theta_p2, theta_g, theta_ot
-    assert rec.advice.te_after_rad < rec.advice.te_before_rad
+    assert not rec.available
+    assert rec.advice is None
+    assert 'advice withheld' in rec.reason
+    assert 'of the TE variance' in rec.reason and 'fit residual' in rec.reason
 
 
 def _retained_bytes(path: object) -> tuple[int, analysis.AnalysisResult]:
