@@ -66,7 +66,6 @@ from dataclasses import dataclass
 from typing import TYPE_CHECKING, Any, NamedTuple
 
 import numpy as np
-from scipy.signal import lfilter
 
 from sim.errors import ModelInputError, PresetError
 from sim.kinematics import ReducerKinematics, kinematics_from_preset
@@ -592,6 +591,8 @@ class Wang2kvDynamics:
     def _run_linear(self, n: int, h: float, x0: float, v0: float,
                     f: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Exact response (FOH forcing) of m x'' + n c x' + n k0 x = f from (x0, v0)."""
+        from scipy.signal import lfilter  # noqa: PLC0415 - scipy.signal costs 0.7 s to import
+
         m = self.params.equivalent_mass_kg
         if n == 0:
             a = f / m

@@ -1,23 +1,30 @@
 """``rv-te identify BAG``: eccentricities of a 2K-V unit from a recorded TE session.
 
-Reads the encoder blocks and the BenchInfo of a rosbag2/MCAP bag, forms the TE of Eq. 22
-(TE = theta_out - theta_in / i, i from BenchInfo), fits the Wang 2020 Eqs 1-8 model and
-prints what one record can tell: the output-wheel eccentricity and the two pair
-eccentricities; with the part magnitudes of the preset (or ``--set``, e.g. from runout
-inspection) it splits them into theta_p1, theta_p2, theta_g and recommends re-assembly
-phases (Eq. 21). The output angle is taken as recorded: zero must be the assembly
-reference (t0). Best with one whole output revolution or more.
+Streams the encoder blocks of a rosbag2/MCAP bag (an MCAP chunk at a time, memory
+independent of the length), forms the TE of Eq. 22 (TE = theta_out - theta_in / i) and folds
+it onto one output revolution of the kinematic output angle theta_in / i (zero = the
+assembly reference t0); fits the Wang 2020 Eqs 1-8 model and prints what one TE record can
+tell: the pair sums Q1, Q2 and the output-wheel eccentricity E (up to their label swap),
+with 1-sigma errors and the fit quality. The split into theta_p1, theta_p2, theta_g needs
+the part magnitudes e_p1, e_p2, e_g: the preset's values unless given (``--set``, from
+runout inspection); then it recommends re-assembly phases (Eq. 21), unless the model
+explains too little of the TE (``--min-explained``). A damaged bag is read up to the damage
+and the result marked PARTIAL, as ``rv-te analyze`` does.
 """
 
 from __future__ import annotations
 
 import argparse
 import json
+import math
+import os
 import sys
+from dataclasses import dataclass, field, replace
 from typing import Any
 
 import numpy as np
 
+from rv_te_bench.cli.argtypes import positive_float
 from rv_te_bench.cli.optimize_phases import (
     ProgressBar,
     add_search_arguments,
@@ -31,7 +38,16 @@ examples:
   rv-te identify out/session_bag                      identify and recommend re-assembly
   rv-te identify out/session_bag --json --no-recommend
   rv-te identify bag.mcap --set eccentricity.e_p1_m=1.2e-5 --set eccentricity.e_g_m=8e-6
+                                                      part magnitudes measured on the parts
+  rv-te identify real.mcap --preset wang2020-2kv --ratio 79
+                                                      a bag without (readable) BenchInfo
+
+exit codes: 0 ok (partial results are marked PARTIAL; withheld advice is not an error),
+1 failed (one ERROR: line on stderr), 2 bad usage
 """
+
+#: Preset keys of the part magnitudes that split the pair sums.
+MAGNITUDE_KEYS = ('eccentricity.e_p1_m', 'eccentricity.e_p2_m', 'eccentricity.e_g_m')
 
 
 def register(subparsers: Any) -> None:  # noqa: ANN401 - argparse's private type
@@ -46,89 +62,252 @@ def register(subparsers: Any) -> None:  # noqa: ANN401 - argparse's private type
                    help="preset (default: the bag's BenchInfo preset)")
     p.add_argument('--set', dest='overrides', action='append', default=[],
                    metavar='KEY=VALUE', help='override a preset value, e.g. part magnitudes')
+    p.add_argument('--ratio', type=positive_float, metavar='I', default=None,
+                   help="overall gear ratio i (default: BenchInfo, else the preset's)")
+    p.add_argument('--crank-per-output', type=positive_float, metavar='C', default=None,
+                   help="absolute crank revs per output rev (default: the preset's, 25 for "
+                        'the Wang 2020 2K-V)')
     p.add_argument('--seed', type=int, default=0, help='seed of the random fit starts')
+    p.add_argument('--min-explained', type=float, default=None, metavar='F',
+                   help='share of the TE variance the model must explain for re-assembly '
+                        'advice (default 0.99)')
     p.add_argument('--no-recommend', action='store_true', help='identify only')
     add_search_arguments(p)
     p.add_argument('--json', action='store_true', help='machine-readable output')
     p.set_defaults(func=run)
 
 
-def load_record(path: str, topic: str | None = None) -> tuple[np.ndarray, np.ndarray,
-                                                                dict[str, Any]]:
-    """(theta_in_rad, theta_out_rad, bench info) of a bag, blocks in sequence order.
+@dataclass
+class BagRecord:
+    """What streaming a bag left: the folded TE and what the reading met.
+
+    Attributes:
+        folded: The TE folded onto one output revolution.
+        blocks: Encoder blocks read.
+        partial: Part of the bag could not be read.
+        problems: Read problems (one line each).
+        skipped_samples: Non-finite or malformed samples left out.
+    """
+
+    folded: Any
+    blocks: int = 0
+    partial: bool = False
+    problems: list[str] = field(default_factory=list)
+    skipped_samples: int = 0
+
+
+def fold_bag(path: str, topic: str | None, gear_ratio: float, *,
+             progress: Any = None) -> BagRecord:  # noqa: ANN401
+    """Stream a bag's encoder blocks into an :class:`AngleFold` (phi = theta_in / i).
+
+    Reads with ``strict=False``: a damaged part ends the read, what came before is kept
+    and the record is marked partial.
 
     Raises:
-        BagError: Not a bag, unreadable, no encoder topic.
-        TeInputError: No encoder samples, or no BenchInfo with a gear ratio.
+        BagError: Not a bag, no encoder topic, or no block readable.
     """
+    from rv_te_bench.core.angle_fold import AngleFold  # noqa: PLC0415
+    from rv_te_bench.core.stream import EncoderBatch  # noqa: PLC0415
+    from rv_te_bench.errors import BagError  # noqa: PLC0415
+    from rv_te_bench.io.bag_reader import (  # noqa: PLC0415
+        read_encoder_batches,
+        summarize_problems,
+    )
+
+    fold = AngleFold()
+    stream = read_encoder_batches(path, topic, strict=False)
+    blocks = samples = malformed = 0
+    extra: list[str] = []
+    try:
+        for item in stream:
+            if isinstance(item, EncoderBatch):
+                blocks += item.n_blocks
+                th_in, th_out = item.theta_in_rad, item.theta_out_rad
+            else:
+                blocks += 1
+                th_in = np.asarray(item.theta_in_rad, dtype=np.float64)
+                th_out = np.asarray(item.theta_out_rad, dtype=np.float64)
+                if th_in.shape != th_out.shape:
+                    malformed += max(th_in.size, th_out.size)
+                    continue
+            samples += th_in.size
+            fold.add_encoders(th_in, th_out, gear_ratio=gear_ratio)
+            if progress is not None:
+                progress(blocks, samples)
+    except BagError as exc:   # e.g. the topic changes type further on: keep what came before
+        extra.append(str(exc))
+    problems = [*stream.problems, *extra]
+    if blocks == 0:
+        detail = summarize_problems(problems) or 'the encoder topic holds no messages'
+        msg = f'{path}: no encoder block could be read ({detail})'
+        raise BagError(msg)
+    return BagRecord(folded=fold.result(), blocks=blocks,
+                     partial=bool(problems) or stream.partial, problems=problems,
+                     skipped_samples=fold.skipped + malformed)
+
+
+def _bench_info(args: argparse.Namespace) -> tuple[dict[str, Any] | None, str | None]:
+    """(BenchInfo, problem): a damaged BenchInfo is a problem only without the flags."""
+    from rv_te_bench.errors import BagError  # noqa: PLC0415
+    from rv_te_bench.io.bag_reader import read_bench_info  # noqa: PLC0415
+
+    try:
+        return read_bench_info(args.bag), None
+    except BagError as exc:
+        if args.preset is None:
+            msg = (f'{exc}; give --preset (and --ratio if the bench ran another ratio) to '
+                   'identify without it')
+            raise BagError(msg) from None
+        del exc   # the damaged chunk is reported again by the encoder read
+        return None, (f'no readable BenchInfo: preset {args.preset} and '
+                      f'{"--ratio" if args.ratio else "its ratio"} used instead')
+
+
+def _setup(args: argparse.Namespace, info: dict[str, Any] | None,
+           ) -> tuple[Any, Any, float, str]:  # noqa: ANN401
+    """(preset, params, gear ratio, source of the part magnitudes)."""
+    from rv_te_bench.core.phases import EccentricGeometry  # noqa: PLC0415
     from rv_te_bench.errors import TeInputError  # noqa: PLC0415
-    from rv_te_bench.io.bag_reader import read_bench_info, read_encoder_blocks  # noqa: PLC0415
+    from sim.bench import overrides_from_parameters_yaml  # noqa: PLC0415
 
-    info = read_bench_info(path)
-    blocks = sorted(read_encoder_blocks(path, topic), key=lambda b: b.seq)
-    if not blocks or sum(len(b.theta_in_rad) for b in blocks) == 0:
-        msg = f'{path}: the bag holds no encoder samples'
+    if args.preset is None and info is None:
+        msg = (f'{args.bag}: no BenchInfo in the bag: give --preset (and --ratio if the bench '
+               "ran another ratio than the preset's)")
         raise TeInputError(msg)
-    if info is None or not info.get('gear_ratio'):
-        msg = f'{path}: no BenchInfo with a gear ratio (needed for the TE of Eq. 22)'
-        raise TeInputError(msg)
-    theta_in = np.concatenate([np.asarray(b.theta_in_rad, dtype=np.float64) for b in blocks])
-    theta_out = np.concatenate([np.asarray(b.theta_out_rad, dtype=np.float64)
-                                for b in blocks])
-    return theta_in, theta_out, info
+    # the bench's own overrides (recorded in BenchInfo) first, then --set
+    recorded = ([] if args.preset or info is None else
+                overrides_from_parameters_yaml(str(info.get('parameters_yaml', ''))))
+    name = args.preset if args.preset else str((info or {}).get('preset', ''))
+    preset, wang = load_wang_params(name, [*recorded, *args.overrides])
+    ratio = args.ratio or (float(info['gear_ratio']) if info and info.get('gear_ratio')
+                           else float(wang.kinematics.gear_ratio))
+    params = EccentricGeometry.from_params(wang)
+    if args.crank_per_output is not None:
+        params = replace(params, crank_order=math.copysign(args.crank_per_output,
+                                                           params.crank_order))
+    keys = {o.split('=', 1)[0].strip() for o in args.overrides}
+    rec_keys = {o.split('=', 1)[0].strip() for o in recorded}
+    if keys & set(MAGNITUDE_KEYS):
+        source = 'given with --set'
+    elif rec_keys & set(MAGNITUDE_KEYS):
+        source = "the bench's preset overrides recorded in BenchInfo (a simulated unit)"
+    else:
+        source = f'preset {preset.name} values, assumed, not measured on this unit'
+    return preset, params, ratio, source
 
 
-def _text(idf: Any) -> str:  # noqa: ANN401
-    from sim.units import rad_to_arcsec, rad_to_deg  # noqa: PLC0415
+def _deg(x: float) -> float:
+    from sim.units import rad_to_deg  # noqa: PLC0415
 
-    lines = [f'{"quantity":<10} {"e_um":>8} {"phase_deg":>10}']
-    for key, ph in (('e_ot', 'theta_ot'), ('pair1', 'pair1'), ('pair2', 'pair2')):
-        lines.append(f'{key:<10} {idf.e_m[key] * 1e6:8.3f} '
-                     f'{float(rad_to_deg(idf.phases_rad[ph])):10.2f}')
+    return float(rad_to_deg(x))
+
+
+def _text(idf: Any, source: str) -> str:  # noqa: ANN401
+    from rv_te_bench.core.identify import OBSERVABILITY  # noqa: PLC0415
+
+    head = f'  {"quantity":<34} {"e [um]":>8} {"1s [um]":>8} {"phase [deg]":>11} {"1s [deg]":>8}'
+    lines = ['identified from the TE record (' + OBSERVABILITY['identified_from_te'][3] + '):',
+             head]
+    rows = (('Q1 = e_p1 + e_g  (pair-1 sum)', 'pair1', 'pair1', None),
+            ('Q2 = e_p2 - e_g  (pair-2 sum)', 'pair2', 'pair2', None),
+            ('E  = e_ot  (output wheel)', 'e_ot', 'theta_ot', 'theta_ot'))
+    for label, key, ph, sph in rows:
+        sig_deg = (_deg(idf.sigma_rad[sph]) if sph else
+                   _deg(idf.sigma_m[key] / idf.e_m[key] / math.sqrt(2)) if idf.e_m[key] else
+                   math.nan)
+        lines.append(f'  {label:<34} {idf.e_m[key] * 1e6:8.3f} {idf.sigma_m[key] * 1e6:8.4f} '
+                     f'{_deg(idf.phases_rad[ph]):11.2f} {sig_deg:8.3f}')
+    fit = idf.fit
+    lines.append(f'  {fit.describe()}')
+    lines.append(f'  pair contact {idf.contact_fraction[0]:.2f} / {idf.contact_fraction[1]:.2f}, '
+                 f'{idf.output_revolutions:.2f} output revolutions, {idf.n_samples} samples')
+    lines += ['', 'needs the part magnitudes (one TE record cannot separate planet and '
+                  'revolution eccentricity):']
     if idf.split_resolved:
+        lines.append(f'  magnitudes: {source}')
         for key, ph in (('e_p1', 'theta_p1'), ('e_p2', 'theta_p2'), ('e_g', 'theta_g')):
-            lines.append(f'{key:<10} {idf.assumed_e_m[key] * 1e6:8.3f} '
-                         f'{float(rad_to_deg(idf.phases_rad[ph])):10.2f}  (magnitude given)')
-    lines += ['', f'residual rms {float(rad_to_arcsec(idf.residual_rms_rad)):.3f}", '
-                  f'pair contact {idf.contact_fraction[0]:.2f} / {idf.contact_fraction[1]:.2f}, '
-                  f'{idf.output_revolutions:.2f} output revolutions, {idf.n_samples} samples']
-    if idf.split_resolved and not idf.labels_resolved:
-        lines.append('note: planets of nearly equal eccentricity: pair labels ambiguous')
-    if idf.output_revolutions < 1.0:
-        lines.append('note: less than one output revolution: e_ot is poorly determined')
+            lines.append(f'  {key:<6} {idf.assumed_e_m[key] * 1e6:8.3f} um (given)  {ph:<9} '
+                         f'{_deg(idf.phases_rad[ph]):8.2f} deg  (1s {_deg(idf.sigma_rad[ph]):.3f})')
+        lines.append(f'  split misfit {idf.split_residual_m * 1e6:.3f} um; a 1 % error of Q1/Q2 '
+                     f'turns these phases by <= {idf.split_deg_per_pct:.2f} deg, 1 um of '
+                     f'magnitude error by <= {idf.split_deg_per_um:.2f} deg'
+                     + ('' if idf.split_well_posed else ' (NOT well posed)'))
+    else:
+        lines.append('  not split (no part magnitudes)')
+    lines += [f'note: {n}' for n in idf.notes()]
     return '\n'.join(lines)
+
+
+class _Progress:
+    """A progress line on stderr every 2 s while the bag is read."""
+
+    def __init__(self, name: str) -> None:
+        import time  # noqa: PLC0415
+
+        self._clock = time.monotonic
+        self._t0 = self._clock()
+        self._next = 2.0
+        self._name = name
+
+    def __call__(self, blocks: int, samples: int) -> None:
+        dt = self._clock() - self._t0
+        if dt >= self._next:
+            self._next = dt + 2.0
+            print(f'{self._name}: {blocks} blocks, {samples / 1e6:.2f} M samples read',
+                  file=sys.stderr, flush=True)
 
 
 def run(args: argparse.Namespace) -> int:
     """Run the command; 0 ok, 1 domain error (one ``ERROR:`` line on stderr)."""
+    try:
+        return _run(args)
+    except BrokenPipeError:
+        # stdout closed early (``rv-te identify bag | head -1``): not a failure
+        devnull = os.open(os.devnull, os.O_WRONLY)
+        os.dup2(devnull, sys.stdout.fileno())
+        return 0
+
+
+def _run(args: argparse.Namespace) -> int:  # noqa: C901, PLR0912
+    from rv_te_bench.cli.allocator import tune_for_batch_work  # noqa: PLC0415
     from rv_te_bench.core.identify import (  # noqa: PLC0415
-        identify_eccentricities,
+        MIN_EXPLAINED_FRACTION,
+        identify_folded,
         recommend_reassembly,
     )
-    from rv_te_bench.core.te import transmission_error_rad  # noqa: PLC0415
-    from rv_te_bench.errors import RvTeError  # noqa: PLC0415
+    from rv_te_bench.errors import CompensationError, RvTeError  # noqa: PLC0415
     from sim.errors import SimError  # noqa: PLC0415
 
+    tune_for_batch_work()
     bar = None
     rec = None
+    withheld = None
     try:
         check_search_arguments(args)
-        theta_in, theta_out, info = load_record(args.bag, args.topic)
-        from sim.bench import overrides_from_parameters_yaml  # noqa: PLC0415
-
-        # the bench's own overrides (recorded in BenchInfo) first, then --set
-        recorded = ([] if args.preset else
-                    overrides_from_parameters_yaml(str(info.get('parameters_yaml', ''))))
-        preset, params = load_wang_params(args.preset or str(info.get('preset', '')),
-                                          [*recorded, *args.overrides])
-        te = transmission_error_rad(theta_in, theta_out, gear_ratio=float(info['gear_ratio']))
-        idf = identify_eccentricities(theta_out, te, params,
-                                      rng=np.random.default_rng(args.seed))
+        min_explained = (MIN_EXPLAINED_FRACTION if args.min_explained is None
+                         else args.min_explained)
+        if not (math.isfinite(min_explained) and 0.0 <= min_explained <= 1.0):
+            msg = f'--min-explained must be between 0 and 1, got {args.min_explained!r}'
+            raise CompensationError(msg)
+        info, info_problem = _bench_info(args)
+        preset, params, ratio, source = _setup(args, info)
+        record = fold_bag(args.bag, args.topic, ratio,
+                          progress=None if args.quiet else _Progress(str(args.bag)))
+        if info_problem:
+            record.problems.insert(0, info_problem)
+            record.partial = True
+        idf = identify_folded(record.folded, params, rng=np.random.default_rng(args.seed))
+        idf = replace(idf, fit=replace(idf.fit, min_explained_fraction=min_explained))
         if not args.no_recommend:
-            bar = None if args.quiet else ProgressBar('re-assembly grid')
-            rec = recommend_reassembly(idf, params, step_deg=args.step_deg,
-                                       refine=args.refine,
-                                       refine_tol_deg=args.refine_tol_deg, progress=bar)
+            if idf.fit.acceptable:
+                bar = None if args.quiet else ProgressBar('re-assembly grid')
+                rec = recommend_reassembly(idf, params, step_deg=args.step_deg,
+                                           refine=args.refine,
+                                           refine_tol_deg=args.refine_tol_deg, progress=bar)
+            else:
+                withheld = (f're-assembly advice withheld: the model explains '
+                            f'{100 * idf.fit.explained_fraction:.2f} % of the TE variance, '
+                            f'below {100 * min_explained:g} % (--min-explained)')
     except (SimError, RvTeError) as exc:
         if bar is not None:
             bar.close()
@@ -136,19 +315,35 @@ def run(args: argparse.Namespace) -> int:
         return 1
     if bar is not None:
         bar.close()
+    from rv_te_bench.io.bag_reader import summarize_problems  # noqa: PLC0415
+
+    if record.partial:
+        print(f'PARTIAL: {args.bag}: {record.blocks} blocks read; part of the bag is '
+              f'unreadable: {summarize_problems(record.problems)}', file=sys.stderr)
+    if record.skipped_samples:
+        print(f'WARNING: {args.bag}: {record.skipped_samples} non-finite or malformed samples '
+              'left out', file=sys.stderr)
     if args.json:
-        out: dict[str, Any] = {'bag': str(args.bag), 'preset': preset.name,
-                               'identification': idf.to_json_dict()}
+        out: dict[str, Any] = {
+            'bag': str(args.bag), 'preset': preset.name, 'partial': record.partial,
+            'problems': record.problems, 'blocks_read': record.blocks,
+            'skipped_samples': record.skipped_samples, 'gear_ratio': ratio,
+            'part_magnitudes_source': source, 'identification': idf.to_json_dict(),
+            'advice_withheld': withheld}
         if rec is not None:
             out['reassembly'] = rec.to_json_dict()
             out['advice'] = rec.to_advice(
                 preset.name, method='identified-assembly-phases').to_json_dict()
         print(json.dumps(out, indent=2))
-    else:
-        print(f'Eccentricities identified from {args.bag} (preset {preset.name})\n')
-        print(_text(idf))
-        if rec is not None:
-            print()
-            print(format_result(rec, 'Recommended re-assembly (turn each part from the '
-                                     'identified to the recommended phase)'))
+        return 0
+    flag = '  [PARTIAL]' if record.partial else ''
+    print(f'Eccentricities identified from {args.bag} (preset {preset.name}, i = {ratio:.6g})'
+          f'{flag}\n')
+    print(_text(idf, source))
+    if rec is not None:
+        print()
+        print(format_result(rec, 'Recommended re-assembly (turn each part from the '
+                                 'identified to the recommended phase)'))
+    elif withheld is not None:
+        print(f'\n{withheld}')
     return 0
