@@ -19,25 +19,28 @@ from tests.nodes.rosutil import spin_until  # noqa: E402
 
 
 def _spec(ns: str, bench_id: str, rpm: float, revs: float):  # noqa: ANN202
-    # both sessions last 2.4 s so the outside probe has time to match both benches
+    # each bench starts its clock once its TE node and the test's probe in its namespace
+    # subscribe (a bench that starts up fast must not finish before the probe matched it)
     return build_session([], namespace=ns, nodes=['bench', 'te_node'], overrides=[
         f'bench.bench_id={bench_id}', f'bench.speed_rpm={rpm}', 'bench.te_mode=nlte',
         'bench.sample_rate_hz=1000.0', 'bench.time_mode=fast', 'bench.speed_factor=1.0',
-        f'bench.duration_output_revs={revs}'])
+        f'bench.duration_output_revs={revs}', 'bench.wait_for_nodes=[te_node, probe]'])
 
 
 def test_two_namespaced_sessions_do_not_cross(ros_context) -> None:  # noqa: ANN001
     ctx = ros_context
-    probe = rclpy.create_node('probe', context=ctx)
     got: dict[str, list[EncoderBlock]] = {'a': [], 'b': []}
     spectra: dict[str, list[TeSpectrum]] = {'a': [], 'b': []}
+    ex = SingleThreadedExecutor(context=ctx)
+    probes = []
     for ns in ('a', 'b'):
+        probe = rclpy.create_node('probe', namespace=ns, context=ctx)
         probe.create_subscription(EncoderBlock, f'/{ns}/bench/encoders', got[ns].append,
                                   qos.ENCODER_QOS)
         probe.create_subscription(TeSpectrum, f'/{ns}/te/spectrum', spectra[ns].append,
                                   qos.LATCHED_QOS)
-    ex = SingleThreadedExecutor(context=ctx)
-    ex.add_node(probe)
+        ex.add_node(probe)
+        probes.append(probe)
     sa = Session(_spec('a', 'benchA', 3000.0, 1.5))
     sb = Session(_spec('b', 'benchB', 6000.0, 3.0))
     try:
@@ -51,13 +54,14 @@ def test_two_namespaced_sessions_do_not_cross(ros_context) -> None:  # noqa: ANN
         codes_a = sa.stop()
         codes_b = sb.stop()
         ex.shutdown()
-        probe.destroy_node()
+        for probe in probes:
+            probe.destroy_node()
     assert got['a'] and got['b']
     assert {m.header.frame_id for m in got['a']} == {'benchA'}
     assert {m.header.frame_id for m in got['b']} == {'benchB'}
-    for ns in ('a', 'b'):  # the probe may join after a bench started: contiguous from there
+    for ns in ('a', 'b'):  # the bench waited for the probe: every block, from seq 0
         seqs = [m.seq for m in got[ns]]
-        assert seqs == list(range(seqs[0], seqs[0] + len(seqs)))
+        assert seqs == list(range(len(seqs)))
     # each TE node analysed its own bench: crank frequency f_w = 25 n_in / 79
     assert spectra['a'][0].crank_hz == pytest.approx(25 * 3000 / 60 / 79, rel=1e-3)
     assert spectra['b'][0].crank_hz == pytest.approx(25 * 6000 / 60 / 79, rel=1e-3)
