@@ -33,6 +33,11 @@ examples:
 
 # mode used when --kind is not given
 DEFAULT_KIND = {'wang2020-2kv': 'nlte', 'hu2020-rv': 'geometric', 'li2023-rv': 'dte'}
+#: (model, kind) whose TE does not depend on the load: the output shows no load for them.
+LOAD_FREE_KINDS = {
+    ('wang2020-2kv', 'nlte'): 'no-load TE of Wang 2020 Eqs 1-8',
+    ('hu2020-rv', 'geometric'): 'geometric TE of Hu 2020 (load and speed do not enter)',
+}
 PHASE_KEYS = ('eccentricity.theta_p1_0_deg', 'eccentricity.theta_p2_0_deg',
               'eccentricity.theta_g_0_deg', 'eccentricity.theta_ot_0_deg')
 BLOCK = 100_000
@@ -143,6 +148,10 @@ def simulate(args: argparse.Namespace) -> tuple[dict[str, Any], dict[str, np.nda
     if not math.isfinite(load_nm):
         msg = f'--load-nm {load_nm!r} must be finite'
         raise TeConfigError(msg)
+    load_free = LOAD_FREE_KINDS.get((preset.model, kind))
+    if load_free and (args.load_nm is not None or args.load_hz is not None):
+        print(f'WARNING: --load-nm/--load-hz have no effect: {kind} is the {load_free}',
+              file=sys.stderr)
 
     fs = float(args.sample_rate_hz)
     period_s = kin.output_period_s(f_in)
@@ -182,13 +191,17 @@ def simulate(args: argparse.Namespace) -> tuple[dict[str, Any], dict[str, np.nda
         'crank_hz': freqs['crank_hz'],
         'crank_rel_hz': freqs['crank_rel_hz'],
         **{k: v for k, v in freqs.items() if k.startswith('mesh_')},
-        'load_nm': load_nm, 'load_hz': load_hz,
+        # a load the model does not use is not shown as if it had been applied
+        'load_nm': None if load_free else load_nm, 'load_hz': None if load_free else load_hz,
+        'load_applied': not load_free,
         'revolutions': args.revolutions, 'duration_s': n / fs,
         'sample_rate_hz': fs, 'n_samples': n,
         'compute_s': elapsed, 'real_time_factor': (n / fs) / elapsed if elapsed > 0 else math.inf,
     }
     columns = {'t_s': t, 'theta_in_rad': theta_in, 'load_nm': load, 'te_rad': te,
                'te_arcmin': te_arcmin}
+    if load_free:
+        del columns['load_nm']
     return stats, columns
 
 
@@ -248,6 +261,7 @@ def run(args: argparse.Namespace) -> int:
     else:
         width = max(len(k) for k in stats)
         for key, value in stats.items():
-            text = f'{value:.6g}' if isinstance(value, float) else str(value)
+            text = (f'{value:.6g}' if isinstance(value, float) else
+                    'not used by this model' if value is None else str(value))
             print(f'{key:<{width}}  {text}')
     return 0

@@ -36,6 +36,26 @@ def test_nlte_json_matches_paper(capsys: pytest.CaptureFixture[str]) -> None:
     assert stats['n_samples'] == 31_600
 
 
+def test_no_load_model_shows_no_load(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    """The NLTE (no-load) output does not show the preset's 30 N m drive load as if applied
+    (issue #15); a load given for it is refused with a warning; the STE shows its load."""
+    assert _run(['wang2020-2kv', '--json', '--sample-rate-hz', '500']) == 0
+    stats = json.loads(capsys.readouterr().out)
+    assert stats['load_nm'] is None and stats['load_hz'] is None
+    assert stats['load_applied'] is False
+    csv = tmp_path / 'nlte.csv'
+    assert _run(['wang2020-2kv', '--load-nm', '100', '--sample-rate-hz', '500',
+                 '--csv', str(csv)]) == 0
+    captured = capsys.readouterr()
+    assert 'WARNING: --load-nm/--load-hz have no effect' in captured.err
+    assert 'load_nm               not used by this model' in captured.out
+    assert csv.read_text().splitlines()[0] == 't_s,theta_in_rad,te_rad,te_arcmin'
+    assert _run(['wang2020-2kv', '--kind', 'ste', '--json', '--sample-rate-hz', '500']) == 0
+    stats = json.loads(capsys.readouterr().out)
+    assert stats['load_nm'] == pytest.approx(30.0)   # the preset's drive.load_nm
+    assert stats['load_applied'] is True
+
+
 def test_ste_table_and_phases(capsys: pytest.CaptureFixture[str]) -> None:
     assert _run(['wang2020-2kv', '--kind', 'ste', '--load-nm', '300',
                  '--sample-rate-hz', '2000']) == 0
