@@ -9,6 +9,7 @@ ROS-style parameter file against the same list *before any node starts*, so that
 from __future__ import annotations
 
 import math
+import warnings
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -34,6 +35,8 @@ class ParamSpec:
         max_value: Inclusive upper bound for numbers (None: unbounded).
         choices: Allowed values for strings (empty: any).
         read_only: True when a change needs a restart.
+        deprecated_by: Name of the parameter that replaces this one ('' when current): the
+            old spelling still works, and a parameter file that sets it gets a warning.
     """
 
     name: str
@@ -44,6 +47,7 @@ class ParamSpec:
     max_value: float | None = None
     choices: tuple[str, ...] = ()
     read_only: bool = True
+    deprecated_by: str = ''
 
     def __post_init__(self) -> None:
         """Check the spec itself (a programming error if it fails)."""
@@ -145,6 +149,11 @@ def check_parameters(specs: tuple[ParamSpec, ...], values: dict[str, Any], *, wh
         if problem:
             msg = f'{where}: parameter {key!r} {problem}'
             raise ParameterFileError(msg)
+        if spec.deprecated_by:
+            # FutureWarning: shown by default (users' parameter files, not developers' code)
+            warnings.warn(f'{where}: parameter {key!r} is deprecated; use '
+                          f'{spec.deprecated_by!r} ({spec.description})', FutureWarning,
+                          stacklevel=2)
 
 
 def load_parameter_file(path: str | Path) -> dict[str, dict[str, Any]]:

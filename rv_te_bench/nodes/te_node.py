@@ -42,9 +42,14 @@ PARAMS = (
     ParamSpec('gear_ratio', 'double', 0.0,
               'Overall ratio i [input rev / output rev]; 0 = take it from bench/info',
               min_value=0.0, max_value=1e5),
+    ParamSpec('crank_per_output', 'double', 0.0,
+              '|Absolute crank revolutions per output revolution| f_w / f_out [1] (25 for '
+              'the Wang 2020 2K-V; as rv-te analyze --crank-per-output); used when '
+              'gear_ratio > 0', min_value=0.0, max_value=1e5),
     ParamSpec('crank_per_input', 'double', 0.0,
-              'Absolute crank revolutions per input revolution [1]; used when gear_ratio > 0',
-              min_value=-1e3, max_value=1e3),
+              'crank_per_output = |crank_per_input| x gear_ratio; absolute crank revolutions '
+              'per input revolution [1]', min_value=-1e3, max_value=1e3,
+              deprecated_by='crank_per_output'),
     ParamSpec('mesh_orders', 'double_array', [],
               'Mesh frequencies as output orders [1/rev]; used when gear_ratio > 0'),
     ParamSpec('n_crank_harmonics', 'int', 10, 'Crank harmonics k f_w reported [1]',
@@ -96,11 +101,24 @@ class TeNode(Node):
                                  qos.ENCODER_QOS)
         self.create_timer(self.p['diagnostics_period_s'], self._publish_diagnostics)
         if self.p['gear_ratio'] > 0:
-            self._configure(OrderSet.from_bench_info(
-                gear_ratio=self.p['gear_ratio'], crank_per_input=self.p['crank_per_input'],
+            self._configure(OrderSet(
+                gear_ratio=self.p['gear_ratio'], crank_per_output=self._crank_per_output(),
                 mesh_orders_out=tuple(self.p['mesh_orders']),
                 mesh_labels=tuple(f'mesh {o:g} f_out' for o in self.p['mesh_orders']),
                 n_crank_harmonics=self.p['n_crank_harmonics']))
+
+    def _crank_per_output(self) -> float:
+        """crank_per_output, or from the deprecated crank_per_input (with a warning)."""
+        cpo = float(self.p['crank_per_output'])
+        old = float(self.p['crank_per_input'])
+        if old != 0.0:
+            derived = abs(old) * self.p['gear_ratio']
+            use = cpo if cpo > 0.0 else derived
+            self.get_logger().warning(
+                f"parameter 'crank_per_input' is deprecated: use crank_per_output "
+                f'(= |crank_per_input| x gear_ratio = {derived:.6g}); using {use:.6g}')
+            return use
+        return cpo
 
     # -- configuration --------------------------------------------------------------------
     def _configure(self, orders: OrderSet) -> None:

@@ -126,3 +126,17 @@ def test_integer_in_a_file_for_a_double_is_coerced(tmp_path: Path) -> None:
     assert spec.parameters['bench']['speed_rpm'] == 600.0
     assert isinstance(spec.parameters['bench']['speed_rpm'], float)
     assert all(isinstance(x, float) for x in spec.parameters['te_node']['mesh_orders'])
+
+
+def test_deprecated_crank_per_input_still_accepted_with_a_warning(tmp_path: Path) -> None:
+    """Parameter files written before te_node's crank_per_input became crank_per_output (the
+    name rv-te analyze uses) still launch, with a warning naming the replacement (#15)."""
+    f = write(tmp_path, 'te_node:\n  ros__parameters:\n    gear_ratio: 79.0\n'
+                        '    crank_per_input: -0.31645569620253167\n')
+    with pytest.warns(FutureWarning, match="'crank_per_input' is deprecated; use "
+                                           "'crank_per_output'"):
+        spec = build_session([f])
+    assert spec.parameters['te_node']['crank_per_input'] == pytest.approx(-25 / 79)
+    new = write(tmp_path, 'te_node:\n  ros__parameters:\n    gear_ratio: 79.0\n'
+                          '    crank_per_output: 25.0\n', name='new.yaml')
+    assert build_session([new]).parameters['te_node']['crank_per_output'] == 25.0

@@ -27,7 +27,7 @@ def nodes():  # noqa: ANN201
     ctx = rclpy.context.Context()
     rclpy.init(context=ctx)
     te = TeNode(context=ctx, parameter_overrides=[
-        Parameter('gear_ratio', value=79.0), Parameter('crank_per_input', value=-25.0 / 79)])
+        Parameter('gear_ratio', value=79.0), Parameter('crank_per_output', value=25.0)])
     # an RV preset: complete windows go to the (fast) tooth-profile compensation
     comp = CompensationNode(context=ctx, parameter_overrides=[
         Parameter('preset', value='hu2020-rv'), Parameter('optimize_phases', value=False)])

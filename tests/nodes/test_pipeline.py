@@ -162,10 +162,29 @@ def test_invalid_runtime_change_is_rejected(ros_context) -> None:  # noqa: ANN00
         te.destroy_node()
 
 
+def test_te_node_crank_per_output_and_deprecated_alias(graph, capfd) -> None:  # noqa: ANN001
+    """crank_per_output (as rv-te analyze --crank-per-output) sets the crank order; the old
+    crank_per_input still works, converted with the ratio, and warns (issue #15)."""
+    ctx, _, add = graph
+    te = add(TeNode(context=ctx, parameter_overrides=[
+        Parameter('gear_ratio', value=79.0), Parameter('crank_per_output', value=25.0)]))
+    assert te.analyzer is not None
+    assert te.analyzer.config.orders.crank_per_output == 25.0
+    old = TeNode(context=ctx, parameter_overrides=[
+        Parameter('gear_ratio', value=79.0), Parameter('crank_per_input', value=-25.0 / 79.0)])
+    try:
+        assert old.analyzer is not None
+        assert old.analyzer.config.orders.crank_per_output == pytest.approx(25.0, rel=1e-12)
+    finally:
+        old.destroy_node()
+    assert "parameter 'crank_per_input' is deprecated: use crank_per_output" in \
+        capfd.readouterr().err
+
+
 def test_te_node_survives_malformed_blocks(graph) -> None:  # noqa: ANN001
     ctx, ex, add = graph
     te = add(TeNode(context=ctx, parameter_overrides=[
-        Parameter('gear_ratio', value=79.0), Parameter('crank_per_input', value=-25.0 / 79.0)]))
+        Parameter('gear_ratio', value=79.0), Parameter('crank_per_output', value=25.0)]))
     pub_node = add(rclpy.create_node('bad_publisher', context=ctx))
     pub = pub_node.create_publisher(EncoderBlock, 'bench/encoders', qos.ENCODER_QOS)
     windows: list[TransmissionError] = []
