@@ -146,7 +146,7 @@ def run(args: argparse.Namespace) -> int:  # noqa: C901, PLR0915
     t_live = time.monotonic() - t_start
     print(f'[demo] live session done in {t_live:.1f} s; analysing {bag_dir}', file=sys.stderr)
     try:
-        summary = _report(bag_dir, report_dir)
+        summary = _report(bag_dir, report_dir, dict(mon.advice))
     except RvTeError as exc:
         print(f'ERROR: report failed: {exc}', file=sys.stderr)
         return 1
@@ -155,20 +155,23 @@ def run(args: argparse.Namespace) -> int:  # noqa: C901, PLR0915
     return code
 
 
-def _report(bag_dir: Path, report_dir: Path) -> str:
+def _report(bag_dir: Path, report_dir: Path, live_advice: dict[str, Any]) -> str:
     """Offline analysis of the recorded bag -> report files; returns the summary text."""
     from rv_te_bench.report.analysis import analyze_bag  # noqa: PLC0415
     from rv_te_bench.report.html import write_report  # noqa: PLC0415
 
     result = analyze_bag(bag_dir)
     write_report([result], report_dir)
-    return summary_text(result)
+    return summary_text(result, live_advice)
 
 
-def summary_text(result: Any) -> str:  # noqa: ANN401 - report.analysis.AnalysisResult
-    """The short summary people read at the end of the demo."""
-    from sim.units import rad_to_deg  # noqa: PLC0415
+def summary_text(result: Any, live_advice: dict[str, Any] | None = None) -> str:  # noqa: ANN401
+    """The short summary people read at the end of the demo.
 
+    Args:
+        result: The offline ``AnalysisResult`` of the recorded bag.
+        live_advice: The advice the compensation node published, by method.
+    """
     am = _fmt_arcmin
     c = result.cumulative
     lines = ['', '=== rv-te demo summary ===',
@@ -186,19 +189,90 @@ def summary_text(result: Any) -> str:  # noqa: ANN401 - report.analysis.Analysis
         d = result.dominant
         lines.append(f'dominant harmonic: {d.line.label} at {d.line.frequency_hz:.3f} Hz, '
                      f'{am(d.line.amplitude_rad)}; likely source: {d.likely_source}')
-    rec = result.recommendation
-    if rec.available and rec.advice is not None:
-        a = rec.advice
-        lines.append(f'recommendation ({a.method}): {a.summary}')
-        for m in a.modifications:
-            if m.unit == 'rad':
-                lines.append(f'  {m.factor} ({m.symbol}): {float(rad_to_deg(m.current_value)):.1f}'
-                             f' deg -> {float(rad_to_deg(m.recommended_value)):.1f} deg')
-            else:
-                lines.append(f'  {m.factor} ({m.symbol}): {m.current_value:.6g} -> '
-                             f'{m.recommended_value:.6g} {m.unit}')
-        lines.append(f'predicted max |TE| ({a.te_metric}): {am(a.te_before_rad)} -> '
-                     f'{am(a.te_after_rad)}')
-    else:
-        lines.append(f'recommendation: none ({rec.reason})')
+    lines += recommendation_lines(result.recommendation, live_advice or {})
     return '\n'.join(lines)
+
+
+def _phases_deg(advice: Any) -> list[float]:  # noqa: ANN401 - Advice or CompensationAdvice
+    from sim.units import rad_to_deg  # noqa: PLC0415
+
+    return [float(rad_to_deg(m.recommended_value)) for m in advice.modifications]
+
+
+def _current_deg(advice: Any) -> list[float]:  # noqa: ANN401
+    from sim.units import rad_to_deg  # noqa: PLC0415
+
+    return [float(rad_to_deg(m.current_value)) for m in advice.modifications]
+
+
+def _max_diff_deg(a: list[float], b: list[float]) -> float:
+    return max(abs((x - y + 180.0) % 360.0 - 180.0) for x, y in zip(a, b, strict=True))
+
+
+def _fmt_phases(advice: Any) -> str:  # noqa: ANN401
+    return '[' + ', '.join(f'{p:.1f}' for p in _phases_deg(advice)) + '] deg'
+
+
+def _modification_lines(advice: Any) -> list[str]:  # noqa: ANN401
+    from sim.units import rad_to_deg  # noqa: PLC0415
+
+    out = []
+    for m in advice.modifications:
+        if m.unit == 'rad':
+            out.append(f'  {m.factor} ({m.symbol}): {float(rad_to_deg(m.current_value)):.1f}'
+                       f' deg -> {float(rad_to_deg(m.recommended_value)):.1f} deg')
+        else:
+            out.append(f'  {m.factor} ({m.symbol}): {m.current_value:.6g} -> '
+                       f'{m.recommended_value:.6g} {m.unit}')
+    return out
+
+
+def recommendation_lines(rec: Any, live_advice: dict[str, Any]) -> list[str]:  # noqa: ANN401
+    """The recommendation for this unit, and the preset's nominal optimum beside it, saying
+    which is which and why the first is the one to apply (issue #15: the live log shows both).
+
+    Args:
+        rec: The offline analysis' ``Recommendation`` (from the whole recorded TE).
+        live_advice: Live advice by method (``CompensationAdvice`` messages or ``Advice``);
+            ``'assembly-phases'`` is the preset's nominal optimum.
+    """
+    am = _fmt_arcmin
+    nominal = live_advice.get('assembly-phases')
+    a = rec.advice if rec.available else None
+    out: list[str] = []
+    if a is None:
+        out.append(f'recommendation for this unit: none ({rec.reason})')
+    elif a.method != 'identified-assembly-phases':
+        out.append(f'recommendation ({a.method}): {a.summary} [{rec.reason}]')
+        out += _modification_lines(a)
+        out.append(f'predicted TE ({a.te_metric}): {am(a.te_before_rad)} -> {am(a.te_after_rad)}')
+        return out
+    else:
+        out.append('recommendation for this unit (identified-assembly-phases, from the '
+                   'recorded TE):')
+        out.append(f'  {a.summary}')
+        out += _modification_lines(a)
+        out.append(f'  predicted max |NLTE|: {am(a.te_before_rad)} -> {am(a.te_after_rad)}')
+    if nominal is None:
+        return out
+    out.append(f"the preset's nominal optimum (assembly-phases, also in the live log): "
+               f'{_fmt_phases(nominal)}, max |NLTE| {am(nominal.te_before_rad)} -> '
+               f'{am(nominal.te_after_rad)}')
+    if a is None:
+        out.append('  it is not a recommendation for this unit: it assumes the unit was '
+                   "assembled at the preset's nominal eccentricity phases")
+        return out
+    target = _max_diff_deg(_phases_deg(a), _phases_deg(nominal))
+    current = _max_diff_deg(_current_deg(a), _current_deg(nominal))
+    agree = (f'agree (within {target:.1f} deg)' if target <= 1.0 else
+             f'differ by up to {target:.1f} deg (the identified output-wheel eccentricity '
+             "differs from the preset's)")
+    where = (f'here within {current:.1f} deg of the nominal ones' if current <= 1.0 else
+             f'here up to {current:.1f} deg from the nominal ones')
+    out.append('why the first: both search the same phase grid with the same part magnitudes '
+               "(the preset's unless measured ones are given), so their target phases "
+               f'{agree}; but the nominal optimum assumes the unit is assembled at the '
+               "preset's phases, while the first starts from this unit's own phases, "
+               f'identified in its TE ({where}): only it says how far to turn each part of '
+               'this unit and what TE to expect.')
+    return out

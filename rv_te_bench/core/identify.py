@@ -538,8 +538,9 @@ def check_fit(identification: Identification) -> None:
         raise PoorFitError(msg, identification)
 
 
-def identified_advice(phase_out_rad: npt.ArrayLike | FoldedTe, te_rad: npt.ArrayLike | None,
+def identified_advice(phase_out_rad: npt.ArrayLike | FoldedTe, te_rad: npt.ArrayLike | None,  # noqa: PLR0913
                       params: Any, *, preset_name: str, step_deg: float = 10.0,  # noqa: ANN401
+                      refine: bool = False,
                       progress: ProgressCallback | None = None) -> Advice:
     """Identify this unit from its TE record and recommend re-assembly phases, as Advice.
 
@@ -548,7 +549,9 @@ def identified_advice(phase_out_rad: npt.ArrayLike | FoldedTe, te_rad: npt.Array
     :class:`FoldedTe` and ``te_rad=None``), the fit-quality check, then
     :func:`recommend_reassembly`, then the advice with method
     ``'identified-assembly-phases'`` (current = identified phases; details hold the
-    identification with its fit quality).
+    identification with its fit quality). ``step_deg`` and ``refine`` as in
+    :func:`recommend_reassembly` (use the same as for the preset's optimum, so that the two
+    recommendations differ only in the unit they are for).
 
     Raises:
         PoorFitError: The model explains less than :data:`MIN_EXPLAINED_FRACTION` of the TE.
@@ -559,7 +562,8 @@ def identified_advice(phase_out_rad: npt.ArrayLike | FoldedTe, te_rad: npt.Array
     else:
         ident = identify_eccentricities(phase_out_rad, np.asarray(te_rad), params)
     check_fit(ident)
-    result = recommend_reassembly(ident, params, step_deg=step_deg, progress=progress)
+    result = recommend_reassembly(ident, params, step_deg=step_deg, refine=refine,
+                                  progress=progress)
     advice = result.to_advice(preset_name, method='identified-assembly-phases')
     assert ident.fit is not None  # noqa: S101 - identify_folded always sets it
     details = dict(advice.details)

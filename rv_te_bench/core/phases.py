@@ -513,6 +513,9 @@ class PhaseOptimisation:
         summary = (f'Re-assemble at phases [{deg}] deg (theta_p1, theta_p2, theta_g, '
                    f'theta_ot): max|NLTE| {float(rad_to_arcmin(self.objective_before_rad)):.3f}'
                    f"' -> {float(rad_to_arcmin(self.objective_after_rad)):.3f}'")
+        if method == 'assembly-phases':
+            summary += (f' (a unit built to the nominal eccentricities and phases of preset '
+                        f'{preset_name})')
         return Advice(method=method, preset=preset_name, summary=summary,
                       te_metric='amplitude', te_before_rad=self.objective_before_rad,
                       te_after_rad=self.objective_after_rad, modifications=mods,

@@ -180,7 +180,9 @@ class CompensationNode(Node):
         from sim.wang2020 import Wang2kvParams  # noqa: PLC0415
 
         params = Wang2kvParams.from_preset(self.preset)
+        # the same search as the preset's optimum: the two then differ only in the unit
         return identified_advice(phase_out_rad, te_rad, params, preset_name=self.preset.name,
+                                 step_deg=self.p['step_deg'], refine=self.p['refine'],
                                  progress=self._progress('identified-assembly-phases'))
 
     def _job_tooth(self, measured_rad: float) -> Any:  # noqa: ANN401

@@ -82,10 +82,19 @@ def test_demo_session_bag_statistics_and_advice_are_consistent(  # noqa: PLR0915
     np.testing.assert_allclose(live_phases, ref.phases_after_rad, atol=1e-9)
     assert advice['assembly-phases'].te_after_rad == pytest.approx(ref.objective_after_rad,
                                                                   rel=1e-9)
-    # identified from the measured TE: the Table 2 phases, and the paper's grid optimum
+    # identified from the measured TE: the Table 2 phases; the same refined search as the
+    # preset's optimum, for the identified unit (e_ot identified ~1 % off the preset's 10 um):
+    # its optimum lies within a few degrees (the Eq. 21 landscape is flat there) and predicts
+    # the same max |NLTE| within 2 %
     ident = advice.get('identified-assembly-phases')
     assert ident is not None
     cur = np.rad2deg([m.current_value for m in ident.modifications])
     np.testing.assert_allclose(np.mod(cur - [90, 180, -135, 90] + 180, 360) - 180, 0, atol=2.0)
     rec = np.rad2deg([m.recommended_value for m in ident.modifications])
-    np.testing.assert_allclose(np.mod(rec - [-70, 120, 110, 40] + 180, 360) - 180, 0, atol=1e-6)
+    np.testing.assert_allclose(
+        np.mod(rec - np.rad2deg(ref.phases_after_rad) + 180, 360) - 180, 0, atol=5.0)
+    assert ident.te_after_rad == pytest.approx(ref.objective_after_rad, rel=0.02)
+    # the demo summary names both and says which one is for this unit (issue #15)
+    assert 'recommendation for this unit (identified-assembly-phases' in out
+    assert "the preset's nominal optimum (assembly-phases" in out
+    assert 'why the first' in out
