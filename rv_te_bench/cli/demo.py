@@ -265,8 +265,9 @@ def recommendation_lines(rec: Any, live_advice: dict[str, Any]) -> list[str]:  #
     target = _max_diff_deg(_phases_deg(a), _phases_deg(nominal))
     current = _max_diff_deg(_current_deg(a), _current_deg(nominal))
     agree = (f'agree (within {target:.1f} deg)' if target <= 1.0 else
-             f'differ by up to {target:.1f} deg (the identified output-wheel eccentricity '
-             "differs from the preset's)")
+             f'differ by up to {target:.1f} deg only because the identified output-wheel '
+             "eccentricity is not exactly the preset's and the optimum is flat there "
+             f'(predicted max |NLTE| {am(a.te_after_rad)} vs {am(nominal.te_after_rad)})')
     where = (f'here within {current:.1f} deg of the nominal ones' if current <= 1.0 else
              f'here up to {current:.1f} deg from the nominal ones')
     out.append('why the first: both search the same phase grid with the same part magnitudes '
