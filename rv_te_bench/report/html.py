@@ -218,13 +218,16 @@ def _bag_section(res: AnalysisResult) -> str:  # noqa: C901 - one report section
                    f'{_am(a.te_before_rad)} &rarr; {_am(a.te_after_rad)} arcmin '
                    f'<span class="muted">({_e(rec.reason)})</span></p>')
         if a.modifications:
+            # the error sensitivity S_j (Hu 2020) exists for tooth-profile factors only: no
+            # column of NaN for assembly phases
+            sens = any(math.isfinite(m.sensitivity_index) for m in a.modifications)
             out.append('<table><tr><th class="l">factor</th><th class="l">symbol</th>'
                        '<th class="l">unit</th><th>current</th><th>recommended</th>'
-                       '<th>sensitivity</th></tr>')
+                       + ('<th>sensitivity S<sub>j</sub></th>' if sens else '') + '</tr>')
             out += [f'<tr><td class="l">{_e(m.factor)}</td><td class="l">{_e(m.symbol)}</td>'
                     f'<td class="l">{_e(m.unit)}</td><td>{_value(m.current_value, m.unit)}</td>'
                     f'<td>{_value(m.recommended_value, m.unit)}</td>'
-                    f'<td>{m.sensitivity_index:.4g}</td></tr>'
+                    + (f'<td>{_sens(m.sensitivity_index)}</td>' if sens else '') + '</tr>'
                     for m in a.modifications]
             out.append('</table>')
     return '\n'.join(out)
@@ -290,3 +293,7 @@ def _value(x: float, unit: str) -> str:
 
 def _fmt(x: float | None, digits: int = 4) -> str:
     return '-' if x is None else f'{x:.{digits}f}'
+
+
+def _sens(x: float) -> str:
+    return f'{x:.4g}' if math.isfinite(x) else '-'
