@@ -25,6 +25,7 @@ from typing import Any
 
 import yaml
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
+from rclpy.clock import Clock, ClockType
 from rclpy.node import Node
 from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
 
@@ -152,9 +153,14 @@ class RecorderNode(Node):
         self._start = self.get_clock().now()
         self._pub_diag = self.create_publisher(DiagnosticArray, '/diagnostics',
                                                qos.DIAGNOSTICS_QOS)
-        self.create_timer(min(0.25, p['flush_interval_s'] / 2), self._on_flush_timer)
-        self.create_timer(1.0, self._publish_diagnostics)
-        self.create_timer(p['discovery_period_s'], self._discover)
+        # flushing and discovery pace on the steady clock: with use_sim_time the node clock
+        # stands still until the first /clock, and a bench that waits for the recorder to
+        # subscribe publishes no /clock before that (a deadlock until its wait times out)
+        steady = Clock(clock_type=ClockType.STEADY_TIME)
+        self.create_timer(min(0.25, p['flush_interval_s'] / 2), self._on_flush_timer,
+                          clock=steady)
+        self.create_timer(1.0, self._publish_diagnostics, clock=steady)
+        self.create_timer(p['discovery_period_s'], self._discover, clock=steady)
         self._discover()
         self.get_logger().info(f'recording {self._wanted} to {self.bag_path}')
 

@@ -415,3 +415,27 @@ def test_sim_time_messages_before_the_first_clock_get_its_time(ros_context: Any,
     assert logged[0] == (info_topic, first_clock_ns)
     assert [t for _, t in logged] == [first_clock_ns] * 6
     assert [topic for topic, _ in logged[1:]] == [enc_topic] * 5
+
+
+def test_sim_time_recorder_discovers_publishers_before_any_clock(ros_context: Any,
+                                                                 tmp_path: Path) -> None:
+    """use_sim_time with no /clock yet (a bench waits for its subscribers before it starts the
+    clock): discovery runs on the steady clock, so a publisher that appears after the
+    recorder is subscribed to within a few discovery periods, not never."""
+    ns = f'/simdisc_{os.getpid()}'
+    recorder = RecorderNode(context=ros_context, namespace=ns, parameter_overrides=[
+        Parameter('output_dir', value=str(tmp_path)), Parameter('bag_name', value='bag'),
+        Parameter('topics', value=['bench/encoders']),
+        Parameter('discovery_period_s', value=0.1), Parameter('use_sim_time', value=True)])
+    pub_node = rclpy.create_node('late_pub', namespace=ns, context=ros_context)
+    executor = EventsExecutor(context=ros_context)
+    executor.add_node(recorder)
+    executor.add_node(pub_node)
+    try:
+        enc_pub = pub_node.create_publisher(EncoderBlock, 'bench/encoders', qos.ENCODER_QOS)
+        assert spin_until(executor, lambda: enc_pub.get_subscription_count() >= 1, 10.0)
+        assert recorder.get_clock().now().nanoseconds == 0   # still no clock
+    finally:
+        recorder.destroy_node()
+        pub_node.destroy_node()
+        executor.shutdown()

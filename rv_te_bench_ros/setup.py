@@ -1,0 +1,52 @@
+"""The ament_python side of rv_te_bench: the same sources as the pip distribution.
+
+colcon builds this folder (package.xml here); ``rv_te_bench`` and ``sim`` are links to the
+repository's packages, so there is one copy of the code. The pip install
+(``pip install -e .`` at the repository root, pyproject.toml) stays as it is.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+from setuptools import find_packages, setup
+
+PACKAGE = 'rv_te_bench'
+HERE = Path(__file__).resolve().parent
+VERSION = '0.1.0'   # = package.xml = pyproject.toml (checked by tests/test_ros2_package.py)
+
+# executable in lib/rv_te_bench/ -> entry point
+EXECUTABLES = {
+    'bench_node': 'rv_te_bench.nodes.bench_node:main',
+    'te_node': 'rv_te_bench.nodes.te_node:main',
+    'compensation_node': 'rv_te_bench.nodes.compensation_node:main',
+    'recorder': 'rv_te_bench.nodes.recorder:main',
+    'replay': 'rv_te_bench.nodes.replay:main',
+    'rv-te': 'rv_te_bench.cli.main:main',
+}
+
+
+def _files(pattern: str) -> list[str]:
+    return sorted(str(p.relative_to(HERE)) for p in HERE.glob(pattern))
+
+
+setup(
+    name=PACKAGE,
+    version=VERSION,
+    packages=find_packages(include=['rv_te_bench', 'rv_te_bench.*', 'sim', 'sim.*']),
+    package_data={'rv_te_bench': ['launch/*.yaml', 'py.typed'],
+                  'sim': ['preset_data/*.toml']},
+    data_files=[
+        ('share/ament_index/resource_index/packages', [f'resource/{PACKAGE}']),
+        (f'share/{PACKAGE}', ['package.xml']),
+        # launch and parameter files: the ones rv-te launch uses (rv_te_bench/launch/)
+        (f'share/{PACKAGE}/launch', _files('rv_te_bench/launch/*.yaml')),
+    ],
+    install_requires=['setuptools'],
+    zip_safe=False,
+    maintainer='rv-te-bench developers',
+    maintainer_email='dev@rv-te-bench.invalid',
+    description='Transmission-error testing of precision robot reducers with ROS 2 Jazzy',
+    license='Apache-2.0',
+    entry_points={'console_scripts': [f'{k} = {v}' for k, v in EXECUTABLES.items()]},
+)
