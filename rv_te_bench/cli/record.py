@@ -4,6 +4,7 @@ Usage examples:
   rv-te record --out out/bags --duration 60
   rv-te record --namespace /bench1 --compression lz4 --name run7
   rv-te record --topics bench/encoders bench/info --metadata 'operator: kim'
+  rv-te record --use-sim-time                  log time = a fast bench's /clock
 """
 
 from __future__ import annotations
@@ -37,6 +38,9 @@ def register(subparsers: Any) -> None:  # noqa: ANN401 - argparse's private acti
                         help='start a new .mcap file past this size; 0: never')
     parser.add_argument('--split-duration', type=float, default=0.0, metavar='S',
                         help='start a new .mcap file after S seconds; 0: never')
+    parser.add_argument('--use-sim-time', action='store_true',
+                        help='log time = /clock (a fast bench\'s simulated time), as '
+                             'ros2 bag record --use-sim-time')
     parser.add_argument('--metadata', default='', metavar='YAML',
                         help='YAML mapping stored in the bag (preset, operator, ...)')
     parser.set_defaults(func=run)
@@ -64,6 +68,7 @@ def run(args: argparse.Namespace) -> int:
         Parameter('split_size_bytes', value=int(args.split_size)),
         Parameter('split_duration_s', value=float(args.split_duration)),
         Parameter('session_metadata_yaml', value=args.metadata),
+        Parameter('use_sim_time', value=bool(args.use_sim_time)),
     ]
     if args.topics:
         overrides.append(Parameter('topics', value=list(args.topics)))

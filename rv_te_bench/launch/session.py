@@ -199,7 +199,17 @@ def node_parameters(spec: SessionSpec, node: str) -> dict[str, Any]:
         values.setdefault('session_metadata_yaml', session_metadata_yaml(spec))
     if spec.use_sim_time and node != 'bench':   # the bench is the /clock source
         values['use_sim_time'] = True
+    if node == 'recorder' and recorder_uses_sim_time(spec):
+        # log time = the session's clock (ros2 bag record --use-sim-time): a viewer's
+        # timeline then shows a fast session at its simulated duration
+        values.setdefault('use_sim_time', True)
     return values
+
+
+def recorder_uses_sim_time(spec: SessionSpec) -> bool:
+    """True when the session's bench runs in fast (sim-time) mode and publishes /clock."""
+    bench = spec.parameters.get('bench', {})
+    return 'bench' in spec.nodes and bench.get('time_mode', 'realtime') == 'fast'
 
 
 def typed_parameter(name: str, value: Any, specs: tuple[ParamSpec, ...]) -> Any:  # noqa: ANN401

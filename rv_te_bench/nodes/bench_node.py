@@ -222,6 +222,8 @@ class BenchNode(Node):
         have = {i.node_name for i in self.get_subscriptions_info_by_topic(topic)
                 if i.node_namespace == ns}
         missing = sorted(set(self.p['wait_for_nodes']) - have)
+        if not missing and self.pub_clock is not None:
+            missing = self._clock_not_matched(ns)
         waited = time.monotonic() - self.mono_start
         if missing and waited < self.p['wait_timeout_s']:
             return False
@@ -232,6 +234,21 @@ class BenchNode(Node):
         self.wall_start = time.time()
         self.mono_start = time.monotonic()
         return True
+
+    def _clock_not_matched(self, ns: str) -> list[str]:
+        """Waited-for nodes on sim time whose /clock subscription has not matched ours yet.
+
+        A recorder with use_sim_time logs each message at the last /clock it received; /clock
+        messages sent before its subscription matched are lost, and the first blocks would
+        all be logged at one time.
+        """
+        if self.pub_clock is None:
+            return []
+        on_clock = sorted({i.node_name for i in self.get_subscriptions_info_by_topic('/clock')
+                           if i.node_namespace == ns} & set(self.p['wait_for_nodes']))
+        if self.pub_clock.get_subscription_count() >= len(on_clock):
+            return []
+        return [f'{n} (/clock)' for n in on_clock]
 
     def _on_tick(self) -> None:
         if self.finished or (not self.started and not self._wait_for_subscribers()):

@@ -193,9 +193,16 @@ class RecorderNode(Node):
                          'rosbags': version('rosbags'), 'mcap': version('mcap'),
                          'python': platform.python_version()},
             'recorder_parameters': {k: v for k, v in p.items() if k != 'session_metadata_yaml'},
+            'log_time': self._log_time_statement(),
         }
         meta.update(given)
         return meta
+
+    def _log_time_statement(self) -> str:
+        if self.get_parameter('use_sim_time').value:
+            return ('sim: the session clock from /clock (use_sim_time), as ros2 bag record '
+                    '--use-sim-time; a fast session spans its simulated duration')
+        return 'system: wall-clock time of receipt'
 
     # ---------------------------------------------------------------- discovery
     def _discover(self) -> None:
