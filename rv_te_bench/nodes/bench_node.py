@@ -185,6 +185,8 @@ class BenchNode(Node):
         self.wall_start = time.time()
         self.mono_start = time.monotonic()
         self.started = not self.p['wait_for_nodes']
+        if self.started and self.pub_clock is not None:   # the session clock starts here
+            self.pub_clock.publish(Clock(clock=convert.s_to_stamp(self.wall_start)))
         self.pub_info.publish(convert.make_bench_info(info, convert.s_to_stamp(self.wall_start)))
         self._diag_last = (time.monotonic(), 0)
         self._lag_s = 0.0
@@ -233,6 +235,8 @@ class BenchNode(Node):
         self.started = True
         self.wall_start = time.time()
         self.mono_start = time.monotonic()
+        if self.pub_clock is not None:   # the session clock starts at the first block's time
+            self.pub_clock.publish(Clock(clock=convert.s_to_stamp(self.wall_start)))
         return True
 
     def _clock_not_matched(self, ns: str) -> list[str]:
@@ -244,10 +248,12 @@ class BenchNode(Node):
         """
         if self.pub_clock is None:
             return []
-        on_clock = sorted({i.node_name for i in self.get_subscriptions_info_by_topic('/clock')
-                           if i.node_namespace == ns} & set(self.p['wait_for_nodes']))
-        if self.pub_clock.get_subscription_count() >= len(on_clock):
+        wanted = set(self.p['wait_for_nodes'])
+        readers = [i.node_name for i in self.get_subscriptions_info_by_topic('/clock')
+                   if i.node_namespace == ns and i.node_name in wanted]
+        if self.pub_clock.get_subscription_count() >= len(readers):
             return []
+        on_clock = sorted(set(readers))
         return [f'{n} (/clock)' for n in on_clock]
 
     def _on_tick(self) -> None:

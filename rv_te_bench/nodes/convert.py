@@ -13,14 +13,17 @@ from rv_te_msgs.msg import (
     EncoderBlock,
     Modification,
     SpectrumLine,
+    TePlot,
     TeSpectrum,
     TeStatistics,
 )
 
+from rv_te_bench.core.units import rad_to_arcmin, rad_to_deg
+
 if TYPE_CHECKING:
     from rv_te_bench.core.advice import Advice
     from rv_te_bench.core.spectrum import OrderSpectrum
-    from rv_te_bench.core.stream import EncoderBlockData
+    from rv_te_bench.core.stream import EncoderBlockData, WindowResult
     from rv_te_bench.core.te import TeStats
 
 
@@ -114,6 +117,39 @@ def make_te_statistics(stats: TeStats) -> TeStatistics:
     rev = float(stats.revolutions)
     msg.revolutions_covered = rev if math.isfinite(rev) else 0.0
     msg.n_samples = int(stats.n_samples)
+    return msg
+
+
+#: te/plot spectrum fields -> the line label they show (core.orders.OrderSet.lines)
+PLOT_LINES = {'f_out_amplitude_arcmin': 'f_out', 'f_w_amplitude_arcmin': '1 f_w',
+              'f_w2_amplitude_arcmin': '2 f_w'}
+
+
+def make_te_plot(*, te_rad: float, theta_out_rad: float, stamp_s: float, frame_id: str,
+                 window: WindowResult | None, cumulative: TeStats, gaps: int) -> TePlot:
+    """The flat te/plot message (display units) from one TE sample and the last complete
+    window (None before the first: its fields are NaN)."""
+    nan = math.nan
+    msg = TePlot()
+    msg.header.stamp = s_to_stamp(stamp_s)
+    msg.header.frame_id = frame_id
+    msg.te_arcmin = float(rad_to_arcmin(te_rad))
+    msg.theta_out_deg = float(rad_to_deg(theta_out_rad)) % 360.0
+    msg.cumulative_pp_arcmin = float(rad_to_arcmin(cumulative.pp_rad))
+    msg.gaps = int(gaps)
+    stats = window.stats if window is not None else None
+    msg.window_index = int(window.index) if window is not None else 0
+    msg.window_revolutions = float(stats.revolutions) if stats is not None else nan
+    msg.window_pp_arcmin = float(rad_to_arcmin(stats.pp_rad)) if stats else nan
+    msg.window_amplitude_arcmin = float(rad_to_arcmin(stats.amplitude_rad)) if stats else nan
+    msg.window_mean_arcmin = float(rad_to_arcmin(stats.mean_rad)) if stats else nan
+    msg.window_std_arcmin = float(rad_to_arcmin(stats.std_rad)) if stats else nan
+    spectrum = window.spectrum if window is not None else None
+    amplitudes = ({ln.label: ln.amplitude_rad for ln in spectrum.lines}
+                  if spectrum is not None else {})
+    for field, label in PLOT_LINES.items():
+        setattr(msg, field, float(rad_to_arcmin(amplitudes.get(label, nan))))
+    msg.crank_hz = float(spectrum.crank_hz) if spectrum is not None else nan
     return msg
 
 

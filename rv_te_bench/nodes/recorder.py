@@ -27,7 +27,8 @@ import yaml
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
 from rclpy.clock import Clock, ClockType
 from rclpy.node import Node
-from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
+from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
+from rosgraph_msgs.msg import Clock as ClockMsg
 
 from rv_te_bench.errors import BagError
 from rv_te_bench.io.bag_reader import encoder_block_seq
@@ -40,7 +41,7 @@ from rv_te_bench.params import ParamSpec
 __all__ = ['DEFAULT_TOPICS', 'PARAMS', 'RecorderNode', 'main']
 
 DEFAULT_TOPICS = [
-    'bench/encoders', 'bench/info', 'te/samples', 'te/statistics', 'te/spectrum',
+    'bench/encoders', 'bench/info', 'te/samples', 'te/plot', 'te/statistics', 'te/spectrum',
     'compensation/advice', '/diagnostics', '/clock',
 ]
 PARAMS = (
@@ -151,6 +152,17 @@ class RecorderNode(Node):
         self.write_errors = 0
         self._duration_s = p['duration_s']
         self._start = self.get_clock().now()
+        self._sim_clock_ns = 0
+        self._use_sim_time = bool(self.get_parameter('use_sim_time').value)
+        if self._use_sim_time:
+            # The log clock: every /clock in arrival order. The node clock's own /clock
+            # subscription keeps only the last message, so blocks that arrive while the
+            # executor is busy (subscribing to newly found topics) would all be logged at
+            # the clock of the last of them.
+            self.create_subscription(ClockMsg, '/clock', self._on_clock, QoSProfile(
+                history=HistoryPolicy.KEEP_LAST, depth=qos.ENCODER_QUEUE_DEPTH,
+                reliability=ReliabilityPolicy.BEST_EFFORT,
+                durability=DurabilityPolicy.VOLATILE))
         self._pub_diag = self.create_publisher(DiagnosticArray, '/diagnostics',
                                                qos.DIAGNOSTICS_QOS)
         # flushing and discovery pace on the steady clock: with use_sim_time the node clock
@@ -212,6 +224,10 @@ class RecorderNode(Node):
         if not missing:
             return
         graph = dict(self.get_topic_names_and_types())
+        # encoder blocks last: a bench that waits for the recorder starts once that
+        # subscription is there, and the recorder is then done creating the others (~5 ms
+        # each) instead of falling behind the first blocks (and their /clock) while it works
+        missing.sort(key=lambda t: ENCODER_BLOCK in (self._explicit.get(t), *graph.get(t, ())))
         for topic in missing:
             msgtype = self._explicit.get(topic)
             if msgtype is None and not self.get_publishers_info_by_topic(topic):
@@ -276,12 +292,23 @@ class RecorderNode(Node):
             f'{profile.durability.name.lower()})')
 
     # ---------------------------------------------------------------- hot path
+    def _on_clock(self, msg: ClockMsg) -> None:
+        self._sim_clock_ns = max(self._sim_clock_ns,
+                                 msg.clock.sec * 1_000_000_000 + msg.clock.nanosec)
+
+    def _log_time_ns(self) -> int:
+        """The log time of a message received now: the session's /clock with use_sim_time
+        (0 before the first), else the node's (system) clock."""
+        if self._use_sim_time:
+            return self._sim_clock_ns
+        return self.get_clock().now().nanoseconds
+
     def _make_callback(self, state: _TopicState) -> Any:  # noqa: ANN401
-        now = self.get_clock().now
+        now = self._log_time_ns
         record = self._record
 
         def on_message(data: bytes) -> None:
-            t_ns = now().nanoseconds
+            t_ns = now()
             if t_ns == 0:   # sim time before the first /clock: no time to log it at yet
                 self._hold(state, data)
                 return
@@ -350,7 +377,7 @@ class RecorderNode(Node):
         if self.finished:
             return
         if self._held:
-            t_ns = self.get_clock().now().nanoseconds
+            t_ns = self._log_time_ns()
             if t_ns:   # the clock has started
                 self._release_held(t_ns)
         try:
@@ -405,7 +432,7 @@ class RecorderNode(Node):
                 self.destroy_subscription(sub)
         self._subscriptions_by_topic.clear()
         if self._held:   # (sim time and /clock never came: time 0 is all there is)
-            t_ns = self.get_clock().now().nanoseconds
+            t_ns = self._log_time_ns()
             if not t_ns:
                 self.get_logger().warning(f'no /clock received (use_sim_time): '
                                           f'{len(self._held)} messages recorded at time 0')

@@ -1,7 +1,8 @@
 """TeNode: transmission error online (Eq. 22), window statistics and order spectra.
 
 Subscribes ``bench/encoders`` (EncoderBlock) and ``bench/info`` (BenchInfo, transient-local).
-Publishes ``te/samples`` (TransmissionError, decimated TE for live display), ``te/statistics``
+Publishes ``te/samples`` (TransmissionError, decimated TE for live display), ``te/plot``
+(TePlot, flat scalars in arcmin for plot panels, at ``plot_rate_hz``), ``te/statistics``
 (TransmissionError with ``window_complete`` when a window closes, latched), ``te/spectrum``
 (TeSpectrum, one per complete window) and ``/diagnostics``.
 
@@ -12,6 +13,7 @@ a bad block is counted, logged (throttled) and skipped, never fatal.
 
 from __future__ import annotations
 
+import math
 import sys
 import time
 from collections import deque
@@ -20,7 +22,7 @@ from typing import Any
 import numpy as np
 from diagnostic_msgs.msg import DiagnosticArray
 from rclpy.node import Node
-from rv_te_msgs.msg import BenchInfo, EncoderBlock, TeSpectrum, TransmissionError
+from rv_te_msgs.msg import BenchInfo, EncoderBlock, TePlot, TeSpectrum, TransmissionError
 
 from rv_te_bench.core.orders import OrderSet
 from rv_te_bench.core.stream import StreamingTeAnalyzer, TeAnalysisConfig
@@ -56,6 +58,10 @@ PARAMS = (
               min_value=1, max_value=200),
     ParamSpec('window_revolutions', 'int', 1,
               'Analysis window length [whole output revolutions]', min_value=1, max_value=1000),
+    ParamSpec('plot_rate_hz', 'double', 20.0,
+              'Rate of te/plot (flat scalars for plot panels) in session time, at most one '
+              'per encoder block; 0 = off [Hz]', min_value=0.0, max_value=100000.0,
+              read_only=False),
     ParamSpec('decimated_rate_hz', 'double', 50.0,
               'Rate of TE samples published on te/samples [Hz]', min_value=0.1,
               max_value=100000.0, read_only=False),
@@ -91,6 +97,10 @@ class TeNode(Node):
         # recorder keeps them; best-effort viewers are still compatible
         self.pub_samples = self.create_publisher(TransmissionError, 'te/samples',
                                                  qos.TE_SAMPLES_QOS)
+        # flat scalars for plot panels; kept for late joiners like te/samples (the recorder)
+        self.pub_plot = self.create_publisher(TePlot, 'te/plot', qos.TE_SAMPLES_QOS)
+        self._last_plot_s = -math.inf
+        self._last_complete: Any = None
         self.pub_stats = self.create_publisher(TransmissionError, 'te/statistics',
                                                qos.LATCHED_QOS)
         self.pub_spectrum = self.create_publisher(TeSpectrum, 'te/spectrum', qos.LATCHED_QOS)
@@ -194,6 +204,10 @@ class TeNode(Node):
         if len(update.te_rad):
             self._publish_samples(update, msg.header.frame_id)
         self._publish_windows(update.windows)
+        if len(update.te_rad):
+            # a window that closed here shows in te/plot at once (not rate-limited)
+            self._publish_plot(update, msg.header.frame_id,
+                               force=any(w.complete for w in update.windows))
         self._latency_ms.append((time.perf_counter() - t_arrival) * 1e3)
         if len(self._latency_ms) > 1000:
             del self._latency_ms[:500]
@@ -216,9 +230,23 @@ class TeNode(Node):
         msg.gaps = self._gaps_total
         self.pub_samples.publish(msg)
 
+    def _publish_plot(self, update: Any, frame_id: str, *, force: bool) -> None:  # noqa: ANN401
+        rate = self.p['plot_rate_hz']
+        t_s = float(update.time_s[-1]) if len(update.time_s) else float(update.stamp_s)
+        if rate <= 0 or self.analyzer is None or (
+                not force and t_s - self._last_plot_s < 1.0 / rate - 1e-9):
+            return
+        self._last_plot_s = t_s
+        self.pub_plot.publish(convert.make_te_plot(
+            te_rad=float(update.te_rad[-1]), theta_out_rad=float(update.phase_out_rad[-1]),
+            stamp_s=t_s, frame_id=frame_id, window=self._last_complete,
+            cumulative=self.analyzer.cumulative, gaps=self._gaps_total))
+
     def _publish_windows(self, windows: tuple[Any, ...]) -> None:
         for w in windows:
             self._last_window = w
+            if w.complete:
+                self._last_complete = w
             self.recent_windows.append(w)
             msg = TransmissionError()
             msg.header.stamp = convert.s_to_stamp(w.start_stamp_s)
