@@ -135,3 +135,33 @@ def test_te_plot_scalars_match_the_statistics_and_spectrum(
     assert max(te) - min(te) <= last.cumulative_pp_arcmin + 1e-9
     assert all(0.0 <= m.theta_out_deg < 360.0 for m in plot)
     assert last.gaps == 0
+
+
+def test_foxglove_layout_paths_have_data_in_the_recording(
+        fast_session: tuple[Path, float]) -> None:
+    """Every te/* path of docs/foxglove_te_session.json yields finite numbers from the
+    recorded session (compensation/advice and /diagnostics are checked by definition only,
+    tests/package/test_foxglove_layout.py; this session has no compensation node)."""
+    from tests.package.test_foxglove_layout import layout_paths  # noqa: PLC0415
+
+    bag, _ = fast_session
+    paths = sorted({p for _, p in layout_paths() if p.startswith('/te/')})
+    assert paths
+    msgs: dict[str, list[object]] = {}
+    for topic, _, msg in read_decoded(bag, sorted({p.split('.')[0] for p in paths})):
+        msgs.setdefault(topic, []).append(msg)
+
+    def values(obj: object, parts: list[str]) -> list[object]:
+        if not parts:
+            return [obj]
+        name = parts[0].removesuffix('[:]')
+        child = getattr(obj, name)
+        items = list(child) if parts[0].endswith('[:]') else [child]
+        return [v for item in items for v in values(item, parts[1:])]
+
+    for path in paths:
+        topic, *parts = path.split('.')
+        got = [v for m in msgs.get(topic, []) for v in values(m, parts)]
+        assert got, path
+        if all(isinstance(v, (int, float)) for v in got):   # a plotted series
+            assert any(math.isfinite(float(v)) for v in got), path
