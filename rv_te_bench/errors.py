@@ -25,3 +25,11 @@ class BagError(RvTeError):
 
 class ParameterFileError(RvTeError, ValueError):
     """A ROS-style parameter file is invalid (names file, key and rule)."""
+
+
+class SpcError(RvTeError, ValueError):
+    """A control chart or capability cannot be computed from the values given."""
+
+
+class StoreError(RvTeError):
+    """The results store cannot be opened, written or queried."""
