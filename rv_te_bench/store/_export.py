@@ -1,0 +1,90 @@
+"""Export records as a table: one row per record, one column per metric (CSV, Parquet).
+
+Columns: the record's identity and conditions, then ``<metric>`` for the whole record and
+``<metric>_cw`` / ``<metric>_ccw`` per direction (SI, the name carries the unit), then
+``line_<label>_amplitude_rad`` per spectral line (labels made column-safe). Empty cells
+where a record has no such value.
+"""
+
+from __future__ import annotations
+
+import csv
+import os
+import re
+from typing import TYPE_CHECKING, Any
+
+from rv_te_bench.errors import StoreError
+
+if TYPE_CHECKING:
+    from pathlib import Path
+
+    from rv_te_bench.store._store import StoredResult
+
+__all__ = ['export_records', 'records_table']
+
+_BASE = ('id', 'serial', 'lot', 'operator', 'bench_id', 'preset', 'reducer_type', 'test',
+         'plan', 'tested_at', 'analysed_at', 'status', 'verdict', 'failure', 'command',
+         'software_version', 'bag_path', 'bag_sha256')
+
+
+def _line_column(label: str) -> str:
+    safe = re.sub(r'[^0-9A-Za-z]+', '_', label).strip('_').lower()
+    return f'line_{safe}_amplitude_rad'
+
+
+def _metric_column(name: str, direction: str) -> str:
+    return name if direction == 'all' else f'{name}_{direction}'
+
+
+def records_table(rows: list[StoredResult]) -> tuple[list[str], list[dict[str, Any]]]:
+    """(columns, one dict per record) of the wide table."""
+    metric_cols = sorted({_metric_column(n, d) for r in rows for (n, d) in r.metrics})
+    line_cols = sorted({_line_column(lab) for r in rows for lab in r.lines})
+    cols = list(_BASE) + metric_cols + line_cols
+    table = []
+    for r in rows:
+        d: dict[str, Any] = {c: getattr(r, c) for c in _BASE}
+        d['tested_at'] = r.tested_at.isoformat()
+        d['analysed_at'] = r.analysed_at.isoformat()
+        for (n, dirn), v in r.metrics.items():
+            d[_metric_column(n, dirn)] = v
+        for lab, (amp, _phase) in r.lines.items():
+            d[_line_column(lab)] = amp
+        table.append(d)
+    return cols, table
+
+
+def export_records(rows: list[StoredResult], path: Path) -> int:
+    """Write ``rows`` to ``path`` (.csv or .parquet, atomically). Returns the row count.
+
+    Raises:
+        StoreError: Unknown extension, or pyarrow missing for Parquet.
+    """
+    cols, table = records_table(rows)
+    suffix = path.suffix.lower()
+    tmp = path.with_name(f'.{path.name}.tmp-{os.getpid()}')
+    try:
+        if suffix == '.csv':
+            with tmp.open('w', newline='', encoding='utf-8') as fh:
+                w = csv.DictWriter(fh, fieldnames=cols, extrasaction='raise')
+                w.writeheader()
+                w.writerows(table)
+        elif suffix == '.parquet':
+            try:
+                import pyarrow as pa  # noqa: PLC0415
+                import pyarrow.parquet as pq  # noqa: PLC0415
+            except ModuleNotFoundError:
+                msg = "Parquet export needs pyarrow: pip install 'rv-te-bench[parquet]'"
+                raise StoreError(msg) from None
+            arrays = {c: [row.get(c) for row in table] for c in cols}
+            pq.write_table(pa.table(arrays), tmp)
+        else:
+            msg = f'export file {path.name!r}: use a .csv or .parquet name'
+            raise StoreError(msg)
+        os.replace(tmp, path)
+    except OSError as exc:
+        msg = f'cannot write {path}: {exc.strerror or exc}'
+        raise StoreError(msg) from None
+    finally:
+        tmp.unlink(missing_ok=True)
+    return len(table)

@@ -1,0 +1,228 @@
+"""Tests of the results store on a real SQLite file and a real PostgreSQL server."""
+
+from __future__ import annotations
+
+import csv
+import os
+import signal
+import sqlite3
+import subprocess
+import sys
+import textwrap
+import time
+from dataclasses import replace
+from datetime import UTC, datetime, timedelta
+from pathlib import Path
+
+import pytest
+from sqlalchemy import create_engine
+
+from rv_te_bench.errors import StoreError
+from rv_te_bench.store import (
+    MetricValue,
+    ResultFilter,
+    export_records,
+    open_store,
+)
+from tests.store.conftest import make_record
+
+ROOT = Path(__file__).resolve().parents[2]
+
+
+def _comparable(rows: list) -> list[tuple]:  # noqa: ANN001
+    """What a query returns, minus the database-assigned id and write time."""
+    return [(r.serial, r.preset, r.verdict, r.tested_at, r.status, r.bag_sha256,
+             sorted(r.metrics.items()), sorted(r.lines.items()), r.advice) for r in rows]
+
+
+def test_round_trip_sqlite(tmp_path: Path) -> None:
+    rec = make_record(3)
+    with open_store(tmp_path / 'r.sqlite') as st:
+        rid = st.upsert(rec)
+        (row,) = st.query()
+    assert row.id == rid
+    assert row.serial == 'SN00003'
+    assert row.tested_at == rec.tested_at          # timezone-aware UTC back
+    assert row.metrics[('te_pp_rad', 'cw')] == pytest.approx(rec.metrics[2].value)
+    assert row.limits[('te_pp_rad', 'ccw')][1:] == (4.6e-4, 'pass')
+    assert row.lines['1 f_w'] == (rec.lines[0].amplitude_rad, rec.lines[0].phase_rad)
+    assert row.advice == rec.advice
+
+
+def test_same_bag_twice_updates_not_duplicates(tmp_path: Path) -> None:
+    """A bag analysed again (same content hash and test) replaces its record: one row,
+    the new values, the metric that disappeared gone."""
+    db = tmp_path / 'r.sqlite'
+    first = make_record(1)
+    second = replace(first, metrics=(MetricValue('te_pp_rad', 7e-4),), verdict='fail')
+    with open_store(db) as st:
+        a = st.upsert(first)
+        b = st.upsert(second)
+        rows = st.query()
+    assert a == b
+    assert len(rows) == 1
+    assert rows[0].metrics == {('te_pp_rad', 'all'): 7e-4}
+    assert rows[0].verdict == 'fail'
+    con = sqlite3.connect(db)
+    assert con.execute('select count(*) from metrics').fetchone() == (1,)
+    con.close()
+    # another test of the same bag is another record
+    with open_store(db) as st:
+        st.upsert(replace(first, test='test-plan', plan='acceptance'))
+        assert len(st.query()) == 2  # noqa: PLR2004
+
+
+def test_filters(tmp_path: Path) -> None:
+    with open_store(tmp_path / 'r.sqlite') as st:
+        for i in range(10):
+            st.upsert(make_record(i, preset='hu2020-rv' if i % 3 == 0 else 'wang2020-2kv',
+                                  verdict='fail' if i == 4 else 'pass'))
+        t0 = datetime(2026, 11, 1, tzinfo=UTC)
+        assert [r.serial for r in st.query(ResultFilter(serial='SN00007'))] == ['SN00007']
+        assert [r.serial for r in st.query(ResultFilter(verdict='fail'))] == ['SN00004']
+        assert len(st.query(ResultFilter(preset='hu2020-rv'))) == 4  # noqa: PLR2004
+        got = st.query(ResultFilter(since=t0 + timedelta(hours=2),
+                                    until=t0 + timedelta(hours=5)))
+        assert [r.serial for r in got] == ['SN00002', 'SN00003', 'SN00004']
+        s = st.series('te_pp_rad', direction='ccw', flt=ResultFilter(preset='wang2020-2kv'))
+        assert len(s.values) == 6  # noqa: PLR2004
+        assert s.tested_at == sorted(s.tested_at)
+        assert st.series('line:1 f_w').values[0] == pytest.approx(2e-4)
+
+
+def test_naive_filter_dates_rejected() -> None:
+    with pytest.raises(StoreError, match='timezone-aware'):
+        ResultFilter(since=datetime(2026, 1, 1))  # noqa: DTZ001
+
+
+def test_crash_mid_write_leaves_a_consistent_store(tmp_path: Path) -> None:
+    """A writer killed with SIGKILL while it writes records of 300 metrics each: every
+    record in the store afterwards has all its 300 + 4 metrics and 2 lines, and SQLite's
+    integrity check passes (measured: the kill lands mid-transaction in most runs; the
+    test checks consistency whatever the moment)."""
+    db = tmp_path / 'r.sqlite'
+    open_store(db).close()
+    code = textwrap.dedent(f"""
+        import sys
+        sys.path.insert(0, {str(ROOT)!r})
+        from rv_te_bench.store import open_store
+        from tests.store.conftest import make_record
+        st = open_store({str(db)!r})
+        i = 0
+        while True:
+            st.upsert(make_record(i % 50, n_extra_metrics=300))
+            i += 1
+            if i == 3:
+                print('writing', flush=True)
+        """)
+    proc = subprocess.Popen([sys.executable, '-c', code], stdout=subprocess.PIPE, text=True)
+    try:
+        assert proc.stdout is not None
+        assert proc.stdout.readline().strip() == 'writing'
+        time.sleep(1.5)
+        os.kill(proc.pid, signal.SIGKILL)
+        proc.wait(timeout=10)
+    finally:
+        if proc.poll() is None:
+            proc.kill()
+    con = sqlite3.connect(db)
+    try:
+        assert con.execute('pragma integrity_check').fetchone() == ('ok',)
+        counts = con.execute('select r.id, count(m.id) from results r left join metrics m '
+                             'on m.result_id = r.id group by r.id').fetchall()
+        lines = con.execute('select count(*) from lines').fetchone()[0]
+    finally:
+        con.close()
+    assert counts, 'the writer wrote nothing before it was killed'
+    assert {c for _, c in counts} == {304}
+    assert lines == 2 * len(counts)
+    with open_store(db) as st:              # and it still takes writes
+        st.upsert(make_record(99))
+
+
+def test_migrations_match_the_orm(tmp_path: Path) -> None:
+    """The schema the Alembic migrations build is the one the ORM declares."""
+    from alembic.autogenerate import compare_metadata
+    from alembic.runtime.migration import MigrationContext
+
+    from rv_te_bench.store._schema import Base
+    open_store(tmp_path / 'r.sqlite').close()
+    engine = create_engine(f'sqlite:///{tmp_path / "r.sqlite"}')
+    with engine.connect() as conn:
+        diff = compare_metadata(MigrationContext.configure(conn), Base.metadata)
+    engine.dispose()
+    assert diff == []
+
+
+def test_store_newer_than_the_software_is_refused(tmp_path: Path) -> None:
+    db = tmp_path / 'r.sqlite'
+    open_store(db).close()
+    con = sqlite3.connect(db)
+    con.execute("update alembic_version set version_num = '9999'")
+    con.commit()
+    con.close()
+    with pytest.raises(StoreError, match="schema revision '9999', newer than"):
+        open_store(db)
+
+
+@pytest.mark.parametrize(('db', 'match'), [
+    ('/no/such/folder/r.sqlite', 'does not exist'),
+    ('postgresql://nobody@127.0.0.1:1/x', 'cannot open results store'),
+    ('mysql+nodriver://x', 'cannot open results store|needs the Python module'),
+])
+def test_unreachable_store_one_line(db: str, match: str) -> None:
+    with pytest.raises(StoreError, match=match) as exc:
+        open_store(db)
+    assert '\n' not in str(exc.value)
+
+
+def test_export_csv_and_parquet(tmp_path: Path) -> None:
+    with open_store(tmp_path / 'r.sqlite') as st:
+        for i in range(4):
+            st.upsert(make_record(i))
+        rows = st.query()
+    assert export_records(rows, tmp_path / 'r.csv') == 4  # noqa: PLR2004
+    with (tmp_path / 'r.csv').open(newline='') as fh:
+        table = list(csv.DictReader(fh))
+    assert [t['serial'] for t in table] == ['SN00000', 'SN00001', 'SN00002', 'SN00003']
+    assert float(table[2]['te_pp_rad_cw']) == pytest.approx((5e-4 + 2e-6) * 1.1)
+    assert float(table[1]['line_1_f_w_amplitude_rad']) == pytest.approx(2e-4 + 1e-7)
+    import pyarrow.parquet as pq
+    assert export_records(rows, tmp_path / 'r.parquet') == 4  # noqa: PLR2004
+    pt = pq.read_table(tmp_path / 'r.parquet').to_pydict()
+    assert pt['serial'] == [t['serial'] for t in table]
+    assert pt['te_pp_rad_ccw'] == pytest.approx([float(t['te_pp_rad_ccw']) for t in table])
+    with pytest.raises(StoreError, match='use a .csv or .parquet'):
+        export_records(rows, tmp_path / 'r.xlsx')
+
+
+def test_postgresql_and_sqlite_give_the_same_results(tmp_path: Path, fresh_pg_db: str) -> None:
+    """The same records written to SQLite and to a real PostgreSQL server; every query
+    (all, each filter, a series) returns the same values in the same order."""
+    recs = [make_record(i, preset='hu2020-rv' if i % 4 == 0 else 'wang2020-2kv',
+                        verdict='fail' if i in (3, 7) else 'pass') for i in range(12)]
+    t0 = datetime(2026, 11, 1, tzinfo=UTC)
+    filters = [None, ResultFilter(serial='SN00005'), ResultFilter(verdict='fail'),
+               ResultFilter(preset='hu2020-rv'),
+               ResultFilter(since=t0 + timedelta(hours=3), until=t0 + timedelta(hours=9))]
+    out = []
+    for db in (tmp_path / 'r.sqlite', fresh_pg_db):
+        with open_store(db) as st:
+            for r in recs:
+                st.upsert(r)
+            st.upsert(recs[2])                    # again: an update, not a new row
+            res = [_comparable(st.query(f)) for f in filters]
+            ser = st.series('te_pp_rad', direction='cw')
+            out.append((res, ser.values, ser.serials))
+    assert out[0] == out[1]
+    assert len(out[0][0][0]) == 12  # noqa: PLR2004
+
+
+def test_postgresql_crash_consistency_and_concurrent_upsert(fresh_pg_db: str) -> None:
+    """Two stores writing the same key one after the other end with one record."""
+    with open_store(fresh_pg_db) as a, open_store(fresh_pg_db) as b:
+        a.upsert(make_record(1))
+        b.upsert(replace(make_record(1), verdict='fail'))
+        rows = a.query()
+    assert len(rows) == 1
+    assert rows[0].verdict == 'fail'
