@@ -1,0 +1,193 @@
+"""Analyse many bags with Dask distributed and write each result to the store.
+
+The client (this process) is the only writer of the store: workers analyse a bag and hand
+back its :class:`~rv_te_bench.store.UnitRecord` (the same record ``rv-te analyze`` writes),
+the client writes it the moment it arrives. A worker that dies mid-task loses nothing: the
+scheduler runs its task again on another worker (up to Dask's ``allowed-failures``, then
+the bag is recorded as failed with that reason); results already handed back are already
+in the store. A bag that cannot be analysed is recorded as failed with its one-line reason.
+"""
+
+from __future__ import annotations
+
+import logging
+import time
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import TYPE_CHECKING, Any
+
+from rv_te_bench import __version__
+from rv_te_bench.errors import RvTeError, StoreError
+from rv_te_bench.store import bag_stat, failed_record, records_from_analysis_json
+
+if TYPE_CHECKING:
+    from collections.abc import Callable, Sequence
+
+    from rv_te_bench.store import ResultStore, UnitRecord
+
+__all__ = ['FleetOptions', 'FleetSummary', 'analyse_one', 'run_fleet']
+
+@dataclass(frozen=True)
+class FleetOptions:
+    """The analysis options of every bag (as ``rv-te analyze`` takes them)."""
+
+    topic: str | None = None
+    gear_ratio: float | None = None
+    crank_per_output: float | None = None
+    n_crank_harmonics: int = 10
+    window_revolutions: int = 1
+    with_advice: bool = True
+    serial: str | None = None
+    lot: str | None = None
+    operator: str | None = None
+
+
+@dataclass
+class FleetSummary:
+    """What a fleet run did (counts of bags)."""
+
+    total: int = 0
+    ok: int = 0
+    partial: int = 0
+    failed: int = 0
+    skipped: int = 0
+    elapsed_s: float = 0.0
+    workers: int = 0
+    failures: list[tuple[str, str]] = field(default_factory=list)
+
+    def to_json_dict(self) -> dict[str, Any]:
+        """JSON form."""
+        return {'total': self.total, 'ok': self.ok, 'partial': self.partial,
+                'failed': self.failed, 'skipped': self.skipped, 'elapsed_s': self.elapsed_s,
+                'workers': self.workers,
+                'failures': [{'bag': b, 'reason': r} for b, r in self.failures]}
+
+
+def _one_line(exc: BaseException) -> str:
+    text = str(exc).strip().splitlines()
+    return (text[0] if text else type(exc).__name__)[:500]
+
+
+def analyse_one(path: str, options: FleetOptions) -> UnitRecord:
+    """Analyse one bag into its record (run on a worker; never raises for a bad bag)."""
+    from rv_te_bench.cli.allocator import tune_for_batch_work  # noqa: PLC0415
+    from rv_te_bench.report.analysis import analyze_bag  # noqa: PLC0415
+    from rv_te_bench.report.html import report_json  # noqa: PLC0415
+    from sim.errors import SimError  # noqa: PLC0415
+
+    tune_for_batch_work()
+    bag = Path(path)
+    try:
+        res = analyze_bag(bag, topic=options.topic, gear_ratio=options.gear_ratio,
+                          crank_per_output=options.crank_per_output,
+                          n_crank_harmonics=options.n_crank_harmonics,
+                          window_revolutions=options.window_revolutions,
+                          with_advice=options.with_advice)
+        (rec,) = records_from_analysis_json(
+            report_json([res]), bag_paths=[bag], command='fleet',
+            software_version=__version__, serial=options.serial, lot=options.lot,
+            operator=options.operator)
+    except (RvTeError, SimError, OSError, ValueError) as exc:
+        return failed_record(bag, _one_line(exc), command='fleet', software_version=__version__)
+    return rec
+
+
+def _todo(bags: Sequence[Path], store: ResultStore, force: bool) -> tuple[list[Path], int]:
+    """Bags to analyse, and how many are skipped (unchanged since a good record)."""
+    if force:
+        return list(bags), 0
+    known = store.known_bags()
+    todo = []
+    for b in bags:
+        k = known.get(str(b))
+        if k is not None and k[2] != 'failed':
+            try:
+                size, mtime = bag_stat(b)
+            except (OSError, StoreError):
+                size, mtime = None, None
+            if (size, mtime) == (k[0], k[1]):
+                continue
+        todo.append(b)
+    return todo, len(bags) - len(todo)
+
+
+def _client(workers: int, scheduler: str | None) -> tuple[Any, Any]:
+    try:
+        from distributed import Client, LocalCluster  # noqa: PLC0415
+    except ModuleNotFoundError:
+        msg = "rv-te fleet needs Dask distributed: pip install 'rv-te-bench[fleet]'"
+        raise RvTeError(msg) from None
+    if scheduler:
+        try:
+            return Client(scheduler, timeout='20s'), None
+        except (OSError, TimeoutError) as exc:
+            msg = f'cannot reach the Dask scheduler at {scheduler[:200]}: {_one_line(exc)}'
+            raise RvTeError(msg) from None
+    cluster = LocalCluster(n_workers=workers, threads_per_worker=1, processes=True,
+                           dashboard_address=None, silence_logs=logging.ERROR)
+    return Client(cluster), cluster
+
+
+def run_fleet(bags: Sequence[Path], store: ResultStore, *, options: FleetOptions,  # noqa: PLR0913
+              workers: int = 2, scheduler: str | None = None, force: bool = False,
+              progress: Callable[[int, int, int], None] | None = None,
+              on_client: Callable[[Any], None] | None = None) -> FleetSummary:
+    """Analyse ``bags`` in parallel, one record per bag written to ``store`` as it arrives.
+
+    Args:
+        bags: Bag folders / .mcap files (absolute paths; the workers must see them).
+        store: Where the records go (written by this process only).
+        options: Analysis options of every bag.
+        workers: Worker processes of the local cluster (ignored with ``scheduler``).
+        scheduler: Address of an existing Dask scheduler (``tcp://host:8786``).
+        force: Analyse bags again that already have an unchanged good record.
+        progress: Called as ``progress(done, total, failed)`` after each bag.
+        on_client: Called with the Dask client once it is up (tests, diagnostics).
+    """
+    from distributed import as_completed  # noqa: PLC0415
+    from distributed.scheduler import KilledWorker  # noqa: PLC0415
+
+    t0 = time.monotonic()
+    summary = FleetSummary()
+    todo, summary.skipped = _todo(bags, store, force)
+    summary.total = len(bags)
+    if not todo:
+        summary.elapsed_s = time.monotonic() - t0
+        return summary
+    client, cluster = _client(workers, scheduler)
+    try:
+        if on_client is not None:
+            on_client(client)
+        summary.workers = len(client.scheduler_info().get('workers', {}))
+        futures = client.map(analyse_one, [str(b) for b in todo], options=options,
+                             pure=False)
+        path_of = {f.key: b for f, b in zip(futures, todo, strict=True)}
+        done = 0
+        for fut in as_completed(futures):
+            bag = path_of[fut.key]
+            try:
+                rec = fut.result()
+            except KilledWorker:
+                rec = failed_record(bag, 'the worker analysing this bag died every time it '
+                                    'was tried (Dask allowed-failures)', command='fleet',
+                                    software_version=__version__)
+            except Exception as exc:  # noqa: BLE001 - recorded with its reason, not lost
+                rec = failed_record(bag, f'{type(exc).__name__}: {_one_line(exc)}',
+                                    command='fleet', software_version=__version__)
+            store.upsert(rec)
+            done += 1
+            if rec.status == 'failed':
+                summary.failed += 1
+                summary.failures.append((str(bag), rec.failure or ''))
+            elif rec.status == 'partial':
+                summary.partial += 1
+            else:
+                summary.ok += 1
+            if progress is not None:
+                progress(done, len(todo), summary.failed)
+    finally:
+        client.close()
+        if cluster is not None:
+            cluster.close()
+    summary.elapsed_s = time.monotonic() - t0
+    return summary

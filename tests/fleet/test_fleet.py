@@ -1,0 +1,133 @@
+"""Fleet analysis on a real local Dask cluster: one record per good bag, failures recorded,
+the same metrics as ``rv-te analyze`` of each bag alone, a killed worker loses nothing.
+
+The bags are written by rosbags (tests/unit_bags.py) from units of the independent Wang
+2020 model in tests/wang2020_reference.py; two more are damaged.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import signal
+import subprocess
+import sys
+import threading
+import time
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from rv_te_bench.fleet import FleetOptions, discover_bags, run_fleet
+from rv_te_bench.store import open_store, records_from_analysis_json
+from tests import wang2020_reference as ref
+from tests.unit_bags import unit_bag
+
+pytest.importorskip('distributed')
+RV_TE = [sys.executable, '-m', 'rv_te_bench.cli.main']
+N_GOOD = 6
+
+
+def _env() -> dict[str, str]:
+    env = dict(os.environ)
+    env.pop('_ROS_WHEELS_BOOTSTRAP_COMPLETE', None)
+    env.pop('RV_TE_DB', None)
+    return env
+
+
+@pytest.fixture(scope='module')
+def fleet_dir(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    """6 unit bags (1 kHz, 2 output revolutions) + a bag with broken metadata + a lone
+    .mcap of garbage, in nested folders."""
+    root = tmp_path_factory.mktemp('fleet')
+    rng = np.random.default_rng(21)
+    for i in range(N_GOOD):
+        unit_bag(root / f'day{i % 2}' / f'unit{i}', ref.random_unit(rng), rng,
+                 rate_hz=1000.0, duration_s=32.0)
+    bad = root / 'day0' / 'broken'
+    bad.mkdir()
+    (bad / 'metadata.yaml').write_text('rosbag2_bagfile_information: {version: 9\n')
+    (root / 'day1' / 'garbage.mcap').write_bytes(b'\x89MCAP0\r\n' + b'\x00' * 500)
+    return root
+
+
+def test_discover_bags(fleet_dir: Path) -> None:
+    bags = discover_bags([str(fleet_dir)])
+    assert len(bags) == N_GOOD + 2
+    assert discover_bags([str(fleet_dir / 'day0' / 'unit*')]) == sorted(
+        (fleet_dir / 'day0').glob('unit*'))
+    from rv_te_bench.errors import BagError
+    with pytest.raises(BagError, match='no such file'):
+        discover_bags([str(fleet_dir / 'nope')])
+    with pytest.raises(BagError, match='names no bag'):
+        discover_bags([str(fleet_dir / 'x*')])
+
+
+def test_fleet_command_records_every_bag_like_analyze(fleet_dir: Path, tmp_path: Path) -> None:
+    """``rv-te fleet analyze`` with 2 workers: 6 ok records, 2 failed ones with reasons,
+    exit 1 naming the failures; each record's metrics and lines equal those of
+    ``rv-te analyze BAG --json`` run alone; a rerun skips the 6, tries the 2 again."""
+    db = tmp_path / 'r.sqlite'
+    cmd = [*RV_TE, 'fleet', 'analyze', str(fleet_dir), '--workers', '2', '--db', str(db),
+           '--json', '--quiet']
+    p = subprocess.run(cmd, capture_output=True, text=True, timeout=300, env=_env())
+    assert p.returncode == 1, p.stderr
+    assert p.stderr.count('\n') == 1 and p.stderr.startswith('ERROR: 2 of 8 bag(s) failed')
+    summary = json.loads(p.stdout)
+    assert (summary['ok'], summary['failed'], summary['skipped']) == (N_GOOD, 2, 0)
+    with open_store(db) as st:
+        rows = st.query()
+    assert len(rows) == N_GOOD + 2
+    failed = {Path(r.bag_path).name: r.failure for r in rows if r.status == 'failed'}
+    assert set(failed) == {'broken', 'garbage.mcap'}
+    assert 'metadata.yaml' in failed['broken']
+    good = [r for r in rows if r.status == 'ok']
+    assert len(good) == N_GOOD
+    for r in good:
+        alone = subprocess.run([*RV_TE, 'analyze', r.bag_path, '--json', '--no-db'],
+                               capture_output=True, text=True, timeout=120, env=_env())
+        assert alone.returncode == 0, alone.stderr
+        (rec,) = records_from_analysis_json(json.loads(alone.stdout),
+                                            bag_paths=[Path(r.bag_path)], command='analyze',
+                                            software_version='x')
+        assert rec.bag_sha256 == r.bag_sha256
+        assert r.metrics == {(m.name, m.direction): m.value for m in rec.metrics}
+        assert r.lines == {ln.label: (ln.amplitude_rad, ln.phase_rad) for ln in rec.lines}
+        assert r.advice == rec.advice
+    p2 = subprocess.run(cmd, capture_output=True, text=True, timeout=300, env=_env())
+    again = json.loads(p2.stdout)
+    assert (again['skipped'], again['failed'], again['ok']) == (N_GOOD, 2, 0)
+    with open_store(db) as st:
+        assert len(st.query()) == N_GOOD + 2           # updated, not duplicated
+
+
+def test_killed_worker_loses_no_result(fleet_dir: Path, tmp_path: Path) -> None:
+    """SIGKILL of a worker process while it analyses a bag: the scheduler runs the bag
+    again elsewhere and every bag still ends with its record."""
+    bags = [b for b in discover_bags([str(fleet_dir)]) if b.name.startswith('unit')]
+    killed: list[int] = []
+
+    def killer(client) -> None:  # noqa: ANN001
+        def go() -> None:
+            deadline = time.monotonic() + 60
+            while time.monotonic() < deadline and not killed:
+                busy = {w: ks for w, ks in client.processing().items() if ks}
+                if busy:
+                    addr = next(iter(busy))
+                    pids = client.run(os.getpid, workers=[addr])
+                    pid = pids[addr]
+                    os.kill(pid, signal.SIGKILL)
+                    killed.append(pid)
+                    return
+                time.sleep(0.02)
+        threading.Thread(target=go, daemon=True).start()
+
+    with open_store(tmp_path / 'r.sqlite') as st:
+        summary = run_fleet(bags, st, options=FleetOptions(), workers=2, on_client=killer)
+        rows = st.query()
+    assert killed, 'no worker was busy to be killed'
+    assert summary.failed == 0, summary.failures
+    assert summary.ok == N_GOOD
+    assert sorted(r.bag_path for r in rows) == sorted(str(b) for b in bags)
+    assert all(r.status == 'ok' and r.metrics for r in rows)
