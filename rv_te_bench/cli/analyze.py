@@ -21,6 +21,7 @@ import time
 from pathlib import Path
 from typing import TYPE_CHECKING, Any, TextIO
 
+from rv_te_bench.cli._db import add_db_argument, db_for_bags
 from rv_te_bench.cli.argtypes import nonnegative_int, positive_float, positive_int
 from rv_te_bench.errors import RvTeError
 from sim.units import rad_to_arcmin, rad_to_deg
@@ -72,6 +73,10 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
                    help='skip the compensation recommendation (the 2K-V assembly-phase '
                         'search takes several seconds)')
     p.add_argument('--quiet', action='store_true', help='no progress lines on stderr')
+    add_db_argument(p, mode='also')
+    p.add_argument('--serial', default=None,
+                   help='unit serial recorded with the result (default: from the bag)')
+    p.add_argument('--lot', default=None, help='production lot recorded with the result')
 
 
 def register(subparsers: Any) -> None:  # noqa: ANN401 - argparse's private type
@@ -162,14 +167,47 @@ def _run(args: argparse.Namespace) -> int:
                   file=sys.stderr)
         results.append(res)
 
+    doc = report_json(results)
+    recorded_in = _record(args, doc)
     if args.json:
-        print(json.dumps(report_json(results), indent=2))
+        print(json.dumps(doc, indent=2))
     else:
         _print_tables(results, sys.stdout)
+        if recorded_in:
+            print(f'recorded in the results store {recorded_in}')
     if args.report is not None:
         files = write_report(results, args.report, force=args.force)
         print(f'report written: {", ".join(str(f) for f in files)}', file=sys.stderr)
     return 0
+
+
+def _record(args: argparse.Namespace, doc: dict[str, Any]) -> str | None:
+    """One record per analysed bag in the results store; the store's name, or None.
+
+    A store given with --db (or $RV_TE_DB) that cannot be written is an error; the default
+    store next to the bags only warns (a bag on a read-only share is still analysed).
+    """
+    from rv_te_bench import __version__  # noqa: PLC0415
+    from rv_te_bench.cli._db import DB_ENV  # noqa: PLC0415
+    from rv_te_bench.errors import StoreError  # noqa: PLC0415
+    from rv_te_bench.store import open_store, records_from_analysis_json  # noqa: PLC0415
+
+    db = db_for_bags(args, args.bags)
+    if db is None:
+        return None
+    try:
+        records = records_from_analysis_json(doc, bag_paths=list(args.bags), command='analyze',
+                                             software_version=__version__,
+                                             serial=args.serial, lot=args.lot)
+        with open_store(db) as store:
+            for rec in records:
+                store.upsert(rec)
+            return store.url
+    except StoreError as exc:
+        if args.db or os.environ.get(DB_ENV):
+            raise
+        print(f'WARNING: not recorded in the results store: {exc}', file=sys.stderr)
+        return None
 
 
 # --------------------------------------------------------------------------------------

@@ -20,7 +20,7 @@ if TYPE_CHECKING:
 # Order of appearance in --help.
 SUBCOMMAND_MODULES = (
     'demo', 'launch', 'bench', 'record', 'replay', 'analyze', 'model', 'optimize_phases',
-    'compensate', 'identify', 'presets',
+    'compensate', 'identify', 'presets', 'results', 'spc', 'fleet',
 )
 
 EXAMPLES = """\
@@ -34,6 +34,9 @@ examples:
   rv-te launch session.yaml                    bench + TE + compensation + recorder
   rv-te analyze bags/sample --report out/rep   offline report from a recorded bag
   rv-te replay bags/sample --rate 10           publish a bag with its recorded timing
+  rv-te fleet analyze bags/ --workers 2        many bags on Dask into the results store
+  rv-te results --verdict fail                 the recorded units, filtered
+  rv-te spc te_pp_revolution_max_rad --usl 1   control chart across units
 """
 
 

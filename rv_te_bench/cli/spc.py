@@ -1,0 +1,200 @@
+"""``rv-te spc METRIC``: control chart of one metric across units, with run rules.
+
+Individuals and moving range (one point per unit, in test order), or X-bar/R with one
+subgroup per lot (``--by-lot``). The centre line and 3-sigma limits come from a stated
+baseline (default: the first 20 points); Nelson or Western Electric run rules flag drift
+and shifts; with a tolerance (``--usl``/``--lsl``, in the unit shown) the capability
+Cp/Cpk (and Pp/Ppk). METRIC is a stored metric name (``te_pp_revolution_max_rad``,
+``te_pp_rad``, ``lost_motion_rad``, ...) or ``line:LABEL`` for a spectral line amplitude
+(``line:1 f_w``): ``--list`` shows what the store holds. Angles are shown in arcmin.
+
+Exit codes: 0 ok (whether or not a rule fires: see the report / JSON), 1 failed (one
+``ERROR: ...`` line), 2 bad usage.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import math
+import os
+import sys
+from pathlib import Path
+from typing import Any
+
+from rv_te_bench.cli._db import add_db_argument, db_to_read
+from rv_te_bench.cli.results import add_filter_arguments, filter_from_args
+from rv_te_bench.errors import SpcError
+
+__all__ = ['register', 'run']
+
+EXAMPLES = """\
+examples:
+  rv-te spc --list                                        metrics and lines in the store
+  rv-te spc te_pp_revolution_max_rad --usl 1.0 --report out/spc-te
+                                   TE p-p per unit [arcmin] against TE <= 1 arcmin
+  rv-te spc "line:1 f_w" --baseline 30 --report out/spc-fw
+                                   the crank-frequency line: a drifting part shows here
+  rv-te spc te_pp_rad --direction cw --by-lot --rules western-electric --json
+
+exit codes: 0 ok, 1 failed (one ERROR: line on stderr), 2 bad usage
+"""
+
+_DEFAULT_BASELINE = 20
+_MAX_BASELINE = 100_000
+
+
+def _baseline(text: str) -> int:
+    try:
+        n = int(text)
+    except ValueError:
+        msg = f'not an integer: {text[:50]!r}'
+        raise argparse.ArgumentTypeError(msg) from None
+    if not 2 <= n <= _MAX_BASELINE:  # noqa: PLR2004
+        msg = f'must be in [2, {_MAX_BASELINE}], got {text!r}'
+        raise argparse.ArgumentTypeError(msg)
+    return n
+
+
+def _finite(text: str) -> float:
+    try:
+        v = float(text)
+    except ValueError:
+        msg = f'not a number: {text[:50]!r}'
+        raise argparse.ArgumentTypeError(msg) from None
+    if not math.isfinite(v):
+        msg = f'must be finite, got {text!r}'
+        raise argparse.ArgumentTypeError(msg)
+    return v
+
+
+def register(subparsers: Any) -> None:  # noqa: ANN401 - argparse's private type
+    """Add the ``spc`` subcommand."""
+    p = subparsers.add_parser(
+        'spc', help='control charts across units (I-MR, X-bar/R), run rules, Cp/Cpk',
+        description=__doc__.split('\n\n')[1], epilog=EXAMPLES,
+        formatter_class=argparse.RawDescriptionHelpFormatter)
+    p.add_argument('metric', nargs='?', metavar='METRIC',
+                   help='stored metric name, or line:LABEL for a spectral line amplitude')
+    p.add_argument('--list', action='store_true', help='list the metrics and lines stored')
+    p.add_argument('--direction', choices=('all', 'cw', 'ccw'), default='all',
+                   help='direction of rotation of the metric (default: all)')
+    add_db_argument(p, mode='read')
+    add_filter_arguments(p)
+    p.add_argument('--by-lot', action='store_true',
+                   help='X-bar/R chart with one subgroup per lot (2-25 units each)')
+    p.add_argument('--baseline', type=_baseline, default=_DEFAULT_BASELINE, metavar='N',
+                   help=f'the first N points set the centre line and limits (default '
+                        f'{_DEFAULT_BASELINE}; all points when there are fewer)')
+    p.add_argument('--rules', choices=('nelson', 'western-electric'), default='nelson',
+                   help='run rules (default: nelson, rules 1-8)')
+    p.add_argument('--usl', type=_finite, default=None, metavar='X',
+                   help='upper specification limit in the unit shown (arcmin for angles)')
+    p.add_argument('--lsl', type=_finite, default=None, metavar='X',
+                   help='lower specification limit in the unit shown')
+    p.add_argument('--report', type=Path, default=None, metavar='DIR',
+                   help='write spc.png, spc.html and spc.json into DIR')
+    p.add_argument('--json', action='store_true', help='print the chart as JSON')
+    p.set_defaults(func=run)
+
+
+def run(args: argparse.Namespace) -> int:
+    """Chart the metric; 0 ok."""
+    from rv_te_bench.core import spc  # noqa: PLC0415
+    from rv_te_bench.report.spc import display_unit, spc_document  # noqa: PLC0415
+    from rv_te_bench.store import open_store  # noqa: PLC0415
+
+    with open_store(db_to_read(args)) as st:
+        if args.list:
+            names = [n if d == 'all' else f'{n} --direction {d}' for n, d in st.metric_names()]
+            names += [f'line:{lab}' for lab in st.line_labels()]
+            _print_quietly('\n'.join(names))
+            return 0
+        if not args.metric:
+            msg = 'give a METRIC (rv-te spc --list shows the stored ones)'
+            raise SpcError(msg)
+        series = st.series(args.metric, direction=args.direction, flt=filter_from_args(args))
+        known = ([n for n, d in st.metric_names() if d == args.direction]
+                 + [f'line:{lab}' for lab in st.line_labels()])
+    if not series.values:
+        hint = ', '.join(known[:8]) + (' ...' if len(known) > 8 else '')  # noqa: PLR2004
+        msg = (f'no values of {args.metric[:80]!r} (direction {args.direction}) in the records '
+               f'selected; stored: {hint or "nothing"}')
+        raise SpcError(msg)
+    scale, unit = display_unit(args.metric)
+    if args.by_lot:
+        missing = sum(1 for lot in series.lots if lot is None)
+        if missing:
+            msg = f'{missing} of {len(series.lots)} records have no lot: X-bar/R needs a lot per unit'
+            raise SpcError(msg)
+        n_points = len(dict.fromkeys(series.lots))
+    else:
+        n_points = len(series.values)
+    n_base = min(args.baseline, n_points)
+    chart = (spc.xbar_r_chart(series.values, series.lots, baseline=slice(0, n_base),
+                              rules=args.rules) if args.by_lot
+             else spc.individuals_chart(series.values, baseline=slice(0, n_base),
+                                        rules=args.rules))
+    base_text = (f'first {n_base} {"lots" if args.by_lot else "units"}'
+                 + (' (fewer than 20: provisional limits)' if n_base < _DEFAULT_BASELINE else ''))
+    cap = None
+    if args.usl is not None or args.lsl is not None:
+        if args.by_lot:
+            first = set(list(dict.fromkeys(series.lots))[:n_base])
+            base_vals = [v for v, lot in zip(series.values, series.lots, strict=True)
+                         if lot in first]
+        else:
+            base_vals = series.values[:n_base]
+        cap = spc.capability(base_vals, sigma_within=chart.process_sigma,
+                             lsl=None if args.lsl is None else args.lsl / scale,
+                             usl=None if args.usl is None else args.usl / scale)
+    title = f'{args.metric}' + ('' if args.direction == 'all' else f' ({args.direction})') \
+        + f' across {len(series.values)} units' + (f' [{unit}]' if unit else '')
+    doc = spc_document(chart, series, title=title, capability=cap, baseline_text=base_text)
+    if args.report is not None:
+        from rv_te_bench.report.spc import write_spc_report  # noqa: PLC0415
+        files = write_spc_report(args.report, chart, series, title=title, capability=cap,
+                                 baseline_text=base_text)
+        print(f'report written: {", ".join(str(f) for f in files)}', file=sys.stderr)
+    if args.json:
+        _print_quietly(json.dumps(doc, indent=2))
+    else:
+        _print_quietly('\n'.join(_summary(doc)))
+    return 0
+
+
+def _print_quietly(text: str) -> None:
+    """Print; a reader that closed the pipe early (``| head``) is not an error."""
+    try:
+        print(text, flush=True)
+    except BrokenPipeError:
+        devnull = os.open(os.devnull, os.O_WRONLY)
+        os.dup2(devnull, sys.stdout.fileno())
+
+
+def _g(v: float | None) -> str:
+    return '-' if v is None else f'{v:.4g}'
+
+
+def _summary(doc: dict[str, Any]) -> list[str]:
+    ch, unit = doc['chart'], doc['unit']
+    out = [doc['title'],
+           f'  chart: {ch["kind"]}, baseline {doc["baseline"]}, rules {ch["rules"]}',
+           f'  centre {_g(ch["centre"])} {unit}, process sigma {_g(ch["process_sigma"])} '
+           f'{unit}, limits {_g(ch["lcl"][0])} .. {_g(ch["ucl"][0])} {unit}']
+    if ch['hits']:
+        out.append(f'  {len(ch["hits"])} rule violation(s):')
+        for h in ch['hits'][:20]:
+            who = doc['units'][h['index']]['serial'] if ch['kind'] == 'individuals' else None
+            out.append(f'    point {h["index"]:>4} {who or "-":<14} {h["rule"]:<4} '
+                       f'{h["description"]}')
+        if len(ch['hits']) > 20:  # noqa: PLR2004
+            out.append(f'    ... {len(ch["hits"]) - 20} more (see --json or --report)')
+    else:
+        out.append('  no rule violated')
+    cap = doc['capability']
+    if cap is not None:
+        out.append(f'  capability (baseline): Cp {_g(cap["cp"])}, Cpk {_g(cap["cpk"])}, '
+                   f'Pp {_g(cap["pp"])}, Ppk {_g(cap["ppk"])}; '
+                   f'{100 * cap["fraction_out"]:.1f} % out of tolerance')
+    return out
