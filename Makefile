@@ -6,7 +6,7 @@ PY     := $(VENV)/bin/python
 # A venv Python started from another ros-wheel Python must not inherit the bootstrap marker.
 unexport _ROS_WHEELS_BOOTSTRAP_COMPLETE
 
-.PHONY: demo test venv clean-venv
+.PHONY: demo test venv clean-venv system-deps
 
 venv: $(VENV)/.stamp
 
@@ -25,3 +25,14 @@ test: venv
 
 clean-venv:
 	rm -rf $(VENV)
+
+# System packages the full test suite uses beyond Python: a PostgreSQL server for the results
+# store tests (they start their own server; without it those tests are skipped with the
+# reason). Needs root (or sudo); .ci/run calls it on the fresh CI machine.
+system-deps:
+	@if ls /usr/lib/postgresql/*/bin/initdb >/dev/null 2>&1; then echo "postgresql: present"; \
+	elif [ "$$(id -u)" = 0 ]; then apt-get update -qq && DEBIAN_FRONTEND=noninteractive \
+	  apt-get install -y -qq --no-install-recommends postgresql >/dev/null && echo "postgresql: installed"; \
+	elif command -v sudo >/dev/null; then sudo apt-get update -qq && sudo DEBIAN_FRONTEND=noninteractive \
+	  apt-get install -y -qq --no-install-recommends postgresql >/dev/null && echo "postgresql: installed"; \
+	else echo "postgresql: missing and cannot install (not root, no sudo)"; fi
