@@ -23,6 +23,10 @@ class BagError(RvTeError):
     """A bag cannot be read or written."""
 
 
+class BagExistsError(BagError, FileExistsError):
+    """The bag folder to create exists already (nothing is overwritten)."""
+
+
 class ParameterFileError(RvTeError, ValueError):
     """A ROS-style parameter file is invalid (names file, key and rule)."""
 

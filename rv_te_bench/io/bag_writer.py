@@ -18,143 +18,58 @@ the file valid at every flush:
   bag opens with any rosbag2 reader (its counts may trail the .mcap by one interval);
 * ``close()`` writes the full summary (schemas, channels, statistics, chunk and metadata
   indexes, summary offsets, CRC) and the final ``metadata.yaml``.
+
+A full disk (any failed write) does not corrupt the bag:
+
+* a chunk enters the chunk index and the counts only once it is on disk; a failed write is
+  cut back (``ftruncate``) to the end of the last complete chunk, where the trailer goes;
+* a reserve file in the bag folder (``.rv_te_reserve``, sized to the summary and
+  metadata.yaml still to come) is given back, and the file is closed with its summary, so
+  rosbags and mcap read it; metadata.yaml says what was lost;
+* messages keep arriving: up to ``stall_buffer_bytes`` are held in memory, the rest are
+  counted as lost (per topic, with the range of their log times: a ``WriteGap``);
+* every ``flush_interval_s`` the writer checks the free space; once the reserve, the held
+  messages and a chunk fit, recording resumes into a new split file (which starts with an
+  ``rv_te_write_gap`` metadata record) and the held messages are written first;
+* ``counts`` are the messages on disk, ``lost`` the messages lost; ``on_event`` is told
+  (one line) when writing stops and resumes.
 """
 
 from __future__ import annotations
 
+import logging
 import os
-import struct
 import time
-import zlib
-from dataclasses import dataclass, field
 from pathlib import Path
-from typing import TYPE_CHECKING, Any, Literal
+from typing import TYPE_CHECKING, Any
 
-import yaml
-from mcap.data_stream import RecordBuilder
-from mcap.records import (
-    Channel,
-    ChunkIndex,
-    DataEnd,
-    Footer,
-    Header,
-    Metadata,
-    MetadataIndex,
-    Schema,
-    Statistics,
-    SummaryOffset,
+from rv_te_bench.errors import BagError, BagExistsError
+from rv_te_bench.io._mcap_file import (
+    MAX_TIME_NS,
+    MSG_HEADER,
+    OP_MESSAGE,
+    Chunk,
+    Compression,
+    McapFile,
+    TopicInfo,
+    compressor,
 )
-
-from rv_te_bench.errors import BagError
+from rv_te_bench.io._metadata_yaml import bag_info, dump_yaml, qos_profile_dict
+from rv_te_bench.io._storage import SPACE_ERRNOS, Storage
+from rv_te_bench.io._write_loss import WRITE_GAP_RECORD, WriteGap, utc_now
 from rv_te_bench.io.msgdefs import full_msgdef, type_hash
 
 if TYPE_CHECKING:
     from collections.abc import Callable, Mapping, Sequence
     from types import TracebackType
 
-__all__ = ['SESSION_METADATA_NAME', 'BagWriter', 'Compression', 'qos_profile_dict']
+__all__ = ['RESERVE_NAME', 'SESSION_METADATA_NAME', 'BagWriter', 'Compression', 'Storage',
+           'WriteGap', 'qos_profile_dict']
 
-Compression = Literal['zstd', 'lz4', 'none']
-
-MAGIC = b'\x89MCAP0\r\n'
 SESSION_METADATA_NAME = 'rv_te_session'
-_MSG_HEADER = struct.Struct('<BQHIQQ')  # opcode, length, channel, sequence, log, publish
-_CHUNK_HEADER = struct.Struct('<QQQI')  # start, end, uncompressed size, crc
-_OP_MESSAGE = 0x05
-_OP_CHUNK = 0x06
-_OP_MESSAGE_INDEX = 0x07
-_OP_FOOTER = 0x02
-_MAX_TIME_NS = 2**63 - 1
-# Data End (no CRC) + Footer without summary + magic: keeps the file valid between chunks.
-_TRAILER = (struct.pack('<BQI', 0x0F, 4, 0) + struct.pack('<BQQQI', 0x02, 20, 0, 0, 0)
-            + MAGIC)
-_YamlDumper = getattr(yaml, 'CSafeDumper', yaml.SafeDumper)  # libyaml: ~20x faster
-
-
-def qos_profile_dict(
-    *,
-    reliability: str = 'reliable',
-    durability: str = 'volatile',
-    history: str = 'keep_last',
-    depth: int = 10,
-) -> dict[str, Any]:
-    """One offered QoS profile in the rosbag2 (metadata version 9) form.
-
-    Args:
-        reliability: ``reliable`` or ``best_effort``.
-        durability: ``volatile`` or ``transient_local``.
-        history: ``keep_last`` or ``keep_all``.
-        depth: History depth [messages].
-
-    Returns:
-        The dict rosbag2 writes under ``offered_qos_profiles``.
-    """
-    default = {'sec': 0, 'nsec': 0}  # 0 = the RMW default (infinite)
-    return {
-        'history': history,
-        'depth': int(depth),
-        'reliability': reliability,
-        'durability': durability,
-        'deadline': dict(default),
-        'lifespan': dict(default),
-        'liveliness': 'automatic',
-        'liveliness_lease_duration': dict(default),
-        'avoid_ros_namespace_conventions': False,
-    }
-
-
-def _record_bytes(*records: Any) -> bytes:  # noqa: ANN401 - mcap.records types
-    builder = RecordBuilder()
-    for record in records:
-        record.write(builder)
-    return builder.end()
-
-
-def _compressor(compression: Compression) -> tuple[str, Callable[[bytes], bytes]]:
-    if compression == 'zstd':
-        import zstandard  # noqa: PLC0415 - optional at import time
-
-        ctx = zstandard.ZstdCompressor(level=1)
-        return 'zstd', ctx.compress
-    if compression == 'lz4':
-        import lz4.frame  # noqa: PLC0415
-
-        return 'lz4', lz4.frame.compress
-    if compression == 'none':
-        return '', bytes
-    msg = f"compression must be 'zstd', 'lz4' or 'none', got {compression!r}"
-    raise BagError(msg)
-
-
-@dataclass(slots=True)
-class _Topic:
-    name: str
-    msgtype: str
-    msgdef: str
-    digest: str
-    qos_yaml: str
-    qos_list: list[dict[str, Any]] | str
-    channel_id: int
-    schema_id: int
-    count: int = 0          # messages flushed to disk
-    pending: int = 0        # messages in the open chunk
-
-
-@dataclass(slots=True)
-class _File:
-    path: Path
-    fd: Any
-    data_end: int = 0
-    chunk_indexes: list[ChunkIndex] = field(default_factory=list)
-    metadata_indexes: list[MetadataIndex] = field(default_factory=list)
-    counts: dict[int, int] = field(default_factory=dict)
-    start_ns: int = _MAX_TIME_NS
-    end_ns: int = 0
-    schemas: set[int] = field(default_factory=set)
-
-    @property
-    def message_count(self) -> int:
-        return sum(self.counts.values())
+RESERVE_NAME = '.rv_te_reserve'
+_RESERVE_MARGIN = 64 << 10   # bytes beyond the estimated summary + metadata.yaml
+_log = logging.getLogger(__name__)
 
 
 class BagWriter:
@@ -167,14 +82,21 @@ class BagWriter:
         compression: Chunk compression, ``'zstd'``, ``'lz4'`` or ``'none'``.
         chunk_size_bytes: Uncompressed chunk size that triggers a chunk write [bytes].
         flush_interval_s: Longest time a message stays in memory [s] (checked on ``write``
-            and ``flush_if_due``; call the latter from a timer when messages can stop).
+            and ``flush_if_due``; call the latter from a timer when messages can stop); also
+            how often a writer whose disk is full checks whether space has returned.
         split_size_bytes: Start a new ``.mcap`` file past this size [bytes]; None: never.
         split_duration_s: Start a new file when its messages span this long [s]; None: never.
         session_metadata: Written as the MCAP metadata record ``rv_te_session`` and into
             ``custom_data`` of metadata.yaml; values that are not strings are YAML-dumped.
+        stall_buffer_bytes: Messages held in memory while the disk is full [bytes]; what
+            does not fit is lost (``lost``, ``write_gaps``, metadata.yaml).
+        storage: The file operations (a ``Storage``); tests pass one that injects faults.
+        on_event: Called with one line when writing fails and when it resumes; default:
+            a warning on this module's ``logging`` logger.
 
     Raises:
-        BagError: ``path`` exists already, or a setting is invalid.
+        BagError: ``path`` exists already, a setting is invalid, or the bag cannot be
+            started (no space for its first file and reserve).
     """
 
     def __init__(  # noqa: PLR0913
@@ -187,6 +109,9 @@ class BagWriter:
         split_size_bytes: int | None = None,
         split_duration_s: float | None = None,
         session_metadata: Mapping[str, Any] | None = None,
+        stall_buffer_bytes: int = 64 << 20,
+        storage: Storage | None = None,
+        on_event: Callable[[str], None] | None = None,
     ) -> None:
         self.path = Path(path)
         if not chunk_size_bytes > 0:
@@ -201,47 +126,97 @@ class BagWriter:
         if split_duration_s is not None and not split_duration_s > 0:
             msg = f'split_duration_s must be > 0 or None, got {split_duration_s!r}'
             raise BagError(msg)
-        self._compression_name, self._compress = _compressor(compression)
+        if not stall_buffer_bytes >= 0:
+            msg = f'stall_buffer_bytes must be >= 0, got {stall_buffer_bytes!r}'
+            raise BagError(msg)
+        try:
+            self._compression_name, self._compress = compressor(compression)
+        except ValueError as exc:
+            raise BagError(str(exc)) from None
         self.compression: Compression = compression
         self.chunk_size_bytes = int(chunk_size_bytes)
         self.flush_interval_s = float(flush_interval_s)
         self.split_size_bytes = split_size_bytes
         self.split_duration_ns = (
             None if split_duration_s is None else int(split_duration_s * 1e9))
+        self.stall_buffer_bytes = int(stall_buffer_bytes)
         self.session_metadata = {
-            str(k): v if isinstance(v, str) else _dump_yaml(v).strip()
+            str(k): v if isinstance(v, str) else dump_yaml(v).strip()
             for k, v in (session_metadata or {}).items()
         }
+        self._storage = storage if storage is not None else Storage()
+        self._on_event = on_event if on_event is not None else _log.warning
         try:
             self.path.mkdir(parents=True, exist_ok=False)
         except FileExistsError:
             msg = f'Bag {self.path} exists already, not overwriting.'
-            raise BagError(msg) from None
+            raise BagExistsError(msg) from None
         except OSError as exc:
             msg = f'Cannot create bag folder {self.path}: {exc}.'
             raise BagError(msg) from None
 
-        self._topics: dict[str, _Topic] = {}
+        self._topics: dict[str, TopicInfo] = {}
+        self._by_cid: dict[int, TopicInfo] = {}
         self._schemas: dict[str, int] = {}
-        self._files: list[_File] = []
-        self._closed_files: list[_File] = []
-        self._file: _File | None = None
-        self._chunk = bytearray()
-        self._index: dict[int, list[int]] = {}
-        self._chunk_start_ns = _MAX_TIME_NS
-        self._chunk_end_ns = 0
+        self._files: list[McapFile] = []
+        self._file: McapFile | None = None
+        self._open = Chunk()           # collecting messages
+        self._held: list[Chunk] = []   # full chunks waiting for space
+        self._held_bytes = 0
+        self._gap: WriteGap | None = None   # the disk is full now
+        self._gap_errno = 0
+        self._gaps: list[WriteGap] = []
+        self._reserve_path = self.path / RESERVE_NAME
+        self._reserve_size = 0
+        self._yaml_size = 4096
+        self._next_retry_mono = 0.0
         self._last_flush_mono = time.monotonic()
         self._last_yaml_mono = self._last_flush_mono
         self._yaml_dirty = False
         self._closed = False
-        self._open_file()
-        self._write_metadata_yaml(state='recording')
+        try:
+            self._open_file()
+            self._write_metadata_yaml(state='recording')
+            self._ensure_reserve()
+        except OSError as exc:
+            self._abandon()
+            msg = f'Cannot start bag {self.path}: {exc.strerror or exc}.'
+            raise BagError(msg) from None
 
     # ----------------------------------------------------------------- public API
     @property
     def counts(self) -> dict[str, int]:
-        """Messages per topic written so far (flushed or pending)."""
-        return {t.name: t.count + t.pending for t in self._topics.values()}
+        """Messages per topic on disk (in complete chunks): what a reader finds."""
+        return {t.name: t.count for t in self._topics.values()}
+
+    @property
+    def pending(self) -> dict[str, int]:
+        """Messages per topic accepted but not on disk yet (open chunk, held ones)."""
+        out = dict.fromkeys(self._topics, 0)
+        for chunk in (*self._held, self._open):
+            for cid, n in chunk.message_counts().items():
+                out[self._by_cid[cid].name] += n
+        return out
+
+    @property
+    def lost(self) -> dict[str, int]:
+        """Messages per topic that could not be written (the disk was full)."""
+        return {t.name: t.lost for t in self._topics.values()}
+
+    @property
+    def lost_messages(self) -> int:
+        """Messages lost, all topics."""
+        return sum(t.lost for t in self._topics.values())
+
+    @property
+    def write_gaps(self) -> list[WriteGap]:
+        """Every period in which the bag could not be written, in order."""
+        return list(self._gaps)
+
+    @property
+    def stalled(self) -> bool:
+        """True while the disk is full (messages are held or lost)."""
+        return self._gap is not None
 
     @property
     def files(self) -> list[Path]:
@@ -287,20 +262,28 @@ class BagWriter:
             qos_list: list[dict[str, Any]] | str = offered_qos_profiles
         else:
             qos_list = [dict(q) for q in offered_qos_profiles]
-            qos_yaml = _dump_yaml(qos_list).strip() if qos_list else ''
+            qos_yaml = dump_yaml(qos_list).strip() if qos_list else ''
         if msgtype not in self._schemas:
             self._schemas[msgtype] = len(self._schemas) + 1
-        topic = _Topic(name=name, msgtype=msgtype, msgdef=msgdef, digest=digest,
+        topic = TopicInfo(name=name, msgtype=msgtype, msgdef=msgdef, digest=digest,
                        qos_yaml=qos_yaml, qos_list=qos_list,
                        channel_id=len(self._topics) + 1, schema_id=self._schemas[msgtype])
         self._topics[name] = topic
-        self._index[topic.channel_id] = []
-        assert self._file is not None
-        self._append(self._topic_records(topic, self._file))
-        self._write_metadata_yaml(state='recording')
+        self._by_cid[topic.channel_id] = topic
+        file = self._file
+        if file is not None:   # (while the disk is full, the next file gets the records)
+            try:
+                file.append(file.topic_records(topic))
+                self._ensure_reserve()
+            except OSError as exc:
+                self._start_gap(exc)
+        self._write_yaml_or_gap()
 
     def write(self, topic: str, timestamp_ns: int, cdr_bytes: bytes | memoryview) -> None:
         """Append one serialised message (CDR with its 4-byte encapsulation header).
+
+        A message that cannot be stored because the disk is full (and the memory held
+        meanwhile is used up) is counted in ``lost``; this does not raise.
 
         Args:
             topic: A topic added with ``add_topic``.
@@ -317,33 +300,37 @@ class BagWriter:
             raise BagError(msg) from None
         if self._closed:
             self._check_open()
+        if self._gap is not None and self._drop_while_stalled(info, timestamp_ns,
+                                                              len(cdr_bytes)):
+            return
         file = self._file
-        assert file is not None
-        if self.split_duration_ns is not None and file.start_ns != _MAX_TIME_NS and (
-                timestamp_ns - file.start_ns >= self.split_duration_ns):
+        if self.split_duration_ns is not None and file is not None and (
+                file.first_ns != MAX_TIME_NS
+                and timestamp_ns - file.first_ns >= self.split_duration_ns):
             self._split()
             file = self._file
-            assert file is not None
-        chunk = self._chunk
+        chunk = self._open
+        data = chunk.data
         cid = info.channel_id
-        index = self._index[cid]
+        index = chunk.index.get(cid)
+        if index is None:
+            index = chunk.index[cid] = []
         index.append(timestamp_ns)
-        index.append(len(chunk))
-        chunk += _MSG_HEADER.pack(_OP_MESSAGE, 22 + len(cdr_bytes), cid, 0,
-                                  timestamp_ns, timestamp_ns)
-        chunk += cdr_bytes
-        info.pending += 1
-        self._chunk_start_ns = min(self._chunk_start_ns, timestamp_ns)
-        self._chunk_end_ns = max(self._chunk_end_ns, timestamp_ns)
-        if file.start_ns == _MAX_TIME_NS:
-            file.start_ns = timestamp_ns
-        if len(chunk) >= self.chunk_size_bytes:
+        index.append(len(data))
+        data += MSG_HEADER.pack(OP_MESSAGE, 22 + len(cdr_bytes), cid, 0,
+                                 timestamp_ns, timestamp_ns)
+        data += cdr_bytes
+        chunk.start_ns = min(chunk.start_ns, timestamp_ns)
+        chunk.end_ns = max(chunk.end_ns, timestamp_ns)
+        if file is not None and file.first_ns == MAX_TIME_NS:
+            file.first_ns = timestamp_ns
+        if len(data) >= self.chunk_size_bytes:
             self._flush(update_yaml=False)
         elif time.monotonic() - self._last_flush_mono >= self.flush_interval_s:
             self._flush(update_yaml=True)
 
     def flush_if_due(self) -> bool:
-        """Flush when ``flush_interval_s`` has passed since the last flush.
+        """Flush (or, while the disk is full, look for space) every ``flush_interval_s``.
 
         Returns:
             True if a flush happened.
@@ -357,34 +344,44 @@ class BagWriter:
         """Write the open chunk, a valid trailer and an updated metadata.yaml."""
         self._flush(update_yaml=True)
 
-    def _flush(self, *, update_yaml: bool) -> None:
-        """Write the open chunk; rewrite metadata.yaml when asked or when it is older than
-        ``flush_interval_s`` (a rename costs milliseconds on some file systems, so chunks
-        closed for size do not each rewrite it; readers scan the .mcap, not the counts)."""
-        self._check_open()
-        now = time.monotonic()
-        self._last_flush_mono = now
-        if self._chunk:
-            self._write_chunk()
-        if self._yaml_dirty and (
-                update_yaml or now - self._last_yaml_mono >= self.flush_interval_s):
-            self._write_metadata_yaml(state='recording')
-        file = self._file
-        assert file is not None
-        if self.split_size_bytes is not None and file.data_end >= self.split_size_bytes:
-            self._split()
-
     def close(self) -> None:
-        """Write the last chunk, the MCAP summary and the final metadata.yaml (idempotent)."""
+        """Write the last chunk, the MCAP summary and the final metadata.yaml (idempotent).
+
+        If the disk is still full, what is held in memory is counted as lost; the files
+        on disk are closed readable either way.
+
+        Raises:
+            BagError: The final metadata.yaml could not be written (the .mcap files are
+                complete; metadata.yaml is then the one of the last flush).
+        """
         if self._closed:
             return
         try:
-            if self._chunk:
-                self._write_chunk()
-            self._finish_file()
+            if self._gap is None and self._open.data:
+                self._write_open()
+            if self._gap is not None and self._try_resume() and self._open.data:
+                self._write_open()
+            if self._gap is not None:
+                self._lose_pending()
+            file = self._file
+            if file is not None and not file.closed:
+                self._release_reserve()
+                try:
+                    self._finish_file(file)
+                except OSError as exc:
+                    file.close_without_summary()
+                    self._on_event(f'bag {self.path}: no room for the summary of '
+                                   f'{file.path.name} ({exc.strerror}); left without one '
+                                   '(readers scan it)')
         finally:
             self._closed = True
-        self._write_metadata_yaml(state='closed')
+            self._release_reserve()
+        try:
+            self._write_metadata_yaml(state='closed')
+        except OSError as exc:
+            msg = (f'Cannot write {self.path / "metadata.yaml"}: {exc.strerror or exc}; the '
+                   '.mcap files are complete, metadata.yaml is the one of the last flush.')
+            raise BagError(msg) from None
 
     def __enter__(self) -> BagWriter:
         """Return self; the bag is already open."""
@@ -399,243 +396,324 @@ class BagWriter:
         """Close the bag (also on error, so that what was written stays readable)."""
         self.close()
 
-    # ----------------------------------------------------------------- internals
+    # ----------------------------------------------------------------- writing
     def _check_open(self) -> None:
         if self._closed:
             msg = f'Bag {self.path} is closed.'
             raise BagError(msg)
 
-    def _topic_records(self, topic: _Topic, file: _File) -> bytes:
-        records: list[Any] = []
-        if topic.schema_id not in file.schemas:
-            records.append(Schema(id=topic.schema_id, name=topic.msgtype, encoding='ros2msg',
-                                  data=topic.msgdef.encode()))
-            file.schemas.add(topic.schema_id)
-        records.append(Channel(id=topic.channel_id, topic=topic.name, message_encoding='cdr',
-                               schema_id=topic.schema_id, metadata=self._channel_metadata(topic)))
-        file.counts.setdefault(topic.channel_id, 0)
-        return _record_bytes(*records)
+    def _flush(self, *, update_yaml: bool) -> None:
+        """Write the open chunk; rewrite metadata.yaml when asked or when it is older than
+        ``flush_interval_s`` (a rename costs milliseconds on some file systems, so chunks
+        closed for size do not each rewrite it; readers scan the .mcap, not the counts)."""
+        self._check_open()
+        now = time.monotonic()
+        self._last_flush_mono = now
+        if self._gap is not None:
+            if len(self._open.data) >= self.chunk_size_bytes:
+                self._hold(self._open)
+                self._open = Chunk()
+            if now >= self._next_retry_mono:
+                self._try_resume()
+            return
+        if self._open.data:
+            self._write_open()
+            if self._gap is not None:
+                return
+        if self._yaml_dirty and (
+                update_yaml or now - self._last_yaml_mono >= self.flush_interval_s):
+            self._write_yaml_or_gap()
+        file = self._file
+        if (file is not None and self.split_size_bytes is not None
+                and file.data_end >= self.split_size_bytes):
+            self._split()
 
-    @staticmethod
-    def _channel_metadata(topic: _Topic) -> dict[str, str]:
-        meta = {'offered_qos_profiles': topic.qos_yaml}
-        if topic.digest:
-            meta['topic_type_hash'] = topic.digest
-        return meta
-
-    def _open_file(self) -> None:
-        index = len(self._files)
-        path = self.path / f'{self.path.name}_{index}.mcap'
+    def _write_open(self) -> None:
+        """Write the open chunk; a failure starts a gap that holds it."""
+        chunk, self._open = self._open, Chunk()
         try:
-            fd = path.open('xb', buffering=0)
+            self._write_chunk(chunk)
         except OSError as exc:
-            msg = f'Cannot create {path}: {exc}.'
-            raise BagError(msg) from None
-        file = _File(path=path, fd=fd)
-        self._files.append(file)
-        self._file = file
-        head = MAGIC + _record_bytes(Header(profile='ros2', library=_library_id()))
-        file.data_end = 0
-        self._raw_append(file, head)
-        if self.session_metadata:
-            offset = file.data_end
-            rec = _record_bytes(Metadata(name=SESSION_METADATA_NAME,
-                                         metadata=dict(self.session_metadata)))
-            file.metadata_indexes.append(
-                MetadataIndex(offset=offset, length=len(rec), name=SESSION_METADATA_NAME))
-            self._raw_append(file, rec)
-        out = b''.join(self._topic_records(t, file) for t in self._topics.values())
-        if out:
-            self._append(out)
-
-    def _append(self, payload: bytes) -> None:
-        """Write payload at the data end, followed by a valid trailer, in one write."""
-        assert self._file is not None
-        self._raw_append(self._file, payload)
-
-    def _raw_append(self, file: _File, *parts: bytes | bytearray) -> None:
-        """Write parts at the data end, then a valid trailer, in one vectored write."""
-        size = sum(len(p) for p in parts)
-        fd = file.fd.fileno()
+            self._start_gap(exc, [chunk])
+            return
         try:
-            written = os.pwritev(fd, [*parts, _TRAILER], file.data_end)
-            if written < size + len(_TRAILER):  # short write (rare): finish it plainly
-                rest = b''.join([*parts, _TRAILER])[written:]
-                while rest:
-                    n = os.pwrite(fd, rest, file.data_end + written)
-                    written += n
-                    rest = rest[n:]
+            self._ensure_reserve()
         except OSError as exc:
-            msg = f'Cannot write {file.path}: {exc}.'
-            raise BagError(msg) from None
-        file.data_end += size
+            self._start_gap(exc)
 
-    def _write_chunk(self) -> None:
+    def _write_chunk(self, chunk: Chunk) -> None:
+        """Write one chunk to the open file and count its messages as on disk.
+
+        Raises:
+            OSError: The write failed (the file is cut back, nothing was counted).
+        """
         file = self._file
         assert file is not None
-        raw = self._chunk
-        compressed = raw if self.compression == 'none' else self._compress(raw)
-        comp = self._compression_name.encode()
-        body_len = _CHUNK_HEADER.size + 4 + len(comp) + 8 + len(compressed)
-        head = b''.join((
-            struct.pack('<BQ', _OP_CHUNK, body_len),
-            _CHUNK_HEADER.pack(self._chunk_start_ns, self._chunk_end_ns, len(raw),
-                               zlib.crc32(raw)),
-            struct.pack('<I', len(comp)), comp, struct.pack('<Q', len(compressed))))
-        chunk_len = len(head) + len(compressed)
-        chunk_start = file.data_end
-        index = bytearray()
-        index_offsets: dict[int, int] = {}
-        for cid, flat in self._index.items():
-            if not flat:
-                continue
-            index_offsets[cid] = chunk_start + chunk_len + len(index)
-            pairs = struct.pack(f'<{len(flat)}Q', *flat)
-            index += struct.pack('<BQHI', _OP_MESSAGE_INDEX, 2 + 4 + len(pairs), cid, len(pairs))
-            index += pairs
-        file.chunk_indexes.append(ChunkIndex(
-            message_start_time=self._chunk_start_ns, message_end_time=self._chunk_end_ns,
-            chunk_start_offset=chunk_start, chunk_length=chunk_len,
-            message_index_offsets=index_offsets, message_index_length=len(index),
-            compression=self._compression_name, compressed_size=len(compressed),
-            uncompressed_size=len(raw)))
-        self._raw_append(file, head, compressed, index)
+        counts = file.write_chunk(chunk, compression=self._compression_name,
+                                  compress=self._compress)
+        for cid, n in counts.items():
+            self._by_cid[cid].count += n
         self._yaml_dirty = True
-        # Only now, with the chunk on disk, do the counts include it.
-        for topic in self._topics.values():
-            if topic.pending:
-                file.counts[topic.channel_id] = file.counts.get(topic.channel_id, 0) + topic.pending
-                topic.count += topic.pending
-                topic.pending = 0
-        file.start_ns = min(file.start_ns, self._chunk_start_ns)
-        file.end_ns = max(file.end_ns, self._chunk_end_ns)
-        self._chunk = bytearray()
-        for flat in self._index.values():
-            flat.clear()
-        self._chunk_start_ns = _MAX_TIME_NS
-        self._chunk_end_ns = 0
 
     def _split(self) -> None:
-        if self._chunk:
-            self._write_chunk()
-        self._finish_file()
-        self._open_file()
-        self._write_metadata_yaml(state='recording')
-
-    def _finish_file(self) -> None:
+        if self._open.data:
+            self._write_open()
+            if self._gap is not None:
+                return
         file = self._file
         assert file is not None
-        # rosbag2 writes its bag information as a metadata record named 'rosbag2'.
-        info = _dump_yaml(self._bag_info(state='closed'))
-        rec = _record_bytes(Metadata(name='rosbag2', metadata={'serialized_metadata': info}))
-        file.metadata_indexes.append(
-            MetadataIndex(offset=file.data_end, length=len(rec), name='rosbag2'))
-        self._raw_append(file, rec)
-        data_end = _record_bytes(DataEnd(data_section_crc=0))
-        summary_start = file.data_end + len(data_end)
-        groups: list[tuple[int, bytes]] = []
-        in_file = [t for t in self._topics.values() if t.channel_id in file.counts]
-        schema_ids: dict[int, _Topic] = {}
-        for t in in_file:
-            schema_ids.setdefault(t.schema_id, t)
-        groups.append((0x03, _record_bytes(*[
-            Schema(id=sid, name=t.msgtype, encoding='ros2msg', data=t.msgdef.encode())
-            for sid, t in schema_ids.items()])))
-        groups.append((0x04, _record_bytes(*[
-            Channel(id=t.channel_id, topic=t.name, message_encoding='cdr',
-                    schema_id=t.schema_id, metadata=self._channel_metadata(t))
-            for t in in_file])))
-        has_msgs = file.message_count > 0
-        groups.append((0x0B, _record_bytes(Statistics(
-            message_count=file.message_count, schema_count=len(schema_ids),
-            channel_count=len(in_file), attachment_count=0,
-            metadata_count=len(file.metadata_indexes), chunk_count=len(file.chunk_indexes),
-            message_start_time=file.start_ns if has_msgs else 0,
-            message_end_time=file.end_ns if has_msgs else 0,
-            channel_message_counts=dict(file.counts)))))
-        groups.append((0x0D, _record_bytes(*file.metadata_indexes)))
-        groups.append((0x08, _record_bytes(*file.chunk_indexes)))
-        summary = bytearray()
-        offsets: list[SummaryOffset] = []
-        for opcode, blob in groups:
-            if blob:
-                offsets.append(SummaryOffset(group_opcode=opcode,
-                                             group_start=summary_start + len(summary),
-                                             group_length=len(blob)))
-                summary += blob
-        summary_offset_start = summary_start + len(summary)
-        summary += _record_bytes(*offsets)
-        footer_head = struct.pack('<BQQQ', _OP_FOOTER, 20, summary_start, summary_offset_start)
-        crc = zlib.crc32(bytes(summary) + footer_head)
-        tail = data_end + bytes(summary) + footer_head + struct.pack('<I', crc) + MAGIC
         try:
-            os.pwrite(file.fd.fileno(), tail, file.data_end)
-            os.ftruncate(file.fd.fileno(), file.data_end + len(tail))
-            file.fd.close()
+            self._finish_file(file)
         except OSError as exc:
-            msg = f'Cannot finish {file.path}: {exc}.'
-            raise BagError(msg) from None
-        file.data_end += len(tail)
-        self._closed_files.append(file)
+            self._start_gap(exc)
+            return
+        self._file = None
+        try:
+            self._open_file()
+        except OSError as exc:
+            self._start_gap(exc)
+            return
+        self._write_yaml_or_gap()
 
+    # ----------------------------------------------------------------- a full disk
+    def _start_gap(self, exc: OSError, held: Sequence[Chunk] = ()) -> None:
+        """Writing failed: close the file at its last complete chunk, hold or lose."""
+        file = self._file
+        gap = WriteGap(error=exc.strerror or str(exc), started_utc=utc_now(),
+                       file_before=file.path.name if file is not None else '')
+        self._gap = gap
+        self._gap_errno = exc.errno or 0
+        self._gaps.append(gap)
+        for chunk in held:   # the oldest messages are held, one contiguous range is lost
+            room = self.stall_buffer_bytes - self._held_bytes
+            if not gap.lost_messages and len(chunk.data) <= room:
+                self._hold(chunk)
+                continue
+            if not gap.lost_messages and room > 0:
+                head, chunk = chunk.split(room)
+                if head.data:
+                    self._hold(head)
+            self._lose(chunk)
+        if gap.lost_messages and self._open.data:   # newer than what was lost
+            self._lose(self._open)
+            self._open = Chunk()
+        self._shrink_reserve()
+        if file is not None and not file.closed:
+            self._close_after_failure(file, exc)
+        self._file = None
+        self._next_retry_mono = time.monotonic() + self.flush_interval_s
+        retry = (f'retrying every {self.flush_interval_s:g} s'
+                 if self._gap_errno in SPACE_ERRNOS else 'not retrying')
+        self._on_event(
+            f'bag {self.path}: cannot write ({gap.error}); {gap.file_before or "the bag"} '
+            f'closed at its last complete chunk ({sum(self.counts.values())} messages on '
+            f'disk); holding up to {self.stall_buffer_bytes / 2**20:.3g} MiB of messages in '
+            f'memory, {retry}')
+        try:
+            self._write_metadata_yaml(state='recording')
+        except OSError as exc2:
+            self._on_event(f'bag {self.path}: metadata.yaml not updated ({exc2.strerror})')
+
+    def _close_after_failure(self, file: McapFile, exc: OSError) -> None:
+        """Close ``file`` with its summary; if even that fails, with the trailer only."""
+        try:
+            self._finish_file(file)
+        except OSError as exc2:
+            file.close_without_summary()
+            self._on_event(f'bag {self.path}: no room for the summary of {file.path.name} '
+                           f'({exc2.strerror or exc}); left without one (readers scan it)')
+
+    def _drop_while_stalled(self, info: TopicInfo, t_ns: int, size: int) -> bool:
+        """While the disk is full: try to resume when due. True: the message is counted
+        lost (do not store it); False: store it (held in memory until space returns)."""
+        if time.monotonic() >= self._next_retry_mono and self._try_resume():
+            return False
+        gap = self._gap
+        assert gap is not None
+        # once something is lost, all is until writing resumes: the loss is one range
+        if not gap.lost_messages and (self._held_bytes + len(self._open.data)
+                                      + MSG_HEADER.size + size <= self.stall_buffer_bytes):
+            return False
+        gap.lose(info.name, t_ns)
+        info.lost += 1
+        return True
+
+    def _hold(self, chunk: Chunk) -> None:
+        self._held.append(chunk)
+        self._held_bytes += len(chunk.data)
+
+    def _lose(self, chunk: Chunk) -> None:
+        gap = self._gap
+        assert gap is not None
+        for cid, flat in chunk.index.items():
+            if flat:
+                times = flat[0::2]
+                topic = self._by_cid[cid]
+                topic.lost += len(times)
+                gap.lose(topic.name, min(times), len(times), last_ns=max(times))
+
+    def _lose_pending(self) -> None:
+        for chunk in (*self._held, self._open):
+            self._lose(chunk)
+        self._held, self._held_bytes, self._open = [], 0, Chunk()
+
+    def _try_resume(self) -> bool:
+        """Resume into a new file if the space has returned; True when writing again."""
+        gap = self._gap
+        if gap is None:
+            return True
+        self._next_retry_mono = time.monotonic() + self.flush_interval_s
+        if self._gap_errno not in SPACE_ERRNOS:
+            return False
+        pending = self._held_bytes + len(self._open.data)
+        free = self._storage.free_bytes(self.path)
+        if free is not None and free < 2 * self._reserve_need() + pending + self.chunk_size_bytes:
+            return False
+        try:
+            self._ensure_reserve()
+        except OSError:
+            return False
+        held = self._held
+        gap.resumed_utc = utc_now()
+        gap.file_after = f'{self.path.name}_{len(self._files)}.mcap'
+        gap.held = sum(sum(c.message_counts().values()) for c in (*held, self._open))
+        try:
+            self._open_file(gap)
+        except OSError:
+            gap.resumed_utc = gap.file_after = None
+            gap.held = 0
+            return False
+        self._gap = None
+        self._held, self._held_bytes = [], 0
+        for i, chunk in enumerate(held):
+            try:
+                self._write_chunk(chunk)
+            except OSError as exc:
+                gap.held -= sum(sum(c.message_counts().values()) for c in (*held[i:], self._open))
+                self._start_gap(exc, held[i:])
+                return False
+        self._on_event(f'bag {self.path}: writing again: {gap.describe()}')
+        self._write_yaml_or_gap()
+        return self._gap is None
+
+    def _reserve_need(self) -> int:
+        """Bytes still to be written when the bag closes now: the open file's summary and
+        a metadata.yaml (twice: the temporary copy beside the old one), with a margin."""
+        file = self._file
+        n_chunks = len(file.chunk_indexes) if file is not None else 0
+        per_topic = sum(len(t.msgdef) + 2 * len(t.qos_yaml) + 256 for t in self._topics.values())
+        return (n_chunks * (112 + 10 * len(self._topics)) + 2 * per_topic
+                + 3 * self._yaml_size + _RESERVE_MARGIN)
+
+    def _ensure_reserve(self) -> None:
+        """Grow the reserve file to twice the need once the need passes it (rarely)."""
+        need = self._reserve_need()
+        if need > self._reserve_size:
+            self._storage.reserve(self._reserve_path, 2 * need)
+            self._reserve_size = 2 * need
+
+    def _shrink_reserve(self) -> None:
+        """Give back the reserve but room for the final metadata.yaml."""
+        keep = min(self._reserve_size, 3 * self._yaml_size + (16 << 10))
+        try:
+            self._storage.reserve(self._reserve_path, keep)
+            self._reserve_size = keep
+        except OSError:
+            self._release_reserve()
+
+    def _release_reserve(self) -> None:
+        try:
+            self._storage.unlink(self._reserve_path)
+        except OSError:
+            return
+        self._reserve_size = 0
+
+    # ----------------------------------------------------------------- files
+    def _open_file(self, gap: WriteGap | None = None) -> None:
+        """Create the next ``<bag>_<n>.mcap`` (after a gap: with its ``rv_te_write_gap``).
+
+        Raises:
+            OSError: It could not be created or written (nothing of it is left).
+        """
+        meta: list[tuple[str, dict[str, str]]] = []
+        if self.session_metadata:
+            meta.append((SESSION_METADATA_NAME, dict(self.session_metadata)))
+        if gap is not None:
+            meta.append((WRITE_GAP_RECORD, {k: v if isinstance(v, str) else dump_yaml(v).strip()
+                                            for k, v in gap.as_dict().items()}))
+        self._file = McapFile.create(
+            self._storage, self.path / f'{self.path.name}_{len(self._files)}.mcap',
+            library=_library_id(), metadata=meta, topics=self._topics.values())
+        self._files.append(self._file)
+
+    def _finish_file(self, file: McapFile) -> None:
+        """Close ``file`` with the rosbag2 metadata record and the summary.
+
+        Raises:
+            OSError: No room for it (the file is cut back, still open).
+        """
+        file.finish(dump_yaml(self._bag_info(state='closed')), self._topics.values())
+
+    def _abandon(self) -> None:
+        """Undo a start that failed: close and remove what was created."""
+        for file in self._files:
+            try:
+                self._storage.close(file.fd)
+            except OSError:
+                pass
+        for extra in (*self.files, self.path / 'metadata.yaml', self._reserve_path):
+            try:
+                self._storage.unlink(extra)
+            except OSError:
+                pass
+        try:
+            self.path.rmdir()
+        except OSError:
+            pass
+        self._closed = True
+
+    # ----------------------------------------------------------------- metadata.yaml
     def _bag_info(self, *, state: str) -> dict[str, Any]:
-        files = self._files
-        starts = [f.start_ns for f in files if f.message_count]
-        ends = [f.end_ns for f in files if f.message_count]
-        start = min(starts) if starts else 0
-        duration = (max(ends) - start) if ends else 0
-        return {
-            'version': 9,
-            'storage_identifier': 'mcap',
-            'duration': {'nanoseconds': duration},
-            'starting_time': {'nanoseconds_since_epoch': start},
-            'message_count': sum(f.message_count for f in files),
-            'topics_with_message_count': [
-                {
-                    'topic_metadata': {
-                        'name': t.name,
-                        'type': t.msgtype,
-                        'serialization_format': 'cdr',
-                        'offered_qos_profiles': t.qos_list if t.qos_list else [],
-                        'type_description_hash': t.digest,
-                    },
-                    'message_count': t.count,
-                }
-                for t in self._topics.values()
-            ],
-            'compression_format': '',
-            'compression_mode': '',
-            'relative_file_paths': [f.path.name for f in files],
-            'files': [
-                {
-                    'path': f.path.name,
-                    'starting_time': {
-                        'nanoseconds_since_epoch': f.start_ns if f.message_count else 0},
-                    'duration': {'nanoseconds': (f.end_ns - f.start_ns) if f.message_count else 0},
-                    'message_count': f.message_count,
-                }
-                for f in files
-            ],
-            'custom_data': {**self.session_metadata, 'rv_te_bench.writer_state': state},
-            'ros_distro': 'jazzy',
-        }
+        custom = {**self.session_metadata, 'rv_te_bench.writer_state': state}
+        if self._gaps:
+            custom['rv_te_bench.lost_messages'] = str(self.lost_messages)
+            custom['rv_te_bench.write_gaps'] = dump_yaml(
+                [g.as_dict() for g in self._gaps]).strip()
+        return bag_info(self._files, self._topics.values(), custom)
 
     def _write_metadata_yaml(self, *, state: str) -> None:
+        """Replace metadata.yaml atomically (temporary file + rename).
+
+        Raises:
+            OSError: It could not be written (the old one stays; the temporary is removed).
+        """
         self._yaml_dirty = False
         self._last_yaml_mono = time.monotonic()
-        text = _dump_yaml({'rosbag2_bagfile_information': self._bag_info(state=state)})
+        text = dump_yaml({'rosbag2_bagfile_information': self._bag_info(state=state)})
+        data = text.encode()
+        self._yaml_size = len(data)
         target = self.path / 'metadata.yaml'
         tmp = self.path / '.metadata.yaml.tmp'
         try:
-            tmp.write_text(text, encoding='utf-8')
-            os.replace(tmp, target)
+            self._storage.write_file(tmp, data)
+            self._storage.replace(tmp, target)
+        except OSError:
+            self._yaml_dirty = True
+            try:
+                self._storage.unlink(tmp)
+            except OSError:
+                pass
+            raise
+
+    def _write_yaml_or_gap(self) -> None:
+        """Rewrite metadata.yaml; no space for it means the disk is full: start a gap."""
+        try:
+            self._write_metadata_yaml(state='recording')
         except OSError as exc:
-            msg = f'Cannot write {target}: {exc}.'
-            raise BagError(msg) from None
-
-
-def _dump_yaml(data: Any) -> str:  # noqa: ANN401
-    return yaml.dump(data, Dumper=_YamlDumper, sort_keys=False)
+            if self._gap is None and self._file is not None:
+                self._start_gap(exc)
+            else:
+                self._on_event(f'bag {self.path}: metadata.yaml not updated ({exc.strerror})')
 
 
 def _library_id() -> str:
