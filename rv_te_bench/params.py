@@ -12,11 +12,14 @@ import math
 import warnings
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import yaml
 
 from rv_te_bench.errors import ParameterFileError
+
+if TYPE_CHECKING:
+    from collections.abc import Callable
 
 _TYPES = ('bool', 'int', 'double', 'string', 'string_array', 'double_array')
 
@@ -37,6 +40,8 @@ class ParamSpec:
         read_only: True when a change needs a restart.
         deprecated_by: Name of the parameter that replaces this one ('' when current): the
             old spelling still works, and a parameter file that sets it gets a warning.
+        rule: A further check of a value of the right type: None if fine, else the rule it
+            breaks (one phrase), e.g. a folder name that must not leave its output folder.
     """
 
     name: str
@@ -48,6 +53,7 @@ class ParamSpec:
     choices: tuple[str, ...] = ()
     read_only: bool = True
     deprecated_by: str = ''
+    rule: Callable[[Any], str | None] | None = None
 
     def __post_init__(self) -> None:
         """Check the spec itself (a programming error if it fails)."""
@@ -59,8 +65,14 @@ class ParamSpec:
             msg = f'ParamSpec {self.name!r}: default {problem}'
             raise ValueError(msg)
 
-    def check(self, value: Any) -> str | None:  # noqa: ANN401, C901, PLR0911, PLR0912
+    def check(self, value: Any) -> str | None:  # noqa: ANN401
         """Return None when ``value`` is acceptable, else the rule it breaks (one phrase)."""
+        problem = self._check_type(value)
+        if problem is None and self.rule is not None:
+            problem = self.rule(value)
+        return problem
+
+    def _check_type(self, value: Any) -> str | None:  # noqa: ANN401, C901, PLR0911, PLR0912
         t = self.type
         if t == 'bool':
             return None if isinstance(value, bool) else f'must be a bool, got {value!r}'

@@ -13,6 +13,8 @@ import argparse
 import sys
 from typing import Any
 
+from rv_te_bench.cli.argtypes import nonnegative_int
+
 __all__ = ['register', 'run']
 
 
@@ -26,7 +28,9 @@ def register(subparsers: Any) -> None:  # noqa: ANN401 - argparse's private acti
                              'default: every topic the suite publishes, /diagnostics, /clock')
     parser.add_argument('--out', default='out/bags', metavar='DIR',
                         help='folder in which the bag folder is created (default: %(default)s)')
-    parser.add_argument('--name', default='', help='bag folder name (default: rv_te_<UTC time>)')
+    parser.add_argument('--name', default='',
+                        help='bag folder name inside --out (default: rv_te_<UTC time>, with '
+                             '_2, _3, ... if taken)')
     parser.add_argument('--namespace', default='/', help='namespace of the session')
     parser.add_argument('--compression', choices=['zstd', 'lz4', 'none'], default='zstd',
                         help='MCAP chunk compression (default: %(default)s)')
@@ -43,14 +47,22 @@ def register(subparsers: Any) -> None:  # noqa: ANN401 - argparse's private acti
                              'ros2 bag record --use-sim-time')
     parser.add_argument('--metadata', default='', metavar='YAML',
                         help='YAML mapping stored in the bag (preset, operator, ...)')
+    parser.add_argument('--stall-buffer', type=nonnegative_int, default=64 << 20,
+                        metavar='BYTES',
+                        help='messages held in memory while the disk is full; beyond it they '
+                             'are lost and counted (default: %(default)s)')
     parser.set_defaults(func=run)
 
 
 def run(args: argparse.Namespace) -> int:
-    """Record until ``--duration`` passes or SIGINT/SIGTERM; 0 ok, 1 error."""
+    """Record until ``--duration`` passes or SIGINT/SIGTERM; 0 ok, 1 error or data lost."""
+    from rv_te_bench.io.files import folder_name_problem  # noqa: PLC0415
     from rv_te_bench.launch.session import normalise_namespace  # noqa: PLC0415
 
     args.namespace = normalise_namespace(args.namespace) or '/'   # one line if invalid
+    if args.name and (problem := folder_name_problem(args.name)):
+        print(f'ERROR: --name {problem}', file=sys.stderr)
+        return 2
     try:
         from rclpy.parameter import Parameter  # noqa: PLC0415
 
@@ -69,6 +81,7 @@ def run(args: argparse.Namespace) -> int:
         Parameter('split_duration_s', value=float(args.split_duration)),
         Parameter('session_metadata_yaml', value=args.metadata),
         Parameter('use_sim_time', value=bool(args.use_sim_time)),
+        Parameter('stall_buffer_bytes', value=int(args.stall_buffer)),
     ]
     if args.topics:
         overrides.append(Parameter('topics', value=list(args.topics)))
@@ -84,9 +97,17 @@ def run(args: argparse.Namespace) -> int:
     if made:
         node = made[0]
         print(f'bag: {node.bag_path}')
-        for topic, count in sorted(node.counts.items()):
-            print(f'  {topic}: {count} messages')
+        lost = node.lost
+        for topic, count in sorted(node.written.items()):
+            print(f'  {topic}: {count} messages' +
+                  (f' ({lost[topic]} lost: disk full)' if lost.get(topic) else ''))
         for topic, (gaps, missing) in sorted(node.gaps.items()):
             if gaps:
                 print(f'  {topic}: {gaps} sequence gaps, {missing} blocks missing')
+        if n_lost := sum(lost.values()):
+            for line in node.loss_report():
+                print(f'  {line}')
+            print(f'ERROR: {n_lost} messages received could not be written to {node.bag_path} '
+                  f'(disk full); the bag holds the {sum(node.written.values())} listed above',
+                  file=sys.stderr)
     return code

@@ -275,9 +275,15 @@ class Session:
         self._tmp = tempfile.TemporaryDirectory(prefix='rv-te-session-')
         self.procs: dict[str, NodeProcess] = {}
         self.failures: list[str] = []
+        self._summary_path = Path(self._tmp.name) / 'recorder_summary.yaml'
+        #: The recorder's closing summary (``bag``, ``messages_on_disk``, ``lost_messages``,
+        #: ``lost``, ``write_gaps``), once it has stopped; None without one.
+        self.recorder_summary: dict[str, Any] | None = None
 
     def _params_file(self, node: str) -> Path:
         values = node_parameters(self.spec, node)
+        if node == 'recorder':   # its closing summary (bag, on disk, lost), read in stop()
+            values.setdefault('summary_file', str(self._summary_path))
         fq = f'{self.spec.namespace}/{node}' if self.spec.namespace else f'/{node}'
         path = Path(self._tmp.name) / f'{node}.yaml'
         path.write_text(yaml.safe_dump({fq: {'ros__parameters': values}}), encoding='utf-8')
@@ -338,6 +344,7 @@ class Session:
                         np_.proc.wait()
                     self.failures.append(f'node {name!r} did not stop on SIGINT')
             codes[name] = np_.proc.returncode
+        self.recorder_summary = read_recorder_summary(self._summary_path)
         self._tmp.cleanup()
         return codes
 
@@ -420,7 +427,37 @@ def run_single_process(spec: SessionSpec, *, until: Callable[[], bool] | None = 
         signal.signal(signal.SIGINT, old_int)
         signal.signal(signal.SIGTERM, old_term)
         rclpy.try_shutdown(context=ctx)
-    return 0
+    recorder = next((n for n in nodes if n.get_name() == 'recorder'), None)
+    if recorder is None:
+        return 0
+    lines, lost = recording_report(recorder.summary())
+    for line in lines:
+        print(f'[launch] {line}', file=sys.stderr)
+    return 1 if lost or recorder.exit_code else 0
+
+
+def read_recorder_summary(path: Path) -> dict[str, Any] | None:
+    """The summary file a recorder wrote when it closed its bag (None if there is none)."""
+    try:
+        doc = yaml.safe_load(path.read_text(encoding='utf-8'))
+    except (OSError, yaml.YAMLError):
+        return None
+    return doc if isinstance(doc, dict) else None
+
+
+def recording_report(summary: dict[str, Any] | None) -> tuple[list[str], bool]:
+    """Lines on the recorded bag (what is on disk, what a full disk cost) and whether data
+    was lost."""
+    if not summary:
+        return [], False
+    on_disk = summary.get('messages_on_disk') or {}
+    lines = [f'bag {summary.get("bag")}: {sum(on_disk.values())} messages on disk']
+    lost = int(summary.get('lost_messages') or 0)
+    if lost:
+        per_topic = ', '.join(f'{t}: {n}' for t, n in sorted((summary.get('lost') or {}).items()))
+        lines.append(f'ERROR: recording lost {lost} messages ({per_topic}): the disk was full')
+        lines += [f'  {g}' for g in summary.get('write_gaps') or []]
+    return lines, bool(lost)
 
 
 def _raise_keyboard_interrupt(*_: object) -> None:
@@ -460,6 +497,9 @@ def run_session(spec: SessionSpec, *, log: Callable[[str], None] | None = None,
             msg = f'node {name!r} ended with code {c}'
             if msg not in session.failures:
                 session.failures.append(msg)
+    lines, lost = recording_report(session.recorder_summary)
+    for line in lines:
+        session.log(f'[launch] {line}')
     for f in session.failures:
         session.log(f'[launch] {f}')
-    return 1 if session.failures else 0
+    return 1 if session.failures or lost else 0

@@ -216,12 +216,12 @@ def run_node(factory: Callable[[Context], Node], args: Sequence[str] | None = No
         while context.ok() and time.monotonic() < end:
             executor.spin_once(timeout_sec=0.05)
         executor.shutdown()
-        code = int(getattr(node, 'exit_code', 0) or 0)
     except (KeyboardInterrupt, ExternalShutdownException):
         pass
     finally:
         if node is not None:
-            node.destroy_node()
+            node.destroy_node()   # (a recorder sets its exit code when it closes the bag)
+            code = int(getattr(node, 'exit_code', 0) or 0)
         if main_thread:
             signal.signal(signal.SIGINT, old_int)
             signal.signal(signal.SIGTERM, old_term)

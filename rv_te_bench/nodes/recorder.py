@@ -9,6 +9,11 @@ transient-local if all are), so latched messages (bench/info) are captured.
 
 Run: ``python -m rv_te_bench.nodes.recorder --ros-args -p output_dir:=out/bags``;
 SIGINT/SIGTERM close the bag; a SIGKILL loses at most the last ``flush_interval_s``.
+
+A full disk does not stop the node: the bag is closed at its last complete chunk, messages
+are held in memory (``stall_buffer_bytes``) and recording resumes into a new split file when
+space returns; what could not be kept is counted per topic, logged, published on
+/diagnostics (ERROR), stated in metadata.yaml, and the process exits with code 1.
 """
 
 from __future__ import annotations
@@ -30,9 +35,10 @@ from rclpy.node import Node
 from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
 from rosgraph_msgs.msg import Clock as ClockMsg
 
-from rv_te_bench.errors import BagError
+from rv_te_bench.errors import BagError, BagExistsError
 from rv_te_bench.io.bag_reader import encoder_block_seq
 from rv_te_bench.io.bag_writer import BagWriter, qos_profile_dict
+from rv_te_bench.io.files import folder_name_problem, write_atomic
 from rv_te_bench.io.msgdefs import ENCODER_BLOCK
 from rv_te_bench.nodes import qos
 from rv_te_bench.nodes.common import declare_from_specs, run_node
@@ -47,7 +53,9 @@ DEFAULT_TOPICS = [
 PARAMS = (
     ParamSpec('output_dir', 'string', 'out/bags',
               'Folder in which the bag folder is created [path]'),
-    ParamSpec('bag_name', 'string', '', 'Bag folder name; empty: rv_te_<UTC time> [-]'),
+    ParamSpec('bag_name', 'string', '',
+              'Bag folder name inside output_dir; empty: rv_te_<UTC time>, made unique [-]',
+              rule=lambda v: folder_name_problem(v) if v else None),
     ParamSpec('topics', 'string_array', DEFAULT_TOPICS,
               'Topics to record; relative names resolve under the namespace [-]'),
     ParamSpec('topic_types', 'string_array', [],
@@ -74,6 +82,12 @@ PARAMS = (
               max_value=60.0),
     ParamSpec('session_metadata_yaml', 'string', '',
               "YAML mapping stored as the bag's rv_te_session metadata record [-]"),
+    ParamSpec('stall_buffer_bytes', 'int', 64 << 20,
+              'Messages held in memory while the disk is full; beyond it they are lost '
+              '(counted) [bytes]', min_value=0, max_value=1 << 40),
+    ParamSpec('summary_file', 'string', '',
+              'Write the closing summary (bag, messages on disk, lost) as YAML here; '
+              'empty: none [path]'),
 )
 _THROTTLE_S = 5.0
 #: Messages held while a sim-time recorder waits for its first /clock (10 s at 100 blocks/s
@@ -141,14 +155,9 @@ class RecorderNode(Node):
                 raise BagError(msg)
             explicit[self.resolve_topic_name(name.strip())] = msgtype.strip()
         self._explicit = explicit
-        stamp = dt.datetime.now(dt.UTC).strftime('%Y%m%d_%H%M%S')
-        self.bag_path = Path(p['output_dir']) / (p['bag_name'] or f'rv_te_{stamp}')
-        self._writer = BagWriter(
-            self.bag_path, compression=p['compression'],
-            chunk_size_bytes=p['chunk_size_bytes'], flush_interval_s=p['flush_interval_s'],
-            split_size_bytes=p['split_size_bytes'] or None,
-            split_duration_s=p['split_duration_s'] or None,
-            session_metadata=self._session_metadata(p))
+        self._summary_file = p['summary_file']
+        self.exit_code = 0
+        self.bag_path, self._writer = self._open_bag(p)
         self.write_errors = 0
         self._duration_s = p['duration_s']
         self._start = self.get_clock().now()
@@ -179,6 +188,37 @@ class RecorderNode(Node):
     # ---------------------------------------------------------------- parameters
     def _declare_parameters(self) -> dict[str, Any]:
         return declare_from_specs(self, PARAMS)
+
+    def _open_bag(self, p: dict[str, Any]) -> tuple[Path, BagWriter]:
+        """Create the bag; a default name gets _2, _3, ... when taken (two recorders
+        started in the same second), a given name must be free."""
+        stamp = dt.datetime.now(dt.UTC).strftime('%Y%m%d_%H%M%S')
+        base = p['bag_name'] or f'rv_te_{stamp}'
+        meta = self._session_metadata(p)
+        for attempt in range(1, 1000):
+            path = Path(p['output_dir']) / (base if attempt == 1 else f'{base}_{attempt}')
+            try:
+                return path, BagWriter(
+                    path, compression=p['compression'],
+                    chunk_size_bytes=p['chunk_size_bytes'],
+                    flush_interval_s=p['flush_interval_s'],
+                    split_size_bytes=p['split_size_bytes'] or None,
+                    split_duration_s=p['split_duration_s'] or None,
+                    session_metadata=meta, stall_buffer_bytes=p['stall_buffer_bytes'],
+                    on_event=self._on_writer_event)
+            except BagExistsError:
+                if p['bag_name']:
+                    raise
+        msg = f'no free bag name {base}_<n> in {p["output_dir"]}'
+        raise BagError(msg)
+
+    def _on_writer_event(self, line: str) -> None:
+        """The writer's report of a failed write (ERROR) or of writing again (WARN)."""
+        writer = getattr(self, '_writer', None)
+        if writer is not None and not writer.stalled:
+            self.get_logger().warning(line)
+        else:
+            self.get_logger().error(line)
 
     def _session_metadata(self, p: dict[str, Any]) -> dict[str, Any]:
         text = p['session_metadata_yaml']
@@ -391,7 +431,8 @@ class RecorderNode(Node):
 
     @property
     def counts(self) -> dict[str, int]:
-        """Messages recorded per topic."""
+        """Messages received per topic and given to the bag (``written``: those on disk,
+        ``lost``: those a full disk cost)."""
         return {t: s.count for t, s in self._topics.items()}
 
     @property
@@ -400,16 +441,35 @@ class RecorderNode(Node):
         return {t: (s.gaps, s.missing) for t, s in self._topics.items()
                 if s.msgtype == ENCODER_BLOCK}
 
+    @property
+    def written(self) -> dict[str, int]:
+        """Messages per topic on disk (in complete chunks): what a reader of the bag finds."""
+        return self._writer.counts
+
+    @property
+    def lost(self) -> dict[str, int]:
+        """Messages per topic received but not written (the disk was full)."""
+        return self._writer.lost
+
+    def loss_report(self) -> list[str]:
+        """One line per write gap (empty when nothing went wrong writing the bag)."""
+        return [g.describe() for g in self._writer.write_gaps]
+
     def _publish_diagnostics(self) -> None:
         states = list(self._topics.values())
-        bad = sum(s.gaps + s.malformed for s in states) + self.write_errors
+        lost = self._writer.lost_messages
+        bad = sum(s.gaps + s.malformed for s in states) + self.write_errors + lost
+        stalled = self._writer.stalled
+        level = (DiagnosticStatus.ERROR if stalled or lost
+                 else DiagnosticStatus.WARN if bad else DiagnosticStatus.OK)
+        state = 'closed' if self.finished else 'DISK FULL' if stalled else 'recording'
         status = DiagnosticStatus(
-            level=DiagnosticStatus.WARN if bad else DiagnosticStatus.OK,
-            name=f'{self.get_name()}: recorder', hardware_id=str(self.bag_path),
-            message=('closed' if self.finished else 'recording') +
+            level=level, name=f'{self.get_name()}: recorder', hardware_id=str(self.bag_path),
+            message=state + (f', {lost} messages lost' if lost else '') +
             (f', {bad} problems' if bad else ''))
         values = [KeyValue(key='bag', value=str(self.bag_path)),
-                  KeyValue(key='write_errors', value=str(self.write_errors))]
+                  KeyValue(key='write_errors', value=str(self.write_errors)),
+                  KeyValue(key='lost_messages', value=str(lost))]
         for s in states:
             values.append(KeyValue(key=f'{s.name} count', value=str(s.count)))
             if s.msgtype == ENCODER_BLOCK:
@@ -440,8 +500,38 @@ class RecorderNode(Node):
         try:
             self._writer.close()
         except BagError as exc:
+            self.exit_code = 1
             self.get_logger().error(f'closing {self.bag_path} failed: {exc}')
-        self.get_logger().info(f'bag {self.bag_path} closed: {self.counts}')
+        on_disk = self.written
+        self.get_logger().info(f'bag {self.bag_path} closed: {sum(on_disk.values())} '
+                               f'messages on disk {on_disk}')
+        lost = self._writer.lost_messages
+        if lost:
+            self.exit_code = 1
+            self.get_logger().error(
+                f'bag {self.bag_path}: {lost} messages could not be written '
+                f'{ {t: n for t, n in self.lost.items() if n} }')
+            for line in self.loss_report():
+                self.get_logger().error(f'bag {self.bag_path}: {line}')
+        if self._summary_file:
+            self._write_summary_file()
+
+    def summary(self) -> dict[str, Any]:
+        """What was recorded: bag, messages on disk, lost (per topic, and each write gap),
+        EncoderBlock sequence gaps on receipt."""
+        return {'bag': str(self.bag_path), 'messages_on_disk': self.written,
+                'lost_messages': self._writer.lost_messages,
+                'lost': {t: n for t, n in self.lost.items() if n},
+                'write_gaps': self.loss_report(),
+                'sequence_gaps': {t: {'gaps': g, 'missing_blocks': m}
+                                  for t, (g, m) in self.gaps.items() if g}}
+
+    def _write_summary_file(self) -> None:
+        """The closing summary as YAML (``summary_file``), read by the launcher."""
+        try:
+            write_atomic(self._summary_file, yaml.safe_dump(self.summary(), sort_keys=False))
+        except OSError as exc:
+            self.get_logger().error(f'cannot write summary_file {self._summary_file}: {exc}')
 
     def destroy_node(self) -> None:
         """Close the bag, then destroy the node."""
