@@ -46,7 +46,9 @@ def register(subparsers: Any) -> None:  # noqa: ANN401
     p.add_argument('--revolutions', type=float, default=2.0,
                    help='output revolutions to run (15.8 s each at 300 rpm)')
     p.add_argument('--out-dir', default='bags', help='where the session folder goes')
-    p.add_argument('--session', default=None, help='session folder name (default: time-based)')
+    p.add_argument('--session', default=None,
+                   help='session folder name inside --out-dir (default: time-based, made '
+                        'unique)')
     p.add_argument('--advice-timeout-s', type=float, default=90.0,
                    help='how long to wait for the compensation advice after the run')
     add_session_arguments(p, single_process=False)
@@ -71,6 +73,7 @@ def run(args: argparse.Namespace) -> int:  # noqa: C901, PLR0915
 
     from rv_te_bench.cli.launch import default_session_file  # noqa: PLC0415
     from rv_te_bench.errors import RvTeError  # noqa: PLC0415
+    from rv_te_bench.io.files import claim_folder, folder_name_problem  # noqa: PLC0415
     from rv_te_bench.launch.session import Session, build_session  # noqa: PLC0415
     from rv_te_bench.nodes.common import make_executor  # noqa: PLC0415
     from rv_te_bench.nodes.monitor import SessionMonitor  # noqa: PLC0415
@@ -79,18 +82,26 @@ def run(args: argparse.Namespace) -> int:  # noqa: C901, PLR0915
     if args.revolutions <= 0 or not math.isfinite(args.revolutions):
         print(f'ERROR: --revolutions must be > 0, got {args.revolutions}', file=sys.stderr)
         return 2
+    if args.session is not None and (problem := folder_name_problem(args.session)):
+        print(f'ERROR: --session {problem}', file=sys.stderr)
+        return 2
     name = args.session or datetime.now(UTC).strftime('%Y%m%d-%H%M%S') + '-wang2020-2kv'
     session_dir = Path(args.out_dir) / name
-    bag_dir = session_dir / 'bag'
-    report_dir = session_dir / 'report'
-    if session_dir.exists():
+    if session_dir.exists() and args.session:
         print(f'ERROR: session folder {session_dir} exists already', file=sys.stderr)
         return 1
-    overrides = [f'recorder.output_dir={session_dir}', f'recorder.bag_name={bag_dir.name}',
+    overrides = [f'recorder.output_dir={session_dir}', 'recorder.bag_name=bag',
                  f'bench.duration_output_revs={args.revolutions}', *args.params]
     spec = build_session([default_session_file()], namespace=args.namespace,
                          overrides=overrides, remappings=args.remap)
-    session_dir.mkdir(parents=True)   # only once everything is valid
+    # only once everything is valid; a default name gets -2, -3, ... when taken (two demos
+    # started in the same second)
+    session_dir = claim_folder(Path(args.out_dir), name, numbered=not args.session)
+    if session_dir.name != name:
+        name = session_dir.name
+        spec.parameters.setdefault('recorder', {})['output_dir'] = str(session_dir)
+    bag_dir = session_dir / 'bag'
+    report_dir = session_dir / 'report'
     print(f'[demo] session {name}: {", ".join(spec.nodes)} '
           f'(namespace {spec.namespace or "/"}), bag -> {bag_dir}', file=sys.stderr)
     t_start = time.monotonic()

@@ -8,6 +8,7 @@ so the page can be mailed on its own).
 from __future__ import annotations
 
 import base64
+import contextlib
 import datetime as dt
 import html
 import json
@@ -16,6 +17,7 @@ from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 from rv_te_bench.errors import RvTeError
+from rv_te_bench.io.files import write_all
 from rv_te_bench.report.analysis import PHASE_MIN_FRACTION, compare_results
 from sim.units import rad_to_arcmin, rad_to_deg
 
@@ -61,9 +63,12 @@ def write_report(results: Sequence[AnalysisResult], directory: Path, *,
     Returns:
         The files written.
 
+    Every file is staged beside its target and renamed into place only once all are on
+    disk (``rv_te_bench.io.files.write_all``): a full disk leaves the folder as it was.
+
     Raises:
         ReportExistsError: ``directory`` exists and ``force`` is False.
-        RvTeError: The directory cannot be written.
+        RvTeError: The directory cannot be written (names the file and the reason).
     """
     directory = Path(directory)
     if directory.exists() and not force:
@@ -75,26 +80,30 @@ def write_report(results: Sequence[AnalysisResult], directory: Path, *,
     # matplotlib (0.4 s to import) only when a report is written, not for --json or a table
     from rv_te_bench.report.plots import (  # noqa: PLC0415
         comparison_figure,
-        save_png,
+        png_bytes,
         spectrum_figure,
         te_figure,
     )
 
+    images = {'te.png': png_bytes(te_figure(results)),
+              'spectrum.png': png_bytes(spectrum_figure(results))}
+    if len(results) > 1:
+        images['comparison.png'] = png_bytes(comparison_figure(results))
+    doc = report_json(results)
+    files: dict[Path, bytes | str] = {directory / name: data for name, data in images.items()}
+    files[directory / 'report.json'] = json.dumps(doc, indent=2) + '\n'
+    files[directory / 'report.html'] = render_html(results, images, doc)
+    created = not directory.exists()
     try:
         directory.mkdir(parents=True, exist_ok=True)
-        images = {'te.png': save_png(te_figure(results), directory / 'te.png'),
-                  'spectrum.png': save_png(spectrum_figure(results),
-                                           directory / 'spectrum.png')}
-        if len(results) > 1:
-            images['comparison.png'] = save_png(comparison_figure(results),
-                                                directory / 'comparison.png')
-        doc = report_json(results)
-        (directory / 'report.json').write_text(json.dumps(doc, indent=2) + '\n',
-                                               encoding='utf-8')
-        (directory / 'report.html').write_text(render_html(results, images, doc),
-                                               encoding='utf-8')
+        write_all(files)   # all or nothing: no 0-byte image on a full disk
     except OSError as exc:
-        msg = f'Cannot write report into {directory}: {exc}'
+        if created:
+            with contextlib.suppress(OSError):
+                directory.rmdir()
+        what = Path(exc.filename).name if exc.filename else str(directory)
+        msg = (f'Cannot write report into {directory}: {what}: {exc.strerror or exc} '
+               '(no report file was written or changed)')
         raise RvTeError(msg) from None
     return [directory / n for n in (*images, 'report.json', 'report.html')]
 

@@ -19,6 +19,7 @@ from matplotlib.backends.backend_agg import FigureCanvasAgg
 from matplotlib.figure import Figure
 from matplotlib.ticker import FuncFormatter, NullFormatter
 
+from rv_te_bench.io.files import write_atomic
 from sim.units import rad_to_arcmin, rad_to_deg
 
 if TYPE_CHECKING:
@@ -63,9 +64,9 @@ def png_bytes(fig: Figure) -> bytes:
 
 
 def save_png(fig: Figure, path: Path) -> bytes:
-    """Write a figure as PNG and return the bytes written."""
+    """Write a figure as PNG (atomically: never a 0-byte file) and return the bytes."""
     data = png_bytes(fig)
-    path.write_bytes(data)
+    write_atomic(path, data)
     return data
 
 
