@@ -389,6 +389,7 @@ def run_single_process(spec: SessionSpec, *, until: Callable[[], bool] | None = 
     old_int = signal.signal(signal.SIGINT, request_stop)
     old_term = signal.signal(signal.SIGTERM, request_stop)
     nodes: list[Any] = []
+    recorder: Any = None
     executor = make_executor('events', context=ctx)
 
     def settle(seconds: float) -> None:
@@ -421,13 +422,13 @@ def run_single_process(spec: SessionSpec, *, until: Callable[[], bool] | None = 
                         if n.get_name() in STOP_ORDER else 99):
             if n.get_name() == 'recorder':
                 settle(1.0)   # the final windows and advice reach the bag
+                recorder = n
             executor.remove_node(n)
             n.destroy_node()
             settle(0.2)
         signal.signal(signal.SIGINT, old_int)
         signal.signal(signal.SIGTERM, old_term)
         rclpy.try_shutdown(context=ctx)
-    recorder = next((n for n in nodes if n.get_name() == 'recorder'), None)
     if recorder is None:
         return 0
     lines, lost = recording_report(recorder.summary())

@@ -137,3 +137,21 @@ def test_launch_disk_full_exits_1_with_the_loss(tmp_path: Path, ros_domain_id: i
         info = _metadata(bag)
         assert info['custom_data']['rv_te_bench.writer_state'] == 'closed'
         assert int(info['custom_data']['rv_te_bench.lost_messages']) == int(lost.group(1))
+
+
+def test_single_process_launch_disk_full_exits_1(tmp_path: Path,
+                                                 capsys: pytest.CaptureFixture[str]) -> None:
+    from rv_te_bench.cli.main import main  # noqa: PLC0415
+
+    with tmpfs(tmp_path / 'mnt', 300 << 10) as mnt:
+        code = main(['launch', '--default', '--single-process', '--nodes', 'bench,recorder',
+                     '--namespace', f'sp_{os.getpid()}',
+                     '--param', f'recorder.output_dir={mnt}', '--param', 'recorder.bag_name=bag',
+                     '--param', 'recorder.flush_interval_s=0.2',
+                     '--param', 'recorder.compression=none', '--param', 'bench.speed_factor=0.0'])
+        err = capsys.readouterr().err
+        assert code == 1, err[-3000:]
+        on_disk = re.search(r'\[launch\] bag .*/bag: (\d+) messages on disk', err)
+        assert on_disk, err[-3000:]
+        assert re.search(r'\[launch\] ERROR: recording lost \d+ messages', err)
+        assert sum(_counts_by_readers(mnt / 'bag').values()) == int(on_disk.group(1))
