@@ -10,11 +10,11 @@ from __future__ import annotations
 
 import html
 import json
-import os
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
+from rv_te_bench.io.files import write_all
 from sim.units import rad_to_arcmin
 
 if TYPE_CHECKING:
@@ -122,18 +122,9 @@ def spc_document(chart: ControlChart, series: Series, *, title: str,
     }
 
 
-def _write_atomic(path: Path, data: bytes) -> None:
-    tmp = path.with_name(f'.{path.name}.tmp-{os.getpid()}')
-    try:
-        tmp.write_bytes(data)
-        os.replace(tmp, path)
-    finally:
-        tmp.unlink(missing_ok=True)
-
-
 def write_spc_report(directory: Path, chart: ControlChart, series: Series, *, title: str,
                      capability: Capability | None, baseline_text: str) -> list[Path]:
-    """Write spc.png, spc.json and spc.html into ``directory`` (each atomically)."""
+    """Write spc.png, spc.json and spc.html into ``directory`` (all or nothing)."""
     import base64  # noqa: PLC0415
     import io  # noqa: PLC0415
     directory.mkdir(parents=True, exist_ok=True)
@@ -143,10 +134,10 @@ def write_spc_report(directory: Path, chart: ControlChart, series: Series, *, ti
     png = buf.getvalue()
     doc = spc_document(chart, series, title=title, capability=capability,
                        baseline_text=baseline_text)
-    _write_atomic(directory / 'spc.png', png)
-    _write_atomic(directory / 'spc.json', (json.dumps(doc, indent=2) + '\n').encode())
     page = _html(doc, base64.b64encode(png).decode('ascii'))
-    _write_atomic(directory / 'spc.html', page.encode('utf-8'))
+    write_all({directory / 'spc.png': png,   # all or nothing (no 0-byte PNG on a full disk)
+               directory / 'spc.json': json.dumps(doc, indent=2) + '\n',
+               directory / 'spc.html': page})
     return [directory / n for n in ('spc.png', 'spc.json', 'spc.html')]
 
 
