@@ -212,7 +212,8 @@ def test_paper_optimised_amplitude(paper_result: PhaseOptimisation, params) -> N
 @pytest.mark.slow
 def test_paper_nlte_pp(paper_result: PhaseOptimisation) -> None:
     """Table 4 NLTE peak-to-peak: 2.245' before, 1.072' after; Fig. 5a before: 2.23'.
-    Tolerance 10 % (after: +9.8 % here; the paper reads its curves at its own sampling)."""
+    Tolerance 10 % (after: +9.8 % here, not a sampling effect: docs/DESIGN_NOTES.md 'Paper vs
+    suite')."""
     assert float(rad_to_arcmin(paper_result.nlte_before.pp_rad)) == pytest.approx(2.245,
                                                                                   rel=0.10)
     assert float(rad_to_arcmin(paper_result.nlte_after.pp_rad)) == pytest.approx(1.072,

@@ -16,7 +16,7 @@ import pytest
 
 from sim.presets import load_preset
 from sim.units import rad_to_arcmin
-from sim.wang2020 import Wang2kvParams, nlte_rad, static_te_rad
+from sim.wang2020 import Wang2kvDynamics, Wang2kvParams, nlte_rad, static_te_rad
 from tests import wang2020_reference as ref
 
 THETA = np.linspace(0.0, 2.0 * math.pi, 158_000, endpoint=False)   # one output revolution
@@ -114,3 +114,211 @@ def test_fig15_means_after_optimisation(params: Wang2kvParams) -> None:
     assert np.max(rad_to_arcmin(static_te_rad(THETA, 300.0, p))) < -1.616
     # the gap grows with the load: 0.027', 0.146', 0.207', 0.332' (0.005')
     assert gaps == pytest.approx([0.027, 0.146, 0.207, 0.332], abs=0.005)
+
+
+# ----------------------------------------------------------------- Table 4: DTE rows
+
+TABLE2_DEG = (90.0, 180.0, -135.0, 90.0)
+#: Table 4 (arcmin): (phases, load) -> (p-p, amplitude, std) of the STE and the DTE rows
+TABLE4_STE = {
+    ('before', 30.0): (2.084, 1.393, 0.627), ('before', 100.0): (1.707, 1.770, 0.536),
+    ('before', 300.0): (1.308, 2.848, 0.462), ('after', 30.0): (1.074, 0.764, 0.294),
+    ('after', 100.0): (0.697, 1.141, 0.195), ('after', 300.0): (0.603, 2.219, 0.213),
+}
+TABLE4_DTE = {
+    ('before', 30.0): (2.088, 1.338, 0.595), ('before', 100.0): (1.899, 1.670, 0.530),
+    ('before', 300.0): (2.580, 2.731, 0.468), ('after', 30.0): (1.045, 0.653, 0.262),
+    ('after', 100.0): (1.056, 1.086, 0.203), ('after', 300.0): (1.968, 2.126, 0.255),
+}
+PHASES = {'before': TABLE2_DEG, 'after': OPT_DEG}
+FS_HZ, OMEGA_IN = 10_000.0, 2.0 * math.pi * 5.0          # 300 rpm, as `rv-te model`
+
+
+def _dte_arcmin(params: Wang2kvParams, load_nm: float) -> np.ndarray:
+    """DTE over one output revolution at 10 kHz from the first sample (t0) on."""
+    n = THETA.size
+    t = np.arange(n) / FS_HZ
+    dyn = Wang2kvDynamics(params)
+    return rad_to_arcmin(dyn.te_rad(t, OMEGA_IN * t, np.full(n, OMEGA_IN), np.full(n, load_nm)))
+
+
+def _stats(te: np.ndarray) -> tuple[float, float, float]:
+    return float(np.ptp(te)), float(np.max(np.abs(te))), float(np.std(te))
+
+
+@pytest.fixture(scope='module')
+def table4_runs(params: Wang2kvParams) -> dict[tuple[str, str, float], np.ndarray]:
+    """The six Table 4 DTE rows with both start options of the preset."""
+    out = {}
+    for start in ('loaded', 'unloaded'):
+        for (when, load) in TABLE4_DTE:
+            p = dataclasses.replace(_with_phases(params, PHASES[when]), dte_start=start)
+            out[start, when, load] = _dte_arcmin(p, load)
+    return out
+
+
+def test_table4_dte_where_the_suite_matches(table4_runs: dict) -> None:
+    """The Table 4 DTE numbers the suite reproduces within 5 % (loaded start)."""
+    within = [('before', 30.0, 0), ('before', 30.0, 1), ('before', 100.0, 1),
+              ('before', 300.0, 1), ('after', 30.0, 0), ('after', 100.0, 1),
+              ('after', 300.0, 1)]
+    for when, load, q in within:
+        got = _stats(table4_runs['loaded', when, load])[q]
+        assert got == pytest.approx(TABLE4_DTE[when, load][q], rel=0.05), (when, load, q)
+
+
+def test_table4_dte_follows_eq18(table4_runs: dict, params: Wang2kvParams) -> None:
+    """The suite's DTE rows are the quasi-static Eq. 18 (written out independently here) once
+    the start is over: p-p, amplitude and std of the loaded start within 0.5 % of it (the
+    mesh mode is at 2.07 kHz, the excitation at the crank harmonics); the unloaded start adds
+    its first sample, TE = 0 (Eqs 1-4: Delta_i(t0) = 0), and its transient."""
+    k = params.mesh_stiffness_n_m
+    for (when, load) in TABLE4_DTE:
+        ste = _ste_reference_arcmin(PHASES[when], load, k)
+        loaded = table4_runs['loaded', when, load]
+        for got, want in zip(_stats(loaded), _stats(ste), strict=True):
+            assert got == pytest.approx(want, rel=0.005), (when, load)
+        unloaded = table4_runs['unloaded', when, load]
+        assert abs(unloaded[0]) < 1e-12
+        assert np.min(unloaded) <= np.min(ste) + 1e-3       # a transient can only add
+
+
+def test_table4_dte_amplitudes_cannot_reach_the_paper(table4_runs: dict,
+                                                      params: Wang2kvParams) -> None:
+    """Why no start option closes the amplitude rows: Table 4 puts every DTE amplitude 4-15 %
+    below the STE amplitude of the same row, while Eq. 19 with any start, damping or
+    stiffness ripple gives a DTE that reaches the STE minimum later in the revolution (a
+    ripple only deepens it). The suite's STE amplitudes are within 5 % of Table 4's, so the
+    DTE amplitude stays at or above them: after optimisation at 30 N m 0.743' against the
+    paper's 0.653' (+13.7 %) whatever the start."""
+    for row, (_, amp_dte, _) in TABLE4_DTE.items():
+        assert amp_dte < TABLE4_STE[row][1]                      # the paper's own rows
+    for (start, when, load), te in table4_runs.items():
+        ste = _ste_reference_arcmin(PHASES[when], load, params.mesh_stiffness_n_m)
+        assert np.max(np.abs(te)) >= np.max(np.abs(ste)) - 1e-3, (start, when, load)
+    amp = _stats(table4_runs['unloaded', 'after', 30.0])[1]
+    assert amp / 0.653 - 1 == pytest.approx(0.137, abs=0.005)
+    # other damping (zeta 0.02 .. 1) and a 10 % ripple: never below the STE amplitude
+    c1 = 2.0 * math.sqrt(params.mesh_stiffness_n_m * params.equivalent_mass_kg)
+    p = _with_phases(params, OPT_DEG)
+    floor = np.max(np.abs(_ste_reference_arcmin(OPT_DEG, 30.0, params.mesh_stiffness_n_m)))
+    for zeta, ripple, start in ((0.02, 0.0, 'unloaded'), (1.0, 0.0, 'unloaded'),
+                                (0.05, 0.1, 'loaded')):
+        q = dataclasses.replace(p, mesh_damping_n_s_m=zeta * c1, dte_start=start,
+                                stiffness_harmonic_ratio=(ripple,))
+        assert np.max(np.abs(_dte_arcmin(q, 30.0))) >= floor - 1e-3
+
+
+def test_table4_dte_300nm_peak_to_peak(table4_runs: dict) -> None:
+    """Table 4's 300 N m DTE rows have p-p below the amplitude (2.580' < 2.731',
+    1.968' < 2.126'): the record's maximum is -0.151' / -0.158', so it holds no sample at the
+    unloaded state (TE = 0 at t0), i.e. no start from the unloaded state. The unloaded start
+    gives p-p >= amplitude (2.824', +9.4 %; after optimisation the step's overshoot gives
+    2.751', +39.8 %, and 2.218', +12.7 %, at best without it); the loaded start gives the
+    STE's p-p (1.259', -51 %; 0.580', -71 %). No start option lands within 5 % of both."""
+    for when, (pp, amp, _) in (('before', TABLE4_DTE['before', 300.0]),
+                               ('after', TABLE4_DTE['after', 300.0])):
+        assert pp < amp and -amp + pp < -0.15                 # max of the paper's record
+        got_pp, got_amp, _ = _stats(table4_runs['unloaded', when, 300.0])
+        assert got_pp >= got_amp                              # the record holds TE = 0
+        assert got_pp / pp - 1 > 0.09
+        assert _stats(table4_runs['loaded', when, 300.0])[0] / pp - 1 < -0.5
+    assert _stats(table4_runs['unloaded', 'before', 300.0])[0] == pytest.approx(2.824, abs=0.005)
+
+
+def test_ripple_hurts_the_amplitude(params: Wang2kvParams) -> None:
+    """Issue #18: the 10 % mesh-stiffness ripple the preset assumed before raised the 300 N m
+    DTE amplitude from 2.824' to 3.005' (paper 2.731', below its STE 2.848') and added a
+    mesh-frequency oscillation; the preset now has none (mesh.stiffness_harmonic_ratio = 0)."""
+    assert params.stiffness_harmonic_ratio == (0.0,)
+    ripple = dataclasses.replace(params, stiffness_harmonic_ratio=(0.1,))
+    amp0 = _stats(_dte_arcmin(params, 300.0))[1]
+    amp1 = _stats(_dte_arcmin(ripple, 300.0))[1]
+    assert amp0 == pytest.approx(2.824, abs=0.005)
+    assert amp1 - amp0 == pytest.approx(0.18, abs=0.02)
+    assert abs(amp1 / 2.731 - 1) > abs(amp0 / 2.731 - 1)
+
+
+# ----------------------------------------------------------------- NLTE rows, Fig. 14
+
+def _nlte_rates_arcmin(phi: np.ndarray, phases_deg: tuple[float, ...],
+                       rates: tuple[float, float, float]) -> tuple[np.ndarray, np.ndarray]:
+    """Eqs 1-2 and 5 with the planet phases turning at rates[0], the revolution phase at
+    rates[1] and the output-wheel phase at rates[2] x the output angle (the suite's reading:
+    -25, -25, 1), written out here for the comparison of readings."""
+    a = ref.ALPHA_RAD
+    p1, p2, g, ot = (math.radians(v) for v in phases_deg)
+    e_p1, e_p2, e_g, e_ot = ref.TABLE2_E_M
+
+    def term(e: float, th0: float, rate: float, off: float) -> np.ndarray:
+        return e * (np.sin(th0 + rate * phi + off) - np.sin(th0 + off))
+
+    rp, rg, ro = rates
+    d1 = term(e_p1, p1, rp, -a) + term(e_g, g, rg, -a) + term(e_ot, ot, ro, -a)
+    d2 = (term(e_p2, p2, rp, -a) + term(e_g, g, rg, -a + math.pi)
+          + term(e_ot, ot, ro, -a + math.pi))
+    return rad_to_arcmin(d1 / ref.R_P_M), rad_to_arcmin(d2 / ref.R_P_M)
+
+
+def test_table4_nlte_rows(params: Wang2kvParams) -> None:
+    """Table 4 NLTE rows. Before optimisation p-p 2.245' (suite 2.274', +1.3 %), amplitude
+    1.231' (1.168', -5.1 %), std 0.637' (0.565', -11 %); after: 1.072' (1.177', +9.8 %),
+    0.604' (0.608', +0.7 %), 0.263' (0.316', +20 %). Not a sampling effect: sampled at
+    10 Hz the p-p after optimisation is still 1.149' and the std 0.319'. The std convention
+    is the paper's own: Table 3's stds are reproduced to 2 % (test_table3_groups)."""
+    paper = {'before': (2.245, 1.231, 0.637), 'after': (1.072, 0.604, 0.263)}
+    suite = {'before': (2.274, 1.168, 0.565), 'after': (1.177, 0.608, 0.316)}
+    for when in ('before', 'after'):
+        te = _nlte_arcmin(params, PHASES[when])
+        got = _stats(te)
+        assert got == pytest.approx(suite[when], abs=0.002)
+        unit = ref.Unit(*ref.TABLE2_E_M, *(math.radians(v) for v in PHASES[when]))
+        assert _stats(rad_to_arcmin(ref.nlte_rad(THETA, unit))) == pytest.approx(got, abs=1e-3)
+        # the rows the suite matches: p-p before (5 %), amplitude (6 %: Fig. 5a 1.22')
+        assert got[1] == pytest.approx(paper[when][1], rel=0.06)
+    assert suite['before'][0] == pytest.approx(paper['before'][0], rel=0.05)
+    coarse = _stats(_nlte_arcmin(params, PHASES['after'])[::1000])       # 10 Hz
+    assert coarse[0] > 1.14 and coarse[2] > 0.31
+
+
+READINGS = {'suite (-25, -25, 1)': (-25.0, -25.0, 1.0), 'planet -26': (-26.0, -25.0, 1.0),
+            'revolution -26': (-25.0, -26.0, 1.0), 'planet spin +1': (1.0, -25.0, 1.0)}
+
+
+def test_fig14_wave_peaks_and_angle_readings() -> None:
+    """Fig. 14 shows ~10 NLTE peaks in the first 3 s after optimisation (2 per crank turn:
+    the pairs alternate), the suite none. At the Eq. 21 optimum [-70, 120, 110, 40] deg the
+    crank-rate terms of pair 1 cancel exactly (e_p1 = e_g, theta_p1 - theta_g = -180 deg), so
+    pair 1 carries only the slow output-wheel term and stays in contact through 0-3 s. That
+    holds whenever planet and revolution phases turn at one rate. Readings where they turn
+    at different rates give peaks but lose the paper's other results: Fig. 5a's p-p
+    (2.23'), Table 3 group 1's amplitude (4.49') and the optimum itself."""
+    from scipy.signal import find_peaks  # noqa: PLC0415
+
+    phi = np.linspace(0.0, 2.0 * math.pi, 15_800, endpoint=False)   # 1 kHz over 15.8 s
+    first3s = phi < 2.0 * math.pi * 3.0 / 15.8
+    e_p1, _, e_g, _ = ref.TABLE2_E_M
+    q1 = e_p1 * np.exp(1j * math.radians(-70.0)) + e_g * np.exp(1j * math.radians(110.0))
+    assert abs(q1) < 1e-20
+    results = {}
+    for name, rates in READINGS.items():
+        n1, n2 = _nlte_rates_arcmin(phi, OPT_DEG, rates)
+        nlte = np.maximum(n1, n2)
+        peaks = len(find_peaks(nlte[first3s])[0])
+        before = np.maximum(*_nlte_rates_arcmin(phi, TABLE2_DEG, rates))
+        group1 = np.maximum(*_nlte_rates_arcmin(phi, TABLE3[1][0], rates))
+        results[name] = (peaks, float(np.ptp(before)), float(np.max(np.abs(group1))),
+                         float(np.max(np.abs(nlte))))
+    peaks, pp5a, amp_g1, _ = results['suite (-25, -25, 1)']
+    assert peaks == 0
+    assert pp5a == pytest.approx(2.23, rel=0.05) and amp_g1 == pytest.approx(4.49, rel=0.01)
+    for name in ('planet -26', 'revolution -26', 'planet spin +1'):
+        peaks, pp5a, amp_g1, _ = results[name]
+        assert peaks >= 5, name                                    # peaks appear ...
+        assert abs(pp5a / 2.23 - 1) > 0.2 or abs(amp_g1 / 4.49 - 1) > 0.2, name   # ... but
+    # under 'planet -26' the paper's phases are far from optimal: S = 1.53' there against
+    # 0.98' at [-180, 70, 130, 0] deg (the optimum of a full 37^4 grid with that reading)
+    s_paper = results['planet -26'][3]
+    other = np.max(np.abs(np.maximum(*_nlte_rates_arcmin(phi, (-180.0, 70.0, 130.0, 0.0),
+                                                         READINGS['planet -26']))))
+    assert s_paper > 1.5 * other
