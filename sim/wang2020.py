@@ -485,8 +485,9 @@ _MAX_CHUNK = 1 << 15
 _MIN_CHUNK = 8
 _PICARD_PASSES = 4
 _PICARD_TOL_M = 1e-10        # ~6e-6 arcmin at r_p = 61 mm
-_QUIET_STEPS = 400           # scalar stepping ends after this many steps without a change
-_SCALAR_SPAN = 4096          # scalar stepping works on stretches of this many steps
+_QUIET_STEPS = 400           # scalar stepping ends after this many steps without a change ...
+_QUIET_STEPS_SINGLE = 32     # ... or this many after a single, isolated change (issue #23)
+_SCALAR_SPAN = 512           # scalar stepping works on stretches of at most this many steps
 
 
 def _mode_of(x: np.ndarray, u: np.ndarray) -> np.ndarray:
@@ -719,7 +720,8 @@ class Wang2kvDynamics:
     def _scalar_run(self, g: _Grid, i: int, x: float, v: float,  # noqa: C901, PLR0915
                     xs: np.ndarray) -> tuple[int, float, float]:
         """Step one internal step at a time from index i (state valid there) until
-        ``_QUIET_STEPS`` steps pass without a contact change; fills ``xs``.
+        ``_QUIET_STEPS`` steps pass without a contact change (``_QUIET_STEPS_SINGLE`` after
+        an isolated change: a slow change of the touching pair needs no more); fills ``xs``.
 
         Used where contacts change often (impacts, rattling in the backlash), where
         restarting vectorised stretches would cost more than plain float arithmetic.
@@ -773,10 +775,11 @@ class Wang2kvDynamics:
                     p10 * x0 + p11 * v0 + g0v * f0 + g1v * f1)
 
         quiet = 0
+        limit = _QUIET_STEPS_SINGLE
         a = 0
         mode = bits(x, 0)
         n, f0 = force(mode, 0, x)
-        while a < stop - lo and quiet < _QUIET_STEPS:
+        while a < stop - lo and quiet < limit:
             _, f1 = force(mode, a + 1, x + v * h)
             x1, v1 = step(mats[n], x, v, f0, f1)
             if ripple and n:                    # corrector for the ripple term
@@ -810,6 +813,8 @@ class Wang2kvDynamics:
                     x, v = xm, vm
                 mode = bits(x, a + 1)
                 n, f0 = force(mode, a + 1, x)
+                if a > 0:                       # a second change: rattling, stay longer
+                    limit = _QUIET_STEPS
                 quiet = 0
                 self.state.switches += 1
             a += 1
@@ -840,7 +845,7 @@ class Wang2kvDynamics:
             q = int(bad[0])                 # step i+q -> i+q+1 changes contact
             xs[i + 1:i + q + 1] = xt[1:q + 1]
             i, x, v = self._scalar_run(g, i + q, float(xt[q]), float(vt[q]), xs)
-            chunk = _FIRST_CHUNK
+            chunk = max(_FIRST_CHUNK, chunk // 2)   # the stretch before was fine so far
         self.state.chunk = chunk
         return xs, v
 
