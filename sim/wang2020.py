@@ -507,6 +507,18 @@ class _Grid:
     f_load: np.ndarray   # (n,) T / r_p [N]
 
 
+class _Velocity:
+    """Velocity of a linear stretch, sum_j Re(c_j q_j[i]), computed per index on demand."""
+
+    __slots__ = ('_parts',)
+
+    def __init__(self, parts: tuple[tuple[Any, np.ndarray], ...]) -> None:
+        self._parts = parts
+
+    def __getitem__(self, i: int) -> float:
+        return float(sum((c * q[i]).real for c, q in self._parts))
+
+
 @dataclass
 class _State:
     t_s: float = math.nan
@@ -611,8 +623,12 @@ class Wang2kvDynamics:
         return out
 
     def _run_linear(self, n: int, h: float, x0: float, v0: float,
-                    f: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """Exact response (FOH forcing) of m x'' + n c x' + n k0 x = f from (x0, v0)."""
+                    f: np.ndarray) -> tuple[np.ndarray, _Velocity]:
+        """Exact response (FOH forcing) of m x'' + n c x' + n k0 x = f from (x0, v0).
+
+        Returns x and the velocity, evaluated only where asked (the integrator needs it at
+        one index of a stretch).
+        """
         from scipy.signal import lfilter  # noqa: PLC0415 - scipy.signal costs 0.7 s to import
 
         m = self.params.equivalent_mass_kg
@@ -621,23 +637,23 @@ class Wang2kvDynamics:
             dv = 0.5 * h * (a[:-1] + a[1:])
             v = np.concatenate(([v0], v0 + np.cumsum(dv)))
             dx = h * v[:-1] + h * h * (a[:-1] / 3.0 + a[1:] / 6.0)
-            return np.concatenate(([x0], x0 + np.cumsum(dx))), v
+            return np.concatenate(([x0], x0 + np.cumsum(dx))), _Velocity(((1.0, v),))
         lam, phi, beta0, beta1 = self._modal(n, h)
         q0 = np.array([lam[1] * x0 - v0, -lam[0] * x0 + v0]) / (lam[1] - lam[0])
         if lam[0].imag != 0.0:                           # underdamped: conjugate pair
             w = beta1[0] * f[1:] + beta0[0] * f[:-1]
             q = lfilter([1.0], [1.0, -phi[0]], w, zi=[phi[0] * q0[0]])[0]
             q = np.concatenate(([q0[0]], q))
-            return 2.0 * q.real, 2.0 * (lam[0] * q).real
+            return 2.0 * q.real, _Velocity(((2.0 * lam[0], q),))
         xs = np.zeros(len(f))
-        vs = np.zeros(len(f))
+        parts = []
         for j in range(2):
             w = (beta1[j] * f[1:] + beta0[j] * f[:-1]).real
             q = lfilter([1.0], [1.0, -phi[j].real], w, zi=[phi[j].real * q0[j].real])[0]
             q = np.concatenate(([q0[j].real], q))
             xs += q
-            vs += lam[j].real * q
-        return xs, vs
+            parts.append((lam[j].real, q))
+        return xs, _Velocity(tuple(parts))
 
     def _forcing(self, mode: int, g: _Grid, sl: slice, x_est: np.ndarray | None,
                  ) -> tuple[int, np.ndarray, np.ndarray]:
@@ -658,20 +674,32 @@ class Wang2kvDynamics:
         return n, f, xqs
 
     def _solve(self, mode: int, g: _Grid, i: int, j: int, x0: float,
-               v0: float) -> tuple[np.ndarray, np.ndarray, bool]:
+               v0: float) -> tuple[np.ndarray, _Velocity, bool]:
         """Trajectory on [i, j] in one mode; Picard passes for the stiffness ripple.
 
         Returns (x, v, converged); converged is False when the last two passes differ by
         more than ``_PICARD_TOL_M`` (the caller then shortens the stretch).
         """
         sl = slice(i, j + 1)
-        n, f, _ = self._forcing(mode, g, sl, None)
-        x, v = self._run_linear(n, g.h, x0, v0, f)
-        if not (n and self._ripple):
+        if not self._ripple:
+            n, f, _ = self._forcing(mode, g, sl, None)
+            x, v = self._run_linear(n, g.h, x0, v0, f)
             return x, v, True
+        # the forcing without the ripple term once; each pass only moves -n k~(t) x
+        act = _ACTIVE[mode]
+        n = len(act)
+        fl = g.f_load[sl]
+        if n == 0:
+            x, v = self._run_linear(0, g.h, x0, v0, -fl)
+            return x, v, True
+        k = g.k[sl]
+        su = g.u[act[0], sl] if n == 1 else g.u[list(act), sl].sum(axis=0)
+        sud = g.ud[act[0], sl] if n == 1 else g.ud[list(act), sl].sum(axis=0)
+        base = k * su + self.params.mesh_damping_n_s_m * sud - fl
+        nkt = n * (k - self.params.mesh_stiffness_n_m)
+        x, v = self._run_linear(n, g.h, x0, v0, base - nkt * ((su - fl / k) / n))
         for _ in range(_PICARD_PASSES):
-            _, f, _ = self._forcing(mode, g, sl, x)
-            x_new, v = self._run_linear(n, g.h, x0, v0, f)
+            x_new, v = self._run_linear(n, g.h, x0, v0, base - nkt * x)
             change = float(np.max(np.abs(x_new - x)))
             x = x_new
             if change < _PICARD_TOL_M:
