@@ -413,9 +413,8 @@ class BagWriter:
             if len(self._open.data) >= self.chunk_size_bytes:
                 self._hold(self._open)
                 self._open = Chunk()
-            if now >= self._next_retry_mono:
-                self._try_resume()
-            return
+            if now < self._next_retry_mono or not self._try_resume():
+                return
         if self._open.data:
             self._write_open()
             if self._gap is not None:
@@ -584,6 +583,12 @@ class BagWriter:
             gap.held = 0
             return False
         self._gap = None
+        # metadata.yaml lists the new file before messages go into it (readers ignore
+        # unlisted files); no room even for that: still full, a new gap keeps the held ones
+        self._write_yaml_or_gap()
+        if self._gap is not None:
+            gap.held = 0
+            return False
         self._held, self._held_bytes = [], 0
         for i, chunk in enumerate(held):
             try:
@@ -593,8 +598,8 @@ class BagWriter:
                 self._start_gap(exc, held[i:])
                 return False
         self._on_event(f'bag {self.path}: writing again: {gap.describe()}')
-        self._write_yaml_or_gap()
-        return self._gap is None
+        self._yaml_dirty = True   # the counts of the held messages, at the next flush
+        return True
 
     def _reserve_need(self) -> int:
         """Bytes still to be written when the bag closes now: the open file's summary and

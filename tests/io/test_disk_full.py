@@ -338,3 +338,35 @@ def test_tmpfs_full_for_a_while(tmp_path: Path) -> None:
         assert info['relative_file_paths'] == ['bag_0.mcap', 'bag_1.mcap']
         (gap,) = gaps_in_yaml(info)
         assert gap['lost_log_time_ns'] == [log_ns(missing[0]), log_ns(missing[-1])]
+
+
+class _Killed(BaseException):
+    """The process dies here (a SIGKILL, as seen by the files)."""
+
+
+def test_killed_while_resuming_the_new_file_is_already_listed(tmp_path: Path) -> None:
+    """metadata.yaml names the new file before the held messages go into it (readers skip
+    unlisted files): a recorder killed while writing them leaves a bag whose files are all
+    listed and read."""
+
+    class DiesOnFirstMessages(SmallDisk):
+        def pwritev(self, fd: int, parts: list, offset: int) -> int:  # type: ignore[override]
+            if self._paths[fd].endswith('bag_1.mcap') and offset > 0:
+                raise _Killed
+            return super().pwritev(fd, parts, offset)
+
+    disk = DiesOnFirstMessages(1_000_000)
+    bag = tmp_path / 'bag'
+    writer, _ = start_bag(bag, storage=disk)
+    full_at = write_until_stalled(writer)
+    for seq in range(full_at, full_at + 20):
+        writer.write(ENCODER_TOPIC, log_ns(seq), block(seq))
+    disk.capacity_bytes = 3_000_000
+    time.sleep(2 * FLUSH_S)
+    with pytest.raises(_Killed):
+        writer.flush_if_due()                 # resumes: dies writing the held blocks
+    assert metadata(bag)['relative_file_paths'] == ['bag_0.mcap', 'bag_1.mcap']
+    with AnyReader([bag]) as reader:
+        seqs = [int(reader.deserialize(raw, c.msgtype).seq)
+                for c, _, raw in reader.messages() if c.topic == ENCODER_TOPIC]
+    assert seqs == list(range(writer.counts[ENCODER_TOPIC]))
