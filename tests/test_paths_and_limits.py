@@ -161,3 +161,21 @@ def test_report_on_a_full_tmpfs(tmp_path: Path, analysis: object,
         assert got == 1
         assert 'No space left on device' in line
         assert list(mnt.iterdir()) == []        # no 0-byte (or cut) PNG, no temporary
+
+
+def test_model_csv_and_plot_on_a_full_disk_leave_no_cut_file(
+        tmp_path: Path, monkeypatch: pytest.MonkeyPatch,
+        capsys: pytest.CaptureFixture[str]) -> None:
+    argv = ['model', 'wang2020-2kv', '--revolutions', '0.05']
+    assert main([*argv, '--csv', str(tmp_path / 'ok.csv'), '--plot', str(tmp_path / 'ok.png')]) == 0
+    csv_size = (tmp_path / 'ok.csv').stat().st_size
+    capsys.readouterr()
+    _enospc_after(monkeypatch, csv_size // 2)
+    got = main([*argv, '--csv', str(tmp_path / 'te.csv')])
+    assert got == 1
+    assert 'No space left on device' in _one_error_line(capsys.readouterr().err)
+    _enospc_after(monkeypatch, 1000)
+    got = main([*argv, '--plot', str(tmp_path / 'te.png')])
+    assert got == 1
+    assert 'No space left on device' in _one_error_line(capsys.readouterr().err)
+    assert sorted(p.name for p in tmp_path.iterdir()) == ['ok.csv', 'ok.png']

@@ -227,12 +227,22 @@ def _check_out(path: Path, force: bool) -> None:  # noqa: FBT001
 
 
 def _write_csv(path: Path, columns: dict[str, np.ndarray]) -> None:
+    import io  # noqa: PLC0415
+
+    from rv_te_bench.io.files import write_atomic  # noqa: PLC0415
+
     data = np.column_stack(list(columns.values()))
-    np.savetxt(path, data, delimiter=',', header=','.join(columns), comments='', fmt='%.12g')
+    buf = io.BytesIO()
+    np.savetxt(buf, data, delimiter=',', header=','.join(columns), comments='', fmt='%.12g')
+    write_atomic(path, buf.getvalue())   # a full disk leaves no cut file
 
 
 def _plot(path: Path, stats: dict[str, Any], columns: dict[str, np.ndarray]) -> None:
+    import io  # noqa: PLC0415
+
     import matplotlib as mpl  # noqa: PLC0415
+
+    from rv_te_bench.io.files import write_atomic  # noqa: PLC0415
 
     mpl.use('Agg')
     import matplotlib.pyplot as plt  # noqa: PLC0415
@@ -247,8 +257,12 @@ def _plot(path: Path, stats: dict[str, Any], columns: dict[str, np.ndarray]) -> 
                  f"mean {stats['te_mean_arcmin']:.3f}'")
     ax.grid(alpha=0.3)
     fig.tight_layout()
-    fig.savefig(path, dpi=120)
-    plt.close(fig)
+    buf = io.BytesIO()
+    try:
+        fig.savefig(buf, dpi=120, format=path.suffix[1:].lower() or None)
+    finally:
+        plt.close(fig)
+    write_atomic(path, buf.getvalue())   # a full disk leaves no 0-byte image
 
 
 def run(args: argparse.Namespace) -> int:
