@@ -20,6 +20,11 @@ speed reducers based on error sensitivity analysis", Appl. Sci. 10 (2020) 481.
   ring is fixed).
 * Tooth contact analysis (Eqs 28-48): paper's fixed-point iteration for the maximum contact
   force, the pins in mesh and the normal deformation per pin.
+* Elastic TE (issue #18): under the torque T_c the loaded cycloid disc turns by
+  ``beta = delta_max / r_c'`` against the pins (Eqs 35-37), and the output with it:
+  TE_el = -sign(T) delta_max(|T|) / r_c' (:func:`elastic_te_rad`; mode ``'elastic'`` of the
+  TE model adds it to the geometric TE at the live load). It is a load-dependent offset:
+  it enters a TE peak-to-peak only where the load changes (2 beta for a full reversal).
 
 Readings of the printed equations (the paper has OCR noise and typos), chosen so that the
 paper's own numbers follow:
@@ -61,6 +66,7 @@ __all__ = [
     'TcaResult',
     'build_te_model',
     'cycloid_profile_m',
+    'elastic_te_rad',
     'error_gains_rad_per_m',
     'factor_orders',
     'modification_te_rad',
@@ -373,24 +379,27 @@ def factor_orders(kinematics: ReducerKinematics) -> dict[str, float]:
 
 
 class HuGeometricTeModel:
-    """Geometric TE of an RV reducer with given manufacturing errors (TeModel protocol).
+    """Geometric (+ elastic) TE of an RV reducer with manufacturing errors (TeModel protocol).
 
     ``TE(theta) = sum_j g_j delta_j cos(n_j theta_in / i + phase_j)`` with ``g_j`` from
     :func:`error_gains_rad_per_m`, ``n_j`` from :func:`factor_orders` (output orders) and the
     amplitudes ``delta_j`` [m] / phases [rad] of the ``[errors]`` preset section. Zero mean
     (the constant TE of the modifications is :func:`modification_te_rad`); load and speed do
-    not enter (geometric model). Stateless, so blocks can come in any size.
+    not enter (geometric model), unless ``elastic``: then the elastic TE of the TCA at the
+    sample's load is added. Stateless, so blocks can come in any size.
     """
 
     def __init__(self, params: HuRvParams, kinematics: ReducerKinematics,
-                 amplitudes_m: dict[str, float], phases_rad: dict[str, float]) -> None:
+                 amplitudes_m: dict[str, float], phases_rad: dict[str, float], *,
+                 elastic: bool = False) -> None:
         """Store the factor lines.
 
         Args:
-            params: Stage parameters (for the gains).
+            params: Stage parameters (for the gains and the TCA).
             kinematics: Reducer kinematics (ratio and orders).
             amplitudes_m: Error amplitude per factor key [m]; missing keys are 0.
             phases_rad: Phase per factor key [rad]; missing keys are 0.
+            elastic: Add the elastic TE of the TCA at the live load (:func:`elastic_te_rad`).
 
         Raises:
             ModelInputError: Unknown factor key or non-finite value.
@@ -405,6 +414,7 @@ class HuGeometricTeModel:
                 raise ModelInputError(msg)
         self.params = params
         self.kinematics = kinematics
+        self.elastic = elastic
         gains = error_gains_rad_per_m(params)
         orders = factor_orders(kinematics)
         self.orders: dict[str, float] = orders
@@ -446,7 +456,10 @@ class HuGeometricTeModel:
         amp = np.array([self.line_amplitude_rad[k] for k in FACTOR_KEYS])
         n = np.array([self.orders[k] for k in FACTOR_KEYS])
         ph = np.array([self.phases_rad[k] for k in FACTOR_KEYS])
-        return amp @ np.cos(np.outer(n, th_out) + ph[:, None])
+        te = amp @ np.cos(np.outer(n, th_out) + ph[:, None])
+        if self.elastic:
+            te = te + elastic_te_rad(self.params, arrays[3])
+        return te
 
     def reset(self) -> None:
         """Nothing to reset (stateless)."""
@@ -458,13 +471,15 @@ def build_te_model(preset: Preset, mode: str) -> HuGeometricTeModel:
     Args:
         preset: A hu2020-rv preset; ``errors.<factor>_m`` amplitudes [m] and
             ``errors.<factor>_phase_deg`` phases [deg] (missing factors are 0).
-        mode: ``'geometric'``.
+        mode: ``'geometric'`` (load-free) or ``'elastic'`` (geometric + the TCA's elastic TE
+            at the live load).
 
     Raises:
         PresetError: Unsupported mode, unknown ``errors.*`` key, or an invalid value.
     """
-    if mode != 'geometric':
-        msg = f'preset {preset.name!r}: model hu2020-rv supports mode "geometric", got {mode!r}'
+    if mode not in ('geometric', 'elastic'):
+        msg = (f'preset {preset.name!r}: model hu2020-rv supports modes "geometric" and '
+               f'"elastic", got {mode!r}')
         raise PresetError(msg)
     params = HuRvParams.from_preset(preset)
     kin = kinematics_from_preset(preset)
@@ -481,7 +496,7 @@ def build_te_model(preset: Preset, mode: str) -> HuGeometricTeModel:
                    f'{", ".join(FACTOR_KEYS)}')
             raise PresetError(msg)
     try:
-        return HuGeometricTeModel(params, kin, amps, phases)
+        return HuGeometricTeModel(params, kin, amps, phases, elastic=mode == 'elastic')
     except ModelInputError as exc:
         raise PresetError(f'preset {preset.name!r}: {exc}') from None
 
@@ -622,3 +637,65 @@ def tooth_contact_analysis(params: HuRvParams, torque_nm: float | None = None, *
                      clearance_m=clearance, deformation_m=deformation, force_n=force,
                      in_mesh=mesh, iterations=it, history_n=tuple(history),
                      torque_cycloid_nm=t_c, rho_m=float(rho))
+
+
+_ELASTIC_POINTS = 40          # torques of the elastic-TE table, log-spaced
+
+
+def _elastic_table(params: HuRvParams) -> tuple[np.ndarray, np.ndarray]:
+    """beta = delta_max / r_c' [rad] of the TCA at torques from 0.1 % to 300 % of the preset's.
+
+    Below the smallest torque where a TCA converges, beta falls linearly to 0 at T = 0.
+    """
+    torques = params.torque_nm * np.geomspace(1e-3, 3.0, _ELASTIC_POINTS)
+    t_ok, beta = [0.0], [0.0]
+    for t in torques:
+        try:
+            res = tooth_contact_analysis(params, float(t))
+        except ModelInputError:
+            continue
+        t_ok.append(float(t))
+        beta.append(res.delta_max_m / params.r_c_m)
+    return np.array(t_ok), np.array(beta)
+
+
+_ELASTIC_CACHE: dict[HuRvParams, tuple[np.ndarray, np.ndarray]] = {}
+
+
+def elastic_te_rad(params: HuRvParams, torque_nm: np.ndarray | float) -> np.ndarray:
+    """Elastic TE of the cycloid-pin stage under an output torque [rad] (Eqs 35-44).
+
+    The more loaded disc (T_c = load_share T) turns by ``beta = delta_max / r_c'`` against
+    the pins (Eq. 37: delta_i = l_i beta, delta_max = r_c' beta) with delta_max from the
+    converged TCA (Eqs 38-48); the output follows it: TE = -sign(T) beta(|T|) (a positive
+    torque resists the motion, the output lags). Interpolated in a table of TCAs from 0.1 %
+    to 300 % of the preset torque (linear above it); beyond 3x the preset torque it is
+    extrapolated linearly.
+
+    Args:
+        params: Stage parameters (geometry, modifications, material, face width).
+        torque_nm: Output torque(s) T [N m].
+
+    Returns:
+        TE [rad], shape of ``torque_nm``.
+
+    Raises:
+        ModelInputError: Non-finite torque.
+    """
+    t = np.asarray(torque_nm, dtype=np.float64)
+    if not np.all(np.isfinite(t)):
+        msg = 'torque_nm must be finite'
+        raise ModelInputError(msg)
+    table = _ELASTIC_CACHE.get(params)
+    if table is None:
+        if len(_ELASTIC_CACHE) > 16:  # noqa: PLR2004
+            _ELASTIC_CACHE.clear()
+        table = _ELASTIC_CACHE[params] = _elastic_table(params)
+    tt, bb = table
+    mag = np.abs(t)
+    beta = np.interp(mag, tt, bb)
+    over = mag > tt[-1]
+    if np.any(over):
+        slope = (bb[-1] - bb[-2]) / (tt[-1] - tt[-2])
+        beta = np.where(over, bb[-1] + slope * (mag - tt[-1]), beta)
+    return -np.sign(t) * beta

@@ -50,8 +50,13 @@ def register(subparsers: Any) -> None:  # noqa: ANN401 - argparse's private type
 def _text(advice: Any) -> str:  # noqa: ANN401 - Advice
     lines = [f'preset {advice.preset}: tooth-profile compensation (Hu 2020 Eq. 27, '
              f'scale {advice.details["scale"]})',
-             f'  TE before {rad_to_arcmin(advice.te_before_rad):.4f} arcmin, after (linear '
-             f'model) {rad_to_arcmin(advice.te_after_rad):.4f} arcmin',
+             f'  TE before {rad_to_arcmin(advice.te_before_rad):.4f} arcmin, predicted after '
+             f'{rad_to_arcmin(advice.te_after_rad):.4f} arcmin '
+             f'(load reversing between +-{advice.details["torque_nm"]:g} N m: '
+             f'elastic part {rad_to_arcmin(advice.details["elastic_pp_before_rad"]):.4f} -> '
+             f'{rad_to_arcmin(advice.details["elastic_pp_after_rad"]):.4f} arcmin, geometric '
+             f'part {rad_to_arcmin(advice.details["geometric_part_rad"]):.4f} arcmin removed '
+             'by the linear model as far as --fraction says)',
              f'  {"factor":<52} {"symbol":<14} {"S_j":>8} {"now mm":>10} {"new mm":>10}']
     for m in advice.modifications:
         lines.append(f'  {m.factor:<52} {m.symbol:<14} {m.sensitivity_index:>8.4f} '

@@ -31,6 +31,8 @@ examples:
   rv-te model wang2020-2kv --kind dte --load-nm 300 --dte-start unloaded
                                                        DTE with the start-up transient
   rv-te model wang2020-2kv --set mesh.stiffness_n_m=9e7 --kind ste --csv out/ste.csv
+  rv-te model hu2020-rv --kind elastic --load-nm 1094 --load-hz 0.5
+                                                       geometric + elastic TE (Hu 2020 TCA)
 """
 
 # mode used when --kind is not given
@@ -81,8 +83,9 @@ def register(subparsers: Any) -> None:  # noqa: ANN401 - argparse's private type
         formatter_class=argparse.RawDescriptionHelpFormatter)
     p.add_argument('preset', help='preset name or path to a preset TOML file')
     p.add_argument('--kind', default=None,
-                   help='model mode: nlte | ste | dte for 2K-V presets (default: nlte; '
-                        'RV presets: their own modes)')
+                   help='model mode: nlte | ste | dte for 2K-V presets (default: nlte); '
+                        'geometric | elastic for hu2020-rv (default: geometric); dte for '
+                        'li2023-rv')
     p.add_argument('--load-nm', type=float, default=None, metavar='T',
                    help="load torque amplitude [N m] (default: preset drive.load_nm or 0)")
     p.add_argument('--load-hz', type=_load_hz, default=None, metavar='F',

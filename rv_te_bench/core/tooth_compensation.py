@@ -27,9 +27,18 @@ Ambiguities of the paper, stated rather than hidden:
   towards zero (-0.0437 -> -0.0266 mm), i.e. it reduces the magnitude of the shift. That is
   what the paper built and tested (more pins in mesh, lower F_max, -47 % TE on the bench), so
   the recommendation does the same: ``delta_r_p_new = delta_r_p - delta_g``.
-* **Predicted TE.** The linear model (Eq. 23) cancels the assigned TE completely; the
-  paper measured -41 % (Adams) and -47 % (bench). ``te_after_rad`` is the linear-model value
-  ``(1 - fraction) * TE``.
+* **Predicted TE (issue #18).** The linear model (Eq. 23) cancels the assigned TE
+  completely, which no one should believe: part of a measured TE is elastic, the cycloid disc
+  turning by ``beta = delta_max / r_c'`` against the pins under the torque (TCA, Eqs 35-48,
+  :func:`sim.hu2020.elastic_te_rad`). A geometric modification does not cancel it; it only
+  changes it through the TCA of the new geometry (more pins in mesh, smaller delta_max). The
+  prediction is therefore ``TE_after = (1 - fraction) * G + E_after`` with ``E`` the elastic
+  part of the peak-to-peak (``load_case='reversing'``: 2 beta, the load changes sign within
+  the period as in the paper's Adams run with its reversing input) at the preset's TCA
+  torque, and
+  ``G = max(TE - E_before, 0)`` the geometric part. The recommendation itself assigns the
+  whole TE as the paper does. The paper measured -41 % (Adams) and -47 % (bench); the
+  elastic part alone falls only as delta_max does (-21 % here, -24 % in the paper).
 """
 
 from __future__ import annotations
@@ -40,7 +49,7 @@ from typing import TYPE_CHECKING, Any
 from rv_te_bench.core.advice import Advice, Modification
 from rv_te_bench.errors import CompensationError
 from sim.errors import ModelInputError, PresetError
-from sim.hu2020 import HuRvParams, sensitivity_table, tooth_contact_analysis
+from sim.hu2020 import HuRvParams, elastic_te_rad, sensitivity_table, tooth_contact_analysis
 from sim.units import ARCMIN_PER_RAD
 
 if TYPE_CHECKING:
@@ -48,6 +57,7 @@ if TYPE_CHECKING:
 
 __all__ = [
     'NEGATIVE_FACTORS',
+    'LOAD_CASES',
     'PAPER_TABLE6',
     'compensate_preset',
     'eq27_errors_m',
@@ -60,6 +70,7 @@ __all__ = [
 NEGATIVE_FACTORS: tuple[str, ...] = ('pin_radius', 'shifting_mod_error', 'cumulative_pitch')
 
 _SCALES = ('eq27', 'table6')
+LOAD_CASES = ('reversing',)
 
 #: Hu 2020 Table 6 (and the TE it was computed from), SI.
 PAPER_TABLE6: dict[str, Any] = {
@@ -108,7 +119,8 @@ def _check_te(te_rad: float, fraction: float) -> None:
 
 def tooth_profile_compensation(params: HuRvParams, te_rad: float, *, preset: str = '',
                                fraction: float = 1.0, scale: str = 'eq27',
-                               te_metric: str = 'pp', with_tca: bool = True) -> Advice:
+                               te_metric: str = 'pp', with_tca: bool = True,
+                               load_case: str = 'reversing') -> Advice:
     """Recommend pin radius, shifting modification and cumulative-error modification.
 
     Args:
@@ -123,6 +135,10 @@ def tooth_profile_compensation(params: HuRvParams, te_rad: float, *, preset: str
             the paper's one example, about 3.45 x Eq. 27).
         te_metric: Which statistic ``te_rad`` is, ``'pp'`` or ``'amplitude'`` (recorded).
         with_tca: Also run the tooth contact analysis before/after (into ``details``).
+        load_case: How the load acts over the measured period, for the elastic part of the
+            prediction: ``'reversing'`` (the elastic TE spans 2 beta; the only case: under a
+            one-way constant load this model's elastic TE is a constant offset and the
+            linear model would again claim a TE of zero).
 
     Returns:
         Advice with method ``'tooth-profile'``, three Modification items in Table 6 order
@@ -150,6 +166,9 @@ def tooth_profile_compensation(params: HuRvParams, te_rad: float, *, preset: str
         raise CompensationError(msg)
     if scale not in _SCALES:
         msg = f'scale must be one of {_SCALES}, got {scale!r}'
+        raise CompensationError(msg)
+    if load_case not in LOAD_CASES:
+        msg = f'load_case must be one of {LOAD_CASES}, got {load_case!r}'
         raise CompensationError(msg)
     shares = te_shares_rad(params, fraction * te_rad)
     errors = eq27_errors_m(params, shares)
@@ -197,7 +216,25 @@ def tooth_profile_compensation(params: HuRvParams, te_rad: float, *, preset: str
             details['tca_after'] = tooth_contact_analysis(after).summary()
         except ModelInputError as exc:
             raise CompensationError(f'tooth contact analysis failed: {exc}') from None
-    te_after = (1.0 - fraction) * te_rad
+    try:
+        beta_before = -float(elastic_te_rad(params, params.torque_nm))
+        beta_after = -float(elastic_te_rad(after, after.torque_nm))
+    except ModelInputError as exc:
+        raise CompensationError(f'tooth contact analysis failed: {exc}') from None
+    elastic_before, elastic_after = 2.0 * beta_before, 2.0 * beta_after
+    geometric = max(te_rad - elastic_before, 0.0)
+    te_after = (1.0 - fraction) * geometric + elastic_after
+    details |= {
+        'load_case': load_case, 'torque_nm': params.torque_nm,
+        'elastic_beta_before_rad': beta_before, 'elastic_beta_after_rad': beta_after,
+        'elastic_pp_before_rad': elastic_before, 'elastic_pp_after_rad': elastic_after,
+        'geometric_part_rad': geometric,
+        'te_after_linear_model_rad': (1.0 - fraction) * te_rad,
+        'prediction': ('TE_after = (1 - fraction) * G + E_after: the linear model (Eq. 23) '
+                       'removes the geometric part G = TE - E_before; the elastic part E '
+                       '(disc rotation delta_max / r_c\' of the TCA, x2 for a reversing '
+                       'load) follows the TCA of the new geometry'),
+    }
     summary = (f'[{scale}] assign {fraction:.0%} of the TE to r_rp, delta_r_p, delta_delta_8 (Eq. 27): '
                f'r_rp {params.r_rp_m * 1e3:.4f} -> {new_r_rp * 1e3:.4f} mm, delta_r_p '
                f'{params.delta_r_p_m * 1e3:.4f} -> {new_shift * 1e3:.4f} mm, '
@@ -209,7 +246,7 @@ def tooth_profile_compensation(params: HuRvParams, te_rad: float, *, preset: str
 
 def compensate_preset(preset: Preset, te_rad: float, *, fraction: float = 1.0,
                       scale: str = 'eq27', te_metric: str = 'pp',
-                      with_tca: bool = True) -> Advice:
+                      with_tca: bool = True, load_case: str = 'reversing') -> Advice:
     """:func:`tooth_profile_compensation` for a hu2020-rv preset (overrides applied).
 
     Raises:
@@ -223,7 +260,8 @@ def compensate_preset(preset: Preset, te_rad: float, *, fraction: float = 1.0,
         msg = f'preset {preset.name!r}: {exc}'
         raise CompensationError(msg) from None
     return tooth_profile_compensation(params, te_rad, preset=preset.name, fraction=fraction,
-                                      scale=scale, te_metric=te_metric, with_tca=with_tca)
+                                      scale=scale, te_metric=te_metric, with_tca=with_tca,
+                                      load_case=load_case)
 
 
 #: Name used by the compensation node and the offline report.

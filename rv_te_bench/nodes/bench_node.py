@@ -40,7 +40,8 @@ PARAMS = (
     ParamSpec('overrides', 'string_array', [],
               'Preset overrides "key=value" (same keys as rv-te --set) [-]'),
     ParamSpec('te_mode', 'string', 'nlte',
-              'Reducer model mode: nlte | ste | dte (2K-V), geometric (hu2020-rv), dte (li2023)'),
+              'Reducer model mode: nlte | ste | dte (2K-V), geometric | elastic (hu2020-rv), dte '
+              '(li2023)'),
     ParamSpec('drive_profile', 'string', 'constant', 'Input speed profile [-]',
               choices=('constant', 'sinusoidal', 'ramp', 'forward_reverse')),
     ParamSpec('speed_rpm', 'double', 300.0,

@@ -7,6 +7,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import math
 from pathlib import Path
 
 import pytest
@@ -38,7 +39,13 @@ def test_json_output(capsys: pytest.CaptureFixture[str]) -> None:
     data = json.loads(capsys.readouterr().out)
     assert data['method'] == 'tooth-profile'
     assert data['te_before_arcmin'] == pytest.approx(1.552, rel=1e-12)
-    assert data['te_after_arcmin'] == pytest.approx(0.776, rel=1e-12)   # (1 - 0.5) TE
+    # (1 - 0.5) x the geometric part + the elastic part of the TCA after (issue #18)
+    d = data['details']
+    to_arcmin = 10800 / math.pi
+    want = (0.5 * max(1.552 - d['elastic_pp_before_rad'] * to_arcmin, 0.0)
+            + d['elastic_pp_after_rad'] * to_arcmin)
+    assert data['te_after_arcmin'] == pytest.approx(want, rel=1e-9)
+    assert 0.776 < data['te_after_arcmin'] < 1.552
     assert [m['symbol'] for m in data['modifications']] == ['r_rp', 'delta_r_p',
                                                             'delta_delta_8']
     tb, ta = data['details']['tca_before'], data['details']['tca_after']

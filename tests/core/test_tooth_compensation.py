@@ -101,7 +101,13 @@ def test_advice_structure_and_json(params: HuRvParams) -> None:
     assert all(m.unit == 'm' for m in adv.modifications)
     assert [round(m.sensitivity_index, 4) for m in adv.modifications] == list(TABLE2_NEG)
     assert adv.te_before_rad == TE_PAPER_RAD
-    assert adv.te_after_rad == pytest.approx(0.5 * TE_PAPER_RAD, rel=1e-12)
+    # issue #18: the prediction keeps the TCA's elastic part (the linear model alone said
+    # (1 - fraction) TE; it is still in the details)
+    d = adv.details
+    assert d['te_after_linear_model_rad'] == pytest.approx(0.5 * TE_PAPER_RAD, rel=1e-12)
+    assert adv.te_after_rad == pytest.approx(
+        0.5 * max(TE_PAPER_RAD - d['elastic_pp_before_rad'], 0.0) + d['elastic_pp_after_rad'],
+        rel=1e-12)
     full = tooth_profile_compensation(params, TE_PAPER_RAD, with_tca=False)
     # half the TE, half the changes (Eq. 27 is linear), rel 1e-9
     for m_half, m_full in zip(adv.modifications, full.modifications, strict=True):
