@@ -47,11 +47,11 @@ The internal step is the sample interval divided into ``ceil(dt / max_step_s)`` 
 (preset: 25 us). Accuracy (tests): a constant load with constant stiffness gives the STE
 of Eq. 18 to 3e-4 arcmin; against an independent RK4 at 1 us through repeated impacts,
 ~0.07 arcmin at 25 us and 0.005 arcmin at 2.5 us (the error is in the impact timing,
-first order in the step). Speed (2 shared cores, under load):
-one output revolution at 10 kHz (158,000 samples) with 30 N m takes ~0.5-0.6 s, 25-30x
-real time, the same in 1000-sample blocks; a load reversing at f_w (Fig. 7a) ~1-1.5 s; a
-load reversing at the mesh frequency (Fig. 7b, ~28,500 contact changes per revolution)
-~9 s (1.7x real time). The paper used a 4th-order Runge-Kutta scheme.
+first order in the step). Speed: benchmarks/bench_wang2020_dte.py (one output revolution at
+10 kHz, 30 N m: 1.5x the speed before issue #23, which was 38x real time with a 10 % ripple;
+without the ripple 130x, measured while other work shared the 2 cores;
+a load reversing at the mesh frequency, Fig. 7b, ~28,500 contact changes per revolution,
+a few times real time). The paper used a 4th-order Runge-Kutta scheme.
 
 At zero load nothing holds the flanks together: the DTE follows the drive flank while it
 pushes and floats inside the backlash when it pulls away (physically right for Eq. 19,
