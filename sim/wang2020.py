@@ -48,8 +48,8 @@ The internal step is the sample interval divided into ``ceil(dt / max_step_s)`` 
 of Eq. 18 to 3e-4 arcmin; against an independent RK4 at 1 us through repeated impacts,
 ~0.07 arcmin at 25 us and 0.005 arcmin at 2.5 us (the error is in the impact timing,
 first order in the step). Speed: benchmarks/bench_wang2020_dte.py (one output revolution at
-10 kHz, 30 N m: 1.5x the speed before issue #23, which was 38x real time with a 10 % ripple;
-without the ripple 130x, measured while other work shared the 2 cores;
+10 kHz, 30 N m: 61x real time with a 10 % ripple (46x before issue #23 in the same run),
+148x without the ripple, on 2 shared cores;
 a load reversing at the mesh frequency, Fig. 7b, ~28,500 contact changes per revolution,
 a few times real time). The paper used a 4th-order Runge-Kutta scheme.
 
