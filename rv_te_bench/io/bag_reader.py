@@ -17,7 +17,6 @@ from __future__ import annotations
 import collections
 import contextlib
 import mmap
-import re
 import struct
 import zlib
 from dataclasses import dataclass, field
@@ -28,6 +27,7 @@ import numpy as np
 import yaml
 
 from rv_te_bench.errors import BagError
+from rv_te_bench.io._bag_folder import entry_problem, layout_notes, listed_files
 from rv_te_bench.io.msgdefs import BENCH_INFO, ENCODER_BLOCK, rv_te_typestore
 
 if TYPE_CHECKING:
@@ -100,12 +100,15 @@ class Bag:
         files: The ``.mcap`` files in recording order.
         info: ``rosbag2_bagfile_information`` from metadata.yaml (empty for a lone file).
         topic_types: Topic name -> type from metadata.yaml (empty for a lone file).
+        notes: What a reader should know but that does not stop reading: unlisted .mcap
+            files (ignored), messages the recorder could not write (a full disk).
     """
 
     path: Path
     files: tuple[Path, ...]
     info: dict[str, Any]
     topic_types: dict[str, str]
+    notes: tuple[str, ...] = ()
 
     @property
     def finalized(self) -> bool | None:
@@ -171,7 +174,9 @@ def open_bag(path: str | Path) -> Bag:
         _check_magic(path)
         return Bag(path=path, files=(path,), info={}, topic_types={})
     if not path.is_dir():
-        msg = f'Bag {path} does not exist.'
+        what = entry_problem(path)
+        msg = (f'Bag {path} does not exist.' if what == 'missing' else
+               f'Bag {path} is not a bag folder or .mcap file: {what}.')
         raise BagError(msg)
     meta_path = path / 'metadata.yaml'
     if not meta_path.is_file():
@@ -181,7 +186,7 @@ def open_bag(path: str | Path) -> Bag:
         doc = yaml.load(meta_path.read_text(encoding='utf-8'), Loader=_YamlLoader)  # noqa: S506
         info = doc['rosbag2_bagfile_information']
         storage = info['storage_identifier']
-        listed = [path / Path(str(p)).name for p in info['relative_file_paths']]
+        listed = listed_files(path, info['relative_file_paths'], where=meta_path)
         topics = {
             str(t['topic_metadata']['name']): str(t['topic_metadata']['type'])
             for t in info.get('topics_with_message_count') or []
@@ -195,24 +200,23 @@ def open_bag(path: str | Path) -> Bag:
     if storage != 'mcap':
         msg = f'Bag {path} uses storage {storage!r}; only mcap is supported.'
         raise BagError(msg)
-    if missing := [str(p) for p in listed if not p.is_file()]:
+    problems = {p: entry_problem(p) for p in listed}
+    if missing := [str(p) for p, what in problems.items() if what == 'missing']:
         msg = f'Bag {path}: files listed in metadata.yaml are missing: {missing}.'
         raise BagError(msg)
-    # A recorder killed while splitting may have created a file metadata.yaml does not list.
-    # An empty one (killed between creating it and writing its header) holds nothing: skip it.
-    extra = sorted((p for p in path.glob('*.mcap')
-                    if p not in listed and p.stat().st_size > 0), key=_natural_key)
-    files = tuple(listed + extra)
-    if not files:
+    if odd := [f'{p.name} is {what}' for p, what in problems.items() if what]:
+        msg = f'Bag {path}: listed in metadata.yaml but {"; ".join(odd)}.'
+        raise BagError(msg)
+    if not listed:
         msg = f'Bag {path} has no .mcap files.'
         raise BagError(msg)
     for file in listed:
         _check_magic(file)
-    return Bag(path=path, files=files, info=info, topic_types=topics)
-
-
-def _natural_key(p: Path) -> list[Any]:
-    return [int(s) if s.isdigit() else s for s in re.split(r'(\d+)', p.name)]
+    # unlisted .mcap files (another session's, or a split a killed recorder had not listed
+    # yet, which holds no message: BagWriter lists a file before writing messages to it)
+    # are ignored, as rosbags ignores them, with a note
+    notes = tuple(layout_notes(path, listed, info))
+    return Bag(path=path, files=tuple(listed), info=info, topic_types=topics, notes=notes)
 
 
 def _check_magic(file: Path) -> None:
@@ -1170,7 +1174,7 @@ def bag_summary(path: str | Path) -> dict[str, Any]:
     Returns:
         ``{'path', 'files', 'finalized', 'topics': {name: {'type', 'count',
         'count_metadata_yaml'}}, 'message_count', 'start_ns', 'end_ns', 'duration_s',
-        'session', 'metadata': {record name: dict}, 'partial', 'problems'}``, where
+        'session', 'metadata': {record name: dict}, 'partial', 'problems', 'notes'}``, where
         ``session`` is the rv_te_session metadata record; damage found while scanning is
         reported in ``partial`` / ``problems``, not raised.
 
@@ -1222,4 +1226,5 @@ def bag_summary(path: str | Path) -> dict[str, Any]:
         'metadata': {k: v for k, v in meta.items() if k != 'rosbag2'},
         'partial': stream.partial,
         'problems': list(stream.problems),
+        'notes': list(bag.notes),
     }

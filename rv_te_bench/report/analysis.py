@@ -340,6 +340,7 @@ def analyze_bag(  # noqa: PLR0913 - keyword-only analysis options
     """
     from rv_te_bench.core.stream import TeAnalysisConfig, analyze_blocks  # noqa: PLC0415
     from rv_te_bench.io.bag_reader import (  # noqa: PLC0415
+        open_bag,
         read_bench_info,
         read_encoder_batches,
         summarize_problems,
@@ -377,7 +378,7 @@ def analyze_bag(  # noqa: PLR0913 - keyword-only analysis options
         raise BagError(msg)
 
     partial = bool(read_problems) or bool(getattr(stream, 'partial', False))
-    problems: list[str] = []
+    problems = list(open_bag(path).notes)   # unlisted files ignored, what was not written
     if partial:
         problems.append(f'{reader.blocks} blocks read; part of the bag is unreadable: '
                         + summarize_problems(read_problems))
