@@ -1,0 +1,399 @@
+"""Bench programs: the segments an acceptance test drives the simulated bench through.
+
+A program is a sequence of segments, each a whole number of blocks (its duration rounded up),
+run on one sample clock that continues across segments and programs:
+
+* :class:`DriveSegment`: the input turns at ``speed_rpm`` (signed: negative turns the output
+  backwards) against a constant load (bench convention: a positive ``load_nm`` resists
+  positive rotation). The TE is the preset's TE model (reset at the start of the segment, so
+  a dynamic model starts at static equilibrium), plus, for backwards rotation, the change of
+  flank a kinematic model does not know about: the free play of the torsion model
+  (:mod:`sim.torsion`; Wang 2020 Eq. 9 at the output angle for the 2K-V). The Wang 2020 'ste'
+  and 'dte' modes put a negative load on the tooth backs themselves and get no offset.
+* :class:`TorqueSegment`: the input is locked where the last segment left it and a torque
+  (applied to the output, positive in the positive sense) is held: the equal-torque-step
+  method of the hysteresis test.
+* :class:`OutputSpeedSegment`: the input locked, the output turned at a constant speed by the
+  loader until the measured torque reaches ``target_torque_nm`` (a servo with a torque
+  limit), then held for ``hold_s``: the constant-speed method.
+
+Samples carry ``torque_out_nm`` in the bench's load convention (``-applied torque`` in the
+locked segments), like every EncoderBlock.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import asdict, dataclass
+from typing import TYPE_CHECKING, Any, ClassVar
+
+import numpy as np
+
+from sim.bench import BenchBlock
+from sim.encoders import EncoderSpec, SimulatedEncoder, encoder_preset
+from sim.errors import ModelInputError
+from sim.models import build_te_model
+from sim.presets import load_preset
+from sim.torsion import torsion_curve
+from sim.units import RAD_S_PER_RPM
+
+if TYPE_CHECKING:
+    from sim.presets import Preset
+    from sim.torsion import TorsionCurve
+
+__all__ = [
+    'SEGMENT_KINDS',
+    'DriveSegment',
+    'OutputSpeedSegment',
+    'ProgramSimulator',
+    'Segment',
+    'TorqueSegment',
+    'program_from_plain',
+    'program_to_plain',
+]
+
+
+_RULES = {'': '', '>0': ' and > 0', '>=0': ' and >= 0', '!=0': ' and non-zero'}
+
+
+def _num(seg: str, name: str, value: Any, rule: str = '') -> float:  # noqa: ANN401
+    if isinstance(value, bool) or not isinstance(value, int | float | np.integer | np.floating):
+        msg = f'{seg}: {name} must be a number, got {value!r}'
+        raise ModelInputError(msg)
+    v = float(value)
+    ok = math.isfinite(v) and {'': True, '>0': v > 0, '>=0': v >= 0, '!=0': v != 0}[rule]
+    if not ok:
+        msg = f'{seg}: {name} must be finite{_RULES[rule]}, got {value!r}'
+        raise ModelInputError(msg)
+    return v
+
+
+@dataclass(frozen=True)
+class DriveSegment:
+    """Input driven at a constant speed against a constant load.
+
+    Attributes:
+        speed_rpm: Input speed [rpm], non-zero (negative: backwards).
+        duration_s: Length [s], > 0.
+        load_nm: Load torque [N m], bench convention (positive resists positive rotation).
+    """
+
+    kind: ClassVar[str] = 'drive'
+    speed_rpm: float
+    duration_s: float
+    load_nm: float = 0.0
+
+    def __post_init__(self) -> None:
+        """Validate (ModelInputError names the field)."""
+        for name, rule in (('speed_rpm', '!=0'), ('duration_s', '>0'), ('load_nm', '')):
+            object.__setattr__(self, name, _num('drive segment', name, getattr(self, name), rule))
+
+
+@dataclass(frozen=True)
+class TorqueSegment:
+    """Input locked, a torque held on the output.
+
+    Attributes:
+        torque_nm: Torque applied to the output [N m] (positive twists it positively).
+        duration_s: Dwell [s], > 0.
+    """
+
+    kind: ClassVar[str] = 'torque'
+    torque_nm: float
+    duration_s: float
+
+    def __post_init__(self) -> None:
+        """Validate (ModelInputError names the field)."""
+        for name, rule in (('torque_nm', ''), ('duration_s', '>0')):
+            object.__setattr__(self, name, _num('torque segment', name, getattr(self, name),
+                                                rule))
+
+
+@dataclass(frozen=True)
+class OutputSpeedSegment:
+    """Input locked, output turned at a constant speed until the torque reaches a target.
+
+    Attributes:
+        speed_rad_s: Output speed [rad/s], non-zero; its sign is the direction.
+        target_torque_nm: Applied torque at which the loader stops [N m]; it must lie ahead
+            (above the present torque when turning forwards, below when backwards).
+        hold_s: Time held at the target afterwards [s], >= 0.
+    """
+
+    kind: ClassVar[str] = 'output_speed'
+    speed_rad_s: float
+    target_torque_nm: float
+    hold_s: float = 0.0
+
+    def __post_init__(self) -> None:
+        """Validate (ModelInputError names the field)."""
+        for name, rule in (('speed_rad_s', '!=0'), ('target_torque_nm', ''), ('hold_s', '>=0')):
+            object.__setattr__(self, name, _num('output_speed segment', name,
+                                                getattr(self, name), rule))
+
+
+Segment = DriveSegment | TorqueSegment | OutputSpeedSegment
+SEGMENT_KINDS: dict[str, type] = {c.kind: c for c in (DriveSegment, TorqueSegment,
+                                                      OutputSpeedSegment)}
+
+
+def program_from_plain(items: Any) -> tuple[Segment, ...]:  # noqa: ANN401
+    """Segments from a list of ``{kind: ..., field: value}`` dicts (a YAML program).
+
+    Raises:
+        ModelInputError: Not a non-empty list, unknown kind or field, bad value (the message
+            names the segment number).
+    """
+    if not isinstance(items, list | tuple) or not items:
+        msg = f'a bench program must be a non-empty list of segments, got {type(items).__name__}'
+        raise ModelInputError(msg)
+    out: list[Segment] = []
+    for n, item in enumerate(items):
+        if not isinstance(item, dict) or 'kind' not in item:
+            msg = f'segment {n}: must be a mapping with a "kind", got {item!r}'
+            raise ModelInputError(msg)
+        cls = SEGMENT_KINDS.get(item['kind'])
+        if cls is None:
+            msg = f'segment {n}: kind {item["kind"]!r} unknown; known: {", ".join(SEGMENT_KINDS)}'
+            raise ModelInputError(msg)
+        fields = {k: v for k, v in item.items() if k != 'kind'}
+        allowed = set(cls.__dataclass_fields__)
+        if unknown := sorted(set(fields) - allowed):
+            msg = f'segment {n} ({cls.kind}): unknown field(s) {unknown}; allowed {sorted(allowed)}'
+            raise ModelInputError(msg)
+        try:
+            out.append(cls(**fields))
+        except TypeError as exc:
+            msg = f'segment {n} ({cls.kind}): {exc}'
+            raise ModelInputError(msg) from None
+        except ModelInputError as exc:
+            msg = f'segment {n}: {exc}'
+            raise ModelInputError(msg) from None
+    return tuple(out)
+
+
+def program_to_plain(program: tuple[Segment, ...]) -> list[dict[str, Any]]:
+    """The inverse of :func:`program_from_plain`."""
+    return [{'kind': s.kind, **asdict(s)} for s in program]
+
+
+@dataclass(frozen=True)
+class _Planned:
+    segment: Segment
+    first_block: int
+    blocks: int
+
+
+class ProgramSimulator:
+    """Runs bench programs block by block (same seed, same data).
+
+    Args:
+        preset: Preset name or TOML path.
+        overrides: Preset overrides ``key=value``.
+        te_mode: TE model mode of the drive segments.
+        encoder_in, encoder_out: Encoder preset names or specs.
+        sample_rate_hz: DAQ rate [Hz], > 0.
+        block_size: Samples per block, >= 1.
+        seed: Encoder noise seed, >= 0.
+        preset_obj: Use this preset instead of loading ``preset`` (overrides still applied).
+
+    Raises:
+        PresetError, ModelInputError: Bad preset, mode or settings.
+    """
+
+    def __init__(self, *, preset: str, overrides: tuple[str, ...] = (), te_mode: str = 'nlte',
+                 encoder_in: str | EncoderSpec = 'heidenhain-ron886',
+                 encoder_out: str | EncoderSpec = 'heidenhain-ron886',
+                 sample_rate_hz: float = 1000.0, block_size: int = 100, seed: int = 0,
+                 preset_obj: Preset | None = None) -> None:
+        """Build the model, the torsion characteristic's source and the encoders."""
+        self.preset = (load_preset(preset, list(overrides)) if preset_obj is None
+                       else preset_obj.with_overrides(list(overrides)))
+        self.te_mode = te_mode
+        self.model = build_te_model(self.preset, te_mode)
+        self.gear_ratio = float(self.model.kinematics.gear_ratio)
+        self.sample_rate_hz = _num('bench', 'sample_rate_hz', sample_rate_hz, '>0')
+        if isinstance(block_size, bool) or not isinstance(block_size, int) or block_size < 1:
+            msg = f'block_size must be an integer >= 1, got {block_size!r}'
+            raise ModelInputError(msg)
+        self.block_size = block_size
+        specs = [e if isinstance(e, EncoderSpec) else encoder_preset(e)
+                 for e in (encoder_in, encoder_out)]
+        rng_in, rng_out = np.random.default_rng(seed).spawn(2)
+        self._enc_in = SimulatedEncoder(specs[0], rng_in)
+        self._enc_out = SimulatedEncoder(specs[1], rng_out)
+        self._offsets = np.arange(block_size, dtype=np.float64) / self.sample_rate_hz
+        self._offsets.setflags(write=False)
+        self._curves: dict[float, TorsionCurve] = {}
+        self.seq = 0                 # next block number (continues across programs)
+        self.theta_in_rad = 0.0      # input angle now
+        self.torsion_rad: float | None = None   # output torsion angle when locked
+        self._plan: list[_Planned] = []
+        self._block_in_program = 0
+        self._seg_index = -1
+
+    # -- planning ---------------------------------------------------------------------------
+    def curve(self, theta_in_rad: float) -> TorsionCurve:
+        """The torsion characteristic at a locked input angle (cached)."""
+        key = round(float(theta_in_rad), 12)
+        if key not in self._curves:
+            if len(self._curves) > 64:  # noqa: PLR2004
+                self._curves.clear()
+            self._curves[key] = torsion_curve(self.preset, key)
+        return self._curves[key]
+
+    def _blocks(self, duration_s: float) -> int:
+        return max(1, math.ceil(duration_s * self.sample_rate_hz / self.block_size - 1e-9))
+
+    def load(self, program: tuple[Segment, ...]) -> int:
+        """Queue a program (replacing what is left of one); return its number of blocks."""
+        plan: list[_Planned] = []
+        first = 0
+        theta, phi = self.theta_in_rad, self.torsion_rad
+        for seg in program:
+            if isinstance(seg, DriveSegment):
+                duration = seg.duration_s
+                theta += seg.speed_rpm * RAD_S_PER_RPM * self._blocks(duration) \
+                    * self.block_size / self.sample_rate_hz
+                phi = None
+            else:
+                curve = self.curve(theta)
+                phi = self._rest_angle(curve, phi)
+                if isinstance(seg, TorqueSegment):
+                    duration = seg.duration_s
+                    phi = float(curve.angle_under_torque([seg.torque_nm], phi)[0])
+                else:
+                    direction = 1 if seg.speed_rad_s > 0 else -1
+                    start_t = float(curve.torque_under_motion([phi], direction)[0])
+                    if direction * (seg.target_torque_nm - start_t) <= 0:
+                        msg = (f'output_speed segment: target torque {seg.target_torque_nm} '
+                               f'N m is not ahead of the present {start_t:.6g} N m when '
+                               f'turning {"forwards" if direction > 0 else "backwards"}')
+                        raise ModelInputError(msg)
+                    target = curve.angle_at_torque(seg.target_torque_nm, direction)
+                    duration = abs(target - phi) / abs(seg.speed_rad_s) + seg.hold_s
+                    phi = target
+            n = self._blocks(duration)
+            plan.append(_Planned(seg, first, n))
+            first += n
+        self._plan = plan
+        self._block_in_program = 0
+        self._seg_index = -1
+        return first
+
+    @staticmethod
+    def _rest_angle(curve: TorsionCurve, phi: float | None) -> float:
+        """Torsion angle when the input is locked after driving: on the drive flank."""
+        if phi is not None:
+            return phi
+        return curve.centre_rad - 0.5 * curve.backlash_rad
+
+    # -- running ----------------------------------------------------------------------------
+    @property
+    def running(self) -> bool:
+        """True while blocks of the loaded program are left."""
+        return bool(self._plan) and self._block_in_program < self._plan[-1].first_block \
+            + self._plan[-1].blocks
+
+    def stop(self) -> None:
+        """Drop what is left of the program."""
+        self._plan = []
+        self._block_in_program = 0
+
+    def segment_of_block(self, k: int) -> int:
+        """Index of the segment that block ``k`` of the program belongs to."""
+        for i, p in enumerate(self._plan):
+            if p.first_block <= k < p.first_block + p.blocks:
+                return i
+        msg = f'block {k} is not in the program'
+        raise ModelInputError(msg)
+
+    def next_block(self) -> tuple[BenchBlock, int]:
+        """Simulate the next block of the program; returns it and its segment index.
+
+        Raises:
+            ModelInputError: No program is running.
+        """
+        if not self.running:
+            msg = 'no bench program is running'
+            raise ModelInputError(msg)
+        k = self._block_in_program
+        i = self.segment_of_block(k)
+        planned = self._plan[i]
+        t = (self.seq * self.block_size) / self.sample_rate_hz + self._offsets
+        if i != self._seg_index:
+            self._seg_index = i
+            self._seg_t0 = float(t[0])
+            self._seg_theta0 = self.theta_in_rad
+            self._seg_phi0 = self.torsion_rad
+            if isinstance(planned.segment, DriveSegment):
+                self.model.reset()
+        seg = planned.segment
+        if isinstance(seg, DriveSegment):
+            theta_in, te, torque = self._drive(seg, t)
+        else:
+            theta_in, te, torque = self._locked(seg, t)
+        theta_out = theta_in / self.gear_ratio + te
+        ro = self._readonly
+        block = BenchBlock(
+            seq=self.seq, t0_s=float(t[0]), time_offset_s=self._offsets,
+            theta_in_rad=ro(self._enc_in.measure(theta_in)),
+            theta_out_rad=ro(self._enc_out.measure(theta_out)),
+            torque_out_nm=ro(torque), te_true_rad=ro(te), theta_in_true_rad=ro(theta_in),
+            theta_out_true_rad=ro(theta_out))
+        self.seq += 1
+        self._block_in_program += 1
+        return block, i
+
+    @staticmethod
+    def _readonly(a: np.ndarray) -> np.ndarray:
+        a = np.array(a, dtype=np.float64)
+        a.setflags(write=False)
+        return a
+
+    def _drive(self, seg: DriveSegment, t: np.ndarray) -> tuple[np.ndarray, ...]:
+        omega = seg.speed_rpm * RAD_S_PER_RPM
+        theta_in = self._seg_theta0 + omega * (t - self._seg_t0)
+        load = np.full_like(t, seg.load_nm)
+        te = np.asarray(self.model.te_rad(t, theta_in, np.full_like(t, omega), load),
+                        dtype=np.float64)
+        if omega < 0:
+            te = te + self._reverse_offset(theta_in)
+        self.theta_in_rad = float(self._seg_theta0 + omega * (t[-1] + 1.0 / self.sample_rate_hz
+                                                            - self._seg_t0))
+        self.torsion_rad = None
+        return theta_in, te, load
+
+    def _reverse_offset(self, theta_in: np.ndarray) -> np.ndarray | float:
+        """Flank change when turning backwards (see the module docstring)."""
+        if self.preset.model == 'wang2020-2kv':
+            if self.te_mode in {'ste', 'dte'}:
+                return 0.0
+            from sim import wang2020  # noqa: PLC0415
+
+            params = wang2020.Wang2kvParams.from_preset(self.preset)
+            return wang2020.backlash_rad(theta_in / self.gear_ratio, params)
+        return self.curve(0.0).backlash_rad
+
+    def _locked(self, seg: TorqueSegment | OutputSpeedSegment,
+                t: np.ndarray) -> tuple[np.ndarray, ...]:
+        theta = self._seg_theta0
+        curve = self.curve(theta)
+        phi0 = self._rest_angle(curve, self._seg_phi0)
+        if isinstance(seg, TorqueSegment):
+            applied = np.full_like(t, seg.torque_nm)
+            phi = curve.angle_under_torque(applied, phi0)
+        else:
+            direction = 1 if seg.speed_rad_s > 0 else -1
+            target = curve.angle_at_torque(seg.target_torque_nm, direction)
+            phi = phi0 + seg.speed_rad_s * (t - self._seg_t0)
+            phi = np.minimum(phi, target) if direction > 0 else np.maximum(phi, target)
+            applied = curve.torque_under_motion(phi, direction)
+        self.torsion_rad = float(phi[-1])
+        self.theta_in_rad = theta
+        return np.full_like(t, theta), phi, -applied
+
+    def __repr__(self) -> str:
+        """Short description."""
+        return (f'ProgramSimulator({self.preset.name!r}, {self.te_mode!r}, '
+                f'{self.sample_rate_hz:g} Hz x {self.block_size})')
