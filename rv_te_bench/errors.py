@@ -37,3 +37,15 @@ class SpcError(RvTeError, ValueError):
 
 class StoreError(RvTeError):
     """The results store cannot be opened, written or queried."""
+
+
+class AcceptanceError(RvTeError, ValueError):
+    """An acceptance test plan, tolerance profile or test request is invalid."""
+
+
+class PlanError(AcceptanceError):
+    """A test plan is invalid (names the file, the step, the key and the rule)."""
+
+
+class ToleranceError(AcceptanceError):
+    """A tolerance profile is invalid (names the file, the metric, the key and the rule)."""

@@ -1,0 +1,322 @@
+"""Acceptance test plans: YAML files validated before anything starts.
+
+A plan (docs/ACCEPTANCE.md)::
+
+    plan: rv-80e-acceptance             # name (required)
+    description: ...                    # optional
+    tolerance: rv-80e-101               # a shipped profile name or a path (optional: the
+                                        #   profile named after the bench's preset)
+    steps:
+      - {name: te, kind: te, speed_rpm: 1500, load_nm: 0, directions: [ccw, cw],
+         revolutions: 1, settle_s: 0.5}
+      - {name: hysteresis, kind: hysteresis, rated_torque_nm: 784, method: torque_steps,
+         step_fraction: 0.1, dwell_s: 0.2, lost_motion_fraction: 0.03,
+         rigidity: {K: [0.5, 1.0]}, preload: true}
+      - {name: sweep, kind: sweep, speeds_rpm: [500, 1500], loads_nm: [0, 200],
+         direction: ccw, revolutions: 1, settle_s: 0.5}
+
+Directions: ``ccw`` turns the output positively (REP-103, counter-clockwise seen from the
+output flange), ``cw`` negatively. Loads resist the motion (magnitudes). Every bad key or
+value raises :class:`PlanError` naming the file, the step and the rule.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import asdict, dataclass, field
+from importlib import resources
+from pathlib import Path
+from typing import Any
+
+import yaml
+
+from rv_te_bench.core.hysteresis import HysteresisConfig, RigidityRegion
+from rv_te_bench.errors import PlanError, TeConfigError
+
+__all__ = [
+    'DIRECTIONS',
+    'HysteresisStep',
+    'Step',
+    'SweepStep',
+    'TeStep',
+    'TestPlan',
+    'load_plan',
+    'parse_plan',
+    'parse_yaml_text',
+    'shipped_plans',
+]
+
+#: Direction name -> sign of the output rotation.
+DIRECTIONS = {'ccw': 1, 'cw': -1}
+_MAX_STEPS = 100
+_MAX_TEXT = 1 << 20
+
+
+def parse_yaml_text(text: str, origin: str, error: type[Exception]) -> Any:  # noqa: ANN401
+    """``yaml.safe_load`` of a plan or tolerance file, size-bounded, errors on one line."""
+    if len(text) > _MAX_TEXT:
+        msg = f'{origin}: {len(text)} characters, more than the {_MAX_TEXT} allowed'
+        raise error(msg)
+    try:
+        return yaml.safe_load(text)
+    except yaml.YAMLError as exc:
+        msg = f'{origin}: not valid YAML ({exc})'.replace('\n', ' ')
+        raise error(msg) from None
+
+
+class _Fields:
+    """Pops and checks the keys of one mapping; names where and what on failure."""
+
+    def __init__(self, data: Any, where: str) -> None:  # noqa: ANN401
+        if not isinstance(data, dict):
+            msg = f'{where}: must be a mapping, got {type(data).__name__}'
+            raise PlanError(msg)
+        self.data = dict(data)
+        self.where = where
+
+    def fail(self, key: str, rule: str, value: Any = None) -> None:  # noqa: ANN401
+        got = '' if value is None else f', got {value!r}'
+        msg = f'{self.where}: {key} {rule}{got}'
+        raise PlanError(msg)
+
+    def num(self, key: str, default: float | None = None, *, lo: float | None = None,
+            lo_open: bool = False, hi: float | None = None) -> float:
+        if key not in self.data:
+            if default is None:
+                self.fail(key, 'is required')
+            return float(default)  # type: ignore[arg-type]
+        v = self.data.pop(key)
+        if isinstance(v, bool) or not isinstance(v, int | float) or not math.isfinite(v):
+            self.fail(key, 'must be a finite number', v)
+        if lo is not None and (v <= lo if lo_open else v < lo):
+            self.fail(key, f'must be {">" if lo_open else ">="} {lo:g}', v)
+        if hi is not None and v > hi:
+            self.fail(key, f'must be <= {hi:g}', v)
+        return float(v)
+
+    def integer(self, key: str, default: int, *, lo: int) -> int:
+        v = self.data.pop(key, default)
+        if isinstance(v, bool) or not isinstance(v, int) or v < lo:
+            self.fail(key, f'must be an integer >= {lo}', v)
+        return int(v)
+
+    def text(self, key: str, default: str | None = None, *,
+             choices: tuple[str, ...] = ()) -> str:
+        if key not in self.data:
+            if default is None:
+                self.fail(key, 'is required')
+            return str(default)
+        v = self.data.pop(key)
+        if not isinstance(v, str) or not v.strip():
+            self.fail(key, 'must be a non-empty string', v)
+        if choices and v not in choices:
+            self.fail(key, f'must be one of {list(choices)}', v)
+        return v.strip()
+
+    def flag(self, key: str, default: bool) -> bool:  # noqa: FBT001
+        v = self.data.pop(key, default)
+        if not isinstance(v, bool):
+            self.fail(key, 'must be true or false', v)
+        return v
+
+    def numbers(self, key: str, default: list[float] | None = None, *,
+                lo: float | None = None, nonzero: bool = False) -> tuple[float, ...]:
+        if key not in self.data and default is not None:
+            return tuple(default)
+        v = self.data.pop(key, None)
+        if not isinstance(v, list) or not v or len(v) > 50:  # noqa: PLR2004
+            self.fail(key, 'must be a list of 1..50 numbers', v)
+        out = []
+        for j, x in enumerate(v):
+            if isinstance(x, bool) or not isinstance(x, int | float) or not math.isfinite(x) \
+                    or (lo is not None and x < lo) or (nonzero and x == 0):
+                rule = ('must be finite' + (f' and >= {lo:g}' if lo is not None else '')
+                        + (' and non-zero' if nonzero else ''))
+                self.fail(f'{key}[{j}]', rule, x)
+            out.append(float(x))
+        return tuple(out)
+
+    def done(self) -> None:
+        if self.data:
+            self.fail(f'unknown key(s) {sorted(self.data)}', 'are not allowed here')
+
+
+@dataclass(frozen=True)
+class TeStep:
+    """TE over whole output revolutions in each direction (SI units)."""
+
+    name: str
+    speed_rpm: float
+    load_nm: float = 0.0
+    directions: tuple[str, ...] = ('ccw', 'cw')
+    revolutions: int = 1
+    settle_s: float = 0.5
+    kind: str = 'te'
+
+
+@dataclass(frozen=True)
+class HysteresisStep:
+    """Input locked, output loaded 0 -> +T_R -> 0 -> -T_R -> 0 (SI units)."""
+
+    name: str
+    rated_torque_nm: float
+    method: str = 'torque_steps'
+    step_fraction: float = 0.1
+    dwell_s: float = 0.2
+    output_speed_rad_s: float = 2.0e-4
+    lost_motion_fraction: float = 0.03
+    rigidity: tuple[tuple[str, float, float], ...] = (('K', 0.5, 1.0),)
+    preload: bool = True
+    kind: str = 'hysteresis'
+
+    def config(self) -> HysteresisConfig:
+        """The curve-reading settings of this step."""
+        return HysteresisConfig(
+            rated_torque_nm=self.rated_torque_nm, lost_motion_fraction=self.lost_motion_fraction,
+            rigidity_regions=tuple(RigidityRegion(*r) for r in self.rigidity))
+
+
+@dataclass(frozen=True)
+class SweepStep:
+    """TE at every combination of speeds and loads in one direction (a table)."""
+
+    name: str
+    speeds_rpm: tuple[float, ...]
+    loads_nm: tuple[float, ...] = (0.0,)
+    direction: str = 'ccw'
+    revolutions: int = 1
+    settle_s: float = 0.5
+    kind: str = 'sweep'
+
+
+Step = TeStep | HysteresisStep | SweepStep
+
+
+@dataclass(frozen=True)
+class TestPlan:
+    """A validated plan."""
+
+    __test__ = False   # not a pytest class
+
+    name: str
+    steps: tuple[Step, ...]
+    description: str = ''
+    tolerance: str = ''
+    origin: str = field(default='<plan>', compare=False)
+
+    def to_plain(self) -> dict[str, Any]:
+        """The plan as validated (SI units), for records."""
+        return {'plan': self.name, 'description': self.description,
+                'tolerance': self.tolerance,
+                'steps': [{k: (list(v) if isinstance(v, tuple) else v)
+                           for k, v in asdict(s).items()} for s in self.steps]}
+
+
+def _te_step(f: _Fields, name: str) -> TeStep:
+    dirs = f.data.pop('directions', ['ccw', 'cw'])
+    if not isinstance(dirs, list) or not dirs or len(set(map(str, dirs))) != len(dirs) or \
+            not all(d in DIRECTIONS for d in dirs):
+        f.fail('directions', f'must be a list of distinct directions from {list(DIRECTIONS)}',
+               dirs)
+    return TeStep(name=name, speed_rpm=f.num('speed_rpm', lo=0.0, lo_open=True, hi=1e5),
+                  load_nm=f.num('load_nm', 0.0, lo=0.0), directions=tuple(dirs),
+                  revolutions=f.integer('revolutions', 1, lo=1),
+                  settle_s=f.num('settle_s', 0.5, lo=0.0))
+
+
+def _hysteresis_step(f: _Fields, name: str) -> HysteresisStep:
+    rig = f.data.pop('rigidity', {'K': [0.5, 1.0]})
+    if not isinstance(rig, dict) or not rig:
+        f.fail('rigidity', 'must map region names to [lo, hi] fractions of the rated torque',
+               rig)
+    regions = []
+    for rname, span in rig.items():
+        if not isinstance(span, list) or len(span) != 2:  # noqa: PLR2004
+            f.fail(f'rigidity.{rname}', 'must be [lo, hi] (fractions of the rated torque)',
+                   span)
+        regions.append((str(rname), *span))
+    step = HysteresisStep(
+        name=name, rated_torque_nm=f.num('rated_torque_nm', lo=0.0, lo_open=True),
+        method=f.text('method', 'torque_steps', choices=('torque_steps', 'constant_speed')),
+        step_fraction=f.num('step_fraction', 0.1, lo=0.0, lo_open=True, hi=0.5),
+        dwell_s=f.num('dwell_s', 0.2, lo=0.0, lo_open=True, hi=60.0),
+        output_speed_rad_s=f.num('output_speed_rad_s', 2.0e-4, lo=0.0, lo_open=True, hi=0.1),
+        lost_motion_fraction=f.num('lost_motion_fraction', 0.03, lo=0.0, lo_open=True, hi=0.5),
+        rigidity=tuple(regions), preload=f.flag('preload', True))
+    try:
+        step.config()
+    except TeConfigError as exc:
+        f.fail('rigidity', str(exc))
+    return step
+
+
+def _sweep_step(f: _Fields, name: str) -> SweepStep:
+    return SweepStep(name=name, speeds_rpm=f.numbers('speeds_rpm', lo=0.0, nonzero=True),
+                     loads_nm=f.numbers('loads_nm', [0.0], lo=0.0),
+                     direction=f.text('direction', 'ccw', choices=tuple(DIRECTIONS)),
+                     revolutions=f.integer('revolutions', 1, lo=1),
+                     settle_s=f.num('settle_s', 0.5, lo=0.0))
+
+
+_KINDS = {'te': _te_step, 'hysteresis': _hysteresis_step, 'sweep': _sweep_step}
+
+
+def parse_plan(data: Any, origin: str = '<plan>') -> TestPlan:  # noqa: ANN401
+    """Validate a plan mapping (parsed YAML).
+
+    Raises:
+        PlanError: Anything wrong, named (file, step, key, rule, value).
+    """
+    top = _Fields(data, origin)
+    name = top.text('plan')
+    description = str(top.data.pop('description', '') or '')
+    tolerance = top.text('tolerance', '')if 'tolerance' in top.data else ''
+    steps_raw = top.data.pop('steps', None)
+    top.done()
+    if not isinstance(steps_raw, list) or not steps_raw or len(steps_raw) > _MAX_STEPS:
+        top.fail('steps', f'must be a list of 1..{_MAX_STEPS} steps', steps_raw)
+    steps: list[Step] = []
+    names: set[str] = set()
+    for j, raw in enumerate(steps_raw):
+        f = _Fields(raw, f'{origin}: step {j}')
+        kind = f.text('kind', choices=tuple(_KINDS))
+        sname = f.text('name', f'{kind}-{j}')
+        if sname in names:
+            f.fail('name', 'must be unique in the plan', sname)
+        names.add(sname)
+        f.where = f'{origin}: step {j} ({sname!r})'
+        steps.append(_KINDS[kind](f, sname))
+        f.done()
+    return TestPlan(name=name, steps=tuple(steps), description=description,
+                    tolerance=tolerance, origin=origin)
+
+
+def shipped_plans() -> list[str]:
+    """Names of the plans shipped in ``rv_te_bench/acceptance/plans``."""
+    root = resources.files('rv_te_bench.acceptance').joinpath('plans')
+    return sorted(p.name[:-5] for p in root.iterdir() if p.name.endswith('.yaml'))
+
+
+def load_plan(name_or_path: str | Path) -> tuple[TestPlan, str]:
+    """Load a plan file (or a shipped plan by name); returns it and its text.
+
+    Raises:
+        PlanError: Missing or unreadable file, bad YAML, invalid plan.
+    """
+    path = Path(name_or_path)
+    if path.exists():
+        try:
+            text = path.read_text(encoding='utf-8')
+        except (OSError, UnicodeDecodeError) as exc:
+            msg = f'test plan {path}: cannot read ({exc})'
+            raise PlanError(msg) from None
+        origin = str(path)
+    elif str(name_or_path) in shipped_plans():
+        text = resources.files('rv_te_bench.acceptance').joinpath(
+            'plans', f'{name_or_path}.yaml').read_text('utf-8')
+        origin = f'plan {name_or_path}'
+    else:
+        msg = (f'test plan {str(name_or_path)!r}: no such file, and not a shipped plan '
+               f'({", ".join(shipped_plans())})')
+        raise PlanError(msg)
+    return parse_plan(parse_yaml_text(text, origin, PlanError), origin), text

@@ -1,0 +1,360 @@
+"""Running a plan step by step: bench programs out, encoder data in, metrics and verdicts.
+
+No ROS here: the ``test_sequencer`` node feeds :class:`StepRunner` from ``bench/encoders``
+and sends its program with ``bench/run_program``; :func:`run_plan_offline` feeds it straight
+from :class:`sim.program.ProgramSimulator` (same numbers, no middleware).
+
+Programs per step (SI units; docs/ACCEPTANCE.md):
+
+* ``te``: one drive segment per direction, ``settle_s`` plus the whole output revolutions
+  (plus 2 % and two samples), against the load with the sign that resists the motion; the
+  first ``settle_s`` of each segment is not analysed.
+* ``sweep``: one drive segment per (speed, load), in the step's direction.
+* ``hysteresis``: with ``preload`` first 0 -> -T_R -> 0 (so that the first loading starts on
+  a known flank; not analysed), then 0 -> +T_R -> 0 -> -T_R -> 0: equal torque steps of
+  ``step_fraction`` T_R held ``dwell_s`` each, plus every torque the metrics read
+  (+-lost-motion torque, the rigidity points), or constant-speed loading at
+  ``output_speed_rad_s`` between the torque limits.
+"""
+
+from __future__ import annotations
+
+import datetime as dt
+import math
+from dataclasses import dataclass, field
+from typing import TYPE_CHECKING, Any
+
+import numpy as np
+
+from rv_te_bench.acceptance.plan import DIRECTIONS, HysteresisStep, SweepStep, TeStep
+from rv_te_bench.acceptance.tolerance import Measured, evaluate
+from rv_te_bench.core.directional import direction_te
+from rv_te_bench.core.hysteresis import dwell_points, hysteresis_metrics
+from rv_te_bench.core.orders import OrderSet
+from rv_te_bench.errors import AcceptanceError, TeInputError
+
+if TYPE_CHECKING:
+    from collections.abc import Callable
+
+    from rv_te_bench.acceptance.plan import Step, TestPlan
+    from rv_te_bench.acceptance.tolerance import ToleranceProfile
+
+__all__ = ['BenchContext', 'StepRunner', 'build_report', 'run_plan_offline']
+
+_MAX_CURVE_POINTS = 4000
+#: Spectrum bins kept for the report (the labelled lines are kept whatever their order).
+_SPECTRUM_BINS = 400
+
+
+@dataclass(frozen=True)
+class BenchContext:
+    """What the runner needs to know about the bench (from ``BenchInfo``)."""
+
+    gear_ratio: float
+    crank_per_input: float = 0.0
+    mesh_orders: tuple[float, ...] = ()
+    mesh_labels: tuple[str, ...] = ()
+    sample_rate_hz: float = 1000.0
+    block_size: int = 100
+    bench_id: str = 'bench'
+    preset: str = ''
+    encoder_in_model: str = ''
+    encoder_out_model: str = ''
+    encoder_out_resolution_rad: float = 0.0
+
+    def orders(self) -> OrderSet | None:
+        """Spectral lines of the reducer (None without a crank rate)."""
+        if not self.crank_per_input:
+            return None
+        return OrderSet.from_bench_info(self.gear_ratio, self.crank_per_input,
+                                        self.mesh_orders, self.mesh_labels)
+
+
+def _decimate(*arrays: np.ndarray, limit: int = _MAX_CURVE_POINTS) -> list[list[float]]:
+    n = arrays[0].size
+    step = max(1, math.ceil(n / limit))
+    return [a[::step].tolist() for a in arrays]
+
+
+def _fin(x: float) -> float | None:
+    return float(x) if math.isfinite(x) else None
+
+
+@dataclass
+class _Segment:
+    plain: dict[str, Any]
+    role: str                     # 'te' | 'sweep' | 'preload' | 'cycle'
+    label: dict[str, Any] = field(default_factory=dict)
+    chunks: list[tuple[np.ndarray, ...]] = field(default_factory=list)
+    samples: int = 0
+
+
+class StepRunner:
+    """One step: its bench program, the data of its segments, its metrics.
+
+    Args:
+        step: The plan step.
+        ctx: The bench.
+    """
+
+    def __init__(self, step: Step, ctx: BenchContext) -> None:
+        """Build the step's program."""
+        self.step = step
+        self.ctx = ctx
+        self.segments: list[_Segment] = []
+        self.live_name = 'te_pp_rad'
+        self._live = (math.inf, -math.inf)
+        if isinstance(step, TeStep):
+            for d in step.directions:
+                self._drive(step.speed_rpm, step.load_nm, DIRECTIONS[d], step.revolutions,
+                            step.settle_s, 'te', {'direction': d, 'speed_rpm': step.speed_rpm,
+                                                  'load_nm': step.load_nm})
+        elif isinstance(step, SweepStep):
+            for s in step.speeds_rpm:
+                for load in step.loads_nm:
+                    self._drive(s, load, DIRECTIONS[step.direction], step.revolutions,
+                                step.settle_s, 'sweep', {'direction': step.direction,
+                                                         'speed_rpm': s, 'load_nm': load})
+        else:
+            self.live_name = 'torque_nm'
+            self._hysteresis(step)
+
+    # -- programs -----------------------------------------------------------------------------
+    def _drive(self, speed_rpm: float, load_nm: float, sign: int, revs: int, settle_s: float,
+               role: str, label: dict[str, Any]) -> None:
+        rev_s = self.ctx.gear_ratio * 60.0 / speed_rpm
+        duration = settle_s + revs * rev_s * 1.02 + 2.0 / self.ctx.sample_rate_hz
+        self.segments.append(_Segment(
+            {'kind': 'drive', 'speed_rpm': sign * speed_rpm, 'duration_s': duration,
+             'load_nm': sign * load_nm}, role, {**label, 'settle_s': settle_s}))
+
+    def _hysteresis(self, step: HysteresisStep) -> None:
+        tr = step.rated_torque_nm
+        if step.method == 'torque_steps':
+            cfg = step.config()
+            n = round(1.0 / step.step_fraction)
+            fr = sorted({round(k / n, 12) for k in range(n + 1)}
+                        | {round(abs(p) / tr, 12) for p in cfg.torque_points_nm()})
+            up = [f * tr for f in fr]
+            if step.preload:
+                for t in [-0.5 * tr, -tr, -0.5 * tr, 0.0]:
+                    self._torque(t, step.dwell_s, 'preload')
+            seq = up + up[-2::-1] + [-t for t in up[1:]] + [-t for t in up[-2::-1]]
+            for t in seq:
+                self._torque(t, step.dwell_s, 'cycle')
+        else:
+            w = step.output_speed_rad_s
+            if step.preload:
+                self.segments.append(_Segment({'kind': 'output_speed', 'speed_rad_s': -w,
+                                               'target_torque_nm': -tr}, 'preload'))
+                self.segments.append(_Segment({'kind': 'output_speed', 'speed_rad_s': w,
+                                               'target_torque_nm': 0.0}, 'preload'))
+            for sign, target in ((1, tr), (-1, -tr), (1, 0.0)):
+                self.segments.append(_Segment({'kind': 'output_speed', 'speed_rad_s': sign * w,
+                                               'target_torque_nm': target}, 'cycle'))
+
+    def _torque(self, t: float, dwell: float, role: str) -> None:
+        self.segments.append(_Segment({'kind': 'torque', 'torque_nm': t, 'duration_s': dwell},
+                                      role))
+
+    def program(self) -> list[dict[str, Any]]:
+        """The bench program (plain segments, for ``sim.program.program_from_plain``)."""
+        return [s.plain for s in self.segments]
+
+    # -- data -----------------------------------------------------------------------------------
+    def feed(self, segment: int, theta_in_rad: np.ndarray, theta_out_rad: np.ndarray,
+             torque_out_nm: np.ndarray) -> float:
+        """Take one block of segment ``segment``; return the live metric (SI)."""
+        seg = self.segments[segment]
+        arrays = tuple(np.asarray(a, dtype=np.float64) for a in
+                       (theta_in_rad, theta_out_rad, torque_out_nm))
+        seg.chunks.append(arrays)
+        seg.samples += arrays[0].size
+        if self.live_name == 'torque_nm':
+            return float(-arrays[2][-1]) if arrays[2].size else math.nan
+        settle = round(seg.label.get('settle_s', 0.0) * self.ctx.sample_rate_hz)
+        skip = max(0, settle - (seg.samples - arrays[0].size))
+        if skip < arrays[0].size:
+            te = arrays[1][skip:] - arrays[0][skip:] / self.ctx.gear_ratio
+            lo, hi = self._live
+            self._live = (min(lo, float(te.min())), max(hi, float(te.max())))
+        lo, hi = self._live
+        return hi - lo if hi >= lo else math.nan
+
+    def next_segment(self) -> None:
+        """The live value restarts (a new direction or sweep point)."""
+        self._live = (math.inf, -math.inf)
+
+    def _cat(self, seg: _Segment) -> tuple[np.ndarray, ...]:
+        if not seg.chunks:
+            return (np.zeros(0),) * 3
+        return tuple(np.concatenate([c[j] for c in seg.chunks]) for j in range(3))
+
+    # -- results ----------------------------------------------------------------------------------
+    def result(self) -> tuple[list[Measured], dict[str, Any]]:
+        """Metrics (SI) and the details the report shows."""
+        if isinstance(self.step, HysteresisStep):
+            return self._hysteresis_result(self.step)
+        return self._te_result()
+
+    def _te_result(self) -> tuple[list[Measured], dict[str, Any]]:
+        measured: list[Measured] = []
+        rows = []
+        for seg in self.segments:
+            th_in, th_out, torque = self._cat(seg)
+            settle = round(seg.label['settle_s'] * self.ctx.sample_rate_hz)
+            row: dict[str, Any] = {**seg.label, 'samples': int(th_in.size)}
+            try:
+                d = direction_te(th_in[settle:], th_out[settle:], gear_ratio=self.ctx.gear_ratio,
+                                 orders=self.ctx.orders(),
+                                 duration_s=max(th_in[settle:].size - 1, 1)
+                                 / self.ctx.sample_rate_hz)
+            except TeInputError as exc:
+                row['error'] = str(exc)
+                value = math.nan
+            else:
+                value = d.te_pp_rad
+                pos, curve = _decimate(d.position_rad, d.te_by_position_rad)
+                row.update({
+                    'revolutions': d.revolutions, 'te_pp_per_rev_rad': list(d.pp_per_rev_rad),
+                    'stats': d.stats.to_json_dict(), 'position_rad': pos,
+                    'te_by_position_rad': [_fin(x) for x in curve],
+                    'spectrum': [ln.to_json_dict() for ln in d.spectrum.lines]
+                    if d.spectrum is not None else [],
+                    'spectrum_orders': d.spectrum.orders[:_SPECTRUM_BINS].tolist()
+                    if d.spectrum is not None else [],
+                    'spectrum_amplitude_rad': d.spectrum.amplitude_rad[:_SPECTRUM_BINS].tolist()
+                    if d.spectrum is not None else []})
+            row['te_pp_rad'] = _fin(value)
+            rows.append(row)
+            if seg.role == 'te':
+                measured.append(Measured(f'te_pp_{seg.label["direction"]}_rad', self.step.name,
+                                         'rad', value))
+            else:
+                name = (f'te_pp_{seg.label["direction"]}_{seg.label["speed_rpm"]:g}rpm_'
+                        f'{seg.label["load_nm"]:g}nm_rad')
+                measured.append(Measured(f'sweep:{name}', self.step.name, 'rad', value))
+        return measured, {'kind': self.step.kind, 'rows': rows}
+
+    def _hysteresis_result(self, step: HysteresisStep) -> tuple[list[Measured], dict[str, Any]]:
+        parts = [self._cat(s) for s in self.segments if s.role == 'cycle']
+        th_in = np.concatenate([p[0] for p in parts])
+        th_out = np.concatenate([p[1] for p in parts])
+        applied = -np.concatenate([p[2] for p in parts])
+        angle = th_out - th_in / self.ctx.gear_ratio
+        if step.method == 'torque_steps':
+            t, a, _ = dwell_points(applied, angle)
+        else:
+            t, a = applied, angle
+        details: dict[str, Any] = {'kind': 'hysteresis', 'method': step.method,
+                                   'rated_torque_nm': step.rated_torque_nm,
+                                   'samples': int(applied.size)}
+        names = ['lost_motion_rad', 'backlash_rad', 'hysteresis_loss_j',
+                 *(f'torsional_rigidity_{r[0]}_nm_per_rad' for r in step.rigidity)]
+        try:
+            m = hysteresis_metrics(t, a, step.config())
+        except TeInputError as exc:
+            details['error'] = str(exc)
+            return [Measured(n, step.name, _unit(n), math.nan) for n in names], details
+        centre = 0.5 * (m.zero_width_rad[0] + m.zero_width_rad[1])
+        asc_t, asc_a = _decimate(*m.ascending)
+        dn_t, dn_a = _decimate(*m.descending)
+        details.update({
+            'centre_rad': _fin(centre),
+            'ascending_torque_nm': asc_t, 'ascending_angle_rad': asc_a,
+            'descending_torque_nm': dn_t, 'descending_angle_rad': dn_a,
+            'zero_width_rad': [_fin(x) for x in m.zero_width_rad],
+            'lost_motion_torque_nm': m.lost_motion_torque_nm,
+            'lost_motion_mid_rad': [_fin(x) for x in m.lost_motion_mid_rad],
+            'rigidity_nm_per_rad': {k: [_fin(v[0]), _fin(v[1])]
+                                    for k, v in m.rigidity_nm_per_rad.items()},
+            'rigidity_points': {k: [[_fin(x) for x in side] for side in v]
+                                for k, v in m.rigidity_points.items()},
+            'max_torque_nm': m.max_torque_nm, 'min_torque_nm': m.min_torque_nm})
+        values = {'lost_motion_rad': m.lost_motion_rad, 'backlash_rad': m.backlash_rad,
+                  'hysteresis_loss_j': m.hysteresis_loss_j}
+        for r in step.rigidity:
+            values[f'torsional_rigidity_{r[0]}_nm_per_rad'] = m.rigidity_min_nm_per_rad(r[0])
+        return [Measured(n, step.name, _unit(n), values[n]) for n in names], details
+
+
+def _unit(name: str) -> str:
+    return 'N m/rad' if name.endswith('_nm_per_rad') else ('J' if name.endswith('_j') else 'rad')
+
+
+def build_report(*, plan: TestPlan, profile: ToleranceProfile, ctx: BenchContext,
+                 serial: str, operator: str, results: list[tuple[list[Measured], dict[str, Any]]],
+                 conditions: dict[str, Any] | None = None, started_utc: str = '',
+                 status: str = 'completed') -> dict[str, Any]:
+    """The unit's record: identity, bench, conditions, verdicts, per-step details (SI).
+
+    ``status`` other than 'completed' (cancelled, error) makes the verdict that status.
+    """
+    measured = [m for res in results for m in res[0] if not m.name.startswith('sweep:')]
+    verdicts, verdict, reason = evaluate(measured, profile)
+    if status != 'completed':
+        verdict, reason = status, f'{status} after {len(results)} of {len(plan.steps)} steps'
+    steps = []
+    for step, (ms, details) in zip(plan.steps, results, strict=False):
+        steps.append({'name': step.name, 'kind': step.kind,
+                      'metrics': [{'name': m.name, 'unit': m.unit, 'value': _fin(m.value)}
+                                  for m in ms], **details})
+    return {
+        'unit': {'serial': serial, 'operator': operator,
+                 'date_utc': started_utc or dt.datetime.now(dt.UTC).isoformat(timespec='seconds')},
+        'bench': {'bench_id': ctx.bench_id, 'preset': ctx.preset, 'gear_ratio': ctx.gear_ratio,
+                  'sample_rate_hz': ctx.sample_rate_hz, 'encoder_in': ctx.encoder_in_model,
+                  'encoder_out': ctx.encoder_out_model,
+                  'encoder_out_resolution_rad': ctx.encoder_out_resolution_rad},
+        'conditions': dict(conditions or {}),
+        'plan': plan.to_plain(), 'tolerance': profile.to_plain(),
+        'verdict': verdict, 'reason': reason,
+        'metrics': [v.to_json_dict() for v in verdicts],
+        'steps': steps,
+    }
+
+
+def run_plan_offline(plan: TestPlan, profile: ToleranceProfile, *, serial: str, operator: str,
+                     sim: Any, ctx: BenchContext,  # noqa: ANN401 - sim.program.ProgramSimulator
+                     conditions: dict[str, Any] | None = None,
+                     on_feedback: Callable[[int, str, float, str, float], None] | None = None,
+                     ) -> dict[str, Any]:
+    """Run every step on a :class:`sim.program.ProgramSimulator` (no ROS) and report.
+
+    Args:
+        plan, profile: The validated plan and tolerance profile.
+        serial, operator: Unit identity.
+        sim: The simulated bench.
+        ctx: Its description (ratio, rate, lines).
+        conditions: Extra test conditions for the record.
+        on_feedback: Called per block with (step index, step name, step progress, live
+            metric name, live value).
+
+    Raises:
+        AcceptanceError: A step's program is refused by the bench.
+    """
+    from sim.errors import ModelInputError  # noqa: PLC0415
+    from sim.program import program_from_plain  # noqa: PLC0415
+
+    started = dt.datetime.now(dt.UTC).isoformat(timespec='seconds')
+    results = []
+    for j, step in enumerate(plan.steps):
+        runner = StepRunner(step, ctx)
+        try:
+            total = sim.load(program_from_plain(runner.program()))
+        except ModelInputError as exc:
+            msg = f'step {step.name!r}: the bench refused its program: {exc}'
+            raise AcceptanceError(msg) from None
+        done, last_seg = 0, 0
+        while sim.running:
+            block, seg = sim.next_block()
+            if seg != last_seg:
+                runner.next_segment()
+                last_seg = seg
+            live = runner.feed(seg, block.theta_in_rad, block.theta_out_rad, block.torque_out_nm)
+            done += 1
+            if on_feedback is not None:
+                on_feedback(j, step.name, done / total, runner.live_name, live)
+        results.append(runner.result())
+    return build_report(plan=plan, profile=profile, ctx=ctx, serial=serial, operator=operator,
+                        results=results, conditions=conditions, started_utc=started)

@@ -1,0 +1,279 @@
+"""Tolerance profiles and the verdict of a unit.
+
+A profile (YAML; limits in catalogue units, the unit in the key; docs/ACCEPTANCE.md)::
+
+    profile: rv-80e-101
+    description: ...
+    limits:
+      te_pp_arcmin: {max: 1.0, source: "..."}
+      lost_motion_arcmin: {max: 1.0, source: "..."}
+      backlash_arcmin: {max: 1.0, source: "..."}
+      torsional_rigidity_nm_per_arcmin: {min: 196, region: K, source: "..."}
+
+Each limit applies to the measured metrics of its family: ``te_pp`` to the TE p-p of every
+direction of every ``te`` step, ``torsional_rigidity`` to the named region (the smaller of
+its two sides). A metric gets pass / fail / not_measured with its margin (distance to the
+limit, positive inside); metrics without a limit are ``info``. The unit passes when every
+limited metric passes: a limit whose metric was not measured fails the unit.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from importlib import resources
+from pathlib import Path
+from typing import Any
+
+from rv_te_bench.acceptance.plan import parse_yaml_text
+from rv_te_bench.core.units import ARCMIN_PER_RAD, ARCSEC_PER_RAD
+from rv_te_bench.errors import ToleranceError
+
+__all__ = [
+    'LIMIT_KEYS',
+    'Limit',
+    'Measured',
+    'MetricVerdict',
+    'ToleranceProfile',
+    'evaluate',
+    'load_tolerance',
+    'parse_tolerance',
+    'shipped_tolerances',
+]
+
+#: Limit key -> (family, SI value per unit of the key, SI unit).
+LIMIT_KEYS: dict[str, tuple[str, float, str]] = {
+    'te_pp_arcmin': ('te_pp', 1.0 / ARCMIN_PER_RAD, 'rad'),
+    'te_pp_arcsec': ('te_pp', 1.0 / ARCSEC_PER_RAD, 'rad'),
+    'lost_motion_arcmin': ('lost_motion', 1.0 / ARCMIN_PER_RAD, 'rad'),
+    'lost_motion_arcsec': ('lost_motion', 1.0 / ARCSEC_PER_RAD, 'rad'),
+    'backlash_arcmin': ('backlash', 1.0 / ARCMIN_PER_RAD, 'rad'),
+    'backlash_arcsec': ('backlash', 1.0 / ARCSEC_PER_RAD, 'rad'),
+    'torsional_rigidity_nm_per_arcmin': ('torsional_rigidity', ARCMIN_PER_RAD, 'N m/rad'),
+    'hysteresis_loss_j': ('hysteresis_loss', 1.0, 'J'),
+}
+
+
+@dataclass(frozen=True)
+class Limit:
+    """One limit, in SI units."""
+
+    key: str
+    family: str
+    unit: str
+    min_si: float = math.nan
+    max_si: float = math.nan
+    region: str = ''
+    source: str = ''
+
+    def metric_matches(self, name: str) -> bool:
+        """Whether measured metric ``name`` falls under this limit."""
+        if self.family == 'te_pp':
+            return name.startswith('te_pp_') and name.endswith('_rad')
+        if self.family == 'torsional_rigidity':
+            return name == f'torsional_rigidity_{self.region}_nm_per_rad'
+        return name == {'lost_motion': 'lost_motion_rad', 'backlash': 'backlash_rad',
+                        'hysteresis_loss': 'hysteresis_loss_j'}[self.family]
+
+    @property
+    def placeholder_name(self) -> str:
+        """Metric name shown when nothing was measured for this limit."""
+        return {'te_pp': 'te_pp_rad', 'lost_motion': 'lost_motion_rad',
+                'backlash': 'backlash_rad', 'hysteresis_loss': 'hysteresis_loss_j',
+                'torsional_rigidity': f'torsional_rigidity_{self.region}_nm_per_rad'}[
+                    self.family]
+
+
+@dataclass(frozen=True)
+class ToleranceProfile:
+    """A validated tolerance profile."""
+
+    name: str
+    limits: tuple[Limit, ...]
+    description: str = ''
+    origin: str = '<tolerance>'
+
+    def to_plain(self) -> dict[str, Any]:
+        """For records (SI limits)."""
+        return {'profile': self.name, 'description': self.description,
+                'limits': [{'key': lim.key, 'family': lim.family, 'unit': lim.unit,
+                            'min_si': None if math.isnan(lim.min_si) else lim.min_si,
+                            'max_si': None if math.isnan(lim.max_si) else lim.max_si,
+                            'region': lim.region, 'source': lim.source}
+                           for lim in self.limits]}
+
+
+def parse_tolerance(data: Any, origin: str = '<tolerance>') -> ToleranceProfile:  # noqa: ANN401, C901
+    """Validate a tolerance mapping (parsed YAML).
+
+    Raises:
+        ToleranceError: Anything wrong, named (file, key, rule, value).
+    """
+    def fail(what: str) -> None:
+        msg = f'{origin}: {what}'
+        raise ToleranceError(msg)
+
+    if not isinstance(data, dict):
+        fail(f'must be a mapping with "profile" and "limits", got {type(data).__name__}')
+    unknown = sorted(set(data) - {'profile', 'description', 'limits'})
+    if unknown:
+        fail(f'unknown key(s) {unknown}; allowed: profile, description, limits')
+    name = data.get('profile')
+    if not isinstance(name, str) or not name.strip():
+        fail(f'profile must be a non-empty string, got {name!r}')
+    limits_raw = data.get('limits')
+    if not isinstance(limits_raw, dict) or not limits_raw:
+        fail(f'limits must map limit keys ({", ".join(LIMIT_KEYS)}) to {{min|max, source}}')
+    limits: list[Limit] = []
+    seen: set[tuple[str, str]] = set()
+    for key, spec in limits_raw.items():
+        if key not in LIMIT_KEYS:
+            fail(f'limit {key!r} unknown; known: {", ".join(LIMIT_KEYS)}')
+        family, scale, unit = LIMIT_KEYS[key]
+        if not isinstance(spec, dict):
+            fail(f'limit {key}: must be a mapping like {{max: 1.0, source: "..."}}, got {spec!r}')
+        allowed = {'min', 'max', 'source'} | ({'region'} if family == 'torsional_rigidity'
+                                              else set())
+        if bad := sorted(set(spec) - allowed):
+            fail(f'limit {key}: unknown field(s) {bad}; allowed: {sorted(allowed)}')
+        if 'min' not in spec and 'max' not in spec:
+            fail(f'limit {key}: needs min or max')
+        vals = {}
+        for side in ('min', 'max'):
+            if side in spec:
+                v = spec[side]
+                if isinstance(v, bool) or not isinstance(v, int | float) or not math.isfinite(v) \
+                        or v < 0:
+                    fail(f'limit {key}.{side} must be a finite number >= 0, got {v!r}')
+                vals[side] = float(v) * scale
+        if 'min' in vals and 'max' in vals and vals['min'] > vals['max']:
+            fail(f'limit {key}: min {spec["min"]!r} > max {spec["max"]!r}')
+        region = str(spec.get('region', 'K')) if family == 'torsional_rigidity' else ''
+        source = spec.get('source', '')
+        if not isinstance(source, str):
+            fail(f'limit {key}.source must be a string, got {source!r}')
+        if (family, region) in seen:
+            fail(f'limit {key}: a second limit on {family}{" " + region if region else ""}')
+        seen.add((family, region))
+        limits.append(Limit(key=key, family=family, unit=unit,
+                            min_si=vals.get('min', math.nan), max_si=vals.get('max', math.nan),
+                            region=region, source=source))
+    return ToleranceProfile(name=name.strip(), limits=tuple(limits),
+                            description=str(data.get('description', '') or ''), origin=origin)
+
+
+def shipped_tolerances() -> list[str]:
+    """Names of the profiles shipped in ``rv_te_bench/acceptance/tolerances``."""
+    root = resources.files('rv_te_bench.acceptance').joinpath('tolerances')
+    return sorted(p.name[:-5] for p in root.iterdir() if p.name.endswith('.yaml'))
+
+
+def load_tolerance(name_or_path: str | Path, *, relative_to: Path | None = None,
+                   ) -> tuple[ToleranceProfile, str]:
+    """Load a profile file (a path, also relative to a plan's folder, or a shipped name).
+
+    Raises:
+        ToleranceError: Missing or unreadable file, bad YAML, invalid profile.
+    """
+    cands = [Path(name_or_path)]
+    if relative_to is not None and not Path(name_or_path).is_absolute():
+        cands.append(relative_to / name_or_path)
+    for path in cands:
+        if path.is_file():
+            try:
+                text = path.read_text(encoding='utf-8')
+            except (OSError, UnicodeDecodeError) as exc:
+                msg = f'tolerance profile {path}: cannot read ({exc})'
+                raise ToleranceError(msg) from None
+            origin = str(path)
+            break
+    else:
+        if str(name_or_path) not in shipped_tolerances():
+            msg = (f'tolerance profile {str(name_or_path)!r}: no such file, and not a shipped '
+                   f'profile ({", ".join(shipped_tolerances())})')
+            raise ToleranceError(msg)
+        text = resources.files('rv_te_bench.acceptance').joinpath(
+            'tolerances', f'{name_or_path}.yaml').read_text('utf-8')
+        origin = f'tolerance {name_or_path}'
+    return parse_tolerance(parse_yaml_text(text, origin, ToleranceError), origin), text
+
+
+@dataclass(frozen=True)
+class Measured:
+    """A measured metric (SI)."""
+
+    name: str
+    step: str
+    unit: str
+    value: float
+
+
+@dataclass(frozen=True)
+class MetricVerdict:
+    """A metric, its limit and its verdict (SI)."""
+
+    name: str
+    step: str
+    unit: str
+    value: float
+    limit_min: float
+    limit_max: float
+    margin: float
+    verdict: str
+    source: str
+
+    def to_json_dict(self) -> dict[str, Any]:
+        """JSON-friendly (NaN -> None)."""
+        def fin(x: float) -> float | None:
+            return float(x) if math.isfinite(x) else None
+        return {'name': self.name, 'step': self.step, 'unit': self.unit,
+                'value': fin(self.value), 'limit_min': fin(self.limit_min),
+                'limit_max': fin(self.limit_max), 'margin': fin(self.margin),
+                'verdict': self.verdict, 'source': self.source}
+
+
+def _judge(m: Measured, lim: Limit) -> MetricVerdict:
+    margins = []
+    if math.isfinite(lim.max_si):
+        margins.append(lim.max_si - m.value)
+    if math.isfinite(lim.min_si):
+        margins.append(m.value - lim.min_si)
+    if not math.isfinite(m.value):
+        verdict, margin = 'not_measured', math.nan
+    else:
+        margin = min(margins)
+        verdict = 'pass' if margin >= 0 else 'fail'
+    return MetricVerdict(m.name, m.step, m.unit, m.value, lim.min_si, lim.max_si, margin,
+                         verdict, lim.source)
+
+
+def evaluate(measured: list[Measured], profile: ToleranceProfile,
+             ) -> tuple[list[MetricVerdict], str, str]:
+    """Judge every measured metric; returns (verdicts, 'pass' | 'fail', reason).
+
+    Every limit whose family was not measured appears once as ``not_measured``.
+    """
+    out: list[MetricVerdict] = []
+    used: set[int] = set()
+    for m in measured:
+        lim = next((x for x in profile.limits if x.metric_matches(m.name)), None)
+        if lim is None:
+            out.append(MetricVerdict(m.name, m.step, m.unit, m.value, math.nan, math.nan,
+                                     math.nan, 'info', ''))
+            continue
+        used.add(id(lim))
+        out.append(_judge(m, lim))
+    for lim in profile.limits:
+        if id(lim) not in used:
+            out.append(MetricVerdict(lim.placeholder_name, '', lim.unit, math.nan, lim.min_si,
+                                     lim.max_si, math.nan, 'not_measured', lim.source))
+    failed = [v.name for v in out if v.verdict == 'fail']
+    missing = [v.name for v in out if v.verdict == 'not_measured']
+    if not failed and not missing:
+        return out, 'pass', 'every limited metric is within its limit'
+    parts = []
+    if failed:
+        parts.append('out of limit: ' + ', '.join(failed))
+    if missing:
+        parts.append('not measured: ' + ', '.join(missing))
+    return out, 'fail', '; '.join(parts)
