@@ -281,6 +281,11 @@ class ProgramSimulator:
         self._seg_index = -1
         return first
 
+    @property
+    def segment_blocks(self) -> tuple[int, ...]:
+        """Blocks of each segment of the loaded program, in order."""
+        return tuple(p.blocks for p in self._plan)
+
     @staticmethod
     def _rest_angle(curve: TorsionCurve, phi: float | None) -> float:
         """Torsion angle when the input is locked after driving: on the drive flank."""

@@ -61,6 +61,7 @@ class BenchContext:
     encoder_in_model: str = ''
     encoder_out_model: str = ''
     encoder_out_resolution_rad: float = 0.0
+    reducer_type: str = ''
 
     def orders(self) -> OrderSet | None:
         """Spectral lines of the reducer (None without a crank rate)."""
@@ -80,13 +81,15 @@ def _fin(x: float) -> float | None:
     return float(x) if math.isfinite(x) else None
 
 
-@dataclass
+@dataclass(eq=False)
 class _Segment:
     plain: dict[str, Any]
     role: str                     # 'te' | 'sweep' | 'preload' | 'cycle'
     label: dict[str, Any] = field(default_factory=dict)
     chunks: list[tuple[np.ndarray, ...]] = field(default_factory=list)
     samples: int = 0
+    blocks: int = 0
+    expected_blocks: int = -1      # from the bench's answer; -1: not known
 
 
 class StepRunner:
@@ -161,6 +164,25 @@ class StepRunner:
         """The bench program (plain segments, for ``sim.program.program_from_plain``)."""
         return [s.plain for s in self.segments]
 
+    def expect(self, segment_blocks: list[int] | tuple[int, ...]) -> None:
+        """The blocks the bench will send per segment (a segment short of them is reported
+        incomplete and its metrics not measured, rather than read across the hole)."""
+        if len(segment_blocks) != len(self.segments):
+            msg = (f'the bench planned {len(segment_blocks)} segments for a program of '
+                   f'{len(self.segments)}')
+            raise AcceptanceError(msg)
+        for seg, n in zip(self.segments, segment_blocks, strict=True):
+            seg.expected_blocks = int(n)
+
+    def _incomplete(self, segs: list[_Segment]) -> str:
+        bad = [(i, s) for i, s in enumerate(self.segments) if s in segs
+               and s.expected_blocks >= 0 and s.blocks < s.expected_blocks]
+        if not bad:
+            return ''
+        missing = sum(s.expected_blocks - s.blocks for _, s in bad)
+        return (f'{missing} block(s) of {len(bad)} segment(s) missing (first: segment '
+                f'{bad[0][0]}); not analysed')
+
     # -- data -----------------------------------------------------------------------------------
     def feed(self, segment: int, theta_in_rad: np.ndarray, theta_out_rad: np.ndarray,
              torque_out_nm: np.ndarray) -> float:
@@ -170,6 +192,7 @@ class StepRunner:
                        (theta_in_rad, theta_out_rad, torque_out_nm))
         seg.chunks.append(arrays)
         seg.samples += arrays[0].size
+        seg.blocks += 1
         if self.live_name == 'torque_nm':
             return float(-arrays[2][-1]) if arrays[2].size else math.nan
         settle = round(seg.label.get('settle_s', 0.0) * self.ctx.sample_rate_hz)
@@ -205,6 +228,8 @@ class StepRunner:
             settle = round(seg.label['settle_s'] * self.ctx.sample_rate_hz)
             row: dict[str, Any] = {**seg.label, 'samples': int(th_in.size)}
             try:
+                if hole := self._incomplete([seg]):
+                    raise TeInputError(hole)  # noqa: TRY301
                 d = direction_te(th_in[settle:], th_out[settle:], gear_ratio=self.ctx.gear_ratio,
                                  orders=self.ctx.orders(),
                                  duration_s=max(th_in[settle:].size - 1, 1)
@@ -237,7 +262,15 @@ class StepRunner:
         return measured, {'kind': self.step.kind, 'rows': rows}
 
     def _hysteresis_result(self, step: HysteresisStep) -> tuple[list[Measured], dict[str, Any]]:
-        parts = [self._cat(s) for s in self.segments if s.role == 'cycle']
+        cycle = [s for s in self.segments if s.role == 'cycle']
+        details: dict[str, Any] = {'kind': 'hysteresis', 'method': step.method,
+                                   'rated_torque_nm': step.rated_torque_nm}
+        names = ['lost_motion_rad', 'backlash_rad', 'hysteresis_loss_j',
+                 *(f'torsional_rigidity_{r[0]}_nm_per_rad' for r in step.rigidity)]
+        if hole := self._incomplete(cycle):
+            details['error'] = hole
+            return [Measured(n, step.name, _unit(n), math.nan) for n in names], details
+        parts = [self._cat(s) for s in cycle]
         th_in = np.concatenate([p[0] for p in parts])
         th_out = np.concatenate([p[1] for p in parts])
         applied = -np.concatenate([p[2] for p in parts])
@@ -246,11 +279,7 @@ class StepRunner:
             t, a, _ = dwell_points(applied, angle)
         else:
             t, a = applied, angle
-        details: dict[str, Any] = {'kind': 'hysteresis', 'method': step.method,
-                                   'rated_torque_nm': step.rated_torque_nm,
-                                   'samples': int(applied.size)}
-        names = ['lost_motion_rad', 'backlash_rad', 'hysteresis_loss_j',
-                 *(f'torsional_rigidity_{r[0]}_nm_per_rad' for r in step.rigidity)]
+        details['samples'] = int(applied.size)
         try:
             m = hysteresis_metrics(t, a, step.config())
         except TeInputError as exc:
@@ -305,7 +334,9 @@ def build_report(*, plan: TestPlan, profile: ToleranceProfile, ctx: BenchContext
         'bench': {'bench_id': ctx.bench_id, 'preset': ctx.preset, 'gear_ratio': ctx.gear_ratio,
                   'sample_rate_hz': ctx.sample_rate_hz, 'encoder_in': ctx.encoder_in_model,
                   'encoder_out': ctx.encoder_out_model,
-                  'encoder_out_resolution_rad': ctx.encoder_out_resolution_rad},
+                  'encoder_out_resolution_rad': ctx.encoder_out_resolution_rad,
+                  'reducer_type': ctx.reducer_type, 'crank_per_input': ctx.crank_per_input,
+                  'mesh_orders': list(ctx.mesh_orders), 'mesh_labels': list(ctx.mesh_labels)},
         'conditions': dict(conditions or {}),
         'plan': plan.to_plain(), 'tolerance': profile.to_plain(),
         'verdict': verdict, 'reason': reason,
@@ -345,6 +376,7 @@ def run_plan_offline(plan: TestPlan, profile: ToleranceProfile, *, serial: str, 
         except ModelInputError as exc:
             msg = f'step {step.name!r}: the bench refused its program: {exc}'
             raise AcceptanceError(msg) from None
+        runner.expect(sim.segment_blocks)
         done, last_seg = 0, 0
         while sim.running:
             block, seg = sim.next_block()

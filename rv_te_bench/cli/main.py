@@ -19,8 +19,8 @@ if TYPE_CHECKING:
 
 # Order of appearance in --help.
 SUBCOMMAND_MODULES = (
-    'demo', 'launch', 'bench', 'record', 'replay', 'analyze', 'model', 'optimize_phases',
-    'compensate', 'identify', 'presets', 'results', 'spc', 'fleet',
+    'demo', 'launch', 'bench', 'record', 'replay', 'analyze', 'test', 'model',
+    'optimize_phases', 'compensate', 'identify', 'presets', 'results', 'spc', 'fleet',
 )
 
 EXAMPLES = """\
@@ -37,6 +37,8 @@ examples:
   rv-te fleet analyze bags/ --workers 2        many bags on Dask into the results store
   rv-te results --verdict fail                 the recorded units, filtered
   rv-te spc te_pp_revolution_max_rad --usl 1   control chart across units
+  rv-te test rv-80e --serial SN1 --operator kim --launch rv-80e-101
+                                               acceptance test of a unit: verdict + report
 """
 
 

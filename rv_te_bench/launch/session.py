@@ -47,8 +47,9 @@ NODE_TYPES: dict[str, tuple[str, str]] = {
     'compensation': ('rv_te_bench.nodes.compensation_node', 'CompensationNode'),
     'te_node': ('rv_te_bench.nodes.te_node', 'TeNode'),
     'bench': ('rv_te_bench.nodes.bench_node', 'BenchNode'),
+    'test_sequencer': ('rv_te_bench.nodes.test_sequencer', 'TestSequencerNode'),
 }
-STOP_ORDER = ('bench', 'te_node', 'compensation', 'recorder')
+STOP_ORDER = ('test_sequencer', 'bench', 'te_node', 'compensation', 'recorder')
 
 
 def node_specs(name: str) -> tuple[ParamSpec, ...]:

@@ -18,6 +18,8 @@ import sys
 import time
 from typing import Any
 
+import yaml
+
 from diagnostic_msgs.msg import DiagnosticArray
 from rclpy.node import Node
 from rosgraph_msgs.msg import Clock
@@ -102,6 +104,9 @@ PARAMS = (
               min_value=0.0, max_value=3600.0),
     ParamSpec('diagnostics_period_s', 'double', 1.0, 'Diagnostics period [s]',
               min_value=0.05, max_value=60.0),
+    ParamSpec('commanded', 'bool', False,
+              'Idle until a program arrives on bench/run_program (test_sequencer), instead '
+              'of running the drive profile from the start'),
 )
 
 
@@ -165,6 +170,9 @@ class BenchNode(Node):
         self.add_post_set_parameters_callback(self._on_params_set)
         self.sim = BenchSimulator(bench_config_from_params(self.p))
         info = self.sim.info
+        self.program: Any = None
+        if self.p['commanded']:
+            self._start_commanded()
         self.block_period_s = self.p['block_size'] / self.p['sample_rate_hz']
         self.duration_s = self.p['duration_s']
         if self.p['duration_output_revs'] > 0:
@@ -202,6 +210,72 @@ class BenchNode(Node):
             f'i={info.gear_ratio:.6g}), {self.p["sample_rate_hz"]:g} Hz, blocks of '
             f'{self.p["block_size"]}, {self.p["time_mode"]} time'
             + (f', {self.duration_s:.3f} s' if self.duration_s > 0 else ''))
+
+    # -- commanded mode (bench programs from the test_sequencer) --------------------------
+    def _start_commanded(self) -> None:
+        from std_srvs.srv import Trigger  # noqa: PLC0415
+
+        from rv_te_msgs.srv import RunBenchProgram  # noqa: PLC0415
+        from sim.program import ProgramSimulator  # noqa: PLC0415
+
+        cfg = self.sim.config
+        self.program = ProgramSimulator(
+            preset=cfg.preset, overrides=cfg.overrides, te_mode=cfg.te_mode,
+            encoder_in=cfg.encoder_in, encoder_out=cfg.encoder_out,
+            sample_rate_hz=cfg.sample_rate_hz, block_size=cfg.block_size, seed=cfg.seed)
+        self._prog_blocks = 0
+        self.create_service(RunBenchProgram, 'bench/run_program', self._on_run_program)
+        self.create_service(Trigger, 'bench/stop', self._on_stop)
+
+    def _on_run_program(self, request: Any, response: Any) -> Any:  # noqa: ANN401
+        from sim.errors import SimError  # noqa: PLC0415
+        from sim.program import program_from_plain  # noqa: PLC0415
+
+        if self.program.running:
+            response.accepted = False
+            response.reason = 'bench busy: a program is running (call bench/stop first)'
+            return response
+        try:
+            segments = program_from_plain(yaml.safe_load(request.program_yaml))
+            total = self.program.load(segments)
+        except (SimError, yaml.YAMLError) as exc:
+            response.accepted = False
+            response.reason = f'bad program: {exc}'.replace('\n', ' ')
+            self.get_logger().warning(response.reason)
+            return response
+        response.accepted = True
+        response.first_seq = self.program.seq
+        response.block_count = total
+        response.segment_blocks = list(self.program.segment_blocks)
+        # pacing restarts with the program; in real time its first block is due now
+        self.started = True
+        self.mono_start = time.monotonic()
+        self._prog_blocks = 0
+        if not self.fast:
+            self.wall_start = time.time() - self.program.seq * self.block_period_s
+        self.get_logger().info(f'program: {len(segments)} segments, {total} blocks from seq '
+                               f'{response.first_seq}')
+        return response
+
+    def _on_stop(self, _request: Any, response: Any) -> Any:  # noqa: ANN401
+        was = self.program.running
+        self.program.stop()
+        response.success = True
+        response.message = 'program stopped' if was else 'no program was running'
+        self.get_logger().info(response.message)
+        return response
+
+    def _tick_commanded(self) -> None:
+        elapsed = time.monotonic() - self.mono_start
+        factor = self.p['speed_factor'] if self.fast else 1.0
+        due = 10 if self.fast and factor <= 0 else int(
+            elapsed * factor / self.block_period_s) + 1 - self._prog_blocks
+        for _ in range(max(0, min(due, 100))):
+            if not self.program.running:
+                return
+            b, _seg = self.program.next_block()
+            self._publish_block(b)
+            self._prog_blocks += 1
 
     def _on_params_set(self, params: list[Any]) -> None:
         for prm in params:
@@ -258,6 +332,9 @@ class BenchNode(Node):
         return [f'{n} (/clock)' for n in on_clock]
 
     def _on_tick(self) -> None:
+        if self.program is not None:
+            self._tick_commanded()
+            return
         if self.finished or (not self.started and not self._wait_for_subscribers()):
             return
         for _ in range(self._due_blocks()):
@@ -270,7 +347,9 @@ class BenchNode(Node):
             self._lag_max_s = max(self._lag_max_s, self._lag_s)
 
     def _publish_one(self) -> None:
-        b = self.sim.next_block()
+        self._publish_block(self.sim.next_block())
+
+    def _publish_block(self, b: Any) -> None:  # noqa: ANN401 - sim.bench.BenchBlock
         stamp_s = self.wall_start + b.t0_s
         msg = convert.make_encoder_block(
             bench_id=self.sim.info.bench_id, seq=b.seq, stamp_s=stamp_s,

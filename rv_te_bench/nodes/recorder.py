@@ -48,7 +48,7 @@ __all__ = ['DEFAULT_TOPICS', 'PARAMS', 'RecorderNode', 'main']
 
 DEFAULT_TOPICS = [
     'bench/encoders', 'bench/info', 'te/samples', 'te/plot', 'te/statistics', 'te/spectrum',
-    'compensation/advice', '/diagnostics', '/clock',
+    'compensation/advice', 'test/step', 'test/report', '/diagnostics', '/clock',
 ]
 PARAMS = (
     ParamSpec('output_dir', 'string', 'out/bags',

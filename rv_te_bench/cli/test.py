@@ -1,0 +1,296 @@
+"""``rv-te test``: run an acceptance test plan on a unit and give its verdict.
+
+The client of the ``test_sequencer``'s ``run_test_plan`` action: it validates the plan and
+the tolerance profile, sends them with the unit's serial and the operator, shows the
+progress, prints the verdict table and writes the unit report (HTML + JSON + PNG).
+Exit code: 0 the unit passes, 3 it fails, 1 error or cancelled (Ctrl-C cancels the test and
+stops the bench).
+
+Without ``--launch`` it talks to a running session (a bench with ``commanded: true``, a
+``test_sequencer`` and a recorder); with ``--launch PRESET`` it starts a simulated one
+itself (bench, test_sequencer, recorder; the bag lands in ``--out-dir``).
+
+Usage examples:
+  rv-te test li2023-rv --serial LI-0001 --operator kim --launch li2023-rv
+  rv-te test rv-80e --serial RV80E-0042 --operator kim --launch rv-80e-101
+  rv-te test my_plan.yaml --serial SN7 --operator kim --tolerance my_limits.yaml
+  rv-te test rv-80e --serial SN8 --operator kim --launch hu2020-rv \\
+      --set torsion.clearance_rad=4e-4 --condition ambient_temperature_c=23
+"""
+
+from __future__ import annotations
+
+import argparse
+import contextlib
+import json
+import sys
+import time
+from datetime import UTC, datetime
+from pathlib import Path
+from typing import Any
+
+__all__ = ['EXIT_FAIL', 'register', 'run']
+
+EXIT_FAIL = 3
+#: Reducer model -> TE model mode a simulated session uses.
+DEFAULT_TE_MODE = {'wang2020-2kv': 'nlte', 'hu2020-rv': 'geometric', 'li2023-rv': 'dte'}
+
+
+def register(subparsers: Any) -> None:  # noqa: ANN401
+    """Add the ``test`` subcommand."""
+    p = subparsers.add_parser(
+        'test', help='run an acceptance test plan on a unit: verdict and unit report',
+        description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    p.add_argument('plan', help='test plan: a YAML file or a shipped plan name '
+                                '(rv-80e, li2023-rv, wang2020-2kv)')
+    p.add_argument('--serial', required=True, help='serial number of the unit under test')
+    p.add_argument('--operator', required=True, help='who runs the test')
+    p.add_argument('--tolerance', default=None, metavar='FILE|NAME',
+                   help="tolerance profile (default: the plan's, else the one shipped for "
+                        "the bench's preset)")
+    p.add_argument('--condition', action='append', default=[], metavar='KEY=VALUE',
+                   help='a test condition for the record, e.g. ambient_temperature_c=23')
+    p.add_argument('--namespace', default='/', help='namespace of the session')
+    p.add_argument('--report', default=None, metavar='DIR',
+                   help='where the unit report goes (default: <out-dir>/<serial>_<time>/)')
+    p.add_argument('--out-dir', default='out/tests', help='folder for sessions and reports')
+    p.add_argument('--wait-s', type=float, default=20.0,
+                   help='how long to wait for the test_sequencer [s]')
+    p.add_argument('--json', action='store_true', help='print the result as JSON on stdout')
+    g = p.add_argument_group('simulated session (--launch)')
+    g.add_argument('--launch', default=None, metavar='PRESET',
+                   help='start a simulated bench of this preset, a test_sequencer and a '
+                        'recorder, run the plan, stop them')
+    g.add_argument('--set', action='append', default=[], metavar='KEY=VALUE',
+                   help='preset override of the simulated unit (e.g. torsion.clearance_rad=3e-4)')
+    g.add_argument('--te-mode', default=None, help='TE model mode (default per model)')
+    g.add_argument('--encoder', default='heidenhain-ron886', help='encoder preset, both shafts')
+    g.add_argument('--sample-rate-hz', type=float, default=1000.0)
+    g.add_argument('--speed-factor', type=float, default=20.0,
+                   help='times faster than real time; 0 = as fast as possible')
+    g.add_argument('--seed', type=int, default=1)
+    p.set_defaults(func=run)
+
+
+def _conditions(items: list[str]) -> dict[str, Any]:
+    import yaml  # noqa: PLC0415
+
+    from rv_te_bench.errors import AcceptanceError  # noqa: PLC0415
+
+    out: dict[str, Any] = {}
+    for item in items:
+        key, sep, text = item.partition('=')
+        if not sep or not key.strip():
+            msg = f'--condition {item!r} is not of the form key=value'
+            raise AcceptanceError(msg)
+        try:
+            out[key.strip()] = yaml.safe_load(text)
+        except yaml.YAMLError:
+            out[key.strip()] = text
+    return out
+
+
+def _session(args: argparse.Namespace, out_dir: Path) -> Any:  # noqa: ANN401
+    """Start the simulated session of ``--launch`` (validated first)."""
+    from rv_te_bench.launch.session import Session, SessionSpec  # noqa: PLC0415
+    from sim.presets import load_preset  # noqa: PLC0415
+
+    preset = load_preset(args.launch, list(args.set))   # a bad preset or --set: one line
+    mode = args.te_mode or DEFAULT_TE_MODE.get(preset.model, 'nlte')
+    from sim.program import ProgramSimulator  # noqa: PLC0415
+
+    ProgramSimulator(preset=args.launch, overrides=tuple(args.set), te_mode=mode,
+                     encoder_in=args.encoder, encoder_out=args.encoder,
+                     sample_rate_hz=args.sample_rate_hz)   # the model builds: mode is valid
+    spec = SessionSpec(
+        nodes=('recorder', 'bench', 'test_sequencer'), namespace=args.namespace_norm,
+        parameters={
+            'bench': {'preset': args.launch, 'overrides': list(args.set), 'te_mode': mode,
+                      'encoder_in': args.encoder, 'encoder_out': args.encoder,
+                      'sample_rate_hz': float(args.sample_rate_hz), 'block_size': 100,
+                      'seed': int(args.seed), 'time_mode': 'fast',
+                      'speed_factor': float(args.speed_factor), 'commanded': True},
+            'recorder': {'output_dir': str(out_dir), 'bag_name': 'bag'},
+            'test_sequencer': {}})
+    log = (out_dir / 'session.log').open('wb')
+    session = Session(spec, stdout=log)
+    session.start()
+    return session, log
+
+
+def run(args: argparse.Namespace) -> int:  # noqa: C901, PLR0912, PLR0915
+    """Validate, (launch,) send the goal, follow it, report; 0 pass, 3 fail, 1 error."""
+    from rv_te_bench.acceptance import load_plan, load_tolerance  # noqa: PLC0415
+    from rv_te_bench.launch.session import normalise_namespace  # noqa: PLC0415
+
+    plan, plan_text = load_plan(args.plan)
+    tol_text = ''
+    if args.tolerance:
+        _, tol_text = load_tolerance(args.tolerance)
+    elif plan.tolerance:
+        base = Path(args.plan).parent if Path(args.plan).exists() else None
+        _, tol_text = load_tolerance(plan.tolerance, relative_to=base)
+    import yaml  # noqa: PLC0415
+
+    conditions = _conditions(args.condition)
+    args.namespace_norm = normalise_namespace(args.namespace)
+    stamp = datetime.now(UTC).strftime('%Y%m%dT%H%M%SZ')
+    safe_serial = ''.join(c if c.isalnum() or c in '-_.' else '_' for c in args.serial)
+    out_dir = Path(args.out_dir) / f'{safe_serial}_{stamp}'
+    report_dir = Path(args.report) if args.report else out_dir / 'report'
+    session = log = None
+    if args.launch:
+        out_dir.mkdir(parents=True, exist_ok=True)
+        session, log = _session(args, out_dir)
+        print(f'session: bench {args.launch} (simulated), test_sequencer, recorder -> '
+              f'{out_dir / "bag"}', file=sys.stderr)
+    try:
+        result = _run_goal(args, plan_text, tol_text, yaml.safe_dump(conditions) if conditions
+                           else '')
+    finally:
+        if session is not None:
+            session.stop()
+            log.close()
+    if result is None:
+        return 1
+    verdict, reason, report_json = result
+    report = json.loads(report_json) if report_json else None
+    if report is not None:
+        if args.launch:
+            report['bench']['bag'] = str(out_dir / 'bag')
+        from rv_te_bench.report.unit import write_unit_report  # noqa: PLC0415
+
+        paths = write_unit_report(report, report_dir)
+        if args.json:
+            print(json.dumps(report, indent=1))
+        else:
+            _print_table(report)
+            print(f'report: {paths["html"]}')
+    if verdict == 'pass':
+        print(f'VERDICT: PASS  unit {args.serial}: {reason}')
+        return 0
+    if verdict == 'fail':
+        print(f'VERDICT: FAIL  unit {args.serial}: {reason}')
+        return EXIT_FAIL
+    print(f'ERROR: test of unit {args.serial} {verdict}: {reason}', file=sys.stderr)
+    return 1
+
+
+def _print_table(report: dict[str, Any]) -> None:
+    from rv_te_bench.report.unit import metric_rows  # noqa: PLC0415
+
+    print(f"unit {report['unit']['serial']}  operator {report['unit']['operator']}  "
+          f"{report['unit']['date_utc']}  plan {report['plan']['plan']}  "
+          f"tolerance {report['tolerance']['profile']}")
+    print(f"{'metric':<34} {'value':>12} {'limit':>14} {'margin':>12}  verdict")
+    for r in metric_rows(report):
+        print(f"{r['label']:<34} {r['value']:>12} {r['limit']:>14} {r['margin']:>12}  "
+              f"{r['verdict']}")
+
+
+class _Progress:
+    """One line per step, a live line while it runs (a periodic line when not a tty)."""
+
+    def __init__(self) -> None:
+        self.step = -1
+        self.last = 0.0
+        self.tty = sys.stderr.isatty()
+
+    def __call__(self, fb: Any) -> None:  # noqa: ANN401
+        from rv_te_bench.report.unit import format_live  # noqa: PLC0415
+
+        if fb.step_index != self.step:
+            if self.tty and self.step >= 0:
+                print(file=sys.stderr)
+            self.step = fb.step_index
+            print(f'step {fb.step_index + 1}/{fb.step_count} {fb.step_name} ({fb.step_kind})',
+                  file=sys.stderr)
+        now = time.monotonic()
+        line = (f'  {100 * fb.step_progress:5.1f} % of the step, {100 * fb.plan_progress:5.1f} '
+                f'% of the plan, {format_live(fb.live_metric, fb.live_value)}')
+        if self.tty:
+            print('\r' + line, end='', file=sys.stderr, flush=True)
+        elif now - self.last > 2.0:
+            self.last = now
+            print(line, file=sys.stderr, flush=True)
+
+
+def _run_goal(args: argparse.Namespace, plan_text: str, tol_text: str,
+              conditions: str) -> tuple[str, str, str] | None:
+    """Send the goal and follow it; (verdict, reason, report_json), None on an error."""
+    import rclpy  # noqa: PLC0415
+    from rclpy.action import ActionClient  # noqa: PLC0415
+    from rclpy.executors import SingleThreadedExecutor  # noqa: PLC0415
+    from rv_te_msgs.action import RunTestPlan  # noqa: PLC0415
+
+    ctx = rclpy.context.Context()
+    rclpy.init(context=ctx)
+    node = rclpy.create_node('rv_te_test_client', context=ctx,
+                             namespace=args.namespace_norm or '/')
+    executor = SingleThreadedExecutor(context=ctx)
+    executor.add_node(node)
+    progress = _Progress()
+    try:
+        client = ActionClient(node, RunTestPlan, 'run_test_plan')
+        deadline = time.monotonic() + args.wait_s
+        while not client.server_is_ready():
+            if time.monotonic() > deadline:
+                print(f'ERROR: no test_sequencer answers run_test_plan in namespace '
+                      f'{args.namespace_norm or "/"} within {args.wait_s:g} s (start a session '
+                      'with a commanded bench, or use --launch PRESET)', file=sys.stderr)
+                return None
+            executor.spin_once(timeout_sec=0.1)
+        goal = RunTestPlan.Goal(plan_yaml=plan_text, tolerance_yaml=tol_text,
+                                serial=args.serial, operator_name=args.operator,
+                                conditions_yaml=conditions)
+        send = client.send_goal_async(goal, feedback_callback=lambda m: progress(m.feedback))
+        while not send.done():
+            executor.spin_once(timeout_sec=0.1)
+        handle = send.result()
+        if not handle.accepted:
+            print(f'ERROR: the test_sequencer rejected the goal: {_busy_reason(node, executor)}',
+                  file=sys.stderr)
+            return None
+        res_future = handle.get_result_async()
+        try:
+            while not res_future.done():
+                executor.spin_once(timeout_sec=0.1)
+        except KeyboardInterrupt:
+            print('\ncancelling the test (the bench stops) ...', file=sys.stderr)
+            cancel = handle.cancel_goal_async()
+            end = time.monotonic() + 30.0
+            while not (cancel.done() and res_future.done()) and time.monotonic() < end:
+                executor.spin_once(timeout_sec=0.1)
+            if not res_future.done():
+                print('ERROR: the test_sequencer did not confirm the cancel', file=sys.stderr)
+                return None
+        if progress.tty and progress.step >= 0:
+            print(file=sys.stderr)
+        res = res_future.result().result
+        return res.verdict, res.reason, res.report_json
+    finally:
+        with contextlib.suppress(Exception):
+            executor.shutdown()
+            node.destroy_node()
+        rclpy.try_shutdown(context=ctx)
+
+
+def _busy_reason(node: Any, executor: Any) -> str:  # noqa: ANN401
+    """Why a goal was rejected: the running test on the latched test/report."""
+    from rv_te_msgs.msg import TestReport  # noqa: PLC0415
+
+    from rv_te_bench.nodes import qos  # noqa: PLC0415
+
+    got: list[Any] = []
+    sub = node.create_subscription(TestReport, 'test/report', got.append, qos.LATCHED_QOS)
+    end = time.monotonic() + 3.0
+    while not got and time.monotonic() < end:
+        executor.spin_once(timeout_sec=0.1)
+    node.destroy_subscription(sub)
+    if got and got[-1].verdict == 'running':
+        r = got[-1]
+        return (f'it is busy with plan {r.plan_name!r} for unit {r.serial!r} (operator '
+                f'{r.operator_name}); wait for it or cancel it')
+    return 'it is busy with another test'
+
+

@@ -1,0 +1,367 @@
+"""TestSequencerNode: runs an acceptance test plan on the bench, as a ROS 2 action.
+
+Action ``run_test_plan`` (``rv_te_msgs/action/RunTestPlan``): the goal carries the plan and
+tolerance texts and the unit's identity; the node runs the plan step by step, sending each
+step's bench program to ``bench/run_program`` (the bench in ``commanded`` mode) and feeding
+the blocks of ``bench/encoders`` to the step runner (:mod:`rv_te_bench.acceptance.runner`);
+feedback gives the step, the progress and a live value; the result gives every metric with
+its limit, margin and verdict. A cancel stops the bench (``bench/stop``). A second goal
+while one runs is rejected (ROS goal rejection has no reason field: the node logs the reason
+and the running test is on the latched ``test/report``, where ``rv-te test`` reads it).
+
+Recorded for the bag: ``test/step`` (TestStep: started / finished / cancelled, with the
+EncoderBlock seq range of the step) and ``test/report`` (TestReport: the verdict, the
+metrics and the report JSON).
+
+Executor: single-threaded, with the goal executed as a coroutine that awaits futures
+completed by the subscription and a 10 Hz timer, so the data keeps flowing while a goal runs.
+"""
+
+from __future__ import annotations
+
+import collections
+import dataclasses
+import json
+import math
+import sys
+import time
+import traceback
+from typing import Any
+
+import numpy as np
+import yaml
+from rclpy.action import ActionServer, CancelResponse, GoalResponse
+from rclpy.node import Node
+from rclpy.task import Future
+from rv_te_msgs.action import RunTestPlan
+from rv_te_msgs.msg import BenchInfo, EncoderBlock, MetricVerdict, TestReport, TestStep
+from rv_te_msgs.srv import RunBenchProgram
+from std_srvs.srv import Trigger
+
+from rv_te_bench.acceptance import BenchContext, StepRunner, build_report, parse_plan
+from rv_te_bench.acceptance.plan import parse_yaml_text
+from rv_te_bench.acceptance.tolerance import load_tolerance, parse_tolerance
+from rv_te_bench.errors import AcceptanceError
+from rv_te_bench.nodes import qos
+from rv_te_bench.nodes.common import DropCounter, declare_from_specs, run_node
+from rv_te_bench.params import ParamSpec
+
+__all__ = ['PARAMS', 'TestSequencerNode', 'main']
+
+PARAMS = (
+    ParamSpec('bench_timeout_s', 'double', 20.0,
+              'Give up when the bench sends no block (or no bench/info) for this long [s]',
+              min_value=0.5, max_value=3600.0),
+    ParamSpec('feedback_period_s', 'double', 0.25, 'Feedback period [s]', min_value=0.02,
+              max_value=10.0),
+    ParamSpec('wait_for_nodes', 'string_array', ['recorder'],
+              'Start a plan once these nodes (same namespace) subscribe bench/encoders, so '
+              'that every step is recorded [-]'),
+    ParamSpec('wait_timeout_s', 'double', 10.0,
+              'Start anyway after this long when they are missing (logged) [s]',
+              min_value=0.0, max_value=3600.0),
+)
+
+
+class _Cancelled(Exception):
+    pass
+
+
+class TestSequencerNode(Node):
+    """Runs test plans on the bench (see the module docstring)."""
+
+    __test__ = False
+
+    def __init__(self, **kwargs: Any) -> None:  # noqa: ANN401
+        """Declare parameters, the action server, clients, topics; ``kwargs`` go to Node."""
+        super().__init__('test_sequencer', **kwargs)
+        self.p = declare_from_specs(self, PARAMS)
+        self.drops = DropCounter(self)
+        self.ctx: BenchContext | None = None
+        self.busy: dict[str, Any] | None = None
+        self._runner: StepRunner | None = None
+        self._prog: dict[str, Any] = {}
+        self._wake: Future | None = None
+        # blocks that arrive between a program's start on the bench and the answer to its
+        # service call (the bench publishes at once): replayed when the answer is in
+        self._early: collections.deque[EncoderBlock] = collections.deque(maxlen=5000)
+        self.create_subscription(BenchInfo, 'bench/info', self._on_info, qos.LATCHED_QOS)
+        self.create_subscription(EncoderBlock, 'bench/encoders', self._on_block,
+                                 qos.ENCODER_QOS)
+        self.cli_program = self.create_client(RunBenchProgram, 'bench/run_program')
+        self.cli_stop = self.create_client(Trigger, 'bench/stop')
+        self.pub_step = self.create_publisher(TestStep, 'test/step', qos.TE_SAMPLES_QOS)
+        self.pub_report = self.create_publisher(TestReport, 'test/report', qos.LATCHED_QOS)
+        self.create_timer(0.1, self._on_timer)
+        self.server = ActionServer(
+            self, RunTestPlan, 'run_test_plan', execute_callback=self._execute,
+            goal_callback=self._on_goal, cancel_callback=lambda _g: CancelResponse.ACCEPT)
+        self.get_logger().info('test_sequencer ready (action run_test_plan)')
+
+    # -- callbacks ------------------------------------------------------------------------------
+    def _on_info(self, msg: BenchInfo) -> None:
+        self.ctx = BenchContext(
+            gear_ratio=msg.gear_ratio, crank_per_input=msg.crank_per_input,
+            mesh_orders=tuple(msg.mesh_orders), mesh_labels=tuple(msg.mesh_labels),
+            sample_rate_hz=msg.sample_rate_hz, block_size=msg.block_size,
+            bench_id=msg.bench_id, preset=msg.preset, encoder_in_model=msg.encoder_in_model,
+            encoder_out_model=msg.encoder_out_model,
+            encoder_out_resolution_rad=msg.encoder_out_resolution_rad,
+            reducer_type=msg.reducer_type)
+
+    def _on_goal(self, goal: Any) -> GoalResponse:  # noqa: ANN401
+        if self.busy is not None:
+            b = self.busy
+            self.get_logger().warning(
+                f'goal for unit {goal.serial!r} rejected: busy with plan {b["plan"]!r} for '
+                f'unit {b["serial"]!r} (step {b["step"] + 1} of {b["steps"]})')
+            return GoalResponse.REJECT
+        self.busy = {'plan': '?', 'serial': goal.serial, 'step': -1, 'steps': 0}
+        self._early.clear()
+        return GoalResponse.ACCEPT
+
+    def _on_block(self, msg: EncoderBlock) -> None:
+        runner, prog = self._runner, self._prog
+        if runner is None or not prog:
+            if self.busy is not None:
+                self._early.append(msg)
+            return
+        k = int(msg.seq) - prog['first_seq']
+        if k < 0 or k >= prog['total'] or k < prog['next']:
+            return
+        if k > prog['next']:
+            prog['missing'] += k - prog['next']
+            self.drops.drop('gap', f'blocks {prog["next"]}..{k - 1} of the step missing')
+        seg = int(np.searchsorted(prog['ends'], k, side='right'))
+        if seg != prog['segment']:
+            runner.next_segment()
+            prog['segment'] = seg
+        try:
+            prog['live'] = runner.feed(seg, np.asarray(msg.theta_in_rad),
+                                       np.asarray(msg.theta_out_rad),
+                                       np.asarray(msg.torque_out_nm))
+        except (ValueError, IndexError) as exc:
+            self.drops.drop('malformed', str(exc))
+        prog['next'] = k + 1
+        prog['last_wall'] = time.monotonic()
+        if prog['next'] >= prog['total']:
+            self._poke()
+
+    def _on_timer(self) -> None:
+        self._poke()
+
+    def _poke(self) -> None:
+        if self._wake is not None and not self._wake.done():
+            self._wake.set_result(True)
+
+    async def _sleep(self) -> None:
+        self._wake = Future()
+        await self._wake
+
+    # -- goal -------------------------------------------------------------------------------------
+    async def _execute(self, goal_handle: Any) -> Any:  # noqa: ANN401
+        req = goal_handle.request
+        result = RunTestPlan.Result()
+        started = time.time()
+        plan = profile = None
+        results: list[Any] = []
+        try:
+            if not req.serial.strip() or not req.operator_name.strip():
+                msg = 'serial and operator_name are required'
+                raise AcceptanceError(msg)
+            plan = parse_plan(parse_yaml_text(req.plan_yaml, 'plan (goal)', AcceptanceError),
+                              'plan (goal)')
+            conditions = (parse_yaml_text(req.conditions_yaml, 'conditions', AcceptanceError)
+                          if req.conditions_yaml.strip() else {}) or {}
+            if not isinstance(conditions, dict):
+                msg = 'conditions_yaml must be a mapping'
+                raise AcceptanceError(msg)
+            ctx = await self._bench()
+            if req.tolerance_yaml.strip():
+                profile = parse_tolerance(parse_yaml_text(
+                    req.tolerance_yaml, 'tolerance (goal)', AcceptanceError), 'tolerance (goal)')
+            else:
+                profile, _ = load_tolerance(plan.tolerance or ctx.preset)
+            self.busy = {'plan': plan.name, 'serial': req.serial, 'step': 0,
+                         'steps': len(plan.steps)}
+            self._publish_report(req, plan.name, 'running', 'started', [], '')
+            for j, step in enumerate(plan.steps):
+                self.busy['step'] = j
+                results.append(await self._run_step(goal_handle, req, j, step, ctx,
+                                                    len(plan.steps)))
+            report = build_report(plan=plan, profile=profile, ctx=ctx, serial=req.serial,
+                                  operator=req.operator_name, results=results,
+                                  conditions=conditions, started_utc=_iso(started))
+            self._finish(result, req, plan.name, report)
+            goal_handle.succeed()
+        except _Cancelled:
+            report = build_report(plan=plan, profile=profile, ctx=self.ctx, serial=req.serial,
+                                  operator=req.operator_name, results=results,
+                                  started_utc=_iso(started), status='cancelled')
+            self._finish(result, req, plan.name, report)
+            goal_handle.canceled()
+        except Exception as exc:  # noqa: BLE001 - every failure ends the goal with its reason
+            result.verdict, result.reason = 'error', str(exc)
+            if not isinstance(exc, AcceptanceError):
+                result.reason = f'internal error: {type(exc).__name__}: {exc}'
+                self.get_logger().error(traceback.format_exc())
+            self.get_logger().error(f'test of unit {req.serial!r}: {result.reason}')
+            self._publish_report(req, plan.name if plan else '', 'error', str(exc), [], '')
+            goal_handle.abort()
+        finally:
+            self._runner, self._prog, self.busy = None, {}, None
+        return result
+
+    async def _bench(self) -> BenchContext:
+        deadline = time.monotonic() + self.p['bench_timeout_s']
+        while self.ctx is None or not self.cli_program.service_is_ready():
+            if time.monotonic() > deadline:
+                what = 'bench/info' if self.ctx is None else 'the bench/run_program service'
+                msg = (f'no bench: {what} not seen in {self.p["bench_timeout_s"]:g} s (is the '
+                       'bench running with commanded: true?)')
+                raise AcceptanceError(msg)
+            await self._sleep()
+        wanted = set(self.p['wait_for_nodes'])
+        deadline = time.monotonic() + self.p['wait_timeout_s']
+        ns = self.get_namespace()
+        while wanted:
+            have = {i.node_name for i in self.get_subscriptions_info_by_topic(
+                self.resolve_topic_name('bench/encoders')) if i.node_namespace == ns}
+            if wanted <= have:
+                break
+            if time.monotonic() > deadline:
+                self.get_logger().warning(
+                    f'starting without {sorted(wanted - have)} on bench/encoders: the steps '
+                    'are not recorded by them')
+                break
+            await self._sleep()
+        return self.ctx
+
+    async def _run_step(self, goal_handle: Any, req: Any, j: int, step: Any,  # noqa: ANN401
+                        ctx: BenchContext, n_steps: int) -> Any:  # noqa: ANN401
+        runner = StepRunner(step, ctx)
+        call = RunBenchProgram.Request(program_yaml=yaml.safe_dump(runner.program()))
+        future = self.cli_program.call_async(call)
+        while not future.done():
+            await self._sleep()
+        resp = future.result()
+        if not resp.accepted:
+            msg = f'step {step.name!r}: the bench refused its program: {resp.reason}'
+            raise AcceptanceError(msg)
+        runner.expect(list(resp.segment_blocks))
+        self._runner = runner
+        self._prog = {'first_seq': int(resp.first_seq), 'total': int(resp.block_count),
+                      'ends': np.cumsum(list(resp.segment_blocks)), 'next': 0, 'segment': 0,
+                      'missing': 0, 'live': math.nan, 'last_wall': time.monotonic()}
+        early, self._early = list(self._early), collections.deque(maxlen=5000)
+        for msg in early:
+            self._on_block(msg)
+        params = yaml.safe_dump(_plain(dataclasses.asdict(step)), default_flow_style=True)
+        self._publish_step(req, j, n_steps, step, 'started', params, '')
+        last_feedback = 0.0
+        while self._prog['next'] < self._prog['total']:
+            if goal_handle.is_cancel_requested:
+                await self._stop_bench()
+                self._publish_step(req, j, n_steps, step, 'cancelled', params, '')
+                raise _Cancelled
+            if time.monotonic() - self._prog['last_wall'] > self.p['bench_timeout_s']:
+                await self._stop_bench()
+                self._publish_step(req, j, n_steps, step, 'aborted', params, '')
+                msg = (f'step {step.name!r}: no block from the bench for '
+                       f'{self.p["bench_timeout_s"]:g} s')
+                raise AcceptanceError(msg)
+            now = time.monotonic()
+            if now - last_feedback >= self.p['feedback_period_s']:
+                last_feedback = now
+                self._feedback(goal_handle, j, n_steps, step, runner)
+            await self._sleep()
+        self._feedback(goal_handle, j, n_steps, step, runner)
+        measured, details = runner.result()
+        details['blocks_missing'] = self._prog['missing']
+        self._publish_step(req, j, n_steps, step, 'finished', params, yaml.safe_dump(
+            {m.name: (None if not math.isfinite(m.value) else m.value) for m in measured}))
+        self._runner, self._prog = None, {}
+        return measured, details
+
+    async def _stop_bench(self) -> None:
+        if not self.cli_stop.service_is_ready():
+            self.get_logger().error('bench/stop not available: the bench may still run')
+            return
+        future = self.cli_stop.call_async(Trigger.Request())
+        deadline = time.monotonic() + 5.0
+        while not future.done() and time.monotonic() < deadline:
+            await self._sleep()
+
+    # -- messages -----------------------------------------------------------------------------------
+    def _feedback(self, goal_handle: Any, j: int, n: int, step: Any,  # noqa: ANN401
+                  runner: StepRunner) -> None:
+        prog = self._prog
+        frac = prog['next'] / prog['total'] if prog.get('total') else 0.0
+        fb = RunTestPlan.Feedback(step_index=j, step_count=n, step_name=step.name,
+                                  step_kind=step.kind, step_progress=frac,
+                                  plan_progress=(j + frac) / n, live_metric=runner.live_name,
+                                  live_value=float(prog.get('live', math.nan)),
+                                  message=f'step {j + 1}/{n} {step.name}: {100 * frac:.0f} %')
+        goal_handle.publish_feedback(fb)
+
+    def _publish_step(self, req: Any, j: int, n: int, step: Any, state: str,  # noqa: ANN401
+                      params: str, result: str) -> None:
+        msg = TestStep(serial=req.serial, step_index=j, step_count=n, step_name=step.name,
+                       step_kind=step.kind, state=state,
+                       first_seq=self._prog.get('first_seq', 0),
+                       last_seq=self._prog.get('first_seq', 0) + max(
+                           self._prog.get('next', 0) - 1, 0),
+                       parameters_yaml=params, result_yaml=result)
+        msg.header.stamp = self.get_clock().now().to_msg()
+        msg.header.frame_id = self.ctx.bench_id if self.ctx else ''
+        self.pub_step.publish(msg)
+
+    def _publish_report(self, req: Any, plan_name: str, verdict: str, reason: str,  # noqa: ANN401
+                        metrics: list[MetricVerdict], report_json: str) -> None:
+        msg = TestReport(serial=req.serial, operator_name=req.operator_name, plan_name=plan_name,
+                         verdict=verdict, reason=reason, metrics=metrics,
+                         plan_yaml=req.plan_yaml, tolerance_yaml=req.tolerance_yaml,
+                         report_json=report_json)
+        msg.header.stamp = self.get_clock().now().to_msg()
+        self.pub_report.publish(msg)
+
+    def _finish(self, result: Any, req: Any, plan_name: str,  # noqa: ANN401
+                report: dict[str, Any]) -> None:
+        metrics = [_metric_msg(m) for m in report['metrics']]
+        text = json.dumps(report, allow_nan=False)
+        result.verdict, result.reason = report['verdict'], report['reason']
+        result.metrics, result.report_json = metrics, text
+        self._publish_report(req, plan_name, report['verdict'], report['reason'], metrics, text)
+        self.get_logger().info(f'unit {req.serial!r}: {report["verdict"]} ({report["reason"]})')
+
+
+def _plain(x: Any) -> Any:  # noqa: ANN401
+    if isinstance(x, dict):
+        return {k: _plain(v) for k, v in x.items()}
+    if isinstance(x, list | tuple):
+        return [_plain(v) for v in x]
+    return x
+
+
+def _metric_msg(m: dict[str, Any]) -> MetricVerdict:
+    def num(x: Any) -> float:  # noqa: ANN401
+        return math.nan if x is None else float(x)
+    return MetricVerdict(name=m['name'], step=m['step'], unit=m['unit'], value=num(m['value']),
+                         limit_min=num(m['limit_min']), limit_max=num(m['limit_max']),
+                         margin=num(m['margin']), verdict=m['verdict'], source=m['source'])
+
+
+def _iso(t: float) -> str:
+    import datetime as dt  # noqa: PLC0415
+
+    return dt.datetime.fromtimestamp(t, dt.UTC).isoformat(timespec='seconds')
+
+
+def main(args: list[str] | None = None) -> int:
+    """Run the test sequencer in its own process."""
+    return run_node(lambda ctx: TestSequencerNode(context=ctx),
+                    list(sys.argv if args is None else args), executor_kind='single')
+
+
+if __name__ == '__main__':
+    sys.exit(main())

@@ -1,0 +1,373 @@
+"""The report of one unit's acceptance test: HTML page, JSON record, PNG figures.
+
+Input: the unit record of :func:`rv_te_bench.acceptance.build_report` (SI units). At the
+top: serial, operator, date, bench, test conditions and the verdict table (metric, value,
+limit, margin, pass/fail, where the limit comes from); then the TE per direction, the
+hysteresis curve with lost motion, backlash and rigidity marked, the spectrum, the sweep
+table and the advice. Arcmin and N m/arcmin appear here only, at the edge.
+"""
+
+from __future__ import annotations
+
+import base64
+import html
+import json
+import math
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from rv_te_bench.report.plots import _new_figure, png_bytes
+from sim.units import ARCMIN_PER_RAD, ARCSEC_PER_RAD
+
+__all__ = ['format_live', 'metric_rows', 'render_unit_html', 'unit_figures', 'write_unit_report']
+
+_LABELS = {
+    'te_pp_ccw_rad': 'TE p-p, ccw (output +)', 'te_pp_cw_rad': 'TE p-p, cw (output -)',
+    'te_pp_rad': 'TE p-p', 'lost_motion_rad': 'lost motion', 'backlash_rad': 'backlash',
+    'hysteresis_loss_j': 'hysteresis loss (loop area)',
+}
+_VERDICT_COLOUR = {'pass': '#1b7f3b', 'fail': '#b00020', 'not_measured': '#9a6700',
+                   'info': '#555', 'cancelled': '#9a6700', 'error': '#b00020'}
+
+
+def _display(unit: str, x: float | None) -> tuple[float, str]:
+    """SI value -> (display value, display unit)."""
+    if x is None or not math.isfinite(x):
+        return math.nan, {'rad': 'arcmin', 'N m/rad': 'N m/arcmin'}.get(unit, unit)
+    if unit == 'rad':
+        return x * ARCMIN_PER_RAD, 'arcmin'
+    if unit == 'N m/rad':
+        return x / ARCMIN_PER_RAD, 'N m/arcmin'
+    return x, unit
+
+
+def _fmt(x: float, digits: int = 4) -> str:
+    return '-' if not math.isfinite(x) else f'{x:.{digits}g}'
+
+
+def _label(name: str) -> str:
+    if name.startswith('torsional_rigidity_'):
+        return f'torsional rigidity {name[19:].rsplit("_nm_per_rad", 1)[0]}'
+    return _LABELS.get(name, name)
+
+
+def metric_rows(report: dict[str, Any]) -> list[dict[str, str]]:
+    """The verdict table in display units (one dict of strings per metric)."""
+    rows = []
+    for m in report['metrics']:
+        v, unit = _display(m['unit'], m['value'])
+        lo, _ = _display(m['unit'], m['limit_min'])
+        hi, _ = _display(m['unit'], m['limit_max'])
+        mg, _ = _display(m['unit'], m['margin'])
+        limit = ('<= ' + _fmt(hi) if math.isfinite(hi) else '') + (
+            (' and ' if math.isfinite(hi) and math.isfinite(lo) else '')
+            + ('>= ' + _fmt(lo) if math.isfinite(lo) else ''))
+        rows.append({'label': f'{_label(m["name"])} [{unit}]', 'value': _fmt(v),
+                     'limit': limit or '-', 'margin': _fmt(mg), 'verdict': m['verdict'],
+                     'source': m.get('source', ''), 'step': m.get('step', '')})
+    return rows
+
+
+def format_live(name: str, value: float) -> str:
+    """A live metric of the feedback for the terminal."""
+    if not math.isfinite(value):
+        return f'{name.removesuffix("_rad").removesuffix("_nm")}: -'
+    if name.endswith('_rad'):
+        return f'{name[:-4]} so far {value * ARCMIN_PER_RAD:.4f} arcmin'
+    if name.endswith('_nm'):
+        return f'{name[:-3]} {value:.1f} N m'
+    return f'{name} {value:.6g}'
+
+
+# ----------------------------------------------------------------------------- figures
+
+
+def _te_figure(rows: list[dict[str, Any]]) -> Any:  # noqa: ANN401
+    fig = _new_figure(9.0, 3.6, left=0.09, bottom=0.15)
+    ax = fig.add_subplot(1, 1, 1)
+    for r in rows:
+        if not r.get('position_rad'):
+            continue
+        te = np.array([np.nan if x is None else x for x in r['te_by_position_rad']])
+        ax.plot(np.degrees(r['position_rad']), (te - np.nanmean(te)) * ARCMIN_PER_RAD,
+                lw=1.0, label=f"{r['direction']} ({r['speed_rpm']:g} rpm, {r['load_nm']:g} N m)")
+    ax.set_xlabel('output position [deg] (one revolution, mean over the revolutions)')
+    ax.set_ylabel('TE - mean [arcmin]')
+    ax.set_xlim(0, 360)
+    ax.grid(alpha=0.3)
+    ax.legend(fontsize=8, loc='upper right')
+    ax.set_title('Transmission error per direction of rotation', fontsize=10)
+    return fig
+
+
+def _hysteresis_figure(h: dict[str, Any]) -> Any:  # noqa: ANN401
+    """The whole curve (left) and its middle, |T| <= 4 x the lost-motion torque (right)."""
+    fig = _new_figure(10.0, 4.8, left=0.07, bottom=0.12, wspace=0.22)
+    grid = fig.add_gridspec(1, 3)
+    ax_all, ax_mid = fig.add_subplot(grid[0, :2]), fig.add_subplot(grid[0, 2])
+    c = h['centre_rad'] or 0.0
+
+    def am(x: Any) -> np.ndarray:  # noqa: ANN401
+        return (np.asarray(x, dtype=float) - c) * ARCMIN_PER_RAD
+
+    t = h['lost_motion_torque_nm']
+    for ax in (ax_all, ax_mid):
+        ax.plot(am(h['ascending_angle_rad']), h['ascending_torque_nm'], '.-', ms=3, lw=0.9,
+                color='tab:blue', label='loading upwards (-T_R -> 0, 0 -> +T_R)')
+        ax.plot(am(h['descending_angle_rad']), h['descending_torque_nm'], '.-', ms=3, lw=0.9,
+                color='tab:orange', label='loading downwards (+T_R -> -T_R)')
+        z = [x for x in h['zero_width_rad'] if x is not None]
+        if len(z) == 2:  # noqa: PLR2004
+            ax.annotate('', xy=(am(z[1]), 0), xytext=(am(z[0]), 0),
+                        arrowprops={'arrowstyle': '<->', 'color': 'tab:red', 'lw': 1.5})
+            ax.plot([], [], color='tab:red', label='backlash: width at zero torque')
+        mids = [x for x in h['lost_motion_mid_rad'] if x is not None]
+        if len(mids) == 2:  # noqa: PLR2004
+            ax.plot(am(mids), [-t, t], 's--', color='tab:green', ms=6,
+                    label=f'lost motion: mid-points at +-{t:.4g} N m')
+        for name, sides in h['rigidity_points'].items():
+            for side in sides:
+                if None not in side:
+                    t1, p1, t2, p2 = side
+                    ax.plot(am([p1, p2]), [t1, t2], 'o-', color='tab:purple', lw=2, ms=5)
+            ax.plot([], [], 'o-', color='tab:purple', lw=2, label=f'rigidity {name}: secant')
+        ax.axhline(0, color='k', lw=0.5)
+        ax.axvline(0, color='k', lw=0.5)
+        ax.grid(alpha=0.3)
+        ax.set_xlabel('output torsion angle [arcmin]')
+    ax_all.set_ylabel('torque on the output [N m]')
+    ax_all.legend(fontsize=7.5, loc='upper left')
+    ax_all.set_title(f"Hysteresis curve (input locked, {h['method'].replace('_', ' ')}, "
+                     f"T_R = {h['rated_torque_nm']:g} N m; 0 = middle of the backlash)",
+                     fontsize=10)
+    lim = 4.0 * t
+    ax_mid.set_ylim(-lim, lim)
+    near = [am(a)[np.abs(np.asarray(tq)) <= lim] for a, tq in (
+        (h['ascending_angle_rad'], h['ascending_torque_nm']),
+        (h['descending_angle_rad'], h['descending_torque_nm']))]
+    xs = np.concatenate(near) if near else np.zeros(1)
+    if xs.size:
+        pad = 0.15 * max(float(np.ptp(xs)), 1e-3)
+        ax_mid.set_xlim(float(xs.min()) - pad, float(xs.max()) + pad)
+    ax_mid.set_title('middle (lost motion, backlash)', fontsize=10)
+    return fig
+
+
+def _spectrum_figure(rows: list[dict[str, Any]]) -> Any:  # noqa: ANN401
+    fig = _new_figure(9.0, 3.6, left=0.09, bottom=0.3)
+    ax = fig.add_subplot(1, 1, 1)
+    labels = []
+    for r in rows:
+        for ln in r.get('spectrum', []):
+            if ln['label'] not in labels:
+                labels.append(ln['label'])
+    labels = labels[:16]
+    width = 0.8 / max(1, len(rows))
+    for j, r in enumerate(rows):
+        amp = {ln['label']: ln['amplitude_rad'] for ln in r.get('spectrum', [])}
+        ax.bar(np.arange(len(labels)) + j * width,
+               [amp.get(lab, 0.0) * ARCSEC_PER_RAD for lab in labels], width,
+               label=r['direction'])
+    ax.set_xticks(np.arange(len(labels)) + 0.4 - width / 2)
+    ax.set_xticklabels(labels, rotation=40, ha='right', fontsize=8)
+    ax.set_ylabel('amplitude [arcsec]')
+    ax.legend(fontsize=8)
+    ax.grid(alpha=0.3, axis='y')
+    ax.set_title('TE order spectrum: labelled lines (peak amplitude)', fontsize=10)
+    return fig
+
+
+def unit_figures(report: dict[str, Any]) -> dict[str, bytes]:
+    """PNG bytes by file name: te.png, hysteresis.png, spectrum.png (what was measured)."""
+    out: dict[str, bytes] = {}
+    te_rows = [r for s in report['steps'] if s['kind'] == 'te' for r in s.get('rows', [])]
+    if any(r.get('position_rad') for r in te_rows):
+        out['te.png'] = png_bytes(_te_figure(te_rows))
+        if any(r.get('spectrum') for r in te_rows):
+            out['spectrum.png'] = png_bytes(_spectrum_figure(te_rows))
+    for s in report['steps']:
+        if s['kind'] == 'hysteresis' and s.get('ascending_torque_nm'):
+            out['hysteresis.png'] = png_bytes(_hysteresis_figure(s))
+            break
+    return out
+
+
+# ----------------------------------------------------------------------------- HTML
+
+_CSS = """
+body{font-family:system-ui,Segoe UI,Helvetica,Arial,sans-serif;margin:1.5em auto;
+max-width:1100px;color:#222;padding:0 1em}h1{font-size:1.5em}
+h2{font-size:1.2em;border-bottom:1px solid #ccc;padding-bottom:.2em}
+table{border-collapse:collapse;margin:.5em 0 1em}td,th{border:1px solid #ccc;
+padding:.25em .6em;text-align:right}th{background:#f0f0f0}td.l,th.l{text-align:left}
+img{max-width:100%;border:1px solid #ddd}.muted{color:#666}
+.badge{display:inline-block;padding:.15em .7em;border-radius:.3em;color:#fff;font-weight:bold}
+"""
+
+
+def _e(x: Any) -> str:  # noqa: ANN401
+    return html.escape(str(x))
+
+
+def _badge(verdict: str) -> str:
+    colour = _VERDICT_COLOUR.get(verdict, '#555')
+    return f'<span class="badge" style="background:{colour}">{_e(verdict.upper())}</span>'
+
+
+def _conditions(report: dict[str, Any]) -> list[tuple[str, str]]:
+    out = []
+    for step in report['plan']['steps']:
+        if step['kind'] == 'te':
+            out.append((f"TE step {step['name']!r}",
+                        f"{step['speed_rpm']:g} rpm input, {step['load_nm']:g} N m resisting, "
+                        f"directions {', '.join(step['directions'])}, "
+                        f"{step['revolutions']} output rev(s) each"))
+        elif step['kind'] == 'hysteresis':
+            out.append((f"hysteresis step {step['name']!r}",
+                        f"input locked, 0 -> +{step['rated_torque_nm']:g} -> 0 -> "
+                        f"-{step['rated_torque_nm']:g} -> 0 N m, {step['method']}"
+                        + (f", steps of {100 * step['step_fraction']:g} %, dwell "
+                           f"{step['dwell_s']:g} s" if step['method'] == 'torque_steps' else
+                           f", {step['output_speed_rad_s']:g} rad/s")
+                        + (', preloaded to -T_R' if step['preload'] else '')))
+        else:
+            out.append((f"sweep {step['name']!r}",
+                        f"speeds {step['speeds_rpm']} rpm x loads {step['loads_nm']} N m, "
+                        f"{step['direction']}"))
+    cond = report.get('conditions') or {}
+    out.append(('temperature', f"{cond['ambient_temperature_c']} degC ambient"
+                if 'ambient_temperature_c' in cond else 'not recorded'))
+    out += [(str(k), str(v)) for k, v in cond.items() if k != 'ambient_temperature_c']
+    b = report['bench']
+    out.append(('sample rate', f"{b['sample_rate_hz']:g} Hz"))
+    return out
+
+
+def _advice(report: dict[str, Any]) -> list[str]:
+    from rv_te_bench.report import BenchDescription, likely_source  # noqa: PLC0415
+
+    b = report['bench']
+    bench = BenchDescription(source='bench_info', gear_ratio=b['gear_ratio'],
+                             crank_per_output=abs(b.get('crank_per_input') or 0.0)
+                             * b['gear_ratio'] or 1.0,
+                             reducer_type=b.get('reducer_type', ''),
+                             mesh_orders_out=tuple(b.get('mesh_orders', ())),
+                             mesh_labels=tuple(b.get('mesh_labels', ())))
+    out = []
+    failed = {m['name'] for m in report['metrics'] if m['verdict'] == 'fail'}
+    for s in report['steps']:
+        for r in s.get('rows', []) if s['kind'] == 'te' else []:
+            if r.get('spectrum'):
+                top = max(r['spectrum'], key=lambda ln: ln['amplitude_rad'])
+                out.append(f"{r['direction']}: the strongest line is {top['label']} "
+                           f"({top['amplitude_rad'] * ARCSEC_PER_RAD:.1f} arcsec): "
+                           f"{likely_source(top['output_order'], bench)}.")
+    if {'te_pp_ccw_rad', 'te_pp_cw_rad'} & failed:
+        out.append('TE out of limit: see the strongest line above; for a 2K-V, rv-te identify '
+                   'and the Eq. 21 re-assembly phases; for an RV, the Hu 2020 tooth-profile '
+                   'compensation (rv-te compensate).')
+    if {'backlash_rad', 'lost_motion_rad'} & failed:
+        out.append('Backlash / lost motion out of limit: clearances of the pin-cycloid mesh '
+                   '(tooth-profile modifications), crank bearings and pin holes; a unit with '
+                   'much more lost motion than backlash is soft at low torque.')
+    if any(n.startswith('torsional_rigidity_') for n in failed):
+        out.append('Torsional rigidity below the limit: check the crank bearings, the '
+                   'cycloid face contact (load sharing of the discs) and the output bearing.')
+    if not failed and report['verdict'] == 'pass':
+        out.append('Every limited metric is within its limit: no action needed.')
+    return out
+
+
+def render_unit_html(report: dict[str, Any], images: dict[str, bytes]) -> str:
+    """One self-contained page (PNGs embedded)."""
+    u, b = report['unit'], report['bench']
+    title = f"Acceptance test of unit {u['serial']}: {report['verdict'].upper()}"
+    p = [f'<!DOCTYPE html><html lang="en"><head><meta charset="utf-8"><title>{_e(title)}'
+         f'</title><style>{_CSS}</style></head><body>',
+         f"<h1>Unit {_e(u['serial'])} {_badge(report['verdict'])}</h1>",
+         f"<p>{_e(report['reason'])}</p>", '<table>']
+    head = [('serial', u['serial']), ('operator', u['operator']), ('date (UTC)', u['date_utc']),
+            ('bench', f"{b['bench_id']} ({b['preset']}, ratio {b['gear_ratio']:.6g}; "
+                      f"encoders {b['encoder_in']} / {b['encoder_out']})"),
+            ('plan', report['plan']['plan']),
+            ('tolerance profile', report['tolerance']['profile'])]
+    if b.get('bag'):
+        head.append(('bag', b['bag']))
+    p += [f'<tr><th class="l">{_e(k)}</th><td class="l">{_e(v)}</td></tr>'
+          for k, v in head + _conditions(report)]
+    p.append('</table><h2>Verdict</h2><table><tr><th class="l">metric</th><th>value</th>'
+             '<th>limit</th><th>margin</th><th>verdict</th><th class="l">limit source</th></tr>')
+    for r in metric_rows(report):
+        p.append(f"<tr><td class='l'>{_e(r['label'])}</td><td>{_e(r['value'])}</td>"
+                 f"<td>{_e(r['limit'])}</td><td>{_e(r['margin'])}</td>"
+                 f"<td>{_badge(r['verdict'])}</td><td class='l muted'>{_e(r['source'])}</td></tr>")
+    p.append('</table>')
+
+    def img(name: str, alt: str) -> None:
+        if name in images:
+            b64 = base64.b64encode(images[name]).decode('ascii')
+            p.append(f'<p><img alt="{_e(alt)}" src="data:image/png;base64,{b64}"></p>')
+
+    te_rows = [r for s in report['steps'] if s['kind'] == 'te' for r in s.get('rows', [])]
+    if te_rows:
+        p.append('<h2>Transmission error per direction</h2><table><tr><th class="l">direction'
+                 '</th><th>speed [rpm]</th><th>load [N m]</th><th>revolutions</th>'
+                 '<th>p-p per revolution [arcmin]</th><th>mean [arcmin]</th><th>std [arcmin]'
+                 '</th></tr>')
+        for r in te_rows:
+            st = r.get('stats') or {}
+            pps = ', '.join(f'{x * ARCMIN_PER_RAD:.4f}' for x in r.get('te_pp_per_rev_rad', []))
+            p.append(f"<tr><td class='l'>{_e(r['direction'])}</td><td>{r['speed_rpm']:g}</td>"
+                     f"<td>{r['load_nm']:g}</td><td>{r.get('revolutions', '-')}</td>"
+                     f"<td>{_e(pps or r.get('error', '-'))}</td>"
+                     f"<td>{_fmt(st.get('te_mean_arcmin') or math.nan)}</td>"
+                     f"<td>{_fmt(st.get('te_std_arcmin') or math.nan)}</td></tr>")
+        p.append('</table>')
+        img('te.png', 'TE against output position per direction')
+    for s in report['steps']:
+        if s['kind'] == 'hysteresis':
+            p.append(f"<h2>Hysteresis curve ({_e(s['name'])})</h2>")
+            if s.get('error'):
+                p.append(f"<p>{_e(s['error'])}</p>")
+            else:
+                rig = '; '.join(f'{k}: +{_fmt((v[0] or math.nan) / ARCMIN_PER_RAD)} / '
+                                f'-{_fmt((v[1] or math.nan) / ARCMIN_PER_RAD)} N m/arcmin'
+                                for k, v in s['rigidity_nm_per_rad'].items())
+                p.append(f"<p>Rigidity per side (positive / negative torque) {_e(rig)}.</p>")
+            img('hysteresis.png', 'hysteresis curve with lost motion, backlash, rigidity')
+    if te_rows:
+        p.append('<h2>Spectrum</h2>')
+        img('spectrum.png', 'labelled lines of the TE order spectrum')
+    for s in report['steps']:
+        if s['kind'] == 'sweep':
+            p.append(f"<h2>Sweep {_e(s['name'])}: TE p-p against speed and load</h2><table>"
+                     '<tr><th>speed [rpm]</th><th>load [N m]</th><th>TE p-p [arcmin]</th>'
+                     '<th>mean [arcmin]</th></tr>')
+            for r in s['rows']:
+                st = r.get('stats') or {}
+                p.append(f"<tr><td>{r['speed_rpm']:g}</td><td>{r['load_nm']:g}</td>"
+                         f"<td>{_fmt((r['te_pp_rad'] or math.nan) * ARCMIN_PER_RAD)}</td>"
+                         f"<td>{_fmt(st.get('te_mean_arcmin') or math.nan)}</td></tr>")
+            p.append('</table>')
+    p.append('<h2>Advice</h2><ul>' + ''.join(f'<li>{_e(a)}</li>' for a in _advice(report))
+             + '</ul>')
+    p.append('<p class="muted">Definitions and limit sources: docs/ACCEPTANCE.md. TE = '
+             '&theta;<sub>out</sub> &minus; &theta;<sub>in</sub>/i; torsion angles with the '
+             'input locked; values in SI in report.json.</p></body></html>\n')
+    return '\n'.join(p)
+
+
+def write_unit_report(report: dict[str, Any], directory: Path) -> dict[str, Path]:
+    """Write report.html, report.json and the PNGs; returns their paths by kind."""
+    directory.mkdir(parents=True, exist_ok=True)
+    images = unit_figures(report)
+    for name, data in images.items():
+        (directory / name).write_bytes(data)
+    doc = {**report, 'advice': _advice(report)}
+    (directory / 'report.json').write_text(json.dumps(doc, indent=1, allow_nan=False),
+                                           encoding='utf-8')
+    (directory / 'report.html').write_text(render_unit_html(report, images), encoding='utf-8')
+    return {'html': directory / 'report.html', 'json': directory / 'report.json',
+            **{n[:-4]: directory / n for n in images}}
