@@ -112,6 +112,7 @@ def _session(args: argparse.Namespace, out_dir: Path) -> Any:  # noqa: ANN401
                       'speed_factor': float(args.speed_factor), 'commanded': True},
             'recorder': {'output_dir': str(out_dir), 'bag_name': 'bag'},
             'test_sequencer': {}})
+    out_dir.mkdir(parents=True, exist_ok=True)
     log = (out_dir / 'session.log').open('wb')
     session = Session(spec, stdout=log)
     session.start()
@@ -140,7 +141,6 @@ def run(args: argparse.Namespace) -> int:  # noqa: C901, PLR0912, PLR0915
     report_dir = Path(args.report) if args.report else out_dir / 'report'
     session = log = None
     if args.launch:
-        out_dir.mkdir(parents=True, exist_ok=True)
         session, log = _session(args, out_dir)
         print(f'session: bench {args.launch} (simulated), test_sequencer, recorder -> '
               f'{out_dir / "bag"}', file=sys.stderr)

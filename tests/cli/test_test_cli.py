@@ -1,0 +1,180 @@
+"""``rv-te test``: bad plans and tolerance files give one clear line and exit code 1 before
+anything starts; a whole simulated unit run exits 0 when it passes and 3 when it fails."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import pytest
+import yaml
+
+from rv_te_bench.acceptance import load_plan, parse_plan, shipped_plans, shipped_tolerances
+from rv_te_bench.acceptance.tolerance import load_tolerance
+from rv_te_bench.cli.main import main
+
+GOOD_STEP = {'kind': 'te', 'name': 'te', 'speed_rpm': 1500}
+GOOD_LIMITS = {'te_pp_arcmin': {'max': 1.0, 'source': 's'}}
+
+
+def plan(**top: object) -> dict:
+    return {'plan': 'p', 'steps': [GOOD_STEP], **top}
+
+
+def step(**kw: object) -> dict:
+    return plan(steps=[{**GOOD_STEP, **kw}])
+
+
+BAD_PLANS = [
+    ('[1, 2', 'not valid YAML'),
+    ([1, 2], 'must be a mapping'),
+    ({'steps': [GOOD_STEP]}, 'plan is required'),
+    (plan(colour='red'), "unknown key(s) ['colour']"),
+    (plan(steps=[]), 'steps must be a list of 1..100 steps'),
+    (plan(steps=['te']), 'step 0: must be a mapping'),
+    (plan(steps=[{'kind': 'fly'}]), "kind must be one of ['te', 'hysteresis', 'sweep']"),
+    (step(speed_rpm=-5), "step 0 ('te'): speed_rpm must be > 0, got -5"),
+    (step(speed_rpm='fast'), "speed_rpm must be a finite number, got 'fast'"),
+    (step(speedrpm=5), "unknown key(s) ['speedrpm']"),
+    (step(directions=['up']), 'directions must be a list of distinct directions'),
+    (step(directions=['cw', 'cw']), 'directions must be a list of distinct directions'),
+    (step(revolutions=0), 'revolutions must be an integer >= 1, got 0'),
+    (step(load_nm=-1), 'load_nm must be >= 0, got -1'),
+    (plan(steps=[GOOD_STEP, GOOD_STEP]), "name must be unique in the plan, got 'te'"),
+    (plan(steps=[{'kind': 'hysteresis', 'name': 'h'}]), 'rated_torque_nm is required'),
+    (plan(steps=[{'kind': 'hysteresis', 'rated_torque_nm': 10, 'method': 'hammer'}]),
+     "method must be one of ['torque_steps', 'constant_speed'], got 'hammer'"),
+    (plan(steps=[{'kind': 'hysteresis', 'rated_torque_nm': 10, 'rigidity': {'K': [0.6, 0.5]}}]),
+     "rigidity region 'K': need 0 < lo_fraction < hi_fraction <= 1"),
+    (plan(steps=[{'kind': 'hysteresis', 'rated_torque_nm': 10, 'rigidity': {'K': 0.5}}]),
+     'rigidity.K must be [lo, hi]'),
+    (plan(steps=[{'kind': 'hysteresis', 'rated_torque_nm': 10, 'step_fraction': 0.7}]),
+     'step_fraction must be <= 0.5, got 0.7'),
+    (plan(steps=[{'kind': 'hysteresis', 'rated_torque_nm': 10, 'preload': 'yes'}]),
+     "preload must be true or false, got 'yes'"),
+    (plan(steps=[{'kind': 'sweep', 'speeds_rpm': []}]), 'speeds_rpm must be a list of 1..50'),
+    (plan(steps=[{'kind': 'sweep', 'speeds_rpm': [100, 0]}]),
+     'speeds_rpm[1] must be finite and >= 0 and non-zero, got 0'),
+    (plan(steps=[{'kind': 'sweep', 'speeds_rpm': [100], 'direction': 'left'}]),
+     "direction must be one of ['ccw', 'cw'], got 'left'"),
+]
+
+BAD_TOLERANCES = [
+    ('{a', 'not valid YAML'),
+    ([1], 'must be a mapping with "profile" and "limits"'),
+    ({'limits': GOOD_LIMITS}, 'profile must be a non-empty string'),
+    ({'profile': 't', 'limits': {}}, 'limits must map limit keys'),
+    ({'profile': 't', 'limits': GOOD_LIMITS, 'x': 1}, "unknown key(s) ['x']"),
+    ({'profile': 't', 'limits': {'te_pp_degrees': {'max': 1}}}, "limit 'te_pp_degrees' unknown"),
+    ({'profile': 't', 'limits': {'te_pp_arcmin': {'max': -1}}},
+     'limit te_pp_arcmin.max must be a finite number >= 0, got -1'),
+    ({'profile': 't', 'limits': {'te_pp_arcmin': {'source': 'x'}}},
+     'limit te_pp_arcmin: needs min or max'),
+    ({'profile': 't', 'limits': {'te_pp_arcmin': {'max': 1, 'colour': 1}}},
+     "limit te_pp_arcmin: unknown field(s) ['colour']"),
+    ({'profile': 't', 'limits': {'backlash_arcmin': {'min': 2, 'max': 1}}},
+     'limit backlash_arcmin: min 2 > max 1'),
+    ({'profile': 't', 'limits': {'backlash_arcmin': {'max': 1, 'region': 'K'}}},
+     "unknown field(s) ['region']"),
+    ({'profile': 't', 'limits': {'te_pp_arcmin': {'max': 1}, 'te_pp_arcsec': {'max': 60}}},
+     'limit te_pp_arcsec: a second limit on te_pp'),
+    ({'profile': 't', 'limits': {'te_pp_arcmin': 1.0}}, 'limit te_pp_arcmin: must be a mapping'),
+]
+
+
+def write(tmp_path: Path, name: str, content: object) -> Path:
+    path = tmp_path / name
+    path.write_text(content if isinstance(content, str) else yaml.safe_dump(content),
+                    encoding='utf-8')
+    return path
+
+
+def one_error_line(capsys: pytest.CaptureFixture[str]) -> str:
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1, err
+    assert err[0].startswith('ERROR: ')
+    return err[0]
+
+
+@pytest.mark.parametrize(('content', 'expect'), BAD_PLANS)
+def test_bad_plan(tmp_path: Path, capsys: pytest.CaptureFixture[str], content: object,
+                  expect: str) -> None:
+    path = write(tmp_path, 'plan.yaml', content)
+    assert main(['test', str(path), '--serial', 'S', '--operator', 'o']) == 1
+    line = one_error_line(capsys)
+    assert expect in line and str(path) in line
+
+
+@pytest.mark.parametrize(('content', 'expect'), BAD_TOLERANCES)
+def test_bad_tolerance(tmp_path: Path, capsys: pytest.CaptureFixture[str], content: object,
+                       expect: str) -> None:
+    good = write(tmp_path, 'plan.yaml', plan())
+    tol = write(tmp_path, 'tol.yaml', content)
+    assert main(['test', str(good), '--serial', 'S', '--operator', 'o', '--tolerance',
+                 str(tol)]) == 1
+    line = one_error_line(capsys)
+    assert expect in line and str(tol) in line
+
+
+@pytest.mark.parametrize(('args', 'expect'), [
+    (['no_such_plan.yaml'], "test plan 'no_such_plan.yaml': no such file"),
+    (['rv-80e', '--tolerance', 'nope.yaml'], "tolerance profile 'nope.yaml': no such file"),
+    (['rv-80e', '--condition', 'temperature'], "--condition 'temperature' is not of the form"),
+    (['rv-80e', '--launch', 'rv-99'], "unknown preset 'rv-99'"),
+    (['rv-80e', '--launch', 'rv-80e-101', '--set', 'torsion.clearence_rad=1'],
+     "preset 'rv-80e-101' has no key 'torsion.clearence_rad'"),
+])
+def test_bad_arguments(capsys: pytest.CaptureFixture[str], args: list[str], expect: str) -> None:
+    assert main(['test', *args, '--serial', 'S', '--operator', 'o']) == 1
+    assert expect in one_error_line(capsys)
+
+
+def test_plan_names_its_tolerance_relative_to_itself(tmp_path: Path,
+                                                     capsys: pytest.CaptureFixture[str]) -> None:
+    write(tmp_path, 'limits.yaml', {'profile': 't', 'limits': {'te_pp_arcmin': {'max': -2}}})
+    path = write(tmp_path, 'plan.yaml', plan(tolerance='limits.yaml'))
+    assert main(['test', str(path), '--serial', 'S', '--operator', 'o']) == 1
+    assert 'limits.yaml: limit te_pp_arcmin.max' in one_error_line(capsys)
+
+
+def test_shipped_plans_and_profiles_are_valid() -> None:
+    assert set(shipped_plans()) == {'rv-80e', 'li2023-rv', 'wang2020-2kv'}
+    for name in shipped_plans():
+        p, _ = load_plan(name)
+        assert p.steps
+    from sim.presets import available_presets  # noqa: PLC0415
+
+    assert set(available_presets()) <= set(shipped_tolerances())
+    for name in shipped_tolerances():
+        prof, _ = load_tolerance(name)
+        assert all(lim.source for lim in prof.limits), name
+    assert parse_plan(plan()).steps[0].directions == ('ccw', 'cw')
+
+
+@pytest.mark.ros
+@pytest.mark.timeout(300)
+@pytest.mark.parametrize(('extra', 'code', 'word'), [
+    ([], 0, 'PASS'),
+    (['--set', 'torsion.clearance_rad=4e-4'], 3, 'FAIL'),   # 1.37 arcmin of backlash
+])
+def test_whole_unit_exit_codes(tmp_path: Path, capsys: pytest.CaptureFixture[str],
+                               extra: list[str], code: int, word: str) -> None:
+    plan_file = write(tmp_path, 'plan.yaml', {'plan': 'quick', 'steps': [
+        {'kind': 'te', 'name': 'te', 'speed_rpm': 3000, 'settle_s': 0.2},
+        {'kind': 'hysteresis', 'name': 'hysteresis', 'rated_torque_nm': 450.0,
+         'dwell_s': 0.1}]})
+    rc = main(['test', str(plan_file), '--serial', 'LI-7', '--operator', 'pytest',
+               '--launch', 'li2023-rv', '--out-dir', str(tmp_path / 'out'),
+               '--speed-factor', '0', '--condition', 'ambient_temperature_c=21', *extra])
+    out = capsys.readouterr().out
+    assert rc == code, out
+    assert f'VERDICT: {word}  unit LI-7' in out
+    (run,) = (tmp_path / 'out').iterdir()
+    report = json.loads((run / 'report' / 'report.json').read_text())
+    assert report['unit']['serial'] == 'LI-7' and report['conditions'] == {
+        'ambient_temperature_c': 21}
+    html = (run / 'report' / 'report.html').read_text()
+    assert '<title>Acceptance test of unit LI-7: ' + word in html
+    backlash = next(m for m in report['metrics'] if m['name'] == 'backlash_rad')
+    assert backlash['verdict'] == ('pass' if code == 0 else 'fail')
+    assert (run / 'bag' / 'metadata.yaml').exists()

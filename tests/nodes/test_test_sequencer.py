@@ -1,0 +1,132 @@
+"""The RunTestPlan action over the real middleware: bench (commanded), test_sequencer and
+recorder in their own processes, as ``rv-te test --launch`` starts them; this test is the
+action client. Feedback arrives, a second goal is rejected while one runs (and the CLI's
+reason comes from the latched test/report), a cancel mid-plan stops the bench and the
+recorder leaves a bag that rosbags and mcap read back."""
+
+from __future__ import annotations
+
+import time
+from pathlib import Path
+from typing import Any
+
+import pytest
+import yaml
+
+pytestmark = pytest.mark.ros
+
+rclpy = pytest.importorskip('rclpy')
+
+from mcap.reader import NonSeekingReader  # noqa: E402
+from mcap_ros2.decoder import DecoderFactory  # noqa: E402
+from rclpy.action import ActionClient  # noqa: E402
+from rclpy.executors import SingleThreadedExecutor  # noqa: E402
+from rosbags.highlevel import AnyReader  # noqa: E402
+from rv_te_msgs.action import RunTestPlan  # noqa: E402
+from rv_te_msgs.msg import EncoderBlock  # noqa: E402
+
+from rv_te_bench.cli.test import _busy_reason  # noqa: E402
+from rv_te_bench.launch.session import Session, SessionSpec  # noqa: E402
+from rv_te_bench.nodes import qos  # noqa: E402
+from tests.nodes.rosutil import spin_for, spin_until  # noqa: E402
+
+# slow enough to cancel in the middle: 2 s of simulated data per direction at 4x real time
+PLAN = {'plan': 'cancel-me', 'steps': [
+    {'kind': 'te', 'name': 'te', 'speed_rpm': 1500, 'directions': ['ccw', 'cw'],
+     'revolutions': 1, 'settle_s': 0.2},
+    {'kind': 'hysteresis', 'name': 'hysteresis', 'rated_torque_nm': 450.0, 'dwell_s': 0.2}]}
+
+
+@pytest.fixture
+def session(tmp_path: Path) -> Any:  # noqa: ANN401
+    spec = SessionSpec(
+        nodes=('recorder', 'bench', 'test_sequencer'),
+        parameters={'bench': {'preset': 'li2023-rv', 'te_mode': 'dte', 'time_mode': 'fast',
+                              'speed_factor': 4.0, 'commanded': True, 'sample_rate_hz': 1000.0,
+                              'block_size': 100},
+                    'recorder': {'output_dir': str(tmp_path), 'bag_name': 'bag'},
+                    'test_sequencer': {}})
+    log = (tmp_path / 'session.log').open('wb')
+    s = Session(spec, stdout=log)
+    s.start()
+    try:
+        yield s, tmp_path / 'bag'
+    finally:
+        s.stop()
+        log.close()
+
+
+@pytest.mark.timeout(240)
+def test_feedback_rejection_cancel_and_bag(session: Any, ros_context: Any) -> None:  # noqa: ANN401
+    sess, bag = session
+    node = rclpy.create_node('sequencer_test_client', context=ros_context)
+    ex = SingleThreadedExecutor(context=ros_context)
+    ex.add_node(node)
+    blocks: list[tuple[float, int]] = []
+    node.create_subscription(EncoderBlock, 'bench/encoders',
+                             lambda m: blocks.append((time.monotonic(), int(m.seq))),
+                             qos.ENCODER_QOS)
+    try:
+        client = ActionClient(node, RunTestPlan, 'run_test_plan')
+        other = ActionClient(node, RunTestPlan, 'run_test_plan')
+        assert spin_until(ex, client.server_is_ready, 30.0), 'no action server'
+        feedback: list[Any] = []
+        goal = RunTestPlan.Goal(plan_yaml=yaml.safe_dump(PLAN), serial='SN-CANCEL',
+                                operator_name='pytest')
+        send = client.send_goal_async(goal, feedback_callback=lambda f: feedback.append(
+            f.feedback))
+        assert spin_until(ex, send.done, 20.0)
+        handle = send.result()
+        assert handle.accepted
+        # feedback arrives, with the step and a live TE value once data flows
+        assert spin_until(ex, lambda: any(f.live_value == f.live_value and f.live_value > 0
+                                          for f in feedback), 60.0), 'no live feedback'
+        assert feedback[0].step_name == 'te' and feedback[0].step_count == 2
+        assert all(0.0 <= f.plan_progress <= 1.0 for f in feedback)
+        # a second goal while the first runs: rejected, and the reason names the running test
+        second = other.send_goal_async(RunTestPlan.Goal(
+            plan_yaml=yaml.safe_dump(PLAN), serial='SN-2', operator_name='pytest'))
+        assert spin_until(ex, second.done, 20.0)
+        assert not second.result().accepted
+        reason = _busy_reason(node, ex)
+        assert "'cancel-me'" in reason and "'SN-CANCEL'" in reason
+        # cancel mid-plan: the result says cancelled and the bench stops sending
+        assert feedback[-1].plan_progress < 0.5
+        cancel = handle.cancel_goal_async()
+        res = handle.get_result_async()
+        assert spin_until(ex, lambda: cancel.done() and res.done(), 30.0)
+        assert res.result().result.verdict == 'cancelled'
+        assert 'cancelled after 0 of 2 steps' in res.result().result.reason
+        spin_for(ex, 1.0)
+        n_after = len(blocks)
+        spin_for(ex, 2.0)
+        assert len(blocks) == n_after, 'the bench kept publishing after the cancel'
+        assert 0 < n_after < 120
+    finally:
+        node.destroy_node()
+    sess.stop()
+    # the bag: encoder blocks, the started and the cancelled step, the final report
+    assert (bag / 'metadata.yaml').exists()
+    with AnyReader([bag]) as reader:
+        steps, reports, seqs = [], [], []
+        for conn, _, raw in reader.messages():
+            if conn.topic == '/test/step':
+                steps.append(reader.deserialize(raw, conn.msgtype))
+            elif conn.topic == '/test/report':
+                reports.append(reader.deserialize(raw, conn.msgtype))
+            elif conn.topic == '/bench/encoders':
+                seqs.append(int(reader.deserialize(raw, conn.msgtype).seq))
+    assert [s.state for s in steps] == ['started', 'cancelled']
+    assert [r.verdict for r in reports][-1] == 'cancelled'
+    assert reports[-1].serial == 'SN-CANCEL'
+    assert seqs == list(range(len(seqs))) and len(seqs) == n_after
+    assert steps[-1].last_seq == seqs[-1]
+    # and an independent reader: mcap + mcap_ros2 decode the test topics
+    topics = set()
+    for f in sorted(bag.glob('*.mcap')):
+        with f.open('rb') as fh:
+            for _, channel, _, _msg in NonSeekingReader(
+                    fh, decoder_factories=[DecoderFactory()]).iter_decoded_messages(
+                    topics=['/test/step', '/test/report']):
+                topics.add(channel.topic)
+    assert topics == {'/test/step', '/test/report'}
