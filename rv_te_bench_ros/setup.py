@@ -18,6 +18,7 @@ VERSION = '0.1.0'   # = package.xml = pyproject.toml (checked by tests/test_ros2
 # executable in lib/rv_te_bench/ -> entry point
 EXECUTABLES = {
     'bench_node': 'rv_te_bench.nodes.bench_node:main',
+    'test_sequencer': 'rv_te_bench.nodes.test_sequencer:main',
     'te_node': 'rv_te_bench.nodes.te_node:main',
     'compensation_node': 'rv_te_bench.nodes.compensation_node:main',
     'recorder': 'rv_te_bench.nodes.recorder:main',
@@ -34,7 +35,8 @@ setup(
     name=PACKAGE,
     version=VERSION,
     packages=find_packages(include=['rv_te_bench', 'rv_te_bench.*', 'sim', 'sim.*']),
-    package_data={'rv_te_bench': ['launch/*.yaml', 'py.typed'],
+    package_data={'rv_te_bench': ['launch/*.yaml', 'py.typed', 'acceptance/plans/*.yaml',
+                                  'acceptance/tolerances/*.yaml'],
                   'sim': ['preset_data/*.toml']},
     data_files=[
         ('share/ament_index/resource_index/packages', [f'resource/{PACKAGE}']),

@@ -24,12 +24,10 @@ from __future__ import annotations
 
 import math
 from dataclasses import asdict, dataclass, field
-from importlib import resources
 from pathlib import Path
 from typing import Any
 
-import yaml
-
+from rv_te_bench.acceptance._files import parse_yaml_text, read_source, shipped
 from rv_te_bench.core.hysteresis import HysteresisConfig, RigidityRegion
 from rv_te_bench.errors import PlanError, TeConfigError
 
@@ -49,19 +47,6 @@ __all__ = [
 #: Direction name -> sign of the output rotation.
 DIRECTIONS = {'ccw': 1, 'cw': -1}
 _MAX_STEPS = 100
-_MAX_TEXT = 1 << 20
-
-
-def parse_yaml_text(text: str, origin: str, error: type[Exception]) -> Any:  # noqa: ANN401
-    """``yaml.safe_load`` of a plan or tolerance file, size-bounded, errors on one line."""
-    if len(text) > _MAX_TEXT:
-        msg = f'{origin}: {len(text)} characters, more than the {_MAX_TEXT} allowed'
-        raise error(msg)
-    try:
-        return yaml.safe_load(text)
-    except yaml.YAMLError as exc:
-        msg = f'{origin}: not valid YAML ({exc})'.replace('\n', ' ')
-        raise error(msg) from None
 
 
 class _Fields:
@@ -293,8 +278,7 @@ def parse_plan(data: Any, origin: str = '<plan>') -> TestPlan:  # noqa: ANN401
 
 def shipped_plans() -> list[str]:
     """Names of the plans shipped in ``rv_te_bench/acceptance/plans``."""
-    root = resources.files('rv_te_bench.acceptance').joinpath('plans')
-    return sorted(p.name[:-5] for p in root.iterdir() if p.name.endswith('.yaml'))
+    return shipped('plans')
 
 
 def load_plan(name_or_path: str | Path) -> tuple[TestPlan, str]:
@@ -303,20 +287,5 @@ def load_plan(name_or_path: str | Path) -> tuple[TestPlan, str]:
     Raises:
         PlanError: Missing or unreadable file, bad YAML, invalid plan.
     """
-    path = Path(name_or_path)
-    if path.exists():
-        try:
-            text = path.read_text(encoding='utf-8')
-        except (OSError, UnicodeDecodeError) as exc:
-            msg = f'test plan {path}: cannot read ({exc})'
-            raise PlanError(msg) from None
-        origin = str(path)
-    elif str(name_or_path) in shipped_plans():
-        text = resources.files('rv_te_bench.acceptance').joinpath(
-            'plans', f'{name_or_path}.yaml').read_text('utf-8')
-        origin = f'plan {name_or_path}'
-    else:
-        msg = (f'test plan {str(name_or_path)!r}: no such file, and not a shipped plan '
-               f'({", ".join(shipped_plans())})')
-        raise PlanError(msg)
+    text, origin = read_source(name_or_path, folder='plans', what='test plan', error=PlanError)
     return parse_plan(parse_yaml_text(text, origin, PlanError), origin), text

@@ -21,11 +21,10 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
-from importlib import resources
 from pathlib import Path
 from typing import Any
 
-from rv_te_bench.acceptance.plan import parse_yaml_text
+from rv_te_bench.acceptance._files import parse_yaml_text, read_source, shipped
 from rv_te_bench.core.units import ARCMIN_PER_RAD, ARCSEC_PER_RAD
 from rv_te_bench.errors import ToleranceError
 
@@ -164,8 +163,7 @@ def parse_tolerance(data: Any, origin: str = '<tolerance>') -> ToleranceProfile:
 
 def shipped_tolerances() -> list[str]:
     """Names of the profiles shipped in ``rv_te_bench/acceptance/tolerances``."""
-    root = resources.files('rv_te_bench.acceptance').joinpath('tolerances')
-    return sorted(p.name[:-5] for p in root.iterdir() if p.name.endswith('.yaml'))
+    return shipped('tolerances')
 
 
 def load_tolerance(name_or_path: str | Path, *, relative_to: Path | None = None,
@@ -175,26 +173,8 @@ def load_tolerance(name_or_path: str | Path, *, relative_to: Path | None = None,
     Raises:
         ToleranceError: Missing or unreadable file, bad YAML, invalid profile.
     """
-    cands = [Path(name_or_path)]
-    if relative_to is not None and not Path(name_or_path).is_absolute():
-        cands.append(relative_to / name_or_path)
-    for path in cands:
-        if path.is_file():
-            try:
-                text = path.read_text(encoding='utf-8')
-            except (OSError, UnicodeDecodeError) as exc:
-                msg = f'tolerance profile {path}: cannot read ({exc})'
-                raise ToleranceError(msg) from None
-            origin = str(path)
-            break
-    else:
-        if str(name_or_path) not in shipped_tolerances():
-            msg = (f'tolerance profile {str(name_or_path)!r}: no such file, and not a shipped '
-                   f'profile ({", ".join(shipped_tolerances())})')
-            raise ToleranceError(msg)
-        text = resources.files('rv_te_bench.acceptance').joinpath(
-            'tolerances', f'{name_or_path}.yaml').read_text('utf-8')
-        origin = f'tolerance {name_or_path}'
+    text, origin = read_source(name_or_path, folder='tolerances', what='tolerance profile',
+                               error=ToleranceError, relative_to=relative_to)
     return parse_tolerance(parse_yaml_text(text, origin, ToleranceError), origin), text
 
 

@@ -57,6 +57,9 @@ def register(subparsers: Any) -> None:  # noqa: ANN401
     p.add_argument('--wait-s', type=float, default=20.0,
                    help='how long to wait for the test_sequencer [s]')
     p.add_argument('--json', action='store_true', help='print the result as JSON on stdout')
+    from rv_te_bench.cli._db import add_db_argument  # noqa: PLC0415
+
+    add_db_argument(p, mode='also')
     g = p.add_argument_group('simulated session (--launch)')
     g.add_argument('--launch', default=None, metavar='PRESET',
                    help='start a simulated bench of this preset, a test_sequencer and a '
@@ -156,6 +159,10 @@ def run(args: argparse.Namespace) -> int:  # noqa: C901, PLR0912, PLR0915
     verdict, reason, report_json = result
     report = json.loads(report_json) if report_json else None
     if report is not None:
+        from rv_te_bench.report.unit import human_reason  # noqa: PLC0415
+
+        reason = human_reason(report)
+    if report is not None:
         if args.launch:
             report['bench']['bag'] = str(out_dir / 'bag')
         from rv_te_bench.report.unit import write_unit_report  # noqa: PLC0415
@@ -166,6 +173,8 @@ def run(args: argparse.Namespace) -> int:  # noqa: C901, PLR0912, PLR0915
         else:
             _print_table(report)
             print(f'report: {paths["html"]}')
+        if args.launch:
+            _record(args, report, out_dir / 'bag')
     if verdict == 'pass':
         print(f'VERDICT: PASS  unit {args.serial}: {reason}')
         return 0
@@ -174,6 +183,27 @@ def run(args: argparse.Namespace) -> int:  # noqa: C901, PLR0912, PLR0915
         return EXIT_FAIL
     print(f'ERROR: test of unit {args.serial} {verdict}: {reason}', file=sys.stderr)
     return 1
+
+
+def _record(args: argparse.Namespace, report: dict[str, Any], bag: Path) -> None:
+    """The test's record in the results store (next to the session folders by default)."""
+    from rv_te_bench import __version__  # noqa: PLC0415
+    from rv_te_bench.acceptance._store import store_record  # noqa: PLC0415
+    from rv_te_bench.cli._db import db_for_bags  # noqa: PLC0415
+    from rv_te_bench.errors import StoreError  # noqa: PLC0415
+    from rv_te_bench.store import open_store  # noqa: PLC0415
+
+    db = db_for_bags(args, [bag.parent])
+    if db is None or not (bag / 'metadata.yaml').exists():
+        return
+    try:
+        with open_store(db) as store:
+            store.upsert(store_record(report, bag, software_version=__version__))
+            print(f'recorded in the results store {store.url}')
+    except StoreError as exc:
+        if args.db:
+            raise
+        print(f'WARNING: not recorded in the results store: {exc}', file=sys.stderr)
 
 
 def _print_table(report: dict[str, Any]) -> None:

@@ -39,7 +39,7 @@ from rv_te_msgs.srv import RunBenchProgram
 from std_srvs.srv import Trigger
 
 from rv_te_bench.acceptance import BenchContext, StepRunner, build_report, parse_plan
-from rv_te_bench.acceptance.plan import parse_yaml_text
+from rv_te_bench.acceptance._files import parse_yaml_text
 from rv_te_bench.acceptance.tolerance import load_tolerance, parse_tolerance
 from rv_te_bench.errors import AcceptanceError
 from rv_te_bench.nodes import qos

@@ -21,7 +21,7 @@ import numpy as np
 from rv_te_bench.report.plots import _new_figure, png_bytes
 from sim.units import ARCMIN_PER_RAD, ARCSEC_PER_RAD
 
-__all__ = ['format_live', 'metric_rows', 'render_unit_html', 'unit_figures', 'write_unit_report']
+__all__ = ['format_live', 'human_reason', 'metric_rows', 'render_unit_html', 'unit_figures', 'write_unit_report']
 
 _LABELS = {
     'te_pp_ccw_rad': 'TE p-p, ccw (output +)', 'te_pp_cw_rad': 'TE p-p, cw (output -)',
@@ -68,6 +68,23 @@ def metric_rows(report: dict[str, Any]) -> list[dict[str, str]]:
                      'limit': limit or '-', 'margin': _fmt(mg), 'verdict': m['verdict'],
                      'source': m.get('source', ''), 'step': m.get('step', '')})
     return rows
+
+
+def human_reason(report: dict[str, Any]) -> str:
+    """The verdict's reason with the metrics' names as people read them."""
+    failed = [_label(m['name']) for m in report['metrics'] if m['verdict'] == 'fail']
+    missing = [_label(m['name']) for m in report['metrics'] if m['verdict'] == 'not_measured']
+    if report['verdict'] not in {'pass', 'fail'}:
+        return report['reason']
+    if not failed and not missing:
+        return 'Every limited metric is within its limit.'
+    parts = []
+    if failed:
+        parts.append('out of limit: ' + '; '.join(failed))
+    if missing:
+        parts.append('not measured: ' + '; '.join(missing))
+    text = '; '.join(parts) + '.'
+    return text[0].upper() + text[1:]
 
 
 def format_live(name: str, value: float) -> str:
@@ -287,7 +304,7 @@ def render_unit_html(report: dict[str, Any], images: dict[str, bytes]) -> str:
     p = [f'<!DOCTYPE html><html lang="en"><head><meta charset="utf-8"><title>{_e(title)}'
          f'</title><style>{_CSS}</style></head><body>',
          f"<h1>Unit {_e(u['serial'])} {_badge(report['verdict'])}</h1>",
-         f"<p>{_e(report['reason'])}</p>", '<table>']
+         f"<p>{_e(human_reason(report))}</p>", '<table>']
     head = [('serial', u['serial']), ('operator', u['operator']), ('date (UTC)', u['date_utc']),
             ('bench', f"{b['bench_id']} ({b['preset']}, ratio {b['gear_ratio']:.6g}; "
                       f"encoders {b['encoder_in']} / {b['encoder_out']})"),
@@ -332,10 +349,12 @@ def render_unit_html(report: dict[str, Any], images: dict[str, bytes]) -> str:
             if s.get('error'):
                 p.append(f"<p>{_e(s['error'])}</p>")
             else:
-                rig = '; '.join(f'{k}: +{_fmt((v[0] or math.nan) / ARCMIN_PER_RAD)} / '
-                                f'-{_fmt((v[1] or math.nan) / ARCMIN_PER_RAD)} N m/arcmin'
+                rig = '; '.join(f'{k}: {_fmt((v[0] or math.nan) / ARCMIN_PER_RAD)} under '
+                                f'positive torque, {_fmt((v[1] or math.nan) / ARCMIN_PER_RAD)} '
+                                'under negative torque [N m/arcmin]'
                                 for k, v in s['rigidity_nm_per_rad'].items())
-                p.append(f"<p>Rigidity per side (positive / negative torque) {_e(rig)}.</p>")
+                p.append(f"<p>Torsional rigidity per side: {_e(rig)}; the verdict uses the "
+                         "smaller.</p>")
             img('hysteresis.png', 'hysteresis curve with lost motion, backlash, rigidity')
     if te_rows:
         p.append('<h2>Spectrum</h2>')

@@ -178,3 +178,12 @@ def test_whole_unit_exit_codes(tmp_path: Path, capsys: pytest.CaptureFixture[str
     backlash = next(m for m in report['metrics'] if m['name'] == 'backlash_rad')
     assert backlash['verdict'] == ('pass' if code == 0 else 'fail')
     assert (run / 'bag' / 'metadata.yaml').exists()
+    # the results store next to the sessions has the test, its verdict and metrics
+    from rv_te_bench.store import ResultFilter, open_store  # noqa: PLC0415
+
+    with open_store(tmp_path / 'out' / 'rv-te-results.sqlite') as store:
+        (rec,) = store.query(ResultFilter(test='test-plan'))
+    assert (rec.serial, rec.plan, rec.verdict) == ('LI-7', 'quick', word.lower())
+    assert rec.metrics[('te_pp_revolution_max_rad', 'ccw')] == pytest.approx(next(
+        m['value'] for m in report['metrics'] if m['name'] == 'te_pp_ccw_rad'))
+    assert rec.limits[('backlash_rad', 'all')][2] == backlash['verdict']

@@ -1,0 +1,55 @@
+"""Reading plan and tolerance files: a path (or one relative to a plan), or a shipped name."""
+
+from __future__ import annotations
+
+from importlib import resources
+from pathlib import Path
+from typing import Any
+
+import yaml
+
+_MAX_TEXT = 1 << 20
+
+
+def parse_yaml_text(text: str, origin: str, error: type[Exception]) -> Any:  # noqa: ANN401
+    """``yaml.safe_load`` of a plan or tolerance file, size-bounded, errors on one line."""
+    if len(text) > _MAX_TEXT:
+        msg = f'{origin}: {len(text)} characters, more than the {_MAX_TEXT} allowed'
+        raise error(msg)
+    try:
+        return yaml.safe_load(text)
+    except yaml.YAMLError as exc:
+        msg = f'{origin}: not valid YAML ({exc})'.replace('\n', ' ')
+        raise error(msg) from None
+
+
+def shipped(folder: str) -> list[str]:
+    """Names of the YAML files shipped in ``rv_te_bench/acceptance/<folder>``."""
+    root = resources.files('rv_te_bench.acceptance').joinpath(folder)
+    return sorted(p.name[:-5] for p in root.iterdir() if p.name.endswith('.yaml'))
+
+
+def read_source(name_or_path: str | Path, *, folder: str, what: str, error: type[Exception],
+                relative_to: Path | None = None) -> tuple[str, str]:
+    """(text, origin) of a file, a file relative to ``relative_to``, or a shipped name.
+
+    Raises:
+        error: Unreadable file, or neither a file nor a shipped name (the shipped ones listed).
+    """
+    cands = [Path(name_or_path)]
+    if relative_to is not None and not Path(name_or_path).is_absolute():
+        cands.append(relative_to / name_or_path)
+    for path in cands:
+        if path.is_file():
+            try:
+                return path.read_text(encoding='utf-8'), str(path)
+            except (OSError, UnicodeDecodeError) as exc:
+                msg = f'{what} {path}: cannot read ({exc})'
+                raise error(msg) from None
+    name = str(name_or_path)
+    if name not in shipped(folder):
+        msg = (f'{what} {name!r}: no such file, and not a shipped {what} '
+               f'({", ".join(shipped(folder))})')
+        raise error(msg)
+    text = resources.files('rv_te_bench.acceptance').joinpath(folder, f'{name}.yaml')
+    return text.read_text('utf-8'), f'{what} {name}'

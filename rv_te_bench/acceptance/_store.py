@@ -1,0 +1,56 @@
+"""The results-store record of one acceptance test (``rv-te test``), from its unit record.
+
+One :class:`rv_te_bench.store.UnitRecord` with ``test='test-plan'``, the plan's name, the
+session bag's content hash, the unit's verdict and every measured metric with its limits and
+verdict. The TE p-p of a direction goes in as ``te_pp_revolution_max_rad`` with that
+direction (the name ``rv-te analyze`` uses for the same quantity), so SPC charts across units
+mix both; the other metrics keep their names (direction 'all'). Unmeasured metrics (NaN) are
+left out: the store keeps values.
+"""
+
+from __future__ import annotations
+
+import math
+from datetime import datetime
+from typing import TYPE_CHECKING, Any
+
+if TYPE_CHECKING:
+    from pathlib import Path
+
+    from rv_te_bench.store import UnitRecord
+
+__all__ = ['store_record']
+
+_VERDICT = {'pass': 'pass', 'fail': 'fail', 'not_measured': 'not-measured', 'info': None}
+
+
+def store_record(report: dict[str, Any], bag: Path, *, software_version: str = '',
+                 ) -> UnitRecord:
+    """The store record of ``report`` (:func:`rv_te_bench.acceptance.build_report`)."""
+    from rv_te_bench.store import MetricValue, UnitRecord, bag_fingerprint  # noqa: PLC0415
+
+    sha, size, mtime = bag_fingerprint(bag)
+    metrics = []
+    for m in report['metrics']:
+        if m['value'] is None or not math.isfinite(m['value']):
+            continue
+        name, direction = m['name'], 'all'
+        for d in ('ccw', 'cw'):
+            if name == f'te_pp_{d}_rad':
+                name, direction = 'te_pp_revolution_max_rad', d
+        metrics.append(MetricValue(name=name, value=float(m['value']), direction=direction,
+                                   limit_low=m['limit_min'], limit_high=m['limit_max'],
+                                   verdict=_VERDICT.get(m['verdict'])))
+    b, u = report['bench'], report['unit']
+    verdict = report['verdict'] if report['verdict'] in {'pass', 'fail'} else 'not-judged'
+    return UnitRecord(
+        test='test-plan', plan=report['plan']['plan'], bag_path=str(bag), bag_sha256=sha,
+        tested_at=datetime.fromisoformat(u['date_utc']), serial=u['serial'],
+        bench_id=b.get('bench_id') or None, preset=b.get('preset') or None,
+        reducer_type=b.get('reducer_type') or None, operator=u['operator'],
+        status='ok' if report['verdict'] in {'pass', 'fail'} else 'failed',
+        failure=None if report['verdict'] in {'pass', 'fail'} else report['reason'],
+        verdict=verdict, command='test', software_version=software_version,
+        bag_size_bytes=size, bag_mtime_ns=mtime, metrics=tuple(metrics),
+        details={'tolerance': report['tolerance']['profile'],
+                 'conditions': report.get('conditions', {}), 'reason': report['reason']})
