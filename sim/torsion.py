@@ -41,7 +41,6 @@ load resists forward rotation): applied torque = -load.
 
 from __future__ import annotations
 
-import functools
 import math
 from dataclasses import dataclass, field
 from typing import TYPE_CHECKING, Any
@@ -337,34 +336,22 @@ def _wang_curve(preset: Preset, theta_in_rad: float, grid: np.ndarray,
     return fwd - up, down - rev, up - down, 0.5 * (up + down)
 
 
-@functools.lru_cache(maxsize=16)
-def _hu_tca_table(params: Any, t_max: float) -> tuple[np.ndarray, np.ndarray, float]:  # noqa: ANN401
-    from sim import hu2020  # noqa: PLC0415
-
-    rc = params.r_c_m
-    t_min = 0.002 * t_max
-    while True:
-        try:
-            first = hu2020.tooth_contact_analysis(params, t_min)
-            break
-        except ModelInputError:
-            t_min *= 1.5
-            if t_min > t_max:
-                raise
-    beta0 = float(np.min(first.clearance_m / first.lever_arm_m))
-    grid = np.r_[0.0, np.geomspace(t_min, t_max, _GRID_POINTS - 1)]
-    beta = np.array([hu2020.tooth_contact_analysis(params, float(t)).delta_max_m / rc
-                     for t in grid[1:]])
-    defl = np.r_[0.0, np.maximum.accumulate(beta - beta0)]
-    # the paper's scheme is not strictly monotone point to point at its 0.1 % tolerance
-    defl = defl + np.arange(defl.size) * 1e-15
-    return grid, defl, 2.0 * beta0
-
-
 def _hu_curve(preset: Preset, t_max: float) -> tuple[np.ndarray, np.ndarray, float]:
+    """The TCA rotation beta(T) (``sim.hu2020.elastic_te_rad``) past the first pin contact."""
     from sim import hu2020  # noqa: PLC0415
 
-    return _hu_tca_table(hu2020.HuRvParams.from_preset(preset), t_max)
+    params = hu2020.HuRvParams.from_preset(preset)
+    # the initial clearances (Eq. 32) and lever arms (Eq. 36) are geometry: any torque will do
+    tca = hu2020.tooth_contact_analysis(params)
+    beta0 = float(np.min(tca.clearance_m / tca.lever_arm_m))
+    grid = np.r_[0.0, np.geomspace(2e-3 * t_max, t_max, _GRID_POINTS - 1)]
+    beta = -hu2020.elastic_te_rad(params, grid)
+    # beta includes closing the play; below the first contact the table falls linearly to 0
+    defl = np.maximum.accumulate(np.maximum(beta - beta0, 0.0))
+    # strictly increasing for the inverse (the paper's 0.1 % iteration tolerance can leave
+    # two neighbours equal): a ramp of 1e-15 rad, far below any angle here
+    defl = defl + np.arange(defl.size) * 1e-15
+    return grid, defl - defl[0], 2.0 * beta0
 
 
 def _li_stiffness(preset: Preset, theta_in_rad: float) -> float:
