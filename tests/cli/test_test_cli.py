@@ -169,7 +169,7 @@ def test_whole_unit_exit_codes(tmp_path: Path, capsys: pytest.CaptureFixture[str
     out = capsys.readouterr().out
     assert rc == code, out
     assert f'VERDICT: {word}  unit LI-7' in out
-    (run,) = (tmp_path / 'out').iterdir()
+    (run,) = [p for p in (tmp_path / 'out').iterdir() if p.is_dir()]
     report = json.loads((run / 'report' / 'report.json').read_text())
     assert report['unit']['serial'] == 'LI-7' and report['conditions'] == {
         'ambient_temperature_c': 21}
