@@ -33,7 +33,7 @@ __all__ = ['EXIT_FAIL', 'register', 'run']
 
 EXIT_FAIL = 3
 #: Reducer model -> TE model mode a simulated session uses.
-DEFAULT_TE_MODE = {'wang2020-2kv': 'nlte', 'hu2020-rv': 'geometric', 'li2023-rv': 'dte'}
+DEFAULT_TE_MODE = {'wang2020-2kv': 'nlte', 'hu2020-rv': 'elastic', 'li2023-rv': 'dte'}
 
 
 def register(subparsers: Any) -> None:  # noqa: ANN401
@@ -316,9 +316,16 @@ def _busy_reason(node: Any, executor: Any) -> str:  # noqa: ANN401
     end = time.monotonic() + 3.0
     while not got and time.monotonic() < end:
         executor.spin_once(timeout_sec=0.1)
+    quiet = time.monotonic() + 0.3     # the latched history holds several: take them all
+    while time.monotonic() < min(quiet, end + 1.0):
+        n = len(got)
+        executor.spin_once(timeout_sec=0.05)
+        if len(got) > n:
+            quiet = time.monotonic() + 0.3
     node.destroy_subscription(sub)
-    if got and got[-1].verdict == 'running':
-        r = got[-1]
+    latest = max(got, key=lambda m: (m.header.stamp.sec, m.header.stamp.nanosec), default=None)
+    if latest is not None and latest.verdict == 'running':
+        r = latest
         return (f'it is busy with plan {r.plan_name!r} for unit {r.serial!r} (operator '
                 f'{r.operator_name}); wait for it or cancel it')
     return 'it is busy with another test'

@@ -27,8 +27,8 @@ from sim.program import ProgramSimulator
 ARCMIN = math.pi / 10800
 NO_ECC = ['eccentricity.e_p1_m=0', 'eccentricity.e_p2_m=0', 'eccentricity.e_g_m=0',
           'eccentricity.e_ot_m=0']
-MODES = {'wang2020-2kv': 'nlte', 'hu2020-rv': 'geometric', 'li2023-rv': 'dte',
-         'rv-80e-101': 'geometric'}
+MODES = {'wang2020-2kv': 'nlte', 'hu2020-rv': 'elastic', 'li2023-rv': 'dte',
+         'rv-80e-101': 'elastic', 'hu2020-rv-modified': 'elastic'}
 
 
 def hysteresis_plan(rated: float, method: str = 'torque_steps') -> dict:
@@ -150,7 +150,7 @@ def test_shipped_plan_whole_unit(preset: str, plan: str) -> None:
     from rv_te_bench.acceptance import load_plan  # noqa: PLC0415
 
     p, _ = load_plan(plan)
-    sim = ProgramSimulator(preset=preset, te_mode=MODES.get(preset, 'geometric'),
+    sim = ProgramSimulator(preset=preset, te_mode=MODES[preset],
                            sample_rate_hz=1000.0, block_size=100)
     k = sim.model.kinematics
     ctx = BenchContext(gear_ratio=k.gear_ratio, crank_per_input=k.crank_per_input,

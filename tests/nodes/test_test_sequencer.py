@@ -70,6 +70,18 @@ def test_feedback_rejection_cancel_and_bag(session: Any, ros_context: Any) -> No
         client = ActionClient(node, RunTestPlan, 'run_test_plan')
         other = ActionClient(node, RunTestPlan, 'run_test_plan')
         assert spin_until(ex, client.server_is_ready, 30.0), 'no action server'
+        # a bad plan or a missing serial: the goal ends at once with the reason, nothing runs
+        for bad, why in ((RunTestPlan.Goal(plan_yaml='plan: x\nsteps: []', serial='S',
+                                           operator_name='o'), 'steps must be a list'),
+                         (RunTestPlan.Goal(plan_yaml=yaml.safe_dump(PLAN), serial=' ',
+                                           operator_name='o'), 'serial and operator_name')):
+            sent = client.send_goal_async(bad)
+            assert spin_until(ex, sent.done, 20.0) and sent.result().accepted
+            res_bad = sent.result().get_result_async()
+            assert spin_until(ex, res_bad.done, 20.0)
+            assert res_bad.result().result.verdict == 'error'
+            assert why in res_bad.result().result.reason
+        assert not blocks, 'a bad goal made the bench run'
         feedback: list[Any] = []
         goal = RunTestPlan.Goal(plan_yaml=yaml.safe_dump(PLAN), serial='SN-CANCEL',
                                 operator_name='pytest')
