@@ -283,8 +283,18 @@ def _run_goal(args: argparse.Namespace, plan_text: str, tol_text: str,
             return None
         res_future = handle.get_result_async()
         try:
+            gone_since: float | None = None
             while not res_future.done():
                 executor.spin_once(timeout_sec=0.1)
+                if client.server_is_ready():
+                    gone_since = None
+                    continue
+                gone_since = gone_since or time.monotonic()
+                if time.monotonic() - gone_since > args.wait_s:
+                    print(f'ERROR: the test_sequencer went away during the test (no action '
+                          f'server for {args.wait_s:g} s); the bench may still be running',
+                          file=sys.stderr)
+                    return None
         except KeyboardInterrupt:
             print('\ncancelling the test (the bench stops) ...', file=sys.stderr)
             cancel = handle.cancel_goal_async()

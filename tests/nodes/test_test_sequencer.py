@@ -142,3 +142,39 @@ def test_feedback_rejection_cancel_and_bag(session: Any, ros_context: Any) -> No
                     topics=['/test/step', '/test/report']):
                 topics.add(channel.topic)
     assert topics == {'/test/step', '/test/report'}
+
+
+@pytest.mark.timeout(180)
+def test_client_notices_a_dead_sequencer(session: Any, tmp_path: Path) -> None:  # noqa: ANN401
+    """SIGKILL of the test_sequencer mid-plan: rv-te test ends with one line, exit 1."""
+    import os  # noqa: PLC0415
+    import signal  # noqa: PLC0415
+    import subprocess  # noqa: PLC0415
+    import sys  # noqa: PLC0415
+
+    from rv_te_bench.launch.session import child_env  # noqa: PLC0415
+
+    sess, _bag = session
+    plan = tmp_path / 'plan.yaml'
+    plan.write_text(yaml.safe_dump(PLAN), encoding='utf-8')
+    proc = subprocess.Popen(
+        [sys.executable, '-m', 'rv_te_bench.cli.main', 'test', str(plan), '--serial', 'SN-K',
+         '--operator', 'pytest', '--wait-s', '4', '--out-dir', str(tmp_path / 'out')],
+        env=child_env(), stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    try:
+        deadline = time.monotonic() + 60.0
+        log = tmp_path / 'session.log'
+        while 'program:' not in log.read_text(errors='replace'):
+            assert time.monotonic() < deadline, 'the plan did not start'
+            assert proc.poll() is None, proc.communicate()
+            time.sleep(0.2)
+        os.kill(sess.procs['test_sequencer'].proc.pid, signal.SIGKILL)
+        sess.procs['test_sequencer'].expected_exit = True
+        out, err = proc.communicate(timeout=60)
+    finally:
+        if proc.poll() is None:
+            proc.kill()
+    assert proc.returncode == 1, (out, err)
+    lines = [ln for ln in err.splitlines() if ln.startswith('ERROR')]
+    assert lines == ['ERROR: the test_sequencer went away during the test (no action server '
+                     'for 4 s); the bench may still be running']
