@@ -39,7 +39,7 @@ if TYPE_CHECKING:
     from rv_te_bench.acceptance.plan import Step, TestPlan
     from rv_te_bench.acceptance.tolerance import ToleranceProfile
 
-__all__ = ['BenchContext', 'StepRunner', 'build_report', 'run_plan_offline']
+__all__ = ['BenchContext', 'StepRunner', 'build_report', 'reanalyse', 'run_plan_offline']
 
 _MAX_CURVE_POINTS = 4000
 #: Spectrum bins kept for the report (the labelled lines are kept whatever their order).
@@ -390,3 +390,51 @@ def run_plan_offline(plan: TestPlan, profile: ToleranceProfile, *, serial: str, 
         results.append(runner.result())
     return build_report(plan=plan, profile=profile, ctx=ctx, serial=serial, operator=operator,
                         results=results, conditions=conditions, started_utc=started)
+
+
+def reanalyse(*, plan: TestPlan, profile: ToleranceProfile, ctx: BenchContext,
+              steps: list[dict[str, Any]],
+              blocks: dict[int, tuple[np.ndarray, np.ndarray, np.ndarray]],
+              serial: str, operator: str, conditions: dict[str, Any] | None = None,
+              started_utc: str = '', status: str = 'completed') -> dict[str, Any]:
+    """The unit record computed again from recorded blocks (a session bag).
+
+    Args:
+        plan, profile, ctx: As in the live run.
+        steps: The recorded steps (``step_index``, ``state``, ``first_seq``,
+            ``segment_blocks``); only finished ones are analysed, in plan order.
+        blocks: seq -> (theta_in_rad, theta_out_rad, torque_out_nm).
+        serial, operator, conditions, started_utc: The unit's identity and conditions.
+        status: 'completed', or how the recorded test ended ('cancelled', 'error').
+
+    Raises:
+        AcceptanceError: The recorded steps do not follow the plan, or carry no segment
+            block counts.
+    """
+    results = []
+    for n, s in enumerate(x for x in steps if x['state'] == 'finished'):
+        if s['step_index'] != n or n >= len(plan.steps):
+            msg = (f'recorded step {s["step_index"]} ({s.get("step_name", "?")!r}) does not '
+                   f'follow the plan (expected step {n})')
+            raise AcceptanceError(msg)
+        if not s['segment_blocks']:
+            msg = (f'recorded step {n} has no segment block counts (recorded before they were '
+                   'recorded): it cannot be analysed again')
+            raise AcceptanceError(msg)
+        runner = StepRunner(plan.steps[n], ctx)
+        runner.expect(s['segment_blocks'])
+        ends = np.cumsum(s['segment_blocks'])
+        last = -1
+        for k in range(int(ends[-1])):
+            block = blocks.get(int(s['first_seq']) + k)
+            if block is None:
+                continue
+            seg = int(np.searchsorted(ends, k, side='right'))
+            if seg != last:
+                runner.next_segment()
+                last = seg
+            runner.feed(seg, *block)
+        results.append(runner.result())
+    return build_report(plan=plan, profile=profile, ctx=ctx, serial=serial, operator=operator,
+                        results=results, conditions=conditions, started_utc=started_utc,
+                        status=status)

@@ -19,7 +19,7 @@ if TYPE_CHECKING:
 
 # Order of appearance in --help.
 SUBCOMMAND_MODULES = (
-    'demo', 'launch', 'bench', 'record', 'replay', 'analyze', 'test', 'model',
+    'demo', 'launch', 'bench', 'record', 'replay', 'analyze', 'test', 'unit_report', 'model',
     'optimize_phases', 'compensate', 'identify', 'presets', 'results', 'spc', 'fleet',
 )
 
@@ -39,6 +39,7 @@ examples:
   rv-te spc te_pp_revolution_max_rad --usl 1   control chart across units
   rv-te test rv-80e --serial SN1 --operator kim --launch rv-80e-101
                                                acceptance test of a unit: verdict + report
+  rv-te unit-report out/tests/RV80E-0042_*/bag  the same test again from its bag (no ROS)
 """
 
 

@@ -252,6 +252,7 @@ class TestSequencerNode(Node):
         self._runner = runner
         self._prog = {'first_seq': int(resp.first_seq), 'total': int(resp.block_count),
                       'ends': np.cumsum(list(resp.segment_blocks)), 'next': 0, 'segment': 0,
+                      'segment_blocks': list(resp.segment_blocks),
                       'missing': 0, 'live': math.nan, 'last_wall': time.monotonic()}
         early, self._early = list(self._early), collections.deque(maxlen=5000)
         for msg in early:
@@ -311,6 +312,7 @@ class TestSequencerNode(Node):
                        first_seq=self._prog.get('first_seq', 0),
                        last_seq=self._prog.get('first_seq', 0) + max(
                            self._prog.get('next', 0) - 1, 0),
+                       segment_blocks=[int(n) for n in self._prog.get('segment_blocks', ())],
                        parameters_yaml=params, result_yaml=result)
         msg.header.stamp = self.get_clock().now().to_msg()
         msg.header.frame_id = self.ctx.bench_id if self.ctx else ''

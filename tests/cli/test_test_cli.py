@@ -129,6 +129,12 @@ def test_bad_arguments(capsys: pytest.CaptureFixture[str], args: list[str], expe
     assert expect in one_error_line(capsys)
 
 
+def test_unit_report_of_a_folder_without_a_test(tmp_path: Path,
+                                               capsys: pytest.CaptureFixture[str]) -> None:
+    assert main(['unit-report', str(tmp_path / 'nothing')]) == 1
+    assert 'cannot read the bag' in one_error_line(capsys)
+
+
 def test_plan_names_its_tolerance_relative_to_itself(tmp_path: Path,
                                                      capsys: pytest.CaptureFixture[str]) -> None:
     write(tmp_path, 'limits.yaml', {'profile': 't', 'limits': {'te_pp_arcmin': {'max': -2}}})
@@ -187,3 +193,10 @@ def test_whole_unit_exit_codes(tmp_path: Path, capsys: pytest.CaptureFixture[str
     assert rec.metrics[('te_pp_revolution_max_rad', 'ccw')] == pytest.approx(next(
         m['value'] for m in report['metrics'] if m['name'] == 'te_pp_ccw_rad'))
     assert rec.limits[('backlash_rad', 'all')][2] == backlash['verdict']
+    # the same test again from the bag alone: same metrics, same verdict, same exit code
+    assert main(['unit-report', str(run / 'bag'), '--report', str(tmp_path / 'again')]) == code
+    cap = capsys.readouterr()
+    assert 'every metric equals the recorded result' in cap.err, cap.err
+    again = json.loads((tmp_path / 'again' / 'report.json').read_text())
+    assert [m['value'] for m in again['metrics']] == pytest.approx(
+        [m['value'] for m in report['metrics']], rel=1e-9)

@@ -142,6 +142,11 @@ def test_feedback_rejection_cancel_and_bag(session: Any, ros_context: Any) -> No
                     topics=['/test/step', '/test/report']):
                 topics.add(channel.topic)
     assert topics == {'/test/step', '/test/report'}
+    # rv-te unit-report: the cancelled test, recomputed from the bag, is no verdict (exit 1)
+    from rv_te_bench.cli.main import main  # noqa: PLC0415
+
+    assert main(['unit-report', str(bag), '--report', str(bag.parent / 'again')]) == 1
+    assert (bag.parent / 'again' / 'report.html').exists()
 
 
 @pytest.mark.timeout(180)

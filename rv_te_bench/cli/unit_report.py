@@ -1,0 +1,120 @@
+"""``rv-te unit-report BAG``: a unit's acceptance test again, from its session bag.
+
+Reads the last ended test in the bag (``test/report``; ``--serial`` picks a unit), computes
+every finished step's metrics again from the recorded encoder blocks (the ``test/step``
+records give each step's block range and blocks per segment), judges them against the
+recorded tolerance profile, checks that the values equal the ones recorded live, and writes
+the unit report. No ROS needed. Exit code as ``rv-te test``: 0 pass, 3 fail, 1 error (also a
+cancelled test, or values that differ from the recorded ones).
+
+Usage examples:
+  rv-te unit-report out/tests/RV80E-0042_20261124T092855Z/bag
+  rv-te unit-report bags/tests/rv_te_20261124_093122 --serial RV-C1 --report out/rv-c1
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import math
+import sys
+from pathlib import Path
+from typing import Any
+
+__all__ = ['register', 'run']
+
+#: Relative difference allowed between a recomputed and the recorded value (same numbers,
+#: same arithmetic: only the JSON round trip).
+_SAME_REL = 1e-9
+
+
+def register(subparsers: Any) -> None:  # noqa: ANN401
+    """Add the ``unit-report`` subcommand."""
+    p = subparsers.add_parser(
+        'unit-report', help="a unit's acceptance test again from its session bag (no ROS)",
+        description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    p.add_argument('bag', help='the session bag folder')
+    p.add_argument('--serial', default=None, help='the unit (default: the last test)')
+    p.add_argument('--report', default=None, metavar='DIR',
+                   help='where the report goes (default: <bag>/../unit-report)')
+    p.add_argument('--json', action='store_true', help='print the record as JSON on stdout')
+    p.set_defaults(func=run)
+
+
+def _differences(new: dict[str, Any], old: dict[str, Any]) -> list[str]:
+    recorded = {(m['name'], m['step']): m for m in old.get('metrics', [])}
+    out = []
+    for m in new['metrics']:
+        r = recorded.get((m['name'], m['step']))
+        if r is None:
+            out.append(f'{m["name"]}: not in the recorded result')
+            continue
+        a, b = m['value'], r['value']
+        if (a is None) != (b is None) or (a is not None and not math.isclose(
+                a, b, rel_tol=_SAME_REL, abs_tol=1e-15)) or m['verdict'] != r['verdict']:
+            out.append(f'{m["name"]}: {a!r} ({m["verdict"]}) recomputed, {b!r} '
+                       f'({r["verdict"]}) recorded')
+    return out
+
+
+def run(args: argparse.Namespace) -> int:
+    """Recompute, compare, report; 0 pass, 3 fail, 1 error."""
+    from rv_te_bench.acceptance import BenchContext, load_tolerance, parse_plan  # noqa: PLC0415
+    from rv_te_bench.acceptance._files import parse_yaml_text  # noqa: PLC0415
+    from rv_te_bench.acceptance.runner import reanalyse  # noqa: PLC0415
+    from rv_te_bench.acceptance.tolerance import parse_tolerance  # noqa: PLC0415
+    from rv_te_bench.cli.test import EXIT_FAIL, _print_table  # noqa: PLC0415
+    from rv_te_bench.errors import AcceptanceError  # noqa: PLC0415
+    from rv_te_bench.io.test_records import read_recorded_test  # noqa: PLC0415
+    from rv_te_bench.report.unit import human_reason, write_unit_report  # noqa: PLC0415
+
+    bag = Path(args.bag)
+    rec = read_recorded_test(bag, serial=args.serial)
+    r = rec.report
+    plan = parse_plan(parse_yaml_text(r['plan_yaml'], 'recorded plan', AcceptanceError),
+                      'recorded plan')
+    info = rec.bench_info
+    if r['tolerance_yaml'].strip():
+        profile = parse_tolerance(parse_yaml_text(r['tolerance_yaml'], 'recorded tolerance',
+                                                  AcceptanceError), 'recorded tolerance')
+    else:
+        profile, _ = load_tolerance(plan.tolerance or info['preset'])
+    old = json.loads(r['report_json']) if r['report_json'] else {}
+    ctx = BenchContext(
+        gear_ratio=info['gear_ratio'], crank_per_input=info['crank_per_input'],
+        mesh_orders=tuple(info['mesh_orders']), mesh_labels=tuple(info['mesh_labels']),
+        sample_rate_hz=info['sample_rate_hz'], block_size=int(info['block_size']),
+        bench_id=info['bench_id'], preset=info['preset'],
+        encoder_in_model=info['encoder_in_model'], encoder_out_model=info['encoder_out_model'],
+        encoder_out_resolution_rad=info['encoder_out_resolution_rad'],
+        reducer_type=info['reducer_type'])
+    status = 'completed' if r['verdict'] in {'pass', 'fail'} else r['verdict']
+    new = reanalyse(plan=plan, profile=profile, ctx=ctx, steps=rec.steps, blocks=rec.blocks,
+                    serial=r['serial'], operator=r['operator_name'],
+                    conditions=old.get('conditions'),
+                    started_utc=old.get('unit', {}).get('date_utc', ''), status=status)
+    new['bench']['bag'] = str(bag)
+    out_dir = Path(args.report) if args.report else bag.parent / 'unit-report'
+    paths = write_unit_report(new, out_dir)
+    if args.json:
+        print(json.dumps(new, indent=1))
+    else:
+        _print_table(new)
+        print(f'report: {paths["html"]}')
+    diffs = _differences(new, old) if old else []
+    if diffs:
+        print(f'ERROR: recomputed from the bag, {len(diffs)} metric(s) differ from the '
+              f'recorded result: {"; ".join(diffs[:3])}', file=sys.stderr)
+        return 1
+    if old:
+        print(f'recomputed from {len(rec.blocks)} recorded blocks: every metric equals the '
+              'recorded result', file=sys.stderr)
+    if new['verdict'] == 'pass':
+        print(f'VERDICT: PASS  unit {r["serial"]}: {human_reason(new)}')
+        return 0
+    if new['verdict'] == 'fail':
+        print(f'VERDICT: FAIL  unit {r["serial"]}: {human_reason(new)}')
+        return EXIT_FAIL
+    print(f'ERROR: the test of unit {r["serial"]} was {new["verdict"]}: {new["reason"]}',
+          file=sys.stderr)
+    return 1

@@ -1,0 +1,104 @@
+"""An acceptance test as a session bag holds it: the final ``test/report``, the ``test/step``
+records (EncoderBlock seq range and blocks per segment of each step), ``bench/info`` and the
+encoder blocks of the steps. Read with rosbags from the bag's own message definitions (no
+rclpy), so that the unit's metrics can be computed again from the raw data.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from rv_te_bench.errors import BagError
+
+__all__ = ['RecordedTest', 'read_recorded_test']
+
+_FIELDS_REPORT = ('serial', 'operator_name', 'plan_name', 'verdict', 'reason', 'plan_yaml',
+                  'tolerance_yaml', 'report_json')
+_FIELDS_STEP = ('serial', 'step_index', 'step_count', 'step_name', 'step_kind', 'state',
+                'first_seq', 'last_seq', 'parameters_yaml', 'result_yaml')
+_FIELDS_INFO = ('bench_id', 'preset', 'reducer_type', 'gear_ratio', 'crank_per_input',
+                'encoder_in_model', 'encoder_out_model', 'encoder_out_resolution_rad',
+                'sample_rate_hz', 'block_size')
+
+
+@dataclass(frozen=True)
+class RecordedTest:
+    """One test read from a bag (SI values as recorded).
+
+    Attributes:
+        report: The final TestReport's fields (``report_json`` as text).
+        steps: The finished or ended TestStep records of that test, in order (dicts, with
+            ``segment_blocks`` as a list).
+        bench_info: BenchInfo's fields (``mesh_orders``, ``mesh_labels`` as lists).
+        blocks: EncoderBlock seq -> (theta_in_rad, theta_out_rad, torque_out_nm) of the steps.
+    """
+
+    report: dict[str, Any]
+    steps: list[dict[str, Any]]
+    bench_info: dict[str, Any]
+    blocks: dict[int, tuple[np.ndarray, np.ndarray, np.ndarray]] = field(repr=False)
+
+
+def read_recorded_test(bag: str | Path, *, serial: str | None = None) -> RecordedTest:
+    """The last finished (or cancelled) test in ``bag`` (of ``serial`` when given).
+
+    Raises:
+        BagError: Not a readable bag, or no ended test (of that serial) in it.
+    """
+    from rosbags.highlevel import AnyReader  # noqa: PLC0415
+
+    path = Path(bag)
+    reports: list[dict[str, Any]] = []
+    steps: list[dict[str, Any]] = []
+    info: dict[str, Any] = {}
+    try:
+        with AnyReader([path]) as reader:
+            wanted = [c for c in reader.connections
+                      if c.topic.endswith(('test/report', 'test/step', 'bench/info'))]
+            for conn, _, raw in reader.messages(connections=wanted):
+                msg = reader.deserialize(raw, conn.msgtype)
+                if conn.topic.endswith('test/report'):
+                    reports.append({k: getattr(msg, k) for k in _FIELDS_REPORT})
+                elif conn.topic.endswith('test/step'):
+                    d = {k: getattr(msg, k) for k in _FIELDS_STEP}
+                    d['segment_blocks'] = [int(n) for n in getattr(msg, 'segment_blocks', [])]
+                    steps.append(d)
+                elif not info:
+                    info = {k: getattr(msg, k) for k in _FIELDS_INFO}
+                    info['mesh_orders'] = [float(x) for x in msg.mesh_orders]
+                    info['mesh_labels'] = list(msg.mesh_labels)
+            ended = [r for r in reports if r['verdict'] != 'running'
+                     and (serial is None or r['serial'] == serial)]
+            if not ended:
+                who = f' of unit {serial!r}' if serial else ''
+                msg = f'{path}: no ended acceptance test{who} in the bag (topic test/report)'
+                raise BagError(msg)
+            report = ended[-1]
+            mine = [s for s in steps if s['serial'] == report['serial']
+                    and s['state'] != 'started']
+            # the steps of the last run of this unit: from the last step 0 on
+            starts = [i for i, s in enumerate(mine) if s['step_index'] == 0]
+            mine = mine[starts[-1]:] if starts else mine
+            ranges = [(s['first_seq'], s['last_seq']) for s in mine]
+            blocks: dict[int, tuple[np.ndarray, np.ndarray, np.ndarray]] = {}
+            enc = [c for c in reader.connections if c.topic.endswith('bench/encoders')]
+            for conn, _, raw in reader.messages(connections=enc):
+                m = reader.deserialize(raw, conn.msgtype)
+                seq = int(m.seq)
+                if any(a <= seq <= b for a, b in ranges):
+                    blocks[seq] = (np.asarray(m.theta_in_rad, dtype=np.float64),
+                                   np.asarray(m.theta_out_rad, dtype=np.float64),
+                                   np.asarray(m.torque_out_nm, dtype=np.float64))
+    except BagError:
+        raise
+    except Exception as exc:  # noqa: BLE001 - rosbags raises several types for a bad bag
+        msg = f'{path}: cannot read the bag ({type(exc).__name__}: {exc})'
+        raise BagError(msg) from None
+    if not info:
+        msg = f'{path}: no bench/info in the bag'
+        raise BagError(msg)
+    return RecordedTest(report=report, steps=mine, bench_info=info, blocks=blocks)
