@@ -11,9 +11,14 @@ A plan (docs/ACCEPTANCE.md)::
          revolutions: 1, settle_s: 0.5}
       - {name: hysteresis, kind: hysteresis, rated_torque_nm: 784, method: torque_steps,
          step_fraction: 0.1, dwell_s: 0.2, lost_motion_fraction: 0.03,
-         rigidity: {K: [0.5, 1.0]}, preload: true}
+         rigidity: {K: [0.5, 1.0]}, preload: true, positions: 3,
+         reposition_speed_rpm: 300}
       - {name: sweep, kind: sweep, speeds_rpm: [500, 1500], loads_nm: [0, 200],
          direction: ccw, revolutions: 1, settle_s: 0.5}
+
+``positions``: the hysteresis cycle is measured at this many output positions, evenly spaced
+over one revolution (the output turned on at ``reposition_speed_rpm`` input between them);
+the unit's lost motion and backlash are the largest, its rigidity the smallest.
 
 Directions: ``ccw`` turns the output positively (REP-103, counter-clockwise seen from the
 output flange), ``cw`` negatively. Loads resist the motion (magnitudes). Every bad key or
@@ -152,6 +157,8 @@ class HysteresisStep:
     lost_motion_fraction: float = 0.03
     rigidity: tuple[tuple[str, float, float], ...] = (('K', 0.5, 1.0),)
     preload: bool = True
+    positions: int = 1
+    reposition_speed_rpm: float = 300.0
     kind: str = 'hysteresis'
 
     def config(self) -> HysteresisConfig:
@@ -227,7 +234,12 @@ def _hysteresis_step(f: _Fields, name: str) -> HysteresisStep:
         dwell_s=f.num('dwell_s', 0.2, lo=0.0, lo_open=True, hi=60.0),
         output_speed_rad_s=f.num('output_speed_rad_s', 2.0e-4, lo=0.0, lo_open=True, hi=0.1),
         lost_motion_fraction=f.num('lost_motion_fraction', 0.03, lo=0.0, lo_open=True, hi=0.5),
-        rigidity=tuple(regions), preload=f.flag('preload', True))
+        rigidity=tuple(regions), preload=f.flag('preload', True),
+        positions=f.integer('positions', 1, lo=1),
+        reposition_speed_rpm=f.num('reposition_speed_rpm', 300.0, lo=0.0, lo_open=True,
+                                   hi=1e5))
+    if step.positions > 36:  # noqa: PLR2004
+        f.fail('positions', 'must be <= 36', step.positions)
     try:
         step.config()
     except TeConfigError as exc:

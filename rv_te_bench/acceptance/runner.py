@@ -132,7 +132,20 @@ class StepRunner:
              'load_nm': sign * load_nm}, role, {**label, 'settle_s': settle_s}))
 
     def _hysteresis(self, step: HysteresisStep) -> None:
+        for pos in range(step.positions):
+            if pos > 0:   # turn the output on by 1/positions of a revolution, then lock
+                # in whole blocks (the bench's unit of time): the speed is lowered a little
+                block_s = self.ctx.block_size / self.ctx.sample_rate_hz
+                move_s = self.ctx.gear_ratio * 60.0 / step.reposition_speed_rpm / step.positions
+                duration = math.ceil(move_s / block_s - 1e-9) * block_s
+                self.segments.append(_Segment(
+                    {'kind': 'drive', 'speed_rpm': step.reposition_speed_rpm * move_s / duration,
+                     'duration_s': duration}, 'reposition', {'position': pos}))
+            self._cycle(step, pos)
+
+    def _cycle(self, step: HysteresisStep, pos: int) -> None:
         tr = step.rated_torque_nm
+        label = {'position': pos}
         if step.method == 'torque_steps':
             cfg = step.config()
             n = round(1.0 / step.step_fraction)
@@ -141,24 +154,21 @@ class StepRunner:
             up = [f * tr for f in fr]
             if step.preload:
                 for t in [-0.5 * tr, -tr, -0.5 * tr, 0.0]:
-                    self._torque(t, step.dwell_s, 'preload')
+                    self._torque(t, step.dwell_s, 'preload', label)
             seq = up + up[-2::-1] + [-t for t in up[1:]] + [-t for t in up[-2::-1]]
             for t in seq:
-                self._torque(t, step.dwell_s, 'cycle')
+                self._torque(t, step.dwell_s, 'cycle', label)
         else:
             w = step.output_speed_rad_s
-            if step.preload:
-                self.segments.append(_Segment({'kind': 'output_speed', 'speed_rad_s': -w,
-                                               'target_torque_nm': -tr}, 'preload'))
-                self.segments.append(_Segment({'kind': 'output_speed', 'speed_rad_s': w,
-                                               'target_torque_nm': 0.0}, 'preload'))
-            for sign, target in ((1, tr), (-1, -tr), (1, 0.0)):
+            moves = ((-1, -tr, 'preload'), (1, 0.0, 'preload')) if step.preload else ()
+            for sign, target, role in (*moves, (1, tr, 'cycle'), (-1, -tr, 'cycle'),
+                                       (1, 0.0, 'cycle')):
                 self.segments.append(_Segment({'kind': 'output_speed', 'speed_rad_s': sign * w,
-                                               'target_torque_nm': target}, 'cycle'))
+                                               'target_torque_nm': target}, role, dict(label)))
 
-    def _torque(self, t: float, dwell: float, role: str) -> None:
+    def _torque(self, t: float, dwell: float, role: str, label: dict[str, Any]) -> None:
         self.segments.append(_Segment({'kind': 'torque', 'torque_nm': t, 'duration_s': dwell},
-                                      role))
+                                      role, dict(label)))
 
     def program(self) -> list[dict[str, Any]]:
         """The bench program (plain segments, for ``sim.program.program_from_plain``)."""
@@ -262,34 +272,57 @@ class StepRunner:
         return measured, {'kind': self.step.kind, 'rows': rows}
 
     def _hysteresis_result(self, step: HysteresisStep) -> tuple[list[Measured], dict[str, Any]]:
-        cycle = [s for s in self.segments if s.role == 'cycle']
-        details: dict[str, Any] = {'kind': 'hysteresis', 'method': step.method,
-                                   'rated_torque_nm': step.rated_torque_nm}
+        """Metrics per measurement position; the unit's value is the worst position's."""
         names = ['lost_motion_rad', 'backlash_rad', 'hysteresis_loss_j',
                  *(f'torsional_rigidity_{r[0]}_nm_per_rad' for r in step.rigidity)]
+        details: dict[str, Any] = {'kind': 'hysteresis', 'method': step.method,
+                                   'rated_torque_nm': step.rated_torque_nm, 'positions': []}
+        per: list[dict[str, float]] = []
+        for pos in range(step.positions):
+            cycle = [s for s in self.segments
+                     if s.role == 'cycle' and s.label.get('position') == pos]
+            values, curve = self._one_position(step, cycle, names)
+            per.append(values)
+            details['positions'].append(curve)
+        worst = {}
+        for n in names:
+            vals = [v[n] for v in per if math.isfinite(v[n])]
+            pick = min if n.startswith('torsional_rigidity_') else max
+            worst[n] = pick(vals) if len(vals) == len(per) else math.nan
+        # the curve shown: the position with the largest lost motion
+        lm = [v['lost_motion_rad'] for v in per]
+        shown = int(np.nanargmax(lm)) if np.any(np.isfinite(lm)) else 0
+        details.update(details['positions'][shown])
+        details['shown_position'] = shown
+        return [Measured(n, step.name, _unit(n), worst[n]) for n in names], details
+
+    def _one_position(self, step: HysteresisStep, cycle: list[_Segment],
+                      names: list[str]) -> tuple[dict[str, float], dict[str, Any]]:
+        nan = dict.fromkeys(names, math.nan)
         if hole := self._incomplete(cycle):
-            details['error'] = hole
-            return [Measured(n, step.name, _unit(n), math.nan) for n in names], details
+            return nan, {'error': hole}
         parts = [self._cat(s) for s in cycle]
         th_in = np.concatenate([p[0] for p in parts])
         th_out = np.concatenate([p[1] for p in parts])
         applied = -np.concatenate([p[2] for p in parts])
         angle = th_out - th_in / self.ctx.gear_ratio
+        position_deg = float(np.degrees(np.mod(np.mean(th_in) / self.ctx.gear_ratio,
+                                               2 * math.pi))) if th_in.size else math.nan
         if step.method == 'torque_steps':
             t, a, _ = dwell_points(applied, angle)
         else:
             t, a = applied, angle
-        details['samples'] = int(applied.size)
+        curve: dict[str, Any] = {'samples': int(applied.size),
+                                 'output_position_deg': _fin(position_deg)}
         try:
             m = hysteresis_metrics(t, a, step.config())
         except TeInputError as exc:
-            details['error'] = str(exc)
-            return [Measured(n, step.name, _unit(n), math.nan) for n in names], details
-        centre = 0.5 * (m.zero_width_rad[0] + m.zero_width_rad[1])
+            curve['error'] = str(exc)
+            return nan, curve
         asc_t, asc_a = _decimate(*m.ascending)
         dn_t, dn_a = _decimate(*m.descending)
-        details.update({
-            'centre_rad': _fin(centre),
+        curve.update({
+            'centre_rad': _fin(0.5 * (m.zero_width_rad[0] + m.zero_width_rad[1])),
             'ascending_torque_nm': asc_t, 'ascending_angle_rad': asc_a,
             'descending_torque_nm': dn_t, 'descending_angle_rad': dn_a,
             'zero_width_rad': [_fin(x) for x in m.zero_width_rad],
@@ -299,12 +332,13 @@ class StepRunner:
                                     for k, v in m.rigidity_nm_per_rad.items()},
             'rigidity_points': {k: [[_fin(x) for x in side] for side in v]
                                 for k, v in m.rigidity_points.items()},
-            'max_torque_nm': m.max_torque_nm, 'min_torque_nm': m.min_torque_nm})
+            'max_torque_nm': m.max_torque_nm, 'min_torque_nm': m.min_torque_nm,
+            'lost_motion_rad': _fin(m.lost_motion_rad), 'backlash_rad': _fin(m.backlash_rad)})
         values = {'lost_motion_rad': m.lost_motion_rad, 'backlash_rad': m.backlash_rad,
                   'hysteresis_loss_j': m.hysteresis_loss_j}
         for r in step.rigidity:
             values[f'torsional_rigidity_{r[0]}_nm_per_rad'] = m.rigidity_min_nm_per_rad(r[0])
-        return [Measured(n, step.name, _unit(n), values[n]) for n in names], details
+        return values, curve
 
 
 def _unit(name: str) -> str:

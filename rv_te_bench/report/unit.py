@@ -47,6 +47,10 @@ def _fmt(x: float, digits: int = 4) -> str:
     return '-' if not math.isfinite(x) else f'{x:.{digits}g}'
 
 
+def _deg(x: float | None) -> str:
+    return '-' if x is None or not math.isfinite(x) else f'{x:.1f}'
+
+
 def _label(name: str) -> str:
     if name.startswith('torsional_rigidity_'):
         return f'torsional rigidity {name[19:].rsplit("_nm_per_rad", 1)[0]}'
@@ -248,7 +252,9 @@ def _conditions(report: dict[str, Any]) -> list[tuple[str, str]]:
                         + (f", steps of {100 * step['step_fraction']:g} %, dwell "
                            f"{step['dwell_s']:g} s" if step['method'] == 'torque_steps' else
                            f", {step['output_speed_rad_s']:g} rad/s")
-                        + (', preloaded to -T_R' if step['preload'] else '')))
+                        + (', preloaded to -T_R' if step['preload'] else '')
+                        + (f", at {step['positions']} output positions"
+                           if step.get('positions', 1) > 1 else '')))
         else:
             out.append((f"sweep {step['name']!r}",
                         f"speeds {step['speeds_rpm']} rpm x loads {step['loads_nm']} N m, "
@@ -355,6 +361,20 @@ def render_unit_html(report: dict[str, Any], images: dict[str, bytes]) -> str:
                                 for k, v in s['rigidity_nm_per_rad'].items())
                 p.append(f"<p>Torsional rigidity per side: {_e(rig)}; the verdict uses the "
                          "smaller.</p>")
+            if len(s.get('positions', [])) > 1:
+                p.append('<table><tr><th>position</th><th>output angle [deg]</th>'
+                         '<th>lost motion [arcmin]</th><th>backlash [arcmin]</th></tr>')
+                for j, c in enumerate(s['positions']):
+                    lm = c.get('lost_motion_rad')
+                    bl = c.get('backlash_rad')
+                    p.append(f"<tr><td>{j + 1}{' (curve below)' if j == s['shown_position'] else ''}"
+                             f"</td><td>{_deg(c.get('output_position_deg'))}</td>"
+                             f"<td>{_fmt((lm if lm is not None else math.nan) * ARCMIN_PER_RAD)}"
+                             f"</td><td>{_fmt((bl if bl is not None else math.nan) * ARCMIN_PER_RAD)}"
+                             f"</td></tr>")
+                p.append('</table><p class="muted">The unit\'s lost motion and backlash are the '
+                         'largest of the positions, its rigidity the smallest; the curve is the '
+                         'position with the largest lost motion.</p>')
             img('hysteresis.png', 'hysteresis curve with lost motion, backlash, rigidity')
     if te_rows:
         p.append('<h2>Spectrum</h2>')

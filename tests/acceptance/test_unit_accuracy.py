@@ -124,6 +124,31 @@ def test_hu_rv_units(clearance_arcmin: float, face_width_m: float) -> None:
     assert close(metric(r, 'lost_motion_rad'), lm, increment=INCREMENT)
 
 
+def test_2kv_backlash_at_several_output_positions() -> None:
+    """The paper's 2K-V: backlash changes with the position (Eq. 9); each of four positions
+    is measured against Eq. 18 at that locked angle, and the unit's value is the largest."""
+    from sim import wang2020  # noqa: PLC0415
+
+    plan = hysteresis_plan(300.0)
+    plan['steps'][0]['positions'] = 4
+    r = run_unit('wang2020-2kv', [], plan)
+    params = wang2020.Wang2kvParams.from_preset(load_preset('wang2020-2kv'))
+    tf = 4.5
+    (step,) = r['steps']
+    widths = []
+    for pos in step['positions']:
+        th = math.radians(pos['output_position_deg'])
+        # unloaded from +T_R the tooth backs hold T_f, from -T_R the drive flanks (Eq. 18)
+        truth = float(wang2020.static_te_rad(th, -tf, params) - wang2020.static_te_rad(th, tf,
+                                                                                      params))
+        assert close(pos['backlash_rad'], truth, increment=INCREMENT)
+        widths.append(pos['backlash_rad'])
+    assert np.ptp(widths) > 0.1 * ARCMIN        # the positions differ (1.83..2.06 arcmin)
+    assert metric(r, 'backlash_rad') == max(widths)
+    spread = [p['output_position_deg'] for p in step['positions']]
+    assert np.diff(spread) % 360 == pytest.approx([90.0] * 3, abs=0.5)
+
+
 def test_limits_decide_pass_and_fail() -> None:
     """A unit set inside every limit passes, one set outside a limit fails on that limit."""
     inside = run_unit('li2023-rv', ['torsion.clearance_rad=1.5e-4'], hysteresis_plan(450.0),
