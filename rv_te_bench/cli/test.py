@@ -159,29 +159,40 @@ def run(args: argparse.Namespace) -> int:  # noqa: C901, PLR0912, PLR0915
     verdict, reason, report_json = result
     report = json.loads(report_json) if report_json else None
     if report is not None:
-        from rv_te_bench.report.unit import human_reason  # noqa: PLC0415
-
-        reason = human_reason(report)
-    if report is not None:
         if args.launch:
             report['bench']['bag'] = str(out_dir / 'bag')
-        from rv_te_bench.report.unit import write_unit_report  # noqa: PLC0415
-
-        paths = write_unit_report(report, report_dir)
-        if args.json:
-            print(json.dumps(report, indent=1))
-        else:
-            _print_table(report)
-            print(f'report: {paths["html"]}')
+        show_report(report, report_dir, as_json=args.json)
         if args.launch:
             _record(args, report, out_dir / 'bag')
+    return verdict_exit(verdict, args.serial, reason, report)
+
+
+def show_report(report: dict[str, Any], directory: Path, *, as_json: bool) -> None:
+    """Write the unit report; print the record as JSON or the verdict table and its path."""
+    from rv_te_bench.report.unit import write_unit_report  # noqa: PLC0415
+
+    paths = write_unit_report(report, directory)
+    if as_json:
+        print(json.dumps(report, indent=1))
+    else:
+        _print_table(report)
+        print(f'report: {paths["html"]}')
+
+
+def verdict_exit(verdict: str, serial: str, reason: str,
+                 report: dict[str, Any] | None) -> int:
+    """The verdict line and the exit code: 0 pass, 3 fail, 1 anything else."""
+    from rv_te_bench.report.unit import human_reason  # noqa: PLC0415
+
+    if report is not None:
+        reason = human_reason(report)
     if verdict == 'pass':
-        print(f'VERDICT: PASS  unit {args.serial}: {reason}')
+        print(f'VERDICT: PASS  unit {serial}: {reason}')
         return 0
     if verdict == 'fail':
-        print(f'VERDICT: FAIL  unit {args.serial}: {reason}')
+        print(f'VERDICT: FAIL  unit {serial}: {reason}')
         return EXIT_FAIL
-    print(f'ERROR: test of unit {args.serial} {verdict}: {reason}', file=sys.stderr)
+    print(f'ERROR: test of unit {serial} {verdict}: {reason}', file=sys.stderr)
     return 1
 
 

@@ -63,10 +63,9 @@ def run(args: argparse.Namespace) -> int:
     from rv_te_bench.acceptance._files import parse_yaml_text  # noqa: PLC0415
     from rv_te_bench.acceptance.runner import reanalyse  # noqa: PLC0415
     from rv_te_bench.acceptance.tolerance import parse_tolerance  # noqa: PLC0415
-    from rv_te_bench.cli.test import EXIT_FAIL, _print_table  # noqa: PLC0415
+    from rv_te_bench.cli.test import show_report, verdict_exit  # noqa: PLC0415
     from rv_te_bench.errors import AcceptanceError  # noqa: PLC0415
     from rv_te_bench.io.test_records import read_recorded_test  # noqa: PLC0415
-    from rv_te_bench.report.unit import human_reason, write_unit_report  # noqa: PLC0415
 
     bag = Path(args.bag)
     rec = read_recorded_test(bag, serial=args.serial)
@@ -94,13 +93,8 @@ def run(args: argparse.Namespace) -> int:
                     conditions=old.get('conditions'),
                     started_utc=old.get('unit', {}).get('date_utc', ''), status=status)
     new['bench']['bag'] = str(bag)
-    out_dir = Path(args.report) if args.report else bag.parent / 'unit-report'
-    paths = write_unit_report(new, out_dir)
-    if args.json:
-        print(json.dumps(new, indent=1))
-    else:
-        _print_table(new)
-        print(f'report: {paths["html"]}')
+    show_report(new, Path(args.report) if args.report else bag.parent / 'unit-report',
+                as_json=args.json)
     diffs = _differences(new, old) if old else []
     if diffs:
         print(f'ERROR: recomputed from the bag, {len(diffs)} metric(s) differ from the '
@@ -109,12 +103,4 @@ def run(args: argparse.Namespace) -> int:
     if old:
         print(f'recomputed from {len(rec.blocks)} recorded blocks: every metric equals the '
               'recorded result', file=sys.stderr)
-    if new['verdict'] == 'pass':
-        print(f'VERDICT: PASS  unit {r["serial"]}: {human_reason(new)}')
-        return 0
-    if new['verdict'] == 'fail':
-        print(f'VERDICT: FAIL  unit {r["serial"]}: {human_reason(new)}')
-        return EXIT_FAIL
-    print(f'ERROR: the test of unit {r["serial"]} was {new["verdict"]}: {new["reason"]}',
-          file=sys.stderr)
-    return 1
+    return verdict_exit(new['verdict'], r['serial'], new['reason'], new)

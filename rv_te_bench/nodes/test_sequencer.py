@@ -293,7 +293,7 @@ class TestSequencerNode(Node):
         while not future.done() and time.monotonic() < deadline:
             await self._sleep()
 
-    # -- messages -----------------------------------------------------------------------------------
+    # -- messages -------------------------------------------------------------------------
     def _feedback(self, goal_handle: Any, j: int, n: int, step: Any,  # noqa: ANN401
                   runner: StepRunner) -> None:
         prog = self._prog

@@ -21,7 +21,8 @@ import numpy as np
 from rv_te_bench.report.plots import _new_figure, png_bytes
 from sim.units import ARCMIN_PER_RAD, ARCSEC_PER_RAD
 
-__all__ = ['format_live', 'human_reason', 'metric_rows', 'render_unit_html', 'unit_figures', 'write_unit_report']
+__all__ = ['format_live', 'human_reason', 'metric_rows', 'render_unit_html', 'unit_figures',
+           'write_unit_report']
 
 _LABELS = {
     'te_pp_ccw_rad': 'TE p-p, ccw (output +)', 'te_pp_cw_rad': 'TE p-p, cw (output -)',
@@ -365,13 +366,12 @@ def render_unit_html(report: dict[str, Any], images: dict[str, bytes]) -> str:
                 p.append('<table><tr><th>position</th><th>output angle [deg]</th>'
                          '<th>lost motion [arcmin]</th><th>backlash [arcmin]</th></tr>')
                 for j, c in enumerate(s['positions']):
-                    lm = c.get('lost_motion_rad')
-                    bl = c.get('backlash_rad')
-                    p.append(f"<tr><td>{j + 1}{' (curve below)' if j == s['shown_position'] else ''}"
-                             f"</td><td>{_deg(c.get('output_position_deg'))}</td>"
-                             f"<td>{_fmt((lm if lm is not None else math.nan) * ARCMIN_PER_RAD)}"
-                             f"</td><td>{_fmt((bl if bl is not None else math.nan) * ARCMIN_PER_RAD)}"
-                             f"</td></tr>")
+                    lm, bl = (_display('rad', c.get(k))[0] for k in ('lost_motion_rad',
+                                                                      'backlash_rad'))
+                    shown = ' (curve below)' if j == s['shown_position'] else ''
+                    p.append(f"<tr><td>{j + 1}{shown}</td>"
+                             f"<td>{_deg(c.get('output_position_deg'))}</td>"
+                             f"<td>{_fmt(lm)}</td><td>{_fmt(bl)}</td></tr>")
                 p.append('</table><p class="muted">The unit\'s lost motion and backlash are the '
                          'largest of the positions, its rigidity the smallest; the curve is the '
                          'position with the largest lost motion.</p>')
