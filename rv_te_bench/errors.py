@@ -49,3 +49,11 @@ class PlanError(AcceptanceError):
 
 class ToleranceError(AcceptanceError):
     """A tolerance profile is invalid (names the file, the metric, the key and the rule)."""
+
+
+class YamlInputError(ParameterFileError):
+    """YAML input is unreadable, invalid or over a limit (size, depth, aliases, nodes)."""
+
+
+class YamlLimitError(YamlInputError):
+    """YAML input over a limit: too large, too deep, aliases, or too many expanded nodes."""

@@ -14,9 +14,8 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
-import yaml
-
 from rv_te_bench.errors import ParameterFileError
+from rv_te_bench.safe_yaml import PARAMETER_FILE_LIMITS, brief, read_yaml_file
 
 if TYPE_CHECKING:
     from collections.abc import Callable
@@ -75,42 +74,55 @@ class ParamSpec:
     def _check_type(self, value: Any) -> str | None:  # noqa: ANN401, C901, PLR0911, PLR0912
         t = self.type
         if t == 'bool':
-            return None if isinstance(value, bool) else f'must be a bool, got {value!r}'
+            return None if isinstance(value, bool) else f'must be a bool, got {brief(value)}'
         if t == 'int':
             if isinstance(value, bool) or not isinstance(value, int):
-                return f'must be an integer, got {value!r}'
+                return f'must be an integer, got {brief(value)}'
             return self._range(value)
         if t == 'double':
             if isinstance(value, bool) or not isinstance(value, int | float):
-                return f'must be a number, got {value!r}'
+                return f'must be a number, got {brief(value)}'
             if not math.isfinite(value):
-                return f'must be finite, got {value!r}'
+                return f'must be finite, got {brief(value)}'
             return self._range(float(value))
         if t == 'string':
+            if isinstance(value, str) and not _is_utf8(value):
+                return f'must be UTF-8 text, got {brief(value)} (undecodable bytes)'
             if not isinstance(value, str):
-                return f'must be a string, got {value!r}'
+                return f'must be a string, got {brief(value)}'
             if self.choices and value not in self.choices:
-                return f'must be one of {list(self.choices)}, got {value!r}'
+                return f'must be one of {list(self.choices)}, got {brief(value)}'
             return None
         if t == 'string_array':
             if not isinstance(value, list | tuple) or not all(isinstance(v, str) for v in value):
-                return f'must be a list of strings, got {value!r}'
+                return f'must be a list of strings, got {brief(value)}'
+            if not all(_is_utf8(v) for v in value):
+                return f'must hold UTF-8 text, got {brief(value)} (undecodable bytes)'
             return None
         if t == 'double_array':
             if not isinstance(value, list | tuple) or not all(
                     isinstance(v, int | float) and not isinstance(v, bool) for v in value):
-                return f'must be a list of numbers, got {value!r}'
+                return f'must be a list of numbers, got {brief(value)}'
             if not all(math.isfinite(v) for v in value):
-                return f'must hold finite numbers, got {value!r}'
+                return f'must hold finite numbers, got {brief(value)}'
             return None
         return None
 
     def _range(self, value: float) -> str | None:
         if self.min_value is not None and value < self.min_value:
-            return f'must be >= {self.min_value:g}, got {value!r}'
+            return f'must be >= {self.min_value:g}, got {brief(value)}'
         if self.max_value is not None and value > self.max_value:
-            return f'must be <= {self.max_value:g}, got {value!r}'
+            return f'must be <= {self.max_value:g}, got {brief(value)}'
         return None
+
+
+def _is_utf8(text: str) -> bool:
+    """False for a str holding surrogates (undecodable bytes of a command line or path)."""
+    try:
+        text.encode('utf-8')
+    except UnicodeEncodeError:
+        return False
+    return True
 
 
 def coerce_value(spec: ParamSpec, value: Any) -> Any:  # noqa: ANN401
@@ -149,12 +161,12 @@ def check_parameters(specs: tuple[ParamSpec, ...], values: dict[str, Any], *, wh
     for key, value in values.items():
         if key in {'use_sim_time'}:
             if not isinstance(value, bool):
-                msg = f'{where}: parameter {key!r} must be a bool, got {value!r}'
+                msg = f'{where}: parameter {key!r} must be a bool, got {brief(value)}'
                 raise ParameterFileError(msg)
             continue
         spec = by_name.get(key)
         if spec is None:
-            msg = (f'{where}: unknown parameter {key!r}; known: '
+            msg = (f'{where}: unknown parameter {brief(key)}; known: '
                    f'{", ".join(sorted(by_name))}')
             raise ParameterFileError(msg)
         problem = spec.check(value)
@@ -171,40 +183,57 @@ def check_parameters(specs: tuple[ParamSpec, ...], values: dict[str, Any], *, wh
 def load_parameter_file(path: str | Path) -> dict[str, dict[str, Any]]:
     """Read a ROS 2 parameter file: ``node_name: {ros__parameters: {...}}``.
 
-    Node keys may carry a namespace (``/bench1/te_node``) or be the wildcard ``/**``.
-    Loaded with ``yaml.safe_load``: nothing in the file is executed.
+    Node keys may carry a namespace (``/bench1/te_node``, or nested mappings
+    ``bench1: {te_node: {ros__parameters: ...}}`` as rcl reads them) or be the wildcard
+    ``/**``. Read as rcl reads it for the nodes (:mod:`rv_te_bench.safe_yaml`, ``'ros'``
+    scalars: ``1.0e12`` is a double, ``yes`` a bool), within
+    :data:`~rv_te_bench.safe_yaml.PARAMETER_FILE_LIMITS` and with no aliases (rcl refuses
+    them); a key repeated in one mapping is an error (rcl would silently keep the last).
 
     Returns:
-        Node key -> parameter dict.
+        Node key -> parameter dict (nested parameter names joined with ``.``).
 
     Raises:
-        ParameterFileError: Missing file, bad YAML, or not the ROS 2 layout.
+        ParameterFileError: Missing file, not UTF-8/16 text, bad YAML, over a limit, a
+            repeated key, or not the ROS 2 layout.
     """
     p = Path(path)
-    try:
-        text = p.read_text(encoding='utf-8')
-    except OSError as exc:
-        msg = f'parameter file {p}: cannot read ({exc.strerror})'
-        raise ParameterFileError(msg) from None
-    try:
-        data = yaml.safe_load(text)
-    except yaml.YAMLError as exc:
-        msg = f'parameter file {p}: not valid YAML ({exc})'.replace('\n', ' ')
-        raise ParameterFileError(msg) from None
+    data = read_yaml_file(p, what='parameter file', limits=PARAMETER_FILE_LIMITS,
+                          scalars='ros', unique_keys=True)
     if data is None:
         return {}
     if not isinstance(data, dict):
         msg = f'parameter file {p}: top level must map node names to ros__parameters'
         raise ParameterFileError(msg)
     out: dict[str, dict[str, Any]] = {}
-    for node_key, body in data.items():
-        if not isinstance(body, dict) or set(body) != {'ros__parameters'} or not isinstance(
-                body['ros__parameters'], dict):
-            msg = (f'parameter file {p}: node {node_key!r} must contain exactly '
+    _collect_nodes(data, '', p, out)
+    return out
+
+
+def _collect_nodes(mapping: dict[str, Any], prefix: str, p: Path,
+                   out: dict[str, dict[str, Any]]) -> None:
+    """Node keys (nested mappings are namespaces, as rcl joins them with '/')."""
+    for key, body in mapping.items():
+        name = f'{prefix}/{key}' if prefix else str(key)
+        if key == 'ros__parameters':
+            msg = f'parameter file {p}: "ros__parameters" needs a node name above it'
+            raise ParameterFileError(msg)
+        if isinstance(body, dict) and 'ros__parameters' in body:
+            if set(body) != {'ros__parameters'} or not isinstance(body['ros__parameters'],
+                                                                  dict):
+                msg = (f'parameter file {p}: node {brief(name)} must contain exactly '
+                       f'"ros__parameters: {{...}}"')
+                raise ParameterFileError(msg)
+            if name in out:
+                msg = f'parameter file {p}: node {brief(name)} is given twice'
+                raise ParameterFileError(msg)
+            out[name] = _flatten_params(body['ros__parameters'])
+        elif isinstance(body, dict) and body:
+            _collect_nodes(body, name, p, out)
+        else:
+            msg = (f'parameter file {p}: node {brief(name)} must contain exactly '
                    f'"ros__parameters: {{...}}"')
             raise ParameterFileError(msg)
-        out[str(node_key)] = _flatten_params(body['ros__parameters'])
-    return out
 
 
 def _flatten_params(params: dict[str, Any], prefix: str = '') -> dict[str, Any]:

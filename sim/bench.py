@@ -312,21 +312,3 @@ class BenchSimulator:
                 parameters_yaml=yaml.safe_dump(record, sort_keys=True),
             )
         return self._info
-
-
-def overrides_from_parameters_yaml(text: str) -> list[str]:
-    """The preset overrides a bench ran with, from ``BenchInfoData.parameters_yaml``.
-
-    The inverse of what :attr:`BenchSimulator.info` records (``bench.overrides``), so that
-    a consumer of a live BenchInfo or of a bag can rebuild the bench's exact preset.
-    Anything unreadable gives ``[]`` (the base preset).
-    """
-    if not text:
-        return []
-    try:
-        record = yaml.safe_load(text)
-    except yaml.YAMLError:
-        return []
-    bench = record.get('bench') if isinstance(record, dict) else None
-    overrides = bench.get('overrides') if isinstance(bench, dict) else None
-    return [str(o) for o in overrides] if isinstance(overrides, list | tuple) else []

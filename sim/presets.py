@@ -28,6 +28,8 @@ name the key in their message.
 from __future__ import annotations
 
 import math
+import os
+import stat
 import tomllib
 from dataclasses import dataclass, field
 from importlib import resources
@@ -187,6 +189,32 @@ def _flatten(prefix: str, table: dict[str, Any], out: dict[str, PresetValue]) ->
             out[flat] = PresetValue(item)
 
 
+#: Largest preset file read [bytes] (the shipped ones are ~10 kB).
+MAX_PRESET_BYTES = 1 << 20
+
+
+def _read_preset_file(path: Path) -> str:
+    """A preset TOML file's text: a regular file, at most MAX_PRESET_BYTES, UTF-8."""
+    try:
+        with path.open('rb') as f:
+            if not stat.S_ISREG(os.fstat(f.fileno()).st_mode):
+                msg = f'preset {path}: not a regular file'
+                raise PresetError(msg)
+            data = f.read(MAX_PRESET_BYTES + 1)
+    except OSError as exc:
+        msg = f'preset {path}: cannot read ({exc.strerror or exc})'
+        raise PresetError(msg) from None
+    if len(data) > MAX_PRESET_BYTES:
+        msg = f'preset {path} is larger than {MAX_PRESET_BYTES >> 20} MiB: not read'
+        raise PresetError(msg)
+    try:
+        return data.decode('utf-8')
+    except UnicodeDecodeError as exc:
+        msg = (f'preset {path} is not UTF-8 text (byte 0x{data[exc.start]:02x} at offset '
+               f'{exc.start}); TOML files are UTF-8')
+        raise PresetError(msg) from None
+
+
 def preset_from_text(text: str, origin: str = '<text>') -> Preset:
     """Parse a preset from TOML text.
 
@@ -197,6 +225,9 @@ def preset_from_text(text: str, origin: str = '<text>') -> Preset:
         data = tomllib.loads(text)
     except tomllib.TOMLDecodeError as exc:
         msg = f'preset {origin}: not valid TOML ({exc})'
+        raise PresetError(msg) from None
+    except RecursionError:
+        msg = f'preset {origin}: not valid TOML (nested too deeply)'
         raise PresetError(msg) from None
     name = data.pop('name', None)
     model = data.pop('model', None)
@@ -224,7 +255,7 @@ def load_preset(name_or_path: str | Path, overrides: dict[str, str] | list[str] 
     """
     path = Path(name_or_path)
     if path.suffix == '.toml' and path.exists():
-        preset = preset_from_text(path.read_text(encoding='utf-8'), str(path))
+        preset = preset_from_text(_read_preset_file(path), str(path))
     else:
         name = str(name_or_path)
         known = available_presets()

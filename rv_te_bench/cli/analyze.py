@@ -22,8 +22,9 @@ from pathlib import Path
 from typing import TYPE_CHECKING, Any, TextIO
 
 from rv_te_bench.cli._db import add_db_argument, db_for_bags
-from rv_te_bench.cli.argtypes import nonnegative_int, positive_float, positive_int
+from rv_te_bench.cli.argtypes import int_between, positive_float
 from rv_te_bench.errors import RvTeError
+from rv_te_bench.safe_yaml import one_line
 from sim.units import rad_to_arcmin, rad_to_deg
 
 if TYPE_CHECKING:
@@ -45,6 +46,10 @@ exit codes: 0 ok (partial results are marked PARTIAL), 1 failed (one ERROR: line
 stderr), 2 bad usage
 """
 
+#: Largest --harmonics and --window-revolutions (the TE node's n_crank_harmonics and
+#: window_revolutions ranges).
+MAX_HARMONICS = 200
+MAX_WINDOW_REVOLUTIONS = 1000
 #: Seconds between two progress lines on stderr.
 PROGRESS_PERIOD_S = 2.0
 
@@ -65,10 +70,12 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
                         '--crank-per-output, for bags without BenchInfo; overrides BenchInfo')
     p.add_argument('--crank-per-output', type=positive_float, metavar='C', default=None,
                    help='absolute crank revs per output rev (25 for the Wang 2020 2K-V)')
-    p.add_argument('--harmonics', type=nonnegative_int, default=10, metavar='K',
-                   help='crank harmonics reported (1 f_w .. K f_w)')
-    p.add_argument('--window-revolutions', type=positive_int, default=1, metavar='W',
-                   help='whole output revolutions per analysis window')
+    p.add_argument('--harmonics', type=int_between(0, MAX_HARMONICS), default=10, metavar='K',
+                   help=f'crank harmonics reported (1 f_w .. K f_w), 0..{MAX_HARMONICS}')
+    p.add_argument('--window-revolutions', type=int_between(1, MAX_WINDOW_REVOLUTIONS),
+                   default=1, metavar='W',
+                   help='whole output revolutions per analysis window, '
+                        f'1..{MAX_WINDOW_REVOLUTIONS}')
     p.add_argument('--no-advice', action='store_true',
                    help='skip the compensation recommendation (the 2K-V assembly-phase '
                         'search takes several seconds)')
@@ -122,7 +129,7 @@ def run(args: argparse.Namespace) -> int:
     try:
         return _run(args)
     except RvTeError as exc:
-        print(f'ERROR: {exc}', file=sys.stderr)
+        print(f'ERROR: {one_line(exc)}', file=sys.stderr)
         return 1
     except BrokenPipeError:
         # stdout closed early (``rv-te analyze bag | head``): not an error of the analysis.

@@ -4,6 +4,10 @@ from __future__ import annotations
 
 import argparse
 import math
+from typing import TYPE_CHECKING
+
+if TYPE_CHECKING:
+    from collections.abc import Callable
 
 
 def positive_float(text: str) -> float:
@@ -40,3 +44,35 @@ def nonnegative_int(text: str) -> int:
 def positive_int(text: str) -> int:
     """An integer >= 1."""
     return int_at_least(text, 1)
+
+
+def float_between(lo: float, hi: float) -> Callable[[str], float]:
+    """An argparse type: a finite number in [lo, hi] (argparse names the flag on error)."""
+
+    def parse(text: str) -> float:
+        try:
+            value = float(text)
+        except ValueError:
+            msg = f'not a number: {text!r}'
+            raise argparse.ArgumentTypeError(msg) from None
+        if not (math.isfinite(value) and lo <= value <= hi):
+            msg = f'must be between {lo:g} and {hi:g}, got {text!r}'
+            raise argparse.ArgumentTypeError(msg)
+        return value
+
+    parse.__name__ = 'number'   # argparse's "invalid number value" wording
+    return parse
+
+
+def int_between(lo: int, hi: int) -> Callable[[str], int]:
+    """An argparse type: an integer in [lo, hi]."""
+
+    def parse(text: str) -> int:
+        value = int_at_least(text, lo)
+        if value > hi:
+            msg = f'must be <= {hi}, got {text!r}'
+            raise argparse.ArgumentTypeError(msg)
+        return value
+
+    parse.__name__ = 'integer'
+    return parse

@@ -14,6 +14,7 @@ import sys
 from typing import Any
 
 from rv_te_bench.errors import CompensationError, RvTeError
+from rv_te_bench.safe_yaml import one_line
 from sim.errors import SimError
 from sim.units import arcmin_to_rad, rad_to_arcmin
 
@@ -97,7 +98,7 @@ def run(args: argparse.Namespace) -> int:
         out = (json.dumps(advice.to_json_dict(), indent=2) if args.json
                else _text(advice))
     except (RvTeError, SimError) as exc:
-        print(f'ERROR: {exc}', file=sys.stderr)
+        print(f'ERROR: {one_line(exc)}', file=sys.stderr)
         return 1
     print(out)
     return 0

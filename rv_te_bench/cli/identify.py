@@ -24,7 +24,7 @@ from typing import Any
 
 import numpy as np
 
-from rv_te_bench.cli.argtypes import positive_float
+from rv_te_bench.cli.argtypes import nonnegative_int, positive_float
 from rv_te_bench.cli.optimize_phases import (
     ProgressBar,
     add_search_arguments,
@@ -32,6 +32,7 @@ from rv_te_bench.cli.optimize_phases import (
     format_result,
     load_wang_params,
 )
+from rv_te_bench.safe_yaml import one_line
 
 EXAMPLES = """\
 examples:
@@ -67,7 +68,8 @@ def register(subparsers: Any) -> None:  # noqa: ANN401 - argparse's private type
     p.add_argument('--crank-per-output', type=positive_float, metavar='C', default=None,
                    help="absolute crank revs per output rev (default: the preset's, 25 for "
                         'the Wang 2020 2K-V)')
-    p.add_argument('--seed', type=int, default=0, help='seed of the random fit starts')
+    p.add_argument('--seed', type=nonnegative_int, default=0,
+                   help='seed of the random fit starts (integer >= 0)')
     p.add_argument('--min-explained', type=float, default=None, metavar='F',
                    help='share of the TE variance the model must explain for re-assembly '
                         'advice (default 0.99)')
@@ -168,7 +170,7 @@ def _setup(args: argparse.Namespace, info: dict[str, Any] | None,
     """(preset, params, gear ratio, source of the part magnitudes)."""
     from rv_te_bench.core.phases import EccentricGeometry  # noqa: PLC0415
     from rv_te_bench.errors import TeInputError  # noqa: PLC0415
-    from sim.bench import overrides_from_parameters_yaml  # noqa: PLC0415
+    from rv_te_bench.io.bench_record import overrides_from_parameters_yaml  # noqa: PLC0415
 
     if args.preset is None and info is None:
         msg = (f'{args.bag}: no BenchInfo in the bag: give --preset (and --ratio if the bench '
@@ -311,7 +313,7 @@ def _run(args: argparse.Namespace) -> int:  # noqa: C901, PLR0912
     except (SimError, RvTeError) as exc:
         if bar is not None:
             bar.close()
-        print(f'ERROR: {exc}', file=sys.stderr)
+        print(f'ERROR: {one_line(exc)}', file=sys.stderr)
         return 1
     if bar is not None:
         bar.close()

@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import argparse
 import importlib
+import os
 import sys
 from typing import TYPE_CHECKING
 
@@ -31,7 +32,7 @@ examples:
   rv-te model wang2020-2kv --kind nlte --json  NLTE statistics of one output revolution
   rv-te optimize-phases wang2020-2kv --json    Eq. 21 assembly-phase optimisation
   rv-te compensate hu2020-rv --te-arcmin 1.2   tooth-profile compensation (Hu 2020)
-  rv-te launch session.yaml                    bench + TE + compensation + recorder
+  rv-te launch --default                       bench + TE + compensation + recorder
   rv-te analyze bags/sample --report out/rep   offline report from a recorded bag
   rv-te replay bags/sample --rate 10           publish a bag with its recorded timing
   rv-te fleet analyze bags/ --workers 2        many bags on Dask into the results store
@@ -61,18 +62,27 @@ def build_parser() -> argparse.ArgumentParser:
 def main(argv: Sequence[str] | None = None) -> int:
     """Entry point of ``rv-te``; returns the exit code."""
     from rv_te_bench.errors import RvTeError  # noqa: PLC0415
+    from rv_te_bench.safe_yaml import one_line  # noqa: PLC0415
     from sim.errors import SimError  # noqa: PLC0415
 
-    parser = build_parser()
-    args = parser.parse_args(argv)
+    _tolerant_stdout()
+    try:
+        parser = build_parser()
+        args = parser.parse_args(argv)
+    except KeyboardInterrupt:   # Ctrl-C while the subcommands import
+        print('interrupted', file=sys.stderr)
+        return 130
     func = getattr(args, 'func', None)
     if func is None:
         parser.print_help(sys.stderr)
         return 2
     try:
-        return int(func(args))
+        code = int(func(args))
+        sys.stdout.flush()   # a closed pipe shows here, not at interpreter exit
+    except BrokenPipeError:
+        return _quiet_broken_pipe()
     except (RvTeError, SimError) as exc:
-        print(f'ERROR: {exc}', file=sys.stderr)
+        print(f'ERROR: {one_line(exc)}', file=sys.stderr)
         return 1
     except OSError as exc:   # files and folders: unwritable, a file where a folder goes...
         print(f'ERROR: {exc.strerror or exc}: {exc.filename or ""}'.rstrip(': '),
@@ -81,6 +91,31 @@ def main(argv: Sequence[str] | None = None) -> int:
     except KeyboardInterrupt:
         print('interrupted', file=sys.stderr)
         return 130
+    return code
+
+
+def _tolerant_stdout() -> None:
+    """Print paths with undecodable bytes (surrogates) escaped instead of failing."""
+    for stream in (sys.stdout, sys.stderr):
+        reconfigure = getattr(stream, 'reconfigure', None)
+        if reconfigure is not None:
+            try:
+                reconfigure(errors='backslashreplace')
+            except (ValueError, OSError):   # detached or closed stream
+                pass
+
+
+def _quiet_broken_pipe() -> int:
+    """``rv-te ... | head -1``: the reader left; that is no error of ours (exit 0, silent).
+
+    stdout is pointed at /dev/null so that the interpreter's final flush stays quiet too.
+    """
+    try:
+        devnull = os.open(os.devnull, os.O_WRONLY)
+        os.dup2(devnull, sys.stdout.fileno())
+    except (OSError, ValueError):   # not a real file (a test's capture): nothing to flush
+        pass
+    return 0
 
 
 if __name__ == '__main__':

@@ -21,6 +21,7 @@ from typing import Any
 import numpy as np
 
 from rv_te_bench.cli.argtypes import positive_float
+from rv_te_bench.safe_yaml import one_line
 
 EXAMPLES = """\
 examples:
@@ -100,7 +101,8 @@ def register(subparsers: Any) -> None:  # noqa: ANN401 - argparse's private type
                         "('unloaded'; the start-up transient is in the statistics). Sets "
                         'solver.dte_start')
     p.add_argument('--revolutions', type=positive_float, default=1.0, metavar='N',
-                   help='output revolutions to simulate (default 1)')
+                   help='output revolutions to simulate (default 1; revolutions x output '
+                        f'period x sample rate <= {MAX_SAMPLES:.0e} samples)')
     p.add_argument('--rpm', type=positive_float, default=None, metavar='R',
                    help='input speed [rpm] (default: preset drive.input_speed_rpm or 300)')
     p.add_argument('--sample-rate-hz', type=positive_float, default=10_000.0, metavar='F',
@@ -173,8 +175,8 @@ def simulate(args: argparse.Namespace) -> tuple[dict[str, Any], dict[str, np.nda
     duration_s = args.revolutions * period_s
     n = round(duration_s * fs)
     if n < 2 or n > MAX_SAMPLES:  # noqa: PLR2004
-        msg = (f'{args.revolutions} revolutions at {fs} Hz give {n} samples; '
-               f'need 2..{MAX_SAMPLES}')
+        msg = (f'--revolutions {args.revolutions:g} at --sample-rate-hz {fs:g} give {n} '
+               f'samples; need 2..{MAX_SAMPLES}')
         raise TeConfigError(msg)
     t = np.arange(n) / fs
     omega = 2.0 * math.pi * f_in
@@ -268,6 +270,21 @@ def _plot(path: Path, stats: dict[str, Any], columns: dict[str, np.ndarray]) -> 
     write_atomic(path, buf.getvalue())   # a full disk leaves no 0-byte image
 
 
+def _check_plot_format(path: Path) -> None:
+    """--plot FILE must name an image format matplotlib writes (checked before the work)."""
+    from matplotlib.backend_bases import FigureCanvasBase  # noqa: PLC0415
+
+    from rv_te_bench.errors import RvTeError  # noqa: PLC0415
+
+    kinds = FigureCanvasBase.get_supported_filetypes()
+    suffix = path.suffix.lower().lstrip('.')
+    if suffix not in kinds:
+        msg = (f'--plot {path}: {("." + suffix) if suffix else "no file extension"} is not an '
+               f'image format matplotlib writes; use one of '
+               f'{", ".join("." + k for k in sorted(kinds))}')
+        raise RvTeError(msg)
+
+
 def run(args: argparse.Namespace) -> int:
     """Run the command; 0 ok, 1 domain error (one ``ERROR:`` line on stderr)."""
     from rv_te_bench.errors import RvTeError  # noqa: PLC0415
@@ -277,13 +294,15 @@ def run(args: argparse.Namespace) -> int:
         for path in (args.csv, args.plot):
             if path is not None:
                 _check_out(path, args.force)
+        if args.plot is not None:
+            _check_plot_format(args.plot)
         stats, columns = simulate(args)
         if args.csv is not None:
             _write_csv(args.csv, columns)
         if args.plot is not None:
             _plot(args.plot, stats, columns)
     except (SimError, RvTeError) as exc:
-        print(f'ERROR: {exc}', file=sys.stderr)
+        print(f'ERROR: {one_line(exc)}', file=sys.stderr)
         return 1
     if args.json:
         print(json.dumps(stats, indent=2))

@@ -15,6 +15,8 @@ import math
 import sys
 from typing import Any, TextIO
 
+from rv_te_bench.safe_yaml import one_line
+
 EXAMPLES = """\
 examples:
   rv-te optimize-phases wang2020-2kv                    paper grid: [-70, 120, 110, 40] deg
@@ -174,7 +176,7 @@ def run(args: argparse.Namespace) -> int:
     except (SimError, RvTeError) as exc:
         if bar is not None:
             bar.close()
-        print(f'ERROR: {exc}', file=sys.stderr)
+        print(f'ERROR: {one_line(exc)}', file=sys.stderr)
         return 1
     if bar is not None:
         bar.close()

@@ -13,7 +13,7 @@ def register(subparsers: Any) -> None:  # noqa: ANN401 - argparse's private type
         'presets', help='list reducer presets, or show every value of one with unit and source',
         description='List the shipped reducer presets, or show one preset (after overrides).',
         epilog='examples:\n  rv-te presets\n  rv-te presets wang2020-2kv --json\n'
-               '  rv-te presets wang2020-2kv --set stiffness.k_n_per_m=9e7',
+               '  rv-te presets wang2020-2kv --set mesh.stiffness_n_m=9e7',
         formatter_class=argparse.RawDescriptionHelpFormatter)
     p.add_argument('name', nargs='?', help='preset name or path to a preset TOML file')
     p.add_argument('--set', dest='overrides', action='append', default=[], metavar='KEY=VALUE',

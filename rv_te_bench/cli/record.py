@@ -13,9 +13,15 @@ import argparse
 import sys
 from typing import Any
 
-from rv_te_bench.cli.argtypes import nonnegative_int
+from rv_te_bench.cli.argtypes import float_between, int_between, nonnegative_int
 
-__all__ = ['register', 'run']
+__all__ = ['FLUSH_RANGE_S', 'MAX_DURATION_S', 'MAX_SPLIT_BYTES', 'register', 'run']
+
+#: The recorder node's parameter ranges (duration_s, split_duration_s; flush_interval_s;
+#: split_size_bytes).
+MAX_DURATION_S = 1e7
+FLUSH_RANGE_S = (0.01, 60.0)
+MAX_SPLIT_BYTES = 1 << 62
 
 
 def register(subparsers: Any) -> None:  # noqa: ANN401 - argparse's private action type
@@ -34,14 +40,20 @@ def register(subparsers: Any) -> None:  # noqa: ANN401 - argparse's private acti
     parser.add_argument('--namespace', default='/', help='namespace of the session')
     parser.add_argument('--compression', choices=['zstd', 'lz4', 'none'], default='zstd',
                         help='MCAP chunk compression (default: %(default)s)')
-    parser.add_argument('--duration', type=float, default=0.0, metavar='S',
-                        help='stop after S seconds; 0: until Ctrl-C (default: %(default)s)')
-    parser.add_argument('--flush-interval', type=float, default=1.0, metavar='S',
-                        help='longest time a message stays in memory [s] (default: %(default)s)')
-    parser.add_argument('--split-size', type=int, default=0, metavar='BYTES',
+    parser.add_argument('--duration', type=float_between(0.0, MAX_DURATION_S), default=0.0,
+                        metavar='S', help=f'stop after S seconds (0..{MAX_DURATION_S:g}); 0: '
+                                          'until Ctrl-C (default: %(default)s)')
+    parser.add_argument('--flush-interval', type=float_between(*FLUSH_RANGE_S), default=1.0,
+                        metavar='S',
+                        help='longest time a message stays in memory [s], {:g}..{:g} '
+                             '(default: %(default)s)'.format(*FLUSH_RANGE_S))
+    parser.add_argument('--split-size', type=int_between(0, MAX_SPLIT_BYTES), default=0,
+                        metavar='BYTES',
                         help='start a new .mcap file past this size; 0: never')
-    parser.add_argument('--split-duration', type=float, default=0.0, metavar='S',
-                        help='start a new .mcap file after S seconds; 0: never')
+    parser.add_argument('--split-duration', type=float_between(0.0, MAX_DURATION_S),
+                        default=0.0, metavar='S',
+                        help=f'start a new .mcap file after S seconds (0..{MAX_DURATION_S:g}); '
+                             '0: never')
     parser.add_argument('--use-sim-time', action='store_true',
                         help='log time = /clock (a fast bench\'s simulated time), as '
                              'ros2 bag record --use-sim-time')

@@ -18,14 +18,15 @@ import stat
 from pathlib import Path
 from typing import Any
 
-import yaml
-
-from rv_te_bench.errors import BagError
+from rv_te_bench.errors import BagError, YamlInputError
+from rv_te_bench.safe_yaml import YamlLimits, load_yaml
 
 __all__ = ['entry_problem', 'layout_notes', 'listed_files']
 
 _SHOWN = 60          # characters of a bad value shown in a message
 _GAPS_SHOWN = 5
+_GAPS_LIMITS = YamlLimits(max_bytes=64 << 10, max_depth=16, max_aliases=100,
+                          max_nodes=10_000)
 _KINDS = ((stat.S_ISFIFO, 'a FIFO'), (stat.S_ISDIR, 'a directory'),
           (stat.S_ISCHR, 'a character device'), (stat.S_ISBLK, 'a block device'),
           (stat.S_ISSOCK, 'a socket'))
@@ -92,9 +93,10 @@ def _write_gap_notes(custom: object) -> list[str]:
     gaps = custom.get('rv_te_bench.write_gaps')
     notes = [(f'the recorder could not write {lost} messages to this bag (disk full: '
               'rv_te_bench.write_gaps in metadata.yaml)')]
-    try:   # a string the writer dumped; bounded: only the first gaps, plain types
-        parsed = yaml.safe_load(gaps) if isinstance(gaps, str) and len(gaps) < 65536 else None
-    except yaml.YAMLError:
+    try:   # a string the writer dumped; bounded (the suite's loader), only the first gaps
+        parsed = load_yaml(gaps, origin='rv_te_bench.write_gaps',
+                           limits=_GAPS_LIMITS) if isinstance(gaps, str) else None
+    except YamlInputError:
         parsed = None
     for k, gap in enumerate((parsed if isinstance(parsed, list) else [])[:_GAPS_SHOWN], 1):
         if not isinstance(gap, dict):

@@ -24,11 +24,11 @@ from pathlib import Path
 from typing import TYPE_CHECKING, Any, Generic, TypeVar
 
 import numpy as np
-import yaml
 
-from rv_te_bench.errors import BagError
+from rv_te_bench.errors import BagError, YamlInputError
 from rv_te_bench.io._bag_folder import entry_problem, layout_notes, listed_files
 from rv_te_bench.io.msgdefs import BENCH_INFO, ENCODER_BLOCK, rv_te_typestore
+from rv_te_bench.safe_yaml import BAG_METADATA_LIMITS, read_yaml_file
 
 if TYPE_CHECKING:
     from collections.abc import Callable, Collection, Iterator
@@ -62,7 +62,6 @@ _OP_HEADER, _OP_FOOTER, _OP_SCHEMA, _OP_CHANNEL, _OP_MESSAGE, _OP_CHUNK = 1, 2, 
 _OP_METADATA, _OP_DATA_END = 0x0C, 0x0F
 
 T = TypeVar('T')
-_YamlLoader = getattr(yaml, 'CSafeLoader', yaml.SafeLoader)  # libyaml: ~20x faster
 RawMessage = tuple[str, str, int, memoryview]
 """(topic, msgtype, timestamp_ns, cdr_bytes): one message as stored."""
 
@@ -183,7 +182,8 @@ def open_bag(path: str | Path) -> Bag:
         msg = f'Bag {path} has no metadata.yaml: not a rosbag2 bag folder.'
         raise BagError(msg)
     try:
-        doc = yaml.load(meta_path.read_text(encoding='utf-8'), Loader=_YamlLoader)  # noqa: S506
+        # bounded: a ~1 KB alias bomb once expanded to gigabytes here (issue #16)
+        doc = read_yaml_file(meta_path, what='bag metadata', limits=BAG_METADATA_LIMITS)
         info = doc['rosbag2_bagfile_information']
         storage = info['storage_identifier']
         listed = listed_files(path, info['relative_file_paths'], where=meta_path)
@@ -191,8 +191,8 @@ def open_bag(path: str | Path) -> Bag:
             str(t['topic_metadata']['name']): str(t['topic_metadata']['type'])
             for t in info.get('topics_with_message_count') or []
         }
-    except (OSError, UnicodeDecodeError, yaml.YAMLError) as exc:
-        msg = f'Cannot read {meta_path}: {exc}.'
+    except YamlInputError as exc:
+        msg = f'Cannot read {exc}.'
         raise BagError(msg) from None
     except (KeyError, TypeError, AttributeError) as exc:
         msg = f'{meta_path} is not rosbag2 metadata (missing or bad key {exc}).'

@@ -27,15 +27,14 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
-import yaml
-
-from rv_te_bench.errors import ParameterFileError
+from rv_te_bench.errors import ParameterFileError, YamlInputError, YamlLimitError
 from rv_te_bench.params import (
     ParamSpec,
     check_parameters,
     coerce_parameters,
     load_parameter_file,
 )
+from rv_te_bench.safe_yaml import SMALL_TEXT_LIMITS, brief, dump_ros_yaml, load_yaml
 
 if TYPE_CHECKING:
     from collections.abc import Callable, Sequence
@@ -61,20 +60,14 @@ def node_specs(name: str) -> tuple[ParamSpec, ...]:
 
 
 def normalise_namespace(ns: str) -> str:
-    """'' or '/a/b' (leading slash, no trailing slash).
+    """'' or '/a/b' (leading slash, no trailing slash), valid as ROS validates it.
 
     Raises:
-        ParameterFileError: Characters ROS does not allow in a namespace.
+        ParameterFileError: Not a valid ROS namespace (rmw's rule named).
     """
-    ns = ns.strip()
-    if ns in {'', '/'}:
-        return ''
-    ns = '/' + ns.strip('/')
-    allowed = set('abcdefghijklmnopqrstuvwxyzABCDEFGHIJKLMNOPQRSTUVWXYZ0123456789_/')
-    if not set(ns) <= allowed or '//' in ns or ns[1].isdigit():
-        msg = f'namespace {ns!r} is not a valid ROS namespace (letters, digits, _ and /)'
-        raise ParameterFileError(msg)
-    return ns
+    from rv_te_bench.launch.checks import check_namespace  # noqa: PLC0415
+
+    return check_namespace(ns)
 
 
 @dataclass
@@ -90,19 +83,27 @@ class SessionSpec:
 
 
 def parse_param_override(item: str) -> tuple[str, str, Any]:
-    """``node.key=value`` -> (node, key, YAML-typed value).
+    """``node.key=value`` -> (node, key, value typed as ROS types ``-p key:=value``).
+
+    The value is read like rcl reads a ``-p`` value (``1e5`` a double, ``yes`` a bool,
+    quoted text a string), bounded (:data:`~rv_te_bench.safe_yaml.SMALL_TEXT_LIMITS`, no
+    aliases); text that is not YAML at all is taken as a string.
 
     Raises:
-        ParameterFileError: Not of the form node.key=value.
+        ParameterFileError: Not of the form node.key=value, or a value over a limit.
     """
     if '=' not in item or '.' not in item.split('=', 1)[0]:
-        msg = f'--param {item!r} is not of the form node.key=value'
+        msg = f'--param {brief(item)} is not of the form node.key=value'
         raise ParameterFileError(msg)
     lhs, text = item.split('=', 1)
     node, key = lhs.split('.', 1)
+    where = f'--param {brief(item)}'
     try:
-        value = yaml.safe_load(text) if text.strip() else ''
-    except yaml.YAMLError:
+        value = load_yaml(text, origin=where, limits=SMALL_TEXT_LIMITS,
+                          scalars='ros') if text.strip() else ''
+    except YamlLimitError:
+        raise
+    except YamlInputError:
         value = text
     return node.strip(), key.strip(), value
 
@@ -119,7 +120,7 @@ def build_session(param_files: Sequence[str | Path] = (), *, namespace: str = ''
     wanted = tuple(nodes) if nodes else ('bench', 'te_node', 'compensation', 'recorder')
     for n in wanted:
         if n not in NODE_TYPES:
-            msg = f'unknown node {n!r}; known nodes: {", ".join(STOP_ORDER)}'
+            msg = f'unknown node {brief(n)}; known nodes: {", ".join(STOP_ORDER)}'
             raise ParameterFileError(msg)
     params: dict[str, dict[str, Any]] = {n: {} for n in wanted}
     use_sim_time = False
@@ -128,7 +129,7 @@ def build_session(param_files: Sequence[str | Path] = (), *, namespace: str = ''
             targets = _match_node_key(node_key, ns, f)
             for t in targets:
                 if t in params:
-                    where = f'parameter file {f}: node {node_key!r}'
+                    where = f'parameter file {f}: node {brief(node_key)}'
                     if node_key != '/**':
                         check_parameters(node_specs(t), values, where=where)
                     params[t].update(coerce_parameters(node_specs(t), values))
@@ -138,33 +139,71 @@ def build_session(param_files: Sequence[str | Path] = (), *, namespace: str = ''
     for item in overrides:
         node, key, value = parse_param_override(item)
         if node not in NODE_TYPES:
-            msg = f'--param {item!r}: unknown node {node!r}; known nodes: {", ".join(STOP_ORDER)}'
+            msg = (f'--param {brief(item)}: unknown node {brief(node)}; known nodes: '
+                   f'{", ".join(STOP_ORDER)}')
             raise ParameterFileError(msg)
         if node in params:
-            check_parameters(node_specs(node), {key: value}, where=f'--param {item!r}')
+            check_parameters(node_specs(node), {key: value}, where=f'--param {brief(item)}')
             params[node].update(coerce_parameters(node_specs(node), {key: value}))
     remaps = []
     for r in remappings:
         if ':=' not in r or not all(r.split(':=', 1)):
-            msg = f'remapping {r!r} is not of the form from:=to'
+            msg = f'remapping {brief(r)} is not of the form from:=to'
             raise ParameterFileError(msg)
         a, b = r.split(':=', 1)
         remaps.append((a.strip(), b.strip()))
-    return SessionSpec(nodes=wanted, namespace=ns, parameters=params,
+    spec = SessionSpec(nodes=wanted, namespace=ns, parameters=params,
                        remappings=tuple(remaps), single_process=single_process,
                        use_sim_time=use_sim_time)
+    check_session(spec)
+    return spec
+
+
+def check_session(spec: SessionSpec) -> None:
+    """What each node checks at start, run now (so that ``--check`` means it will start).
+
+    Every name a node creates (ROS's rules, rcl's remap parser) and each node's own start-up
+    configuration code (:mod:`rv_te_bench.launch.checks`).
+
+    Raises:
+        ParameterFileError: A node would refuse to start; names the node and the rule.
+    """
+    from rv_te_bench.launch.checks import check_node_config, check_ros_names  # noqa: PLC0415
+
+    for node in spec.nodes:
+        values = node_parameters(spec, node)
+        topics = values.get('topics', next(
+            (s.default for s in node_specs(node) if s.name == 'topics'), ()))
+        check_ros_names(node, spec.namespace, spec.remappings, topics=list(topics))
+        check_node_config(node, values, namespace=spec.namespace)
 
 
 def _match_node_key(node_key: str, ns: str, f: str | Path) -> list[str]:
+    """The nodes of this session a parameter-file node key applies to.
+
+    ``/**`` is every node; a relative key is relative to the session namespace; an absolute
+    key for another (valid) namespace is meant for another session from the same file.
+    Namespaces and node names follow ROS's rules (rcl refuses a file that breaks them), so
+    a key that can never match a node (``/1x/bench``, ``a//bench``) is an error.
+    """
+    from rv_te_bench.launch.checks import check_namespace  # noqa: PLC0415
+
     if node_key == '/**':
         return list(NODE_TYPES)
     key = node_key if node_key.startswith('/') else f'{ns}/{node_key}' if ns else node_key
     name = key.rsplit('/', 1)[-1]
     key_ns = key.rsplit('/', 1)[0] if '/' in key.lstrip('/') or key.startswith('/') else ''
     if name not in NODE_TYPES:
-        msg = (f'parameter file {f}: unknown node {node_key!r}; known nodes: '
+        msg = (f'parameter file {f}: unknown node {brief(node_key)}; known nodes: '
                f'{", ".join(STOP_ORDER)} (optionally /namespace/node or /**)')
         raise ParameterFileError(msg)
+    if key_ns not in {'', '/**'}:
+        try:
+            key_ns = check_namespace(key_ns)
+        except ParameterFileError as exc:
+            msg = (f'parameter file {f}: node {brief(node_key)} can never match a node: '
+                   f'{exc}')
+            raise ParameterFileError(msg) from None
     if node_key.startswith('/') and key_ns not in {'', ns, '/**'}:
         return []  # meant for another namespace (two benches in one file)
     return [name]
@@ -176,12 +215,12 @@ def _check_wildcard(values: dict[str, Any], f: str | Path, wanted: Sequence[str]
     for key, value in values.items():
         if key == 'use_sim_time':
             if not isinstance(value, bool):
-                msg = f'parameter file {f}: node "/**": parameter {key!r} must be a bool'
+                msg = f'parameter file {f}: node "/**": parameter {brief(key)} must be a bool'
                 raise ParameterFileError(msg)
             continue
         owners = [n for n in wanted if any(s.name == key for s in node_specs(n))]
         if not owners:
-            msg = f'parameter file {f}: node "/**": no node declares parameter {key!r}'
+            msg = f'parameter file {f}: node "/**": no node declares parameter {brief(key)}'
             raise ParameterFileError(msg)
         for n in owners:
             check_parameters(node_specs(n), {key: value}, where=f'parameter file {f}: "/**"')
@@ -228,10 +267,9 @@ def typed_parameter(name: str, value: Any, specs: tuple[ParamSpec, ...]) -> Any:
 
 def session_metadata_yaml(spec: SessionSpec) -> str:
     """What the recorder stores in the bag's metadata record: every node's parameters."""
-    return yaml.safe_dump({'namespace': spec.namespace or '/', 'nodes': list(spec.nodes),
-                           'parameters': spec.parameters,
-                           'remappings': [f'{a}:={b}' for a, b in spec.remappings]},
-                          sort_keys=True)
+    return dump_ros_yaml({'namespace': spec.namespace or '/', 'nodes': list(spec.nodes),
+                          'parameters': spec.parameters,
+                          'remappings': [f'{a}:={b}' for a, b in spec.remappings]})
 
 
 def ros_args(spec: SessionSpec, node: str, params_file: Path | None) -> list[str]:
@@ -287,7 +325,8 @@ class Session:
             values.setdefault('summary_file', str(self._summary_path))
         fq = f'{self.spec.namespace}/{node}' if self.spec.namespace else f'/{node}'
         path = Path(self._tmp.name) / f'{node}.yaml'
-        path.write_text(yaml.safe_dump({fq: {'ros__parameters': values}}), encoding='utf-8')
+        # strings quoted: rcl reads a plain 'y' or '1e5' as a bool or a number
+        path.write_text(dump_ros_yaml({fq: {'ros__parameters': values}}), encoding='utf-8')
         return path
 
     def start(self) -> None:

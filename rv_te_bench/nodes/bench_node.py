@@ -14,6 +14,7 @@ All physics is in :class:`sim.bench.BenchSimulator`; this node converts and pace
 
 from __future__ import annotations
 
+import math
 import sys
 import time
 from typing import Any
@@ -25,6 +26,7 @@ from rclpy.node import Node
 from rosgraph_msgs.msg import Clock
 from rv_te_msgs.msg import BenchInfo, EncoderBlock
 
+from rv_te_bench.errors import ParameterFileError
 from rv_te_bench.nodes import convert, qos
 from rv_te_bench.nodes.common import (
     OK,
@@ -82,8 +84,9 @@ PARAMS = (
     ParamSpec('encoder_out', 'string', 'heidenhain-ron886', 'Output-shaft encoder preset [-]'),
     ParamSpec('sample_rate_hz', 'double', 1000.0, 'DAQ sample rate [Hz]', min_value=1.0,
               max_value=1e6),
-    ParamSpec('block_size', 'int', 100, 'Samples per EncoderBlock [1]', min_value=1,
-              max_value=100000),
+    ParamSpec('block_size', 'int', 100,
+              'Samples per EncoderBlock [1]; sample_rate_hz / block_size <= 1000 blocks/s',
+              min_value=1, max_value=100000),
     ParamSpec('seed', 'int', 0, 'Random seed of the encoder noise [-]', min_value=0,
               max_value=2**31 - 1),
     ParamSpec('duration_s', 'double', 0.0,
@@ -153,6 +156,47 @@ def bench_config_from_params(p: dict[str, Any]) -> Any:  # noqa: ANN401 - sim.be
         bench_id=p['bench_id'])
 
 
+#: Most encoder blocks per second of session time (sample_rate_hz / block_size): rclpy
+#: costs ~1-2 ms per message in each node, so faster block streams never keep up.
+MAX_BLOCK_RATE_HZ = 1000.0
+
+
+def build_simulator(p: dict[str, Any]) -> tuple[Any, float]:  # noqa: ANN401
+    """The bench's start-up: simulator and session length [s] from its parameters.
+
+    Run by the node and by ``rv-te launch --check`` (the same checks).
+
+    Returns:
+        (:class:`sim.bench.BenchSimulator`, session length in simulated time [s]; 0 = open).
+
+    Raises:
+        ParameterFileError: Blocks faster than :data:`MAX_BLOCK_RATE_HZ`, or a length in
+            output revolutions without a speed.
+        sim.errors.SimError: An invalid preset, model mode, override, encoder or profile.
+    """
+    from sim.bench import BenchSimulator  # noqa: PLC0415
+
+    block_rate_hz = p['sample_rate_hz'] / p['block_size']
+    if block_rate_hz > MAX_BLOCK_RATE_HZ:
+        least = math.ceil(p['sample_rate_hz'] / MAX_BLOCK_RATE_HZ)
+        msg = (f"sample_rate_hz / block_size = {block_rate_hz:.6g} blocks/s is above the "
+               f'{MAX_BLOCK_RATE_HZ:g} blocks/s the nodes can carry (~1 ms per message); '
+               f"at {p['sample_rate_hz']:g} Hz use block_size >= {least}")
+        raise ParameterFileError(msg)
+    sim = BenchSimulator(bench_config_from_params(p))
+    duration_s = p['duration_s']
+    if p['duration_output_revs'] > 0:
+        nominal_hz = abs(sim.config.drive.nominal_speed_rpm) / 60.0
+        if not nominal_hz > 0:
+            msg = ('duration_output_revs needs a non-zero nominal input speed (speed_rpm), '
+                   'got 0 rpm')
+            raise ParameterFileError(msg)
+        # + one sample: the sample at exactly N revolutions closes the last window
+        duration_s = (p['duration_output_revs'] * sim.info.gear_ratio / nominal_hz
+                      + 1.0 / p['sample_rate_hz'])
+    return sim, duration_s
+
+
 class BenchNode(Node):
     """Simulated bench publishing encoder blocks from :class:`sim.bench.BenchSimulator`."""
 
@@ -163,23 +207,15 @@ class BenchNode(Node):
             InvalidParameterValueException, SimError: Bad parameters (named), at start-up.
         """
         super().__init__('bench', **kwargs)
-        from sim.bench import BenchSimulator  # noqa: PLC0415
-
         self.p = declare_from_specs(self, PARAMS)
         reject_invalid_changes(self, PARAMS)
         self.add_post_set_parameters_callback(self._on_params_set)
-        self.sim = BenchSimulator(bench_config_from_params(self.p))
+        self.sim, self.duration_s = build_simulator(self.p)
         info = self.sim.info
         self.program: Any = None
         if self.p['commanded']:
             self._start_commanded()
         self.block_period_s = self.p['block_size'] / self.p['sample_rate_hz']
-        self.duration_s = self.p['duration_s']
-        if self.p['duration_output_revs'] > 0:
-            nominal_hz = abs(self.sim.config.drive.nominal_speed_rpm) / 60.0
-            # + one sample: the sample at exactly N revolutions closes the last window
-            self.duration_s = (self.p['duration_output_revs'] * info.gear_ratio / nominal_hz
-                               + 1.0 / self.p['sample_rate_hz'])
         self.finished = False
         self.exit_code = 0
         self.blocks_published = 0

@@ -185,13 +185,16 @@ def run_node(factory: Callable[[Context], Node], args: Sequence[str] | None = No
     from rclpy.signals import SignalHandlerOptions  # noqa: PLC0415
 
     from rv_te_bench.errors import RvTeError  # noqa: PLC0415
+    from rv_te_bench.safe_yaml import one_line  # noqa: PLC0415
 
     context = Context()
     rclpy.init(args=list(args) if args is not None else None, context=context,
                signal_handler_options=SignalHandlerOptions.NO)
-    stop = {'requested': False}
+    stop = {'requested': False, 'starting': True}
 
     def request_stop(*_: object) -> None:
+        if stop['starting']:   # building the node (reading a bag...): stop right there
+            raise KeyboardInterrupt
         stop['requested'] = True
 
     main_thread = threading.current_thread() is threading.main_thread()
@@ -204,8 +207,12 @@ def run_node(factory: Callable[[Context], Node], args: Sequence[str] | None = No
         try:
             node = factory(context)
         except (RvTeError, ParameterException, ValueError) as exc:
-            print(f'ERROR: {exc}', file=sys.stderr)
+            print(f'ERROR: {one_line(exc)}', file=sys.stderr)
             return 1
+        except KeyboardInterrupt:
+            print('interrupted while starting', file=sys.stderr)
+            return 130
+        stop['starting'] = False
         executor = make_executor(executor_kind, context=context)
         executor.add_node(node)
         while context.ok() and not stop['requested'] and not getattr(node, 'finished', False):

@@ -58,6 +58,19 @@ PARAMS = (
 _MAX_SAMPLES = 2_000_000  # bound on the decimated TE kept for identification
 
 
+def check_config(p: dict[str, Any]) -> None:
+    """The compensation node's start-up checks (also run by ``rv-te launch --check``).
+
+    Raises:
+        sim.errors.PresetError: The ``preset`` parameter names no loadable preset, or an
+            override is invalid.
+    """
+    if p['preset']:
+        from sim.presets import load_preset  # noqa: PLC0415
+
+        load_preset(p['preset'], list(p['overrides']))
+
+
 class _Cancelled(Exception):  # noqa: N818 - a control-flow signal, not an error
     """Raised inside a search's progress callback when the node shuts down."""
 
@@ -120,7 +133,7 @@ class CompensationNode(Node):
     def _on_info(self, msg: BenchInfo) -> None:
         self.bench_id = msg.bench_id
         if not self.p['preset']:
-            from sim.bench import overrides_from_parameters_yaml  # noqa: PLC0415
+            from rv_te_bench.io.bench_record import overrides_from_parameters_yaml  # noqa: PLC0415
 
             self._set_preset(msg.preset, overrides_from_parameters_yaml(msg.parameters_yaml))
 

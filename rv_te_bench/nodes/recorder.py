@@ -35,7 +35,7 @@ from rclpy.node import Node
 from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
 from rosgraph_msgs.msg import Clock as ClockMsg
 
-from rv_te_bench.errors import BagError, BagExistsError
+from rv_te_bench.errors import BagError, BagExistsError, YamlInputError
 from rv_te_bench.io.bag_reader import encoder_block_seq
 from rv_te_bench.io.bag_writer import BagWriter, qos_profile_dict
 from rv_te_bench.io.files import folder_name_problem, write_atomic
@@ -43,6 +43,7 @@ from rv_te_bench.io.msgdefs import ENCODER_BLOCK
 from rv_te_bench.nodes import qos
 from rv_te_bench.nodes.common import declare_from_specs, run_node
 from rv_te_bench.params import ParamSpec
+from rv_te_bench.safe_yaml import PARAMETER_FILE_LIMITS, brief, load_yaml
 
 __all__ = ['DEFAULT_TOPICS', 'PARAMS', 'RecorderNode', 'main']
 
@@ -106,6 +107,55 @@ def _qos_dict(profile: QoSProfile) -> dict[str, Any]:
                             history=profile.history.name.lower(), depth=profile.depth)
 
 
+def check_config(p: dict[str, Any]) -> dict[str, str]:
+    """The recorder's start-up checks (also run by ``rv-te launch --check``).
+
+    Returns:
+        Explicit topic types (topic as given -> ``pkg/msg/Type``).
+
+    Raises:
+        BagError: A ``topic_types`` entry that is malformed or names a type that cannot be
+            imported, ``session_metadata_yaml`` that is not a bounded YAML document, or a
+            bag folder that exists already or cannot be made.
+    """
+    explicit = {}
+    for item in p['topic_types']:
+        name, sep, msgtype = item.partition('=')
+        msgtype = msgtype.strip()
+        if not sep or not name.strip() or msgtype.count('/') != 2:
+            msg = f"topic_types entry {brief(item)} must be 'topic=pkg/msg/Type'"
+            raise BagError(msg)
+        try:
+            _msg_class(msgtype)
+        except (ImportError, AttributeError, ValueError) as exc:
+            msg = f'topic_types entry {brief(item)}: type {brief(msgtype)} not importable ({exc})'
+            raise BagError(msg) from None
+        explicit[name.strip()] = msgtype
+    _parse_metadata(p['session_metadata_yaml'])
+    if p['bag_name']:
+        path = Path(p['output_dir']) / p['bag_name']
+        if path.exists() or path.is_symlink():
+            msg = f'Bag {path} exists already, not overwriting.'
+            raise BagError(msg)
+    parent = Path(p['output_dir'])
+    while not parent.exists() and parent != parent.parent:
+        parent = parent.parent
+    if parent.exists() and not parent.is_dir():
+        msg = f'Cannot create bag folder under {p["output_dir"]}: {parent} is not a folder.'
+        raise BagError(msg)
+    return explicit
+
+
+def _parse_metadata(text: str) -> dict[str, Any]:
+    """``session_metadata_yaml`` -> mapping (a scalar or list is kept under 'session')."""
+    try:
+        given = load_yaml(text, origin="parameter 'session_metadata_yaml'",
+                          limits=PARAMETER_FILE_LIMITS) if text else {}
+    except YamlInputError as exc:
+        raise BagError(str(exc)) from None
+    return given if isinstance(given, dict) else {'session': given}
+
+
 class _TopicState:
     __slots__ = ('count', 'gaps', 'last_seq', 'malformed', 'missing', 'msgtype', 'name')
 
@@ -146,15 +196,9 @@ class RecorderNode(Node):
         # messages that arrived in sim time before the first /clock, written at its time
         self._held: list[tuple[_TopicState, bytes]] = []
         self._subscriptions_by_topic: dict[str, Any] = {}
-        self._wanted = [self.resolve_topic_name(t) for t in p['topics']]
-        explicit = {}
-        for item in p['topic_types']:
-            name, sep, msgtype = item.partition('=')
-            if not sep or msgtype.count('/') != 2:
-                msg = f"topic_types entry {item!r} must be 'topic=pkg/msg/Type'"
-                raise BagError(msg)
-            explicit[self.resolve_topic_name(name.strip())] = msgtype.strip()
-        self._explicit = explicit
+        given_types = check_config(p)
+        self._wanted = [self._resolve(t) for t in p['topics']]
+        self._explicit = {self._resolve(t): m for t, m in given_types.items()}
         self._summary_file = p['summary_file']
         self.exit_code = 0
         self.bag_path, self._writer = self._open_bag(p)
@@ -220,15 +264,16 @@ class RecorderNode(Node):
         else:
             self.get_logger().error(line)
 
-    def _session_metadata(self, p: dict[str, Any]) -> dict[str, Any]:
-        text = p['session_metadata_yaml']
+    def _resolve(self, topic: str) -> str:
         try:
-            given = yaml.safe_load(text) if text else {}
-        except yaml.YAMLError as exc:
-            msg = f"Parameter 'session_metadata_yaml' is not valid YAML: {exc}"
+            return self.resolve_topic_name(topic)
+        except Exception as exc:  # noqa: BLE001 - _rclpy.RCLError
+            detail = str(exc).removeprefix('failed to resolve name: ').split(', at ')[0]
+            msg = f'topic {brief(topic)} is not a valid ROS topic name: {detail}'
             raise BagError(msg) from None
-        if not isinstance(given, dict):
-            given = {'session': given}
+
+    def _session_metadata(self, p: dict[str, Any]) -> dict[str, Any]:
+        given = _parse_metadata(p['session_metadata_yaml'])
 
         def version(dist: str) -> str:
             try:

@@ -19,27 +19,35 @@ import time
 from collections.abc import Sequence
 from typing import Any
 
-import yaml
 from rcl_interfaces.msg import FloatingPointRange, ParameterDescriptor, ParameterType
 from rclpy.node import Node
 from rclpy.parameter import Parameter
 from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
 from rosgraph_msgs.msg import Clock
 
-from rv_te_bench.errors import BagError
+from rv_te_bench.errors import BagError, YamlInputError
 from rv_te_bench.io.bag_reader import bag_topics, iter_messages, open_bag
 from rv_te_bench.nodes import qos
 from rv_te_bench.nodes.common import run_node
 from rv_te_bench.nodes.recorder import _msg_class
+from rv_te_bench.safe_yaml import SMALL_TEXT_LIMITS, load_yaml
 
 __all__ = ['ReplayNode', 'main']
 
 _THROTTLE_S = 5.0
+#: Parameter ranges (rv-te replay states and checks the same ones for its flags).
+RATE_RANGE = (0.001, 1000.0)
+START_OFFSET_RANGE_S = (0.0, 1e7)
+WAIT_RANGE_S = (0.0, 3600.0)
 
 
 def _recorded_qos(offered: Any) -> QoSProfile:  # noqa: ANN401 - YAML from metadata.yaml
     """Publisher QoS from a topic's recorded offered profiles (rosbag2 v8 string or v9 list)."""
-    profiles = yaml.safe_load(offered) if isinstance(offered, str) else offered
+    try:   # bounded: the string comes from a file we did not write
+        profiles = load_yaml(offered, origin='offered_qos_profiles',
+                             limits=SMALL_TEXT_LIMITS) if isinstance(offered, str) else offered
+    except YamlInputError:
+        profiles = []   # unreadable: reliable, volatile (what most publishers offer)
     profiles = profiles if isinstance(profiles, list) else []
     latched = bool(profiles) and all(
         str(p.get('durability', '')).lower() == 'transient_local' for p in profiles)
@@ -126,18 +134,18 @@ class ReplayNode(Node):
         specs: list[tuple[str, Any, ParameterDescriptor]] = [
             ('bag', '', d('Bag folder (or .mcap file) to play [path]')),
             ('rate', 1.0, d('Playback speed factor; 2 plays twice as fast [-]',
-                            floating_point_range=f_range(0.001, 1000.0))),
+                            floating_point_range=f_range(*RATE_RANGE))),
             ('loop', False, d('Start again at the end [-]')),
             ('topics', Parameter.Type.STRING_ARRAY,
              d('Topics to play; empty: all [-]', type=ParameterType.PARAMETER_STRING_ARRAY)),
             ('start_offset_s', 0.0, d('Skip this much of the bag from its start [s]',
-                                      floating_point_range=f_range(0.0, 1e7))),
+                                      floating_point_range=f_range(*START_OFFSET_RANGE_S))),
             ('clock', False, d('Publish the playback time on /clock [-]')),
             ('clock_rate_hz', 100.0, d('Rate of /clock messages [Hz]',
                                        floating_point_range=f_range(1.0, 10_000.0))),
             ('wait_for_subscribers_s', 0.0,
              d('Wait up to this long for a subscriber on every topic before playing [s]',
-               floating_point_range=f_range(0.0, 3600.0))),
+               floating_point_range=f_range(*WAIT_RANGE_S))),
         ]
         out = {}
         for name, default, desc in specs:

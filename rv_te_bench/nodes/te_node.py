@@ -70,6 +70,28 @@ PARAMS = (
 )
 
 
+def initial_orders(p: dict[str, Any]) -> OrderSet | None:
+    """The orders a TE node configured by parameters starts with (None: from bench/info).
+
+    Run by the node and by ``rv-te launch --check`` (the same checks).
+
+    Raises:
+        TeConfigError: An invalid ratio / crank / mesh combination or window.
+    """
+    if not p['gear_ratio'] > 0:
+        return None
+    cpo = float(p['crank_per_output'])
+    if cpo == 0.0 and float(p['crank_per_input']) != 0.0:
+        cpo = abs(float(p['crank_per_input'])) * p['gear_ratio']
+    orders = OrderSet(gear_ratio=p['gear_ratio'], crank_per_output=cpo,
+                      mesh_orders_out=tuple(p['mesh_orders']),
+                      mesh_labels=tuple(f'mesh {o:g} f_out' for o in p['mesh_orders']),
+                      n_crank_harmonics=p['n_crank_harmonics'])
+    TeAnalysisConfig(orders=orders, window_revolutions=float(p['window_revolutions']),
+                     decimated_rate_hz=p['decimated_rate_hz'])
+    return orders
+
+
 class TeNode(Node):
     """Online TE analysis on top of :class:`StreamingTeAnalyzer`."""
 
@@ -77,6 +99,7 @@ class TeNode(Node):
         """Declare parameters, create topics; ``kwargs`` go to ``Node`` (context, overrides)."""
         super().__init__('te_node', **kwargs)
         self.p = declare_from_specs(self, PARAMS)
+        orders = initial_orders(self.p)   # a bad combination stops the node here
         reject_invalid_changes(self, PARAMS)
         self.add_post_set_parameters_callback(self._on_params_set)
         self.drops = DropCounter(self)
@@ -110,12 +133,9 @@ class TeNode(Node):
         self.create_subscription(EncoderBlock, 'bench/encoders', self._on_block,
                                  qos.ENCODER_QOS)
         self.create_timer(self.p['diagnostics_period_s'], self._publish_diagnostics)
-        if self.p['gear_ratio'] > 0:
-            self._configure(OrderSet(
-                gear_ratio=self.p['gear_ratio'], crank_per_output=self._crank_per_output(),
-                mesh_orders_out=tuple(self.p['mesh_orders']),
-                mesh_labels=tuple(f'mesh {o:g} f_out' for o in self.p['mesh_orders']),
-                n_crank_harmonics=self.p['n_crank_harmonics']))
+        if orders is not None:
+            self._crank_per_output()   # warns when the deprecated spelling is used
+            self._configure(orders)
 
     def _crank_per_output(self) -> float:
         """crank_per_output, or from the deprecated crank_per_input (with a warning)."""

@@ -714,7 +714,7 @@ def _recommend(bench: BenchDescription, cumulative: TeStats, trace: TeTrace) -> 
     if not bench.preset:
         return Recommendation(available=False, reason='no recommendation available: the bag '
                               'has no BenchInfo preset, so there is no reducer model')
-    from sim.bench import overrides_from_parameters_yaml  # noqa: PLC0415
+    from rv_te_bench.io.bench_record import overrides_from_parameters_yaml  # noqa: PLC0415
     from sim.errors import SimError  # noqa: PLC0415
     from sim.presets import load_preset  # noqa: PLC0415
 

@@ -19,6 +19,7 @@ from typing import TYPE_CHECKING, Any
 from rv_te_bench.errors import RvTeError
 from rv_te_bench.io.files import write_all
 from rv_te_bench.report.analysis import PHASE_MIN_FRACTION, compare_results
+from rv_te_bench.safe_yaml import printable
 from sim.units import rad_to_arcmin, rad_to_deg
 
 if TYPE_CHECKING:
@@ -124,7 +125,7 @@ padding:.5em}.muted{color:#666}code{background:#f5f5f5;padding:0 .2em}
 
 
 def _e(x: Any) -> str:  # noqa: ANN401
-    return html.escape(str(x))
+    return html.escape(printable(x))   # undecodable bytes of a path: U+FFFD, not a crash
 
 
 def _am(x_rad: float, digits: int = 4) -> str:

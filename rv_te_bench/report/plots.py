@@ -20,6 +20,7 @@ from matplotlib.figure import Figure
 from matplotlib.ticker import FuncFormatter, NullFormatter
 
 from rv_te_bench.io.files import write_atomic
+from rv_te_bench.safe_yaml import printable
 from sim.units import rad_to_arcmin, rad_to_deg
 
 if TYPE_CHECKING:
@@ -40,7 +41,7 @@ _DPI = 110
 
 
 def _name(res: AnalysisResult) -> str:
-    return res.path.name or str(res.path)
+    return printable(res.path.name or str(res.path))   # a non-UTF-8 folder name too
 
 
 def _short(label: str) -> str:

@@ -72,8 +72,9 @@ def test_two_namespaced_sessions_do_not_cross(ros_context) -> None:  # noqa: ANN
 
 def test_crashing_node_is_reported(ros_context) -> None:  # noqa: ANN001
     # an unknown preset makes the bench exit 1 at start-up: the session reports it
-    spec = build_session([], nodes=['bench', 'te_node'],
-                         overrides=['bench.preset=no-such-reducer'])
+    # (build_session refuses it, as --check does: set it after the checks, as a crash)
+    spec = build_session([], nodes=['bench', 'te_node'])
+    spec.parameters['bench']['preset'] = 'no-such-reducer'
     s = Session(spec)
     try:
         s.start()

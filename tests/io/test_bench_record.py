@@ -2,7 +2,8 @@
 
 from __future__ import annotations
 
-from sim.bench import BenchConfig, BenchSimulator, overrides_from_parameters_yaml
+from rv_te_bench.io.bench_record import overrides_from_parameters_yaml
+from sim.bench import BenchConfig, BenchSimulator
 from sim.drive import ConstantSpeed
 from sim.presets import load_preset
 
