@@ -251,6 +251,9 @@ def test_report_of_a_bag_with_a_non_utf8_name(work: Path,
                                                'report.json'}
     assert 'bag\ufffd' in (out / 'report.html').read_text(encoding='utf-8')
     assert json.loads((out / 'report.json').read_text(encoding='utf-8'))
+    # the results store (UTF-8 only) keeps the bytes as \xNN, so two such bags stay apart
+    assert main(['results', '--db', str(work / 'rv-te-results.sqlite'), '--json']) == 0
+    assert '/bag\\\\xff' in capsys.readouterr().out
 
 
 def test_launch_nodes_without_a_file(work: Path, capsys: pytest.CaptureFixture[str]) -> None:

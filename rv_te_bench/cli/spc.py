@@ -35,7 +35,7 @@ examples:
                                    TE p-p per unit [arcmin] against TE <= 1 arcmin
   rv-te spc "line:1 f_w" --baseline 30 --report out/spc-fw
                                    the crank-frequency line: a drifting part shows here
-  rv-te spc te_pp_rad --direction cw --by-lot --rules western-electric --json
+  rv-te spc te_pp_rad --by-lot --rules western-electric --json
 
 exit codes: 0 ok, 1 failed (one ERROR: line on stderr), 2 bad usage
 """
@@ -78,7 +78,8 @@ def register(subparsers: Any) -> None:  # noqa: ANN401 - argparse's private type
                    help='stored metric name, or line:LABEL for a spectral line amplitude')
     p.add_argument('--list', action='store_true', help='list the metrics and lines stored')
     p.add_argument('--direction', choices=('all', 'cw', 'ccw'), default='all',
-                   help='direction of rotation of the metric (default: all)')
+                   help='direction of rotation of the metric (default: all; cw / ccw where '
+                        'the analysis recorded per-direction statistics)')
     add_db_argument(p, mode='read')
     add_filter_arguments(p)
     p.add_argument('--by-lot', action='store_true',

@@ -34,7 +34,14 @@ from rv_te_bench.params import (
     coerce_parameters,
     load_parameter_file,
 )
-from rv_te_bench.safe_yaml import SMALL_TEXT_LIMITS, brief, dump_ros_yaml, load_yaml
+from rv_te_bench.safe_yaml import (
+    BAG_METADATA_LIMITS,
+    SMALL_TEXT_LIMITS,
+    brief,
+    dump_ros_yaml,
+    load_yaml,
+    read_yaml_file,
+)
 
 if TYPE_CHECKING:
     from collections.abc import Callable, Sequence
@@ -479,9 +486,11 @@ def run_single_process(spec: SessionSpec, *, until: Callable[[], bool] | None = 
 
 def read_recorder_summary(path: Path) -> dict[str, Any] | None:
     """The summary file a recorder wrote when it closed its bag (None if there is none)."""
+    if not path.exists():
+        return None
     try:
-        doc = yaml.safe_load(path.read_text(encoding='utf-8'))
-    except (OSError, yaml.YAMLError):
+        doc = read_yaml_file(path, what='recorder summary', limits=BAG_METADATA_LIMITS)
+    except YamlInputError:
         return None
     return doc if isinstance(doc, dict) else None
 

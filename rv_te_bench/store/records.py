@@ -68,6 +68,12 @@ class LineValue:
     phase_rad: float | None = None
 
 
+def _storable(text: str) -> str:
+    """``text`` with surrogates (bytes of a non-UTF-8 path) as ``\\xNN``: a database takes
+    UTF-8 only, and the escape keeps two such paths apart (issue #16)."""
+    return text.encode('utf-8', 'surrogateescape').decode('utf-8', 'backslashreplace')
+
+
 @dataclass(frozen=True)
 class UnitRecord:
     """One unit tested once (one bag, one test).
@@ -110,6 +116,11 @@ class UnitRecord:
     details: dict[str, Any] = field(default_factory=dict)
 
     def __post_init__(self) -> None:
+        for name in ('bag_path', 'plan', 'serial', 'lot', 'bench_id', 'preset', 'reducer_type',
+                     'operator', 'failure', 'command', 'software_version'):
+            value = getattr(self, name)
+            if isinstance(value, str):   # undecodable bytes of a path or argument: \xNN
+                object.__setattr__(self, name, _storable(value))
         if self.test not in ('te-analysis', 'test-plan'):
             msg = f"test must be 'te-analysis' or 'test-plan', got {self.test!r}"
             raise StoreError(msg)
