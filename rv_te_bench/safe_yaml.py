@@ -49,9 +49,9 @@ from yaml.resolver import Resolver
 from rv_te_bench.errors import YamlInputError, YamlLimitError
 
 __all__ = [
-    'BAG_METADATA_LIMITS', 'PARAMETER_FILE_LIMITS', 'SMALL_TEXT_LIMITS', 'YamlLimits', 'brief',
-    'MAX_MESSAGE_CHARS', 'decode_text', 'dump_ros_yaml', 'load_yaml', 'one_line', 'printable',
-    'read_yaml_file', 'ros_scalar',
+    'BAG_METADATA_LIMITS', 'DOCUMENT_LIMITS', 'MAX_MESSAGE_CHARS', 'PARAMETER_FILE_LIMITS',
+    'SMALL_TEXT_LIMITS', 'YamlLimits', 'brief', 'decode_text', 'dump_ros_yaml', 'load_yaml',
+    'one_line', 'printable', 'read_yaml_file', 'ros_scalar',
 ]
 
 _Loader = getattr(yaml, 'CSafeLoader', yaml.SafeLoader)   # libyaml: ~20x faster events
@@ -89,6 +89,10 @@ PARAMETER_FILE_LIMITS = YamlLimits(max_bytes=1 << 20, max_depth=32, max_aliases=
 #: One value on a command line or in a parameter (``--param``, ``--metadata``, a QoS string).
 SMALL_TEXT_LIMITS = YamlLimits(max_bytes=64 << 10, max_depth=32, max_aliases=0,
                                max_nodes=10_000)
+#: A document a user or a peer writes by hand (test plan, tolerance profile, bench program,
+#: a BenchInfo's parameters_yaml): anchors allowed, bounded by the expanded size.
+DOCUMENT_LIMITS = YamlLimits(max_bytes=1 << 20, max_depth=32, max_aliases=1000,
+                             max_nodes=100_000)
 #: A bag's metadata.yaml (rosbag2 writes no aliases; 10,000 split files are ~1.7 MB, read in
 #: ~1.5 s; 4 MiB in ~3.5 s).
 BAG_METADATA_LIMITS = YamlLimits(max_bytes=4 << 20, max_depth=32, max_aliases=1000,

@@ -70,6 +70,7 @@ def hostile_files(tmp_path_factory: pytest.TempPathFactory) -> Path:
     (tmp_path / 'never_ns2.yaml').write_text('/a//b/bench:\n  ros__parameters:\n    seed: 1\n')
     (tmp_path / 'ros_numbers.yaml').write_text(
         ros + '    speed_rpm: 3e2\n    duration_s: 1.0e1\n    seed: 0x10\n')
+    (tmp_path / 'bomb_plan.yaml').write_text(BOMB + 'name: bomb\nsteps: *a8\n')
     (tmp_path / 'a_file').write_text('not a folder\n')
     (tmp_path / 'bags' / 'taken').mkdir(parents=True)
     shutil.copytree(SAMPLE, tmp_path / 'sample')
@@ -101,6 +102,10 @@ CASES = [
     (['launch', '--default', '--check', '--param', f'bench.bench_id={PARAM_BOMB}'], 1,
      'aliases (*name) are not allowed'),
     (['bench', 'deep.yaml'], 1, 'nested deeper than 32 levels'),
+    (['test', 'bomb_plan.yaml', '--serial', 'SN1', '--operator', 'kim'], 1,
+     'YAML nodes (aliases expanded)'),
+    (['test', 'rv-80e', '--serial', 'SN1', '--operator', 'kim', '--condition',
+      f'x={PARAM_BOMB}'], 1, 'aliases (*name) are not allowed'),
     # tracebacks before
     (['launch', '--default', '--check', '--namespace', '//'], 1,
      "namespace '//' is not a valid ROS namespace"),

@@ -6,21 +6,19 @@ from importlib import resources
 from pathlib import Path
 from typing import Any
 
-import yaml
+from rv_te_bench.errors import YamlInputError
+from rv_te_bench.safe_yaml import DOCUMENT_LIMITS, load_yaml
 
-_MAX_TEXT = 1 << 20
+_MAX_TEXT = DOCUMENT_LIMITS.max_bytes
 
 
 def parse_yaml_text(text: str, origin: str, error: type[Exception]) -> Any:  # noqa: ANN401
-    """``yaml.safe_load`` of a plan or tolerance file, size-bounded, errors on one line."""
-    if len(text) > _MAX_TEXT:
-        msg = f'{origin}: {len(text)} characters, more than the {_MAX_TEXT} allowed'
-        raise error(msg)
+    """A plan or tolerance file through the suite's bounded loader (size, depth, aliases,
+    expanded nodes: :mod:`rv_te_bench.safe_yaml`), errors on one line as ``error``."""
     try:
-        return yaml.safe_load(text)
-    except yaml.YAMLError as exc:
-        msg = f'{origin}: not valid YAML ({exc})'.replace('\n', ' ')
-        raise error(msg) from None
+        return load_yaml(text, origin=origin, limits=DOCUMENT_LIMITS)
+    except YamlInputError as exc:
+        raise error(str(exc)) from None
 
 
 def shipped(folder: str) -> list[str]:
@@ -42,6 +40,9 @@ def read_source(name_or_path: str | Path, *, folder: str, what: str, error: type
     for path in cands:
         if path.is_file():
             try:
+                if path.stat().st_size > _MAX_TEXT:
+                    msg = f'{what} {path} is larger than {_MAX_TEXT >> 20} MiB: not read'
+                    raise error(msg)
                 return path.read_text(encoding='utf-8'), str(path)
             except (OSError, UnicodeDecodeError) as exc:
                 msg = f'{what} {path}: cannot read ({exc})'

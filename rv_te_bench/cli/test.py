@@ -76,19 +76,25 @@ def register(subparsers: Any) -> None:  # noqa: ANN401
 
 
 def _conditions(items: list[str]) -> dict[str, Any]:
-    import yaml  # noqa: PLC0415
-
-    from rv_te_bench.errors import AcceptanceError  # noqa: PLC0415
+    from rv_te_bench.errors import (  # noqa: PLC0415
+        AcceptanceError,
+        YamlInputError,
+        YamlLimitError,
+    )
+    from rv_te_bench.safe_yaml import SMALL_TEXT_LIMITS, brief, load_yaml  # noqa: PLC0415
 
     out: dict[str, Any] = {}
     for item in items:
         key, sep, text = item.partition('=')
         if not sep or not key.strip():
-            msg = f'--condition {item!r} is not of the form key=value'
+            msg = f'--condition {brief(item)} is not of the form key=value'
             raise AcceptanceError(msg)
         try:
-            out[key.strip()] = yaml.safe_load(text)
-        except yaml.YAMLError:
+            out[key.strip()] = load_yaml(text, origin=f'--condition {brief(item)}',
+                                         limits=SMALL_TEXT_LIMITS)
+        except YamlLimitError as exc:
+            raise AcceptanceError(str(exc)) from None
+        except YamlInputError:
             out[key.strip()] = text
     return out
 

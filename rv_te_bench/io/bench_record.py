@@ -7,13 +7,12 @@ The text comes from a bag or from the network: it is parsed by the suite's bound
 from __future__ import annotations
 
 from rv_te_bench.errors import YamlInputError
-from rv_te_bench.safe_yaml import YamlLimits, load_yaml
+from rv_te_bench.safe_yaml import DOCUMENT_LIMITS, load_yaml
 
 __all__ = ['PARAMETERS_YAML_LIMITS', 'overrides_from_parameters_yaml']
 
 #: A BenchInfo record holds the preset's values and the bench settings: a few kB.
-PARAMETERS_YAML_LIMITS = YamlLimits(max_bytes=1 << 20, max_depth=32, max_aliases=1000,
-                                    max_nodes=100_000)
+PARAMETERS_YAML_LIMITS = DOCUMENT_LIMITS
 
 
 def overrides_from_parameters_yaml(text: str) -> list[str]:

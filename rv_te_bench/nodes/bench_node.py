@@ -19,14 +19,12 @@ import sys
 import time
 from typing import Any
 
-import yaml
-
 from diagnostic_msgs.msg import DiagnosticArray
 from rclpy.node import Node
 from rosgraph_msgs.msg import Clock
 from rv_te_msgs.msg import BenchInfo, EncoderBlock
 
-from rv_te_bench.errors import ParameterFileError
+from rv_te_bench.errors import ParameterFileError, YamlInputError
 from rv_te_bench.nodes import convert, qos
 from rv_te_bench.nodes.common import (
     OK,
@@ -37,6 +35,7 @@ from rv_te_bench.nodes.common import (
     run_node,
 )
 from rv_te_bench.params import ParamSpec
+from rv_te_bench.safe_yaml import DOCUMENT_LIMITS, load_yaml
 
 PARAMS = (
     ParamSpec('bench_id', 'string', 'bench0', 'Bench id (frame_id of every message) [-]'),
@@ -272,9 +271,10 @@ class BenchNode(Node):
             response.reason = 'bench busy: a program is running (call bench/stop first)'
             return response
         try:
-            segments = program_from_plain(yaml.safe_load(request.program_yaml))
+            segments = program_from_plain(load_yaml(  # bounded: from any peer
+                request.program_yaml, origin='program_yaml', limits=DOCUMENT_LIMITS))
             total = self.program.load(segments)
-        except (SimError, yaml.YAMLError) as exc:
+        except (SimError, YamlInputError) as exc:
             response.accepted = False
             response.reason = f'bad program: {exc}'.replace('\n', ' ')
             self.get_logger().warning(response.reason)

@@ -1,14 +1,14 @@
 """Every example in ``rv-te --help``, each subcommand's ``--help`` and the README works.
 
-Issue #15 item 9: ``rv-te presets wang2020-2kv --set stiffness.k_n_per_m=9e7`` (a help
-example) failed and the README launched a file that did not exist. The examples are run in
-a folder holding what they name (``session.yaml`` written by ``rv-te launch
---write-default``, the sample bag under the names the examples use). Commands that compute
-run whole; commands that start ROS nodes run everything up to the start: ``launch`` with
-``--check``, ``bench`` and ``demo`` through their session checks, ``record`` and ``replay``
-building their node in a real context and destroying it. ``results`` / ``spc`` read a store
-that ``rv-te analyze`` filled with six units; the examples that name a site's servers
-(``postgresql://``, ``tcp://`` schedulers) are the only ones not run.
+Issue #15 item 9: ``rv-te presets wang2020-2kv --set stiffness.k_n_per_m=9e7`` (a help example)
+failed and the README launched a file that did not exist. The examples are run in a folder
+holding what they name (``session.yaml`` written by ``rv-te launch --write-default``, the
+sample bag under the names the examples use). Commands that compute run whole; commands that
+start ROS nodes run everything up to the start: ``launch`` with ``--check``, ``bench``,
+``demo`` and ``test`` through their session checks, ``record`` and ``replay`` building their
+node in a real context and destroying it. ``results`` / ``spc`` read a store that ``rv-te
+analyze`` filled with six units; the examples that name a site's servers (``postgresql://``,
+``tcp://`` schedulers) are the only ones not run.
 """
 
 from __future__ import annotations
@@ -31,7 +31,8 @@ SAMPLE = ROOT / 'bags' / 'sample'
 def help_texts() -> list[str]:
     parser = build_parser()
     texts = [parser.format_help()]
-    sub = next(a for a in parser._actions if isinstance(a, argparse._SubParsersAction))  # noqa: SLF001
+    sub = next(a for a in parser._actions  # noqa: SLF001
+               if isinstance(a, argparse._SubParsersAction))  # noqa: SLF001
     texts += [p.format_help() for p in dict.fromkeys(sub.choices.values())]
     return texts
 
@@ -39,6 +40,7 @@ def help_texts() -> list[str]:
 def examples(text: str) -> list[str]:
     """Command lines of a help text or a README block: 'rv-te ...' up to its comment."""
     out = []
+    text = re.sub(r' *\\\n\s*', ' ', text)   # a command continued on the next line
     for line in text.splitlines():
         body = line.strip()
         if not body.startswith('rv-te '):
@@ -79,6 +81,9 @@ def example_dir(tmp_path_factory: pytest.TempPathFactory) -> Path:
     mcap = next(SAMPLE.glob('*.mcap'))
     for name in ('real.mcap', 'bag.mcap'):
         shutil.copy(mcap, d / name)
+    acceptance = ROOT / 'rv_te_bench' / 'acceptance'
+    shutil.copy(acceptance / 'plans' / 'rv-80e.yaml', d / 'my_plan.yaml')
+    shutil.copy(acceptance / 'tolerances' / 'rv-80e-101.yaml', d / 'my_limits.yaml')
     return d
 
 
@@ -117,6 +122,11 @@ def _stop_at_start(mp: pytest.MonkeyPatch, command: str) -> None:
 
     if command == 'bench':
         mp.setattr(session, 'run_single_process', started)
+    elif command == 'test':   # after the plan, tolerance and session checks
+        from rv_te_bench.cli import test  # noqa: PLC0415
+
+        mp.setattr(session.Session, 'start', started)
+        mp.setattr(test, '_run_goal', started)
     elif command == 'demo':   # the demo starts its own session right after building it
         real_build = session.build_session
 
