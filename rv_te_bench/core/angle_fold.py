@@ -183,12 +183,11 @@ class AngleFold:
             msg = f'phi_rad and te_rad must be 1-D of equal length, got {phi.shape} and {te.shape}'
             raise TeInputError(msg)
         ok = np.isfinite(phi) & np.isfinite(te)
-        if not ok.all():
-            self.skipped += int(phi.size - np.count_nonzero(ok))
-            phi, te = phi[ok], te[ok]     # the stretch breaks there: no noise estimate across
-            self._noise(phi[:0], te[:0])
-        else:
+        if ok.all():
             self._noise(phi, te)
+        else:   # the stretch breaks at the bad samples: no noise estimate across them
+            self.skipped += int(phi.size - np.count_nonzero(ok))
+            phi, te = phi[ok], te[ok]
         if phi.size == 0:
             return
         if math.isnan(self._y_ref):
