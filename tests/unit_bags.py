@@ -27,8 +27,10 @@ T0_NS = 1_700_000_000_000_000_000
 def write_unit_bag(path: Path, theta_in: np.ndarray, theta_out: np.ndarray, *,  # noqa: PLR0913
                    rate_hz: float, block: int = 100, info: bool = True,
                    preset: str = 'wang2020-2kv', bench_id: str = 'unit-bench',
-                   parameters_yaml: str = '') -> Path:
-    """A rosbag2/MCAP bag (rosbags writer) with a BenchInfo and the encoder samples in blocks."""
+                   parameters_yaml: str = '', custom_data: dict[str, str] | None = None,
+                   ) -> Path:
+    """A rosbag2/MCAP bag (rosbags writer) with a BenchInfo and the encoder samples in blocks;
+    ``custom_data`` goes to metadata.yaml (session metadata, e.g. a unit serial)."""
     from rosbags.rosbag2 import StoragePlugin, Writer  # noqa: PLC0415
 
     store = rv_te_typestore()
@@ -40,6 +42,8 @@ def write_unit_bag(path: Path, theta_in: np.ndarray, theta_out: np.ndarray, *,  
             frame_id=bench_id)
 
     with Writer(path, version=9, storage_plugin=StoragePlugin.MCAP) as writer:
+        for key, value in (custom_data or {}).items():
+            writer.set_custom_data(key, value)
         # both channels first, so that they precede every message in the first chunk
         conn = writer.add_connection(INFO_TOPIC, BENCH_INFO, typestore=store) if info else None
         enc = writer.add_connection(ENCODER_TOPIC, ENCODER_BLOCK, typestore=store)

@@ -262,10 +262,21 @@ def _fmt(x: float | None, width: int, digits: int) -> str:
     return f'{"-":>{width}}' if x is None else f'{x:>{width}.{digits}f}'
 
 
+def _print_identification(rec: Any, out: TextIO) -> None:  # noqa: ANN401
+    if rec.identification is None:
+        return
+    from rv_te_bench.report.analysis import describe_identification  # noqa: PLC0415
+
+    for line in describe_identification(rec.identification):
+        print(f'    {line}', file=out)
+
+
 def _print_one(res: AnalysisResult, out: TextIO) -> None:
+    from rv_te_bench.report.analysis import report_title  # noqa: PLC0415
+
     b = res.bench
     flag = '  [PARTIAL]' if res.partial else ''
-    print(f'bag {res.path}{flag}', file=out)
+    print(f'{report_title(res)}: bag {res.path}{flag}', file=out)
     print(f'  preset {b.preset or "(unknown)"} ({b.reducer_type or "-"}), i = {b.gear_ratio:.6g}, '
           f'f_w = {b.crank_per_output:.6g} f_out, ratio from {b.source}; '
           f'{res.blocks_read} blocks', file=out)
@@ -310,6 +321,7 @@ def _print_one(res: AnalysisResult, out: TextIO) -> None:
     rec = res.recommendation
     if rec.advice is None:
         print(f'  recommendation: {rec.reason}', file=out)
+        _print_identification(rec, out)
     else:
         a = rec.advice
         print(f'  recommendation ({a.method}): {a.summary}; TE {a.te_metric} '
@@ -317,6 +329,7 @@ def _print_one(res: AnalysisResult, out: TextIO) -> None:
         for m in a.modifications:
             print(f'    {m.factor} ({m.symbol}): {_value(m.current_value, m.unit)} -> '
                   f'{_value(m.recommended_value, m.unit)}', file=out)
+        _print_identification(rec, out)
     for problem in res.problems:
         print(f'  {"PARTIAL" if res.partial else "note"}: {problem}', file=out)
     print(file=out)

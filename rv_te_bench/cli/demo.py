@@ -74,7 +74,7 @@ def run(args: argparse.Namespace) -> int:  # noqa: C901, PLR0915
     from rv_te_bench.cli.launch import default_session_file  # noqa: PLC0415
     from rv_te_bench.errors import RvTeError  # noqa: PLC0415
     from rv_te_bench.io.files import claim_folder, folder_name_problem  # noqa: PLC0415
-    from rv_te_bench.launch.session import Session, build_session  # noqa: PLC0415
+    from rv_te_bench.launch.session import Session, build_session, node_specs  # noqa: PLC0415
     from rv_te_bench.nodes.common import make_executor  # noqa: PLC0415
     from rv_te_bench.nodes.monitor import SessionMonitor  # noqa: PLC0415
 
@@ -157,7 +157,10 @@ def run(args: argparse.Namespace) -> int:  # noqa: C901, PLR0915
     t_live = time.monotonic() - t_start
     print(f'[demo] live session done in {t_live:.1f} s; analysing {bag_dir}', file=sys.stderr)
     try:
-        summary = _report(bag_dir, report_dir, dict(mon.advice))
+        comp = {**{p.name: p.default for p in node_specs('compensation')},
+                **spec.parameters.get('compensation', {})}
+        search = (float(comp['step_deg']), bool(comp['refine']))
+        summary = _report(bag_dir, report_dir, dict(mon.advice), search)
     except RvTeError as exc:
         print(f'ERROR: report failed: {exc}', file=sys.stderr)
         return 1
@@ -166,12 +169,17 @@ def run(args: argparse.Namespace) -> int:  # noqa: C901, PLR0915
     return code
 
 
-def _report(bag_dir: Path, report_dir: Path, live_advice: dict[str, Any]) -> str:
-    """Offline analysis of the recorded bag -> report files; returns the summary text."""
+def _report(bag_dir: Path, report_dir: Path, live_advice: dict[str, Any],
+            search: tuple[float, bool]) -> str:
+    """Offline analysis of the recorded bag -> report files; returns the summary text.
+
+    ``search``: the compensation node's (step_deg, refine), so that the offline advice for
+    this unit is searched as the live ones were.
+    """
     from rv_te_bench.report.analysis import analyze_bag  # noqa: PLC0415
     from rv_te_bench.report.html import write_report  # noqa: PLC0415
 
-    result = analyze_bag(bag_dir)
+    result = analyze_bag(bag_dir, advice_search=search)
     write_report([result], report_dir)
     return summary_text(result, live_advice)
 

@@ -31,8 +31,10 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
+from rv_te_bench.core.angle_fold import AngleFold
+from rv_te_bench.core.units import json_deg
 from rv_te_bench.errors import BagError, RvTeError, TeConfigError
-from sim.units import rad_to_arcmin, rad_to_deg
+from sim.units import rad_to_arcmin
 
 if TYPE_CHECKING:
     from collections.abc import Callable, Iterable, Iterator
@@ -40,6 +42,7 @@ if TYPE_CHECKING:
     import numpy.typing as npt
 
     from rv_te_bench.core.advice import Advice
+    from rv_te_bench.core.angle_fold import FoldedTe
     from rv_te_bench.core.spectrum import OrderSpectrum, SpectrumLine
     from rv_te_bench.core.stream import EncoderBatch, EncoderBlockData, GapEvent, WindowResult
     from rv_te_bench.core.te import TeStats
@@ -55,9 +58,13 @@ __all__ = [
     'SpectrumAverager',
     'SpectrumSummary',
     'TeTrace',
+    'SessionInfo',
     'analyze_bag',
     'compare_results',
+    'describe_identification',
     'likely_source',
+    'report_title',
+    'session_info',
 ]
 
 #: Most (theta_out, TE) points kept for the TE plot; the trace is thinned by 2 when exceeded.
@@ -186,16 +193,71 @@ class Recommendation:
         available: True when ``advice`` holds a recommendation.
         reason: Why there is no recommendation, or where the advice comes from.
         advice: The advice (``rv_te_bench.core.advice.Advice``) or None.
+        identification: The 2K-V identification the advice rests on, or that was judged
+            too poor for advice (JSON dict with the fit quality), or None.
     """
 
     available: bool
     reason: str
     advice: Advice | None = None
+    identification: dict[str, Any] | None = None
 
     def to_json_dict(self) -> dict[str, Any]:
         """JSON-friendly dict."""
         return {'available': self.available, 'reason': self.reason,
-                'advice': None if self.advice is None else self.advice.to_json_dict()}
+                'advice': None if self.advice is None else self.advice.to_json_dict(),
+                'identification': self.identification}
+
+
+@dataclass(frozen=True)
+class SessionInfo:
+    """What the bag says about its session (metadata.yaml ``custom_data``).
+
+    Attributes:
+        name: ``session`` from the metadata, else the bag folder's name (its parent's when
+            the folder is a generic ``bag``, as in ``bags/<session>/bag``).
+        started_utc: When the recorder started ('' when unknown).
+        unit_serial: Serial number of the unit under test (``unit_serial`` in the session
+            metadata, e.g. ``--param recorder.session_metadata_yaml='unit_serial: SN-42'``).
+    """
+
+    name: str
+    started_utc: str = ''
+    unit_serial: str = ''
+
+    def to_json_dict(self) -> dict[str, Any]:
+        """JSON-friendly dict."""
+        return {'name': self.name, 'started_utc': self.started_utc,
+                'unit_serial': self.unit_serial}
+
+
+def session_info(path: str | Path) -> SessionInfo:
+    """The session of a bag from its metadata (never raises: falls back to the path)."""
+    from rv_te_bench.io.bag_reader import open_bag  # noqa: PLC0415
+
+    p = Path(path)
+    folder = p.parent.name if p.name in {'bag', 'bag_0'} and p.parent.name else p.name
+    try:
+        custom = open_bag(p).info.get('custom_data') or {}
+    except BagError:
+        custom = {}
+    if not isinstance(custom, dict):
+        custom = {}
+    return SessionInfo(name=str(custom.get('session') or folder),
+                       started_utc=str(custom.get('started_utc') or ''),
+                       unit_serial=str(custom.get('unit_serial') or ''))
+
+
+def report_title(result: AnalysisResult) -> str:
+    """What a bag is, for titles: preset, bench, session, start and the unit serial."""
+    b, sess = result.bench, result.session
+    parts = [b.preset or 'unknown reducer']
+    if b.bench_id:
+        parts.append(f'bench {b.bench_id}')
+    parts.append(f'session {sess.name}' + (f' ({sess.started_utc})' if sess.started_utc else ''))
+    if sess.unit_serial:
+        parts.append(f'unit {sess.unit_serial}')
+    return ', '.join(parts)
 
 
 @dataclass(frozen=True)
@@ -238,6 +300,7 @@ class AnalysisResult:
         blocks_read: Encoder blocks read from the bag.
         elapsed_s: Wall time of the analysis [s].
         read_problems: Every problem the reader met (file, byte offset, what), in order.
+        session: The bag's session (name, start, unit serial) for titles.
     """
 
     path: Path
@@ -256,6 +319,7 @@ class AnalysisResult:
     blocks_read: int
     elapsed_s: float
     read_problems: tuple[str, ...] = ()
+    session: SessionInfo = field(default_factory=lambda: SessionInfo(name=''))
 
     @property
     def complete_windows(self) -> tuple[WindowResult, ...]:
@@ -266,6 +330,8 @@ class AnalysisResult:
         """JSON-friendly dict with unit-suffixed keys (``te_pp_arcmin``, ``frequency_hz``)."""
         return {
             'bag': str(self.path),
+            'title': report_title(self),
+            'session': self.session.to_json_dict(),
             'topic': self.topic,
             'partial': self.partial,
             'problems': list(self.problems),
@@ -315,6 +381,7 @@ def analyze_bag(  # noqa: PLR0913 - keyword-only analysis options
     n_crank_harmonics: int = 10,
     window_revolutions: int = 1,
     with_advice: bool = True,
+    advice_search: tuple[float, bool] = (10.0, False),
     progress: ProgressFn | None = None,
 ) -> AnalysisResult:
     """Analyse one recorded session.
@@ -328,6 +395,9 @@ def analyze_bag(  # noqa: PLR0913 - keyword-only analysis options
         n_crank_harmonics: Crank harmonics to report (1 f_w .. n f_w).
         window_revolutions: Whole output revolutions per analysis window (>= 1).
         with_advice: Ask the compensation code for a recommendation.
+        advice_search: (grid step [deg], refine) of the 2K-V assembly-phase search: the
+            paper's 10 deg grid by default; a session's compensation node settings to match
+            its live advice (the demo does).
         progress: Called as ``progress(blocks, samples, elapsed_s)`` after each chunk of
             blocks read.
 
@@ -351,13 +421,16 @@ def analyze_bag(  # noqa: PLR0913 - keyword-only analysis options
     if not path.exists():
         msg = f'{path}: no such bag'
         raise BagError(msg)
-    info = read_bench_info(path)
+    info, info_problem = _read_bench_info(path, gear_ratio, crank_per_output)
     bench = _bench_description(path, info, gear_ratio, crank_per_output)
     config = TeAnalysisConfig(orders=_order_set(bench, n_crank_harmonics),
                               window_revolutions=window_revolutions)
 
     stream = read_encoder_batches(path, topic, strict=False)
-    reader = _GuardedBlocks(stream, bench.gear_ratio, progress=progress, t_start=t_start)
+    # a 2K-V unit is identified from every sample, folded on theta_in / i as it is read
+    fold = AngleFold() if with_advice and bench.reducer_type == '2kv' else None
+    reader = _GuardedBlocks(stream, bench.gear_ratio, progress=progress, t_start=t_start,
+                            fold=fold)
     averager = SpectrumAverager()
     kept: list[WindowResult] = []
 
@@ -370,7 +443,8 @@ def analyze_bag(  # noqa: PLR0913 - keyword-only analysis options
         kept.append(w)
 
     offline = analyze_blocks(reader, config, on_window=on_window)
-    read_problems = [*getattr(stream, 'problems', ()),
+    read_problems = [*([] if info_problem is None else [info_problem]),
+                     *getattr(stream, 'problems', ()),
                      *([] if reader.error is None else [reader.error])]
     if reader.blocks == 0:
         detail = summarize_problems(read_problems) or 'the encoder topic holds no messages'
@@ -389,15 +463,34 @@ def analyze_bag(  # noqa: PLR0913 - keyword-only analysis options
                         'statistics do not cover whole revolutions')
     dominant = None if spectrum is None else dominant_harmonic(spectrum, bench)
     trace = reader.trace()
-    recommendation = (_recommend(bench, offline.cumulative, trace) if with_advice
-                      else Recommendation(available=False, reason='not requested (--no-advice)'))
+    recommendation = (
+        _recommend(bench, offline.cumulative, None if fold is None else fold.result(),
+                   advice_search)
+        if with_advice else
+        Recommendation(available=False, reason='not requested (--no-advice)'))
     return AnalysisResult(
         path=path, topic=topic, bench=bench, windows=windows,
         cumulative=offline.cumulative, spectrum=spectrum, dominant=dominant,
         gaps=tuple(offline.gaps), counters=dict(offline.counters), trace=trace,
         recommendation=recommendation, partial=partial,
         problems=tuple(problems), blocks_read=reader.blocks,
-        elapsed_s=time.monotonic() - t_start, read_problems=tuple(read_problems))
+        elapsed_s=time.monotonic() - t_start, read_problems=tuple(read_problems),
+        session=session_info(path))
+
+
+def _read_bench_info(path: Path, gear_ratio: float | None, crank_per_output: float | None,
+                     ) -> tuple[dict[str, Any] | None, str | None]:
+    """(BenchInfo, problem): a damaged chunk holding BenchInfo does not block a bag whose
+    ratio and crank order are given (--ratio, --crank-per-output); the result is partial."""
+    from rv_te_bench.io.bag_reader import read_bench_info  # noqa: PLC0415
+
+    try:
+        return read_bench_info(path), None
+    except BagError as exc:
+        if gear_ratio is None or crank_per_output is None:
+            msg = f'{exc}; pass --ratio and --crank-per-output to analyse the rest of the bag'
+            raise BagError(msg) from None
+        return None, 'no readable BenchInfo (damaged): --ratio and --crank-per-output used'
 
 
 class _GuardedBlocks:
@@ -411,8 +504,10 @@ class _GuardedBlocks:
     """
 
     def __init__(self, blocks: Iterable[EncoderBlockData | EncoderBatch], gear_ratio: float,
-                 *, progress: ProgressFn | None, t_start: float) -> None:
+                 *, progress: ProgressFn | None, t_start: float,
+                 fold: AngleFold | None = None) -> None:
         self._it = iter(blocks)
+        self._fold = fold
         self._ratio = gear_ratio
         self._progress = progress
         self._t0 = t_start
@@ -475,6 +570,8 @@ class _GuardedBlocks:
         if self._last_seq is not None and seq_first != self._last_seq + 1:
             self._parts.append((np.array([-1]), np.array([np.nan]), np.array([np.nan])))
         self._last_seq = seq_last
+        if self._fold is not None:
+            self._fold.add_encoders(th_in, th_out, gear_ratio=self._ratio)
         start = (-g0) % self._stride
         th = th_out[start::self._stride]
         te = transmission_error_rad(th_in[start::self._stride], th, gear_ratio=self._ratio)
@@ -701,12 +798,14 @@ def likely_source(output_order: float, bench: BenchDescription) -> str:
     return 'not assigned to a known order'
 
 
-def _recommend(bench: BenchDescription, cumulative: TeStats, trace: TeTrace) -> Recommendation:
+def _recommend(bench: BenchDescription, cumulative: TeStats, folded: FoldedTe | None,
+               search: tuple[float, bool] = (10.0, False)) -> Recommendation:
     """Ask the compensation code for advice on the bench's preset (lazy imports).
 
     * ``wang2020-2kv`` model: eccentricities and assembly phases identified from the
-      measured TE (``core.identify``), else the Eq. 21 optimisation on the preset's own
-      eccentricities (``core.phases``; then the advice is model-based, not measured);
+      measured TE folded on theta_in / i (``core.identify``; withheld on a poor fit, with
+      the fit quality), else, with nothing to identify from, the Eq. 21 optimisation on the
+      preset's own eccentricities (``core.phases``; then the advice is model-based);
     * ``hu2020-rv`` model: tooth-profile compensation for the measured TE peak-to-peak
       over all clean samples (``core.tooth_compensation``);
     * any other preset: no compensation model.
@@ -725,7 +824,7 @@ def _recommend(bench: BenchDescription, cumulative: TeStats, trace: TeTrace) -> 
             f'no recommendation available: preset {bench.preset!r} cannot be loaded ({exc})'))
     try:
         if preset.model == 'wang2020-2kv':
-            return _advice_2kv(preset, trace)
+            return _advice_2kv(preset, folded, search)
         if preset.model == 'hu2020-rv':
             from rv_te_bench.core.tooth_compensation import (  # noqa: PLC0415
                 tooth_profile_advice,
@@ -747,30 +846,48 @@ def _recommend(bench: BenchDescription, cumulative: TeStats, trace: TeTrace) -> 
         'no compensation model'))
 
 
-def _advice_2kv(preset: Any, trace: TeTrace) -> Recommendation:  # noqa: ANN401
-    """Identified assembly phases when possible, else the model-based Eq. 21 optimum."""
+def _advice_2kv(preset: Any, folded: FoldedTe | None,  # noqa: ANN401
+                search: tuple[float, bool]) -> Recommendation:
+    """Identified assembly phases when possible, else the model-based Eq. 21 optimum;
+    ``search`` = (grid step [deg], refine) for both."""
+    from rv_te_bench.core.identify import PoorFitError, identified_advice  # noqa: PLC0415
+    from rv_te_bench.core.phases import optimise_phases  # noqa: PLC0415
     from sim.wang2020 import Wang2kvParams  # noqa: PLC0415
 
     params = Wang2kvParams.from_preset(preset)
-    ok = np.isfinite(trace.te_rad)
-    try:
-        from rv_te_bench.core.identify import identified_advice  # noqa: PLC0415
-    except ImportError:
-        identified_advice = None
-    if identified_advice is not None and np.count_nonzero(ok) > 0:
-        advice = identified_advice(np.asarray(trace.theta_out_rad)[ok],
-                                   np.asarray(trace.te_rad)[ok], params,
-                                   preset_name=preset.name)
+    if folded is not None and folded.n_samples > 0:
+        try:
+            advice = identified_advice(folded, None, params, preset_name=preset.name,
+                                       step_deg=search[0], refine=search[1])
+        except PoorFitError as exc:
+            return Recommendation(available=False, reason=str(exc),
+                                  identification=exc.identification.to_json_dict())
         return Recommendation(available=True, reason=(
             'assembly phases from eccentricities identified in the measured TE'),
-            advice=advice)
-    from rv_te_bench.core import phases  # noqa: PLC0415
-
-    optimise = getattr(phases, 'optimize_phases', None) or phases.optimise_phases
-    advice = optimise(params).to_advice(preset.name)
+            advice=advice, identification=advice.details.get('identification'))
+    advice = optimise_phases(params, step_deg=search[0], refine=search[1]).to_advice(
+        preset.name)
     return Recommendation(available=True, reason=(
         "Eq. 21 assembly-phase optimum for the preset's own eccentricities (model-based, "
         'not identified from this measurement)'), advice=advice)
+
+
+def describe_identification(ident: dict[str, Any]) -> list[str]:
+    """Lines for people about an identification (the JSON of ``Identification``): what one
+    TE record identified, what rests on assumed part magnitudes, and the notes."""
+    e, ph = ident['e_um'], ident['phases_deg']
+    out = [f"identified from the TE (up to the label swap): Q1 = e_p1 + e_g {e['pair1']:.3f} um "
+           f"at {ph['pair1']:.1f} deg, Q2 = e_p2 - e_g {e['pair2']:.3f} um at "
+           f"{ph['pair2']:.1f} deg, E = e_ot {e['e_ot']:.3f} um at {ph['theta_ot']:.1f} deg"]
+    assumed = ident.get('assumed_e_um') or {}
+    if assumed and 'theta_g' in ph:
+        mags = '/'.join(f'{assumed[k]:.3g}' for k in ('e_p1', 'e_p2', 'e_g'))
+        out.append(f'theta_p1/theta_p2/theta_g {ph["theta_p1"]:.1f}/{ph["theta_p2"]:.1f}/'
+                   f'{ph["theta_g"]:.1f} deg rest on the part magnitudes e_p1/e_p2/e_g = '
+                   f'{mags} um (the preset\'s unless measured ones are given): one TE record '
+                   'cannot separate planet and revolution eccentricity')
+    out += [f'note: {n}' for n in ident.get('notes') or ()]
+    return out
 
 
 def compare_results(results: list[AnalysisResult]) -> list[dict[str, Any]]:
@@ -816,7 +933,7 @@ def _line_json(line: SpectrumLine, spread_rad: float) -> dict[str, Any]:
         'amplitude_arcmin': _num(rad_to_arcmin(line.amplitude_rad)),
         'amplitude_rad': _num(line.amplitude_rad),
         'phase_rad': _num(line.phase_rad),
-        'phase_deg': _num(rad_to_deg(line.phase_rad)),
+        'phase_deg': json_deg(line.phase_rad),
     }
     if math.isfinite(spread_rad):
         out['amplitude_spread_arcmin'] = _num(rad_to_arcmin(spread_rad))

@@ -18,7 +18,12 @@ from typing import TYPE_CHECKING, Any
 
 from rv_te_bench.errors import RvTeError
 from rv_te_bench.io.files import write_all
-from rv_te_bench.report.analysis import PHASE_MIN_FRACTION, compare_results
+from rv_te_bench.report.analysis import (
+    PHASE_MIN_FRACTION,
+    compare_results,
+    describe_identification,
+    report_title,
+)
 from rv_te_bench.safe_yaml import printable
 from sim.units import rad_to_arcmin, rad_to_deg
 
@@ -154,7 +159,7 @@ def _img(images: dict[str, bytes], name: str, alt: str) -> str:
 
 
 def _bag_section(res: AnalysisResult) -> str:  # noqa: C901 - one report section per item
-    out = [f'<h2>{_e(res.path)}</h2>']
+    out = [f'<h2>{_e(report_title(res))}</h2>', f'<p class="muted">bag {_e(res.path)}</p>']
     if res.partial or res.problems:
         kind = 'PARTIAL result' if res.partial else 'Note'
         out.append(f'<p class="warn"><b>{kind}:</b> '
@@ -220,8 +225,11 @@ def _bag_section(res: AnalysisResult) -> str:  # noqa: C901 - one report section
 
     out.append('<h3>Recommendation</h3>')
     rec = res.recommendation
+    ident = ('' if rec.identification is None else
+             '<p class="muted">' + '<br>'.join(
+                 _e(x) for x in describe_identification(rec.identification)) + '</p>')
     if rec.advice is None:
-        out.append(f'<p>{_e(rec.reason)}</p>')
+        out.append(f'<p>{_e(rec.reason)}</p>{ident}')
     else:
         a = rec.advice
         out.append(f'<p><b>{_e(a.method)}</b>: {_e(a.summary)}<br>TE {_e(a.te_metric)}: '
@@ -240,6 +248,7 @@ def _bag_section(res: AnalysisResult) -> str:  # noqa: C901 - one report section
                     + (f'<td>{_sens(m.sensitivity_index)}</td>' if sens else '') + '</tr>'
                     for m in a.modifications]
             out.append('</table>')
+        out.append(ident)
     return '\n'.join(out)
 
 
@@ -256,7 +265,10 @@ def render_html(results: Sequence[AnalysisResult], images: dict[str, bytes],
         The page.
     """
     doc = report_json(results) if doc is None else doc
-    title = ('TE report: ' + ', '.join(r.path.name for r in results))
+    # what the bags are (preset, bench, session, unit), not their folder names ("bag")
+    title = ('TE report: ' + report_title(results[0]) if len(results) == 1 else
+             f'TE report: comparison of {len(results)} sessions ('
+             + '; '.join(report_title(r) for r in results) + ')')
     parts = [f'<!DOCTYPE html><html lang="en"><head><meta charset="utf-8">'
              f'<title>{_e(title)}</title><style>{_CSS}</style></head><body>',
              f'<h1>{_e(title)}</h1>',
