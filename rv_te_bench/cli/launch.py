@@ -1,4 +1,5 @@
-"""``rv-te launch``: a session (bench + TE + compensation + recorder) from parameter files."""
+"""``rv-te launch``: a session (bench + TE + compensation + recorder) from a ROS 2 launch file
+(the YAML frontend subset of :mod:`rv_te_bench.launch.launch_file`) or from parameter files."""
 
 from __future__ import annotations
 
@@ -9,20 +10,34 @@ from typing import Any
 
 EPILOG = """\
 examples:
-  rv-te launch --default                        the packaged session (wang2020-2kv, 2 revs)
-  rv-te launch --write-default session.yaml     write that session file to start from
-  rv-te launch session.yaml --namespace bench1  a session under /bench1
+  rv-te launch --default                        the packaged session.launch.yaml (wang2020-2kv)
+  rv-te launch --write-default session.yaml     write the default parameter file to start from
+  rv-te launch session.yaml --namespace bench1  a session under /bench1 (parameter file)
+  rv-te launch session.launch.yaml namespace:=bench1 use_sim_time:=false
   rv-te launch session.yaml --param bench.speed_rpm=600 --param recorder.output_dir=out/b
   rv-te launch session.yaml --nodes bench,te_node --single-process
   rv-te launch --nodes bench,te_node            two nodes of the packaged session
   rv-te launch session.yaml --check             run every start-up check and exit
 
-Parameter files use the ROS 2 layout (node_name: ros__parameters: {...}); node names are
-bench, te_node, compensation, recorder (optionally /namespace/node, or /** for all). They
-are read as ROS reads them (1e5 is a number, yes a bool), at most 1 MiB, without aliases or
-repeated keys. --check runs the checks each node runs at start (presets, model modes,
-encoders, overrides, topic names and types, remap rules, the bag folder): a session that
-passes it starts.
+Two kinds of file:
+* A ROS 2 launch file (YAML frontend, top level "launch:"), the same file that
+  `ros2 launch rv_te_bench session.launch.yaml` runs on a full ROS 2 install; launch
+  arguments as name:=value. rv-te runs this subset (anything else is an error naming the
+  tag or attribute):
+    arg   name, default, description, choice      let   name, value
+    node  pkg (rv_te_bench), exec (bench_node, te_node, compensation_node, recorder),
+          name (bench, te_node, compensation, recorder), namespace, output,
+          param ({from: FILE} or {name, value}), remap ({from, to})
+    substitutions $(var NAME) $(env NAME [DEFAULT]) $(find-pkg-share PKG) $(dirname)
+  One namespace and one remapping list for the whole session; --namespace and --remap
+  act on a launch file as PushRosNamespace and SetRemap do (in front of / after its own).
+* ROS 2 parameter files (node_name: ros__parameters: {...}); node names are bench,
+  te_node, compensation, recorder (optionally /namespace/node, /**/node, or /** for all).
+  They are read as ROS reads them (1e5 is a number, yes a bool), at most 1 MiB, without
+  aliases or repeated keys.
+--check runs the checks each node runs at start (presets, model modes, encoders,
+overrides, topic names and types, remap rules, the bag folder): a session that passes it
+starts.
 """
 
 
@@ -41,16 +56,20 @@ def add_session_arguments(p: argparse.ArgumentParser, *, single_process: bool = 
 def register(subparsers: Any) -> None:  # noqa: ANN401
     """Add the ``launch`` subcommand."""
     p = subparsers.add_parser(
-        'launch', help='run a session from ROS-style parameter files',
-        description='Run bench + TE node + compensation node + recorder with parameters from '
-                    'ROS 2 parameter files. Ctrl-C stops every node and finalises the bag.',
+        'launch', help='run a session from a ROS 2 launch file or parameter files',
+        description='Run bench + TE node + compensation node + recorder from a ROS 2 YAML '
+                    'launch file or ROS 2 parameter files. Ctrl-C stops every node and '
+                    'finalises the bag.',
         epilog=EPILOG, formatter_class=argparse.RawDescriptionHelpFormatter)
-    p.add_argument('param_files', nargs='*', help='ROS 2 parameter files (YAML)')
-    p.add_argument('--default', action='store_true', help='use the packaged default session')
+    p.add_argument('param_files', nargs='*', metavar='FILE',
+                   help='a ROS 2 launch file and its name:=value arguments, or ROS 2 '
+                        'parameter files (YAML)')
+    p.add_argument('--default', action='store_true',
+                   help='run the packaged session.launch.yaml')
     p.add_argument('--nodes', default=None,
-                   help='comma-separated nodes to start (default: bench,te_node,compensation,'
-                        'recorder); without a parameter file: the packaged session\'s '
-                        'parameters for them')
+                   help='comma-separated nodes to start (default: all of the file, or bench, '
+                        'te_node, compensation, recorder); without a file: the packaged '
+                        'session\'s nodes')
     p.add_argument('--check', action='store_true',
                    help="run every node's start-up checks, start nothing")
     p.add_argument('--write-default', metavar='FILE', default=None,
@@ -64,26 +83,61 @@ def default_session_file() -> str:
     return str(resources.files('rv_te_bench.launch').joinpath('default_session.yaml'))
 
 
+def default_launch_file() -> str:
+    """Path of the packaged launch file (the one ``ros2 launch`` finds in share/rv_te_bench)."""
+    return str(resources.files('rv_te_bench.launch').joinpath('session.launch.yaml'))
+
+
+def _spec_from_files(args: argparse.Namespace, nodes: list[str] | None) -> Any:  # noqa: ANN401
+    """The SessionSpec of a launch file (with name:=value arguments) or of parameter files."""
+    from rv_te_bench.errors import ParameterFileError  # noqa: PLC0415
+    from rv_te_bench.launch import launch_file as lf  # noqa: PLC0415
+    from rv_te_bench.launch.session import build_session  # noqa: PLC0415
+
+    items = list(args.param_files)
+    if args.default:
+        items.insert(0, default_launch_file())
+    launch_args = [i for i in items if ':=' in i]
+    files = [i for i in items if ':=' not in i]
+    if not files:
+        msg = f'{launch_args[0]!r}: name:=value arguments need a launch file'
+        raise ParameterFileError(msg)
+    if lf.is_launch_file(files[0]):
+        if len(files) > 1:
+            msg = f'a launch file runs alone; {files[1]!r} would be a second file'
+            raise ParameterFileError(msg)
+        desc = lf.load_launch_file(files[0], lf.parse_launch_arguments(launch_args))
+        return lf.session_from_launch(desc, overrides=args.params, nodes=nodes,
+                                      namespace=args.namespace, remappings=args.remap,
+                                      single_process=args.single_process)
+    if launch_args:
+        msg = f'{launch_args[0]!r}: name:=value arguments need a launch file'
+        raise ParameterFileError(msg)
+    return build_session(files, namespace=args.namespace, overrides=args.params,
+                         nodes=nodes or None, remappings=args.remap,
+                         single_process=args.single_process)
+
+
 def run(args: argparse.Namespace) -> int:
     """Validate, then run the session; 0 ok, 1 on a crash or a bad file."""
-    from rv_te_bench.launch.session import build_session, run_session, run_single_process  # noqa: PLC0415, E501
+    from rv_te_bench.launch.session import run_session, run_single_process  # noqa: PLC0415
 
     if args.write_default is not None:
         return _write_default(args.write_default)
-    files = list(args.param_files)
-    if args.default or (not files and args.nodes is not None):
-        files.insert(0, default_session_file())
-    if not files:
-        print('ERROR: give a parameter file, --default or --nodes '
+    if not args.param_files and not args.default and args.nodes is None:
+        print('ERROR: give a launch file, a parameter file, --default or --nodes '
               '(rv-te launch --write-default session.yaml writes one to start from)',
               file=sys.stderr)
         return 2
-    nodes = args.nodes if args.nodes is not None else 'bench,te_node,compensation,recorder'
-    spec = build_session(files, namespace=args.namespace, overrides=args.params,
-                         nodes=[n.strip() for n in nodes.split(',') if n.strip()],
-                         remappings=args.remap, single_process=args.single_process)
+    if not args.param_files:
+        args.default = True
+    chosen = [n.strip() for n in args.nodes.split(',') if n.strip()] if args.nodes else None
+    spec = _spec_from_files(args, chosen)
     if args.check:
         print(f'ok: {", ".join(spec.nodes)} in namespace {spec.namespace or "/"}')
+        values = getattr(spec, 'launch_arguments', None)
+        if values:
+            print('launch arguments: ' + ', '.join(f'{k}:={v}' for k, v in values.items()))
         return 0
     if spec.single_process:
         return run_single_process(spec)

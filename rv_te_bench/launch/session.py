@@ -87,6 +87,8 @@ class SessionSpec:
     remappings: tuple[tuple[str, str], ...] = ()
     single_process: bool = False
     use_sim_time: bool = False
+    launch_file: str = ''   # the ROS 2 launch file the session came from, if any
+    launch_arguments: dict[str, str] = field(default_factory=dict)
 
 
 def parse_param_override(item: str) -> tuple[str, str, Any]:
@@ -274,9 +276,13 @@ def typed_parameter(name: str, value: Any, specs: tuple[ParamSpec, ...]) -> Any:
 
 def session_metadata_yaml(spec: SessionSpec) -> str:
     """What the recorder stores in the bag's metadata record: every node's parameters."""
-    return dump_ros_yaml({'namespace': spec.namespace or '/', 'nodes': list(spec.nodes),
-                          'parameters': spec.parameters,
-                          'remappings': [f'{a}:={b}' for a, b in spec.remappings]})
+    meta: dict[str, Any] = {'namespace': spec.namespace or '/', 'nodes': list(spec.nodes),
+                            'parameters': spec.parameters,
+                            'remappings': [f'{a}:={b}' for a, b in spec.remappings]}
+    if spec.launch_file:
+        meta['launch_file'] = spec.launch_file
+        meta['launch_arguments'] = dict(spec.launch_arguments)
+    return dump_ros_yaml(meta)
 
 
 def ros_args(spec: SessionSpec, node: str, params_file: Path | None) -> list[str]:

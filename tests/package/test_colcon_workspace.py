@@ -77,6 +77,7 @@ def test_install_layout_is_what_ros2_run_and_launch_use(workspace: Path) -> None
     assert index.is_file()
     assert (inst / 'share' / 'rv_te_bench' / 'package.xml').is_file()
     assert (inst / 'share' / 'rv_te_bench' / 'launch' / 'default_session.yaml').is_file()
+    assert (inst / 'share' / 'rv_te_bench' / 'launch' / 'session.launch.yaml').is_file()
     msgs = workspace / 'install' / 'rv_te_msgs'
     assert (msgs / 'share' / 'rv_te_msgs' / 'msg' / 'EncoderBlock.msg').is_file()
     assert list((msgs / 'lib').glob('librv_te_msgs__rosidl_typesupport_c.so'))
@@ -96,6 +97,20 @@ def test_sourced_install_imports_from_the_workspace(workspace: Path) -> None:
     bench_py, msgs_py = out.split()
     assert bench_py.startswith(str(workspace / 'install' / 'rv_te_bench'))
     assert msgs_py.startswith(str(workspace / 'install' / 'rv_te_msgs'))
+
+
+def test_installed_launch_file_finds_its_installed_parameter_file(workspace: Path) -> None:
+    """The installed rv-te runs the installed launch file (as ros2 launch would find it in
+    share/rv_te_bench/launch); $(find-pkg-share rv_te_bench) is the workspace's share."""
+    share = workspace / 'install' / 'rv_te_bench' / 'share' / 'rv_te_bench'
+    rv_te = workspace / 'install' / 'rv_te_bench' / 'lib' / 'rv_te_bench' / 'rv-te'
+    out = subprocess.run(
+        sourced(workspace, f'"{rv_te}" launch "{share}/launch/session.launch.yaml" '
+                           'namespace:=rig --check'),
+        env=user_env(), cwd=workspace, capture_output=True, text=True, timeout=120,
+        check=True).stdout
+    assert 'ok: recorder, compensation, te_node, bench in namespace /rig' in out
+    assert f'params_file:={share}/launch/default_session.yaml' in out
 
 
 def test_installed_nodes_talk_over_the_middleware(workspace: Path, tmp_path: Path) -> None:
