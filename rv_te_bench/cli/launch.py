@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import argparse
 import sys
+from pathlib import Path
 from importlib import resources
 from typing import Any
 
@@ -25,8 +26,9 @@ Two kinds of file:
   arguments as name:=value. rv-te runs this subset (anything else is an error naming the
   tag or attribute):
     arg   name, default, description, choice      let   name, value
-    node  pkg (rv_te_bench), exec (bench_node, te_node, compensation_node, recorder),
-          name (bench, te_node, compensation, recorder), namespace, output,
+    node  pkg (rv_te_bench), exec (bench_node, te_node, compensation_node, recorder,
+          test_sequencer), name (bench, te_node, compensation, recorder,
+          test_sequencer), namespace, output,
           param ({from: FILE} or {name, value}), remap ({from, to})
     substitutions $(var NAME) $(env NAME [DEFAULT]) $(find-pkg-share PKG) $(dirname)
   One namespace and one remapping list for the whole session; --namespace and --remap
@@ -101,6 +103,9 @@ def _spec_from_files(args: argparse.Namespace, nodes: list[str] | None) -> Any: 
     files = [i for i in items if ':=' not in i]
     if not files:
         msg = f'{launch_args[0]!r}: name:=value arguments need a launch file'
+        raise ParameterFileError(msg)
+    if launch_args and not Path(files[0]).exists():
+        msg = f'launch file {files[0]!r} does not exist'
         raise ParameterFileError(msg)
     if lf.is_launch_file(files[0]):
         if len(files) > 1:

@@ -53,7 +53,8 @@ __all__ = [
 
 #: executable in lib/rv_te_bench (rv_te_bench_ros/setup.py) -> node name in the session
 EXEC_TO_NODE = {'bench_node': 'bench', 'te_node': 'te_node',
-                'compensation_node': 'compensation', 'recorder': 'recorder'}
+                'compensation_node': 'compensation', 'recorder': 'recorder',
+                'test_sequencer': 'test_sequencer'}
 PACKAGE = 'rv_te_bench'
 #: tag -> attributes rv-te launch understands (the rest of the format is an error)
 SUBSET: dict[str, frozenset[str]] = {

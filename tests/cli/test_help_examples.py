@@ -84,7 +84,34 @@ def example_dir(tmp_path_factory: pytest.TempPathFactory) -> Path:
     acceptance = ROOT / 'rv_te_bench' / 'acceptance'
     shutil.copy(acceptance / 'plans' / 'rv-80e.yaml', d / 'my_plan.yaml')
     shutil.copy(acceptance / 'tolerances' / 'rv-80e-101.yaml', d / 'my_limits.yaml')
+    launch = ROOT / 'rv_te_bench' / 'launch'
+    shutil.copy(launch / 'session.launch.yaml', d / 'session.launch.yaml')
     return d
+
+
+@pytest.fixture(scope='module')
+def unit_test_bags(example_dir: Path) -> Path:
+    """The session bags the ``rv-te unit-report`` examples name: a short acceptance test of a
+    simulated Li 2023 unit run for real by ``rv-te test`` (bench, sequencer and recorder over
+    the middleware), under the example's serial, and its bag again under the name a standing
+    test session would give it."""
+    import yaml  # noqa: PLC0415
+
+    plan = example_dir / 'quick_plan.yaml'
+    plan.write_text(yaml.safe_dump({'plan': 'quick', 'steps': [
+        {'kind': 'te', 'name': 'te', 'speed_rpm': 3000, 'settle_s': 0.2},
+        {'kind': 'hysteresis', 'name': 'hysteresis', 'rated_torque_nm': 450.0,
+         'dwell_s': 0.1}]}))
+    out = example_dir / 'out' / 'tests'
+    for serial in ('RV80E-0042', 'RV-C1'):
+        assert main(['test', str(plan), '--serial', serial, '--operator', 'pytest',
+                     '--launch', 'li2023-rv', '--out-dir', str(out),
+                     '--speed-factor', '0']) in {0, 3}
+    (run,) = out.glob('RV-C1_*')
+    shutil.move(run / 'bag', example_dir / 'bags' / 'tests' / 'rv_te_20261124_093122')
+    shutil.rmtree(run)
+    (run,) = out.glob('RV80E-0042_*')   # under the name unit-report's own example uses
+    return run.rename(out / 'RV80E-0042_20261124T092855Z') / 'bag'
 
 
 @pytest.fixture(scope='module')
@@ -153,6 +180,10 @@ def _stop_at_start(mp: pytest.MonkeyPatch, command: str) -> None:
 def run_example(line: str, mp: pytest.MonkeyPatch, store: Path | None = None) -> int | str:
     """Run one example (see the module doc); its exit code."""
     argv = shlex.split(line)[1:]
+    # a shell expands the wildcards of an example (out/tests/RV80E-0042_*/bag)
+    argv = [a for arg in argv for a in (sorted(str(p) for p in Path.cwd().glob(arg))
+                                         if '*' in arg and list(Path.cwd().glob(arg))
+                                         else [arg])]
     if argv[:1] == ['launch'] and '--write-default' not in argv:
         argv.append('--check')
     if argv:
@@ -175,7 +206,7 @@ def run_example(line: str, mp: pytest.MonkeyPatch, store: Path | None = None) ->
 
 @pytest.mark.ros
 @pytest.mark.timeout(600)
-def test_every_help_example_works(example_dir: Path, unit_store: Path,
+def test_every_help_example_works(example_dir: Path, unit_store: Path, unit_test_bags: Path,
                                   monkeypatch: pytest.MonkeyPatch,
                                   capsys: pytest.CaptureFixture[str]) -> None:
     monkeypatch.chdir(example_dir)
