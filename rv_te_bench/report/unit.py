@@ -18,7 +18,7 @@ from typing import Any
 
 import numpy as np
 
-from rv_te_bench.report.plots import _new_figure, png_bytes
+from rv_te_bench.report.plots import _new_figure, _short, png_bytes
 from sim.units import ARCMIN_PER_RAD, ARCSEC_PER_RAD
 
 __all__ = ['format_live', 'human_reason', 'metric_rows', 'render_unit_html', 'unit_figures',
@@ -193,7 +193,8 @@ def _spectrum_figure(rows: list[dict[str, Any]]) -> Any:  # noqa: ANN401
                [amp.get(lab, 0.0) * ARCSEC_PER_RAD for lab in labels], width,
                label=r['direction'])
     ax.set_xticks(np.arange(len(labels)) + 0.4 - width / 2)
-    ax.set_xticklabels(labels, rotation=40, ha='right', fontsize=8)
+    # long labels ('15 x crank rel. (1800 f_out)') cut to their name: the tick has no room
+    ax.set_xticklabels([_short(lab) for lab in labels], rotation=40, ha='right', fontsize=8)
     ax.set_ylabel('amplitude [arcsec]')
     ax.legend(fontsize=8)
     ax.grid(alpha=0.3, axis='y')
