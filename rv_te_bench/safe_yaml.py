@@ -219,6 +219,11 @@ def load_yaml(text: str | bytes, *, origin: str, limits: YamlLimits,
         return _Builder(origin, limits, scalars, unique_keys).run(text)
     except yaml.YAMLError as exc:
         detail = ' '.join(str(exc).split())
+        if 'exceeded maximum nesting depth' in detail:
+            # PyYAML >= 6.0.3 stops flow collections nested ~1000 deep while it scans ahead,
+            # before our own count of the events sees the 33rd level
+            msg = f'{origin}: nested deeper than {limits.max_depth} levels: not read'
+            raise YamlLimitError(msg) from None
         msg = f'{origin}: not valid YAML ({detail[:300]})'
         raise YamlInputError(msg) from None
 

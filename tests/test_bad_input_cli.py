@@ -54,7 +54,7 @@ CASES = [
     (['launch', 'bad_yaml.yaml'], 1, 'not valid YAML'),
     (['launch', 'python.yaml'], 1, 'not valid YAML'),
     (['launch', 'missing.yaml'], 1, 'cannot read'),
-    (['launch'], 2, 'give a parameter file, --default or --nodes'),
+    (['launch'], 2, 'give a launch file, a parameter file, --default or --nodes'),
     (['launch', '--default', '--param', 'bench.block_size=0'], 1, "'block_size' must be >= 1"),
     (['launch', '--default', '--param', 'block_size=0'], 1, 'node.key=value'),
     (['launch', '--default', '--namespace', '1x'], 1, 'not a valid ROS namespace'),

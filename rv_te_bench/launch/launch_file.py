@@ -38,7 +38,13 @@ from typing import Any
 
 
 from rv_te_bench.errors import ParameterFileError, YamlInputError, YamlLimitError
-from rv_te_bench.safe_yaml import DOCUMENT_LIMITS, SMALL_TEXT_LIMITS, load_yaml, read_yaml_file
+from rv_te_bench.safe_yaml import (
+    DOCUMENT_LIMITS,
+    SMALL_TEXT_LIMITS,
+    brief,
+    load_yaml,
+    read_yaml_file,
+)
 
 __all__ = [
     'EXEC_TO_NODE',
@@ -362,6 +368,7 @@ def session_from_launch(desc: LaunchDescription, *, overrides: Sequence[str] = (
     from rv_te_bench.launch.session import (  # noqa: PLC0415
         SessionSpec,
         build_session,
+        check_session,
         node_specs,
         normalise_namespace,
         parse_param_override,
@@ -380,7 +387,8 @@ def session_from_launch(desc: LaunchDescription, *, overrides: Sequence[str] = (
                                    f'{", ".join(names)}')
     pushed = normalise_namespace(namespace)
     namespaces = {normalise_namespace(n.namespace if n.namespace.startswith('/')
-                                      else f'{pushed}/{n.namespace}') for n in chosen}
+                                      else f'{pushed}/{n.namespace}' if n.namespace else pushed)
+                  for n in chosen}
     remaps = {n.remappings for n in chosen}
     if len(namespaces) > 1 or len(remaps) > 1:
         what = 'namespace' if len(namespaces) > 1 else 'remappings'
@@ -412,9 +420,9 @@ def session_from_launch(desc: LaunchDescription, *, overrides: Sequence[str] = (
     for item in overrides:
         node, key, value = parse_param_override(item)
         if node not in params:
-            msg = f'--param {item!r}: node {node!r} is not started ({", ".join(params)})'
+            msg = f'--param {brief(item)}: node {node!r} is not started ({", ".join(params)})'
             raise ParameterFileError(msg)
-        check_parameters(node_specs(node), {key: value}, where=f'--param {item!r}')
+        check_parameters(node_specs(node), {key: value}, where=f'--param {brief(item)}')
         params[node].update(coerce_parameters(node_specs(node), {key: value}))
     bench = params.get('bench')
     if bench is not None and 'wait_for_nodes' in bench:   # a node left out is not waited for
@@ -425,7 +433,9 @@ def session_from_launch(desc: LaunchDescription, *, overrides: Sequence[str] = (
         raise _error(p, 'nodes', 'the recorder runs on sim time (use_sim_time) but the bench '
                                  'is in realtime mode and publishes no /clock: give '
                                  'use_sim_time:=false')
-    return SessionSpec(nodes=tuple(params), namespace=ns, parameters=params,
+    spec = SessionSpec(nodes=tuple(params), namespace=ns, parameters=params,
                        remappings=(next(iter(remaps)) if remaps else ()) + extra,
                        single_process=single_process, launch_file=str(p.resolve()),
                        launch_arguments={a.name: desc.values[a.name] for a in desc.args})
+    check_session(spec)   # what each node checks at start (rv-te launch --check runs it)
+    return spec

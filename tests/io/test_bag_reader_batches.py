@@ -248,7 +248,8 @@ def test_a_bag_damaged_all_through_gives_one_readable_line(tmp_path: Path) -> No
     assert text.count('CRC mismatch') == 3
     assert '... and ' in text
     assert len(text) < 1000
-    with pytest.raises(BagError, match=r'damaged: .*; \.\.\. and 37 more problems$'):
+    with pytest.raises(BagError, match=r'damaged: .*; \.\.\. and 37 more problems; pass --ratio '
+                                         r'and --crank-per-output to analyse the rest'):
         analyze_bag(bag, with_advice=False)
 
 
