@@ -28,9 +28,10 @@ def write_unit_bag(path: Path, theta_in: np.ndarray, theta_out: np.ndarray, *,  
                    rate_hz: float, block: int = 100, info: bool = True,
                    preset: str = 'wang2020-2kv', bench_id: str = 'unit-bench',
                    parameters_yaml: str = '', custom_data: dict[str, str] | None = None,
-                   ) -> Path:
+                   first_seq: int = 0) -> Path:
     """A rosbag2/MCAP bag (rosbags writer) with a BenchInfo and the encoder samples in blocks;
-    ``custom_data`` goes to metadata.yaml (session metadata, e.g. a unit serial)."""
+    ``custom_data`` goes to metadata.yaml (session metadata, e.g. a unit serial);
+    ``first_seq`` > 0 leaves out the blocks before it (a recorder that started late)."""
     from rosbags.rosbag2 import StoragePlugin, Writer  # noqa: PLC0415
 
     store = rv_te_typestore()
@@ -62,7 +63,7 @@ def write_unit_bag(path: Path, theta_in: np.ndarray, theta_out: np.ndarray, *,  
             n = min(block, theta_in.size - s)
             t_ns = T0_NS + round(s / rate_hz * 1e9)
             msg = types[ENCODER_BLOCK](
-                header=header(t_ns), seq=seq, sample_rate_hz=rate_hz,
+                header=header(t_ns), seq=first_seq + seq, sample_rate_hz=rate_hz,
                 time_offset_s=np.arange(n) / rate_hz, theta_in_rad=theta_in[s:s + n],
                 theta_out_rad=theta_out[s:s + n], torque_out_nm=np.zeros(0))
             writer.write(enc, t_ns + 1, bytes(store.serialize_cdr(msg, ENCODER_BLOCK)))

@@ -29,6 +29,10 @@ Offline, :meth:`StreamingTeAnalyzer.push_batch` takes many consecutive blocks at
 array, with the same windows, gaps and counters as block by block; :func:`analyze_blocks`
 can hand each window to a callback instead of keeping them all.
 
+A bench numbers its blocks from 0, so a first block with a seq above 0 is a gap too
+(``'leading_loss'``: a recorder or TE node that started after the bench lost the blocks before
+it).
+
 Not detected as gaps: a forward jump in time between blocks with consecutive sequence
 numbers (the DAQ clock is trusted) and a jump of the encoder angles themselves (e.g. a
 re-zeroed counter); both show up in the window statistics.
@@ -54,7 +58,7 @@ __all__ = ['BatchUpdate', 'EncoderBatch', 'EncoderBlockData', 'GapEvent', 'Offli
            'StreamUpdate', 'StreamingTeAnalyzer', 'TeAnalysisConfig', 'WindowResult',
            'analyze_blocks']
 
-GapKind = Literal['seq_jump', 'time_backwards', 'non_finite', 'malformed']
+GapKind = Literal['seq_jump', 'time_backwards', 'non_finite', 'malformed', 'leading_loss']
 CloseReason = Literal['complete', 'gap', 'overflow', 'flush', 'reconfigure']
 
 _TWO_PI = 2.0 * math.pi
@@ -582,7 +586,7 @@ class StreamingTeAnalyzer:
         self._n_windows = 0
         self._counters = dict.fromkeys(
             ('blocks', 'samples', 'gaps', 'malformed', 'non_finite', 'seq_jumps',
-             'time_backwards', 'dropped_blocks', 'windows', 'complete_windows',
+             'time_backwards', 'leading_loss', 'dropped_blocks', 'windows', 'complete_windows',
              'spectrum_failures'), 0)
 
     @property
@@ -601,7 +605,7 @@ class StreamingTeAnalyzer:
     @property
     def counters(self) -> dict[str, int]:
         """Counts: blocks, samples (clean), gaps (events), malformed, non_finite, seq_jumps,
-        time_backwards, dropped_blocks (malformed + non_finite), windows, complete_windows,
+        time_backwards, leading_loss (1 when the first block's seq is above 0), dropped_blocks (malformed + non_finite), windows, complete_windows,
         spectrum_failures (complete windows whose angle grid could not be resampled)."""  # noqa: D205, D209
         return dict(self._counters)
 
@@ -649,7 +653,8 @@ class StreamingTeAnalyzer:
         gaps.append(GapEvent(kind, seq, detail))
         self._counters['gaps'] += 1
         counter = {'seq_jump': 'seq_jumps', 'time_backwards': 'time_backwards',
-                   'non_finite': 'non_finite', 'malformed': 'malformed'}[kind]
+                   'non_finite': 'non_finite', 'malformed': 'malformed',
+                   'leading_loss': 'leading_loss'}[kind]
         self._counters[counter] += 1
 
     def _close(self, reason: CloseReason, *, pending: bool = False) -> WindowResult | None:
@@ -762,7 +767,7 @@ class StreamingTeAnalyzer:
         n_blocks = seq.size
         k = 0
         while k < n_blocks:
-            if bad[k] or (self._last_seq is not None and int(seq[k]) != self._last_seq + 1) \
+            if bad[k] or (int(seq[k]) != (0 if self._last_seq is None else self._last_seq + 1)) \
                     or (self._last_t is not None and not float(t_first[k]) > self._last_t):
                 self._push_one(batch.block(k), windows, gaps)
                 k += 1
@@ -837,6 +842,12 @@ class StreamingTeAnalyzer:
         n_gaps = len(gaps)   # (push_batch passes one list for all its blocks)
         if self._last_seq is not None and seq != self._last_seq + 1:
             self._gap(gaps, 'seq_jump', seq, f'expected seq {self._last_seq + 1}, got {seq}')
+        elif self._last_seq is None and seq > 0:
+            # a bench numbers its blocks from 0: the first ones went by before this stream
+            # began (a recorder or TE node started late, a bag cut at the front)
+            self._gap(gaps, 'leading_loss', seq,
+                      f'the first {seq} block(s) (seq 0-{seq - 1}) are missing: '
+                      'recording/analysis started after the bench')
         if self._last_t is not None and t[0] <= self._last_t:
             self._gap(gaps, 'time_backwards', seq,
                       f'block seq {seq} starts at {t[0]!r} s, not after {self._last_t!r} s')
