@@ -118,6 +118,8 @@ class ReplayNode(Node):
         self.finished = False
         self.exit_code = 0
         self.loops_done = 0
+        self.out_of_order = 0       # logged before the file's first message: published at once
+        self.skipped_by_offset = 0  # before --start-offset (latched topics excepted)
         self._stop = threading.Event()
         self._thread = threading.Thread(target=self._play, name='rv_te_replay', daemon=True)
         self._thread.start()
@@ -190,6 +192,12 @@ class ReplayNode(Node):
                 self.loops_done += 1
                 if not self.loop:
                     break
+            if not self._stop.is_set() and not any(self.published.values()):
+                # a replay that published nothing has failed, whatever the reason
+                self.exit_code = 1
+                self.get_logger().error(
+                    f'replay published nothing: {self.bag.path} has no readable message on '
+                    f'{", ".join(sorted(self._replay_pubs))}')
         except BagError as exc:
             self.exit_code = 1
             self.get_logger().error(f'replay stopped: {exc}')
@@ -209,19 +217,33 @@ class ReplayNode(Node):
                 start_ns = stamp_ns
                 base_ns = start_ns + round(self.start_offset_s * 1e9)
                 wall0 = time.monotonic()
-            if stamp_ns < base_ns:
+            if stamp_ns < base_ns and self.start_offset_s > 0:
                 # skipped by --start-offset; latched state (bench/info) still holds then,
                 # as it would for a late joiner of the live session
                 if topic in self._latched_topics:
                     self._replay_pubs[topic].publish(bytes(data))
                     self.published[topic] += 1
+                else:
+                    self.skipped_by_offset += 1
                 continue
+            if stamp_ns < start_ns:
+                # logged before the first message of the file (written out of order): due
+                # already, published at once rather than dropped
+                self.out_of_order += 1
             due = wall0 + (stamp_ns - base_ns) * 1e-9 / self.rate
             if not self._sleep_until(
                     due, lambda now: base_ns + (now - wall0) * self.rate * 1e9):
                 return
             self._replay_pubs[topic].publish(bytes(data))
             self.published[topic] += 1
+        if self.out_of_order:
+            self.get_logger().warning(
+                f'{self.out_of_order} message(s) logged before the first one in the file were '
+                'published at once (out of order)', throttle_duration_sec=_THROTTLE_S)
+        if self.skipped_by_offset:
+            self.get_logger().info(
+                f'{self.skipped_by_offset} message(s) before the start offset '
+                f'({self.start_offset_s} s) not published', throttle_duration_sec=_THROTTLE_S)
         if stream.partial:
             self.get_logger().warning(f'bag partly unreadable: {stream.problems}',
                                       throttle_duration_sec=_THROTTLE_S)

@@ -166,3 +166,53 @@ def test_cli_replay_process(ros_context: Any, ros_domain_id: int, bag_and_topics
     assert proc.returncode == 0, err
     assert got == [bytes(d) for _, _, _, d in iter_messages(bag, [enc])]
     assert f'{enc}: {N_BLOCKS} messages published' in out
+
+
+def test_messages_logged_before_the_first_are_published(ros_context: Any,
+                                                        tmp_path: Path) -> None:
+    """Issue #15 item 7: a message whose log time precedes the file's first message (written
+    out of order) was dropped without a word; it is published at once and counted."""
+    ns = f'/replay_ooo_{os.getpid()}_{time.monotonic_ns() % 10**6}'
+    enc = f'{ns}/bench/encoders'
+    bag = tmp_path / 'ooo'
+    with BagWriter(bag) as writer:
+        writer.add_topic(enc, ENCODER_BLOCK, offered_qos_profiles=[qos_profile_dict(depth=1000)])
+        writer.write(enc, T0_NS + PERIOD_NS, encoder_cdr(1, 50))   # first in the file
+        writer.write(enc, T0_NS, encoder_cdr(0, 50))               # logged 20 ms before it
+        for seq in range(2, 10):
+            writer.write(enc, T0_NS + seq * PERIOD_NS, encoder_cdr(seq, 50))
+    sub_node = rclpy.create_node('replay_sub_ooo', context=ros_context)
+    got: list[EncoderBlock] = []
+    sub_node.create_subscription(EncoderBlock, enc, got.append, qos.ENCODER_QOS)
+    executor = EventsExecutor(context=ros_context)
+    executor.add_node(sub_node)
+    replay = _replay(ros_context, bag, rate=2.0)
+    executor.add_node(replay)
+    try:
+        assert spin_until(executor, lambda: replay.finished and len(got) == 10, 20.0), len(got)
+    finally:
+        replay.destroy_node()
+        sub_node.destroy_node()
+        executor.shutdown()
+    assert sorted(m.seq for m in got) == list(range(10))
+    assert replay.published[enc] == 10 and replay.out_of_order == 1
+    assert replay.exit_code == 0
+
+
+def test_a_replay_that_publishes_nothing_fails(ros_context: Any, bag_and_topics: Any) -> None:
+    """Issue #15 item 7: an unreadable bag was 'replayed' with exit code 0."""
+    bag, _, _ = bag_and_topics
+    (mcap,) = bag.glob('*.mcap')
+    data = bytearray(mcap.read_bytes())
+    data[200:-200] = bytes(len(data) - 400)     # every record after the header zeroed
+    mcap.write_bytes(bytes(data))
+    replay = _replay(ros_context, bag, wait_for_subscribers_s=0.0)
+    try:
+        deadline = time.monotonic() + 20.0
+        while not replay.finished and time.monotonic() < deadline:
+            time.sleep(0.05)
+        assert replay.finished
+    finally:
+        replay.destroy_node()
+    assert not any(replay.published.values())
+    assert replay.exit_code == 1
