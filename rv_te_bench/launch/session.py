@@ -22,6 +22,7 @@ import signal
 import subprocess
 import sys
 import tempfile
+import threading
 import time
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -301,6 +302,7 @@ def child_env() -> dict[str, str]:
     """Environment for node processes (the ROS wheel bootstrap marker must not leak)."""
     env = dict(os.environ)
     env.pop('_ROS_WHEELS_BOOTSTRAP_COMPLETE', None)
+    env.pop('RV_TE_LAUNCHER_PID', None)   # set by Session.start for its own children only
     env.setdefault('ROS_AUTOMATIC_DISCOVERY_RANGE', 'LOCALHOST')
     env.setdefault('PYTHONUNBUFFERED', '1')
     return env
@@ -350,7 +352,13 @@ class Session:
                                                            self._params_file(node))]
             # own process group: a terminal Ctrl-C reaches the launcher only, which then
             # stops the nodes in data-flow order (recorder last)
-            proc = subprocess.Popen(cmd, env=child_env(), stdout=self._stdout,
+            env = child_env()
+            if threading.current_thread() is threading.main_thread():
+                # the nodes die with this process (Linux parent-death signal, set by the
+                # node itself: rv_te_bench.nodes.common.die_with_launcher). The signal
+                # follows the thread that started the child, so only from the main thread.
+                env['RV_TE_LAUNCHER_PID'] = str(os.getpid())
+            proc = subprocess.Popen(cmd, env=env, stdout=self._stdout,
                                     stderr=self._stdout, start_new_session=True)
             self.procs[node] = NodeProcess(node, proc)
             if node == 'recorder':

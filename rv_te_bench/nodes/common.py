@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import ctypes
+import os
 import signal
 import sys
 import threading
@@ -162,6 +164,34 @@ class DropCounter:
         return sum(self.counts.values())
 
 
+#: Set by the launcher in its node processes' environment: its pid (see die_with_launcher).
+LAUNCHER_PID_ENV = 'RV_TE_LAUNCHER_PID'
+_PR_SET_PDEATHSIG = 1
+
+
+def die_with_launcher() -> bool:
+    """Ask Linux to send this process SIGINT when the launcher that started it dies.
+
+    A node of a session stops as on Ctrl-C (the recorder closes its bag) instead of running
+    on as an orphan when its launcher is SIGKILLed or given Ctrl-C twice (issue #16 item 3).
+    Only for processes started by a launcher (``RV_TE_LAUNCHER_PID`` in the environment).
+
+    Returns:
+        False when the launcher died before the request took effect (this process should
+        not start); True otherwise (also where prctl is not available).
+    """
+    want = os.environ.pop(LAUNCHER_PID_ENV, '')   # (not inherited further)
+    if not want.isdigit() or not sys.platform.startswith('linux'):
+        return True
+    try:
+        libc = ctypes.CDLL(None, use_errno=True)
+        libc.prctl(_PR_SET_PDEATHSIG, int(signal.SIGINT), 0, 0, 0)
+    except (OSError, AttributeError):
+        return True
+    # the launcher may have died between our fork and the prctl: then we were re-parented
+    return os.getppid() == int(want)
+
+
 def run_node(factory: Callable[[Context], Node], args: Sequence[str] | None = None, *,
              linger_s: float = 0.0, executor_kind: str = 'events') -> int:
     """Run one node in its own Context until it is ``finished`` or SIGINT/SIGTERM arrives.
@@ -187,6 +217,10 @@ def run_node(factory: Callable[[Context], Node], args: Sequence[str] | None = No
     from rv_te_bench.errors import RvTeError  # noqa: PLC0415
     from rv_te_bench.safe_yaml import one_line  # noqa: PLC0415
 
+    if not die_with_launcher():
+        print('ERROR: the launcher that started this node is gone; not starting',
+              file=sys.stderr)
+        return 1
     context = Context()
     rclpy.init(args=list(args) if args is not None else None, context=context,
                signal_handler_options=SignalHandlerOptions.NO)

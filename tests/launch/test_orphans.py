@@ -1,0 +1,109 @@
+"""Issue #16 item 3: SIGKILL of the launcher (or Ctrl-C twice) left the node processes running
+with parent 1, and the next session was corrupted by them. The nodes now die with the
+launcher (Linux parent-death signal, SIGINT: they stop as on Ctrl-C, the recorder closes its
+bag).
+
+Real processes: ``rv-te launch --default`` in a child process, its node processes found in
+/proc, the bag read back with rosbags.
+"""
+
+from __future__ import annotations
+
+import os
+import signal
+import sys
+import time
+from pathlib import Path
+
+import pytest
+
+pytestmark = [pytest.mark.ros, pytest.mark.skipif(not sys.platform.startswith('linux'),
+                                                   reason='parent-death signal: Linux')]
+
+
+def _children(pid: int) -> list[int]:
+    out = []
+    for d in Path('/proc').iterdir():
+        if d.name.isdigit():
+            try:
+                fields = (d / 'stat').read_text().rsplit(')', 1)[1].split()
+            except OSError:
+                continue
+            if int(fields[1]) == pid:
+                out.append(int(d.name))
+    return out
+
+
+def _alive(pid: int) -> bool:
+    """Running (a zombie waiting for its new parent to reap it counts as gone)."""
+    try:
+        state = Path(f'/proc/{pid}/stat').read_text().rsplit(')', 1)[1].split()[0]
+    except OSError:
+        return False
+    return state != 'Z'
+
+
+@pytest.mark.timeout(120)
+def test_nodes_die_with_a_sigkilled_launcher(tmp_path: Path, ros_domain_id: int) -> None:
+    from rosbags.highlevel import AnyReader  # noqa: PLC0415
+
+    import subprocess  # noqa: PLC0415
+
+    env = dict(os.environ, ROS_DOMAIN_ID=str(ros_domain_id))
+    env.pop('_ROS_WHEELS_BOOTSTRAP_COMPLETE', None)
+    proc = subprocess.Popen(
+        [sys.executable, '-c', 'import sys; from rv_te_bench.cli.main import main; '
+         'sys.exit(main(sys.argv[1:]))', 'launch', '--default',
+         '--param', f'recorder.output_dir={tmp_path}', '--param', 'recorder.bag_name=orphan',
+         '--param', 'bench.speed_factor=1.0'],
+        env=env, cwd=tmp_path, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    nodes: list[int] = []
+    try:
+        deadline = time.monotonic() + 60.0
+        while time.monotonic() < deadline and proc.poll() is None:
+            nodes = _children(proc.pid)
+            if len(nodes) == 4 and (tmp_path / 'orphan' / 'metadata.yaml').exists():  # noqa: PLR2004
+                break
+            time.sleep(0.2)
+        assert len(nodes) == 4, (nodes, proc.poll())  # noqa: PLR2004
+        deadline = time.monotonic() + 40.0   # the session runs: blocks reach the bag
+        while time.monotonic() < deadline and sum(
+                f.stat().st_size for f in (tmp_path / 'orphan').glob('*.mcap')) < 100_000:  # noqa: PLR2004
+            time.sleep(0.2)
+        proc.send_signal(signal.SIGKILL)
+        proc.wait(timeout=10)
+        deadline = time.monotonic() + 2.0
+        while time.monotonic() < deadline and any(_alive(p) for p in nodes):
+            time.sleep(0.05)
+        left = [p for p in nodes if _alive(p)]
+        assert not left, f'node processes left running after the launcher died: {left}'
+    finally:
+        for p in nodes:
+            if _alive(p):
+                os.kill(p, signal.SIGKILL)
+        if proc.poll() is None:
+            proc.kill()
+        proc.communicate(timeout=10)
+    # the recorder stopped as on Ctrl-C: a closed bag that an independent reader takes
+    with AnyReader([tmp_path / 'orphan']) as reader:
+        counts = {c.topic: sum(1 for _ in reader.messages(connections=[c]))
+                  for c in reader.connections}
+    assert counts.get('/bench/encoders', 0) > 0, counts
+
+
+def test_a_node_whose_launcher_is_gone_does_not_start() -> None:
+    """The launcher may die between the fork and the node's request: it must not run on.
+    (In a child process: the request would otherwise bind this test process.)"""
+    import subprocess  # noqa: PLC0415
+
+    code = ('import os, sys\n'
+            'from rv_te_bench.nodes.common import LAUNCHER_PID_ENV, die_with_launcher\n'
+            'gone = die_with_launcher() is False\n'
+            'sys.exit(0 if gone and LAUNCHER_PID_ENV not in os.environ else 1)\n')
+    env = dict(os.environ, RV_TE_LAUNCHER_PID=str(os.getpid() + 1_000_000))  # not its parent
+    env.pop('_ROS_WHEELS_BOOTSTRAP_COMPLETE', None)
+    assert subprocess.run([sys.executable, '-c', code], env=env, timeout=60,
+                          check=False).returncode == 0
+    env['RV_TE_LAUNCHER_PID'] = str(os.getpid())   # its parent: it starts
+    assert subprocess.run([sys.executable, '-c', code], env=env, timeout=60,
+                          check=False).returncode == 1
