@@ -56,6 +56,8 @@ NODE_TYPES: dict[str, tuple[str, str]] = {
     'bench': ('rv_te_bench.nodes.bench_node', 'BenchNode'),
     'test_sequencer': ('rv_te_bench.nodes.test_sequencer', 'TestSequencerNode'),
 }
+#: Nodes the raw data depends on: the session ends when one of them fails.
+RAW_DATA_NODES = ('bench', 'recorder')
 STOP_ORDER = ('test_sequencer', 'bench', 'te_node', 'compensation', 'recorder')
 
 
@@ -329,6 +331,8 @@ class Session:
         self._tmp = tempfile.TemporaryDirectory(prefix='rv-te-session-')
         self.procs: dict[str, NodeProcess] = {}
         self.failures: list[str] = []
+        #: Nodes that ended on their own with an error (or any node but a finished bench).
+        self.crashed: list[str] = []
         self._summary_path = Path(self._tmp.name) / 'recorder_summary.yaml'
         #: The recorder's closing summary (``bag``, ``messages_on_disk``, ``lost_messages``,
         #: ``lost``, ``write_gaps``), once it has stopped; None without one.
@@ -373,9 +377,18 @@ class Session:
             if code is not None and not np_.expected_exit:
                 np_.expected_exit = True
                 if code != 0 or name != 'bench':
+                    self.crashed.append(name)
                     self.failures.append(f'node {name!r} exited with code {code}')
                     self.log(f'[launch] node {name!r} exited unexpectedly with code {code}')
         return codes
+
+    def must_end(self) -> bool:
+        """True when the session cannot go on: the raw data path (bench, recorder) broke, or
+        no node is left running. A crashed TE or compensation node is contained: the bench
+        and the recorder go on, so the bag stays complete (issue #16 item 4)."""
+        if any(name in RAW_DATA_NODES for name in self.crashed):
+            return True
+        return all(np_.proc.poll() is not None for np_ in self.procs.values())
 
     def bench_done(self) -> bool:
         """True once the bench process has ended with exit code 0 (finite duration)."""
@@ -543,7 +556,7 @@ def run_session(spec: SessionSpec, *, log: Callable[[str], None] | None = None,
     try:
         while True:
             session.poll()
-            if session.failures or session.bench_done():
+            if session.must_end() or session.bench_done():
                 break
             if on_tick is not None:
                 on_tick(session)

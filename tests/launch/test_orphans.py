@@ -107,3 +107,55 @@ def test_a_node_whose_launcher_is_gone_does_not_start() -> None:
     env['RV_TE_LAUNCHER_PID'] = str(os.getpid())   # its parent: it starts
     assert subprocess.run([sys.executable, '-c', code], env=env, timeout=60,
                           check=False).returncode == 1
+
+
+def _cmdline(pid: int) -> str:
+    try:
+        return Path(f'/proc/{pid}/cmdline').read_bytes().replace(b'\0', b' ').decode()
+    except OSError:
+        return ''
+
+
+@pytest.mark.timeout(180)
+def test_a_crashed_te_node_is_contained(tmp_path: Path, ros_domain_id: int) -> None:
+    """Issue #16 item 4: SIGKILL of te_node stopped the bench and the recorder (139 of 317
+    blocks). The bench and the recorder go on, the bag is complete, the launcher names the
+    crashed node and exits non-zero at the end."""
+    import subprocess  # noqa: PLC0415
+
+    from rosbags.highlevel import AnyReader  # noqa: PLC0415
+
+    env = dict(os.environ, ROS_DOMAIN_ID=str(ros_domain_id))
+    env.pop('_ROS_WHEELS_BOOTSTRAP_COMPLETE', None)
+    # two output revolutions of the Wang 2020 2K-V at 300 rpm: 31.6 s of session, 1 kHz,
+    # blocks of 100 -> 316 blocks; at speed factor 2 about 16 s of wall time
+    proc = subprocess.Popen(
+        [sys.executable, '-c', 'import sys; from rv_te_bench.cli.main import main; '
+         'sys.exit(main(sys.argv[1:]))', 'launch', '--default',
+         '--param', f'recorder.output_dir={tmp_path}', '--param', 'recorder.bag_name=crash',
+         '--param', 'bench.speed_factor=2.0'],
+        env=env, cwd=tmp_path, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    try:
+        te = None
+        deadline = time.monotonic() + 60.0
+        while time.monotonic() < deadline and proc.poll() is None:
+            te = next((p for p in _children(proc.pid)
+                       if 'rv_te_bench.nodes.te_node' in _cmdline(p)), None)
+            if te is not None and sum(f.stat().st_size for f in
+                                      (tmp_path / 'crash').glob('*.mcap')) > 100_000:  # noqa: PLR2004
+                break
+            time.sleep(0.2)
+        assert te is not None, proc.poll()
+        os.kill(te, signal.SIGKILL)
+        _, err = proc.communicate(timeout=120)
+    finally:
+        if proc.poll() is None:
+            proc.kill()
+            proc.communicate(timeout=10)
+    assert proc.returncode != 0
+    assert "node 'te_node' exited unexpectedly with code -9" in err, err
+    with AnyReader([tmp_path / 'crash']) as reader:
+        conns = [c for c in reader.connections if c.topic == '/bench/encoders']
+        seqs = [reader.deserialize(raw, c.msgtype).seq
+                for c, _, raw in reader.messages(connections=conns)]
+    assert seqs == list(range(len(seqs))) and len(seqs) >= 316, (len(seqs), seqs[-3:])  # noqa: PLR2004
