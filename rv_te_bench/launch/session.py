@@ -352,8 +352,9 @@ class Session:
         """Start every node process (recorder first so it sees the first messages)."""
         for node in [n for n in NODE_TYPES if n in self.spec.nodes]:
             module, _ = NODE_TYPES[node]
-            cmd = [sys.executable, '-m', module, *ros_args(self.spec, node,
-                                                           self._params_file(node))]
+            # (through _entry: a stop while the node still imports ends it quietly)
+            cmd = [sys.executable, '-m', 'rv_te_bench.nodes._entry', module,
+                   *ros_args(self.spec, node, self._params_file(node))]
             # own process group: a terminal Ctrl-C reaches the launcher only, which then
             # stops the nodes in data-flow order (recorder last)
             env = child_env()
@@ -396,7 +397,11 @@ class Session:
         return b is not None and b.proc.poll() == 0
 
     def stop(self, grace_s: float = 10.0, settle_s: float = 1.0) -> dict[str, int | None]:
-        """Stop nodes in data-flow order with SIGINT (then SIGTERM, SIGKILL); returns codes."""
+        """Stop nodes in data-flow order with SIGTERM (then SIGKILL); returns codes.
+
+        A running node takes SIGTERM as Ctrl-C (:func:`rv_te_bench.nodes.common.run_node`:
+        it stops, the recorder closes its bag); a node process still starting up ends
+        silently on it, where a SIGINT in Python's own start-up printed a traceback."""
         codes: dict[str, int | None] = {}
         for name in STOP_ORDER:
             np_ = self.procs.get(name)
@@ -406,7 +411,7 @@ class Session:
             if np_.proc.poll() is None:
                 if name == 'recorder':
                     time.sleep(settle_s)  # let the final windows and advice reach the bag
-                np_.proc.send_signal(signal.SIGINT)
+                np_.proc.send_signal(signal.SIGTERM)
                 try:
                     np_.proc.wait(timeout=grace_s)
                 except subprocess.TimeoutExpired:
@@ -416,7 +421,7 @@ class Session:
                     except subprocess.TimeoutExpired:
                         np_.proc.kill()
                         np_.proc.wait()
-                    self.failures.append(f'node {name!r} did not stop on SIGINT')
+                    self.failures.append(f'node {name!r} did not stop on SIGTERM')
             codes[name] = np_.proc.returncode
         self.recorder_summary = read_recorder_summary(self._summary_path)
         self._tmp.cleanup()
@@ -552,8 +557,8 @@ def run_session(spec: SessionSpec, *, log: Callable[[str], None] | None = None,
     session = Session(spec, log=log)
     interrupted = False
     old_term = signal.signal(signal.SIGTERM, _raise_keyboard_interrupt)
-    session.start()
     try:
+        session.start()   # (a Ctrl-C while the nodes start stops those already started)
         while True:
             session.poll()
             if session.must_end() or session.bench_done():
@@ -570,7 +575,8 @@ def run_session(spec: SessionSpec, *, log: Callable[[str], None] | None = None,
         codes = session.stop()
         signal.signal(signal.SIGTERM, old_term)
     for name, c in codes.items():
-        if c not in (0, None) and not (interrupted and c in (-signal.SIGINT, 130)):
+        if c not in (0, None) and not (interrupted and c in (-signal.SIGINT, -signal.SIGTERM,
+                                                             130)):
             msg = f'node {name!r} ended with code {c}'
             if msg not in session.failures:
                 session.failures.append(msg)

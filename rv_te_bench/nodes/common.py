@@ -170,7 +170,7 @@ _PR_SET_PDEATHSIG = 1
 
 
 def die_with_launcher() -> bool:
-    """Ask Linux to send this process SIGINT when the launcher that started it dies.
+    """Ask Linux to send this process SIGTERM when the launcher that started it dies.
 
     A node of a session stops as on Ctrl-C (the recorder closes its bag) instead of running
     on as an orphan when its launcher is SIGKILLed or given Ctrl-C twice (issue #16 item 3).
@@ -185,7 +185,7 @@ def die_with_launcher() -> bool:
         return True
     try:
         libc = ctypes.CDLL(None, use_errno=True)
-        libc.prctl(_PR_SET_PDEATHSIG, int(signal.SIGINT), 0, 0, 0)
+        libc.prctl(_PR_SET_PDEATHSIG, int(signal.SIGTERM), 0, 0, 0)
     except (OSError, AttributeError):
         return True
     # the launcher may have died between our fork and the prctl: then we were re-parented

@@ -1,6 +1,6 @@
 """Issue #16 item 3: SIGKILL of the launcher (or Ctrl-C twice) left the node processes running
 with parent 1, and the next session was corrupted by them. The nodes now die with the
-launcher (Linux parent-death signal, SIGINT: they stop as on Ctrl-C, the recorder closes its
+launcher (Linux parent-death signal, SIGTERM: they stop as on Ctrl-C, the recorder closes its
 bag).
 
 Real processes: ``rv-te launch --default`` in a child process, its node processes found in
@@ -159,3 +159,37 @@ def test_a_crashed_te_node_is_contained(tmp_path: Path, ros_domain_id: int) -> N
         seqs = [reader.deserialize(raw, c.msgtype).seq
                 for c, _, raw in reader.messages(connections=conns)]
     assert seqs == list(range(len(seqs))) and len(seqs) >= 316, (len(seqs), seqs[-3:])  # noqa: PLR2004
+
+
+@pytest.mark.timeout(120)
+@pytest.mark.parametrize('delay_s', [0.7, 1.3, 2.0])
+def test_ctrl_c_while_the_session_starts(tmp_path: Path, ros_domain_id: int,
+                                         delay_s: float) -> None:
+    """Issue #16: Ctrl-C 0.7 s after `rv-te launch` started gave a traceback. Whenever it
+    comes during the start-up (the launcher importing, the node processes starting), the
+    session stops without a traceback and leaves no node running. (Measured: with SIGINT
+    as the launcher's stop signal a node still in Python's own start-up printed a
+    KeyboardInterrupt traceback from the site module; a Ctrl-C while the launcher started
+    its nodes skipped the stop, and the session's parameter files vanished under them.)"""
+    import subprocess  # noqa: PLC0415
+
+    env = dict(os.environ, ROS_DOMAIN_ID=str(ros_domain_id))
+    env.pop('_ROS_WHEELS_BOOTSTRAP_COMPLETE', None)
+    proc = subprocess.Popen(
+        [sys.executable, '-c', 'import sys; from rv_te_bench.cli.main import main; '
+         'sys.exit(main(sys.argv[1:]))', 'launch', '--default',
+         '--param', f'recorder.output_dir={tmp_path}'],
+        env=env, cwd=tmp_path, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
+    time.sleep(delay_s)
+    nodes = _children(proc.pid)
+    proc.send_signal(signal.SIGINT)
+    try:
+        out, _ = proc.communicate(timeout=60)
+    finally:
+        if proc.poll() is None:
+            proc.kill()
+            proc.communicate(timeout=10)
+    assert 'Traceback' not in out, out
+    assert proc.returncode in {0, 130}, out
+    time.sleep(0.5)
+    assert not [p for p in nodes if _alive(p)]
