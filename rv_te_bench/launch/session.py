@@ -499,6 +499,12 @@ def run_single_process(spec: SessionSpec, *, until: Callable[[], bool] | None = 
     finally:
         for n in sorted(nodes, key=lambda n: STOP_ORDER.index(n.get_name())
                         if n.get_name() in STOP_ORDER else 99):
+            if getattr(n, 'busy', False):   # the compensation node's search: let it end
+                from rv_te_bench.nodes.common import FINISH_MAX_S  # noqa: PLC0415
+
+                end = time.monotonic() + FINISH_MAX_S
+                while getattr(n, 'busy', False) and time.monotonic() < end:
+                    settle(0.1)
             if n.get_name() == 'recorder':
                 settle(1.0)   # the final windows and advice reach the bag
                 recorder = n

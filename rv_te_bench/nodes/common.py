@@ -164,6 +164,10 @@ class DropCounter:
         return sum(self.counts.values())
 
 
+#: Longest a stopping node may take to finish work under way (``busy``) [s]; below the
+#: launcher's 10 s grace before it escalates.
+FINISH_MAX_S = 8.0
+
 #: Set by the launcher in its node processes' environment: its pid (see die_with_launcher).
 LAUNCHER_PID_ENV = 'RV_TE_LAUNCHER_PID'
 _PR_SET_PDEATHSIG = 1
@@ -254,7 +258,15 @@ def run_node(factory: Callable[[Context], Node], args: Sequence[str] | None = No
         # Linger (reliable delivery of our last messages), and on a stop request drain what
         # is already queued for us so that it is analysed / recorded, not dropped.
         end = time.monotonic() + max(linger_s, _DRAIN_S if stop['requested'] else 0.0)
-        while context.ok() and time.monotonic() < end:
+        # a node with work under way (the compensation node's search) finishes it and
+        # publishes the result before it goes, within FINISH_MAX_S (issue #15 item 4)
+        finish_by = time.monotonic() + FINISH_MAX_S
+        while context.ok():
+            now = time.monotonic()
+            if getattr(node, 'busy', False) and now < finish_by:
+                end = max(end, now + _DRAIN_S)   # and a drain after the last result
+            elif now >= end:
+                break
             executor.spin_once(timeout_sec=0.05)
         executor.shutdown()
     except (KeyboardInterrupt, ExternalShutdownException):

@@ -236,8 +236,21 @@ class CompensationNode(Node):
         level = WARN if self.errors else OK
         self.pub_diag.publish(diagnostic_array(self, 'compensation', level, message, values))
 
+    @property
+    def busy(self) -> bool:
+        """A search is running or its advice is not published yet (run_node lets it finish
+        before the node stops, so that a session ends with its advice recorded)."""
+        return bool(self.jobs)
+
     def destroy_node(self) -> None:
-        """Abort a running search at its next progress tick and stop the worker."""
+        """Abort a search still running (said on /diagnostics and in the log) and stop."""
+        running = [n for n, f in self.jobs if not f.done()]
+        if running:
+            why = (f'stopped before the search finished: no advice from '
+                   f'{", ".join(running)}')
+            self.get_logger().error(why)
+            self.errors.append(why)
+            self._publish_diagnostics()
         self._cancel.set()
         self.pool.shutdown(wait=True, cancel_futures=True)
         super().destroy_node()
