@@ -534,8 +534,8 @@ def read_recorder_summary(path: Path) -> dict[str, Any] | None:
 
 
 def recording_report(summary: dict[str, Any] | None) -> tuple[list[str], bool]:
-    """Lines on the recorded bag (what is on disk, what a full disk cost) and whether data
-    was lost."""
+    """Lines on the recorded bag (what is on disk, what a full disk cost, a foreign
+    publisher) and whether the data was lost or mixed with another source's."""
     if not summary:
         return [], False
     on_disk = summary.get('messages_on_disk') or {}
@@ -545,7 +545,12 @@ def recording_report(summary: dict[str, Any] | None) -> tuple[list[str], bool]:
         per_topic = ', '.join(f'{t}: {n}' for t, n in sorted((summary.get('lost') or {}).items()))
         lines.append(f'ERROR: recording lost {lost} messages ({per_topic}): the disk was full')
         lines += [f'  {g}' for g in summary.get('write_gaps') or []]
-    return lines, bool(lost)
+    foreign = summary.get('foreign_publishers') or {}
+    if foreign:
+        lines.append(f'ERROR: more than one publisher on {", ".join(sorted(foreign))} '
+                     '(a second bench, or a replay into this namespace): the recorded data '
+                     'mixes sources')
+    return lines, bool(lost or foreign)
 
 
 def _raise_keyboard_interrupt(*_: object) -> None:

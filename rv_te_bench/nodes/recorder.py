@@ -157,7 +157,8 @@ def _parse_metadata(text: str) -> dict[str, Any]:
 
 
 class _TopicState:
-    __slots__ = ('count', 'gaps', 'last_seq', 'malformed', 'missing', 'msgtype', 'name')
+    __slots__ = ('count', 'gaps', 'last_seq', 'malformed', 'max_publishers', 'missing',
+                 'msgtype', 'name')
 
     def __init__(self, name: str, msgtype: str) -> None:
         self.name = name
@@ -166,6 +167,7 @@ class _TopicState:
         self.gaps = 0
         self.missing = 0
         self.malformed = 0
+        self.max_publishers = 0   # EncoderBlock topics: most publishers seen at once
         self.last_seq: int | None = None
 
 
@@ -500,14 +502,38 @@ class RecorderNode(Node):
         """One line per write gap (empty when nothing went wrong writing the bag)."""
         return [g.describe() for g in self._writer.write_gaps]
 
+    def _check_publishers(self) -> list[str]:
+        """EncoderBlock topics with more than one publisher: a foreign one (a second bench,
+        ``rv-te replay`` into this namespace) mixes its blocks into the session's data."""
+        foreign = []
+        for s in self._topics.values():
+            if s.msgtype != ENCODER_BLOCK:
+                continue
+            n = self.count_publishers(s.name)
+            s.max_publishers = max(s.max_publishers, n)
+            if n > 1:
+                foreign.append(s.name)
+                self.get_logger().error(
+                    f'{s.name}: {n} publishers: a foreign publisher (a second bench, or a '
+                    'replay into this namespace) mixes its blocks into this session; the '
+                    'recording will end with an error', throttle_duration_sec=_THROTTLE_S)
+        return foreign
+
+    def foreign_publishers(self) -> dict[str, int]:
+        """EncoderBlock topics that had more than one publisher, with the most seen."""
+        return {s.name: s.max_publishers for s in self._topics.values()
+                if s.max_publishers > 1}
+
     def _publish_diagnostics(self) -> None:
+        foreign = [] if self.finished else self._check_publishers()
         states = list(self._topics.values())
         lost = self._writer.lost_messages
         bad = sum(s.gaps + s.malformed for s in states) + self.write_errors + lost
         stalled = self._writer.stalled
-        level = (DiagnosticStatus.ERROR if stalled or lost
+        level = (DiagnosticStatus.ERROR if stalled or lost or foreign
                  else DiagnosticStatus.WARN if bad else DiagnosticStatus.OK)
-        state = 'closed' if self.finished else 'DISK FULL' if stalled else 'recording'
+        state = ('closed' if self.finished else 'DISK FULL' if stalled
+                 else f'FOREIGN PUBLISHER on {", ".join(foreign)}' if foreign else 'recording')
         status = DiagnosticStatus(
             level=level, name=f'{self.get_name()}: recorder', hardware_id=str(self.bag_path),
             message=state + (f', {lost} messages lost' if lost else '') +
@@ -558,6 +584,11 @@ class RecorderNode(Node):
                 f'{ {t: n for t, n in self.lost.items() if n} }')
             for line in self.loss_report():
                 self.get_logger().error(f'bag {self.bag_path}: {line}')
+        foreign = self.foreign_publishers()
+        if foreign:
+            self.exit_code = 1
+            self.get_logger().error(f'bag {self.bag_path}: more than one publisher on '
+                                    f'{foreign} (topic: most at once): the data mixes sources')
         if self._summary_file:
             self._write_summary_file()
 
@@ -569,7 +600,8 @@ class RecorderNode(Node):
                 'lost': {t: n for t, n in self.lost.items() if n},
                 'write_gaps': self.loss_report(),
                 'sequence_gaps': {t: {'gaps': g, 'missing_blocks': m}
-                                  for t, (g, m) in self.gaps.items() if g}}
+                                  for t, (g, m) in self.gaps.items() if g},
+                'foreign_publishers': self.foreign_publishers()}
 
     def _write_summary_file(self) -> None:
         """The closing summary as YAML (``summary_file``), read by the launcher."""

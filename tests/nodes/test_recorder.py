@@ -439,3 +439,74 @@ def test_sim_time_recorder_discovers_publishers_before_any_clock(ros_context: An
         recorder.destroy_node()
         pub_node.destroy_node()
         executor.shutdown()
+
+
+def test_a_foreign_publisher_is_reported(ros_context: Any, tmp_path: Path) -> None:
+    """Issue #16 item 3: a second bench (or `rv-te replay` into a live namespace) on the
+    session's encoder topic gave the live bag two sources and the launch exited 0. The
+    recorder sees the second publisher, says so (log, /diagnostics, closing summary) and
+    ends with exit code 1."""
+    from diagnostic_msgs.msg import DiagnosticArray  # noqa: PLC0415
+
+    from rv_te_bench.launch.session import recording_report  # noqa: PLC0415
+
+    topic = f'/foreign_{os.getpid()}/bench/encoders'
+    nodes = [rclpy.create_node(f'bench_{k}', context=ros_context) for k in range(2)]
+    pubs = [n.create_publisher(EncoderBlock, topic, qos.ENCODER_QOS) for n in nodes]
+    diags: list[str] = []
+    nodes[0].create_subscription(
+        DiagnosticArray, '/diagnostics',
+        lambda m: diags.extend(s.message for s in m.status if 'recorder' in s.name), 10)
+    recorder = RecorderNode(context=ros_context, parameter_overrides=[
+        Parameter('output_dir', value=str(tmp_path)), Parameter('bag_name', value='bag'),
+        Parameter('topics', value=[topic]),
+        Parameter('topic_types', value=[f'{topic}=rv_te_msgs/msg/EncoderBlock'])])
+    executor = EventsExecutor(context=ros_context)
+    for n in (*nodes, recorder):
+        executor.add_node(n)
+    try:
+        assert spin_until(executor, lambda: all(p.get_subscription_count() >= 1
+                                                for p in pubs), 15.0)
+        for seq in range(3):
+            for p in pubs:
+                p.publish(encoder_cdr(seq, 10))
+        assert spin_until(executor, lambda: any('FOREIGN PUBLISHER' in d for d in diags),
+                          10.0), diags
+    finally:
+        recorder.close()
+        summary = recorder.summary()
+        recorder.destroy_node()
+        for n in nodes:
+            n.destroy_node()
+        executor.shutdown()
+    assert summary['foreign_publishers'] == {topic: 2}
+    assert recorder.exit_code == 1
+    lines, bad = recording_report(summary)
+    assert bad and any('more than one publisher on ' + topic in ln for ln in lines)
+
+
+def test_one_publisher_is_not_foreign(ros_context: Any, tmp_path: Path) -> None:
+    topic = f'/single_{os.getpid()}/bench/encoders'
+    node = rclpy.create_node('bench_single', context=ros_context)
+    pub = node.create_publisher(EncoderBlock, topic, qos.ENCODER_QOS)
+    recorder = RecorderNode(context=ros_context, parameter_overrides=[
+        Parameter('output_dir', value=str(tmp_path)), Parameter('bag_name', value='bag'),
+        Parameter('topics', value=[topic]),
+        Parameter('topic_types', value=[f'{topic}=rv_te_msgs/msg/EncoderBlock'])])
+    executor = EventsExecutor(context=ros_context)
+    executor.add_node(node)
+    executor.add_node(recorder)
+    try:
+        assert spin_until(executor, lambda: pub.get_subscription_count() >= 1, 15.0)
+        for seq in range(3):
+            pub.publish(encoder_cdr(seq, 10))
+        assert spin_until(executor, lambda: recorder.counts.get(topic) == 3, 10.0)
+        time.sleep(1.2)
+        spin_until(executor, lambda: False, 1.2)   # a diagnostics period
+    finally:
+        recorder.close()
+        recorder.destroy_node()
+        node.destroy_node()
+        executor.shutdown()
+    assert recorder.summary()['foreign_publishers'] == {}
+    assert recorder.exit_code == 0
