@@ -123,8 +123,10 @@ def _client(workers: int, scheduler: str | None) -> tuple[Any, Any]:
         except (OSError, TimeoutError) as exc:
             msg = f'cannot reach the Dask scheduler at {scheduler[:200]}: {_one_line(exc)}'
             raise RvTeError(msg) from None
+    # the scheduler's HTTP server on a free port: with None it still tries 8787 and warns
+    # on stderr when another cluster holds it (one clear line is all the command prints)
     cluster = LocalCluster(n_workers=workers, threads_per_worker=1, processes=True,
-                           dashboard_address=None, silence_logs=logging.ERROR)
+                           dashboard_address=':0', silence_logs=logging.ERROR)
     return Client(cluster), cluster
 
 

@@ -131,3 +131,25 @@ def test_killed_worker_loses_no_result(fleet_dir: Path, tmp_path: Path) -> None:
     assert summary.ok == N_GOOD
     assert sorted(r.bag_path for r in rows) == sorted(str(b) for b in bags)
     assert all(r.status == 'ok' and r.metrics for r in rows)
+
+
+def test_a_busy_dashboard_port_prints_nothing(tmp_path: Path) -> None:
+    """Another Dask cluster holding port 8787 made `rv-te fleet analyze` print a UserWarning
+    (its scheduler's HTTP server) before its one result line."""
+    import socket  # noqa: PLC0415
+    import warnings  # noqa: PLC0415
+
+    from rv_te_bench.fleet._run import _client  # noqa: PLC0415
+
+    with socket.socket() as s:
+        try:
+            s.bind(('127.0.0.1', 8787))
+        except OSError:
+            pytest.skip('port 8787 is taken by something else here')
+        s.listen()
+        with warnings.catch_warnings(record=True) as caught:
+            warnings.simplefilter('always')
+            client, cluster = _client(1, None)
+            client.close()
+            cluster.close()
+    assert not [w for w in caught if '8787' in str(w.message)]
