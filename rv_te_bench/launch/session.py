@@ -305,6 +305,7 @@ def child_env() -> dict[str, str]:
     env = dict(os.environ)
     env.pop('_ROS_WHEELS_BOOTSTRAP_COMPLETE', None)
     env.pop('RV_TE_LAUNCHER_PID', None)   # set by Session.start for its own children only
+    env.pop('RV_TE_SESSION', None)
     env.setdefault('ROS_AUTOMATIC_DISCOVERY_RANGE', 'LOCALHOST')
     env.setdefault('PYTHONUNBUFFERED', '1')
     return env
@@ -331,6 +332,9 @@ class Session:
         self._tmp = tempfile.TemporaryDirectory(prefix='rv-te-session-')
         self.procs: dict[str, NodeProcess] = {}
         self.failures: list[str] = []
+        #: This session's token: its nodes mark themselves with it (see nodes.common), so
+        #: that its bench waits for them and not for stale nodes of the same names.
+        self.token = f's{os.getpid()}_{time.time_ns()}'
         #: Nodes that ended on their own with an error (or any node but a finished bench).
         self.crashed: list[str] = []
         self._summary_path = Path(self._tmp.name) / 'recorder_summary.yaml'
@@ -358,6 +362,7 @@ class Session:
             # own process group: a terminal Ctrl-C reaches the launcher only, which then
             # stops the nodes in data-flow order (recorder last)
             env = child_env()
+            env['RV_TE_SESSION'] = self.token
             if threading.current_thread() is threading.main_thread():
                 # the nodes die with this process (Linux parent-death signal, set by the
                 # node itself: rv_te_bench.nodes.common.die_with_launcher). The signal

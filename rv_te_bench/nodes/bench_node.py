@@ -28,11 +28,13 @@ from rv_te_bench.errors import ParameterFileError, YamlInputError
 from rv_te_bench.nodes import convert, qos
 from rv_te_bench.nodes.common import (
     OK,
+    SESSION_TOPIC_PREFIX,
     WARN,
     declare_from_specs,
     diagnostic_array,
     reject_invalid_changes,
     run_node,
+    session_topic,
 )
 from rv_te_bench.params import ParamSpec
 from rv_te_bench.safe_yaml import DOCUMENT_LIMITS, load_yaml
@@ -334,6 +336,11 @@ class BenchNode(Node):
         topic = self.pub_blocks.topic_name
         have = {i.node_name for i in self.get_subscriptions_info_by_topic(topic)
                 if i.node_namespace == ns}
+        marker = session_topic()
+        if marker is not None:   # launched: another session's nodes of these names do not count
+            mine = {i.node_name for i in self.get_publishers_info_by_topic(marker)
+                    if i.node_namespace == ns}
+            have = {n for n in have if n in mine or not self._of_another_session(n, ns, marker)}
         missing = sorted(set(self.p['wait_for_nodes']) - have)
         if not missing and self.pub_clock is not None:
             missing = self._clock_not_matched(ns)
@@ -349,6 +356,15 @@ class BenchNode(Node):
         if self.pub_clock is not None:   # the session clock starts at the first block's time
             self.pub_clock.publish(Clock(clock=convert.s_to_stamp(self.wall_start)))
         return True
+
+    def _of_another_session(self, name: str, ns: str, marker: str) -> bool:
+        """True when node ``name`` carries another launched session's marker (a stale node
+        of an earlier session); a node of no session (a test probe, a tool) counts."""
+        try:
+            topics = self.get_publisher_names_and_types_by_node(name, ns)
+        except Exception:  # noqa: BLE001 - gone between the two graph queries
+            return False
+        return any(t.startswith(SESSION_TOPIC_PREFIX) and t != marker for t, _ in topics)
 
     def _clock_not_matched(self, ns: str) -> list[str]:
         """Waited-for nodes on sim time whose /clock subscription has not matched ours yet.

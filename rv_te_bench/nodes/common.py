@@ -164,6 +164,29 @@ class DropCounter:
         return sum(self.counts.values())
 
 
+#: Set by the launcher in its node processes' environment: a token of the session.
+SESSION_ENV = 'RV_TE_SESSION'
+#: Hidden topic on which every node of a launched session holds a publisher: the graph then
+#: tells which nodes belong to this session (a bench waits for its own session's nodes only,
+#: not for stale ones of the same names).
+SESSION_TOPIC_PREFIX = '/_rv_te_session/'
+
+
+def session_topic() -> str | None:
+    """The hidden marker topic of the session this process belongs to (None: no launcher)."""
+    token = os.environ.get(SESSION_ENV, '')
+    return SESSION_TOPIC_PREFIX + token if token.isidentifier() else None
+
+
+def mark_session(node: Node) -> None:
+    """Give ``node`` a publisher on its session's marker topic (nothing is ever sent)."""
+    topic = session_topic()
+    if topic is not None:
+        from std_msgs.msg import Empty  # noqa: PLC0415
+
+        node.create_publisher(Empty, topic, 1)
+
+
 #: Longest a stopping node may take to finish work under way (``busy``) [s]; below the
 #: launcher's 10 s grace before it escalates.
 FINISH_MAX_S = 8.0
@@ -251,6 +274,7 @@ def run_node(factory: Callable[[Context], Node], args: Sequence[str] | None = No
             print('interrupted while starting', file=sys.stderr)
             return 130
         stop['starting'] = False
+        mark_session(node)
         executor = make_executor(executor_kind, context=context)
         executor.add_node(node)
         while context.ok() and not stop['requested'] and not getattr(node, 'finished', False):
