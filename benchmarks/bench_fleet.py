@@ -51,7 +51,7 @@ def make_bags(directory: Path, n: int, *, rate_hz: float, revolutions: float) ->
 
 def main(argv: list[str] | None = None) -> int:
     """Run the benchmark and print the table."""
-    from rv_te_bench.fleet import FleetOptions, analyse_one, run_fleet
+    from rv_te_bench.fleet import FleetOptions, _run, analyse_one, run_fleet
     from rv_te_bench.store import open_store
 
     ap = argparse.ArgumentParser(description=__doc__.split('\n\n')[0])
@@ -66,6 +66,7 @@ def main(argv: list[str] | None = None) -> int:
     bags = make_bags(args.dir, args.bags, rate_hz=args.rate_hz, revolutions=args.revolutions)
     print(f'{len(bags)} bags ready in {time.perf_counter() - t:.1f} s', file=sys.stderr)
     opts = FleetOptions(with_advice=not args.no_advice)
+    env_name = _run.READ_AHEAD_ENV
     rows = []
     with tempfile.TemporaryDirectory() as tmp:
         with open_store(Path(tmp) / 'loop.sqlite') as st:
@@ -74,13 +75,19 @@ def main(argv: list[str] | None = None) -> int:
                 st.upsert(analyse_one(str(b), opts))
             loop_s = time.perf_counter() - t
         rows.append(('plain loop (this process)', loop_s))
-        for w in (1, 2):
-            with open_store(Path(tmp) / f'w{w}.sqlite') as st:
+        for w, ahead in ((1, None), (2, None), (2, True)):
+            if ahead:   # the workers' read-ahead switch disabled: each analysis reads ahead
+                _run.READ_AHEAD_ENV = 'RV_TE_BENCH_UNUSED'
+            with open_store(Path(tmp) / f'w{w}{ahead}.sqlite') as st:
                 t = time.perf_counter()
                 s = run_fleet(bags, st, options=opts, workers=w)
-                rows.append((f'run_fleet, local cluster of {w} worker(s)',
-                             time.perf_counter() - t))
+                name = f'run_fleet, local cluster of {w} worker(s)'
+                if w == 2:
+                    name += (', read-ahead thread in each analysis (before)' if ahead else
+                             ', read-ahead off (a worker per core; default)')
+                rows.append((name, time.perf_counter() - t))
                 assert s.ok == len(bags), s
+            _run.READ_AHEAD_ENV = env_name
     one, two = rows[1][1], rows[2][1]
     load = os.getloadavg()[0]
     lines = [f'Fleet analysis of {len(bags)} bags ({args.revolutions:g} output revolutions at '
@@ -88,7 +95,8 @@ def main(argv: list[str] | None = None) -> int:
              f'CPython {platform.python_version()}, {os.cpu_count()} CPUs, load {load:.1f}',
              '', '| how | wall s | bags/s |', '|---|---:|---:|']
     lines += [f'| {name} | {sec:.1f} | {len(bags) / sec:.2f} |' for name, sec in rows]
-    lines += ['', f'speed-up 2 workers vs 1: **{one / two:.2f}x**; engine overhead per bag '
+    lines += ['', f'speed-up 2 workers vs 1: **{one / two:.2f}x** (with the read-ahead thread '
+              f'in the 2 workers: {one / rows[3][1]:.2f}x); engine overhead per bag '
               f'(1 worker vs the loop, start-up included): {(one - rows[0][1]) / len(bags) * 1e3:.0f} ms']
     text = '\n'.join(lines)
     print(text)

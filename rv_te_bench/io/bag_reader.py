@@ -17,6 +17,7 @@ from __future__ import annotations
 import collections
 import contextlib
 import mmap
+import os
 import struct
 import zlib
 from dataclasses import dataclass, field
@@ -344,6 +345,9 @@ _Unit = tuple[memoryview, list[tuple[int, int, int, int]]]
 """A decompressed chunk (or one loose message) and its messages as
 (channel_id, log_time_ns, data_start, data_end) byte positions in it."""
 
+#: Environment switch: ``0`` turns the read-ahead thread off (a Dask worker of a fleet run
+#: on a machine whose cores are all workers: parallel bags use the cores better).
+READ_AHEAD_ENV = 'RV_TE_READ_AHEAD'
 #: Chunks decompressed ahead of the one being consumed (by one worker thread: zstd, lz4 and
 #: crc32 release the GIL, so reading overlaps with the analysis on a second core).
 PREFETCH_CHUNKS = 2
@@ -406,7 +410,7 @@ def _scan_units(  # noqa: C901, PLR0912, PLR0915
     buf = memoryview(mm)
     ended = False
     pool = None
-    if prefetch and messages:
+    if prefetch and messages and os.environ.get(READ_AHEAD_ENV, '1') != '0':
         from concurrent.futures import ThreadPoolExecutor  # noqa: PLC0415
 
         pool = ThreadPoolExecutor(max_workers=1, thread_name_prefix='mcap-read')

@@ -153,3 +153,19 @@ def test_a_busy_dashboard_port_prints_nothing(tmp_path: Path) -> None:
             client.close()
             cluster.close()
     assert not [w for w in caught if '8787' in str(w.message)]
+
+
+def test_workers_read_without_the_read_ahead_thread_when_they_fill_the_cores() -> None:
+    """With a worker per core, parallel bags use the cores; each analysis's read-ahead
+    thread (~0.16 of a core more) would oversubscribe them (benchmarks/README, fleet row)."""
+    import os  # noqa: PLC0415
+
+    from rv_te_bench.fleet._run import _client  # noqa: PLC0415
+
+    client, cluster = _client(2, None)
+    try:
+        got = set(client.run(lambda: os.environ.get('RV_TE_READ_AHEAD')).values())
+    finally:
+        client.close()
+        cluster.close()
+    assert got == ({'0'} if 2 >= (os.cpu_count() or 1) else {None})

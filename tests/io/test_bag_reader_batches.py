@@ -272,3 +272,23 @@ def test_partial_analysis_keeps_every_read_problem(tmp_path: Path) -> None:
     assert res.problems[0].endswith(f'... and {n_bad - 3} more problems')
     assert res.to_json_dict()['read_problems'] == list(res.read_problems)
     assert res.blocks_read == 20
+
+
+@pytest.mark.parametrize(('env', 'thread'), [(None, True), ('1', True), ('0', False)])
+def test_read_ahead_switch(tmp_path: Path, monkeypatch: pytest.MonkeyPatch,
+                           env: str | None, thread: bool) -> None:
+    """RV_TE_READ_AHEAD=0 (set in the workers of a fleet run with a worker per core) reads
+    without the read-ahead thread; the blocks are the same."""
+    if env is None:
+        monkeypatch.delenv(bag_reader.READ_AHEAD_ENV, raising=False)
+    else:
+        monkeypatch.setenv(bag_reader.READ_AHEAD_ENV, env)
+    bag = tmp_path / 'bag'
+    write_sample_bag(bag, n_blocks=30, compression='zstd', chunk_size_bytes=4096)
+    seen = set()
+    items = []
+    for item in read_encoder_batches(bag):
+        seen |= {t.name for t in threading.enumerate()}
+        items.append(item)
+    assert any(n.startswith('mcap-read') for n in seen) is thread
+    assert [b.seq for b in _flatten(items)] == list(range(30))
