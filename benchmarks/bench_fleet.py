@@ -10,7 +10,8 @@ all, each into a fresh SQLite store, in one run:
 
 * plain loop: ``analyse_one`` + ``store.upsert`` per bag in this process (the floor);
 * ``run_fleet`` with a local cluster of 1 worker, and of 2 workers (cluster start-up
-  included: it is part of what a user waits for).
+  included: it is part of what a user waits for); the 2 workers once as shipped (on a
+  2-core machine they read without the read-ahead thread) and once with it (as before).
 
 Speed-up = 1-worker time / 2-worker time; per-bag overhead of the engine =
 (1-worker time - loop time) / bags.
