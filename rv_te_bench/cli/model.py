@@ -111,7 +111,8 @@ def register(subparsers: Any) -> None:  # noqa: ANN401 - argparse's private type
                    help='override a preset value (repeatable)')
     p.add_argument('--json', action='store_true', help='machine-readable statistics')
     p.add_argument('--csv', type=Path, default=None, metavar='FILE',
-                   help='write t_s, theta_in_rad, load_nm, te_rad, te_arcmin per sample')
+                   help='write t_s, theta_in_rad, load_nm, te_rad, te_arcmin per sample '
+                        '("-": to standard output, the statistics then go to standard error)')
     p.add_argument('--plot', type=Path, default=None, metavar='FILE.png',
                    help='save a plot of the TE curve (matplotlib, Agg)')
     p.add_argument('--force', action='store_true', help='overwrite existing --csv/--plot files')
@@ -291,25 +292,32 @@ def run(args: argparse.Namespace) -> int:
     from sim.errors import SimError  # noqa: PLC0415
 
     try:
-        for path in (args.csv, args.plot):
+        to_stdout = args.csv is not None and str(args.csv) == '-'
+        for path in (None if to_stdout else args.csv, args.plot):
             if path is not None:
                 _check_out(path, args.force)
         if args.plot is not None:
             _check_plot_format(args.plot)
         stats, columns = simulate(args)
-        if args.csv is not None:
+        if to_stdout:
+            data = np.column_stack(list(columns.values()))
+            print(','.join(columns))
+            np.savetxt(sys.stdout, data, delimiter=',', fmt='%.12g')
+            sys.stdout.flush()
+        elif args.csv is not None:
             _write_csv(args.csv, columns)
         if args.plot is not None:
             _plot(args.plot, stats, columns)
     except (SimError, RvTeError) as exc:
         print(f'ERROR: {one_line(exc)}', file=sys.stderr)
         return 1
+    out = sys.stderr if to_stdout else sys.stdout   # stdout holds the CSV
     if args.json:
-        print(json.dumps(stats, indent=2))
+        print(json.dumps(stats, indent=2), file=out)
     else:
         width = max(len(k) for k in stats)
         for key, value in stats.items():
             text = (f'{value:.6g}' if isinstance(value, float) else
                     'not used by this model' if value is None else str(value))
-            print(f'{key:<{width}}  {text}')
+            print(f'{key:<{width}}  {text}', file=out)
     return 0

@@ -129,3 +129,20 @@ def test_bad_usage_exit_2(argv: list[str], capsys: pytest.CaptureFixture[str]) -
         _run(argv)
     assert info.value.code == 2
     capsys.readouterr()
+
+
+def test_csv_dash_goes_to_stdout(tmp_path: Path, monkeypatch: pytest.MonkeyPatch,
+                                 capsys: pytest.CaptureFixture[str]) -> None:
+    """``--csv -`` is standard output, as in every Unix tool (it wrote a file named '-' into
+    the working folder); the statistics then go to standard error."""
+    monkeypatch.chdir(tmp_path)
+    assert _run(['wang2020-2kv', '--sample-rate-hz', '500', '--csv', '-', '--json']) == 0
+    captured = capsys.readouterr()
+    assert not (tmp_path / '-').exists()
+    lines = captured.out.splitlines()
+    assert lines[0] == 't_s,theta_in_rad,te_rad,te_arcmin'
+    data = np.array([[float(x) for x in ln.split(',')] for ln in lines[1:]])
+    stats = json.loads(captured.err)
+    assert data.shape == (stats['n_samples'], 4)
+    pp = data[:, 3].max() - data[:, 3].min()
+    assert pp == pytest.approx(stats['te_pp_arcmin'], rel=1e-9)
