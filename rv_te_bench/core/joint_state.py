@@ -14,7 +14,7 @@ message, header stamp in nanoseconds, joint names, positions and efforts.
   joint's stamp). Reordering between the two joints' messages is tolerated up to
   ``max_unpaired`` samples; a half that cannot be paired is a missing joint.
 * **Positions** are ``position * scale`` with scale 1 (``position_unit='rad'``) or
-  2 pi / ``counts_per_rev`` (``'counts'``, raw counters). With ``wrap=True`` (single-turn
+  2 pi / ``counts_per_rev_*`` (``'counts'``, raw counters). With ``wrap_*`` (single-turn
   absolute encoders reading [0, 2 pi) or [-pi, pi)) the scaled angle is unwrapped into a
   continuous multi-turn angle; this needs less than half a turn between two accepted
   samples (also across a gap). Both directions of rotation work alike.
@@ -88,9 +88,12 @@ class JointStateConfig:
         sample_rate_hz: Expected sample rate of the stamps [Hz] (> 0): gaps are stamp steps
             above 1.5 periods; also the ``sample_rate_hz`` of the blocks.
         block_size: Samples per block (>= 1); blocks closed by a gap are shorter.
-        position_unit: ``'rad'`` or ``'counts'`` (raw counter, see ``counts_per_rev``).
-        counts_per_rev: Counts per revolution [1/rev] (> 0) with ``'counts'``; 0 with ``'rad'``.
-        wrap: Positions are single-turn (wrap at 2 pi after scaling): unwrap them.
+        position_unit: ``'rad'`` or ``'counts'`` (raw counters, see ``counts_per_rev_*``).
+        counts_per_rev_in: Input encoder counts per revolution [1/rev] (> 0) with
+            ``'counts'``; 0 with ``'rad'``.
+        counts_per_rev_out: Output encoder counts per revolution, likewise.
+        wrap_in: The input position is single-turn (wraps at 2 pi after scaling): unwrap it.
+        wrap_out: The output position is single-turn: unwrap it.
         effort_scale: Output torque [N m] per unit of the output joint's effort; 0 = no
             torque in the blocks.
         pairing_tolerance_s: Joints in separate messages: largest stamp difference [s] of
@@ -104,8 +107,10 @@ class JointStateConfig:
     sample_rate_hz: float
     block_size: int = 100
     position_unit: PositionUnit = 'rad'
-    counts_per_rev: float = 0.0
-    wrap: bool = False
+    counts_per_rev_in: float = 0.0
+    counts_per_rev_out: float = 0.0
+    wrap_in: bool = False
+    wrap_out: bool = False
     effort_scale: float = 0.0
     pairing_tolerance_s: float = 0.0
     max_unpaired: int = 64
@@ -134,17 +139,20 @@ class JointStateConfig:
         if self.position_unit not in ('rad', 'counts'):
             msg = f"position_unit must be 'rad' or 'counts', got {self.position_unit!r}"
             raise TeConfigError(msg)
-        cpr = self.counts_per_rev
-        if self.position_unit == 'counts' and not (
-                isinstance(cpr, int | float) and math.isfinite(cpr) and cpr > 0):
-            msg = f"counts_per_rev must be finite and > 0 with position_unit 'counts', got {cpr!r}"
-            raise TeConfigError(msg)
-        if self.position_unit == 'rad' and cpr != 0:
-            msg = f"counts_per_rev is for position_unit 'counts'; with 'rad' it must be 0, got {cpr!r}"
-            raise TeConfigError(msg)
-        if not isinstance(self.wrap, bool):
-            msg = f'wrap must be a bool, got {self.wrap!r}'
-            raise TeConfigError(msg)
+        for name in ('counts_per_rev_in', 'counts_per_rev_out'):
+            cpr = getattr(self, name)
+            if self.position_unit == 'counts' and not (
+                    isinstance(cpr, int | float) and math.isfinite(cpr) and cpr > 0):
+                msg = f"{name} must be finite and > 0 with position_unit 'counts', got {cpr!r}"
+                raise TeConfigError(msg)
+            if self.position_unit == 'rad' and cpr != 0:
+                msg = (f"{name} is for position_unit 'counts'; with 'rad' it must be 0, "
+                       f'got {cpr!r}')
+                raise TeConfigError(msg)
+        for name in ('wrap_in', 'wrap_out'):
+            if not isinstance(getattr(self, name), bool):
+                msg = f'{name} must be a bool, got {getattr(self, name)!r}'
+                raise TeConfigError(msg)
         if not (isinstance(self.effort_scale, int | float)
                 and math.isfinite(self.effort_scale)):
             msg = f'effort_scale must be finite, got {self.effort_scale!r}'
@@ -157,9 +165,14 @@ class JointStateConfig:
             raise TeConfigError(msg)
 
     @property
-    def scale_rad(self) -> float:
-        """Radians per unit of the JointState position."""
-        return 1.0 if self.position_unit == 'rad' else _TWO_PI / self.counts_per_rev
+    def scale_in_rad(self) -> float:
+        """Radians per unit of the input joint's position."""
+        return 1.0 if self.position_unit == 'rad' else _TWO_PI / self.counts_per_rev_in
+
+    @property
+    def scale_out_rad(self) -> float:
+        """Radians per unit of the output joint's position."""
+        return 1.0 if self.position_unit == 'rad' else _TWO_PI / self.counts_per_rev_out
 
 
 @dataclass(frozen=True)
@@ -438,14 +451,15 @@ class JointStateAssembler:
     def _close_block(self) -> JointStateBlock:
         """The open block, scaled and unwrapped (numpy, once per block)."""
         t = np.array(self._t, dtype=np.int64)
-        scale = self._cfg.scale_rad
+        cfg = self._cfg
         th_in = np.array(self._in, dtype=np.float64)
         th_out = np.array(self._out, dtype=np.float64)
-        if scale != 1.0:
-            th_in *= scale
-            th_out *= scale
-        if self._cfg.wrap:
+        if cfg.position_unit == 'counts':
+            th_in *= cfg.scale_in_rad
+            th_out *= cfg.scale_out_rad
+        if cfg.wrap_in:
             th_in, self._prev_in, self._off_in = _unwrap(th_in, self._prev_in, self._off_in)
+        if cfg.wrap_out:
             th_out, self._prev_out, self._off_out = _unwrap(th_out, self._prev_out,
                                                             self._off_out)
         torque = (np.array(self._eff, dtype=np.float64) * self._cfg.effort_scale

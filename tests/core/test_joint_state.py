@@ -210,7 +210,7 @@ def test_wrapped_absolute_encoder_is_unwrapped(w: float, centred: bool) -> None:
     shift = math.pi if centred else 0.0
     wrapped_in = np.mod(th_in + shift, 2 * math.pi) - shift
     wrapped_out = np.mod(th_out + shift, 2 * math.pi) - shift
-    items = feed(JointStateAssembler(cfg(wrap=True)), stamps, wrapped_in, wrapped_out,
+    items = feed(JointStateAssembler(cfg(wrap_in=True, wrap_out=True)), stamps, wrapped_in, wrapped_out,
                  skip={777, 1500})
     assert [g.reason for g in gaps_of(items)] == ['stamp_jump', 'stamp_jump']
     kept = np.setdiff1d(np.arange(3000), [777, 1500])
@@ -223,12 +223,28 @@ def test_raw_counts_scaled_and_wrapped() -> None:
     stamps, th_in, th_out = ramp(1000, w=-W_IN, theta0=3.0)
     c_in = np.round(th_in / (2 * math.pi) * cpr)
     c_out = np.round(th_out / (2 * math.pi) * cpr)
-    items = feed(JointStateAssembler(cfg(position_unit='counts', counts_per_rev=cpr,
-                                         wrap=True)),
+    items = feed(JointStateAssembler(cfg(position_unit='counts', counts_per_rev_in=cpr,
+                                         counts_per_rev_out=cpr, wrap_in=True,
+                                         wrap_out=True)),
                  stamps, np.mod(c_in, cpr), np.mod(c_out, cpr))
     assert_allclose(cat(blocks_of(items), 'theta_in_rad'), c_in * 2 * math.pi / cpr,
                     rtol=0, atol=1e-12)
     assert_allclose(cat(blocks_of(items), 'theta_out_rad'), c_out * 2 * math.pi / cpr,
+                    rtol=0, atol=1e-12)
+
+
+def test_raw_counts_of_different_encoders_and_one_wrapped() -> None:
+    """Multi-turn incremental input counter, single-turn 32-bit absolute output."""
+    stamps, th_in, th_out = ramp(500, theta0=3.0)
+    cpr_in, cpr_out = 36000 * 4, 2**32
+    c_in = np.round(th_in / (2 * math.pi) * cpr_in)          # keeps counting
+    c_out = np.round(th_out / (2 * math.pi) * cpr_out)
+    items = feed(JointStateAssembler(cfg(position_unit='counts', counts_per_rev_in=cpr_in,
+                                         counts_per_rev_out=cpr_out, wrap_out=True)),
+                 stamps, c_in, np.mod(c_out, cpr_out))
+    assert_allclose(cat(blocks_of(items), 'theta_in_rad'), c_in * 2 * math.pi / cpr_in,
+                    rtol=0, atol=1e-12)
+    assert_allclose(cat(blocks_of(items), 'theta_out_rad'), c_out * 2 * math.pi / cpr_out,
                     rtol=0, atol=1e-12)
 
 
@@ -278,8 +294,9 @@ def test_a_gap_reaches_the_te_core_as_a_seq_jump() -> None:
     ({'sample_rate_hz': math.nan}, 'got nan'),
     ({'block_size': 0}, 'block_size must be an integer >= 1, got 0'),
     ({'position_unit': 'deg'}, "position_unit must be 'rad' or 'counts', got 'deg'"),
-    ({'position_unit': 'counts'}, 'counts_per_rev must be finite and > 0'),
-    ({'counts_per_rev': 4096.0}, "with 'rad' it must be 0, got 4096.0"),
+    ({'position_unit': 'counts', 'counts_per_rev_in': 4096.0},
+     'counts_per_rev_out must be finite and > 0'),
+    ({'counts_per_rev_in': 4096.0}, "with 'rad' it must be 0, got 4096.0"),
     ({'effort_scale': math.inf}, 'effort_scale must be finite, got inf'),
     ({'pairing_tolerance_s': 0.0005}, 'below half a sample period (0.0005 s at 1000 Hz), '
                                       'got 0.0005'),
