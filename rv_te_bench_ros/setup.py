@@ -20,6 +20,7 @@ EXECUTABLES = {
     'bench_node': 'rv_te_bench.nodes.bench_node:main',
     'test_sequencer': 'rv_te_bench.nodes.test_sequencer:main',
     'te_node': 'rv_te_bench.nodes.te_node:main',
+    'joint_state_adapter': 'rv_te_bench.nodes.joint_state_adapter:main',
     'compensation_node': 'rv_te_bench.nodes.compensation_node:main',
     'recorder': 'rv_te_bench.nodes.recorder:main',
     'replay': 'rv_te_bench.nodes.replay:main',

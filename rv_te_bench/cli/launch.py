@@ -27,8 +27,8 @@ Two kinds of file:
   tag or attribute):
     arg   name, default, description, choice      let   name, value
     node  pkg (rv_te_bench), exec (bench_node, te_node, compensation_node, recorder,
-          test_sequencer), name (bench, te_node, compensation, recorder,
-          test_sequencer), namespace, output,
+          test_sequencer, joint_state_adapter), name (bench, te_node, compensation,
+          recorder, test_sequencer, joint_state_adapter), namespace, output,
           param ({from: FILE} or {name, value}), remap ({from, to})
     substitutions $(var NAME) $(env NAME [DEFAULT]) $(find-pkg-share PKG) $(dirname)
   One namespace and one remapping list for the whole session; --namespace and --remap

@@ -27,7 +27,8 @@ __all__ = ['NODE_TOPICS', 'check_namespace', 'check_node_config', 'check_ros_nam
 
 #: Topics each node creates (relative names resolve under the session namespace).
 NODE_TOPICS: dict[str, tuple[str, ...]] = {
-    'bench': ('bench/encoders', 'bench/info', '/diagnostics', '/clock'),
+    'bench': ('bench/encoders', 'bench/info', 'joint_states', '/diagnostics', '/clock'),
+    'joint_state_adapter': ('joint_states', 'bench/encoders', 'bench/info', '/diagnostics'),
     'te_node': ('bench/encoders', 'bench/info', 'te/samples', 'te/plot', 'te/statistics',
                 'te/spectrum', '/diagnostics'),
     'compensation': ('bench/info', 'te/statistics', 'te/samples', 'compensation/advice',
@@ -218,6 +219,12 @@ def check_node_config(node: str, values: dict[str, Any], *, namespace: str) -> N
             from rv_te_bench.nodes.recorder import check_config as check_rec  # noqa: PLC0415
 
             check_rec(p)
+        elif node == 'joint_state_adapter':
+            from rv_te_bench.nodes.joint_state_adapter import (  # noqa: PLC0415
+                check_config as check_adapter,
+            )
+
+            check_adapter(p)
     except ParameterFileError as exc:
         msg = f'node {node!r}: {exc}' if not str(exc).startswith('node ') else str(exc)
         raise ParameterFileError(msg) from None

@@ -13,8 +13,9 @@ Supported (``SUBSET``; the format is launch_yaml's, the attributes launch/launch
     - arg:   name (required), default, description, choice: [{value: ...}, ...]
     - let:   name, value
     - node:  pkg: rv_te_bench
-             exec: bench_node | te_node | compensation_node | recorder
-             name: bench | te_node | compensation | recorder (the node's own; may be left out)
+             exec: bench_node | te_node | compensation_node | recorder | joint_state_adapter
+             name: bench | te_node | compensation | recorder | joint_state_adapter (the node's
+                   own; may be left out)
              namespace, output (accepted; node output always goes to the terminal)
              param: [{from: FILE}, {name: NAME, value: VALUE}, ...]   in order, later wins
              remap: [{from: FROM, to: TO}, ...]
@@ -60,7 +61,7 @@ __all__ = [
 #: executable in lib/rv_te_bench (rv_te_bench_ros/setup.py) -> node name in the session
 EXEC_TO_NODE = {'bench_node': 'bench', 'te_node': 'te_node',
                 'compensation_node': 'compensation', 'recorder': 'recorder',
-                'test_sequencer': 'test_sequencer'}
+                'test_sequencer': 'test_sequencer', 'joint_state_adapter': 'joint_state_adapter'}
 PACKAGE = 'rv_te_bench'
 #: tag -> attributes rv-te launch understands (the rest of the format is an error)
 SUBSET: dict[str, frozenset[str]] = {

@@ -54,11 +54,13 @@ NODE_TYPES: dict[str, tuple[str, str]] = {
     'compensation': ('rv_te_bench.nodes.compensation_node', 'CompensationNode'),
     'te_node': ('rv_te_bench.nodes.te_node', 'TeNode'),
     'bench': ('rv_te_bench.nodes.bench_node', 'BenchNode'),
+    'joint_state_adapter': ('rv_te_bench.nodes.joint_state_adapter', 'JointStateAdapterNode'),
     'test_sequencer': ('rv_te_bench.nodes.test_sequencer', 'TestSequencerNode'),
 }
 #: Nodes the raw data depends on: the session ends when one of them fails.
-RAW_DATA_NODES = ('bench', 'recorder')
-STOP_ORDER = ('test_sequencer', 'bench', 'te_node', 'compensation', 'recorder')
+RAW_DATA_NODES = ('bench', 'joint_state_adapter', 'recorder')
+STOP_ORDER = ('test_sequencer', 'bench', 'joint_state_adapter', 'te_node', 'compensation',
+              'recorder')
 
 
 def node_specs(name: str) -> tuple[ParamSpec, ...]:

@@ -3,6 +3,13 @@
 Publishes ``bench/encoders`` (EncoderBlock, reliable), ``bench/info`` (BenchInfo,
 transient-local, once), ``/diagnostics`` and, in ``fast`` time mode, ``/clock``.
 
+With ``output: joint_state`` it publishes instead what a ros2_control bench would:
+``joint_states`` (sensor_msgs/JointState, one message per DAQ sample, or one per joint and
+sample with ``joint_state_layout: separate``), positions as the simulated encoders read them,
+header stamps on the DAQ clock, effort of the output joint = output torque [N m] (NaN for the
+input joint); no EncoderBlock and no BenchInfo (the joint_state_adapter publishes those).
+``output: encoder_block`` (the default) is unchanged.
+
 Time modes:
   * ``realtime``: blocks leave at the wall-clock rate of the DAQ; a late timer catches up
     (several blocks in one tick) so the lag stays bounded; the lag is in the diagnostics.
@@ -19,7 +26,10 @@ import sys
 import time
 from typing import Any
 
+import numpy as np
+
 from diagnostic_msgs.msg import DiagnosticArray
+from builtin_interfaces.msg import Time
 from rclpy.node import Node
 from rosgraph_msgs.msg import Clock
 from rv_te_msgs.msg import BenchInfo, EncoderBlock
@@ -108,6 +118,22 @@ PARAMS = (
               min_value=0.0, max_value=3600.0),
     ParamSpec('diagnostics_period_s', 'double', 1.0, 'Diagnostics period [s]',
               min_value=0.05, max_value=60.0),
+    ParamSpec('output', 'string', 'encoder_block',
+              'What the bench publishes: encoder_block (bench/encoders + bench/info) or '
+              'joint_state (joint_states, one sensor_msgs/JointState per DAQ sample, as a '
+              'ros2_control bench; ~0.1 ms of Python per message: keep sample_rate_hz to a '
+              'few kHz) [-]', choices=('encoder_block', 'joint_state')),
+    ParamSpec('joint_state_layout', 'string', 'one_message',
+              'output joint_state: both joints in one message per sample (one_message, as '
+              'joint_state_broadcaster) or one message per joint and sample (separate) [-]',
+              choices=('one_message', 'separate')),
+    ParamSpec('joint_state_names', 'string_array', ['input_joint', 'output_joint'],
+              'output joint_state: names of the input and output joints [-]',
+              rule=lambda v: None if len(v) == 2 and v[0] and v[1] and v[0] != v[1]
+              else 'must be two different non-empty joint names'),
+    ParamSpec('joint_state_wrap', 'bool', False,
+              'output joint_state: publish positions wrapped to [0, 2 pi), as single-turn '
+              'absolute encoders read them'),
     ParamSpec('commanded', 'bool', False,
               'Idle until a program arrives on bench/run_program (test_sequencer), instead '
               'of running the drive profile from the start'),
@@ -221,8 +247,19 @@ class BenchNode(Node):
         self.exit_code = 0
         self.blocks_published = 0
         self.sim_time_s = 0.0
-        self.pub_blocks = self.create_publisher(EncoderBlock, 'bench/encoders', qos.ENCODER_QOS)
-        self.pub_info = self.create_publisher(BenchInfo, 'bench/info', qos.LATCHED_QOS)
+        self.joint_state = self.p['output'] == 'joint_state'
+        if self.joint_state:
+            from sensor_msgs.msg import JointState  # noqa: PLC0415
+
+            self._joint_state_type = JointState
+            self.pub_data = self.create_publisher(JointState, 'joint_states',
+                                                  qos.JOINT_STATE_QOS)
+            self.joint_states_published = 0
+        else:
+            self.pub_blocks = self.create_publisher(EncoderBlock, 'bench/encoders',
+                                                    qos.ENCODER_QOS)
+            self.pub_info = self.create_publisher(BenchInfo, 'bench/info', qos.LATCHED_QOS)
+            self.pub_data = self.pub_blocks
         self.pub_diag = self.create_publisher(DiagnosticArray, '/diagnostics',
                                               qos.DIAGNOSTICS_QOS)
         self.fast = self.p['time_mode'] == 'fast'
@@ -233,7 +270,9 @@ class BenchNode(Node):
         self.started = not self.p['wait_for_nodes']
         if self.started and self.pub_clock is not None:   # the session clock starts here
             self.pub_clock.publish(Clock(clock=convert.s_to_stamp(self.wall_start)))
-        self.pub_info.publish(convert.make_bench_info(info, convert.s_to_stamp(self.wall_start)))
+        if not self.joint_state:
+            self.pub_info.publish(convert.make_bench_info(info,
+                                                          convert.s_to_stamp(self.wall_start)))
         self._diag_last = (time.monotonic(), 0)
         self._lag_s = 0.0
         self._lag_max_s = 0.0
@@ -333,7 +372,7 @@ class BenchNode(Node):
     def _wait_for_subscribers(self) -> bool:
         """True once the named subscriber nodes are there (or the wait timed out)."""
         ns = self.get_namespace()
-        topic = self.pub_blocks.topic_name
+        topic = self.pub_data.topic_name
         have = {i.node_name for i in self.get_subscriptions_info_by_topic(topic)
                 if i.node_namespace == ns}
         marker = session_topic()
@@ -402,18 +441,56 @@ class BenchNode(Node):
         self._publish_block(self.sim.next_block())
 
     def _publish_block(self, b: Any) -> None:  # noqa: ANN401 - sim.bench.BenchBlock
-        stamp_s = self.wall_start + b.t0_s
-        msg = convert.make_encoder_block(
-            bench_id=self.sim.info.bench_id, seq=b.seq, stamp_s=stamp_s,
-            sample_rate_hz=self.p['sample_rate_hz'], time_offset_s=b.time_offset_s,
-            theta_in_rad=b.theta_in_rad, theta_out_rad=b.theta_out_rad,
-            torque_out_nm=b.torque_out_nm)
-        self.pub_blocks.publish(msg)
+        if self.joint_state:
+            self._publish_joint_states(b)
+        else:
+            stamp_s = self.wall_start + b.t0_s
+            msg = convert.make_encoder_block(
+                bench_id=self.sim.info.bench_id, seq=b.seq, stamp_s=stamp_s,
+                sample_rate_hz=self.p['sample_rate_hz'], time_offset_s=b.time_offset_s,
+                theta_in_rad=b.theta_in_rad, theta_out_rad=b.theta_out_rad,
+                torque_out_nm=b.torque_out_nm)
+            self.pub_blocks.publish(msg)
         self.blocks_published += 1
         self.sim_time_s = b.t0_s + len(b.time_offset_s) / self.p['sample_rate_hz']
         if self.pub_clock is not None:
             self.pub_clock.publish(Clock(clock=convert.s_to_stamp(self.wall_start
                                                                   + self.sim_time_s)))
+
+    def _publish_joint_states(self, b: Any) -> None:  # noqa: ANN401 - sim.bench.BenchBlock
+        """One JointState per DAQ sample (per joint and sample when separate)."""
+        base_ns = round(self.wall_start * 1e9)
+        stamps = (base_ns + np.round((b.t0_s + b.time_offset_s) * 1e9).astype(np.int64)).tolist()
+        th_in, th_out = b.theta_in_rad, b.theta_out_rad
+        if self.p['joint_state_wrap']:
+            th_in, th_out = np.mod(th_in, 2.0 * math.pi), np.mod(th_out, 2.0 * math.pi)
+        torque = (b.torque_out_nm if len(b.torque_out_nm) else
+                  np.full(len(th_in), math.nan)).tolist()
+        name_in, name_out = self.p['joint_state_names']
+        separate = self.p['joint_state_layout'] == 'separate'
+        frame, js, pub = self.sim.info.bench_id, self._joint_state_type, self.pub_data
+        nan = math.nan
+        for t_ns, p_in, p_out, tq in zip(stamps, th_in.tolist(), th_out.tolist(), torque,
+                                         strict=True):
+            stamp = Time(sec=t_ns // 1_000_000_000, nanosec=t_ns % 1_000_000_000)
+            if separate:
+                for name, pos, eff in ((name_in, p_in, nan), (name_out, p_out, tq)):
+                    m = js()
+                    m.header.stamp = stamp
+                    m.header.frame_id = frame
+                    m.name = [name]
+                    m.position = [pos]
+                    m.effort = [eff]
+                    pub.publish(m)
+            else:
+                m = js()
+                m.header.stamp = stamp
+                m.header.frame_id = frame
+                m.name = [name_in, name_out]
+                m.position = [p_in, p_out]
+                m.effort = [nan, tq]
+                pub.publish(m)
+        self.joint_states_published += len(stamps)
 
     def _finish(self) -> None:
         self.finished = True

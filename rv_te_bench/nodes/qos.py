@@ -3,6 +3,7 @@
 | profile         | policy                                  | used for                       |
 |-----------------|-----------------------------------------|--------------------------------|
 | ENCODER_QOS     | reliable, keep last 1000, volatile      | bench/encoders (every sample)  |
+| JOINT_STATE_QOS | reliable, keep last 10000, volatile     | joint_states (one sample each) |
 | TE_SAMPLES_QOS  | reliable, keep last 1000, transient local | te/samples (decimated TE)    |
 | LATCHED_QOS     | reliable, keep last 1, transient local  | bench/info, te/statistics, ... |
 | PREVIEW_QOS     | sensor data: best effort, keep last 5   | live plots, previews           |
@@ -11,6 +12,10 @@
 
 The encoder depth (1000 messages = 10 s at 100 blocks/s) covers the largest burst a
 subscriber can fall behind by on a loaded 2-core machine; depth 10 drops bursts (DESIGN.md).
+
+joint_states carries one sample per message (ros2_control's joint_state_broadcaster): the
+largest burst is a simulated bench's catch-up in one timer tick (100 blocks of 100 samples),
+so the depth is 10000 messages (10 s at 1 kHz; a few MB of queue at most).
 
 te/samples keeps its last 1000 messages for late joiners: the session's recorder may
 discover the TE node's publisher seconds after it started (DDS participants that miss each
@@ -34,6 +39,8 @@ __all__ = [
     'DIAGNOSTICS_QOS',
     'ENCODER_QOS',
     'ENCODER_QUEUE_DEPTH',
+    'JOINT_STATE_QOS',
+    'JOINT_STATE_QUEUE_DEPTH',
     'LATCHED_QOS',
     'PREVIEW_QOS',
     'TE_SAMPLES_QOS',
@@ -45,6 +52,15 @@ LATCHED_DEPTH = 20
 ENCODER_QOS = QoSProfile(
     history=HistoryPolicy.KEEP_LAST,
     depth=ENCODER_QUEUE_DEPTH,
+    reliability=ReliabilityPolicy.RELIABLE,
+    durability=DurabilityPolicy.VOLATILE,
+)
+
+JOINT_STATE_QUEUE_DEPTH = 10000
+
+JOINT_STATE_QOS = QoSProfile(
+    history=HistoryPolicy.KEEP_LAST,
+    depth=JOINT_STATE_QUEUE_DEPTH,
     reliability=ReliabilityPolicy.RELIABLE,
     durability=DurabilityPolicy.VOLATILE,
 )

@@ -1,0 +1,287 @@
+"""JointStateAdapterNode: a ros2_control bench's ``sensor_msgs/JointState`` -> EncoderBlocks.
+
+Subscribes ``joint_states`` (JointState, reliable, keep last
+:data:`~rv_te_bench.nodes.qos.JOINT_STATE_QUEUE_DEPTH`; QoS overridable by parameters).
+Publishes ``bench/encoders`` (EncoderBlock, as the simulated bench does), ``bench/info``
+(BenchInfo, transient-local, once, from the bench description file) and ``/diagnostics``.
+The TE node, compensation node and recorder then run unchanged on a real bench.
+
+All logic is in :mod:`rv_te_bench.core.joint_state`: header stamps give the sample times, a
+stamp jump > 1.5 sample periods, a stamp going backwards, a missing joint or a non-finite
+position closes the block and is reported (log, throttled; diagnostics) and the next block's
+``seq`` skips one number, so the TE node and ``rv-te analyze`` see a ``seq_jump`` there,
+never a splice. A malformed message is counted and logged, never fatal.
+
+Parameters left at their "from the description" value (empty joint names, 0 rate, 0 block
+size, 0 counts per revolution, 0 effort scale) take the bench description's values.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import sys
+import time
+from collections import deque
+from typing import Any
+
+from builtin_interfaces.msg import Time
+from diagnostic_msgs.msg import DiagnosticArray
+from rclpy.node import Node
+from rclpy.qos_overriding_options import QoSOverridingOptions
+from rv_te_msgs.msg import BenchInfo, EncoderBlock
+from sensor_msgs.msg import JointState
+
+from rv_te_bench.core.joint_state import (
+    JointStateAssembler,
+    JointStateBlock,
+    JointStateConfig,
+    JointStateGap,
+)
+from rv_te_bench.errors import ParameterFileError
+from rv_te_bench.nodes import convert, qos
+from rv_te_bench.nodes.common import (
+    OK,
+    WARN,
+    DropCounter,
+    declare_from_specs,
+    diagnostic_array,
+    reject_invalid_changes,
+    run_node,
+)
+from rv_te_bench.params import ParamSpec
+
+PARAMS = (
+    ParamSpec('bench_description', 'string', '',
+              'Bench description YAML file (rv_te_bench/launch/bench_description_example.yaml)'
+              ' published as bench/info; empty = no bench/info (then give the TE node its '
+              'gear_ratio) [path]'),
+    ParamSpec('input_joint', 'string', '',
+              'JointState name of the input-shaft encoder; empty = joints.input of the bench '
+              "description, else 'input_joint' [-]"),
+    ParamSpec('output_joint', 'string', '',
+              'JointState name of the output-shaft encoder; empty = joints.output of the '
+              "bench description, else 'output_joint' [-]"),
+    ParamSpec('sample_rate_hz', 'double', 0.0,
+              'Expected sample rate of the header stamps [Hz]; a stamp step above 1.5 periods '
+              'is a reported gap; 0 = sample_rate_hz of the bench description',
+              min_value=0.0, max_value=1e6),
+    ParamSpec('block_size', 'int', 0,
+              'Samples per EncoderBlock [1]; 0 = block_size of the bench description, else 100',
+              min_value=0, max_value=100000),
+    ParamSpec('position_unit', 'string', 'rad',
+              'JointState position unit: rad, or counts (raw counters, see counts_per_rev_*)',
+              choices=('rad', 'counts')),
+    ParamSpec('counts_per_rev_in', 'double', 0.0,
+              'Input encoder counts per revolution [1/rev] with position_unit counts; 0 = '
+              'encoders.input.counts_per_rev of the bench description', min_value=0.0,
+              max_value=2.0**53),
+    ParamSpec('counts_per_rev_out', 'double', 0.0,
+              'Output encoder counts per revolution [1/rev] with position_unit counts; 0 = '
+              'from the bench description', min_value=0.0, max_value=2.0**53),
+    ParamSpec('wrap', 'string', 'none',
+              'Single-turn absolute encoders whose position wraps at 2 pi (after scaling) and '
+              'is unwrapped here; needs < half a turn between two samples [-]',
+              choices=('none', 'input', 'output', 'both')),
+    ParamSpec('effort_scale', 'double', 0.0,
+              'Output torque per unit of the output joint effort [N m / unit]; 0 = the bench '
+              "description's torque sensor scale when present, else no torque",
+              min_value=-1e9, max_value=1e9),
+    ParamSpec('pairing_tolerance_s', 'double', -1.0,
+              'Joints in separate messages: largest stamp difference of one sample\'s input '
+              'and output [s], below half a sample period; < 0 = a quarter sample period',
+              min_value=-1.0, max_value=1.0),
+    ParamSpec('max_unpaired', 'int', 64,
+              'Joints in separate messages: samples one joint may run ahead of the other '
+              'before its oldest half is a missing joint [1]', min_value=1, max_value=100000),
+    ParamSpec('idle_flush_s', 'double', 0.5,
+              'Publish the open (short) block when no sample came for this long [s]',
+              min_value=0.01, max_value=60.0),
+    ParamSpec('diagnostics_period_s', 'double', 1.0, 'Diagnostics period [s]',
+              min_value=0.05, max_value=60.0),
+)
+
+
+def build_config(p: dict[str, Any]) -> tuple[JointStateConfig, Any]:  # noqa: C901
+    """The adapter's start-up: assembler config and BenchInfo fields from its parameters.
+
+    Run by the node and by ``rv-te launch --check`` (the same checks).
+
+    Returns:
+        (:class:`JointStateConfig`, :class:`sim.bench.BenchInfoData` or None without a
+        bench description).
+
+    Raises:
+        ParameterFileError: No sample rate, or counts without counts per revolution.
+        BenchDescriptionError: The bench description file is invalid (file, key, rule).
+        TeConfigError: An invalid combination (named by the core's validation).
+    """
+    desc = None
+    if p['bench_description']:
+        from rv_te_bench.core.bench_description import load_bench_description  # noqa: PLC0415
+
+        desc = load_bench_description(p['bench_description'])
+    rate = p['sample_rate_hz'] or (desc.sample_rate_hz if desc is not None else 0.0)
+    if not rate > 0:
+        msg = ('sample_rate_hz is 0 and no bench_description gives it: set the expected '
+               'JointState rate [Hz]')
+        raise ParameterFileError(msg)
+    block = p['block_size'] or (desc.block_size if desc is not None else 100)
+    in_name = p['input_joint'] or (desc.joint_in_name if desc is not None else None) \
+        or 'input_joint'
+    out_name = p['output_joint'] or (desc.joint_out_name if desc is not None else None) \
+        or 'output_joint'
+    cpr = [p['counts_per_rev_in'], p['counts_per_rev_out']]
+    if p['position_unit'] == 'counts':
+        for k, (name, enc) in enumerate((('counts_per_rev_in', 'input'),
+                                         ('counts_per_rev_out', 'output'))):
+            if cpr[k] == 0 and desc is not None:
+                cpr[k] = float((desc.encoder_in if k == 0 else desc.encoder_out)
+                               .counts_per_rev or 0)
+            if not cpr[k] > 0:
+                msg = (f'position_unit counts needs {name} > 0 (or encoders.{enc}.'
+                       f'counts_per_rev in the bench description), got {cpr[k]!r}')
+                raise ParameterFileError(msg)
+    scale = p['effort_scale']
+    if scale == 0 and desc is not None and desc.torque_sensor.present:
+        scale = desc.torque_sensor.scale_nm_per_unit
+    tol = p['pairing_tolerance_s'] if p['pairing_tolerance_s'] >= 0 else 0.25 / rate
+    config = JointStateConfig(
+        input_joint=in_name, output_joint=out_name, sample_rate_hz=float(rate),
+        block_size=int(block), position_unit=p['position_unit'],
+        counts_per_rev_in=float(cpr[0]), counts_per_rev_out=float(cpr[1]),
+        wrap_in=p['wrap'] in {'input', 'both'}, wrap_out=p['wrap'] in {'output', 'both'},
+        effort_scale=float(scale), pairing_tolerance_s=float(tol),
+        max_unpaired=int(p['max_unpaired']))
+    info = None
+    if desc is not None:
+        info = dataclasses.replace(desc.bench_info(), sample_rate_hz=float(rate),
+                                   block_size=int(block))
+    return config, info
+
+
+def check_config(p: dict[str, Any]) -> None:
+    """What the node checks at start (for ``rv-te launch --check``).
+
+    Raises:
+        ParameterFileError, TeConfigError: As :func:`build_config`.
+    """
+    build_config(p)
+
+
+class JointStateAdapterNode(Node):
+    """JointState (ros2_control) in, EncoderBlock + BenchInfo out; logic in the core."""
+
+    def __init__(self, **kwargs: Any) -> None:  # noqa: ANN401
+        """Declare parameters, read the bench description; ``kwargs`` go to ``Node``.
+
+        Raises:
+            InvalidParameterValueException, ParameterFileError, TeConfigError: Bad
+                parameters or bench description (named), at start-up.
+        """
+        super().__init__('joint_state_adapter', **kwargs)
+        self.p = declare_from_specs(self, PARAMS)
+        reject_invalid_changes(self, PARAMS)
+        self.config, info = build_config(self.p)
+        self.assembler = JointStateAssembler(self.config)
+        self.bench_id = info.bench_id if info is not None else 'joint_states'
+        self.drops = DropCounter(self)
+        self.blocks_published = 0
+        self.recent_gaps: deque[JointStateGap] = deque(maxlen=64)   # diagnostics and tests
+        self._last_msg = time.monotonic()
+        self.pub_blocks = self.create_publisher(EncoderBlock, 'bench/encoders', qos.ENCODER_QOS)
+        self.pub_info = self.create_publisher(BenchInfo, 'bench/info', qos.LATCHED_QOS)
+        self.pub_diag = self.create_publisher(DiagnosticArray, '/diagnostics',
+                                              qos.DIAGNOSTICS_QOS)
+        self.create_subscription(
+            JointState, 'joint_states', self._on_joint_state, qos.JOINT_STATE_QOS,
+            qos_overriding_options=QoSOverridingOptions.with_default_policies())
+        self.create_timer(self.p['idle_flush_s'] / 2.0, self._on_idle)
+        self.create_timer(self.p['diagnostics_period_s'], self._publish_diagnostics)
+        c = self.config
+        if info is not None:
+            self.pub_info.publish(convert.make_bench_info(info, self.get_clock().now().to_msg()))
+        else:
+            self.get_logger().warning('no bench_description: bench/info is not published '
+                                      '(give the TE node its gear_ratio parameter)')
+        self.get_logger().info(
+            f'joint_states -> bench/encoders: {c.input_joint!r} / {c.output_joint!r}, '
+            f'{c.sample_rate_hz:g} Hz, blocks of {c.block_size}, {c.position_unit}, wrap '
+            f'{self.p["wrap"]}, pairing tolerance {c.pairing_tolerance_s:.3g} s')
+
+    # -- data path (lean: one sample per message is the usual case) ------------------------
+    def _on_joint_state(self, msg: JointState) -> None:
+        self._last_msg = time.monotonic()
+        stamp = msg.header.stamp
+        try:
+            items = self.assembler.push(stamp.sec * 1_000_000_000 + stamp.nanosec, msg.name,
+                                        msg.position, msg.effort)
+        except Exception as exc:  # noqa: BLE001 - a malformed message must never stop spin
+            self.drops.drop('malformed', f'{type(exc).__name__}: {exc}')
+            return
+        if items:
+            self._emit(items)
+
+    def _emit(self, items: tuple[JointStateBlock | JointStateGap, ...]) -> None:
+        for item in items:
+            if isinstance(item, JointStateBlock):
+                self._publish_block(item)
+            else:
+                self.recent_gaps.append(item)
+                self.get_logger().warning(
+                    f'gap ({item.reason}): {item.detail}; {item.samples_dropped} sample(s) '
+                    f'dropped, {item.samples_missing} missing, stamps {item.stamp_before_ns} '
+                    f'-> {item.stamp_after_ns} ns, next block seq {item.seq_after}; totals '
+                    f'{self.assembler.counters["gaps"]} gaps', throttle_duration_sec=5.0)
+
+    def _publish_block(self, b: JointStateBlock) -> None:
+        msg = convert.make_encoder_block(
+            bench_id=self.bench_id, seq=b.seq, stamp_s=b.stamp_s,
+            sample_rate_hz=b.sample_rate_hz, time_offset_s=b.time_offset_s,
+            theta_in_rad=b.theta_in_rad, theta_out_rad=b.theta_out_rad,
+            torque_out_nm=b.torque_out_nm if b.torque_out_nm.size else None)
+        msg.header.stamp = Time(sec=b.stamp_ns // 1_000_000_000,
+                                nanosec=b.stamp_ns % 1_000_000_000)   # exact, not via float
+        self.pub_blocks.publish(msg)
+        self.blocks_published += 1
+
+    def _on_idle(self) -> None:
+        """The stream paused: publish the open block so the TE node is not kept waiting."""
+        if self.assembler.pending_samples and \
+                time.monotonic() - self._last_msg >= self.p['idle_flush_s']:
+            self._emit(self.assembler.flush())
+
+    def _publish_diagnostics(self) -> None:
+        counters = self.assembler.counters
+        values: dict[str, Any] = {**counters, 'blocks_published': self.blocks_published,
+                                  'dropped_malformed_messages': self.drops.total}
+        if self.recent_gaps:
+            g = self.recent_gaps[-1]
+            values.update({'last_gap_reason': g.reason,
+                           'last_gap_stamp_before_ns': g.stamp_before_ns,
+                           'last_gap_stamp_after_ns': g.stamp_after_ns})
+        bad = counters['gaps'] or self.drops.total
+        message = (f'{counters["gaps"]} gaps, {self.drops.total} malformed messages' if bad
+                   else f'{self.blocks_published} blocks')
+        self.pub_diag.publish(diagnostic_array(self, 'joint_state_adapter',
+                                               WARN if bad else OK, message, values))
+
+    def destroy_node(self) -> None:
+        """Publish the open block and report an open gap before going."""
+        try:
+            self._emit(self.assembler.finish())
+            self._publish_diagnostics()
+        except Exception as exc:  # noqa: BLE001 - shutting down: report, do not raise
+            self.get_logger().warning(f'final flush failed: {exc}')
+        super().destroy_node()
+
+
+def main(args: list[str] | None = None) -> int:
+    """Run the adapter in its own process."""
+    return run_node(lambda ctx: JointStateAdapterNode(context=ctx),
+                    list(sys.argv if args is None else args))
+
+
+__all__ = ['PARAMS', 'JointStateAdapterNode', 'build_config', 'check_config', 'main']
+
+if __name__ == '__main__':
+    sys.exit(main())

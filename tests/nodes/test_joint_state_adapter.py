@@ -1,0 +1,288 @@
+"""bench(JointState) -> joint_state_adapter -> TE node over the real middleware.
+
+Own Context and domain id per test (conftest), every node destroyed, every test bounded.
+
+The reference is the EncoderBlock path computed independently of the adapter: the same
+simulated unit (same parameters and seed) run through :class:`sim.bench.BenchSimulator`
+block by block and analysed by :func:`rv_te_bench.core.stream.analyze_blocks`, which is what
+the TE node computes live on the bench's EncoderBlocks (tests/nodes/test_pipeline.py checks
+live == offline). The JointState path carries the same float64 encoder readings (quantised
+by the simulated RON 886 encoders, resolution 2 pi / 36e6 rad = 1.7e-7 rad), so the window
+statistics and spectral lines agree to rounding; asserted within 1e-3 of one encoder
+increment (1.7e-10 rad), far inside the quantisation. A wrapped (single-turn) encoder adds
+the unwrap's float error, ~1e-13 rad over the session's turns.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+pytestmark = pytest.mark.ros
+
+rclpy = pytest.importorskip('rclpy')
+
+from builtin_interfaces.msg import Time  # noqa: E402
+from rclpy.executors import SingleThreadedExecutor  # noqa: E402
+from rclpy.parameter import Parameter  # noqa: E402
+from rv_te_msgs.msg import BenchInfo, EncoderBlock, TeSpectrum, TransmissionError  # noqa: E402
+from sensor_msgs.msg import JointState  # noqa: E402
+
+from rv_te_bench.core.orders import OrderSet  # noqa: E402
+from rv_te_bench.core.stream import TeAnalysisConfig, analyze_blocks  # noqa: E402
+from rv_te_bench.nodes import qos  # noqa: E402
+from rv_te_bench.nodes.bench_node import BenchNode, bench_config_from_params  # noqa: E402
+from rv_te_bench.nodes.joint_state_adapter import JointStateAdapterNode  # noqa: E402
+from rv_te_bench.nodes.te_node import TeNode  # noqa: E402
+from tests.nodes.rosutil import spin_for, spin_until  # noqa: E402
+
+SPEED_RPM = 2950.0   # 1606.8 samples per output revolution: no window boundary on a sample
+RATE_HZ = 1000.0
+BLOCK = 100
+RESOLUTION_RAD = 2.0 * math.pi / 36e6   # heidenhain-ron886 (sim.encoders)
+
+DESCRIPTION = """\
+bench_id: sim-js
+preset: wang2020-2kv
+sample_rate_hz: 1000.0
+block_size: 100
+encoders:
+  input: {model: heidenhain-ron886}
+  output: {model: heidenhain-ron886}
+torque_sensor: {present: true, scale_nm_per_unit: 1.0}
+joints: {input: input_joint, output: output_joint}
+"""
+
+
+def bench_values(**extra: object) -> dict[str, object]:
+    return {'preset': 'wang2020-2kv', 'te_mode': 'nlte', 'speed_rpm': SPEED_RPM,
+            'sample_rate_hz': RATE_HZ, 'block_size': BLOCK, 'duration_output_revs': 2.3,
+            'time_mode': 'fast', 'speed_factor': 4.0, 'seed': 7, 'load_nm': 30.0, **extra}
+
+
+@pytest.fixture
+def graph(ros_context):  # noqa: ANN001, ANN201
+    nodes = []
+    ex = SingleThreadedExecutor(context=ros_context)
+
+    def add(node):  # noqa: ANN001, ANN202
+        nodes.append(node)
+        ex.add_node(node)
+        return node
+
+    yield ros_context, ex, add
+    ex.shutdown()
+    for n in reversed(nodes):
+        n.destroy_node()
+
+
+def reference_windows(values: dict[str, object]) -> list:  # noqa: ANN001
+    """The EncoderBlock path, offline: the same simulated unit's blocks -> windows."""
+    from sim.bench import BenchSimulator  # noqa: PLC0415
+
+    from rv_te_bench.nodes.bench_node import PARAMS  # noqa: PLC0415
+
+    p = {s.name: list(s.default) if isinstance(s.default, tuple) else s.default for s in PARAMS}
+    p.update(values)
+    sim = BenchSimulator(bench_config_from_params(p))
+    n_blocks = math.ceil(2.3 * 79.0 / (SPEED_RPM / 60.0) * RATE_HZ / BLOCK) + 1
+    data = [_as_data(sim.next_block()) for _ in range(n_blocks)]
+    info = sim.info
+    orders = OrderSet.from_bench_info(
+        gear_ratio=info.gear_ratio, crank_per_input=info.crank_per_input,
+        mesh_orders_out=tuple(info.mesh_orders), mesh_labels=tuple(info.mesh_labels))
+    return [w for w in analyze_blocks(data, TeAnalysisConfig(orders=orders)).windows
+            if w.complete]
+
+
+def _as_data(b):  # noqa: ANN001, ANN202
+    from rv_te_bench.core.stream import EncoderBlockData  # noqa: PLC0415
+
+    return EncoderBlockData(b.seq, b.t0_s, RATE_HZ, b.time_offset_s, b.theta_in_rad,
+                            b.theta_out_rad, b.torque_out_nm)
+
+
+@pytest.mark.timeout(120)
+@pytest.mark.parametrize(('layout', 'wrap'), [('one_message', False), ('separate', False),
+                                              ('one_message', True)])
+def test_joint_state_path_equals_encoder_block_path(graph, tmp_path, layout: str,  # noqa: ANN001
+                                                    wrap: bool) -> None:
+    ctx, ex, add = graph
+    desc = tmp_path / 'bench.yaml'
+    desc.write_text(DESCRIPTION)
+    probe = add(rclpy.create_node('probe', context=ctx))
+    windows: list[TransmissionError] = []
+    spectra: list[TeSpectrum] = []
+    blocks: list[EncoderBlock] = []
+    infos: list[BenchInfo] = []
+    probe.create_subscription(TransmissionError, 'te/statistics', windows.append,
+                              qos.LATCHED_QOS)
+    probe.create_subscription(TeSpectrum, 'te/spectrum', spectra.append, qos.LATCHED_QOS)
+    probe.create_subscription(EncoderBlock, 'bench/encoders', blocks.append, qos.ENCODER_QOS)
+    probe.create_subscription(BenchInfo, 'bench/info', infos.append, qos.LATCHED_QOS)
+    te = add(TeNode(context=ctx))
+    adapter = add(JointStateAdapterNode(context=ctx, parameter_overrides=[
+        Parameter('bench_description', value=str(desc)),
+        Parameter('wrap', value='both' if wrap else 'none'),
+        Parameter('idle_flush_s', value=0.2)]))
+    spin_for(ex, 0.5)
+    # separate: two messages per sample; at 1x (2000 msg/s) the single-threaded test
+    # executor keeps up, where a 4x burst of 7400 messages outran the reader's queue
+    values = bench_values(output='joint_state', joint_state_layout=layout,
+                          joint_state_wrap=wrap,
+                          speed_factor=1.0 if layout == 'separate' else 4.0)
+    bench = add(BenchNode(context=ctx, parameter_overrides=[
+        Parameter(k, value=v) for k, v in values.items()]))
+    assert spin_until(ex, lambda: bench.finished, 60.0), 'bench did not finish'
+    n_samples = bench.joint_states_published
+    assert spin_until(ex, lambda: sum(len(b.theta_in_rad) for b in blocks) == n_samples,
+                      30.0), (adapter.assembler.counters, n_samples)
+    assert spin_until(ex, lambda: sum(w.window_complete for w in windows) >= 2, 10.0)
+    spin_for(ex, 0.3)
+
+    assert adapter.assembler.counters['gaps'] == 0
+    assert adapter.drops.total == 0
+    assert [b.seq for b in blocks] == list(range(len(blocks)))
+    assert te.drops.total == 0
+    assert te._gaps_total == 0  # noqa: SLF001
+    assert len(infos) == 1
+    assert infos[0].gear_ratio == pytest.approx(79.0, rel=1e-12)
+    # effort -> output torque (the bench's 30 N m load)
+    assert np.asarray(blocks[0].torque_out_nm) == pytest.approx(30.0, abs=1e-9)
+
+    ref = reference_windows(bench_values())
+    live = [w for w in windows if w.window_complete]
+    assert len(live) == len(ref) == 2
+    tol = 1e-3 * RESOLUTION_RAD
+    for lw, rw in zip(live, ref, strict=True):
+        assert lw.window.n_samples == rw.stats.n_samples
+        for name in ('pp_rad', 'mean_rad', 'amplitude_rad', 'std_rad'):
+            assert getattr(lw.window, name) == pytest.approx(getattr(rw.stats, name),
+                                                             abs=tol), name
+    assert len(spectra) >= 2
+    ref_lines = {ln.label: ln for ln in ref[0].spectrum.lines}
+    for ln in spectra[0].lines:
+        assert ln.amplitude_rad == pytest.approx(ref_lines[ln.label].amplitude_rad, abs=tol)
+    # a real unit with real quantisation: the statistics are not trivially zero
+    assert ref[0].stats.pp_rad > 100 * RESOLUTION_RAD
+
+
+# -- injected faults through a hand-made JointState publisher ------------------------------
+
+def _ramp(n: int, t0_ns: int = 1_700_000_000_000_000_000) -> tuple[list[int], np.ndarray,
+                                                                     np.ndarray]:
+    k = np.arange(n)
+    th_in = 1.0 + 2.0 * math.pi * 5.0 * k / RATE_HZ    # 300 rpm: 0.0314 rad per sample
+    return [t0_ns + i * 1_000_000 for i in range(n)], th_in, th_in / 79.0 + 1e-4
+
+
+def _js(t_ns: int, names: list[str], pos: list[float]) -> JointState:
+    m = JointState()
+    m.header.stamp = Time(sec=t_ns // 1_000_000_000, nanosec=t_ns % 1_000_000_000)
+    m.name = names
+    m.position = pos
+    return m
+
+
+@pytest.mark.timeout(60)
+def test_injected_faults_are_reported_gaps_and_nothing_crashes(graph) -> None:  # noqa: ANN001
+    ctx, ex, add = graph
+    probe = add(rclpy.create_node('fault_source', context=ctx))
+    pub = probe.create_publisher(JointState, 'joint_states', qos.JOINT_STATE_QOS)
+    blocks: list[EncoderBlock] = []
+    probe.create_subscription(EncoderBlock, 'bench/encoders', blocks.append, qos.ENCODER_QOS)
+    te = add(TeNode(context=ctx, parameter_overrides=[
+        Parameter('gear_ratio', value=79.0), Parameter('crank_per_output', value=25.0)]))
+    adapter = add(JointStateAdapterNode(context=ctx, parameter_overrides=[
+        Parameter('sample_rate_hz', value=RATE_HZ), Parameter('block_size', value=BLOCK),
+        Parameter('wrap', value='input'), Parameter('idle_flush_s', value=0.2)]))
+    assert spin_until(ex, lambda: pub.get_subscription_count() >= 1, 10.0)
+
+    n = 1000
+    stamps, th_in, th_out = _ramp(n)
+    wrapped_in = np.mod(th_in, 2.0 * math.pi)   # single-turn absolute input encoder
+    names = ['input_joint', 'output_joint']
+    skip = set(range(150, 155))                  # stamp jump: 5 samples never sent
+    expected = [('stamp_jump', stamps[149], stamps[155]),
+                ('missing_joint', stamps[299], stamps[301]),
+                ('non_finite', stamps[449], stamps[451]),
+                ('stamp_backwards', stamps[599], stamps[600] - 20_000_000),
+                ('missing_joint', stamps[749] - 20_000_000, stamps[751] - 20_000_000)]
+    kept = []
+    for i in range(n):
+        if i in skip:
+            continue
+        t = stamps[i] if i < 600 else stamps[i] - 20_000_000   # the clock steps back 20 ms
+        if i == 300:
+            msg = _js(t, ['input_joint'], [float(wrapped_in[i])])          # output missing
+        elif i == 450:
+            msg = _js(t, names, [float(wrapped_in[i]), math.nan])          # NaN position
+        elif i == 750:
+            msg = _js(t, names, [float(wrapped_in[i])])                    # malformed: short
+        else:
+            msg = _js(t, names, [float(wrapped_in[i]), float(th_out[i])])
+            kept.append(i)
+        pub.publish(msg)
+        if i % 100 == 99:
+            ex.spin_once(timeout_sec=0.0)
+    assert spin_until(ex, lambda: sum(len(b.theta_in_rad) for b in blocks) == len(kept)
+                      and te._blocks == len(blocks), 20.0), adapter.assembler.counters  # noqa: SLF001
+
+    got = [(g.reason, g.stamp_before_ns, g.stamp_after_ns) for g in adapter.recent_gaps]
+    assert got == expected
+    seqs = [b.seq for b in blocks]
+    assert seqs[0] == 0
+    assert sum(b - a - 1 for a, b in zip(seqs, seqs[1:])) == len(expected)  # one skip per gap
+    # the TE node saw every one of them as a seq jump (the stepped-back clock also as time
+    # going backwards), and dropped nothing as malformed
+    counters = te.analyzer.counters
+    assert (counters['seq_jumps'], counters['time_backwards']) == (len(expected), 1)
+    assert counters['malformed'] == counters['non_finite'] == 0
+    assert te.drops.total == 0
+    assert adapter.drops.total == 0
+    # the wrapped input encoder came out unwrapped, continuous across the gaps
+    th = np.concatenate([np.asarray(b.theta_in_rad) for b in blocks])
+    np.testing.assert_allclose(th, th_in[kept], rtol=0, atol=1e-12)
+    np.testing.assert_allclose(np.concatenate([np.asarray(b.theta_out_rad) for b in blocks]),
+                               th_out[kept], rtol=0, atol=0)
+    # the node keeps running after all of it
+    more = _js(stamps[-1] + 1_000_000 - 20_000_000, names, [0.0, 0.0])
+    pub.publish(more)
+    spin_for(ex, 0.2)
+    assert adapter.assembler.counters['messages'] == n - len(skip) + 1
+
+
+@pytest.mark.timeout(30)
+@pytest.mark.parametrize(('name', 'value', 'needle'), [
+    ('wrap', 'sometimes', 'wrap'),
+    ('block_size', -1, 'block_size'),
+    ('position_unit', 'deg', 'position_unit'),
+])
+def test_bad_adapter_parameter_stops_start_up(ros_context, name: str, value: object,  # noqa: ANN001
+                                              needle: str) -> None:
+    from rclpy.exceptions import InvalidParameterValueException  # noqa: PLC0415
+
+    with pytest.raises(InvalidParameterValueException, match=needle):
+        JointStateAdapterNode(context=ros_context, parameter_overrides=[
+            Parameter('sample_rate_hz', value=RATE_HZ), Parameter(name, value=value)])
+
+
+@pytest.mark.timeout(30)
+@pytest.mark.parametrize(('overrides', 'needle'), [
+    ({}, 'sample_rate_hz is 0 and no bench_description gives it'),
+    ({'sample_rate_hz': RATE_HZ, 'position_unit': 'counts'},
+     'position_unit counts needs counts_per_rev_in > 0'),
+    ({'sample_rate_hz': RATE_HZ, 'pairing_tolerance_s': 0.001}, 'pairing_tolerance_s'),
+    ({'bench_description': '/nonexistent/bench.yaml'}, '/nonexistent/bench.yaml'),
+])
+def test_bad_adapter_combination_is_one_clear_error(ros_context, overrides: dict[str, object],  # noqa: ANN001
+                                                    needle: str) -> None:
+    from rv_te_bench.errors import RvTeError  # noqa: PLC0415
+
+    with pytest.raises(RvTeError) as info:
+        JointStateAdapterNode(context=ros_context, parameter_overrides=[
+            Parameter(k, value=v) for k, v in overrides.items()])
+    assert needle in str(info.value)
+    assert '\n' not in str(info.value)
