@@ -286,3 +286,53 @@ def test_bad_adapter_combination_is_one_clear_error(ros_context, overrides: dict
             Parameter(k, value=v) for k, v in overrides.items()])
     assert needle in str(info.value)
     assert '\n' not in str(info.value)
+
+
+@pytest.mark.timeout(90)
+def test_joint_states_to_recorded_bag_analysed_with_the_gap(graph, tmp_path) -> None:  # noqa: ANN001
+    """JointState -> adapter -> TE node + recorder -> bag -> rv-te analyze's core: the
+    injected stamp jump is a seq_jump in the bag's analysis, not a splice."""
+    from rv_te_bench.nodes.recorder import RecorderNode  # noqa: PLC0415
+    from rv_te_bench.report.analysis import analyze_bag  # noqa: PLC0415
+
+    ctx, ex, add = graph
+    desc = tmp_path / 'bench.yaml'
+    desc.write_text(DESCRIPTION)
+    src = add(rclpy.create_node('js_source', context=ctx))
+    pub = src.create_publisher(JointState, 'joint_states', qos.JOINT_STATE_QOS)
+    stats: list[TransmissionError] = []
+    src.create_subscription(TransmissionError, 'te/statistics', stats.append, qos.LATCHED_QOS)
+    te = add(TeNode(context=ctx))
+    adapter = add(JointStateAdapterNode(context=ctx, parameter_overrides=[
+        Parameter('bench_description', value=str(desc)), Parameter('idle_flush_s', value=0.2)]))
+    recorder = RecorderNode(context=ctx, parameter_overrides=[
+        Parameter('output_dir', value=str(tmp_path)), Parameter('bag_name', value='bag'),
+        Parameter('discovery_period_s', value=0.1),
+        Parameter('topics', value=['bench/encoders', 'bench/info', 'te/statistics'])])
+    ex.add_node(recorder)
+    try:
+        assert spin_until(ex, lambda: pub.get_subscription_count() >= 1
+                          and adapter.pub_blocks.get_subscription_count() >= 2, 15.0)
+        spin_for(ex, 0.5)
+        n = 4000                                     # 2.5 output revolutions at 300 rpm in
+        stamps, th_in, th_out = _ramp(n)
+        th_in, th_out = th_in * 10.0, th_out * 10.0   # 3000 rpm: 1580 samples per rev
+        skip = set(range(2000, 2003))
+        for i in range(n):
+            if i not in skip:
+                pub.publish(_js(stamps[i], ['input_joint', 'output_joint'],
+                                [float(th_in[i]), float(th_out[i])]))
+            if i % 50 == 49:
+                ex.spin_once(timeout_sec=0.0)
+        assert spin_until(ex, lambda: adapter.assembler.counters['samples'] == n - len(skip)
+                          and te._blocks == adapter.blocks_published, 20.0)  # noqa: SLF001
+        spin_for(ex, 1.5)   # the recorder flushes
+    finally:
+        ex.remove_node(recorder)
+        recorder.destroy_node()
+    assert [g.reason for g in adapter.recent_gaps] == ['stamp_jump']
+    assert te.analyzer.counters['seq_jumps'] == 1
+    result = analyze_bag(tmp_path / 'bag', with_advice=False)
+    assert [g.kind for g in result.gaps] == ['seq_jump']
+    assert result.counters['samples'] == n - len(skip)
+    assert result.counters['seq_jumps'] == 1
