@@ -96,9 +96,19 @@ PARAMS = (
     ParamSpec('idle_flush_s', 'double', 0.5,
               'Publish the open (short) block when no sample came for this long [s]',
               min_value=0.01, max_value=60.0),
+    ParamSpec('wait_for_nodes', 'string_array', [],
+              'Hold the first blocks until these nodes (same namespace) subscribe '
+              'bench/encoders, so a session\'s TE node and recorder get the stream from seq 0 '
+              '[-]'),
+    ParamSpec('wait_timeout_s', 'double', 20.0,
+              'Publish anyway after this long when subscribers are missing [s]',
+              min_value=0.0, max_value=3600.0),
     ParamSpec('diagnostics_period_s', 'double', 1.0, 'Diagnostics period [s]',
               min_value=0.05, max_value=60.0),
 )
+
+#: Most blocks held while waiting for the session's subscribers (then the oldest go).
+_MAX_HELD_BLOCKS = 10000
 
 
 def build_config(p: dict[str, Any]) -> tuple[JointStateConfig, Any]:  # noqa: C901
@@ -188,6 +198,8 @@ class JointStateAdapterNode(Node):
         self.blocks_published = 0
         self.recent_gaps: deque[JointStateGap] = deque(maxlen=64)   # diagnostics and tests
         self._last_msg = time.monotonic()
+        self._start = time.monotonic()
+        self._held: deque[EncoderBlock] | None = deque() if self.p['wait_for_nodes'] else None
         self.pub_blocks = self.create_publisher(EncoderBlock, 'bench/encoders', qos.ENCODER_QOS)
         self.pub_info = self.create_publisher(BenchInfo, 'bench/info', qos.LATCHED_QOS)
         self.pub_diag = self.create_publisher(DiagnosticArray, '/diagnostics',
@@ -197,6 +209,8 @@ class JointStateAdapterNode(Node):
             qos_overriding_options=QoSOverridingOptions.with_default_policies())
         self.create_timer(self.p['idle_flush_s'] / 2.0, self._on_idle)
         self.create_timer(self.p['diagnostics_period_s'], self._publish_diagnostics)
+        self._wait_timer = (self.create_timer(0.1, self._check_subscribers)
+                            if self._held is not None else None)
         c = self.config
         if info is not None:
             self.pub_info.publish(convert.make_bench_info(info, self.get_clock().now().to_msg()))
@@ -241,8 +255,39 @@ class JointStateAdapterNode(Node):
             torque_out_nm=b.torque_out_nm if b.torque_out_nm.size else None)
         msg.header.stamp = Time(sec=b.stamp_ns // 1_000_000_000,
                                 nanosec=b.stamp_ns % 1_000_000_000)   # exact, not via float
+        if self._held is not None:
+            if len(self._held) >= _MAX_HELD_BLOCKS:
+                self._held.popleft()
+                self.drops.drop('held_overflow', f'kept the last {_MAX_HELD_BLOCKS} blocks '
+                                'while waiting for subscribers')
+            self._held.append(msg)
+            return
         self.pub_blocks.publish(msg)
         self.blocks_published += 1
+
+    def _check_subscribers(self) -> None:
+        """Release the held blocks once the waited-for nodes subscribe (or on time-out)."""
+        if self._held is None:
+            return
+        ns = self.get_namespace()
+        have = {i.node_name for i in self.get_subscriptions_info_by_topic(
+            self.pub_blocks.topic_name) if i.node_namespace == ns}
+        missing = sorted(set(self.p['wait_for_nodes']) - have)
+        waited = time.monotonic() - self._start
+        if missing and waited < self.p['wait_timeout_s']:
+            return
+        if missing:
+            self.get_logger().warning(f'publishing without {missing} on '
+                                      f'{self.pub_blocks.topic_name} after {waited:.1f} s')
+        self._release()
+
+    def _release(self) -> None:
+        held, self._held = self._held, None
+        if self._wait_timer is not None:
+            self._wait_timer.cancel()
+        for msg in held or ():
+            self.pub_blocks.publish(msg)
+            self.blocks_published += 1
 
     def _on_idle(self) -> None:
         """The stream paused: publish the open block so the TE node is not kept waiting."""
@@ -269,6 +314,7 @@ class JointStateAdapterNode(Node):
         """Publish the open block and report an open gap before going."""
         try:
             self._emit(self.assembler.finish())
+            self._release()
             self._publish_diagnostics()
         except Exception as exc:  # noqa: BLE001 - shutting down: report, do not raise
             self.get_logger().warning(f'final flush failed: {exc}')

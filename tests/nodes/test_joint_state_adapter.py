@@ -336,3 +336,25 @@ def test_joint_states_to_recorded_bag_analysed_with_the_gap(graph, tmp_path) -> 
     assert [g.kind for g in result.gaps] == ['seq_jump']
     assert result.counters['samples'] == n - len(skip)
     assert result.counters['seq_jumps'] == 1
+
+
+@pytest.mark.timeout(60)
+def test_first_blocks_held_until_the_session_subscribers_are_up(graph) -> None:  # noqa: ANN001
+    ctx, ex, add = graph
+    src = add(rclpy.create_node('js_source', context=ctx))
+    pub = src.create_publisher(JointState, 'joint_states', qos.JOINT_STATE_QOS)
+    adapter = add(JointStateAdapterNode(context=ctx, parameter_overrides=[
+        Parameter('sample_rate_hz', value=RATE_HZ), Parameter('block_size', value=BLOCK),
+        Parameter('wait_for_nodes', value=['late_te'])]))
+    assert spin_until(ex, lambda: pub.get_subscription_count() >= 1, 10.0)
+    stamps, th_in, th_out = _ramp(350)
+    for i in range(350):
+        pub.publish(_js(stamps[i], ['input_joint', 'output_joint'],
+                        [float(th_in[i]), float(th_out[i])]))
+    assert spin_until(ex, lambda: adapter.assembler.counters['blocks'] == 3, 10.0)
+    assert adapter.blocks_published == 0          # held: nobody of the session listens yet
+    blocks: list[EncoderBlock] = []
+    late = add(rclpy.create_node('late_te', context=ctx))
+    late.create_subscription(EncoderBlock, 'bench/encoders', blocks.append, qos.ENCODER_QOS)
+    assert spin_until(ex, lambda: len(blocks) >= 3, 10.0)
+    assert [b.seq for b in blocks[:3]] == [0, 1, 2]
