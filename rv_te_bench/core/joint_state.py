@@ -405,7 +405,7 @@ class JointStateAssembler:
                 self._problem('stamp_backwards', t, out,
                               f'stamp {t} ns is not after the last accepted {last} ns',
                               dropped=0)
-            elif dt > self._jump_ns:
+            elif dt > self._jump_ns and self._gap is None:   # (else: the open gap's extent)
                 self._problem('stamp_jump', t, out,
                               f'stamp step {dt * 1e-9:.6g} s > {STAMP_JUMP_PERIODS} periods '
                               f'({self._period_ns * 1e-9:.6g} s)', dropped=0)

@@ -180,6 +180,7 @@ def test_missing_joint_and_nan_drop_the_sample_and_report_it() -> None:
     assert [b.seq for b in blocks_of(items)] == [0, 1, 2, 4, 5, 7, 8]
     assert asm.counters['missing_joint'] == 1
     assert asm.counters['non_finite'] == 1
+    assert asm.counters['stamp_jump'] == 0   # the step over a dropped sample is not another
     assert asm.counters['gaps'] == 2
 
 

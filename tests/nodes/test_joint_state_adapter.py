@@ -197,7 +197,16 @@ def test_injected_faults_are_reported_gaps_and_nothing_crashes(graph) -> None:  
         Parameter('gear_ratio', value=79.0), Parameter('crank_per_output', value=25.0)]))
     adapter = add(JointStateAdapterNode(context=ctx, parameter_overrides=[
         Parameter('sample_rate_hz', value=RATE_HZ), Parameter('block_size', value=BLOCK),
-        Parameter('wrap', value='input'), Parameter('idle_flush_s', value=0.2)]))
+        Parameter('wrap', value='input'), Parameter('idle_flush_s', value=0.2),
+        Parameter('diagnostics_period_s', value=0.2)]))
+    from diagnostic_msgs.msg import DiagnosticArray  # noqa: PLC0415
+
+    diags: list[dict[str, str]] = []
+    probe.create_subscription(
+        DiagnosticArray, '/diagnostics',
+        lambda m: diags.extend({kv.key: kv.value for kv in st.values} for st in m.status
+                               if st.hardware_id == 'joint_state_adapter'),
+        qos.DIAGNOSTICS_QOS)
     assert spin_until(ex, lambda: pub.get_subscription_count() >= 1, 10.0)
 
     n = 1000
@@ -247,6 +256,11 @@ def test_injected_faults_are_reported_gaps_and_nothing_crashes(graph) -> None:  
     np.testing.assert_allclose(th, th_in[kept], rtol=0, atol=1e-12)
     np.testing.assert_allclose(np.concatenate([np.asarray(b.theta_out_rad) for b in blocks]),
                                th_out[kept], rtol=0, atol=0)
+    # the adapter's diagnostics carry the gaps by reason
+    assert spin_until(ex, lambda: bool(diags) and diags[-1].get('gaps') == '5', 5.0), diags[-1:]
+    assert (diags[-1]['stamp_jump'], diags[-1]['missing_joint'], diags[-1]['non_finite'],
+            diags[-1]['stamp_backwards']) == ('1', '2', '1', '1')
+    assert diags[-1]['last_gap_reason'] == 'missing_joint'
     # the node keeps running after all of it
     more = _js(stamps[-1] + 1_000_000 - 20_000_000, names, [0.0, 0.0])
     pub.publish(more)
