@@ -516,6 +516,8 @@ class BenchNode(Node):
             'lag_max_s': self._lag_max_s,
             'finished': self.finished,
         }
+        if self.joint_state:
+            values['joint_states_published'] = self.joint_states_published
         late = (not self.fast) and self._lag_s > self.block_period_s
         level = WARN if late else OK
         message = 'lagging behind the clock' if late else (

@@ -372,3 +372,17 @@ def test_first_blocks_held_until_the_session_subscribers_are_up(graph) -> None: 
     late.create_subscription(EncoderBlock, 'bench/encoders', blocks.append, qos.ENCODER_QOS)
     assert spin_until(ex, lambda: len(blocks) >= 3, 10.0)
     assert [b.seq for b in blocks[:3]] == [0, 1, 2]
+
+
+@pytest.mark.timeout(30)
+@pytest.mark.parametrize(('name', 'value', 'needle'), [
+    ('output', 'joint_states', 'output'),
+    ('joint_state_names', ['input_joint', 'input_joint'], 'two different non-empty joint names'),
+    ('joint_state_layout', 'split', 'joint_state_layout'),
+])
+def test_bad_bench_joint_state_parameter_stops_start_up(ros_context, name: str,  # noqa: ANN001
+                                                        value: object, needle: str) -> None:
+    from rclpy.exceptions import InvalidParameterValueException  # noqa: PLC0415
+
+    with pytest.raises(InvalidParameterValueException, match=needle):
+        BenchNode(context=ros_context, parameter_overrides=[Parameter(name, value=value)])
