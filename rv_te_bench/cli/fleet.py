@@ -22,7 +22,7 @@ import time
 from pathlib import Path
 from typing import Any
 
-from rv_te_bench.cli._db import add_db_argument, db_for_bags
+from rv_te_bench.cli._db import add_db_argument, check_record_text, db_for_bags
 from rv_te_bench.cli.argtypes import int_at_least, nonnegative_int, positive_float, positive_int
 from rv_te_bench.errors import RvTeError
 
@@ -124,6 +124,7 @@ def run(args: argparse.Namespace) -> int:
     from rv_te_bench.fleet import FleetOptions, discover_bags, run_fleet  # noqa: PLC0415
     from rv_te_bench.store import open_store  # noqa: PLC0415
 
+    check_record_text(args)   # before the run: every record would be refused
     bags = discover_bags(list(args.bags))
     db = db_for_bags(args, bags)
     options = FleetOptions(topic=args.topic, gear_ratio=args.ratio,
