@@ -82,6 +82,9 @@ def test_fleet_command_records_every_bag_like_analyze(fleet_dir: Path, tmp_path:
     failed = {Path(r.bag_path).name: r.failure for r in rows if r.status == 'failed'}
     assert set(failed) == {'broken', 'garbage.mcap'}
     assert 'metadata.yaml' in failed['broken']
+    # the garbage is named as what it is, not as a bag without BenchInfo (issue #21)
+    assert 'is not a readable MCAP bag' in failed['garbage.mcap'], failed['garbage.mcap']
+    assert '--ratio' not in failed['garbage.mcap']
     good = [r for r in rows if r.status == 'ok']
     assert len(good) == N_GOOD
     for r in good:
