@@ -18,7 +18,8 @@ from typing import Any, Literal
 
 from rv_te_bench.errors import StoreError
 
-__all__ = ['DIRECTIONS', 'FIELD_MAX_CHARS', 'LineValue', 'MetricValue', 'UnitRecord', 'bag_fingerprint',
+__all__ = ['DIRECTIONS', 'FIELD_MAX_CHARS', 'LineValue', 'MetricValue', 'UnitRecord',
+           'bag_fingerprint',
            'bag_stat', 'failed_record', 'records_from_analysis_json']
 
 Direction = Literal['all', 'cw', 'ccw']
@@ -76,7 +77,8 @@ class LineValue:
 
     def __post_init__(self) -> None:
         if not self.label or len(self.label) > 64:  # noqa: PLR2004
-            msg = f'line label must be 1-64 characters, got {len(self.label)}: {self.label[:40]!r}'
+            msg = (f'line label must be 1-64 characters, got {len(self.label)}: '
+                   f'{self.label[:40]!r}')
             raise StoreError(msg)
 
 
