@@ -51,3 +51,22 @@ def test_plan_name_longer_than_the_store_keeps_is_refused() -> None:
                        r'keeps at most 128, got') as exc:
         parse_plan({'plan': 'p' * 129, 'steps': steps}, 'x.yaml')
     assert '\n' not in str(exc.value)
+
+
+def test_rv_te_test_refuses_long_serial_and_plan_name_before_any_work(tmp_path: Path) -> None:
+    """``rv-te test``: a 129-character --serial or plan name is one line, exit 1, before the
+    bench is contacted (the record would be refused after the whole test)."""
+    p = _run('test', 'li2023-rv', '--serial', 'S' * 129, '--operator', 'kim', '--db',
+             str(tmp_path / 'r.sqlite'))
+    assert p.returncode == 1, (p.stdout, p.stderr)
+    assert p.stderr.strip().splitlines() == [
+        "ERROR: --serial is 129 characters, the results store keeps at most 128: "
+        f"{'S' * 40 + '...'!r}"]
+    plan = tmp_path / 'long.yaml'
+    plan.write_text(f"plan: {'p' * 129}\nsteps:\n  - {{name: te, kind: te, speed_rpm: 100, "
+                    "load_nm: 0, directions: [ccw]}\n")
+    p = _run('test', str(plan), '--serial', 'SN1', '--operator', 'kim')
+    assert p.returncode == 1, (p.stdout, p.stderr)
+    (line,) = p.stderr.strip().splitlines()
+    assert line.startswith(f'ERROR: {plan}: plan is 129 characters, the results store keeps '
+                           'at most 128'), line
