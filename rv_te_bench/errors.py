@@ -31,6 +31,11 @@ class BagError(RvTeError):
     """A bag cannot be read or written."""
 
 
+class BenchInfoError(BagError):
+    """The bag's messages are readable but its BenchInfo is damaged (the bag's ratio and
+    crank order, or its preset, given on the command line still analyse it)."""
+
+
 class BagExistsError(BagError, FileExistsError):
     """The bag folder to create exists already (nothing is overwritten)."""
 

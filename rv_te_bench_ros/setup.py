@@ -13,7 +13,9 @@ from setuptools import find_packages, setup
 
 PACKAGE = 'rv_te_bench'
 HERE = Path(__file__).resolve().parent
-VERSION = '0.1.0'   # = package.xml = pyproject.toml (checked by tests/test_ros2_package.py)
+# = package.xml = pyproject.toml (checked by tests/package/test_package_manifest.py,
+# test_versions_agree)
+VERSION = '0.1.0'
 
 # executable in lib/rv_te_bench/ -> entry point
 EXECUTABLES = {

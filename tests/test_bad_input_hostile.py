@@ -351,6 +351,26 @@ def test_bench_info_with_a_yaml_bomb_is_analysed(tmp_path: Path,
     assert doc['bags'][0]['recommendation']['advice'] is not None
 
 
+@pytest.mark.parametrize(('flag', 'limit'), [('--stall-buffer', 1 << 40),
+                                             ('--split-size', 1 << 62)])
+def test_record_byte_flags_name_the_flag_and_state_the_limit(
+        flag: str, limit: int, capsys: pytest.CaptureFixture[str]) -> None:
+    """Issue #16: ``rv-te record --stall-buffer 2000000000000`` printed the node's
+    'Parameter stall_buffer_bytes out of range' after starting it; now argparse refuses it
+    naming the flag, exit 2, and --help states both maxima (fails before: the stall buffer
+    was any non-negative integer, neither help gave a maximum)."""
+    with pytest.raises(SystemExit) as exc:
+        main(['record', flag, str(limit + 1), '--duration', '1'])
+    assert exc.value.code == 2    # noqa: PLR2004
+    err = capsys.readouterr().err.strip().splitlines()[-1]
+    assert err.endswith(f"argument {flag}: must be <= {limit}, got '{limit + 1}'"), err
+    assert 'stall_buffer_bytes' not in err and 'split_size_bytes' not in err
+    with pytest.raises(SystemExit):
+        main(['record', '--help'])
+    help_text = ' '.join(capsys.readouterr().out.split())
+    assert f'(0..{limit})' in help_text
+
+
 @pytest.mark.ros
 def test_cli_ranges_are_the_node_parameter_ranges() -> None:
     """The flags of rv-te record / replay check (and --help states) the nodes' own ranges,
@@ -366,6 +386,7 @@ def test_cli_ranges_are_the_node_parameter_ranges() -> None:
     assert record.FLUSH_RANGE_S == (spec['flush_interval_s'].min_value,
                                     spec['flush_interval_s'].max_value)
     assert record.MAX_SPLIT_BYTES == spec['split_size_bytes'].max_value
+    assert record.MAX_STALL_BUFFER_BYTES == spec['stall_buffer_bytes'].max_value
     assert replay.RATE_RANGE == replay_node.RATE_RANGE
     assert replay.START_OFFSET_RANGE_S == replay_node.START_OFFSET_RANGE_S
     assert replay.WAIT_RANGE_S == replay_node.WAIT_RANGE_S

@@ -266,6 +266,10 @@ def parse_plan(data: Any, origin: str = '<plan>') -> TestPlan:  # noqa: ANN401
     """
     top = _Fields(data, origin)
     name = top.text('plan')
+    from rv_te_bench.store.records import FIELD_MAX_CHARS  # noqa: PLC0415
+    if len(name) > FIELD_MAX_CHARS['plan']:   # the results store keeps 128 (issue #21)
+        top.fail('plan', f'is {len(name)} characters, the results store keeps at most '
+                 f"{FIELD_MAX_CHARS['plan']}", name[:40] + '...')
     description = str(top.data.pop('description', '') or '')
     tolerance = top.text('tolerance', '')if 'tolerance' in top.data else ''
     steps_raw = top.data.pop('steps', None)

@@ -17,7 +17,7 @@ if TYPE_CHECKING:
     import argparse
     from collections.abc import Sequence
 
-__all__ = ['DB_ENV', 'add_db_argument', 'db_for_bags', 'db_to_read']
+__all__ = ['DB_ENV', 'add_db_argument', 'check_record_text', 'db_for_bags', 'db_to_read']
 
 DB_ENV = 'RV_TE_DB'
 _NAME = 'rv-te-results.sqlite'
@@ -54,3 +54,22 @@ def db_to_read(args: argparse.Namespace) -> str:
         msg = f'no results store at {db}: give --db PATH|URL (or set {DB_ENV})'
         raise StoreError(msg)
     return db
+
+
+def check_record_text(args: argparse.Namespace, names: Sequence[str] = ('serial', 'lot',
+                                                                     'operator')) -> None:
+    """Refuse, before any work, a --serial / --lot / --operator longer than the results
+    store keeps (PostgreSQL would refuse the record at the end; issue #21).
+
+    Raises:
+        StoreError: One line naming the flag, its length and the limit.
+    """
+    from rv_te_bench.store.records import FIELD_MAX_CHARS  # noqa: PLC0415
+    for name in names:
+        value = getattr(args, name, None)
+        limit = FIELD_MAX_CHARS[name]
+        if isinstance(value, str) and len(value) > limit:
+            shown = value[:40] + '...' if len(value) > 40 else value  # noqa: PLR2004
+            msg = (f'--{name} is {len(value)} characters, the results store keeps at most '
+                   f'{limit}: {shown!r}')
+            raise StoreError(msg)

@@ -143,6 +143,8 @@ def _run(args: argparse.Namespace) -> int:
     from rv_te_bench.cli.allocator import tune_for_batch_work  # noqa: PLC0415
     from rv_te_bench.report.analysis import analyze_bag  # noqa: PLC0415
 
+    from rv_te_bench.cli._db import check_record_text  # noqa: PLC0415
+    check_record_text(args)  # before the analysis: the store would refuse it at the end
     tune_for_batch_work()   # this process: keep window-sized arrays off fresh pages
     from rv_te_bench.report.html import (  # noqa: PLC0415
         ReportExistsError,

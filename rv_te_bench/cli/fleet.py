@@ -6,8 +6,10 @@ command scales from a laptop to a cluster whose workers see the same paths) and 
 one result per bag in the results store as each arrives. Folders are searched for bags;
 quote glob patterns (``'bags/2026-11-*'``). A damaged bag is recorded as failed with its
 one-line reason and the rest go on; a worker that dies mid-bag has its bag analysed again
-by another; bags already in the store unchanged (size and modification time) are skipped
-unless ``--force`` (bags that failed before are tried again).
+by another; bags whose content already has a good record are skipped unless ``--force``
+(bags that failed before are tried again): known by path with the recorded size and
+modification time, else by content hash. A bag copied to several paths is one record,
+analysed once; the run's summary names the paths that hold the same bag.
 
 Exit codes: 0 every bag analysed (partial ones included), 1 some bag failed or the run
 could not start (one ``ERROR: ...`` line), 2 bad usage.
@@ -22,7 +24,7 @@ import time
 from pathlib import Path
 from typing import Any
 
-from rv_te_bench.cli._db import add_db_argument, db_for_bags
+from rv_te_bench.cli._db import add_db_argument, check_record_text, db_for_bags
 from rv_te_bench.cli.argtypes import int_at_least, nonnegative_int, positive_float, positive_int
 from rv_te_bench.errors import RvTeError
 
@@ -124,6 +126,7 @@ def run(args: argparse.Namespace) -> int:
     from rv_te_bench.fleet import FleetOptions, discover_bags, run_fleet  # noqa: PLC0415
     from rv_te_bench.store import open_store  # noqa: PLC0415
 
+    check_record_text(args)   # before the run: every record would be refused
     bags = discover_bags(list(args.bags))
     db = db_for_bags(args, bags)
     options = FleetOptions(topic=args.topic, gear_ratio=args.ratio,
@@ -147,8 +150,11 @@ def run(args: argparse.Namespace) -> int:
     else:
         print(f'{summary.total} bag(s): {summary.ok} analysed, {summary.partial} partial, '
               f'{summary.failed} failed, {summary.skipped} skipped (already in the store; '
-              f'--force to redo) in {summary.elapsed_s:.1f} s with {summary.workers} '
-              f'worker(s); results in {db}')
+              f'--force to redo), {summary.duplicate_paths} duplicate(s) in '
+              f'{summary.elapsed_s:.1f} s with {summary.workers} worker(s); results in {db}')
+        for group in summary.duplicates:
+            print(f'  {len(group)} paths hold the same bag (one record, {group[0]}): '
+                  + ', '.join(group))
         for bag, reason in summary.failures:
             print(f'  FAILED {bag}: {reason}')
     if summary.failed:

@@ -150,15 +150,15 @@ def fold_bag(path: str, topic: str | None, gear_ratio: float, *,
 
 def _bench_info(args: argparse.Namespace) -> tuple[dict[str, Any] | None, str | None]:
     """(BenchInfo, problem): a damaged BenchInfo is a problem only without the flags."""
-    from rv_te_bench.errors import BagError  # noqa: PLC0415
+    from rv_te_bench.errors import BagError, BenchInfoError  # noqa: PLC0415
     from rv_te_bench.io.bag_reader import read_bench_info  # noqa: PLC0415
 
     try:
         return read_bench_info(args.bag), None
-    except BagError as exc:
+    except BenchInfoError as exc:   # readable messages, damaged BenchInfo: the hint helps
         if args.preset is None:
-            msg = (f'{exc}; give --preset (and --ratio if the bench ran another ratio) to '
-                   'identify without it')
+            msg = (f'{str(exc).rstrip(".")}; give --preset (and --ratio if the bench ran '
+                   'another ratio) to identify without it')
             raise BagError(msg) from None
         del exc   # the damaged chunk is reported again by the encoder read
         return None, (f'no readable BenchInfo: preset {args.preset} and '

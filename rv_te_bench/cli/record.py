@@ -13,15 +13,17 @@ import argparse
 import sys
 from typing import Any
 
-from rv_te_bench.cli.argtypes import float_between, int_between, nonnegative_int
+from rv_te_bench.cli.argtypes import float_between, int_between
 
-__all__ = ['FLUSH_RANGE_S', 'MAX_DURATION_S', 'MAX_SPLIT_BYTES', 'register', 'run']
+__all__ = ['FLUSH_RANGE_S', 'MAX_DURATION_S', 'MAX_SPLIT_BYTES', 'MAX_STALL_BUFFER_BYTES',
+           'register', 'run']
 
 #: The recorder node's parameter ranges (duration_s, split_duration_s; flush_interval_s;
-#: split_size_bytes).
+#: split_size_bytes; stall_buffer_bytes): checked here so that an error names the flag.
 MAX_DURATION_S = 1e7
 FLUSH_RANGE_S = (0.01, 60.0)
 MAX_SPLIT_BYTES = 1 << 62
+MAX_STALL_BUFFER_BYTES = 1 << 40
 
 
 def register(subparsers: Any) -> None:  # noqa: ANN401 - argparse's private action type
@@ -49,7 +51,8 @@ def register(subparsers: Any) -> None:  # noqa: ANN401 - argparse's private acti
                              '(default: %(default)s)'.format(*FLUSH_RANGE_S))
     parser.add_argument('--split-size', type=int_between(0, MAX_SPLIT_BYTES), default=0,
                         metavar='BYTES',
-                        help='start a new .mcap file past this size; 0: never')
+                        help=f'start a new .mcap file past this size (0..{MAX_SPLIT_BYTES}); '
+                             '0: never (default: %(default)s)')
     parser.add_argument('--split-duration', type=float_between(0.0, MAX_DURATION_S),
                         default=0.0, metavar='S',
                         help=f'start a new .mcap file after S seconds (0..{MAX_DURATION_S:g}); '
@@ -59,10 +62,11 @@ def register(subparsers: Any) -> None:  # noqa: ANN401 - argparse's private acti
                              'ros2 bag record --use-sim-time')
     parser.add_argument('--metadata', default='', metavar='YAML',
                         help='YAML mapping stored in the bag (preset, operator, ...)')
-    parser.add_argument('--stall-buffer', type=nonnegative_int, default=64 << 20,
-                        metavar='BYTES',
-                        help='messages held in memory while the disk is full; beyond it they '
-                             'are lost and counted (default: %(default)s)')
+    parser.add_argument('--stall-buffer', type=int_between(0, MAX_STALL_BUFFER_BYTES),
+                        default=64 << 20, metavar='BYTES',
+                        help='messages held in memory while the disk is full '
+                             f'(0..{MAX_STALL_BUFFER_BYTES}); beyond it they are lost and '
+                             'counted (default: %(default)s)')
     parser.set_defaults(func=run)
 
 

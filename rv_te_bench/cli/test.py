@@ -131,8 +131,10 @@ def _session(args: argparse.Namespace, out_dir: Path) -> Any:  # noqa: ANN401
 def run(args: argparse.Namespace) -> int:  # noqa: C901, PLR0912, PLR0915
     """Validate, (launch,) send the goal, follow it, report; 0 pass, 3 fail, 1 error."""
     from rv_te_bench.acceptance import load_plan, load_tolerance  # noqa: PLC0415
+    from rv_te_bench.cli._db import check_record_text  # noqa: PLC0415
     from rv_te_bench.launch.session import normalise_namespace  # noqa: PLC0415
 
+    check_record_text(args)   # before the test: the store would refuse it at the end
     plan, plan_text = load_plan(args.plan)
     tol_text = ''
     if args.tolerance:

@@ -13,6 +13,7 @@ from __future__ import annotations
 import logging
 import os
 import time
+from collections import Counter
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
@@ -20,7 +21,12 @@ from typing import TYPE_CHECKING, Any
 from rv_te_bench import __version__
 from rv_te_bench.errors import RvTeError, StoreError
 from rv_te_bench.io.bag_reader import READ_AHEAD_ENV
-from rv_te_bench.store import bag_stat, failed_record, records_from_analysis_json
+from rv_te_bench.store import (
+    bag_fingerprint,
+    bag_stat,
+    failed_record,
+    records_from_analysis_json,
+)
 
 if TYPE_CHECKING:
     from collections.abc import Callable, Sequence
@@ -56,12 +62,20 @@ class FleetSummary:
     elapsed_s: float = 0.0
     workers: int = 0
     failures: list[tuple[str, str]] = field(default_factory=list)
+    #: Paths holding the same bag (same content hash): one record, analysed once.
+    duplicates: list[list[str]] = field(default_factory=list)
+
+    @property
+    def duplicate_paths(self) -> int:
+        """Paths not analysed because another path of the run holds the same bag."""
+        return sum(len(g) - 1 for g in self.duplicates)
 
     def to_json_dict(self) -> dict[str, Any]:
         """JSON form."""
         return {'total': self.total, 'ok': self.ok, 'partial': self.partial,
                 'failed': self.failed, 'skipped': self.skipped, 'elapsed_s': self.elapsed_s,
-                'workers': self.workers,
+                'workers': self.workers, 'duplicate_paths': self.duplicate_paths,
+                'duplicates': self.duplicates,
                 'failures': [{'bag': b, 'reason': r} for b, r in self.failures]}
 
 
@@ -94,23 +108,54 @@ def analyse_one(path: str, options: FleetOptions) -> UnitRecord:
     return rec
 
 
-def _todo(bags: Sequence[Path], store: ResultStore, force: bool) -> tuple[list[Path], int]:
-    """Bags to analyse, and how many are skipped (unchanged since a good record)."""
-    if force:
-        return list(bags), 0
+def _todo(bags: Sequence[Path], store: ResultStore, force: bool,
+          ) -> tuple[list[Path], int, list[list[str]]]:
+    """Bags to analyse, how many are skipped, and the groups of paths holding the same bag.
+
+    A record is keyed by the bag's content hash, so a bag copied to two places is one test
+    of one unit: one record, analysed once (the first path in order), the other paths
+    reported as duplicates. A bag is skipped when its content already has a good record:
+    known by its path with the recorded size and mtime (no reading), else by its hash. The
+    hash is computed only where it can matter, for a bag whose total size equals another
+    bag's of this run or a good record's (a copy of the same bag has the same size).
+    """
     known = store.known_bags()
-    todo = []
+    good = {k[3] for k in known.values() if k[2] != 'failed'}
+    good_sizes = {k[0] for k in known.values() if k[2] != 'failed'}
+    stats: dict[Path, tuple[int, int] | None] = {}
     for b in bags:
-        k = known.get(str(b))
-        if k is not None and k[2] != 'failed':
+        try:
+            stats[b] = bag_stat(b)
+        except (OSError, StoreError):
+            stats[b] = None
+    sizes = Counter(st[0] for st in stats.values() if st is not None)
+    sha_of: dict[Path, str] = {}
+    for b in bags:
+        st, k = stats[b], known.get(str(b))
+        if st is None:
+            continue
+        if k is not None and k[2] != 'failed' and (k[0], k[1]) == st:
+            sha_of[b] = k[3]                       # unchanged since its record: no reading
+        elif sizes[st[0]] > 1 or st[0] in good_sizes:
             try:
-                size, mtime = bag_stat(b)
+                sha_of[b] = bag_fingerprint(b)[0]
             except (OSError, StoreError):
-                size, mtime = None, None
-            if (size, mtime) == (k[0], k[1]):
-                continue
+                pass
+    groups: dict[str, list[Path]] = {}
+    for b in bags:
+        if b in sha_of:
+            groups.setdefault(sha_of[b], []).append(b)
+    duplicates = [[str(p) for p in g] for g in groups.values() if len(g) > 1]
+    todo, skipped = [], 0
+    for b in bags:
+        sha = sha_of.get(b)
+        if sha is not None and groups[sha][0] != b:
+            continue                               # another path holds the same bag
+        if not force and sha is not None and sha in good:
+            skipped += 1
+            continue
         todo.append(b)
-    return todo, len(bags) - len(todo)
+    return todo, skipped, duplicates
 
 
 def _client(workers: int, scheduler: str | None) -> tuple[Any, Any]:
@@ -147,7 +192,8 @@ def run_fleet(bags: Sequence[Path], store: ResultStore, *, options: FleetOptions
         options: Analysis options of every bag.
         workers: Worker processes of the local cluster (ignored with ``scheduler``).
         scheduler: Address of an existing Dask scheduler (``tcp://host:8786``).
-        force: Analyse bags again that already have an unchanged good record.
+        force: Analyse bags again that already have a good record of the same content
+            (paths holding the same bag are still analysed once).
         progress: Called as ``progress(done, total, failed)`` after each bag.
         on_client: Called with the Dask client once it is up (tests, diagnostics).
     """
@@ -156,7 +202,7 @@ def run_fleet(bags: Sequence[Path], store: ResultStore, *, options: FleetOptions
 
     t0 = time.monotonic()
     summary = FleetSummary()
-    todo, summary.skipped = _todo(bags, store, force)
+    todo, summary.skipped, summary.duplicates = _todo(bags, store, force)
     summary.total = len(bags)
     if not todo:
         summary.elapsed_s = time.monotonic() - t0

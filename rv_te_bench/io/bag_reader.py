@@ -26,7 +26,7 @@ from typing import TYPE_CHECKING, Any, Generic, TypeVar
 
 import numpy as np
 
-from rv_te_bench.errors import BagError, YamlInputError
+from rv_te_bench.errors import BagError, BenchInfoError, YamlInputError
 from rv_te_bench.io._bag_folder import entry_problem, layout_notes, listed_files
 from rv_te_bench.io.msgdefs import BENCH_INFO, ENCODER_BLOCK, rv_te_typestore
 from rv_te_bench.safe_yaml import BAG_METADATA_LIMITS, read_yaml_file
@@ -1123,10 +1123,17 @@ def read_bench_info(path: str | Path, topic: str | None = None) -> dict[str, Any
         topic: BenchInfo topic; None: every topic of type BenchInfo.
 
     Raises:
-        BagError: Bad layout, or the message does not deserialise.
+        BenchInfoError: The bag's encoder data is there but BenchInfo is damaged or does not
+            deserialise (the command line's ratio / preset can stand in for it).
+        BagError: Bad layout, or not a readable MCAP bag (no topic, or neither BenchInfo
+            nor encoder data readable).
     """
     bag = open_bag(path)
     types = bag.topic_types or _scan_topic_types(bag)
+    if not types:
+        text = (f'{bag.path} is not a readable MCAP bag: no topic in it (not a bag, or '
+                'truncated before its first message)')
+        raise BagError(text)
     names = [topic] if topic is not None else [t for t, ty in types.items() if ty == BENCH_INFO]
     if not names:
         return None
@@ -1145,15 +1152,20 @@ def read_bench_info(path: str | Path, topic: str | None = None) -> dict[str, Any
                 last = data
     if last is None:
         if stream.partial:   # the BenchInfo may be in the part that cannot be read
-            text = (f'Bag {bag.path}: no readable BenchInfo; the bag is damaged: '
-                    f'{summarize_problems(stream.problems)}')
-            raise BagError(text)
+            damage = summarize_problems(stream.problems).rstrip('.')
+            if ENCODER_BLOCK not in _scan_topic_types(bag).values():
+                # nothing the command line could replace BenchInfo for (issue #21)
+                text = (f'{bag.path} is not a readable MCAP bag: neither BenchInfo nor '
+                        f'encoder data can be read: {damage}')
+                raise BagError(text)
+            text = f'Bag {bag.path}: no readable BenchInfo; the bag is damaged: {damage}'
+            raise BenchInfoError(text)
         return None
     try:
         msg = rv_te_typestore().deserialize_cdr(last, BENCH_INFO)
     except Exception as exc:  # noqa: BLE001
-        text = f'Bag {bag.path}: BenchInfo does not deserialise: {exc}.'
-        raise BagError(text) from None
+        text = f'Bag {bag.path}: BenchInfo does not deserialise: {str(exc).rstrip(".")}'
+        raise BenchInfoError(text) from None
     stamp = msg.header.stamp
     return {
         'stamp_s': stamp.sec + stamp.nanosec * 1e-9,

@@ -33,7 +33,7 @@ import numpy as np
 
 from rv_te_bench.core.angle_fold import AngleFold
 from rv_te_bench.core.units import json_deg
-from rv_te_bench.errors import BagError, RvTeError, TeConfigError
+from rv_te_bench.errors import BagError, BenchInfoError, RvTeError, TeConfigError
 from sim.units import rad_to_arcmin
 
 if TYPE_CHECKING:
@@ -486,9 +486,12 @@ def _read_bench_info(path: Path, gear_ratio: float | None, crank_per_output: flo
 
     try:
         return read_bench_info(path), None
-    except BagError as exc:
+    except BenchInfoError as exc:
+        # only here does the hint help: the messages are readable, BenchInfo is not (a bag
+        # that is no readable bag, a bad metadata.yaml, a FIFO... raise as they are)
         if gear_ratio is None or crank_per_output is None:
-            msg = f'{exc}; pass --ratio and --crank-per-output to analyse the rest of the bag'
+            msg = (f'{str(exc).rstrip(".")}; pass --ratio and --crank-per-output to analyse '
+                   'the rest of the bag')
             raise BagError(msg) from None
         return None, 'no readable BenchInfo (damaged): --ratio and --crank-per-output used'
 

@@ -59,7 +59,8 @@ class ResultRow(Base):
     __tablename__ = 'results'
 
     id: Mapped[int] = mapped_column(Integer, primary_key=True, autoincrement=True)
-    record_key: Mapped[str] = mapped_column(String(200), unique=True, nullable=False)
+    # test (32) | plan (128) | sha256 (64) = up to 226 characters (issue #21; 0002 widened it)
+    record_key: Mapped[str] = mapped_column(String(256), unique=True, nullable=False)
     test: Mapped[str] = mapped_column(String(32), nullable=False)
     plan: Mapped[str] = mapped_column(String(128), nullable=False, default='')
     serial: Mapped[str | None] = mapped_column(String(128))

@@ -259,13 +259,14 @@ class ResultStore:
     # ------------------------------------------------------------------ reading
 
     def known_bags(self, *, test: str = 'te-analysis', plan: str = '',
-                   ) -> dict[str, tuple[int | None, int | None, str]]:
-        """bag_path -> (size, mtime_ns, status) of the records of ``test``/``plan``."""
+                   ) -> dict[str, tuple[int | None, int | None, str, str]]:
+        """bag_path -> (size, mtime_ns, status, bag sha256) of the records of ``test``/``plan``."""
         with Session(self._engine) as s:
             rows = s.execute(select(ResultRow.bag_path, ResultRow.bag_size_bytes,
-                                    ResultRow.bag_mtime_ns, ResultRow.status)
+                                    ResultRow.bag_mtime_ns, ResultRow.status,
+                                    ResultRow.bag_sha256)
                              .where(ResultRow.test == test, ResultRow.plan == plan)).all()
-        return {r[0]: (r[1], r[2], r[3]) for r in rows}
+        return {r[0]: (r[1], r[2], r[3], r[4]) for r in rows}
 
     def _where(self, stmt: Any, f: ResultFilter) -> Any:  # noqa: ANN401
         conds = []

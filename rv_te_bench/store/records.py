@@ -18,7 +18,8 @@ from typing import Any, Literal
 
 from rv_te_bench.errors import StoreError
 
-__all__ = ['DIRECTIONS', 'LineValue', 'MetricValue', 'UnitRecord', 'bag_fingerprint',
+__all__ = ['DIRECTIONS', 'FIELD_MAX_CHARS', 'LineValue', 'MetricValue', 'UnitRecord',
+           'bag_fingerprint',
            'bag_stat', 'failed_record', 'records_from_analysis_json']
 
 Direction = Literal['all', 'cw', 'ccw']
@@ -28,6 +29,13 @@ DIRECTIONS: tuple[str, ...] = ('all', 'cw', 'ccw')
 _VERDICTS = ('pass', 'fail', 'not-measured', 'not-judged')
 _STATUSES = ('ok', 'partial', 'failed')
 _HASH_CHUNK = 1 << 20
+# The store's column widths (rv_te_bench/store/_schema.py): SQLite ignores them, PostgreSQL
+# refuses a longer value ('value too long'); a record is checked here so that both stores
+# take exactly the same records (issue #21).
+FIELD_MAX_CHARS: dict[str, int] = {
+    'test': 32, 'plan': 128, 'serial': 128, 'lot': 128, 'operator': 128, 'bench_id': 128,
+    'preset': 128, 'reducer_type': 16, 'command': 32, 'software_version': 64,
+}
 
 
 @dataclass(frozen=True, slots=True)
@@ -66,6 +74,12 @@ class LineValue:
     crank_order: float | None = None
     frequency_hz: float | None = None
     phase_rad: float | None = None
+
+    def __post_init__(self) -> None:
+        if not self.label or len(self.label) > 64:  # noqa: PLR2004
+            msg = (f'line label must be 1-64 characters, got {len(self.label)}: '
+                   f'{self.label[:40]!r}')
+            raise StoreError(msg)
 
 
 def _storable(text: str) -> str:
@@ -121,6 +135,13 @@ class UnitRecord:
             value = getattr(self, name)
             if isinstance(value, str):   # undecodable bytes of a path or argument: \xNN
                 object.__setattr__(self, name, _storable(value))
+        for name, limit in FIELD_MAX_CHARS.items():
+            value = getattr(self, name)
+            if isinstance(value, str) and len(value) > limit:
+                shown = value[:40] + '...' if len(value) > 40 else value  # noqa: PLR2004
+                msg = (f'{name} is {len(value)} characters, the results store keeps at most '
+                       f'{limit}: {shown!r}')
+                raise StoreError(msg)
         if self.test not in ('te-analysis', 'test-plan'):
             msg = f"test must be 'te-analysis' or 'test-plan', got {self.test!r}"
             raise StoreError(msg)

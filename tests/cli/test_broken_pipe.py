@@ -23,7 +23,7 @@ COMMANDS = [
     ['model', 'wang2020-2kv', '--json'],
     ['compensate', 'hu2020-rv', '--te-arcmin', '1.2'],
     ['identify', SAMPLE, '--no-recommend', '--quiet'],
-    ['analyze', SAMPLE, '--no-advice', '--quiet'],
+    ['analyze', SAMPLE, '--no-advice', '--quiet', '--no-db'],   # the repo stays clean (#15)
     ['launch', '--default', '--check'],
     ['--help'],
 ]

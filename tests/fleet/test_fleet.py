@@ -82,6 +82,9 @@ def test_fleet_command_records_every_bag_like_analyze(fleet_dir: Path, tmp_path:
     failed = {Path(r.bag_path).name: r.failure for r in rows if r.status == 'failed'}
     assert set(failed) == {'broken', 'garbage.mcap'}
     assert 'metadata.yaml' in failed['broken']
+    # the garbage is named as what it is, not as a bag without BenchInfo (issue #21)
+    assert 'is not a readable MCAP bag' in failed['garbage.mcap'], failed['garbage.mcap']
+    assert '--ratio' not in failed['garbage.mcap']
     good = [r for r in rows if r.status == 'ok']
     assert len(good) == N_GOOD
     for r in good:
@@ -169,3 +172,41 @@ def test_workers_read_without_the_read_ahead_thread_when_they_fill_the_cores() -
         client.close()
         cluster.close()
     assert got == ({'0'} if 2 >= (os.cpu_count() or 1) else {None})
+
+
+def test_a_bag_at_two_paths_is_one_record_and_reruns_skip_both(fleet_dir: Path,
+                                                                tmp_path: Path) -> None:
+    """Issue #21: records are keyed by content hash, the rerun skipped by path. A unit's bag
+    copied to a second folder is one test of one unit: one record (the first path), the
+    summary names both paths; a rerun (and one after the copy's mtime changed) skips
+    both and the record's path stays. Fails before: '3 analysed' for 2 records, every
+    rerun '1 analysed, 2 skipped' with the record's bag_path flipping between the copies."""
+    import shutil
+    root = tmp_path / 'bags'
+    shutil.copytree(fleet_dir / 'day0' / 'unit0', root / 'a' / 'unit0')
+    shutil.copytree(fleet_dir / 'day0' / 'unit0', root / 'b' / 'unit0-copy')
+    shutil.copytree(fleet_dir / 'day1' / 'unit1', root / 'a' / 'unit1')
+    db = tmp_path / 'r.sqlite'
+    cmd = [*RV_TE, 'fleet', 'analyze', str(root), '--workers', '1', '--db', str(db),
+           '--quiet']
+    first_path = str(root / 'a' / 'unit0')
+    pair = [first_path, str(root / 'b' / 'unit0-copy')]
+    runs = []
+    for touch in (False, False, True):
+        if touch:
+            os.utime(root / 'b' / 'unit0-copy' / 'metadata.yaml', (1e9, 1e9))
+        p = subprocess.run([*cmd, '--json'], capture_output=True, text=True, timeout=300,
+                           env=_env())
+        assert p.returncode == 0, p.stderr
+        s = json.loads(p.stdout)
+        runs.append((s['ok'], s['skipped'], s.get('duplicate_paths'), s.get('duplicates')))
+        with open_store(db) as st:
+            rows = st.query()
+        assert len(rows) == 2                                   # noqa: PLR2004
+        assert sorted(r.bag_path for r in rows) == [first_path, str(root / 'a' / 'unit1')]
+    assert runs == [(2, 0, 1, [pair]), (0, 2, 1, [pair]), (0, 2, 1, [pair])]
+    text = subprocess.run(cmd, capture_output=True, text=True, timeout=300, env=_env())
+    assert text.returncode == 0, text.stderr
+    assert '0 analysed' in text.stdout and '2 skipped' in text.stdout
+    assert f'2 paths hold the same bag (one record, {first_path}): {", ".join(pair)}' \
+        in text.stdout

@@ -53,6 +53,15 @@ def test_relative_file_paths_as_a_string_is_one_line(
     line = _one_error(['analyze', str(bag), '--no-db'], capsys)
     assert "got a string: 'bag_0.mcap'" in line
     assert "'b', 'a', 'g'" not in line           # not character by character
+    _assert_no_misleading_hint(line)
+    _assert_no_misleading_hint(_one_error(['identify', str(bag)], capsys))
+
+
+def _assert_no_misleading_hint(line: str) -> None:
+    """A bag that cannot be read is not fixed by --ratio / --preset: no such hint, and no
+    stray '.;' where a hint was glued to a sentence (issue #16)."""
+    assert '--ratio' not in line and '--preset' not in line, line
+    assert '.;' not in line, line
 
 
 @pytest.mark.parametrize('entry', [[1, 2], ['ok.mcap', None], {'a': 1}, None])
@@ -88,6 +97,30 @@ def test_listed_entry_that_is_not_a_regular_file(
         assert 'not a regular file' in str(info.value)
     line = _one_error(['analyze', str(bag), '--no-db'], capsys)   # returns: nothing opened it
     assert what in line
+    _assert_no_misleading_hint(line)
+    line = _one_error(['identify', str(bag)], capsys)
+    assert what in line
+    _assert_no_misleading_hint(line)
+
+
+@pytest.mark.parametrize('content', ['garbage', 'truncated'])
+def test_a_file_that_is_no_readable_mcap_bag_says_so(
+        tmp_path: Path, bag: Path, content: str, capsys: pytest.CaptureFixture[str]) -> None:
+    """Garbage after the MCAP magic, or a bag cut before its first encoder message: 'not a
+    readable MCAP bag', not 'the bag has no BenchInfo ... pass --ratio' (issue #21; fails
+    before: the garbage was reported as a bag without BenchInfo, the truncated one as a
+    damaged BenchInfo with the --ratio / --preset hints)."""
+    (src,) = bag.glob('*.mcap')
+    data = src.read_bytes()
+    bad = tmp_path / f'{content}.mcap'
+    if content == 'garbage':
+        bad.write_bytes(data[:8] + b'\x00' * 500)
+    else:   # cut 300 bytes in, among the schema / channel records: no message is left
+        bad.write_bytes(data[:300])
+    for argv in (['analyze', str(bad), '--no-db'], ['identify', str(bad)]):
+        line = _one_error(argv, capsys)
+        assert f'{bad} is not a readable MCAP bag' in line, line
+        _assert_no_misleading_hint(line)
 
 
 def test_unlisted_mcap_is_ignored_with_a_warning(

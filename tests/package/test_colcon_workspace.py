@@ -3,8 +3,8 @@ no extra flag, in the venv (the PyPI ros-jazzy wheels + colcon from PyPI, as mak
 up); then the installed executables, started from ``lib/rv_te_bench/`` with the environment
 ``install/setup.sh`` gives (as ``ros2 run`` would), talk over the middleware.
 
-Slow (~40 s build on 2 cores, ~10 s of nodes); no network: colcon, cmake and the wheels are
-what make venv installed.
+Slow (the build took ~100 s on the 2 shared cores, as measured in the issue #18 audit; ~10 s
+of nodes); no network: colcon, cmake and the wheels are what make venv installed.
 """
 
 from __future__ import annotations

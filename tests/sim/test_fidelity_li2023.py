@@ -41,13 +41,20 @@ def test_preset_calibration_values() -> None:
 
 
 def test_dte_without_errors_calibrated_damping() -> None:
-    """Paper 0.78" (Fig. 11a). Damping is not given; zeta 0.09 at 1 kHz (Rayleigh) gives
-    0.774" at 1 kHz samples (-0.8 %) and 0.786" at 10 kHz (+0.8 %); tolerance 2 %. With the
-    earlier assumption zeta 0.05 the p-p is 0.823" (+5.5 %; 0.85"-0.90" with the LTCA's beta):
-    the p-p depends on the damping."""
+    """Paper 0.78" (Fig. 11a). Damping is not given; stiffness-proportional (Rayleigh) zeta
+    0.09 at f_ref = 1 kHz, beta 31.9 deg, gives 0.774" at 1 kHz samples (-0.8 %) and 0.786" at
+    10 kHz (+0.8 %); tolerance 2 %. The earlier assumption zeta 0.05 (same f_ref) gives
+    0.823" at 1 kHz / 0.870" at 10 kHz with beta 31.9 deg, and 0.851" / 0.895" with the
+    LTCA's beta 32.9 deg (DESIGN_NOTES; the 1 kHz values are pinned here, +-0.005", as the
+    suite's own: the p-p depends on the damping and beta, both outside the paper's 2 %)."""
     assert _pp_arcsec({'errors.enabled': 'false'}, 1000.0) == pytest.approx(
         PAPER_PP_NO_ERR_ARCSEC, rel=0.02)
-    assert _pp_arcsec({'errors.enabled': 'false', 'damping.zeta': '0.05'}, 1000.0) > 1.05 * 0.78
+    z05 = {'errors.enabled': 'false', 'damping.zeta': '0.05'}
+    pp_paper_beta = _pp_arcsec(z05, 1000.0)
+    pp_ltca_beta = _pp_arcsec({**z05, 'tca.pressure_angle_deg': '0'}, 1000.0)
+    assert pp_paper_beta == pytest.approx(0.823, abs=0.005)
+    assert pp_ltca_beta == pytest.approx(0.851, abs=0.005)
+    assert pp_paper_beta > 1.05 * PAPER_PP_NO_ERR_ARCSEC
 
 
 @pytest.mark.slow

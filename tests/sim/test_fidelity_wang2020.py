@@ -157,14 +157,59 @@ def table4_runs(params: Wang2kvParams) -> dict[tuple[str, str, float], np.ndarra
     return out
 
 
+#: The 9 Table 4 DTE cells (of 18) the suite reproduces within 5 % with the loaded start
+#: (the preset's): (phases, load, quantity 0 p-p / 1 amp / 2 std).
+DTE_REPRODUCED = [('before', 30.0, 0), ('before', 30.0, 1), ('before', 100.0, 1),
+                  ('before', 100.0, 2), ('before', 300.0, 1), ('before', 300.0, 2),
+                  ('after', 30.0, 0), ('after', 100.0, 1), ('after', 300.0, 1)]
+#: The other 9: 'evidence only: not reproduced' in docs/DESIGN_NOTES.md. The suite's value
+#: with the loaded start (the table's 'suite, loaded start' column, arcmin).
+DTE_NOT_REPRODUCED = {('before', 30.0, 2): 0.557, ('before', 100.0, 0): 1.744,
+                      ('before', 300.0, 0): 1.259, ('after', 30.0, 1): 0.743,
+                      ('after', 30.0, 2): 0.290, ('after', 100.0, 0): 0.640,
+                      ('after', 100.0, 2): 0.190, ('after', 300.0, 0): 0.580,
+                      ('after', 300.0, 2): 0.205}
+
+
 def test_table4_dte_where_the_suite_matches(table4_runs: dict) -> None:
-    """The Table 4 DTE numbers the suite reproduces within 5 % (loaded start)."""
-    within = [('before', 30.0, 0), ('before', 30.0, 1), ('before', 100.0, 1),
-              ('before', 300.0, 1), ('after', 30.0, 0), ('after', 100.0, 1),
-              ('after', 300.0, 1)]
-    for when, load, q in within:
+    """The Table 4 DTE cells the suite reproduces: the paper's value within 5 % (loaded
+    start). The 18 cells are these 9 and the 9 of the next test."""
+    assert len(set(DTE_REPRODUCED) | set(DTE_NOT_REPRODUCED)) == 18      # noqa: PLR2004
+    for when, load, q in DTE_REPRODUCED:
         got = _stats(table4_runs['loaded', when, load])[q]
         assert got == pytest.approx(TABLE4_DTE[when, load][q], rel=0.05), (when, load, q)
+
+
+def test_table4_dte_cells_not_reproduced_pin_the_suite(table4_runs: dict,
+                                                       params: Wang2kvParams) -> None:
+    """The 9 cells marked 'evidence only: not reproduced' (causes (a), (b) of the note): the
+    suite's value is pinned against an independent computation, the quasi-static Eq. 18
+    written out in this file (the mesh mode at ~2 kHz is far above the excitation), within
+    0.5 %, and against the note's number within 0.002'; and each really is more than 5 % from
+    the paper with every start option, so that marking stays true. The unloaded start's p-p
+    of the rows where it differs is the independent STE amplitude (the record holds TE = 0
+    and the STE minimum: 2.824', 1.125'), or above it by the load step's overshoot at 300 N m
+    after optimisation (2.751' >= 2.218'; the overshoot is the suite's own value)."""
+    k = params.mesh_stiffness_n_m
+    for (when, load, q), noted in DTE_NOT_REPRODUCED.items():
+        independent = _stats(_ste_reference_arcmin(PHASES[when], load, k))[q]
+        got = _stats(table4_runs['loaded', when, load])[q]
+        assert got == pytest.approx(independent, rel=0.005), (when, load, q)
+        assert got == pytest.approx(noted, abs=0.002), (when, load, q)
+        paper = TABLE4_DTE[when, load][q]
+        for start in ('loaded', 'unloaded'):
+            assert abs(_stats(table4_runs[start, when, load])[q] / paper - 1) > 0.05, \
+                (start, when, load, q)
+    for when, load, noted in (('before', 300.0, 2.824), ('after', 100.0, 1.125)):
+        amp = _stats(_ste_reference_arcmin(PHASES[when], load, k))[1]
+        got = _stats(table4_runs['unloaded', when, load])[0]
+        assert got == pytest.approx(amp, rel=0.005)
+        assert got == pytest.approx(noted, abs=0.002)
+    amp = _stats(_ste_reference_arcmin(OPT_DEG, 300.0, k))[1]
+    got = _stats(table4_runs['unloaded', 'after', 300.0])[0]
+    assert amp == pytest.approx(2.218, abs=0.002)
+    assert got > amp
+    assert got == pytest.approx(2.751, abs=0.002)
 
 
 def test_table4_dte_follows_eq18(table4_runs: dict, params: Wang2kvParams) -> None:
@@ -274,9 +319,17 @@ def test_table4_nlte_rows(params: Wang2kvParams) -> None:
         assert got == pytest.approx(suite[when], abs=0.002)
         unit = ref.Unit(*ref.TABLE2_E_M, *(math.radians(v) for v in PHASES[when]))
         assert _stats(rad_to_arcmin(ref.nlte_rad(THETA, unit))) == pytest.approx(got, abs=1e-3)
-        # the rows the suite matches: p-p before (5 %), amplitude (6 %: Fig. 5a 1.22')
+        # the cells the suite matches: p-p before (5 %), amplitude (6 %: Fig. 5a 1.22')
         assert got[1] == pytest.approx(paper[when][1], rel=0.06)
-    assert suite['before'][0] == pytest.approx(paper['before'][0], rel=0.05)
+        if when == 'before':
+            assert got[0] == pytest.approx(paper[when][0], rel=0.05)
+    # 'evidence only: not reproduced' (DESIGN_NOTES): std before, p-p and std after; their
+    # suite values are pinned above against the independent tests/wang2020_reference.py
+    te_before = _stats(_nlte_arcmin(params, PHASES['before']))
+    te_after = _stats(_nlte_arcmin(params, PHASES['after']))
+    for got, want in ((te_before[2], paper['before'][2]), (te_after[0], paper['after'][0]),
+                      (te_after[2], paper['after'][2])):
+        assert abs(got / want - 1) > 0.05
     coarse = _stats(_nlte_arcmin(params, PHASES['after'])[::1000])       # 10 Hz
     assert coarse[0] > 1.14 and coarse[2] > 0.31
 

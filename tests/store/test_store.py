@@ -226,3 +226,77 @@ def test_postgresql_crash_consistency_and_concurrent_upsert(fresh_pg_db: str) ->
         rows = a.query()
     assert len(rows) == 1
     assert rows[0].verdict == 'fail'
+
+
+def _long_text_outcome(db: str | Path) -> tuple[list[tuple], str]:
+    """Store a 128-character serial and a 128-character plan (key 226 characters), try a
+    129-character serial: what the store holds and the refusal's message."""
+    ok = replace(make_record(1), serial='S' * 128)
+    plan = replace(make_record(2), test='test-plan', plan='P' * 128)
+    with open_store(db) as st:
+        st.upsert(ok)
+        st.upsert(plan)
+        with pytest.raises(StoreError) as exc:
+            st.upsert(replace(make_record(3), serial='S' * 129))
+        rows = st.query()
+    return [(r.serial, r.test, r.plan) for r in rows], str(exc.value)
+
+
+def test_long_text_same_on_sqlite_and_postgresql(tmp_path: Path, fresh_pg_db: str) -> None:
+    """Issue #21: SQLite ignores column lengths, PostgreSQL refuses ('value too long'): a
+    record is checked against the widths before either sees it. A 128-character serial and
+    plan are kept identically on both, a 129-character serial is refused with the same
+    one-line message naming the field and the limit. Fails before: PostgreSQL raised
+    'value too long for type character varying(200)' for the 226-character record key and
+    accepted nothing the check did not know, SQLite kept the 129-character serial."""
+    out_sqlite = _long_text_outcome(tmp_path / 'r.sqlite')
+    out_pg = _long_text_outcome(fresh_pg_db)
+    assert out_sqlite == out_pg
+    rows, message = out_sqlite
+    assert rows == [('S' * 128, 'te-analysis', ''), ('SN00002', 'test-plan', 'P' * 128)]
+    assert message.startswith('serial is 129 characters, the results store keeps at most 128')
+    assert '\n' not in message
+    assert len(message) < 200  # noqa: PLR2004 - the value is truncated in the message
+
+
+@pytest.mark.parametrize('field', ['serial', 'lot', 'operator', 'bench_id', 'preset', 'plan'])
+def test_each_limited_field_refused_by_name(field: str) -> None:
+    """Every String(128) column's field is checked, by name (issue #21)."""
+    replace(make_record(1), **{field: 'x' * 128})
+    with pytest.raises(StoreError, match=f'^{field} is 129 characters, .* at most 128'):
+        replace(make_record(1), **{field: 'x' * 129})
+
+
+def test_store_at_revision_0001_is_upgraded_keeping_its_records(tmp_path: Path) -> None:
+    """A store made by the first schema (record_key 200 wide) is migrated to 0002 (256, batch
+    mode on SQLite) when opened, and keeps its records."""
+    from alembic import command
+    from alembic.config import Config
+
+    from rv_te_bench.store._store import _MIGRATIONS
+    db = tmp_path / 'old.sqlite'
+    engine = create_engine(f'sqlite:///{db}')
+    cfg = Config()
+    cfg.set_main_option('script_location', os.fspath(_MIGRATIONS))
+    with engine.begin() as conn:
+        cfg.attributes['connection'] = conn
+        command.upgrade(cfg, '0001')
+    engine.dispose()
+    con = sqlite3.connect(db)
+    assert 'VARCHAR(200)' in con.execute(
+        "select sql from sqlite_master where name = 'results'").fetchone()[0]
+    con.execute("insert into results (record_key, test, plan, serial, tested_at, analysed_at, "
+                "status, verdict, command, software_version, bag_path, bag_sha256) values "
+                "('k', 'te-analysis', '', 'OLD1', '2026-11-01 00:00:00', "
+                "'2026-11-01 00:00:00', 'ok', 'pass', 'analyze', 'v', '/b', ?)", ('0' * 64,))
+    con.commit()
+    con.close()
+    with open_store(db) as st:
+        st.upsert(make_record(5))
+    with open_store(db) as st:
+        assert [r.serial for r in st.query()] == ['OLD1', 'SN00005']
+    con = sqlite3.connect(db)
+    assert con.execute('select version_num from alembic_version').fetchone()[0] == '0002'
+    assert 'VARCHAR(256)' in con.execute(
+        "select sql from sqlite_master where name = 'results'").fetchone()[0]
+    con.close()
