@@ -19,6 +19,14 @@ class CompensationError(RvTeError, ValueError):
     """A compensation or identification request cannot be honoured."""
 
 
+class BenchDescriptionError(TeConfigError):
+    """A bench description file is invalid (names the file, the key and the rule)."""
+
+
+class DataImportError(RvTeError, ValueError):
+    """A measurement file cannot be imported (names the file, column/channel and row/sample)."""
+
+
 class BagError(RvTeError):
     """A bag cannot be read or written."""
 

@@ -1,0 +1,535 @@
+"""A real bench described in a YAML file: reducer, encoders, DAQ rate, torque sensor, unit.
+
+The file (``rv_te_bench/launch/bench_description_example.yaml`` is a full example)::
+
+    bench_id: lab-bench-2            # required; EncoderBlock frame_id, BenchInfo.bench_id
+    preset: rv-80e-101               # a reducer preset (sim/preset_data) or a .toml path ...
+    preset_overrides: []             #   ... with "key=value" overrides as for --set
+    reducer:                         # ... or, without a preset, the reducer's kinematics:
+      kind: rv                       #   2kv | rv | other
+      gear_ratio: 121.0              #   i, input revolutions per output revolution (> 0)
+      crank_per_output: 39.0         #   |f_w / f_out|, absolute crank revs per output rev
+      crank_rel_per_output: 40.0     #   optional, default crank_per_output + 1
+      mesh_orders: [2400.0, 1560.0]  #   optional, orders of the output rotation
+      mesh_labels: [stage-1, pin]    #   optional, one per order (default 'mesh k')
+    sample_rate_hz: 10000.0          # nominal DAQ rate [Hz]
+    block_size: 1000                 # samples per EncoderBlock
+    encoders:
+      input: {model: heidenhain-ron886}                      # known model: its resolution
+      output: {model: RESOLUTE-32, counts_per_rev: 4294967296}   # or counts_per_rev,
+                                                             #   or resolution_rad
+    torque_sensor: {present: true, model: HBM T40B, scale_nm_per_unit: 1.0, unit: N m}
+    unit_under_test: {serial: SN-42, operator: A. Tester, temperature_c: 23.5, notes: ''}
+    joints: {input: input_joint, output: output_joint}       # JointState names (optional)
+    metadata: {daq: NI PXIe-4492}                            # free strings, into the bag
+
+Only ``bench_id``, ``sample_rate_hz`` and either ``preset`` or ``reducer`` are required. With
+a preset, ratio, crank orders and mesh orders/labels come from the preset's kinematics
+(:func:`sim.kinematics.kinematics_from_preset`), and ``reducer`` is refused (use
+``preset_overrides`` to change teeth). Without a preset the cranks are taken to turn
+against the input (the sign both shipped reducer kinds have): ``crank_per_input =
+-crank_per_output / gear_ratio``. Every bad key or value raises
+:class:`~rv_te_bench.errors.BenchDescriptionError` with one line naming the file, the key,
+the rule and the value.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+from pathlib import Path
+from types import MappingProxyType
+from typing import TYPE_CHECKING, Any
+
+import yaml
+
+from rv_te_bench.errors import BenchDescriptionError, YamlInputError
+from rv_te_bench.safe_yaml import DOCUMENT_LIMITS, brief, read_yaml_file
+
+if TYPE_CHECKING:
+    from collections.abc import Mapping
+
+    from sim.bench import BenchInfoData
+
+__all__ = [
+    'REDUCER_KINDS',
+    'BenchDescription',
+    'EncoderInfo',
+    'TorqueSensor',
+    'UnitUnderTest',
+    'load_bench_description',
+    'parse_bench_description',
+]
+
+REDUCER_KINDS = ('2kv', 'rv', 'other')
+_TWO_PI = 2.0 * math.pi
+_MAX_TEXT = 4096        # longest free text (notes, metadata values) [characters]
+_MAX_METADATA = 100     # most free metadata keys
+
+
+def _fail(where: str, key: str, rule: str, value: Any = None) -> None:  # noqa: ANN401
+    got = '' if value is None else f', got {brief(value)}'
+    msg = f'{where}: {key} {rule}{got}'
+    raise BenchDescriptionError(msg)
+
+
+def _number(v: Any) -> bool:  # noqa: ANN401
+    return not isinstance(v, bool) and isinstance(v, int | float) and math.isfinite(v)
+
+
+@dataclass(frozen=True)
+class EncoderInfo:
+    """One shaft encoder of the bench.
+
+    Attributes:
+        model: Model name (BenchInfo ``encoder_*_model``).
+        resolution_rad: Smallest increment [rad] (0.0: unknown / not quantised).
+        counts_per_rev: Increments per revolution when known (raw counter columns are
+            divided by it), else None.
+    """
+
+    model: str
+    resolution_rad: float = 0.0
+    counts_per_rev: int | None = None
+
+    def __post_init__(self) -> None:
+        """Validate (model non-empty, resolution finite >= 0, counts >= 1)."""
+        if not isinstance(self.model, str) or not self.model.strip():
+            _fail('EncoderInfo', 'model', 'must be a non-empty string', self.model)
+        if not _number(self.resolution_rad) or self.resolution_rad < 0:
+            _fail('EncoderInfo', 'resolution_rad', 'must be a finite number >= 0',
+                  self.resolution_rad)
+        cpr = self.counts_per_rev
+        if cpr is not None and (isinstance(cpr, bool) or not isinstance(cpr, int) or cpr < 1):
+            _fail('EncoderInfo', 'counts_per_rev', 'must be an integer >= 1', cpr)
+
+
+@dataclass(frozen=True)
+class TorqueSensor:
+    """The output torque sensor.
+
+    Attributes:
+        present: Whether the bench measures output torque.
+        model: Sensor model ('' when unknown).
+        scale_nm_per_unit: Recorded value x scale = torque [N m].
+        unit: Unit of the recorded value (for the record, e.g. ``'V'`` or ``'N m'``).
+    """
+
+    present: bool = False
+    model: str = ''
+    scale_nm_per_unit: float = 1.0
+    unit: str = 'N m'
+
+    def __post_init__(self) -> None:
+        """Validate (finite non-zero scale)."""
+        if not _number(self.scale_nm_per_unit) or self.scale_nm_per_unit == 0:
+            _fail('TorqueSensor', 'scale_nm_per_unit', 'must be a finite non-zero number',
+                  self.scale_nm_per_unit)
+
+
+@dataclass(frozen=True)
+class UnitUnderTest:
+    """The reducer being tested (all optional)."""
+
+    serial: str = ''
+    operator: str = ''
+    temperature_c: float | None = None
+    notes: str = ''
+
+    def __post_init__(self) -> None:
+        """Validate (temperature finite, in -100..300 degC)."""
+        t = self.temperature_c
+        if t is not None and (not _number(t) or not -100.0 <= t <= 300.0):  # noqa: PLR2004
+            _fail('UnitUnderTest', 'temperature_c', 'must be a number in [-100, 300]', t)
+
+
+@dataclass(frozen=True)
+class BenchDescription:
+    """A validated bench description (SI units; see the module docstring for the file).
+
+    Attributes:
+        bench_id: Bench identifier (EncoderBlock frame_id).
+        preset: Reducer preset name or path, None for a reducer without a preset.
+        preset_overrides: ``"key=value"`` overrides applied to the preset.
+        reducer_type: ``'2kv'``, ``'rv'`` or ``'other'``.
+        gear_ratio: i, input revolutions per output revolution (> 0).
+        crank_per_output: |f_w / f_out|, absolute crank revolutions per output revolution.
+        crank_rel_per_output: |crank revolutions relative to the carrier| per output rev.
+        mesh_orders: Mesh frequencies as orders of the output rotation.
+        mesh_labels: One label per mesh order.
+        encoder_in: Input-shaft encoder.
+        encoder_out: Output-shaft encoder.
+        sample_rate_hz: Nominal DAQ rate [Hz].
+        block_size: Samples per EncoderBlock.
+        torque_sensor: The output torque sensor.
+        unit_under_test: Serial, operator, temperature, notes.
+        joint_in_name: JointState name of the input joint (None: not given).
+        joint_out_name: JointState name of the output joint (None: not given).
+        metadata: Free string metadata (read-only mapping).
+        origin: Where the description came from (file name), for messages.
+    """
+
+    bench_id: str
+    gear_ratio: float
+    crank_per_output: float
+    sample_rate_hz: float
+    preset: str | None = None
+    preset_overrides: tuple[str, ...] = ()
+    reducer_type: str = 'other'
+    crank_rel_per_output: float = math.nan
+    mesh_orders: tuple[float, ...] = ()
+    mesh_labels: tuple[str, ...] = ()
+    encoder_in: EncoderInfo = field(default_factory=lambda: EncoderInfo('unknown'))
+    encoder_out: EncoderInfo = field(default_factory=lambda: EncoderInfo('unknown'))
+    block_size: int = 1000
+    torque_sensor: TorqueSensor = field(default_factory=TorqueSensor)
+    unit_under_test: UnitUnderTest = field(default_factory=UnitUnderTest)
+    joint_in_name: str | None = None
+    joint_out_name: str | None = None
+    metadata: Mapping[str, str] = field(default_factory=dict, hash=False)
+    origin: str = field(default='<bench description>', compare=False)
+
+    def __post_init__(self) -> None:  # noqa: C901 - one check per field
+        """Validate every field; NaN ``crank_rel_per_output`` becomes crank + 1.
+
+        Raises:
+            BenchDescriptionError: A field breaks its rule (names origin, field, value).
+        """
+        w = self.origin
+        if not isinstance(self.bench_id, str) or not self.bench_id.strip():
+            _fail(w, 'bench_id', 'must be a non-empty string', self.bench_id)
+        if self.preset is not None and (not isinstance(self.preset, str)
+                                        or not self.preset.strip()):
+            _fail(w, 'preset', 'must be a non-empty string or None', self.preset)
+        object.__setattr__(self, 'preset_overrides', tuple(self.preset_overrides))
+        if self.reducer_type not in REDUCER_KINDS:
+            _fail(w, 'reducer.kind', f'must be one of {list(REDUCER_KINDS)}', self.reducer_type)
+        for name in ('gear_ratio', 'crank_per_output', 'sample_rate_hz'):
+            v = getattr(self, name)
+            if not _number(v) or v <= 0:
+                _fail(w, name, 'must be a finite number > 0', v)
+            object.__setattr__(self, name, float(v))
+        rel = self.crank_rel_per_output
+        if isinstance(rel, float) and math.isnan(rel):
+            rel = self.crank_per_output + 1.0
+        if not _number(rel) or rel <= 0:
+            _fail(w, 'crank_rel_per_output', 'must be a finite number > 0', rel)
+        object.__setattr__(self, 'crank_rel_per_output', float(rel))
+        orders = tuple(self.mesh_orders)
+        if any(not _number(o) or o <= 0 for o in orders):
+            _fail(w, 'mesh_orders', 'must be finite numbers > 0', list(orders))
+        object.__setattr__(self, 'mesh_orders', tuple(float(o) for o in orders))
+        labels = tuple(self.mesh_labels) or tuple(f'mesh {k}' for k in range(1, len(orders) + 1))
+        if len(labels) != len(orders) or not all(isinstance(s, str) for s in labels):
+            _fail(w, 'mesh_labels', f'must be {len(orders)} strings (one per mesh order)',
+                  list(labels))
+        object.__setattr__(self, 'mesh_labels', labels)
+        bs = self.block_size
+        if isinstance(bs, bool) or not isinstance(bs, int) or not 1 <= bs <= 1_000_000:  # noqa: PLR2004
+            _fail(w, 'block_size', 'must be an integer in [1, 1000000]', bs)
+        for name, cls in (('encoder_in', EncoderInfo), ('encoder_out', EncoderInfo),
+                          ('torque_sensor', TorqueSensor), ('unit_under_test', UnitUnderTest)):
+            if not isinstance(getattr(self, name), cls):
+                _fail(w, name, f'must be a {cls.__name__}', getattr(self, name))
+        for name in ('joint_in_name', 'joint_out_name'):
+            v = getattr(self, name)
+            if v is not None and (not isinstance(v, str) or not v.strip()):
+                _fail(w, name, 'must be a non-empty string or None', v)
+        meta = dict(self.metadata)
+        if not all(isinstance(k, str) and isinstance(v, str) for k, v in meta.items()):
+            _fail(w, 'metadata', 'must map strings to strings', meta)
+        object.__setattr__(self, 'metadata', MappingProxyType(meta))
+
+    @property
+    def crank_per_input(self) -> float:
+        """Signed absolute crank revolutions per input revolution (BenchInfo field)."""
+        if self.preset is not None:
+            return float(self._kinematics().crank_per_input)
+        return -self.crank_per_output / self.gear_ratio
+
+    @property
+    def crank_rel_per_input(self) -> float:
+        """Signed crank revolutions relative to the carrier per input revolution."""
+        if self.preset is not None:
+            return float(self._kinematics().crank_rel_per_input)
+        return -self.crank_rel_per_output / self.gear_ratio
+
+    def _kinematics(self) -> Any:  # noqa: ANN401 - sim.kinematics.ReducerKinematics
+        from sim.kinematics import kinematics_from_preset  # noqa: PLC0415
+
+        return kinematics_from_preset(self._preset())
+
+    def _preset(self) -> Any:  # noqa: ANN401 - sim.presets.Preset
+        from sim.presets import load_preset  # noqa: PLC0415
+
+        return load_preset(str(self.preset), list(self.preset_overrides))
+
+    def to_plain(self) -> dict[str, Any]:
+        """The description as validated (SI units), YAML-friendly."""
+        return {
+            'bench_id': self.bench_id, 'preset': self.preset,
+            'overrides': list(self.preset_overrides), 'reducer_type': self.reducer_type,
+            'gear_ratio': self.gear_ratio, 'crank_per_output': self.crank_per_output,
+            'crank_rel_per_output': self.crank_rel_per_output,
+            'mesh_orders': list(self.mesh_orders), 'mesh_labels': list(self.mesh_labels),
+            'encoder_in': _encoder_plain(self.encoder_in),
+            'encoder_out': _encoder_plain(self.encoder_out),
+            'sample_rate_hz': self.sample_rate_hz, 'block_size': self.block_size,
+            'torque_sensor': {'present': self.torque_sensor.present,
+                              'model': self.torque_sensor.model,
+                              'scale_nm_per_unit': self.torque_sensor.scale_nm_per_unit,
+                              'unit': self.torque_sensor.unit},
+            'unit_under_test': {'serial': self.unit_under_test.serial,
+                                'operator': self.unit_under_test.operator,
+                                'temperature_c': self.unit_under_test.temperature_c,
+                                'notes': self.unit_under_test.notes},
+            'joints': {'input': self.joint_in_name, 'output': self.joint_out_name},
+            'metadata': dict(self.metadata),
+            'source': 'bench description',
+        }
+
+    def bench_info(self) -> BenchInfoData:
+        """The ``rv_te_msgs/BenchInfo`` fields of this bench.
+
+        ``parameters_yaml`` holds ``{'bench': to_plain(), 'preset': {name, model, values}}``
+        as :attr:`sim.bench.BenchSimulator.info` records it (``bench.overrides`` included,
+        so :func:`rv_te_bench.io.bench_record.overrides_from_parameters_yaml` rebuilds the
+        exact preset).
+        """
+        from sim.bench import BenchInfoData  # noqa: PLC0415
+
+        record: dict[str, Any] = {'bench': self.to_plain()}
+        if self.preset is not None:
+            preset = self._preset()
+            record['preset'] = {'name': preset.name, 'model': preset.model,
+                                'values': preset.to_plain()}
+        return BenchInfoData(
+            bench_id=self.bench_id, preset=self.preset or '', reducer_type=self.reducer_type,
+            gear_ratio=self.gear_ratio, crank_per_input=self.crank_per_input,
+            crank_rel_per_input=self.crank_rel_per_input, mesh_orders=self.mesh_orders,
+            mesh_labels=self.mesh_labels, encoder_in_model=self.encoder_in.model,
+            encoder_out_model=self.encoder_out.model,
+            encoder_in_resolution_rad=self.encoder_in.resolution_rad,
+            encoder_out_resolution_rad=self.encoder_out.resolution_rad,
+            sample_rate_hz=self.sample_rate_hz, block_size=self.block_size,
+            parameters_yaml=yaml.safe_dump(record, sort_keys=True))
+
+    def to_metadata(self) -> dict[str, Any]:
+        """The bag's metadata ``custom_data`` (keys the report reads: ``unit_serial``).
+
+        Free ``metadata`` keys come first, so the described keys win on a clash.
+        """
+        uut = self.unit_under_test
+        out: dict[str, Any] = dict(self.metadata)
+        out.update({
+            'bench_id': self.bench_id,
+            'preset': self.preset or '',
+            'unit_serial': uut.serial,
+            'operator': uut.operator,
+            'temperature_c': '' if uut.temperature_c is None else f'{uut.temperature_c:g}',
+            'unit_notes': uut.notes,
+            'bench_description': yaml.safe_dump(self.to_plain(), sort_keys=True),
+        })
+        return out
+
+
+def _encoder_plain(e: EncoderInfo) -> dict[str, Any]:
+    return {'model': e.model, 'resolution_rad': e.resolution_rad,
+            'counts_per_rev': e.counts_per_rev}
+
+
+class _Keys:
+    """Pops and checks the keys of one mapping; one line naming where, key, rule, value."""
+
+    def __init__(self, data: Any, where: str, key: str = '') -> None:  # noqa: ANN401
+        self.where = where
+        self.prefix = f'{key}.' if key else ''
+        if not isinstance(data, dict):
+            _fail(where, key or 'document', 'must be a mapping', data)
+        self.data = dict(data)
+
+    def fail(self, key: str, rule: str, value: Any = None) -> None:  # noqa: ANN401
+        _fail(self.where, f'{self.prefix}{key}', rule, value)
+
+    def num(self, key: str, *, required: bool = False, positive: bool = True,
+            default: float | None = None) -> float | None:
+        if key not in self.data:
+            if required:
+                self.fail(key, 'is required')
+            return default
+        v = self.data.pop(key)
+        if not _number(v) or (positive and v <= 0):
+            self.fail(key, 'must be a finite number' + (' > 0' if positive else ''), v)
+        return float(v)
+
+    def text(self, key: str, default: str | None = None, *, required: bool = False,
+             allow_empty: bool = False) -> str | None:
+        if key not in self.data:
+            if required:
+                self.fail(key, 'is required')
+            return default
+        v = self.data.pop(key)
+        if isinstance(v, int | float) and not isinstance(v, bool):
+            v = str(v)        # a serial number written as 1234
+        if not isinstance(v, str) or (not allow_empty and not v.strip()) or len(v) > _MAX_TEXT:
+            self.fail(key, f'must be a {"" if allow_empty else "non-empty "}string of at most '
+                      f'{_MAX_TEXT} characters', v)
+        return v.strip()
+
+    def sub(self, key: str) -> _Keys:
+        return _Keys(self.data.pop(key, {}) or {}, self.where, f'{self.prefix}{key}')
+
+    def done(self) -> None:
+        if self.data:
+            self.fail(f'unknown key(s) {sorted(map(str, self.data))}',
+                      'are not allowed here (misspelt?)')
+
+
+def _encoder(k: _Keys) -> EncoderInfo:
+    from sim.encoders import ENCODER_PRESETS  # noqa: PLC0415
+
+    model = k.text('model', 'unknown') or 'unknown'
+    known = ENCODER_PRESETS.get(model)
+    cpr = k.data.pop('counts_per_rev', None)
+    if cpr is not None and (isinstance(cpr, bool) or not isinstance(cpr, int) or cpr < 1):
+        k.fail('counts_per_rev', 'must be an integer >= 1', cpr)
+    res = k.num('resolution_rad', positive=False)
+    if res is not None and res < 0:
+        k.fail('resolution_rad', 'must be >= 0', res)
+    if cpr is not None and res is not None and not math.isclose(res, _TWO_PI / cpr,
+                                                                 rel_tol=1e-9):
+        k.fail('resolution_rad', f'contradicts counts_per_rev {cpr} (2 pi / counts = '
+               f'{_TWO_PI / cpr:.6g} rad); give one of them', res)
+    if cpr is None and known is not None:
+        cpr = known.counts_per_rev
+    if res is None:
+        res = _TWO_PI / cpr if cpr else (known.resolution_rad if known is not None else 0.0)
+    k.done()
+    return EncoderInfo(model=model, resolution_rad=float(res), counts_per_rev=cpr)
+
+
+def _kinematic_fields(top: _Keys, preset: str | None, overrides: tuple[str, ...],
+                      ) -> dict[str, Any]:
+    if preset is not None:
+        if 'reducer' in top.data:
+            top.fail('reducer', 'is not allowed with a preset (the preset gives the '
+                     'kinematics; change teeth with preset_overrides)')
+        from sim.errors import PresetError  # noqa: PLC0415
+        from sim.kinematics import kinematics_from_preset  # noqa: PLC0415
+        from sim.presets import load_preset  # noqa: PLC0415
+
+        try:
+            kin = kinematics_from_preset(load_preset(preset, list(overrides)))
+        except (PresetError, OSError) as exc:
+            top.fail('preset', f'cannot be used ({" ".join(str(exc).split())})')
+        return {'reducer_type': str(kin.kind), 'gear_ratio': float(kin.gear_ratio),
+                'crank_per_output': float(kin.crank_per_output),
+                'crank_rel_per_output': float(kin.crank_rel_per_output),
+                'mesh_orders': tuple(float(o) for o in kin.mesh_orders_out),
+                'mesh_labels': tuple(str(s) for s in kin.mesh_labels)}
+    if 'reducer' not in top.data:
+        top.fail('preset', 'or reducer (gear_ratio, crank_per_output) is required')
+    r = top.sub('reducer')
+    kind = r.text('kind', 'other')
+    if kind not in REDUCER_KINDS:
+        r.fail('kind', f'must be one of {list(REDUCER_KINDS)}', kind)
+    out: dict[str, Any] = {
+        'reducer_type': kind, 'gear_ratio': r.num('gear_ratio', required=True),
+        'crank_per_output': r.num('crank_per_output', required=True),
+        'crank_rel_per_output': r.num('crank_rel_per_output', default=math.nan)}
+    orders = r.data.pop('mesh_orders', [])
+    if not isinstance(orders, list) or len(orders) > 20 or any(  # noqa: PLR2004
+            not _number(o) or o <= 0 for o in orders):
+        r.fail('mesh_orders', 'must be a list of at most 20 finite numbers > 0', orders)
+    labels = r.data.pop('mesh_labels', [f'mesh {j + 1}' for j in range(len(orders))])
+    if not isinstance(labels, list) or len(labels) != len(orders) or not all(
+            isinstance(s, str) and s.strip() for s in labels):
+        r.fail('mesh_labels', f'must be a list of {len(orders)} non-empty strings (one per '
+               'mesh order)', labels)
+    r.done()
+    out['mesh_orders'] = tuple(float(o) for o in orders)
+    out['mesh_labels'] = tuple(labels)
+    return out
+
+
+def parse_bench_description(data: Any, origin: str = '<bench description>',  # noqa: ANN401
+                            ) -> BenchDescription:
+    """Validate a bench description mapping (parsed YAML).
+
+    Raises:
+        BenchDescriptionError: Anything wrong, in one line (origin, key, rule, value).
+    """
+    top = _Keys(data, origin)
+    bench_id = top.text('bench_id', required=True)
+    preset = top.text('preset')
+    ov = top.data.pop('preset_overrides', [])
+    if not isinstance(ov, list) or not all(isinstance(o, str) and '=' in o for o in ov):
+        top.fail('preset_overrides', 'must be a list of "key=value" strings', ov)
+    if ov and preset is None:
+        top.fail('preset_overrides', 'needs a preset')
+    kin = _kinematic_fields(top, preset, tuple(ov))
+    rate = top.num('sample_rate_hz', required=True)
+    bs = top.data.pop('block_size', 1000)
+    if isinstance(bs, bool) or not isinstance(bs, int) or not 1 <= bs <= 1_000_000:  # noqa: PLR2004
+        top.fail('block_size', 'must be an integer in [1, 1000000]', bs)
+    enc = top.sub('encoders')
+    enc_in = _encoder(enc.sub('input'))
+    enc_out = _encoder(enc.sub('output'))
+    enc.done()
+    ts = top.sub('torque_sensor')
+    present = ts.data.pop('present', bool(ts.data))
+    if not isinstance(present, bool):
+        ts.fail('present', 'must be true or false', present)
+    scale = ts.num('scale_nm_per_unit', default=1.0, positive=False)
+    if scale == 0:
+        ts.fail('scale_nm_per_unit', 'must be non-zero', scale)
+    torque = TorqueSensor(present=present, model=ts.text('model', '', allow_empty=True) or '',
+                          scale_nm_per_unit=float(scale or 1.0),
+                          unit=ts.text('unit', 'N m') or 'N m')
+    ts.done()
+    u = top.sub('unit_under_test')
+    temp = u.num('temperature_c', positive=False)
+    if temp is not None and not -100.0 <= temp <= 300.0:  # noqa: PLR2004
+        u.fail('temperature_c', 'must be in [-100, 300] degC', temp)
+    uut = UnitUnderTest(serial=u.text('serial', '') or '', operator=u.text('operator', '') or '',
+                        temperature_c=temp, notes=u.text('notes', '', allow_empty=True) or '')
+    u.done()
+    j = top.sub('joints')
+    joint_in, joint_out = j.text('input'), j.text('output')
+    j.done()
+    if joint_in is not None and joint_in == joint_out:
+        j.fail('output', 'must differ from joints.input', joint_out)
+    meta_raw = top.data.pop('metadata', {}) or {}
+    if not isinstance(meta_raw, dict) or len(meta_raw) > _MAX_METADATA:
+        top.fail('metadata', f'must be a mapping of at most {_MAX_METADATA} keys', meta_raw)
+    meta: dict[str, str] = {}
+    for key, value in meta_raw.items():
+        if not isinstance(key, str) or isinstance(value, dict | list) or value is None \
+                or len(str(value)) > _MAX_TEXT:
+            top.fail(f'metadata.{key}', f'must be a text or number of at most {_MAX_TEXT} '
+                     'characters', value)
+        meta[key] = str(value)
+    top.done()
+    return BenchDescription(
+        bench_id=str(bench_id), preset=preset, preset_overrides=tuple(ov),
+        sample_rate_hz=float(rate or 0.0), block_size=int(bs), encoder_in=enc_in,
+        encoder_out=enc_out, torque_sensor=torque, unit_under_test=uut,
+        joint_in_name=joint_in, joint_out_name=joint_out, metadata=meta, origin=origin, **kin)
+
+
+def load_bench_description(path: str | Path) -> BenchDescription:
+    """Read and validate a bench description YAML file (bounded loader).
+
+    Raises:
+        BenchDescriptionError: Unreadable file, bad YAML, or an invalid key or value (one
+            line naming the file, the key, the rule and the value).
+    """
+    p = Path(path)
+    try:
+        data = read_yaml_file(p, what='bench description', limits=DOCUMENT_LIMITS)
+    except YamlInputError as exc:
+        raise BenchDescriptionError(str(exc)) from None
+    if data is None:
+        msg = f'bench description {p}: the file is empty'
+        raise BenchDescriptionError(msg)
+    return parse_bench_description(data, f'bench description {p}')
