@@ -9,6 +9,8 @@ Units: each channel's unit unless an option gives one.
 
 from __future__ import annotations
 
+import gc
+import sys
 import warnings
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
@@ -51,13 +53,21 @@ class MdfReader:
         if self.path.is_file() and self.path.stat().st_size == 0:
             msg = f'{path}: the file is empty'
             raise DataImportError(msg)
+        problem = None
+        hook = sys.unraisablehook
+        sys.unraisablehook = lambda _u: None    # a half-built MDF4 complains in __del__
         try:
             with warnings.catch_warnings():
                 warnings.simplefilter('ignore')
                 self._mdf = MDF(self.path)
         except Exception as exc:  # noqa: BLE001 - asammdf raises many types on bad files
-            msg = f'{path}: not a readable MDF file ({_short(exc)})'
-            raise DataImportError(msg) from None
+            problem = _short(exc)
+        finally:
+            gc.collect()
+            sys.unraisablehook = hook
+        if problem is not None:
+            msg = f'{path}: not a readable MDF file, truncated or damaged ({problem})'
+            raise DataImportError(msg)
         if options.theta_in is None or options.theta_out is None:
             msg = (f'{path}: name the angle channels with --theta-in and --theta-out '
                    f'(channels: {", ".join(self._names()[:20])})')

@@ -10,6 +10,8 @@ time channel (``--time``), else the waveform properties of the input channel
 
 from __future__ import annotations
 
+import contextlib
+import logging
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
@@ -37,6 +39,25 @@ def _datetime64_ns(value: Any) -> int | None:  # noqa: ANN401 - a TDMS property
         return None
 
 
+@contextlib.contextmanager
+def _nptdms_warnings() -> Iterator[list[str]]:
+    """Collect what nptdms logs (it prints warnings to stderr itself) instead of printing."""
+    from nptdms.log import log_manager  # noqa: PLC0415
+
+    seen: list[str] = []
+
+    def keep(record: logging.LogRecord) -> bool:
+        seen.append(record.getMessage())
+        return False
+
+    handler = log_manager.console_handler
+    handler.addFilter(keep)
+    try:
+        yield seen
+    finally:
+        handler.removeFilter(keep)
+
+
 class TdmsReader:
     """A TDMS file opened for import (see the module docstring).
 
@@ -58,11 +79,14 @@ class TdmsReader:
         if self.path.is_file() and self.path.stat().st_size == 0:
             msg = f'{path}: the file is empty'
             raise DataImportError(msg)
-        try:
-            self._file = TdmsFile.open(self.path)
-        except Exception as exc:  # noqa: BLE001 - nptdms raises many types on bad files
-            msg = f'{path}: not a readable TDMS file ({_short(exc)})'
-            raise DataImportError(msg) from None
+        with _nptdms_warnings() as warned:
+            try:
+                self._file = TdmsFile.open(self.path)
+            except Exception as exc:  # noqa: BLE001 - nptdms raises many types on bad files
+                msg = f'{path}: not a readable TDMS file, truncated or damaged ({_short(exc)})'
+                raise DataImportError(msg) from None
+        if any('less data than expected' in w or 'not a multiple' in w for w in warned):
+            self._truncated()
         if options.theta_in is None or options.theta_out is None:
             msg = (f'{path}: name the angle channels with --theta-in and --theta-out '
                    f'(channels: {", ".join(self._names()[:20])})')
@@ -89,6 +113,19 @@ class TdmsReader:
         self.declared_rate_hz = 1.0 / float(inc) if inc and float(inc) > 0 else None
         self.start_ns = _datetime64_ns(props.get('wf_start_time')) \
             if props.get('wf_start_time') is not None else None
+
+    def _truncated(self) -> None:
+        """Name the first channel whose data ends early (a truncated last segment)."""
+        lengths = [(f'{g.name}/{c.name}', len(c)) for g in self._file.groups()
+                   for c in g.channels()]
+        longest = max((n for _, n in lengths), default=0)
+        short = [(name, n) for name, n in lengths if n < longest]
+        name, n = short[0] if short else (lengths[-1] if lengths else ('?', 0))
+        self._file.close()
+        msg = (f'{self.origin}: channel {name!r}, sample {n}: the data ends there, the file is '
+               f'truncated (its last segment holds less data than announced; the longest '
+               f'channel has {longest} samples)')
+        raise DataImportError(msg)
 
     def _names(self) -> list[str]:
         return [f'{g.name}/{c.name}' for g in self._file.groups() for c in g.channels()]
