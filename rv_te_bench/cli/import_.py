@@ -23,7 +23,7 @@ examples:
   rv-te import run.mf4 --bench bench.yaml --out bags/run_mdf \\
       --theta-in theta_in --theta-out theta_out
                         ASAM MDF4: time from the channel group's master channel
-  rv-te import --write-bench-example bench.yaml
+  rv-te import --write-bench-example my_bench.yaml
                         write the example bench description to edit
 
 Then analyse the bag as any session: rv-te analyze bags/run_csv --report out/run_csv.
