@@ -23,6 +23,9 @@ examples:
   rv-te import run.mf4 --bench bench.yaml --out bags/run_mdf \\
       --theta-in theta_in --theta-out theta_out
                         ASAM MDF4: time from the channel group's master channel
+  rv-te import joint_states_bag --bench bench.yaml --out bags/run_js
+                        rosbag2 bag (MCAP or sqlite3) of sensor_msgs/JointState; joints
+                        from the bench description (joints: input, output) or --theta-in
   rv-te import --write-bench-example my_bench.yaml
                         write the example bench description to edit
 
@@ -37,8 +40,8 @@ leaves nothing behind. TDMS and MDF need the extra: pip install "rv-te-bench[daq
 def register(subparsers: Any) -> None:  # noqa: ANN401 - argparse's private type
     """Add the ``import`` subcommand."""
     p = subparsers.add_parser(
-        'import', help='convert a DAQ measurement file (CSV, NI TDMS, ASAM MDF4) into a '
-                       'session bag',
+        'import', help='convert a DAQ measurement file (CSV, NI TDMS, ASAM MDF4) or a '
+                       'JointState bag into a session bag',
         description='Convert a measurement file of a real bench into a rosbag2/MCAP bag of '
                     'BenchInfo + EncoderBlock messages that analyze, identify, replay and the '
                     'report take as any session.',
@@ -47,15 +50,17 @@ def register(subparsers: Any) -> None:  # noqa: ANN401 - argparse's private type
     p.add_argument('--bench', type=Path, metavar='BENCH.yaml',
                    help='bench description (rv-te import --write-bench-example bench.yaml)')
     p.add_argument('--out', type=Path, metavar='BAG', help='bag folder to create (must not exist)')
-    p.add_argument('--format', choices=('csv', 'tdms', 'mdf'),
-                   help='file format (default: from the suffix)')
+    p.add_argument('--format', choices=('csv', 'tdms', 'mdf', 'bag'),
+                   help='file format (default: from the suffix; a folder, .mcap or .db3 is a '
+                        'rosbag2 bag of sensor_msgs/JointState)')
     p.add_argument('--theta-in', metavar='COL', help='input-angle column / channel (name, '
-                   'group/channel for TDMS, or 0-based CSV index)')
+                   'group/channel for TDMS, 0-based CSV index, or the JointState joint name)')
     p.add_argument('--theta-out', metavar='COL', help='output-angle column / channel')
     p.add_argument('--torque', metavar='COL', help='output-torque column / channel (x the '
                    "bench's torque_sensor.scale_nm_per_unit = N m)")
     p.add_argument('--time', metavar='COL', help='time column / channel (default: the '
-                   "file's own time base, else --rate, else the bench's sample_rate_hz)")
+                   "file's own time base, else --rate, else the bench's sample_rate_hz); for a "
+                   'JointState bag: the topic, when it has several')
     p.add_argument('--time-unit', choices=('s', 'ms', 'us', 'ns'), default='s',
                    help='unit of the --time column')
     p.add_argument('--rate', type=float, metavar='HZ', help='fixed sample rate [Hz] (no time '

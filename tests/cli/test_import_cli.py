@@ -217,3 +217,11 @@ def test_single_turn_counts_unwrapped(tmp_path: Path, session: daq_files.Session
     np.testing.assert_allclose(th_in + start_in, session.theta_in_rad, rtol=0,
                                atol=2 * np.pi / cpr_in * 1.001)
     assert np.all(np.diff(th_in) > 0)   # the input wrapped many times, unwrapped
+
+
+def test_bag_without_jointstate(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    sample = Path(__file__).resolve().parents[2] / 'bags' / 'sample'
+    code, err = run_import(tmp_path, sample, capsys, cols=())
+    assert code == 1
+    line = one_error_line(err)
+    assert str(sample) in line and 'no topic of type sensor_msgs/msg/JointState' in line

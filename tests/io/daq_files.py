@@ -26,6 +26,7 @@ BENCH = {
                  'output': {'model': 'heidenhain-ron886'}},
     'torque_sensor': {'present': True, 'scale_nm_per_unit': 1.0},
     'unit_under_test': {'serial': 'SN-DAQ-1', 'operator': 'pytest', 'temperature_c': 22.0},
+    'joints': {'input': 'input_joint', 'output': 'output_joint'},
 }
 
 
@@ -115,6 +116,42 @@ def write_mdf(path: Path, s: Session) -> Path:
     return path
 
 
+def write_jointstate_bag(path: Path, s: Session, *, separate: bool = False,
+                         storage: str = 'mcap', skip: tuple[int, ...] = (),
+                         stamp_ns: dict[int, int] | None = None) -> Path:
+    """A ros2_control-style bag of sensor_msgs/JointState on /joint_states, one message per
+    sample (``separate``: one per joint and sample), written by rosbags; ``skip`` leaves
+    out the output joint's message of those samples (separate only), ``stamp_ns`` replaces
+    the stamps of some samples."""
+    from rosbags.rosbag2 import StoragePlugin, Writer  # noqa: PLC0415
+    from rosbags.typesys import Stores, get_typestore  # noqa: PLC0415
+
+    store = get_typestore(Stores.ROS2_JAZZY)
+    js = store.types['sensor_msgs/msg/JointState']
+    header = store.types['std_msgs/msg/Header']
+    stamp = store.types['builtin_interfaces/msg/Time']
+    plugin = StoragePlugin.SQLITE3 if storage == 'sqlite3' else StoragePlugin.MCAP
+    names = (BENCH['joints']['input'], BENCH['joints']['output'])
+    with Writer(path, version=9, storage_plugin=plugin) as w:
+        conn = w.add_connection('/joint_states', js.__msgtype__, typestore=store)
+        for k in range(s.t_s.size):
+            log_ns = START_NS + round(k * 1e9 / RATE_HZ) + 100_000   # arrival: 0.1 ms later
+            t_ns = (stamp_ns or {}).get(k, log_ns - 100_000)
+            hdr = header(stamp=stamp(sec=t_ns // 10**9, nanosec=t_ns % 10**9), frame_id='')
+            pos = (float(s.theta_in_rad[k]), float(s.theta_out_rad[k]))
+            eff = (0.0, float(s.torque_nm[k]))
+            if separate:
+                parts = [(0,)] + ([] if k in skip else [(1,)])
+            else:
+                parts = [(0, 1)]
+            for idx in parts:
+                msg = js(header=hdr, name=[names[i] for i in idx],
+                         position=np.array([pos[i] for i in idx]), velocity=np.zeros(0),
+                         effort=np.array([eff[i] for i in idx]))
+                w.write(conn, log_ns, bytes(store.serialize_cdr(msg, js.__msgtype__)))
+    return path
+
+
 def example_inputs(folder: Path) -> None:
     """What ``rv-te import --help`` examples name: bench.yaml, run.csv, run.tdms, run.mf4."""
     s = simulate(duration_s=2.0)
@@ -125,3 +162,4 @@ def example_inputs(folder: Path) -> None:
                delimiter=',')
     write_tdms(folder / 'run.tdms', s)
     write_mdf(folder / 'run.mf4', s)
+    write_jointstate_bag(folder / 'joint_states_bag', simulate(duration_s=0.5))

@@ -136,3 +136,49 @@ def test_imported_bag_read_by_rosbags_and_mcap(session: tuple, tmp_path: Path) -
         for _schema, channel, _message in make_reader(f).iter_messages():
             counts[channel.topic] = counts.get(channel.topic, 0) + 1
     assert counts == {'/bench/info': 1, '/bench/encoders': len(seqs)}
+
+
+@pytest.mark.parametrize(('separate', 'storage'), [(False, 'mcap'), (True, 'sqlite3')])
+def test_jointstate_bag_round_trip(session: tuple, tmp_path: Path, separate: bool,
+                                   storage: str) -> None:
+    """ros2_control's JointState (joints in one message, or one message per joint paired
+    by stamp; MCAP or sqlite3) imported back: float64 positions, so exact (1e-11 rad)."""
+    s, _, ref = session
+    bag = daq_files.write_jointstate_bag(tmp_path / 'js', s, separate=separate,
+                                         storage=storage)
+    desc = load_bench_description(daq_files.bench_yaml(tmp_path / 'bench.yaml'))
+    out = tmp_path / 'imported'
+    summary = import_file(bag, desc, out, options=ImportOptions(chunk_samples=5000,
+                                                                torque='output_joint'))
+    assert summary.samples == s.t_s.size
+    assert summary.start_utc.startswith('2026-11-24T09:30:00')
+    assert summary.sample_rate_hz == pytest.approx(daq_files.RATE_HZ, rel=1e-6)
+    got = analyze_bag(out, with_advice=False)
+    assert len(got.windows) == len(ref.windows)
+    for a, b in zip(got.windows, ref.windows, strict=True):
+        assert a.stats.n_samples == b.stats.n_samples
+        assert a.stats.pp_rad == pytest.approx(b.stats.pp_rad, abs=1e-11, rel=0)
+        assert a.stats.mean_rad == pytest.approx(b.stats.mean_rad, abs=1e-11, rel=0)
+
+
+def test_jointstate_missing_partner_and_backwards_stamp(session: tuple, tmp_path: Path) -> None:
+    from rv_te_bench.errors import DataImportError
+
+    s, _, _ = session
+    short = daq_files.Session(*(a[:3000] for a in (s.t_s, s.theta_in_rad, s.theta_out_rad,
+                                                   s.torque_nm)))
+    desc = load_bench_description(daq_files.bench_yaml(tmp_path / 'bench.yaml'))
+    bag = daq_files.write_jointstate_bag(tmp_path / 'gap', short, separate=True,
+                                         skip=(10, 1500, 2999))
+    notes: list[str] = []
+    summary = import_file(bag, desc, tmp_path / 'o1', options=ImportOptions(chunk_samples=700),
+                          on_note=notes.append)
+    assert summary.samples == 3000 - 3
+    assert any('3 joint positions had no partner' in n for n in notes)
+    back = daq_files.write_jointstate_bag(
+        tmp_path / 'back', short, stamp_ns={1234: daq_files.START_NS + 5})
+    with pytest.raises(DataImportError) as exc:
+        import_file(back, desc, tmp_path / 'o2', options=ImportOptions(chunk_samples=700))
+    text = str(exc.value)
+    assert "joint 'input_joint'" in text and 'sample 1234' in text and 'not increasing' in text
+    assert not (tmp_path / 'o2').exists()

@@ -1,7 +1,8 @@
 """Measurement files -> rosbag2/MCAP bags of the suite's messages (``rv-te import``), no rclpy.
 
 One module per format: :mod:`.csv_file` (numpy), :mod:`.tdms_file` (NI TDMS, ``nptdms``),
-:mod:`.mdf_file` (ASAM MDF4, ``asammdf``); the last two are the optional extra ``daq``.
+:mod:`.mdf_file` (ASAM MDF4, ``asammdf``; these two are the optional extra ``daq``), and
+:mod:`.jointstate_bag` (rosbag2 bags of ``sensor_msgs/JointState``, MCAP or sqlite3, rosbags).
 Every reader streams (``chunk_samples`` at a time), :mod:`._common` converts to SI, unwraps
 and checks, :mod:`._to_bag` writes the bag whole or not at all.
 """
@@ -34,7 +35,8 @@ __all__ = [
 ]
 
 #: Format name -> file suffixes that select it.
-FORMATS = {'csv': ('.csv', '.txt', '.tsv'), 'tdms': ('.tdms',), 'mdf': ('.mf4', '.mdf', '.dat')}
+FORMATS = {'csv': ('.csv', '.txt', '.tsv'), 'tdms': ('.tdms',), 'mdf': ('.mf4', '.mdf', '.dat'),
+           'bag': ('.mcap', '.db3')}
 
 
 def detect_format(path: Path) -> str:
@@ -43,6 +45,8 @@ def detect_format(path: Path) -> str:
     Raises:
         DataImportError: Unknown suffix (the known ones listed).
     """
+    if Path(path).is_dir():
+        return 'bag'
     suffix = Path(path).suffix.lower()
     for name, suffixes in FORMATS.items():
         if suffix in suffixes:
@@ -52,13 +56,21 @@ def detect_format(path: Path) -> str:
     raise DataImportError(msg)
 
 
-def open_reader(path: Path, fmt: str, options: ImportOptions, *, header: bool = True) -> Any:  # noqa: ANN401
+def open_reader(path: Path, fmt: str, options: ImportOptions, *, header: bool = True,  # noqa: ANN401
+                joints: tuple[str | None, str | None] = (None, None)) -> Any:
     """Open ``path`` with the reader of ``fmt`` (checks the columns / channels).
 
     Raises:
         DataImportError: Missing file, unknown format, missing library, bad layout.
     """
     path = Path(path)
+    if fmt == 'bag':
+        from rv_te_bench.io.importers.jointstate_bag import JointStateBagReader  # noqa: PLC0415
+
+        if not path.exists():
+            msg = f'{path} does not exist'
+            raise DataImportError(msg)
+        return JointStateBagReader(path, options, joints)
     if not path.is_file():
         what = 'does not exist' if not path.exists() else 'is not a regular file'
         msg = f'{path} {what}'
@@ -90,7 +102,8 @@ def import_file(path: str | Path, desc: BenchDescription, out: str | Path, *,  #
     """
     path = Path(path)
     fmt = fmt or detect_format(path)
-    reader = open_reader(path, fmt, options, header=header)
+    reader = open_reader(path, fmt, options, header=header,
+                         joints=(desc.joint_in_name, desc.joint_out_name))
     try:
         return write_bag(reader, desc, options, Path(out), fmt=fmt, on_note=on_note)
     finally:

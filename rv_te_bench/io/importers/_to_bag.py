@@ -248,6 +248,9 @@ def write_bag(reader: Any, desc: BenchDescription, options: ImportOptions,  # no
         shutil.rmtree(tmp_dir, ignore_errors=True)
         raise
     shutil.rmtree(tmp_dir, ignore_errors=True)
+    if getattr(reader, 'unpaired', 0):
+        note(f'{reader.unpaired} joint positions had no partner at the same stamp: left out '
+             '(the sample times in the bag show where)')
     return ImportSummary(
         bag=str(out), source=str(reader.path), samples=blocks.samples, blocks=blocks.seq,
         duration_s=blocks.last_t_s, sample_rate_hz=rate_hz, rate_from=rate_from,
