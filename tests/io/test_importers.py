@@ -182,3 +182,31 @@ def test_jointstate_missing_partner_and_backwards_stamp(session: tuple, tmp_path
     text = str(exc.value)
     assert "joint 'input_joint'" in text and 'sample 1234' in text and 'not increasing' in text
     assert not (tmp_path / 'o2').exists()
+
+
+def test_report_shows_the_unit(session: tuple, tmp_path: Path,
+                               capsys: pytest.CaptureFixture[str]) -> None:
+    """The bench description's unit under test reaches the report (title, table, JSON)."""
+    import json
+
+    from rv_te_bench.cli.main import main
+
+    s, _, _ = session
+    daq_files.write_csv(tmp_path / 'run.csv', s)
+    bench = daq_files.bench_yaml(tmp_path / 'bench.yaml')
+    out = tmp_path / 'unit7'
+    assert main(['import', str(tmp_path / 'run.csv'), '--bench', str(bench), '--out', str(out),
+                 '--time', 't_s', '--theta-in', 'theta_in_rad', '--theta-out',
+                 'theta_out_rad', '--start-utc', '2026-11-24T09:30:00Z']) == 0
+    capsys.readouterr()
+    assert main(['analyze', str(out), '--report', str(tmp_path / 'rep'), '--no-advice',
+                 '--no-db', '--json']) == 0
+    doc = json.loads(capsys.readouterr().out)
+    doc = doc['bags'][0] if 'bags' in doc else doc
+    assert doc['title'] == ('wang2020-2kv, bench daq-bench, session unit7 '
+                            '(2026-11-24T09:30:00.000+00:00), unit SN-DAQ-1')
+    assert doc['session']['operator'] == 'pytest'
+    assert doc['session']['temperature_c'] == '22'
+    page = (tmp_path / 'rep' / 'report.html').read_text(encoding='utf-8')
+    assert '<th class="l">operator</th><td class="l">pytest</td>' in page
+    assert 'temperature [degC]' in page and str(tmp_path / 'run.csv') in page
