@@ -6,13 +6,14 @@ side in one run, each in a fresh Python process:
 
 * **bare read**: the library alone reads the same columns of the same file in the same
   chunks and keeps nothing (CSV: ``numpy.loadtxt`` on chunks of lines; TDMS:
-  ``TdmsFile.open`` + ``read_data``; MDF: ``MDF.get`` with ``record_offset/record_count``);
+  ``TdmsFile.open`` + ``read_data``; MDF: ``MDF.iter_get`` of the three channels zipped);
 * **import**: ``rv_te_bench.io.importers.import_file`` (read, convert, unwrap, check, CDR,
   zstd bag) to a bag on the same disk.
 
-Printed: wall time of each, the ratio import / bare, samples per second, and the peak RSS of
-each process (``ru_maxrss``). Memory stays flat when the peak RSS does not grow with the
-file size.
+Printed: wall time of each, the ratio import / bare, samples per second, the peak RSS of
+each process (``ru_maxrss``) and its peak heap (anonymous resident memory, sampled every
+10 ms: asammdf maps the whole file, so the RSS of both MDF processes counts the file pages
+read). Memory stays flat when the peak heap does not grow with the file size.
 
     .venv/bin/python benchmarks/bench_import.py --sizes-mb 10 100 1000 --formats csv
 """
@@ -31,7 +32,7 @@ import numpy as np
 
 ROOT = Path(__file__).resolve().parents[1]
 RATE_HZ = 10_000.0
-CSV_BYTES_PER_ROW = 4 * 24   # ~ bytes per CSV row at %.17g (measured on the first file)
+CSV_BYTES_PER_ROW = 74   # bytes per CSV row at %.17g (measured: 768 MB for 10.4 M rows)
 CHUNK = 100_000
 
 BARE = {
@@ -58,10 +59,9 @@ with TdmsFile.open(PATH) as f:
     'mdf': """
 from asammdf import MDF
 m = MDF(PATH)
-n = m.groups[0].channel_group.cycles_nr
-for s in range(0, n, CHUNK):
-    for name in ('theta_in', 'theta_out', 'torque'):
-        m.get(name, record_offset=s, record_count=min(CHUNK, n - s))
+m.configure(read_fragment_size=32 * CHUNK)
+for sigs in zip(*(m.iter_get(n) for n in ('theta_in', 'theta_out', 'torque'))):
+    pass
 m.close()
 """,
 }
@@ -81,16 +81,28 @@ import_file(PATH, desc, OUT, options=ImportOptions(chunk_samples=CHUNK, start_ns
 """
 
 #: Imported before the clock starts (both sides): the libraries, not the interpreter start.
+#: A thread samples the anonymous resident memory (RssAnon) every 10 ms: asammdf maps the
+#: file, so ru_maxrss also counts file pages (the kernel can drop them), the heap does not.
 PRE = """
-import time, numpy, nptdms, asammdf, rv_te_bench.io.importers, rv_te_bench.core.bench_description
-import rv_te_bench.io.importers.csv_file, rv_te_bench.io.importers.tdms_file
-import rv_te_bench.io.importers.mdf_file, sim.bench
+import threading, time, numpy, nptdms, asammdf, rv_te_bench.io.importers
+import rv_te_bench.core.bench_description, rv_te_bench.io.importers.csv_file
+import rv_te_bench.io.importers.tdms_file, rv_te_bench.io.importers.mdf_file, sim.bench
+_PEAK = [0]
+def _anon():
+    while True:
+        with open('/proc/self/status') as f:
+            for line in f:
+                if line.startswith('RssAnon'):
+                    _PEAK[0] = max(_PEAK[0], int(line.split()[1]))
+        time.sleep(0.01)
+threading.Thread(target=_anon, daemon=True).start()
 _T0 = time.perf_counter()
 """
 TAIL = """
 import resource, sys
-print(time.perf_counter() - _T0, resource.getrusage(resource.RUSAGE_SELF).ru_maxrss,
-      file=sys.stderr)
+_T1 = time.perf_counter() - _T0
+time.sleep(0.03)
+print(_T1, resource.getrusage(resource.RUSAGE_SELF).ru_maxrss, _PEAK[0], file=sys.stderr)
 """
 
 
@@ -140,17 +152,17 @@ def write_mdf(path: Path, n: int) -> None:
     mdf.close()
 
 
-def run(code: str) -> tuple[float, int]:
-    """Wall time [s] of ``code`` (libraries imported before the clock starts) and the peak
-    RSS [kB] of its fresh Python process."""
+def run(code: str) -> tuple[float, int, int]:
+    """Wall time [s] of ``code`` (libraries imported before the clock starts), the peak RSS
+    and the peak anonymous RSS [kB] of its fresh Python process."""
     env = {k: v for k, v in os.environ.items() if k != '_ROS_WHEELS_BOOTSTRAP_COMPLETE'}
     env['PYTHONPATH'] = str(ROOT)
     r = subprocess.run([sys.executable, '-c', PRE + code + TAIL], capture_output=True,
                        text=True, env=env, check=False)
     if r.returncode:
         raise RuntimeError(r.stderr[-2000:])
-    wall, rss = r.stderr.strip().splitlines()[-1].split()
-    return float(wall), int(rss)
+    wall, rss, anon = r.stderr.strip().splitlines()[-1].split()
+    return float(wall), int(rss), int(anon)
 
 
 def main() -> None:
@@ -165,8 +177,9 @@ def main() -> None:
     args = ap.parse_args()
     work = Path(tempfile.mkdtemp(dir=args.dir, prefix='bench_import_'))
     print('| format | file size [MB] | samples | bare read [s] | import [s] | ratio | '
-          'import [M samples/s] | peak RSS bare / import [MB] |')
-    print('|---|---|---|---|---|---|---|---|')
+          'import [M samples/s] | peak RSS bare / import [MB] | peak heap (RssAnon) bare / '
+          'import [MB] |')
+    print('|---|---|---|---|---|---|---|---|---|')
     try:
         for mb in args.sizes_mb:
             n = int(mb * 1e6 / CSV_BYTES_PER_ROW)
@@ -175,12 +188,13 @@ def main() -> None:
                 {'csv': write_csv, 'tdms': write_tdms, 'mdf': write_mdf}[fmt](path, n)
                 head = f'PATH = {str(path)!r}\nCHUNK = {CHUNK}\nFMT = {fmt!r}\n'
                 out = work / f'bag_{fmt}_{mb:g}'
-                bare_s, bare_kb = run(head + BARE[fmt])
-                imp_s, imp_kb = run(head + f'OUT = {str(out)!r}\n' + IMPORT)
+                bare_s, bare_kb, bare_anon = run(head + BARE[fmt])
+                imp_s, imp_kb, imp_anon = run(head + f'OUT = {str(out)!r}\n' + IMPORT)
                 size = path.stat().st_size / 1e6
                 print(f'| {fmt} | {size:.0f} | {n:,} | {bare_s:.2f} | {imp_s:.2f} | '
                       f'{imp_s / bare_s:.2f} | {n / imp_s / 1e6:.2f} | '
-                      f'{bare_kb / 1024:.0f} / {imp_kb / 1024:.0f} |', flush=True)
+                      f'{bare_kb / 1024:.0f} / {imp_kb / 1024:.0f} | '
+                      f'{bare_anon / 1024:.0f} / {imp_anon / 1024:.0f} |', flush=True)
                 path.unlink()
                 shutil.rmtree(out)
     finally:
