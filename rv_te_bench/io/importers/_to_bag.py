@@ -213,7 +213,8 @@ def write_bag(reader: Any, desc: BenchDescription, options: ImportOptions,  # no
              'is used (give --start-utc)')
     info = dataclasses.replace(desc.bench_info(), sample_rate_hz=rate_hz)
     meta = desc.to_metadata()
-    meta.update({'session': out.name, 'started_utc': _utc(start_ns),
+    session = out.parent.name if out.name in {'bag', 'bag_0'} and out.parent.name else out.name
+    meta.update({'session': session, 'started_utc': _utc(start_ns),
                  'imported_from': str(reader.path), 'import_format': fmt,
                  'import_utc': dt.datetime.now(dt.UTC).isoformat(timespec='seconds')})
     tmp_dir = out.parent / f'.{out.name}.importing-{os.getpid()}-{time.monotonic_ns()}'
