@@ -28,10 +28,11 @@ def write_unit_bag(path: Path, theta_in: np.ndarray, theta_out: np.ndarray, *,  
                    rate_hz: float, block: int = 100, info: bool = True,
                    preset: str = 'wang2020-2kv', bench_id: str = 'unit-bench',
                    parameters_yaml: str = '', custom_data: dict[str, str] | None = None,
-                   first_seq: int = 0) -> Path:
+                   first_seq: int = 0, storage: str = 'mcap') -> Path:
     """A rosbag2/MCAP bag (rosbags writer) with a BenchInfo and the encoder samples in blocks;
     ``custom_data`` goes to metadata.yaml (session metadata, e.g. a unit serial);
-    ``first_seq`` > 0 leaves out the blocks before it (a recorder that started late)."""
+    ``first_seq`` > 0 leaves out the blocks before it (a recorder that started late);
+    ``storage='sqlite3'`` writes rosbag2's sqlite3 storage instead of MCAP."""
     from rosbags.rosbag2 import StoragePlugin, Writer  # noqa: PLC0415
 
     store = rv_te_typestore()
@@ -42,7 +43,8 @@ def write_unit_bag(path: Path, theta_in: np.ndarray, theta_out: np.ndarray, *,  
             stamp=types['builtin_interfaces/msg/Time'](sec=t_ns // 10**9, nanosec=t_ns % 10**9),
             frame_id=bench_id)
 
-    with Writer(path, version=9, storage_plugin=StoragePlugin.MCAP) as writer:
+    plugin = StoragePlugin.SQLITE3 if storage == 'sqlite3' else StoragePlugin.MCAP
+    with Writer(path, version=9, storage_plugin=plugin) as writer:
         for key, value in (custom_data or {}).items():
             writer.set_custom_data(key, value)
         # both channels first, so that they precede every message in the first chunk

@@ -27,6 +27,7 @@ from typing import TYPE_CHECKING, Any, Generic, TypeVar
 import numpy as np
 
 from rv_te_bench.errors import BagError, BenchInfoError, YamlInputError
+from rv_te_bench.io import _sqlite_bag as _sqlite
 from rv_te_bench.io._bag_folder import entry_problem, layout_notes, listed_files
 from rv_te_bench.io.msgdefs import BENCH_INFO, ENCODER_BLOCK, rv_te_typestore
 from rv_te_bench.safe_yaml import BAG_METADATA_LIMITS, read_yaml_file
@@ -198,8 +199,11 @@ def open_bag(path: str | Path) -> Bag:
     except (KeyError, TypeError, AttributeError) as exc:
         msg = f'{meta_path} is not rosbag2 metadata (missing or bad key {exc}).'
         raise BagError(msg) from None
+    if storage == 'sqlite3':   # read through rosbags (issue #19 s.4)
+        from rv_te_bench.io._sqlite_bag import sqlite_bag  # noqa: PLC0415
+        return sqlite_bag(path, info, topics, listed)
     if storage != 'mcap':
-        msg = f'Bag {path} uses storage {storage!r}; only mcap is supported.'
+        msg = f'Bag {path} uses storage {storage!r}; only mcap and sqlite3 are supported.'
         raise BagError(msg)
     problems = {p: entry_problem(p) for p in listed}
     if missing := [str(p) for p, what in problems.items() if what == 'missing']:
@@ -516,6 +520,9 @@ def _units(
 ) -> Iterator[tuple[memoryview, list[tuple[str, str, int, int, int]]]]:
     """Per chunk: the buffer and its wanted messages (topic, msgtype, log_time, start, end)."""
     wanted = None if topics is None else set(topics)
+    if _sqlite.is_sqlite(bag):   # issue #19 s.4
+        yield from _sqlite.sqlite_units(bag, stream.report_problem, wanted)
+        return
     for file in bag.files:
         state = _ScanState()
         resolved: dict[int, tuple[str, str] | None] = {}
@@ -1142,7 +1149,7 @@ def read_bench_info(path: str | Path, topic: str | None = None) -> dict[str, Any
     for file in bag.files:
         # the summary's chunk index finds the few chunks that hold the topic; without a
         # summary (killed recorder) the file is scanned
-        indexed = _indexed_messages(file, names)
+        indexed = None if _sqlite.is_sqlite(bag) else _indexed_messages(file, names)
         if indexed is None:
             one = Bag(path=bag.path, files=(file,), info=bag.info, topic_types=bag.topic_types)
             indexed = [(msgtype, bytes(data))

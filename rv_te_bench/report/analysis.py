@@ -219,16 +219,29 @@ class SessionInfo:
         started_utc: When the recorder started ('' when unknown).
         unit_serial: Serial number of the unit under test (``unit_serial`` in the session
             metadata, e.g. ``--param recorder.session_metadata_yaml='unit_serial: SN-42'``).
+        operator: ``operator`` in the session metadata ('' when unknown).
+        temperature_c: ``temperature_c`` in the session metadata, as written ('' unknown).
+        unit_notes: ``unit_notes`` in the session metadata (a bench description's notes).
+        imported_from: ``imported_from``: the DAQ file ``rv-te import`` read ('' if none).
     """
 
     name: str
     started_utc: str = ''
     unit_serial: str = ''
+    operator: str = ''
+    temperature_c: str = ''
+    unit_notes: str = ''
+    imported_from: str = ''
 
     def to_json_dict(self) -> dict[str, Any]:
-        """JSON-friendly dict."""
-        return {'name': self.name, 'started_utc': self.started_utc,
-                'unit_serial': self.unit_serial}
+        """JSON-friendly dict (the optional fields only when known)."""
+        out = {'name': self.name, 'started_utc': self.started_utc,
+               'unit_serial': self.unit_serial}
+        out.update({k: v for k, v in (('operator', self.operator),
+                                      ('temperature_c', self.temperature_c),
+                                      ('unit_notes', self.unit_notes),
+                                      ('imported_from', self.imported_from)) if v})
+        return out
 
 
 def session_info(path: str | Path) -> SessionInfo:
@@ -245,7 +258,11 @@ def session_info(path: str | Path) -> SessionInfo:
         custom = {}
     return SessionInfo(name=str(custom.get('session') or folder),
                        started_utc=str(custom.get('started_utc') or ''),
-                       unit_serial=str(custom.get('unit_serial') or ''))
+                       unit_serial=str(custom.get('unit_serial') or ''),
+                       operator=str(custom.get('operator') or ''),
+                       temperature_c=str(custom.get('temperature_c') or ''),
+                       unit_notes=str(custom.get('unit_notes') or ''),
+                       imported_from=str(custom.get('imported_from') or ''))
 
 
 def report_title(result: AnalysisResult) -> str:

@@ -175,6 +175,11 @@ def _bag_section(res: AnalysisResult) -> str:  # noqa: C901 - one report section
              or '-'),
             ('encoders (in / out)', f'{b.encoder_in_model or "-"} / {b.encoder_out_model or "-"}'),
             ('ratio source', b.source), ('blocks read', str(res.blocks_read))]
+    sess = res.session   # the unit under test, from the bag's metadata (bench description)
+    rows += [(k, v) for k, v in (('unit serial', sess.unit_serial), ('operator', sess.operator),
+                                 ('temperature [degC]', sess.temperature_c),
+                                 ('notes', sess.unit_notes),
+                                 ('imported from', sess.imported_from)) if v]
     out += [f'<tr><th class="l">{_e(k)}</th><td class="l">{_e(v)}</td></tr>' for k, v in rows]
     out.append('</table>')
 

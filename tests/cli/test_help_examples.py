@@ -86,6 +86,9 @@ def example_dir(tmp_path_factory: pytest.TempPathFactory) -> Path:
     shutil.copy(acceptance / 'tolerances' / 'rv-80e-101.yaml', d / 'my_limits.yaml')
     launch = ROOT / 'rv_te_bench' / 'launch'
     shutil.copy(launch / 'session.launch.yaml', d / 'session.launch.yaml')
+    from tests.io import daq_files  # noqa: PLC0415
+
+    daq_files.example_inputs(d)   # rv-te import: bench.yaml, run.csv, run.tdms, run.mf4
     return d
 
 

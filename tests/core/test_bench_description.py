@@ -175,3 +175,16 @@ def test_dataclass_is_frozen_and_validated() -> None:
                          sample_rate_hz=1000.0)
     with pytest.raises(TypeError):
         d.metadata['k'] = 'v'  # type: ignore[index]
+
+
+def test_readme_example_is_valid() -> None:
+    """The bench description shown in README "Using a real bench" validates."""
+    import re
+    from pathlib import Path
+
+    text = (Path(__file__).resolve().parents[2] / 'README.md').read_text('utf-8')
+    section = text.split('## Using a real bench', 1)[1]
+    (block,) = [b for b in re.findall(r'```yaml\n(.*?)```', section.split('\n## ', 1)[0],
+                                      flags=re.DOTALL) if b.startswith('bench_id:')]
+    d = parse_bench_description(yaml.safe_load(block), 'README')
+    assert d.preset == 'rv-80e-101' and d.unit_under_test.serial == 'SN-2026-0042'

@@ -1,0 +1,184 @@
+"""CSV measurement files, read in chunks of rows with ``numpy.loadtxt`` (memory stays flat).
+
+Layout: one header line naming the columns (``--no-header``: none, columns by 0-based index),
+then one sample per line; the delimiter (``,`` ``;`` tab, or blanks) is sniffed from the
+first line unless given; lines starting with ``#`` are comments. A column's unit may be in
+its name (``theta_in_deg``, ``theta_in [deg]``, ``in (arcsec)``); an option overrides it.
+"""
+
+from __future__ import annotations
+
+import io
+import itertools
+import re
+from pathlib import Path
+from typing import TYPE_CHECKING
+
+import numpy as np
+
+from rv_te_bench.errors import DataImportError
+from rv_te_bench.io.importers._common import RawChunk
+
+if TYPE_CHECKING:
+    from collections.abc import Iterator
+
+    from rv_te_bench.io.importers._common import ImportOptions
+
+__all__ = ['CsvReader']
+
+_UNIT_IN_NAME = re.compile(r'(?:[\[(]\s*([^\])]+?)\s*[\])]\s*$)|(?:_(rad|deg|arcmin|arcsec|counts|'
+                           r'rev|s|ms|us|ns)$)')
+_MAX_HEADER = 1 << 20
+
+
+def _unit_from_name(name: str) -> str | None:
+    m = _UNIT_IN_NAME.search(name.strip())
+    if not m:
+        return None
+    return m.group(1) or m.group(2)
+
+
+class CsvReader:
+    """A CSV file opened for import (see the module docstring).
+
+    Args:
+        path: The file.
+        options: Column names / indices, delimiter, chunk size.
+        header: The first line names the columns.
+
+    Raises:
+        DataImportError: Unreadable or empty file, no data rows, a column not in the header.
+    """
+
+    has_time: bool
+    declared_rate_hz: float | None = None
+    start_ns: int | None = None
+
+    def __init__(self, path: Path, options: ImportOptions, *, header: bool = True) -> None:
+        self.path = Path(path)
+        self.origin = str(path)
+        self.options = options
+        try:
+            self._file = self.path.open('r', encoding='utf-8-sig', newline='')
+            first = self._file.readline(_MAX_HEADER)
+        except (OSError, UnicodeDecodeError) as exc:
+            msg = f'{path}: cannot read ({getattr(exc, "strerror", None) or exc})'
+            raise DataImportError(msg) from None
+        self._line = 1
+        while first.startswith('#'):
+            first = self._file.readline(_MAX_HEADER)
+            self._line += 1
+        if not first.strip():
+            msg = f'{path}: the file is empty (no header line and no data)'
+            raise DataImportError(msg)
+        self.delimiter = options.delimiter or self._sniff(first)
+        cells = [c.strip().strip('"').strip() for c in
+                 (first.split(self.delimiter) if self.delimiter else first.split())]
+        self.columns = cells if header else [str(j) for j in range(len(cells))]
+        if not header:           # the first line is data: read it again with the rest
+            self._file.seek(0)
+            for _ in range(self._line - 1):     # the comment lines before it
+                self._file.readline(_MAX_HEADER)
+        self.data_line = self._line + 1 if header else self._line   # line of sample 0
+        roles = {'in': options.theta_in, 'out': options.theta_out, 'torque': options.torque,
+                 'time': options.time}
+        if roles['in'] is None or roles['out'] is None:
+            msg = (f'{path}: name the angle columns with --theta-in and --theta-out '
+                   f'(columns: {", ".join(self.columns[:20])})')
+            raise DataImportError(msg)
+        self.index = {role: self._column(spec) for role, spec in roles.items() if spec is not None}
+        self.labels = {role: self.columns[j] for role, j in self.index.items()}
+        self.declared_units = {role: _unit_from_name(self.columns[j])
+                               for role, j in self.index.items()}
+        self.has_time = 'time' in self.index
+        self.time_unit = options.time_unit
+        self._roles = list(self.index)
+        self._usecols = [self.index[r] for r in self._roles]
+
+    @staticmethod
+    def _sniff(line: str) -> str | None:
+        counts = {d: line.count(d) for d in (',', ';', '\t')}
+        best = max(counts, key=lambda d: counts[d])
+        return best if counts[best] else None
+
+    def _column(self, spec: str) -> int:
+        if spec in self.columns:
+            return self.columns.index(spec)
+        if spec.isdigit() and int(spec) < len(self.columns):
+            return int(spec)
+        shown = ', '.join(repr(c) for c in self.columns[:20])
+        more = f' and {len(self.columns) - 20} more' if len(self.columns) > 20 else ''  # noqa: PLR2004
+        msg = f'{self.origin}: column {spec!r} not found (columns: {shown}{more})'
+        raise DataImportError(msg)
+
+    def locate(self, index: int) -> str:
+        """Sample index -> ``'line N'`` (1-based line of the file)."""
+        return f'line {self.data_line + index}'
+
+    def chunks(self) -> Iterator[RawChunk]:
+        """Yield the rows in chunks of ``options.chunk_samples``.
+
+        Raises:
+            DataImportError: No data rows; a non-numeric or missing cell (line and column).
+        """
+        first = 0
+        size = self.options.chunk_samples
+        while True:
+            try:
+                lines = list(itertools.islice(self._file, size))
+            except (OSError, UnicodeDecodeError) as exc:
+                msg = f'{self.origin}: cannot read near {self.locate(first)} ({exc})'
+                raise DataImportError(msg) from None
+            if not lines:
+                break
+            data = self._parse(lines, first)
+            if data.shape[0] == 0:
+                continue
+            cols = dict(zip(self._roles, data.T, strict=True))
+            yield RawChunk(first=first, time=cols.get('time'), theta_in=cols['in'],
+                           theta_out=cols['out'], torque=cols.get('torque'))
+            first += data.shape[0]
+        if first == 0:
+            msg = f'{self.origin}: no data rows after the header'
+            raise DataImportError(msg)
+
+    def _parse(self, lines: list[str], first: int) -> np.ndarray:
+        try:
+            data = np.loadtxt(io.StringIO(''.join(lines)), delimiter=self.delimiter,
+                              usecols=self._usecols, comments='#', quotechar='"', ndmin=2,
+                              dtype=np.float64)
+        except ValueError:
+            self._explain(lines, first)
+            raise   # _explain always raises; kept for the type checker
+        if data.shape[0] != len(lines) and data.shape[0]:
+            # blank or comment lines inside the chunk would shift the line numbers of later
+            # messages: only counted here (rare in DAQ exports)
+            self.data_line += len(lines) - data.shape[0]
+        return data
+
+    def _explain(self, lines: list[str], first: int) -> None:
+        """Find the first bad cell of a chunk that numpy refused (error path only)."""
+        for k, line in enumerate(lines):
+            body = line.split('#', 1)[0].strip()
+            if not body:
+                continue
+            cells = body.split(self.delimiter) if self.delimiter else body.split()
+            for role, j in zip(self._roles, self._usecols, strict=True):
+                if j >= len(cells):
+                    msg = (f'{self.origin}: column {self.labels[role]!r}, '
+                           f'{self.locate(first + k)}: missing (the line has {len(cells)} '
+                           f'cells)')
+                    raise DataImportError(msg)
+                cell = cells[j].strip().strip('"')
+                try:
+                    float(cell)
+                except ValueError:
+                    msg = (f'{self.origin}: column {self.labels[role]!r}, '
+                           f'{self.locate(first + k)}: {cell!r} is not a number')
+                    raise DataImportError(msg) from None
+        msg = f'{self.origin}: unreadable rows near {self.locate(first)}'
+        raise DataImportError(msg)
+
+    def close(self) -> None:
+        """Close the file."""
+        self._file.close()

@@ -1,0 +1,183 @@
+"""ASAM MDF (MDF4, also MDF3) measurement files through ``asammdf`` (optional extra ``daq``).
+
+Channels are read a data fragment of about ``chunk_samples`` records at a time
+(``MDF.iter_get`` with ``read_fragment_size``), so memory stays flat. The angle (and torque) channels must be in one
+channel group (one DAQ clock); time is that group's master channel [s] unless ``--time``
+names another channel of the group; the absolute start is the file header's start time.
+Units: each channel's unit unless an option gives one.
+"""
+
+from __future__ import annotations
+
+import gc
+import sys
+import warnings
+from pathlib import Path
+from typing import TYPE_CHECKING, Any
+
+import numpy as np
+
+from rv_te_bench.errors import DataImportError
+from rv_te_bench.io.importers._common import RawChunk
+
+if TYPE_CHECKING:
+    from collections.abc import Iterator
+
+    from rv_te_bench.io.importers._common import ImportOptions
+
+__all__ = ['MdfReader']
+
+
+def _short(exc: BaseException) -> str:
+    return ' '.join(str(exc).split())[:200] or type(exc).__name__
+
+
+class MdfReader:
+    """An MDF file opened for import (see the module docstring).
+
+    Raises:
+        DataImportError: ``asammdf`` missing, not an MDF file or truncated, a channel not in
+            the file, channels in different groups, no samples.
+    """
+
+    def __init__(self, path: Path, options: ImportOptions) -> None:
+        try:
+            from asammdf import MDF  # noqa: PLC0415
+        except ImportError:
+            msg = ('reading MDF needs the asammdf library: pip install "rv-te-bench[daq]" '
+                   '(or pip install asammdf)')
+            raise DataImportError(msg) from None
+        self.path = Path(path)
+        self.origin = str(path)
+        self.options = options
+        if self.path.is_file() and self.path.stat().st_size == 0:
+            msg = f'{path}: the file is empty'
+            raise DataImportError(msg)
+        problem = None
+        hook = sys.unraisablehook
+        sys.unraisablehook = lambda _u: None    # a half-built MDF4 complains in __del__
+        try:
+            with warnings.catch_warnings():
+                warnings.simplefilter('ignore')
+                self._mdf = MDF(self.path)
+        except Exception as exc:  # noqa: BLE001 - asammdf raises many types on bad files
+            problem = _short(exc)
+        finally:
+            gc.collect()
+            sys.unraisablehook = hook
+        if problem is not None:
+            msg = f'{path}: not a readable MDF file, truncated or damaged ({problem})'
+            raise DataImportError(msg)
+        if options.theta_in is None or options.theta_out is None:
+            msg = (f'{path}: name the angle channels with --theta-in and --theta-out '
+                   f'(channels: {", ".join(self._names()[:20])})')
+            raise DataImportError(msg)
+        roles = {'in': options.theta_in, 'out': options.theta_out, 'torque': options.torque,
+                 'time': options.time}
+        self.where = {r: self._find(spec) for r, spec in roles.items() if spec is not None}
+        self.labels = {r: str(roles[r]) for r in self.where}
+        groups = {gp for gp, _ in self.where.values()}
+        if len(groups) > 1:
+            shown = ', '.join(f'{self.labels[r]}: group {gp}' for r, (gp, _) in self.where.items())
+            msg = (f'{path}: the channels are in different channel groups ({shown}); they '
+                   'must share one DAQ clock (group)')
+            raise DataImportError(msg)
+        self.group = groups.pop()
+        self.n = int(self._mdf.groups[self.group].channel_group.cycles_nr)
+        if self.n == 0:
+            msg = f'{path}: channel {self.labels["in"]!r} has no samples'
+            raise DataImportError(msg)
+        # from the channel blocks: MDF.get(record_count=1) would load the whole group first
+        self.declared_units = {}
+        for role, (gp, idx) in self.where.items():
+            ch = self._mdf.groups[gp].channels[idx]
+            unit = getattr(ch, 'unit', '') or ''
+            conv = getattr(ch, 'conversion', None)
+            if conv is not None and getattr(conv, 'unit', ''):
+                unit = conv.unit
+            self.declared_units[role] = str(unit) or None
+        self.has_time = True     # the master channel, or --time
+        self.time_unit = options.time_unit if 'time' in self.where else 's'
+        self.declared_rate_hz = None
+        start = getattr(self._mdf.header, 'start_time', None)
+        try:
+            self.start_ns = int(start.timestamp() * 1e9) if start is not None else None
+        except (AttributeError, ValueError, OverflowError, OSError):
+            self.start_ns = None
+
+    def _names(self) -> list[str]:
+        return sorted(self._mdf.channels_db)
+
+    def _find(self, spec: str) -> tuple[int, int]:
+        places = self._mdf.channels_db.get(spec)
+        if not places:
+            msg = (f'{self.origin}: channel {spec!r} not found (channels: '
+                   f'{", ".join(self._names()[:20])})')
+            raise DataImportError(msg)
+        return tuple(places[0])  # type: ignore[return-value]
+
+    def locate(self, index: int) -> str:
+        """Sample index -> ``'sample N'`` (0-based record of the channel group)."""
+        return f'sample {index}'
+
+    def chunks(self) -> Iterator[RawChunk]:
+        """Yield the channel group's data fragments (about ``chunk_samples`` records each);
+        time = the master channel [s] (or ``--time``).
+
+        ``MDF.iter_get`` reads one fragment at a time (``read_fragment_size``); the channels
+        of one group share the fragments, so they are zipped. (``MDF.get`` with
+        ``record_offset`` re-reads the group from its start: 58 s for 10 M records.)
+        asammdf maps the file into memory: the resident size grows by the pages read (file
+        pages the kernel can drop); the heap stays flat.
+
+        Raises:
+            DataImportError: A channel cannot be read or ends early (truncated file).
+        """
+        grp = self._mdf.groups[self.group]
+        record = int(getattr(grp.channel_group, 'samples_byte_nr', 0) or 8) + int(
+            getattr(grp.channel_group, 'invalidation_bytes_nr', 0) or 0)
+        self._mdf.configure(read_fragment_size=max(record * self.options.chunk_samples, 1 << 16))
+        roles = list(self.where)
+        iters = [self._iter(role) for role in roles]
+        first = 0
+        while True:
+            sigs = [next(it, None) for it in iters]
+            if all(sig is None for sig in sigs):
+                break
+            cols: dict[str, np.ndarray] = {}
+            for role, sig in zip(roles, sigs, strict=True):
+                data = None if sig is None else np.asarray(sig.samples, dtype=np.float64)
+                if data is None or (cols and data.size != cols[roles[0]].size):
+                    got = first + (0 if data is None else data.size)
+                    msg = (f'{self.origin}: channel {self.labels[role]!r}, sample {got}: the '
+                           f'data ends early (truncated or damaged file: {self.n} records '
+                           'announced)')
+                    raise DataImportError(msg)
+                cols[role] = data
+            master = np.asarray(sigs[0].timestamps, dtype=np.float64)
+            n = cols['in'].size
+            yield RawChunk(first=first, time=cols.get('time', master), theta_in=cols['in'],
+                           theta_out=cols['out'], torque=cols.get('torque'))
+            first += n
+        if first != self.n:
+            msg = (f'{self.origin}: channel {self.labels["in"]!r}, sample {first}: the data '
+                   f'ends early (truncated or damaged file: {self.n} records announced)')
+            raise DataImportError(msg)
+
+    def _iter(self, role: str) -> Iterator[Any]:
+        gp, idx = self.where[role]
+        done = 0
+        try:
+            with warnings.catch_warnings():
+                warnings.simplefilter('ignore')
+                for sig in self._mdf.iter_get(group=gp, index=idx):
+                    done += len(sig.samples)
+                    yield sig
+        except Exception as exc:  # noqa: BLE001 - truncated files raise many types
+            msg = (f'{self.origin}: channel {self.labels[role]!r}, sample {done}: cannot be '
+                   f'read, the file is truncated or damaged ({_short(exc)})')
+            raise DataImportError(msg) from None
+
+    def close(self) -> None:
+        """Close the file."""
+        self._mdf.close()

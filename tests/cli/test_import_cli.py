@@ -1,0 +1,227 @@
+"""rv-te import on bad files (issue #19 s.3): one ERROR line naming the file, the column or
+channel and the row or sample; exit code 1; nothing left behind (no bag, no hidden folder)."""
+
+from __future__ import annotations
+
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from rv_te_bench.cli.main import main
+from tests.io import daq_files
+
+N = 6000   # samples of the small session (3 s at 2 kHz)
+
+
+@pytest.fixture(scope='module')
+def session() -> daq_files.Session:
+    return daq_files.simulate(duration_s=N / daq_files.RATE_HZ)
+
+
+def csv_lines(s: daq_files.Session) -> list[str]:
+    head = 't_s,theta_in_rad,theta_out_rad'
+    rows = [f'{t!r},{a!r},{b!r}' for t, a, b in zip(s.t_s.tolist(), s.theta_in_rad.tolist(),
+                                                     s.theta_out_rad.tolist(), strict=True)]
+    return [head, *rows]
+
+
+def run_import(tmp_path: Path, file: Path, capsys: pytest.CaptureFixture[str], *extra: str,
+               cols: tuple[str, ...] = ('--theta-in', 'theta_in_rad', '--theta-out',
+                                        'theta_out_rad')) -> tuple[int, str]:
+    bench = daq_files.bench_yaml(tmp_path / 'bench.yaml')
+    out = tmp_path / 'bags' / 'imported'
+    code = main(['import', str(file), '--bench', str(bench), '--out', str(out),
+                 '--chunk-samples', '1000', *cols, *extra])
+    err = capsys.readouterr().err.strip()
+    assert not out.exists()
+    leftovers = list(out.parent.iterdir()) if out.parent.exists() else []
+    assert leftovers == [], leftovers   # no hidden half-written folder either
+    return code, err
+
+
+def one_error_line(err: str) -> str:
+    lines = [ln for ln in err.splitlines() if not ln.startswith('note: ')]
+    assert len(lines) == 1, err
+    assert lines[0].startswith('ERROR: ')
+    assert 'nothing written' in lines[0]
+    return lines[0]
+
+
+def edit_csv(tmp_path: Path, s: daq_files.Session, row: int, new: str) -> Path:
+    """The session as CSV with sample ``row`` (file line row + 2) replaced by ``new``."""
+    lines = csv_lines(s)
+    lines[row + 1] = new
+    p = tmp_path / 'run.csv'
+    p.write_text('\n'.join(lines) + '\n', encoding='utf-8')
+    return p
+
+
+def test_good_csv_imports(tmp_path: Path, session: daq_files.Session,
+                          capsys: pytest.CaptureFixture[str]) -> None:
+    p = tmp_path / 'run.csv'
+    p.write_text('\n'.join(csv_lines(session)) + '\n', encoding='utf-8')
+    bench = daq_files.bench_yaml(tmp_path / 'bench.yaml')
+    out = tmp_path / 'bag'
+    assert main(['import', str(p), '--bench', str(bench), '--out', str(out), '--time', 't_s',
+                 '--theta-in', 'theta_in_rad', '--theta-out', 'theta_out_rad',
+                 '--start-utc', '2026-11-24T09:30:00Z', '--json']) == 0
+    import json
+    summary = json.loads(capsys.readouterr().out)
+    assert summary['samples'] == N and summary['blocks'] == N // 500
+    assert summary['start_utc'].startswith('2026-11-24T09:30:00')
+    assert summary['sample_rate_hz'] == pytest.approx(2000.0, rel=1e-9)
+    # refuses to overwrite
+    assert main(['import', str(p), '--bench', str(bench), '--out', str(out), '--theta-in', '1',
+                 '--theta-out', '2']) == 1
+    assert 'exists already' in capsys.readouterr().err
+
+
+@pytest.mark.parametrize(('row', 'new', 'words'), [
+    (4321, '2.1605,abc,0.1', ["column 'theta_in_rad'", 'line 4323', "'abc' is not a number"]),
+    (3999, '1.9995,1.0', ["column 'theta_out_rad'", 'line 4001', 'missing']),
+    (5000, '2.5,nan,0.2', ["column 'theta_in_rad'", 'line 5002', 'not finite']),
+    (2500, '1.0,1.0,0.1', ["column 't_s'", 'line 2502', 'time not increasing']),
+])
+def test_bad_csv_cell(tmp_path: Path, session: daq_files.Session,
+                      capsys: pytest.CaptureFixture[str], row: int, new: str,
+                      words: list[str]) -> None:
+    """Bad values after several blocks were written: still nothing left behind."""
+    p = edit_csv(tmp_path, session, row, new)
+    code, err = run_import(tmp_path, p, capsys, '--time', 't_s')
+    assert code == 1
+    line = one_error_line(err)
+    assert str(p) in line
+    for w in words:
+        assert w in line, (w, line)
+
+
+@pytest.mark.parametrize(('content', 'cols', 'words'), [
+    ('', ('--theta-in', 'a', '--theta-out', 'b'), ['empty']),
+    ('t_s,a,b\n', ('--theta-in', 'a', '--theta-out', 'b'), ['no data rows']),
+    ('t_s,a,b\n0,1,2\n', ('--theta-in', 'a', '--theta-out', 'nope'),
+     ["column 'nope' not found", "'t_s', 'a', 'b'"]),
+    ('t_s,a [furlong],b\n0,1,2\n', ('--theta-in', 'a [furlong]', '--theta-out', 'b'),
+     ["column 'a [furlong]'", "unknown unit 'furlong'"]),
+])
+def test_bad_csv_file(tmp_path: Path, capsys: pytest.CaptureFixture[str], content: str,
+                      cols: tuple[str, ...], words: list[str]) -> None:
+    p = tmp_path / 'bad.csv'
+    p.write_text(content, encoding='utf-8')
+    code, err = run_import(tmp_path, p, capsys, cols=cols)
+    assert code == 1
+    line = one_error_line(err)
+    assert str(p) in line
+    for w in words:
+        assert w in line, (w, line)
+
+
+def test_counts_need_counts_per_rev(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    p = tmp_path / 'c.csv'
+    p.write_text('a,b\n1,2\n3,4\n', encoding='utf-8')
+    bench = daq_files.bench_yaml(tmp_path / 'bench.yaml', encoders={})
+    code = main(['import', str(p), '--bench', str(bench), '--out', str(tmp_path / 'o'),
+                 '--theta-in', 'a', '--theta-out', 'b', '--unit-in', 'counts'])
+    err = capsys.readouterr().err
+    assert code == 1
+    assert "column 'a'" in one_error_line(err) and 'counts per revolution' in err
+
+
+@pytest.mark.parametrize('fmt', ['tdms', 'mf4'])
+@pytest.mark.parametrize('cut', [0.0, 0.5, 0.97])
+def test_truncated_or_empty_daq_file(tmp_path: Path, session: daq_files.Session,
+                                     capsys: pytest.CaptureFixture[str], fmt: str,
+                                     cut: float) -> None:
+    pytest.importorskip('nptdms' if fmt == 'tdms' else 'asammdf')
+    full = tmp_path / f'full.{fmt}'
+    (daq_files.write_tdms if fmt == 'tdms' else daq_files.write_mdf)(full, session)
+    data = full.read_bytes()
+    p = tmp_path / f'cut.{fmt}'
+    p.write_bytes(data[:int(len(data) * cut)])
+    code, err = run_import(tmp_path, p, capsys,
+                           cols=('--theta-in', 'theta_in', '--theta-out', 'theta_out'))
+    assert code == 1
+    line = one_error_line(err)
+    assert str(p) in line
+    if cut == 0.0:
+        assert 'empty' in line
+    elif fmt == 'tdms':   # the channel that ends early and where
+        assert 'truncated' in line and "channel 'encoders/" in line and 'sample ' in line
+    else:
+        assert 'truncated or damaged' in line
+
+
+@pytest.mark.parametrize('fmt', ['tdms', 'mf4'])
+def test_unknown_channel(tmp_path: Path, session: daq_files.Session,
+                         capsys: pytest.CaptureFixture[str], fmt: str) -> None:
+    pytest.importorskip('nptdms' if fmt == 'tdms' else 'asammdf')
+    p = tmp_path / f'run.{fmt}'
+    (daq_files.write_tdms if fmt == 'tdms' else daq_files.write_mdf)(p, session)
+    code, err = run_import(tmp_path, p, capsys,
+                           cols=('--theta-in', 'theta_in', '--theta-out', 'spindle'))
+    assert code == 1
+    line = one_error_line(err)
+    assert "channel 'spindle' not found" in line and 'theta_out' in line
+
+
+def test_tdms_unknown_unit(tmp_path: Path, session: daq_files.Session,
+                           capsys: pytest.CaptureFixture[str]) -> None:
+    pytest.importorskip('nptdms')
+    p = daq_files.write_tdms(tmp_path / 'run.tdms', session, unit='furlong')
+    code, err = run_import(tmp_path, p, capsys,
+                           cols=('--theta-in', 'theta_in', '--theta-out', 'theta_out'))
+    assert code == 1
+    line = one_error_line(err)
+    assert "column 'encoders/theta_in'" in line and "unknown unit 'furlong'" in line
+
+
+@pytest.mark.parametrize(('fmt', 'module'), [('tdms', 'nptdms'), ('mf4', 'asammdf')])
+def test_missing_extra_one_line(tmp_path: Path, capsys: pytest.CaptureFixture[str],
+                                monkeypatch: pytest.MonkeyPatch, fmt: str, module: str) -> None:
+    monkeypatch.setitem(sys.modules, module, None)   # import fails as when not installed
+    p = tmp_path / f'run.{fmt}'
+    p.write_bytes(b'x' * 100)
+    code, err = run_import(tmp_path, p, capsys, cols=('--theta-in', 'a', '--theta-out', 'b'))
+    assert code == 1
+    line = one_error_line(err)
+    assert f'needs the {module} library' in line and 'rv-te-bench[daq]' in line
+
+
+def test_single_turn_counts_unwrapped(tmp_path: Path, session: daq_files.Session,
+                                      capsys: pytest.CaptureFixture[str]) -> None:
+    """A 16-bit single-turn output encoder and a 2^20 input counter, both wrapping: the
+    bag holds the unwrapped angles (quantised to one count)."""
+    cpr_in, cpr_out = 2**20, 2**16
+    c_in = np.floor(session.theta_in_rad / (2 * np.pi) * cpr_in) % cpr_in
+    c_out = np.floor(session.theta_out_rad / (2 * np.pi) * cpr_out) % cpr_out
+    p = tmp_path / 'counts.csv'
+    np.savetxt(p, np.c_[c_in, c_out], fmt='%d', delimiter=',', header='in_counts,out_counts',
+               comments='')
+    bench = daq_files.bench_yaml(tmp_path / 'bench.yaml', encoders={
+        'input': {'model': 'counter', 'counts_per_rev': cpr_in},
+        'output': {'model': 'absolute-16bit', 'counts_per_rev': cpr_out}})
+    out = tmp_path / 'bag'
+    assert main(['import', str(p), '--bench', str(bench), '--out', str(out),
+                 '--theta-in', 'in_counts', '--theta-out', 'out_counts']) == 0
+    capsys.readouterr()
+    from rv_te_bench.io.bag_reader import read_encoder_blocks
+
+    blocks = list(read_encoder_blocks(out))
+    th_out = np.concatenate([b.theta_out_rad for b in blocks])
+    th_in = np.concatenate([b.theta_in_rad for b in blocks])
+    start_out = np.floor(session.theta_out_rad[0] / (2 * np.pi)) * 2 * np.pi
+    start_in = np.floor(session.theta_in_rad[0] / (2 * np.pi)) * 2 * np.pi
+    np.testing.assert_allclose(th_out + start_out, session.theta_out_rad, rtol=0,
+                               atol=2 * np.pi / cpr_out * 1.001)
+    np.testing.assert_allclose(th_in + start_in, session.theta_in_rad, rtol=0,
+                               atol=2 * np.pi / cpr_in * 1.001)
+    assert np.all(np.diff(th_in) > 0)   # the input wrapped many times, unwrapped
+
+
+def test_bag_without_jointstate(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    sample = Path(__file__).resolve().parents[2] / 'bags' / 'sample'
+    code, err = run_import(tmp_path, sample, capsys, cols=())
+    assert code == 1
+    line = one_error_line(err)
+    assert str(sample) in line and 'no topic of type sensor_msgs/msg/JointState' in line
