@@ -245,14 +245,17 @@ class CompensationNode(Node):
     def destroy_node(self) -> None:
         """Abort a search still running (said on /diagnostics and in the log) and stop."""
         running = [n for n, f in self.jobs if not f.done()]
+        # set by run_node when the launcher died: the search is cut off, not waited for
+        reason = getattr(self, 'stop_reason', '')
         if running:
-            why = (f'stopped before the search finished: no advice from '
-                   f'{", ".join(running)}')
+            why = (f'stopped before the search finished'
+                   + (f' (search cut off: {reason})' if reason else '')
+                   + f': no advice from {", ".join(running)}')
             self.get_logger().error(why)
             self.errors.append(why)
             self._publish_diagnostics()
         self._cancel.set()
-        self.pool.shutdown(wait=True, cancel_futures=True)
+        self.pool.shutdown(wait=not reason, cancel_futures=True)
         super().destroy_node()
 
 
