@@ -153,6 +153,54 @@ def test_a_busy_compensation_node_dies_with_a_sigkilled_launcher(
     assert 'the launcher died' in text and 'search cut off' in text, text[-3000:]
 
 
+@pytest.mark.timeout(150)
+def test_double_ctrl_c_keeps_the_recorder_summary(tmp_path: Path, ros_domain_id: int) -> None:
+    """Issue #16: SIGINT to the launch's process group twice 0.3 s apart made the launcher exit
+    130 and delete its session folder while the nodes still stopped: the recorder could not
+    write its summary and the launcher reported nothing (no loss, no foreign publisher). The
+    second Ctrl-C now hurries the other nodes (the compensation search here would otherwise
+    be waited for up to 8 s) but the launcher still waits for the recorder's summary and
+    reports it."""
+    from rosbags.highlevel import AnyReader  # noqa: PLC0415
+
+    log = tmp_path / 'launch.log'
+    proc = _launch(tmp_path, ros_domain_id, '--param', 'recorder.bag_name=twice',
+                   '--param', 'compensation.step_deg=2.0', '--param', 'bench.speed_factor=2.0',
+                   log=log, start_new_session=True)
+    seen: set[int] = set()
+    try:
+        assert _wait_for(lambda: proc.poll() is not None or (
+            'preset wang2020-2kv (model' in log.read_text(errors='replace')
+            and sum(f.stat().st_size for f in (tmp_path / 'twice').glob('*.mcap')) > 30_000),
+            90.0, 0.2), log.read_text()   # (blocks reach the bag)
+        seen.update(_children(proc.pid))
+        os.killpg(proc.pid, signal.SIGINT)
+        time.sleep(0.3)
+        os.killpg(proc.pid, signal.SIGINT)
+        t_second = time.monotonic()
+        proc.wait(timeout=40)
+        took = time.monotonic() - t_second
+    finally:
+        if proc.poll() is None:
+            os.killpg(proc.pid, signal.SIGKILL)
+            proc.wait(timeout=10)
+        seen.update(_started_by(proc.pid))
+        _wait_for(lambda: not any(_alive(p) for p in seen), 5.0)
+        for p in seen:
+            if _alive(p):
+                os.kill(p, signal.SIGKILL)
+    text = log.read_text(errors='replace')
+    print(f'launcher ended {took:.2f} s after the second Ctrl-C, code {proc.returncode}')
+    assert 'Traceback' not in text, text[-3000:]
+    assert f'[launch] bag {tmp_path / "twice"}: ' in text and 'messages on disk' in text, \
+        text[-3000:]
+    assert took < 15.0   # noqa: PLR2004 - the recorder's close, not the search's 8 s
+    with AnyReader([tmp_path / 'twice']) as reader:
+        n = sum(1 for c in reader.connections if c.topic == '/bench/encoders'
+                for _ in reader.messages(connections=[c]))
+    assert n > 0
+
+
 def test_a_node_whose_launcher_is_gone_does_not_start() -> None:
     """The launcher may die between the fork and the node's request: it must not run on.
     (In a child process: the request would otherwise bind this test process.)"""
