@@ -288,6 +288,19 @@ def session_metadata_yaml(spec: SessionSpec) -> str:
     return dump_ros_yaml(meta)
 
 
+def clock_remapping(spec: SessionSpec) -> tuple[str, str] | None:
+    """``/clock -> <ns>/clock`` for a namespaced sim-time session, so that its clock is its
+    own (issue #22: two fast sessions in two namespaces shared /clock, and each recorder
+    logged at the other's clock); None when not namespaced, not on sim time, or /clock is
+    remapped by the user already."""
+    if not spec.namespace or any(a in {'/clock', 'clock'} for a, _ in spec.remappings):
+        return None
+    if not (spec.use_sim_time or recorder_uses_sim_time(spec)
+            or any(v.get('use_sim_time') for v in spec.parameters.values())):
+        return None
+    return '/clock', f'{spec.namespace}/clock'
+
+
 def ros_args(spec: SessionSpec, node: str, params_file: Path | None) -> list[str]:
     """The ``--ros-args`` for one node process."""
     args = ['--ros-args', '-r', f'__node:={node}']
@@ -295,6 +308,8 @@ def ros_args(spec: SessionSpec, node: str, params_file: Path | None) -> list[str
         args += ['-r', f'__ns:={spec.namespace}']
     for a, b in spec.remappings:
         args += ['-r', f'{a}:={b}']
+    if (clock := clock_remapping(spec)) is not None:
+        args += ['-r', f'{clock[0]}:={clock[1]}']
     if params_file is not None:
         args += ['--params-file', str(params_file)]
     return args
@@ -514,6 +529,8 @@ def run_single_process(spec: SessionSpec, *, until: Callable[[], bool] | None = 
         args += ['-r', f'__ns:={spec.namespace}']
     for a, b in spec.remappings:
         args += ['-r', f'{a}:={b}']
+    if (clock := clock_remapping(spec)) is not None:
+        args += ['-r', f'{clock[0]}:={clock[1]}']
     ctx = rclpy.context.Context()
     rclpy.init(args=args, context=ctx, signal_handler_options=SignalHandlerOptions.NO)
     stop = {'requested': False}

@@ -397,7 +397,8 @@ class BenchNode(Node):
         if self.pub_clock is None:
             return []
         wanted = set(self.p['wait_for_nodes'])
-        readers = [i.node_name for i in self.get_subscriptions_info_by_topic('/clock')
+        readers = [i.node_name for i in self.get_subscriptions_info_by_topic(
+                   self.pub_clock.topic_name)   # (/clock, or the session's own, remapped)
                    if i.node_namespace == ns and i.node_name in wanted]
         if self.pub_clock.get_subscription_count() >= len(readers):
             return []
