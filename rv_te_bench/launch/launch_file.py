@@ -434,6 +434,13 @@ def session_from_launch(desc: LaunchDescription, *, overrides: Sequence[str] = (
         raise _error(p, 'nodes', 'the recorder runs on sim time (use_sim_time) but the bench '
                                  'is in realtime mode and publishes no /clock: give '
                                  'use_sim_time:=false')
+    if recorder.get('use_sim_time') is False and bench is not None and bench.get(
+            'time_mode', 'realtime') == 'fast':
+        # (issue #22) it would log a fast session at wall-clock time: squeezed log times
+        raise _error(p, 'nodes', 'the bench is in fast (sim-time) mode but the recorder '
+                                 'logs at wall-clock time (use_sim_time:=false): the bag would '
+                                 'squeeze the session into its wall-clock duration; give '
+                                 'use_sim_time:=true or bench.time_mode=realtime')
     spec = SessionSpec(nodes=tuple(params), namespace=ns, parameters=params,
                        remappings=(next(iter(remaps)) if remaps else ()) + extra,
                        single_process=single_process, launch_file=str(p.resolve()),

@@ -297,6 +297,19 @@ def session_metadata_yaml(spec: SessionSpec) -> str:
     return dump_ros_yaml(meta)
 
 
+def clock_remapping(spec: SessionSpec) -> tuple[str, str] | None:
+    """``/clock -> <ns>/clock`` for a namespaced sim-time session, so that its clock is its
+    own (issue #22: two fast sessions in two namespaces shared /clock, and each recorder
+    logged at the other's clock); None when not namespaced, not on sim time, or /clock is
+    remapped by the user already."""
+    if not spec.namespace or any(a in {'/clock', 'clock'} for a, _ in spec.remappings):
+        return None
+    if not (spec.use_sim_time or recorder_uses_sim_time(spec)
+            or any(v.get('use_sim_time') for v in spec.parameters.values())):
+        return None
+    return '/clock', f'{spec.namespace}/clock'
+
+
 def ros_args(spec: SessionSpec, node: str, params_file: Path | None) -> list[str]:
     """The ``--ros-args`` for one node process."""
     args = ['--ros-args', '-r', f'__node:={node}']
@@ -304,6 +317,8 @@ def ros_args(spec: SessionSpec, node: str, params_file: Path | None) -> list[str
         args += ['-r', f'__ns:={spec.namespace}']
     for a, b in spec.remappings:
         args += ['-r', f'{a}:={b}']
+    if (clock := clock_remapping(spec)) is not None:
+        args += ['-r', f'{clock[0]}:={clock[1]}']
     if params_file is not None:
         args += ['--params-file', str(params_file)]
     return args
@@ -350,6 +365,9 @@ class Session:
         #: The recorder's closing summary (``bag``, ``messages_on_disk``, ``lost_messages``,
         #: ``lost``, ``write_gaps``), once it has stopped; None without one.
         self.recorder_summary: dict[str, Any] | None = None
+        #: True once stop() has begun (a Ctrl-C then hurries the stop, see hurry()).
+        self.stopping = False
+        self._hurried_at: float | None = None
 
     def _params_file(self, node: str) -> Path:
         values = node_parameters(self.spec, node)
@@ -410,12 +428,63 @@ class Session:
         b = self.procs.get('bench')
         return b is not None and b.proc.poll() == 0
 
+    #: After a second Ctrl-C: longest wait for a node other than the recorder [s].
+    HURRY_S = 2.0
+
+    def hurry(self) -> None:
+        """A Ctrl-C (or SIGTERM) while stopping: the nodes other than the recorder are told to
+        stop now and waited for at most :data:`HURRY_S` (the compensation node's search is
+        cut short); the recorder still gets its full time to close the bag and write its
+        summary, which the launcher reads before it removes the session's folder."""
+        if self._hurried_at is not None:
+            return
+        self._hurried_at = time.monotonic()
+        self.log('[launch] Ctrl-C again: stopping the other nodes now; waiting for the '
+                 'recorder to close the bag')
+        for name, np_ in self.procs.items():
+            if name != 'recorder' and np_.proc.poll() is None:
+                np_.expected_exit = True
+                np_.proc.send_signal(signal.SIGTERM)
+
+    def _wait(self, np_: NodeProcess, timeout_s: float) -> bool:
+        """Wait for a node to end within ``timeout_s`` (shortened by hurry() except for the
+        recorder); True when it ended."""
+        deadline = time.monotonic() + timeout_s
+        while np_.proc.poll() is None:
+            now = time.monotonic()
+            if self._hurried_at is not None and np_.name != 'recorder':
+                deadline = min(deadline, self._hurried_at + self.HURRY_S)
+            if now >= deadline:
+                return False
+            time.sleep(min(0.05, deadline - now))
+        return True
+
     def stop(self, grace_s: float = 10.0, settle_s: float = 1.0) -> dict[str, int | None]:
         """Stop nodes in data-flow order with SIGTERM (then SIGKILL); returns codes.
 
         A running node takes SIGTERM as Ctrl-C (:func:`rv_te_bench.nodes.common.run_node`:
         it stops, the recorder closes its bag); a node process still starting up ends
-        silently on it, where a SIGINT in Python's own start-up printed a traceback."""
+        silently on it, where a SIGINT in Python's own start-up printed a traceback.
+
+        A Ctrl-C or SIGTERM during the stop does not abort it (issue #16: a second Ctrl-C
+        made the launcher exit while the nodes still stopped, the session folder went, and
+        the recorder's summary with it): it hurries the stop (:meth:`hurry`)."""
+        self.stopping = True
+        main = threading.current_thread() is threading.main_thread()
+        if main:
+            old = {s: signal.signal(s, lambda *_: self.hurry())
+                   for s in (signal.SIGINT, signal.SIGTERM)}
+        try:
+            codes = self._stop_nodes(grace_s, settle_s)
+            self.recorder_summary = read_recorder_summary(self._summary_path)
+        finally:
+            if main:
+                for sig, handler in old.items():
+                    signal.signal(sig, handler)
+        self._tmp.cleanup()
+        return codes
+
+    def _stop_nodes(self, grace_s: float, settle_s: float) -> dict[str, int | None]:
         codes: dict[str, int | None] = {}
         for name in STOP_ORDER:
             np_ = self.procs.get(name)
@@ -423,22 +492,19 @@ class Session:
                 continue
             np_.expected_exit = True
             if np_.proc.poll() is None:
-                if name == 'recorder':
-                    time.sleep(settle_s)  # let the final windows and advice reach the bag
+                if name == 'recorder':   # let the final windows and advice reach the bag
+                    end = time.monotonic() + settle_s
+                    while time.monotonic() < end and self._hurried_at is None:
+                        time.sleep(0.05)
                 np_.proc.send_signal(signal.SIGTERM)
-                try:
-                    np_.proc.wait(timeout=grace_s)
-                except subprocess.TimeoutExpired:
+                if not self._wait(np_, grace_s):
                     np_.proc.terminate()
-                    try:
-                        np_.proc.wait(timeout=3.0)
-                    except subprocess.TimeoutExpired:
+                    if not self._wait(np_, 3.0):
                         np_.proc.kill()
                         np_.proc.wait()
-                    self.failures.append(f'node {name!r} did not stop on SIGTERM')
+                    if self._hurried_at is None or name == 'recorder':
+                        self.failures.append(f'node {name!r} did not stop on SIGTERM')
             codes[name] = np_.proc.returncode
-        self.recorder_summary = read_recorder_summary(self._summary_path)
-        self._tmp.cleanup()
         return codes
 
     def __enter__(self) -> Session:
@@ -472,6 +538,8 @@ def run_single_process(spec: SessionSpec, *, until: Callable[[], bool] | None = 
         args += ['-r', f'__ns:={spec.namespace}']
     for a, b in spec.remappings:
         args += ['-r', f'{a}:={b}']
+    if (clock := clock_remapping(spec)) is not None:
+        args += ['-r', f'{clock[0]}:={clock[1]}']
     ctx = rclpy.context.Context()
     rclpy.init(args=args, context=ctx, signal_handler_options=SignalHandlerOptions.NO)
     stop = {'requested': False}
@@ -567,11 +635,6 @@ def recording_report(summary: dict[str, Any] | None) -> tuple[list[str], bool]:
     return lines, bool(lost or foreign)
 
 
-def _raise_keyboard_interrupt(*_: object) -> None:
-    """SIGTERM handler of the launcher: stop the session like Ctrl-C does."""
-    raise KeyboardInterrupt
-
-
 def run_session(spec: SessionSpec, *, log: Callable[[str], None] | None = None,
                 on_tick: Callable[[Session], None] | None = None) -> int:
     """Run a process-per-node session until Ctrl-C, a crash, or the bench's end.
@@ -581,7 +644,17 @@ def run_session(spec: SessionSpec, *, log: Callable[[str], None] | None = None,
     """
     session = Session(spec, log=log)
     interrupted = False
-    old_term = signal.signal(signal.SIGTERM, _raise_keyboard_interrupt)
+
+    def on_signal(*_: object) -> None:
+        # the first Ctrl-C / SIGTERM stops the session; one during the stop hurries it
+        if session.stopping:
+            session.hurry()
+            return
+        session.stopping = True
+        raise KeyboardInterrupt
+
+    old_int = signal.signal(signal.SIGINT, on_signal)
+    old_term = signal.signal(signal.SIGTERM, on_signal)
     try:
         session.start()   # (a Ctrl-C while the nodes start stops those already started)
         while True:
@@ -598,10 +671,11 @@ def run_session(spec: SessionSpec, *, log: Callable[[str], None] | None = None,
         session.log('[launch] Ctrl-C: stopping the session')
     finally:
         codes = session.stop()
+        signal.signal(signal.SIGINT, old_int)
         signal.signal(signal.SIGTERM, old_term)
     for name, c in codes.items():
         if c not in (0, None) and not (interrupted and c in (-signal.SIGINT, -signal.SIGTERM,
-                                                             130)):
+                                                             -signal.SIGKILL, 130)):
             msg = f'node {name!r} ended with code {c}'
             if msg not in session.failures:
                 session.failures.append(msg)

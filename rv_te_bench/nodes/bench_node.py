@@ -183,6 +183,9 @@ def bench_config_from_params(p: dict[str, Any]) -> Any:  # noqa: ANN401 - sim.be
         bench_id=p['bench_id'])
 
 
+#: Longest the bench waits at its end for its readers to acknowledge the info and blocks [s].
+FINISH_ACK_S = 3.0
+
 #: Most encoder blocks per second of session time (sample_rate_hz / block_size): rclpy
 #: costs ~1-2 ms per message in each node, so faster block streams never keep up.
 MAX_BLOCK_RATE_HZ = 1000.0
@@ -381,6 +384,8 @@ class BenchNode(Node):
                     if i.node_namespace == ns}
             have = {n for n in have if n in mine or not self._of_another_session(n, ns, marker)}
         missing = sorted(set(self.p['wait_for_nodes']) - have)
+        if not missing:
+            missing = self._not_matched(ns, have)
         if not missing and self.pub_clock is not None:
             missing = self._clock_not_matched(ns)
         waited = time.monotonic() - self.mono_start
@@ -395,6 +400,22 @@ class BenchNode(Node):
         if self.pub_clock is not None:   # the session clock starts at the first block's time
             self.pub_clock.publish(Clock(clock=convert.s_to_stamp(self.wall_start)))
         return True
+
+    def _not_matched(self, ns: str, have: set[str]) -> list[str]:
+        """What is still missing once the waited-for nodes are in the graph (issue #15 item
+        5): our writers matched to their readers (blocks sent before would be lost), and the
+        session's recorder subscribed to bench/info and matched (a short session ended
+        before the recorder had its latched BenchInfo, which left with the bench)."""
+        readers = len(self.get_subscriptions_info_by_topic(self.pub_blocks.topic_name))
+        if self.pub_blocks.get_subscription_count() < readers:
+            return ['(bench/encoders matching)']
+        if 'recorder' not in self.p['wait_for_nodes'] or 'recorder' not in have:
+            return []
+        infos = self.get_subscriptions_info_by_topic(self.pub_info.topic_name)
+        if not any(i.node_name == 'recorder' and i.node_namespace == ns for i in infos) or \
+                self.pub_info.get_subscription_count() < len(infos):
+            return ['recorder (bench/info)']
+        return []
 
     def _of_another_session(self, name: str, ns: str, marker: str) -> bool:
         """True when node ``name`` carries another launched session's marker (a stale node
@@ -415,7 +436,8 @@ class BenchNode(Node):
         if self.pub_clock is None:
             return []
         wanted = set(self.p['wait_for_nodes'])
-        readers = [i.node_name for i in self.get_subscriptions_info_by_topic('/clock')
+        readers = [i.node_name for i in self.get_subscriptions_info_by_topic(
+                   self.pub_clock.topic_name)   # (/clock, or the session's own, remapped)
                    if i.node_namespace == ns and i.node_name in wanted]
         if self.pub_clock.get_subscription_count() >= len(readers):
             return []
@@ -495,6 +517,13 @@ class BenchNode(Node):
     def _finish(self) -> None:
         self.finished = True
         self.timer.cancel()
+        # the node process ends next: its info and last blocks must have reached the readers
+        from rclpy.duration import Duration  # noqa: PLC0415
+
+        for pub in (self.pub_info, self.pub_blocks):
+            if not pub.wait_for_all_acked(Duration(seconds=FINISH_ACK_S)):
+                self.get_logger().warning(f'{pub.topic_name}: not acknowledged by every '
+                                          f'reader within {FINISH_ACK_S:g} s')
         self._publish_diagnostics()
         self.get_logger().info(
             f'session complete: {self.blocks_published} blocks, {self.sim_time_s:.3f} s '

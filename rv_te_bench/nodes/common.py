@@ -191,9 +191,20 @@ def mark_session(node: Node) -> None:
 #: launcher's 10 s grace before it escalates.
 FINISH_MAX_S = 8.0
 
+#: Longest a node whose launcher died keeps going once it stops: a drain of what is queued
+#: for it, no waiting for work under way (the recorder of the session stops at the same
+#: moment, so a result would reach no bag; issue #16 item 3: nodes gone within 2 s) [s].
+LAUNCHER_GONE_FINISH_S = 0.5
+
 #: Set by the launcher in its node processes' environment: its pid (see die_with_launcher).
 LAUNCHER_PID_ENV = 'RV_TE_LAUNCHER_PID'
 _PR_SET_PDEATHSIG = 1
+_launcher = {'pid': 0}   # the launcher's pid once die_with_launcher ran (0: no launcher)
+
+
+def launcher_gone() -> bool:
+    """True when this process was started by a launcher that has died since (re-parented)."""
+    return _launcher['pid'] > 0 and os.getppid() != _launcher['pid']
 
 
 def die_with_launcher() -> bool:
@@ -210,6 +221,7 @@ def die_with_launcher() -> bool:
     want = os.environ.pop(LAUNCHER_PID_ENV, '')   # (not inherited further)
     if not want.isdigit() or not sys.platform.startswith('linux'):
         return True
+    _launcher['pid'] = int(want)
     try:
         libc = ctypes.CDLL(None, use_errno=True)
         libc.prctl(_PR_SET_PDEATHSIG, int(signal.SIGTERM), 0, 0, 0)
@@ -285,8 +297,19 @@ def run_node(factory: Callable[[Context], Node], args: Sequence[str] | None = No
         # a node with work under way (the compensation node's search) finishes it and
         # publishes the result before it goes, within FINISH_MAX_S (issue #15 item 4)
         finish_by = time.monotonic() + FINISH_MAX_S
+        cut_off = False
         while context.ok():
             now = time.monotonic()
+            if not cut_off and launcher_gone():
+                # the launcher died (parent-death signal): the session's recorder stops now
+                # too, so nothing waits for results; drain briefly and go
+                cut_off = True
+                finish_by = now
+                end = min(end, now + LAUNCHER_GONE_FINISH_S)
+                if getattr(node, 'busy', False):
+                    node.stop_reason = 'the launcher died'
+                    node.get_logger().error('the launcher died: work under way is cut off, '
+                                            'not finished')
             if getattr(node, 'busy', False) and now < finish_by:
                 end = max(end, now + _DRAIN_S)   # and a drain after the last result
             elif now >= end:
@@ -303,7 +326,23 @@ def run_node(factory: Callable[[Context], Node], args: Sequence[str] | None = No
             signal.signal(signal.SIGINT, old_int)
             signal.signal(signal.SIGTERM, old_term)
         rclpy.try_shutdown(context=context)
+    if launcher_gone():
+        _exit_without_waiting_for_workers(code)
     return code
+
+
+def _exit_without_waiting_for_workers(code: int) -> None:
+    """End the process now if a worker thread still runs (a search cut off because the
+    launcher died): the interpreter would otherwise wait for it at exit, for minutes."""
+    deadline = time.monotonic() + 0.2
+    for t in threading.enumerate():
+        if t is not threading.current_thread() and not t.daemon:
+            t.join(timeout=max(0.0, deadline - time.monotonic()))
+    if any(t.is_alive() and not t.daemon and t is not threading.current_thread()
+           for t in threading.enumerate()):
+        sys.stdout.flush()
+        sys.stderr.flush()
+        os._exit(code)
 
 
 def make_executor(kind: str = 'events', context: Any = None) -> Any:  # noqa: ANN401

@@ -87,6 +87,11 @@ class CompensationNode(Node):
         self.pool = ThreadPoolExecutor(max_workers=1, thread_name_prefix='compensation')
         self._cancel = threading.Event()
         self.jobs: list[tuple[str, Future[Any]]] = []
+        #: A request of a kind whose search still runs: the newest one (a builder of the job
+        #: from the data at the time it starts), run when the current search ends.
+        self.pending: dict[str, Any] = {}
+        #: Requests folded into a later run of the same kind, by kind.
+        self.coalesced: dict[str, int] = {}
         self.progress: dict[str, float] = {}
         self.preset: Any = None
         self.model_name = ''
@@ -156,12 +161,15 @@ class CompensationNode(Node):
             return
         measured = msg.window.pp_rad if self.p['te_metric'] == 'pp' else msg.window.amplitude_rad
         if self.model_name == 'wang2020-2kv' and self.p['identify'] and self._te:
-            te = np.concatenate(self._te)
-            ph = np.concatenate(self._phase)
-            self._submit('identified-assembly-phases',
-                         lambda: self._job_identify(ph.copy(), te.copy()))
+            self._request('identified-assembly-phases', self._identify_job)
         elif self.model_name == 'hu2020-rv' and math.isfinite(measured) and measured > 0:
-            self._submit('tooth-profile', lambda: self._job_tooth(measured))
+            self._request('tooth-profile', lambda: lambda: self._job_tooth(measured))
+
+    def _identify_job(self) -> Any:  # noqa: ANN401
+        """The identification job on all the decimated TE received so far."""
+        te = np.concatenate(self._te)
+        ph = np.concatenate(self._phase)
+        return lambda: self._job_identify(ph, te)
 
     # -- jobs (worker thread) -------------------------------------------------------------
     def _progress(self, name: str) -> Any:  # noqa: ANN401
@@ -172,9 +180,20 @@ class CompensationNode(Node):
             self.progress[name] = float(fraction)
         return report
 
+    def _request(self, name: str, build: Any) -> None:  # noqa: ANN401
+        """Run the job ``build()`` returns now, or, while a search of this kind still runs,
+        once it ends, on the data there is then (issue #15: a request that came during a
+        search was dropped, and the last advice missed the last windows)."""
+        if any(n == name for n, _ in self.jobs):
+            if name in self.pending:
+                self.coalesced[name] = self.coalesced.get(name, 0) + 1
+            self.pending[name] = build
+            self.get_logger().info(f'{name}: a search is running; the newest request runs '
+                                   'when it ends')
+            return
+        self._submit(name, build())
+
     def _submit(self, name: str, fn: Any) -> None:  # noqa: ANN401
-        if any(n == name and not f.done() for n, f in self.jobs):
-            return  # one search of a kind at a time
         self.progress[name] = 0.0
         self.jobs.append((name, self.pool.submit(fn)))
 
@@ -224,11 +243,14 @@ class CompensationNode(Node):
             self.published[name] = self.published.get(name, 0) + 1
             self.get_logger().info(f'advice ({name}): {advice.summary}')
         self.jobs = still
+        for name in [n for n in self.pending if all(n != m for m, _ in self.jobs)]:
+            self._submit(name, self.pending.pop(name)())
 
     def _publish_diagnostics(self) -> None:
         values: dict[str, Any] = {f'progress_{k}': v for k, v in self.progress.items()}
         values.update({f'published_{k}': v for k, v in self.published.items()})
         values['dropped_total'] = self.drops.total
+        values.update({f'coalesced_{k}': v for k, v in self.coalesced.items()})
         values['errors'] = len(self.errors)
         running = [n for n, f in self.jobs if not f.done()]
         message = (f'running {", ".join(running)}' if running else
@@ -240,19 +262,22 @@ class CompensationNode(Node):
     def busy(self) -> bool:
         """A search is running or its advice is not published yet (run_node lets it finish
         before the node stops, so that a session ends with its advice recorded)."""
-        return bool(self.jobs)
+        return bool(self.jobs or self.pending)
 
     def destroy_node(self) -> None:
         """Abort a search still running (said on /diagnostics and in the log) and stop."""
-        running = [n for n, f in self.jobs if not f.done()]
+        running = sorted({n for n, f in self.jobs if not f.done()} | set(self.pending))
+        # set by run_node when the launcher died: the search is cut off, not waited for
+        reason = getattr(self, 'stop_reason', '')
         if running:
-            why = (f'stopped before the search finished: no advice from '
-                   f'{", ".join(running)}')
+            why = (f'stopped before the search finished'
+                   + (f' (search cut off: {reason})' if reason else '')
+                   + f': no advice from {", ".join(running)}')
             self.get_logger().error(why)
             self.errors.append(why)
             self._publish_diagnostics()
         self._cancel.set()
-        self.pool.shutdown(wait=True, cancel_futures=True)
+        self.pool.shutdown(wait=not reason, cancel_futures=True)
         super().destroy_node()
 
 

@@ -98,3 +98,41 @@ def test_demo_session_bag_statistics_and_advice_are_consistent(  # noqa: PLR0915
     assert 'recommendation for this unit (identified-assembly-phases' in out
     assert "the preset's nominal optimum (assembly-phases" in out
     assert 'why the first' in out
+
+
+def test_which_live_advice_a_session_can_give() -> None:
+    """The identified advice needs a complete TE window: too few revolutions, none (said)."""
+    from rv_te_bench.cli.demo import expected_advice  # noqa: PLC0415
+    from rv_te_bench.launch.session import build_session  # noqa: PLC0415
+
+    spec = build_session([])
+    both = {'assembly-phases', 'identified-assembly-phases'}
+    assert expected_advice(spec, 2.0) == (both, [])
+    wanted, why = expected_advice(spec, 0.01)
+    assert wanted == {'assembly-phases'} and 'no complete TE window' in why[0]
+    longer = build_session([], overrides=['te_node.window_revolutions=3'])
+    assert expected_advice(longer, 2.0)[0] == {'assembly-phases'}
+    off = build_session([], overrides=['compensation.identify=false'])
+    assert expected_advice(off, 2.0) == ({'assembly-phases'}, [])
+
+
+@pytest.mark.timeout(80)
+def test_a_demo_too_short_for_a_window_ends_promptly(
+        tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    """Issue #15: `rv-te demo --revolutions 0.01` waited the whole --advice-timeout-s (90 s)
+    for an identified advice that cannot come (no complete window). It ends once the
+    preset's advice is in, saying why the other cannot come."""
+    import time  # noqa: PLC0415
+
+    from rv_te_bench.cli.main import main  # noqa: PLC0415
+
+    t0 = time.monotonic()
+    code = main(['demo', '--out-dir', str(tmp_path), '--session', 's', '--revolutions', '0.01',
+                 '--advice-timeout-s', '90'])
+    took = time.monotonic() - t0
+    captured = capsys.readouterr()
+    print(f'demo --revolutions 0.01 took {took:.1f} s')
+    assert code == 0, captured.err[-3000:]
+    assert 'no complete TE window' in captured.err
+    assert 'received in time' not in captured.err
+    assert took < 50.0   # noqa: PLR2004 - 90 s of waiting before

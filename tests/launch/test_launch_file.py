@@ -186,6 +186,20 @@ def test_recorder_on_sim_time_needs_a_fast_bench() -> None:
     assert spec.parameters['recorder']['use_sim_time'] is False
 
 
+def test_fast_bench_with_a_wall_clock_recorder_is_refused(
+        capsys: pytest.CaptureFixture[str]) -> None:
+    """Issue #22: `launch --default use_sim_time:=false` with a fast bench was accepted and
+    recorded log times squeezed into the wall-clock duration: refused in one line."""
+    path = Path(default_launch_file())
+    with pytest.raises(ParameterFileError, match='squeeze'):
+        spec_of(path, args={'use_sim_time': 'false'})   # the default bench is fast
+    assert main(['launch', '--default', 'use_sim_time:=false', '--check']) == 1
+    err = capsys.readouterr().err.strip()
+    assert err.count('\n') == 0 and err.startswith('ERROR:') and 'use_sim_time:=true' in err
+    spec = spec_of(path, args={'use_sim_time': 'false'}, overrides=['bench.time_mode=realtime'])
+    assert spec.parameters['recorder']['use_sim_time'] is False   # the consistent pair
+
+
 def test_nodes_subset_drops_them_from_the_bench_wait() -> None:
     spec = spec_of(Path(default_launch_file()), nodes=['bench', 'te_node'])
     assert spec.nodes == ('te_node', 'bench')

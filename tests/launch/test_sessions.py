@@ -85,3 +85,69 @@ def test_crashing_node_is_reported(ros_context) -> None:  # noqa: ANN001
     finally:
         s.stop()
     assert any("'bench'" in f and 'code 1' in f for f in s.failures), s.failures
+
+
+def _bag_times(bag) -> tuple[dict[str, list[int]], list[int], list[int]]:  # noqa: ANN001
+    """(clock values by clock topic [ns], encoder log times [ns], encoder header stamps [ns]),
+    read with the mcap library (not our reader)."""
+    from mcap.reader import make_reader  # noqa: PLC0415
+    from mcap_ros2.decoder import DecoderFactory  # noqa: PLC0415
+
+    clocks: dict[str, list[int]] = {}
+    log_ns: list[int] = []
+    stamp_ns: list[int] = []
+    for f in sorted(bag.glob('*.mcap')):
+        with f.open('rb') as stream:
+            reader = make_reader(stream, decoder_factories=[DecoderFactory()])
+            for _s, channel, message, msg in reader.iter_decoded_messages():
+                if channel.topic.endswith('/clock'):
+                    clocks.setdefault(channel.topic, []).append(
+                        msg.clock.sec * 1_000_000_000 + msg.clock.nanosec)
+                elif channel.topic.endswith('/bench/encoders'):
+                    log_ns.append(message.log_time)
+                    stamp_ns.append(msg.header.stamp.sec * 1_000_000_000
+                                    + msg.header.stamp.nanosec)
+    return clocks, log_ns, stamp_ns
+
+
+@pytest.mark.timeout(180)
+def test_two_namespaced_fast_sessions_keep_their_own_clock(tmp_path) -> None:  # noqa: ANN001
+    """Issue #22: two fast (sim-time) sessions in namespaces a and b shared /clock; each
+    recorder kept the largest /clock it saw, so a bag logged its blocks at the other
+    session's clock. A namespaced sim-time session now runs on <ns>/clock: every encoder
+    block is logged at its own header stamp, and each bag holds its own clock only."""
+    sessions = {}
+    for ns, rpm, revs in (('a', 3000.0, 3.0), ('b', 6000.0, 6.0)):
+        sessions[ns] = Session(build_session([], namespace=ns,
+                                             nodes=['bench', 'te_node', 'recorder'], overrides=[
+            f'bench.bench_id=bench_{ns}', f'bench.speed_rpm={rpm}', 'bench.te_mode=nlte',
+            'bench.sample_rate_hz=1000.0', 'bench.time_mode=fast', 'bench.speed_factor=1.0',
+            f'bench.duration_output_revs={revs}', f'recorder.output_dir={tmp_path}',
+            f'recorder.bag_name={ns}']))
+    try:
+        for s in sessions.values():
+            s.start()
+        end = time.monotonic() + 120.0
+        while time.monotonic() < end and not all(s.bench_done() for s in sessions.values()):
+            for s in sessions.values():
+                s.poll()
+            time.sleep(0.1)
+        assert all(s.bench_done() for s in sessions.values()), [s.poll() for s in
+                                                                 sessions.values()]
+        time.sleep(1.0)
+    finally:
+        codes = {ns: s.stop() for ns, s in sessions.items()}
+    assert all(c == 0 for cs in codes.values() for c in cs.values()), codes
+    block_ns = 100_000_000   # blocks of 100 samples at 1 kHz
+    read = {ns: _bag_times(tmp_path / ns) for ns in ('a', 'b')}
+    for ns, (_clocks, log_ns, stamp_ns) in read.items():
+        diffs = [a - b for a, b in zip(log_ns, stamp_ns, strict=True)]
+        print(f'{ns}: {len(diffs)} blocks, {sum(d == 0 for d in diffs)} logged exactly at '
+              f'their stamp, worst {max(map(abs, diffs), default=0) * 1e-9:.3f} s')
+    for ns, (clocks, log_ns, stamp_ns) in read.items():
+        assert log_ns and len(log_ns) == len(stamp_ns)
+        diffs = [a - b for a, b in zip(log_ns, stamp_ns, strict=True)]
+        assert all(d == 0 for d in diffs), (ns, sorted(set(diffs))[-3:])
+        assert list(clocks) == [f'/{ns}/clock'], list(clocks)   # its own clock only
+        own = clocks[f'/{ns}/clock']
+        assert min(stamp_ns) <= min(own) and max(own) <= max(stamp_ns) + block_ns + 1000

@@ -59,6 +59,74 @@ def test_compensation_node_is_busy_while_a_job_is_unpublished() -> None:
 
     node = object.__new__(CompensationNode)   # the property alone, no ROS node needed
     node.jobs = []
+    node.pending = {}
     assert node.busy is False
+    node.pending = {'identified-assembly-phases': object()}   # a request waits for its turn
+    assert node.busy is True
+    node.pending = {}
     node.jobs = [('assembly-phases', Future())]
     assert node.busy is True
+
+
+@pytest.mark.timeout(90)
+def test_a_request_during_a_search_runs_after_it_on_all_data(ros_context) -> None:  # noqa: ANN001
+    """Issue #15: CompensationNode dropped a request of a kind whose search still ran (in
+    `launch --default`: 2 complete windows, 1 identified advice). Windows that close during a
+    search are coalesced into one more search when it ends, on every sample received by
+    then. Over the middleware: a probe publishes te/samples and te/statistics."""
+    import rclpy  # noqa: PLC0415
+    from rclpy.executors import SingleThreadedExecutor  # noqa: PLC0415
+    from rclpy.parameter import Parameter  # noqa: PLC0415
+    from rv_te_msgs.msg import TransmissionError  # noqa: PLC0415
+
+    from rv_te_bench.nodes import qos  # noqa: PLC0415
+    from rv_te_bench.nodes.compensation_node import CompensationNode  # noqa: PLC0415
+    from tests.nodes.rosutil import spin_until  # noqa: PLC0415
+
+    node = CompensationNode(context=ros_context, parameter_overrides=[
+        Parameter('preset', value='wang2020-2kv'), Parameter('optimize_phases', value=False)])
+    calls: list[int] = []
+    release = threading.Event()
+
+    def spy(phase_out_rad, te_rad):  # noqa: ANN001, ANN202 - stands in for the search
+        calls.append(len(te_rad))
+        release.wait(20.0)   # the first search runs until the test lets it end
+        raise RuntimeError('spy search')
+
+    node._job_identify = spy  # noqa: SLF001
+    probe = rclpy.create_node('probe', context=ros_context)
+    pub_samples = probe.create_publisher(TransmissionError, 'te/samples', qos.ENCODER_QOS)
+    pub_windows = probe.create_publisher(TransmissionError, 'te/statistics', qos.LATCHED_QOS)
+    ex = SingleThreadedExecutor(context=ros_context)
+    ex.add_node(node)
+    ex.add_node(probe)
+    try:
+        assert spin_until(ex, lambda: pub_samples.get_subscription_count() > 0
+                          and pub_windows.get_subscription_count() > 0, 20.0)
+        seq = 0
+
+        def send(n: int) -> None:
+            nonlocal seq
+            pub_samples.publish(TransmissionError(seq=seq, te_rad=[1e-5] * n,
+                                                  theta_out_rad=[0.01 * i for i in range(n)]))
+            seq += 1
+            before = node._n_buffered  # noqa: SLF001
+            assert spin_until(ex, lambda: node._n_buffered >= before + n, 10.0)  # noqa: SLF001
+            pub_windows.publish(TransmissionError(seq=seq, window_complete=True))
+
+        send(100)
+        assert spin_until(ex, lambda: len(calls) == 1, 10.0)   # the first search runs
+        send(50)                                               # two windows during it
+        send(30)
+        # both windows taken by the node (not asserted: the node before the fix had no count)
+        spin_until(ex, lambda: getattr(node, 'coalesced', None), 10.0)
+        assert node.busy
+        release.set()
+        assert spin_until(ex, lambda: len(calls) == 2 and not node.busy, 20.0), calls  # noqa: PLR2004
+    finally:
+        release.set()
+        ex.shutdown()
+        probe.destroy_node()
+        node.destroy_node()
+    assert calls == [100, 180]   # the last search on every sample received
+    assert node.coalesced == {'identified-assembly-phases': 1}
