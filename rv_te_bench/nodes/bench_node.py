@@ -406,10 +406,13 @@ class BenchNode(Node):
         5): our writers matched to their readers (blocks sent before would be lost), and the
         session's recorder subscribed to bench/info and matched (a short session ended
         before the recorder had its latched BenchInfo, which left with the bench)."""
-        readers = len(self.get_subscriptions_info_by_topic(self.pub_blocks.topic_name))
-        if self.pub_blocks.get_subscription_count() < readers:
-            return ['(bench/encoders matching)']
-        if 'recorder' not in self.p['wait_for_nodes'] or 'recorder' not in have:
+        readers = len(self.get_subscriptions_info_by_topic(self.pub_data.topic_name))
+        if self.pub_data.get_subscription_count() < readers:
+            return [f'({self.pub_data.topic_name} matching)']
+        # in joint_state output the adapter publishes BenchInfo (and holds its first blocks
+        # until the session's recorder subscribes): nothing more to wait for here
+        if self.joint_state or 'recorder' not in self.p['wait_for_nodes'] \
+                or 'recorder' not in have:
             return []
         infos = self.get_subscriptions_info_by_topic(self.pub_info.topic_name)
         if not any(i.node_name == 'recorder' and i.node_namespace == ns for i in infos) or \
@@ -520,7 +523,7 @@ class BenchNode(Node):
         # the node process ends next: its info and last blocks must have reached the readers
         from rclpy.duration import Duration  # noqa: PLC0415
 
-        for pub in (self.pub_info, self.pub_blocks):
+        for pub in ((self.pub_data,) if self.joint_state else (self.pub_info, self.pub_blocks)):
             if not pub.wait_for_all_acked(Duration(seconds=FINISH_ACK_S)):
                 self.get_logger().warning(f'{pub.topic_name}: not acknowledged by every '
                                           f'reader within {FINISH_ACK_S:g} s')
