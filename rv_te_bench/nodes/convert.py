@@ -92,21 +92,6 @@ def make_bench_info(info: Any, stamp: Time) -> BenchInfo:  # noqa: ANN401 - Benc
     return msg
 
 
-def bench_info_to_dict(msg: BenchInfo) -> dict[str, Any]:
-    """BenchInfo message -> plain dict (same keys as the bag reader returns)."""
-    return {
-        'bench_id': msg.bench_id, 'preset': msg.preset, 'reducer_type': msg.reducer_type,
-        'gear_ratio': msg.gear_ratio, 'crank_per_input': msg.crank_per_input,
-        'crank_rel_per_input': msg.crank_rel_per_input,
-        'mesh_orders': list(msg.mesh_orders), 'mesh_labels': list(msg.mesh_labels),
-        'encoder_in_model': msg.encoder_in_model, 'encoder_out_model': msg.encoder_out_model,
-        'encoder_in_resolution_rad': msg.encoder_in_resolution_rad,
-        'encoder_out_resolution_rad': msg.encoder_out_resolution_rad,
-        'sample_rate_hz': msg.sample_rate_hz, 'block_size': msg.block_size,
-        'parameters_yaml': msg.parameters_yaml,
-    }
-
-
 def make_te_statistics(stats: TeStats) -> TeStatistics:
     """core TeStats -> TeStatistics message (NaN stays NaN)."""
     msg = TeStatistics()

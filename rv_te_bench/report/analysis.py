@@ -444,14 +444,14 @@ def analyze_bag(  # noqa: PLR0913 - keyword-only analysis options
 
     offline = analyze_blocks(reader, config, on_window=on_window)
     read_problems = [*([] if info_problem is None else [info_problem]),
-                     *getattr(stream, 'problems', ()),
+                     *stream.problems,
                      *([] if reader.error is None else [reader.error])]
     if reader.blocks == 0:
         detail = summarize_problems(read_problems) or 'the encoder topic holds no messages'
         msg = f'{path}: no encoder block could be read ({detail})'
         raise BagError(msg)
 
-    partial = bool(read_problems) or bool(getattr(stream, 'partial', False))
+    partial = bool(read_problems) or stream.partial
     problems = list(open_bag(path).notes)   # unlisted files ignored, what was not written
     if partial:
         problems.append(f'{reader.blocks} blocks read; part of the bag is unreadable: '
@@ -835,9 +835,6 @@ def _recommend(bench: BenchDescription, cumulative: TeStats, folded: FoldedTe | 
             return Recommendation(available=True, reason=(
                 'tooth-profile compensation (Hu 2020 Eqs 24-27) for the measured TE '
                 'peak-to-peak'), advice=advice)
-    except ImportError as exc:
-        return Recommendation(available=False, reason=(
-            f'no recommendation available: the compensation code is not installed ({exc})'))
     except (RvTeError, SimError) as exc:
         return Recommendation(available=False, reason=(
             f'no recommendation available for preset {bench.preset!r}: {exc}'))
