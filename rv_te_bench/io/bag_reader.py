@@ -28,6 +28,7 @@ import numpy as np
 
 from rv_te_bench.errors import BagError, YamlInputError
 from rv_te_bench.io._bag_folder import entry_problem, layout_notes, listed_files
+from rv_te_bench.io.bench_record import bench_info_values
 from rv_te_bench.io.msgdefs import BENCH_INFO, ENCODER_BLOCK, rv_te_typestore
 from rv_te_bench.safe_yaml import BAG_METADATA_LIMITS, read_yaml_file
 
@@ -1155,25 +1156,8 @@ def read_bench_info(path: str | Path, topic: str | None = None) -> dict[str, Any
         text = f'Bag {bag.path}: BenchInfo does not deserialise: {exc}.'
         raise BagError(text) from None
     stamp = msg.header.stamp
-    return {
-        'stamp_s': stamp.sec + stamp.nanosec * 1e-9,
-        'frame_id': msg.header.frame_id,
-        'bench_id': msg.bench_id,
-        'preset': msg.preset,
-        'reducer_type': msg.reducer_type,
-        'gear_ratio': float(msg.gear_ratio),
-        'crank_per_input': float(msg.crank_per_input),
-        'crank_rel_per_input': float(msg.crank_rel_per_input),
-        'mesh_orders': [float(x) for x in msg.mesh_orders],
-        'mesh_labels': list(msg.mesh_labels),
-        'encoder_in_model': msg.encoder_in_model,
-        'encoder_out_model': msg.encoder_out_model,
-        'encoder_in_resolution_rad': float(msg.encoder_in_resolution_rad),
-        'encoder_out_resolution_rad': float(msg.encoder_out_resolution_rad),
-        'sample_rate_hz': float(msg.sample_rate_hz),
-        'block_size': int(msg.block_size),
-        'parameters_yaml': msg.parameters_yaml,
-    }
+    return {'stamp_s': stamp.sec + stamp.nanosec * 1e-9, 'frame_id': msg.header.frame_id,
+            **bench_info_values(msg)}
 
 
 def bag_summary(path: str | Path) -> dict[str, Any]:

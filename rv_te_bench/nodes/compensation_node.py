@@ -19,7 +19,7 @@ import math
 import sys
 import threading
 from concurrent.futures import Future, ThreadPoolExecutor
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 from diagnostic_msgs.msg import DiagnosticArray
@@ -37,6 +37,12 @@ from rv_te_bench.nodes.common import (
     run_node,
 )
 from rv_te_bench.params import ParamSpec
+
+if TYPE_CHECKING:
+    from collections.abc import Callable
+
+    from sim.presets import Preset
+
 
 PARAMS = (
     ParamSpec('preset', 'string', '',
@@ -108,17 +114,21 @@ class CompensationNode(Node):
         self.create_timer(0.2, self._collect)
         self.create_timer(self.p['diagnostics_period_s'], self._publish_diagnostics)
         if self.p['preset']:   # a bad preset parameter stops the node at start-up
-            self._set_preset(self.p['preset'], list(self.p['overrides']), strict=True)
+            from sim.presets import load_preset  # noqa: PLC0415
+
+            self._set_preset(self.p['preset'],
+                             lambda: load_preset(self.p['preset'], list(self.p['overrides'])),
+                             strict=True)
 
     # -- inputs ---------------------------------------------------------------------------
-    def _set_preset(self, name: str, overrides: list[str], *, strict: bool = False) -> None:
-        """Load the preset; ``strict`` (our own parameter) raises, a bench's is logged."""
-        from sim.presets import load_preset  # noqa: PLC0415
-
+    def _set_preset(self, name: str, load: Callable[[], Preset], *,
+                    strict: bool = False) -> None:
+        """Load the preset ``name`` with ``load()``; ``strict`` (our own parameter) raises,
+        a bench's is logged."""
         if self.preset is not None:
             return
         try:
-            self.preset = load_preset(name, overrides)
+            self.preset = load()
         except ValueError as exc:
             if strict:
                 raise
@@ -133,9 +143,10 @@ class CompensationNode(Node):
     def _on_info(self, msg: BenchInfo) -> None:
         self.bench_id = msg.bench_id
         if not self.p['preset']:
-            from rv_te_bench.io.bench_record import overrides_from_parameters_yaml  # noqa: PLC0415
+            from rv_te_bench.io.bench_record import preset_from_bench_info  # noqa: PLC0415
 
-            self._set_preset(msg.preset, overrides_from_parameters_yaml(msg.parameters_yaml))
+            self._set_preset(msg.preset,
+                             lambda: preset_from_bench_info(msg.preset, msg.parameters_yaml))
 
     def _on_samples(self, msg: TransmissionError) -> None:
         te = np.asarray(msg.te_rad, dtype=np.float64)

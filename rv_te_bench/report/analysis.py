@@ -813,12 +813,11 @@ def _recommend(bench: BenchDescription, cumulative: TeStats, folded: FoldedTe | 
     if not bench.preset:
         return Recommendation(available=False, reason='no recommendation available: the bag '
                               'has no BenchInfo preset, so there is no reducer model')
-    from rv_te_bench.io.bench_record import overrides_from_parameters_yaml  # noqa: PLC0415
+    from rv_te_bench.io.bench_record import preset_from_bench_info  # noqa: PLC0415
     from sim.errors import SimError  # noqa: PLC0415
-    from sim.presets import load_preset  # noqa: PLC0415
 
     try:
-        preset = load_preset(bench.preset, overrides_from_parameters_yaml(bench.parameters_yaml))
+        preset = preset_from_bench_info(bench.preset, bench.parameters_yaml)
     except SimError as exc:
         return Recommendation(available=False, reason=(
             f'no recommendation available: preset {bench.preset!r} cannot be loaded ({exc})'))
