@@ -26,6 +26,7 @@ from diagnostic_msgs.msg import DiagnosticArray
 from rclpy.node import Node
 from rv_te_msgs.msg import BenchInfo, CompensationAdvice, TransmissionError
 
+from rv_te_bench.core.advice import advice_kind
 from rv_te_bench.nodes import convert, qos
 from rv_te_bench.nodes.common import (
     OK,
@@ -41,6 +42,7 @@ from rv_te_bench.params import ParamSpec
 if TYPE_CHECKING:
     from collections.abc import Callable
 
+    from rv_te_bench.core.advice import AdviceKind
     from sim.presets import Preset
 
 
@@ -96,6 +98,7 @@ class CompensationNode(Node):
         self.progress: dict[str, float] = {}
         self.preset: Any = None
         self.model_name = ''
+        self.advice: AdviceKind | None = None
         self.bench_id = ''
         self.published: dict[str, int] = {}
         self.errors: list[str] = []
@@ -136,8 +139,9 @@ class CompensationNode(Node):
             self.get_logger().error(f'cannot load preset {name!r}: {exc}')
             return
         self.model_name = self.preset.model
+        self.advice = advice_kind(self.model_name)
         self.get_logger().info(f'preset {self.preset.name} (model {self.model_name})')
-        if self.model_name == 'wang2020-2kv' and self.p['optimize_phases']:
+        if self.advice == 'assembly-phases' and self.p['optimize_phases']:
             self._submit('assembly-phases', self._job_phases)
 
     def _on_info(self, msg: BenchInfo) -> None:
@@ -166,12 +170,12 @@ class CompensationNode(Node):
         if self.preset is None or not msg.window_complete:
             return
         measured = msg.window.pp_rad if self.p['te_metric'] == 'pp' else msg.window.amplitude_rad
-        if self.model_name == 'wang2020-2kv' and self.p['identify'] and self._te:
+        if self.advice == 'assembly-phases' and self.p['identify'] and self._te:
             te = np.concatenate(self._te)
             ph = np.concatenate(self._phase)
             self._submit('identified-assembly-phases',
                          lambda: self._job_identify(ph.copy(), te.copy()))
-        elif self.model_name == 'hu2020-rv' and math.isfinite(measured) and measured > 0:
+        elif self.advice == 'tooth-profile' and math.isfinite(measured) and measured > 0:
             self._submit('tooth-profile', lambda: self._job_tooth(measured))
 
     # -- jobs (worker thread) -------------------------------------------------------------

@@ -31,6 +31,7 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
+from rv_te_bench.core.advice import advice_kind
 from rv_te_bench.core.angle_fold import AngleFold
 from rv_te_bench.core.units import json_deg
 from rv_te_bench.errors import BagError, RvTeError, TeConfigError
@@ -821,10 +822,11 @@ def _recommend(bench: BenchDescription, cumulative: TeStats, folded: FoldedTe | 
     except SimError as exc:
         return Recommendation(available=False, reason=(
             f'no recommendation available: preset {bench.preset!r} cannot be loaded ({exc})'))
+    kind = advice_kind(preset.model)
     try:
-        if preset.model == 'wang2020-2kv':
+        if kind == 'assembly-phases':
             return _advice_2kv(preset, folded, search)
-        if preset.model == 'hu2020-rv':
+        if kind == 'tooth-profile':
             from rv_te_bench.core.tooth_compensation import (  # noqa: PLC0415
                 tooth_profile_advice,
             )
