@@ -1,5 +1,8 @@
 """What a bench recorded about itself: the BenchInfo record, one shape, read back bounded.
 
+* :func:`read_bench_info`: the last BenchInfo of a bag (through the summary's chunk index
+  when the file has one), as :func:`bench_info_values` plus its stamp and frame;
+
 * :func:`bench_info_values`: the fields of :class:`sim.bench.BenchInfoData` (the one list of
   them) as plain Python values, from a ``BenchInfo`` message or a ``BenchInfoData``;
 * :func:`overrides_from_parameters_yaml` and :func:`preset_from_bench_info`: the preset a
@@ -14,16 +17,17 @@ import dataclasses
 import functools
 from typing import TYPE_CHECKING, Any
 
-from rv_te_bench.errors import YamlInputError
+from rv_te_bench.errors import BagError, YamlInputError
 from rv_te_bench.safe_yaml import DOCUMENT_LIMITS, load_yaml
 
 if TYPE_CHECKING:
     from collections.abc import Callable, Sequence
+    from pathlib import Path
 
     from sim.presets import Preset
 
 __all__ = ['PARAMETERS_YAML_LIMITS', 'bench_info_field_names', 'bench_info_values',
-           'overrides_from_parameters_yaml', 'preset_from_bench_info']
+           'overrides_from_parameters_yaml', 'preset_from_bench_info', 'read_bench_info']
 
 #: BenchInfoData annotation -> conversion to the plain value (arrays as lists)
 _PLAIN: dict[str, Callable[[Any], Any]] = {
@@ -92,3 +96,51 @@ def preset_from_bench_info(preset: str, parameters_yaml: str,
 
     return load_preset(preset, [*overrides_from_parameters_yaml(parameters_yaml),
                                 *extra_overrides])
+
+
+def read_bench_info(path: str | Path, topic: str | None = None) -> dict[str, Any] | None:
+    """The last BenchInfo message of a bag as a dict of its fields, or None if there is none.
+
+    Args:
+        path: Bag folder or ``.mcap`` file.
+        topic: BenchInfo topic; None: every topic of type BenchInfo.
+
+    Raises:
+        BagError: Bad layout, or the message does not deserialise.
+    """
+    from rv_te_bench.io import bag_reader as br  # noqa: PLC0415 - bag_reader re-exports this
+    from rv_te_bench.io._mcap_scan import _indexed_messages  # noqa: PLC0415
+    from rv_te_bench.io.msgdefs import BENCH_INFO, rv_te_typestore  # noqa: PLC0415
+
+    bag = br.open_bag(path)
+    types = bag.topic_types or br._scan_topic_types(bag)  # noqa: SLF001
+    names = [topic] if topic is not None else [t for t, ty in types.items() if ty == BENCH_INFO]
+    if not names:
+        return None
+    last: bytes | None = None
+    stream: br.MessageStream[Any] = br.MessageStream(lambda s: iter(()), strict=False)
+    for file in bag.files:
+        # the summary's chunk index finds the few chunks that hold the topic; without a
+        # summary (killed recorder) the file is scanned
+        indexed = _indexed_messages(file, names)
+        if indexed is None:
+            one = br.Bag(path=bag.path, files=(file,), info=bag.info, topic_types=bag.topic_types)
+            messages = br._messages(one, stream, names)  # noqa: SLF001
+            indexed = [(msgtype, bytes(data)) for _, msgtype, _, data in messages]
+        for msgtype, data in indexed:
+            if msgtype == BENCH_INFO:
+                last = data
+    if last is None:
+        if stream.partial:   # the BenchInfo may be in the part that cannot be read
+            text = (f'Bag {bag.path}: no readable BenchInfo; the bag is damaged: '
+                    f'{br.summarize_problems(stream.problems)}')
+            raise BagError(text)
+        return None
+    try:
+        msg = rv_te_typestore().deserialize_cdr(last, BENCH_INFO)
+    except Exception as exc:  # noqa: BLE001
+        text = f'Bag {bag.path}: BenchInfo does not deserialise: {exc}.'
+        raise BagError(text) from None
+    stamp = msg.header.stamp
+    return {'stamp_s': stamp.sec + stamp.nanosec * 1e-9, 'frame_id': msg.header.frame_id,
+            **bench_info_values(msg)}
