@@ -21,7 +21,7 @@ from rv_te_bench.io.bag_reader import (
 )
 from rv_te_bench.io.bag_writer import BagWriter
 from rv_te_bench.io.msgdefs import BENCH_INFO, ENCODER_BLOCK, rv_te_typestore
-from tests.io import (
+from tests.io.bag_fixtures import (
     ENCODER_TOPIC,
     INFO_TOPIC,
     T0_NS,
