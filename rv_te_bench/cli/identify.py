@@ -24,9 +24,9 @@ from typing import Any
 
 import numpy as np
 
+from rv_te_bench.cli._progress import ProgressBar
 from rv_te_bench.cli.argtypes import nonnegative_int, positive_float
 from rv_te_bench.cli.optimize_phases import (
-    ProgressBar,
     add_search_arguments,
     check_search_arguments,
     format_result,
