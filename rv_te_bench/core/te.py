@@ -32,6 +32,7 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
+from rv_te_bench.core._checks import finite_positive
 from rv_te_bench.core.units import rad_to_arcmin
 from rv_te_bench.errors import TeInputError
 
@@ -43,11 +44,7 @@ __all__ = ['RunningStats', 'TeStats', 'output_phase_and_te', 'stats_of_finite',
 
 
 def _check_ratio(gear_ratio: float) -> float:
-    ratio = float(gear_ratio)
-    if not (math.isfinite(ratio) and ratio > 0.0):
-        msg = f'gear_ratio must be finite and > 0, got {gear_ratio!r}'
-        raise TeInputError(msg)
-    return ratio
+    return finite_positive(gear_ratio, 'gear_ratio', TeInputError)
 
 
 def output_phase_and_te(
