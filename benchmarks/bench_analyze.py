@@ -10,7 +10,7 @@ times, side by side and interleaved in one run:
   * rv_te_bench.report.analysis.analyze_bag (read + Eq. 22 + windows + spectra; no advice).
 
 By default the process first applies the allocator setting `rv-te analyze` applies to
-itself (rv_te_bench/cli/allocator.py), so every path, rosbags included, runs as in that
+itself (rv_te_bench/allocator.py), so every path, rosbags included, runs as in that
 command; `--allocator default` keeps glibc's defaults (every path again). Wall time is
 the measure; the analysis also reports its CPU time (it reads ahead on a second thread).
 
@@ -50,7 +50,7 @@ def main(argv: list[str] | None = None) -> int:  # noqa: PLR0915
                     help='repeats of the whole-command comparison (0: skip it)')
     args = ap.parse_args(argv)
 
-    from rv_te_bench.cli.allocator import tune_for_batch_work  # noqa: PLC0415
+    from rv_te_bench.allocator import tune_for_batch_work  # noqa: PLC0415
 
     tuned = tune_for_batch_work() if args.allocator == 'tuned' else False
     from make_sample import write_sample  # noqa: PLC0415

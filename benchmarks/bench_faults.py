@@ -31,7 +31,7 @@ sys.path.insert(0, str(ROOT))
 
 from rv_te_bench.io.bag_writer import BagWriter  # noqa: E402
 from rv_te_bench.io.msgdefs import ENCODER_BLOCK  # noqa: E402
-from tests.io import ENCODER_TOPIC, T0_NS, encoder_cdr  # noqa: E402
+from tests.io.bag_fixtures import ENCODER_TOPIC, T0_NS, encoder_cdr  # noqa: E402
 from tests.io.faults import SmallDisk  # noqa: E402
 
 MiB = 1 << 20

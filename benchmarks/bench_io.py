@@ -32,7 +32,7 @@ from rosbags.rosbag2 import Writer as RosbagsWriter  # noqa: E402
 from rv_te_bench.io.bag_reader import read_encoder_blocks  # noqa: E402
 from rv_te_bench.io.bag_writer import BagWriter  # noqa: E402
 from rv_te_bench.io.msgdefs import ENCODER_BLOCK, full_msgdef, rv_te_typestore  # noqa: E402
-from tests.io import encoder_cdr  # noqa: E402
+from tests.io.bag_fixtures import encoder_cdr  # noqa: E402
 
 TOPIC = '/bench/encoders'
 

@@ -124,8 +124,22 @@ def test_bad_input(work: Path, argv: list[str], code: int, needle: str,
     assert not (work / 'pwned.txt').exists()   # YAML is loaded safely: nothing executed
 
 
-def test_at_least_forty_distinct_cases() -> None:
+def test_cases_are_forty_distinct_commands_the_parser_knows() -> None:
+    # the table against the real parser: a renamed or removed subcommand would turn its
+    # cases into argparse usage errors that no longer test what they name
     assert len({tuple(c[0]) for c in CASES}) >= 40
+    assert {c[0][0] for c in CASES} - {'no-such-command'} <= _subcommands()
+
+
+def _subcommands() -> set[str]:
+    """The subcommands of the real ``rv-te`` parser."""
+    import argparse  # noqa: PLC0415
+
+    from rv_te_bench.cli.main import build_parser  # noqa: PLC0415
+
+    (sub,) = [a for a in build_parser()._actions  # noqa: SLF001
+              if isinstance(a, argparse._SubParsersAction)]  # noqa: SLF001
+    return set(sub.choices)
 
 
 def test_record_refuses_to_overwrite_an_existing_bag(work: Path,

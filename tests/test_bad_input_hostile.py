@@ -313,9 +313,22 @@ def test_name_length_limit_is_what_rcl_enforces(ros_context) -> None:  # noqa: A
         assert checked is ok
 
 
-def test_at_least_forty_hostile_cases() -> None:
+def test_hostile_cases_are_forty_distinct_commands_the_parser_knows() -> None:
+    # the table against the real parser (see test_bad_input_cli); the bomb stays small
     assert len({tuple(c[0]) for c in CASES}) >= 40
+    assert {c[0][0] for c in CASES} <= _subcommands()
     assert len(PARAM_BOMB) < 400
+
+
+def _subcommands() -> set[str]:
+    """The subcommands of the real ``rv-te`` parser."""
+    import argparse  # noqa: PLC0415
+
+    from rv_te_bench.cli.main import build_parser  # noqa: PLC0415
+
+    (sub,) = [a for a in build_parser()._actions  # noqa: SLF001
+              if isinstance(a, argparse._SubParsersAction)]  # noqa: SLF001
+    return set(sub.choices)
 
 
 def test_param_bomb_is_a_bomb() -> None:

@@ -31,6 +31,7 @@ from rv_te_bench.acceptance.tolerance import Measured, evaluate
 from rv_te_bench.core.directional import direction_te
 from rv_te_bench.core.hysteresis import dwell_points, hysteresis_metrics
 from rv_te_bench.core.orders import OrderSet
+from rv_te_bench.core.te import output_phase_and_te
 from rv_te_bench.errors import AcceptanceError, TeInputError
 
 if TYPE_CHECKING:
@@ -208,7 +209,8 @@ class StepRunner:
         settle = round(seg.label.get('settle_s', 0.0) * self.ctx.sample_rate_hz)
         skip = max(0, settle - (seg.samples - arrays[0].size))
         if skip < arrays[0].size:
-            te = arrays[1][skip:] - arrays[0][skip:] / self.ctx.gear_ratio
+            _, te = output_phase_and_te(arrays[0][skip:], arrays[1][skip:],
+                                        gear_ratio=self.ctx.gear_ratio, check=False)
             lo, hi = self._live
             self._live = (min(lo, float(te.min())), max(hi, float(te.max())))
         lo, hi = self._live
@@ -305,7 +307,8 @@ class StepRunner:
         th_in = np.concatenate([p[0] for p in parts])
         th_out = np.concatenate([p[1] for p in parts])
         applied = -np.concatenate([p[2] for p in parts])
-        angle = th_out - th_in / self.ctx.gear_ratio
+        _, angle = output_phase_and_te(th_in, th_out, gear_ratio=self.ctx.gear_ratio,
+                                       check=False)
         position_deg = float(np.degrees(np.mod(np.mean(th_in) / self.ctx.gear_ratio,
                                                2 * math.pi))) if th_in.size else math.nan
         if step.method == 'torque_steps':

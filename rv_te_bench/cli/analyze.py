@@ -140,7 +140,7 @@ def run(args: argparse.Namespace) -> int:
 
 
 def _run(args: argparse.Namespace) -> int:
-    from rv_te_bench.cli.allocator import tune_for_batch_work  # noqa: PLC0415
+    from rv_te_bench.allocator import tune_for_batch_work  # noqa: PLC0415
     from rv_te_bench.report.analysis import analyze_bag  # noqa: PLC0415
 
     from rv_te_bench.cli._db import check_record_text  # noqa: PLC0415

@@ -6,6 +6,8 @@ import argparse
 import math
 from typing import TYPE_CHECKING
 
+from rv_te_bench.core._checks import finite_positive
+
 if TYPE_CHECKING:
     from collections.abc import Callable
 
@@ -13,14 +15,11 @@ if TYPE_CHECKING:
 def positive_float(text: str) -> float:
     """A finite number > 0."""
     try:
-        value = float(text)
+        float(text)
     except ValueError:
         msg = f'not a number: {text!r}'
         raise argparse.ArgumentTypeError(msg) from None
-    if not (math.isfinite(value) and value > 0):
-        msg = f'must be finite and > 0, got {text!r}'
-        raise argparse.ArgumentTypeError(msg)
-    return value
+    return finite_positive(text, '', argparse.ArgumentTypeError)   # names the text given
 
 
 def int_at_least(text: str, minimum: int) -> int:

@@ -24,9 +24,9 @@ from typing import Any
 
 import numpy as np
 
+from rv_te_bench.cli._progress import ProgressBar
 from rv_te_bench.cli.argtypes import nonnegative_int, positive_float
 from rv_te_bench.cli.optimize_phases import (
-    ProgressBar,
     add_search_arguments,
     check_search_arguments,
     format_result,
@@ -271,7 +271,7 @@ def run(args: argparse.Namespace) -> int:
 
 
 def _run(args: argparse.Namespace) -> int:  # noqa: C901, PLR0912
-    from rv_te_bench.cli.allocator import tune_for_batch_work  # noqa: PLC0415
+    from rv_te_bench.allocator import tune_for_batch_work  # noqa: PLC0415
     from rv_te_bench.core.identify import (  # noqa: PLC0415
         MIN_EXPLAINED_FRACTION,
         identify_folded,

@@ -140,7 +140,7 @@ def run(args: argparse.Namespace) -> int:
     spec = _spec_from_files(args, chosen)
     if args.check:
         print(f'ok: {", ".join(spec.nodes)} in namespace {spec.namespace or "/"}')
-        values = getattr(spec, 'launch_arguments', None)
+        values = spec.launch_arguments
         if values:
             print('launch arguments: ' + ', '.join(f'{k}:={v}' for k, v in values.items()))
         return 0

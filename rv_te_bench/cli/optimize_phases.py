@@ -13,8 +13,9 @@ import argparse
 import json
 import math
 import sys
-from typing import Any, TextIO
+from typing import Any
 
+from rv_te_bench.cli._progress import ProgressBar
 from rv_te_bench.safe_yaml import one_line
 
 EXAMPLES = """\
@@ -23,34 +24,6 @@ examples:
   rv-te optimize-phases wang2020-2kv --refine --json    refine below 10 deg, JSON output
   rv-te optimize-phases wang2020-2kv --step-deg 20 --set eccentricity.e_p2_m=1.5e-5
 """
-
-
-class ProgressBar:
-    """A one-line text progress bar on a stream (stderr); call it with the fraction done."""
-
-    def __init__(self, label: str, stream: TextIO | None = None, width: int = 30) -> None:
-        """Remember where to draw (see class docstring)."""
-        self._label = label
-        self._stream = sys.stderr if stream is None else stream
-        self._width = width
-        self._last = -1
-
-    def __call__(self, fraction: float) -> None:
-        """Redraw when the shown percentage changes."""
-        pct = int(max(0.0, min(1.0, fraction)) * 100)
-        if pct == self._last:
-            return
-        self._last = pct
-        fill = pct * self._width // 100
-        bar = '#' * fill + '.' * (self._width - fill)
-        self._stream.write(f'\r{self._label} [{bar}] {pct:3d}%')
-        self._stream.flush()
-
-    def close(self) -> None:
-        """End the line if anything was drawn."""
-        if self._last >= 0:
-            self._stream.write('\n')
-            self._stream.flush()
 
 
 def _loads(text: str) -> tuple[float, ...]:

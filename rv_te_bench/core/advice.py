@@ -8,9 +8,35 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, field
-from typing import Any
+from typing import Any, Literal, TypeAlias
 
 from rv_te_bench.errors import CompensationError
+
+__all__ = ['Advice', 'AdviceKind', 'Modification', 'advice_kind']
+
+#: The compensation the suite can advise: 2K-V assembly phases (Wang 2020 Eq. 21, identified
+#: from the measured TE or optimised on the preset) or RV tooth-profile modification (Hu 2020
+#: Eqs 24-27).
+AdviceKind: TypeAlias = Literal['assembly-phases', 'tooth-profile']
+
+_ADVICE_BY_MODEL: dict[str, AdviceKind] = {
+    'wang2020-2kv': 'assembly-phases',
+    'hu2020-rv': 'tooth-profile',
+}
+
+
+def advice_kind(model: str) -> AdviceKind | None:
+    """The advice for a bench whose preset has the TE model ``model`` (``Preset.model``).
+
+    The one place the report (``report.analysis``) and the compensation node choose it:
+    ``'assembly-phases'`` for ``wang2020-2kv``, ``'tooth-profile'`` for ``hu2020-rv``,
+    None for a model without a compensation model.
+
+    Examples:
+        >>> advice_kind('wang2020-2kv'), advice_kind('hu2020-rv'), advice_kind('li2023-rv')
+        ('assembly-phases', 'tooth-profile', None)
+    """
+    return _ADVICE_BY_MODEL.get(model)
 
 
 @dataclass(frozen=True)

@@ -34,7 +34,7 @@ from dataclasses import dataclass, field
 import numpy as np
 import numpy.typing as npt
 
-from rv_te_bench.core.te import transmission_error_rad
+from rv_te_bench.core.te import output_phase_and_te
 from rv_te_bench.errors import TeInputError
 
 __all__ = ['DEFAULT_BINS', 'AngleFold', 'FoldedTe']
@@ -210,15 +210,12 @@ class AngleFold:
 
     def add_encoders(self, theta_in_rad: npt.ArrayLike, theta_out_rad: npt.ArrayLike, *,
                      gear_ratio: float) -> None:
-        """Fold consecutive encoder samples: TE of Eq. 22 at phi = theta_in / i.
+        """Fold consecutive encoder samples: TE of Wang 2020 Eq. 22 at phi = theta_in / i.
 
         Raises:
             TeInputError: Shapes differ, or ``gear_ratio`` is not finite and > 0.
         """
-        th_in = np.asarray(theta_in_rad, dtype=np.float64)
-        te = transmission_error_rad(th_in, np.asarray(theta_out_rad, dtype=np.float64),
-                                    gear_ratio=gear_ratio)
-        self.add(th_in / gear_ratio, te)
+        self.add(*output_phase_and_te(theta_in_rad, theta_out_rad, gear_ratio=gear_ratio))
 
     def _noise(self, phi: FloatArray, te: FloatArray) -> None:
         if te.size < 3 or len(self._d2) >= _NOISE_STRETCHES:  # noqa: PLR2004

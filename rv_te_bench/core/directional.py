@@ -18,7 +18,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from rv_te_bench.core.spectrum import order_spectrum
-from rv_te_bench.core.te import TeStats, te_statistics, transmission_error_rad
+from rv_te_bench.core.te import TeStats, output_phase_and_te, te_statistics
 from rv_te_bench.errors import TeInputError
 
 if TYPE_CHECKING:
@@ -87,16 +87,15 @@ def direction_te(theta_in_rad: npt.ArrayLike, theta_out_rad: npt.ArrayLike, *,
         >>> d.revolutions, d.direction, [round(p, 7) for p in d.pp_per_rev_rad]
         (2, 1, [0.0004, 0.0004])
     """
-    th_in = np.asarray(theta_in_rad, dtype=np.float64).ravel()
-    te = transmission_error_rad(th_in, np.asarray(theta_out_rad, dtype=np.float64).ravel(),
-                                gear_ratio=gear_ratio)
-    if th_in.size < 2:  # noqa: PLR2004
-        msg = f'a TE record needs at least 2 samples, got {th_in.size}'
+    phi, te = output_phase_and_te(np.asarray(theta_in_rad, dtype=np.float64).ravel(),
+                                  np.asarray(theta_out_rad, dtype=np.float64).ravel(),
+                                  gear_ratio=gear_ratio)
+    if phi.size < 2:  # noqa: PLR2004
+        msg = f'a TE record needs at least 2 samples, got {phi.size}'
         raise TeInputError(msg)
     if isinstance(bins, bool) or not isinstance(bins, int) or bins < 8:  # noqa: PLR2004
         msg = f'bins must be an integer >= 8, got {bins!r}'
         raise TeInputError(msg)
-    phi = th_in / gear_ratio
     step = np.diff(phi)
     direction = 1 if phi[-1] >= phi[0] else -1
     if np.any(direction * step < 0):

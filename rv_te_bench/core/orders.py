@@ -9,9 +9,9 @@ harmonics k f_w sit at output orders 25 k; the 2nd-stage mesh is at 52 f_w = ord
 
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass
 
+from rv_te_bench.core._checks import finite_positive
 from rv_te_bench.errors import TeConfigError
 
 __all__ = ['OrderSet']
@@ -20,11 +20,7 @@ _DUPLICATE_TOL = 1e-9
 
 
 def _positive(name: str, value: float) -> float:
-    x = float(value)
-    if not (math.isfinite(x) and x > 0.0):
-        msg = f'{name} must be finite and > 0, got {value!r}'
-        raise TeConfigError(msg)
-    return x
+    return finite_positive(value, name, TeConfigError)
 
 
 @dataclass(frozen=True)

@@ -43,7 +43,7 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 from scipy import fft as sp_fft
 
-from rv_te_bench.core.units import rad_to_arcmin
+from rv_te_bench.core.units import json_deg, json_float, rad_to_arcmin
 from rv_te_bench.errors import TeInputError
 
 if TYPE_CHECKING:
@@ -51,8 +51,11 @@ if TYPE_CHECKING:
 
     from rv_te_bench.core.orders import OrderSet
 
-__all__ = ['AngleResampled', 'OrderSpectrum', 'SpectrumLine', 'order_spectrum',
-           'resample_to_output_angle']
+    FloatArray = npt.NDArray[np.float64]
+
+__all__ = ['AngleResampled', 'OrderSpectrum', 'SpectrumAverager', 'SpectrumLine',
+           'SpectrumSummary', 'order_spectrum', 'resample_to_output_angle',
+           'spectrum_line_json']
 
 _TWO_PI = 2.0 * math.pi
 _REV_TOL = 1e-9
@@ -407,3 +410,167 @@ def order_spectrum(
         revolutions=float(res.revolutions), lines=tuple(lines), orders=bin_orders,
         amplitude_rad=amplitude, bins=spec, mean_rad=float(spec[0].real),
         samples_per_rev=res.samples_per_rev, phi0_rad=res.phi0_rad)
+
+
+# --------------------------------------------------------------------------------------
+# the averaged spectrum of a recording (the complete windows of a bag)
+
+
+@dataclass(frozen=True)
+class SpectrumSummary:
+    """Order spectrum of a bag: the complete windows, averaged.
+
+    Attributes:
+        method: How the lines were combined, in words (shown in reports).
+        n_windows: Complete windows averaged.
+        output_hz: Mean output rotation frequency f_out over those windows [Hz].
+        crank_hz: Mean absolute crank frequency f_w [Hz].
+        revolutions: Output revolutions covered by the averaged windows.
+        lines: Averaged labelled lines (peak amplitude [rad], phase of the cosine [rad]).
+        amplitude_spread_rad: Per line, the standard deviation of the per-window amplitudes.
+        orders: Output orders of the full spectrum (for plots), read-only.
+        amplitude_rad: Mean peak amplitude at ``orders`` [rad], read-only.
+    """
+
+    method: str
+    n_windows: int
+    output_hz: float
+    crank_hz: float
+    revolutions: float
+    lines: tuple[SpectrumLine, ...]
+    amplitude_spread_rad: tuple[float, ...]
+    orders: FloatArray = field(repr=False)
+    amplitude_rad: FloatArray = field(repr=False)
+
+    def to_json_dict(self) -> dict[str, Any]:
+        """JSON-friendly dict; line amplitudes in rad and arcmin, phases in rad and deg."""
+        return {
+            'method': self.method, 'n_windows': self.n_windows,
+            'output_hz': json_float(self.output_hz), 'crank_hz': json_float(self.crank_hz),
+            'revolutions': json_float(self.revolutions),
+            'lines': [spectrum_line_json(ln, spread) for ln, spread in
+                      zip(self.lines, self.amplitude_spread_rad, strict=True)],
+        }
+
+
+class SpectrumAverager:
+    """Running average of the spectra of complete windows (memory of one window's bins).
+
+    Line amplitudes: arithmetic mean of the per-window peak amplitudes (robust to the phase
+    reference of each window). Line phases: angle of the mean phasor a*exp(j*phase). The
+    full amplitude spectrum is averaged bin by bin when every window has the same order
+    grid; otherwise the spectrum of the longest window is shown (the method says so).
+
+    Examples:
+        >>> import numpy as np
+        >>> from rv_te_bench.core.orders import OrderSet
+        >>> from rv_te_bench.core.spectrum import order_spectrum
+        >>> phi = 2 * np.pi * np.arange(512) / 512
+        >>> avg = SpectrumAverager()
+        >>> for a in (1e-4, 3e-4):
+        ...     avg.add(order_spectrum(phi, a * np.cos(25 * phi), OrderSet(79.0, 25.0)))
+        >>> s = avg.result()
+        >>> line = next(ln for ln in s.lines if ln.label == '1 f_w')
+        >>> s.n_windows, round(line.amplitude_rad, 12), round(float(s.amplitude_rad[25]), 12)
+        (2, 0.0002, 0.0002)
+    """
+
+    def __init__(self) -> None:
+        """Start with no window."""
+        self._first: OrderSpectrum | None = None
+        self._line_amps: list[dict[str, float]] = []
+        self._line_phases: list[dict[str, float]] = []
+        self._revs: list[float] = []
+        self._out_hz: list[float] = []
+        self._crank_hz: list[float] = []
+        self._sum: FloatArray | None = None
+        self._ref_orders: FloatArray | None = None
+        self._same_grid = True
+        self._longest: tuple[float, FloatArray, FloatArray] | None = None
+
+    def add(self, spectrum: OrderSpectrum) -> None:
+        """Fold in the spectrum of one complete window (it is not kept)."""
+        if self._first is None:
+            self._first = spectrum.lines_only()
+        self._line_amps.append({ln.label: ln.amplitude_rad for ln in spectrum.lines})
+        self._line_phases.append({ln.label: ln.phase_rad for ln in spectrum.lines})
+        self._revs.append(float(spectrum.revolutions))
+        self._out_hz.append(float(spectrum.output_hz))
+        self._crank_hz.append(float(spectrum.crank_hz))
+        orders = np.asarray(spectrum.orders, dtype=np.float64)
+        amp = np.asarray(spectrum.amplitude_rad, dtype=np.float64)
+        if self._longest is None or spectrum.revolutions > self._longest[0]:
+            self._longest = (float(spectrum.revolutions), orders.copy(), amp.copy())
+        if self._sum is None or self._ref_orders is None:
+            self._sum = amp.copy()
+            self._ref_orders = orders.copy()
+            return
+        # windows of the same length share the order grid m / R up to their own Nyquist order
+        size = min(self._sum.size, amp.size)
+        if self._same_grid and not np.allclose(orders[:size], self._ref_orders[:size]):
+            self._same_grid = False
+        self._sum = self._sum[:size] + amp[:size]
+        self._ref_orders = self._ref_orders[:size]
+
+    def result(self) -> SpectrumSummary | None:
+        """The average so far, or None when no window was added."""
+        first = self._first
+        if first is None or self._sum is None or self._ref_orders is None \
+                or self._longest is None:
+            return None
+        n = len(self._revs)
+        # lines are matched by label: a line above a window's Nyquist order is missing there
+        labels = [ln.label for ln in first.lines
+                  if all(ln.label in d for d in self._line_amps)]
+        amps = np.array([[d[lab] for lab in labels] for d in self._line_amps],
+                        dtype=np.float64).reshape(n, len(labels))
+        phases = np.array([[d[lab] for lab in labels] for d in self._line_phases],
+                          dtype=np.float64).reshape(n, len(labels))
+        mean_amp = amps.mean(axis=0)
+        phasor = (amps * np.exp(1j * phases)).mean(axis=0)
+        revs = np.array(self._revs)
+        out_hz = float(np.mean(self._out_hz))
+        crank_hz = float(np.mean(self._crank_hz))
+        by_label = {ln.label: ln for ln in first.lines}
+        lines = tuple(
+            replace(by_label[lab], amplitude_rad=float(mean_amp[k]),
+                    phase_rad=float(np.angle(phasor[k])),
+                    frequency_hz=float(by_label[lab].output_order * out_hz))
+            for k, lab in enumerate(labels))
+        what = 'the one complete window' if n == 1 else f'{n} complete windows'
+        if self._same_grid:
+            orders = self._ref_orders.copy()
+            amp = self._sum / n
+            method = (f'mean of {what} ({revs.sum():.3g} output revolution(s)): line amplitude '
+                      '= mean of the per-window peak amplitudes, phase = angle of the mean '
+                      'phasor')
+        else:
+            orders = self._longest[1].copy()
+            amp = self._longest[2].copy()
+            method = (f'lines: mean of {what}; full spectrum: the longest window '
+                      f'({float(revs.max()):.3g} output revolutions; window grids differ)')
+        orders.setflags(write=False)
+        amp.setflags(write=False)
+        return SpectrumSummary(
+            method=method, n_windows=n, output_hz=out_hz, crank_hz=crank_hz,
+            revolutions=float(revs.sum()), lines=lines,
+            amplitude_spread_rad=tuple(float(x) for x in amps.std(axis=0)),
+            orders=orders, amplitude_rad=amp)
+
+
+def spectrum_line_json(line: SpectrumLine, spread_rad: float) -> dict[str, Any]:
+    """A line as JSON: amplitude in rad and arcmin, phase in rad and deg, and the spread of
+    the per-window amplitudes [arcmin] when ``spread_rad`` is finite (None for NaN)."""
+    out = {
+        'label': line.label,
+        'output_order': json_float(line.output_order),
+        'crank_order': json_float(line.crank_order),
+        'frequency_hz': json_float(line.frequency_hz),
+        'amplitude_arcmin': json_float(rad_to_arcmin(line.amplitude_rad)),
+        'amplitude_rad': json_float(line.amplitude_rad),
+        'phase_rad': json_float(line.phase_rad),
+        'phase_deg': json_deg(line.phase_rad),
+    }
+    if math.isfinite(spread_rad):
+        out['amplitude_spread_arcmin'] = json_float(rad_to_arcmin(spread_rad))
+    return out

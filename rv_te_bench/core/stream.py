@@ -1,7 +1,7 @@
 """Streaming TE analysis: encoder blocks in, decimated TE and whole-revolution windows out.
 
 A :class:`StreamingTeAnalyzer` takes the blocks an encoder DAQ (or the simulated bench, or a
-bag) delivers, computes TE = theta_out - theta_in / i (Eq. 22, :mod:`rv_te_bench.core.te`)
+bag) delivers, computes TE = theta_out - theta_in / i (Wang 2020 Eq. 22, :mod:`rv_te_bench.core.te`)
 per sample and
 
 - hands back the TE decimated to ``decimated_rate_hz`` for live display (every q-th sample,
@@ -48,7 +48,7 @@ import numpy as np
 
 from rv_te_bench.core.orders import OrderSet
 from rv_te_bench.core.spectrum import OrderSpectrum, order_spectrum
-from rv_te_bench.core.te import RunningStats, TeStats, stats_of_finite
+from rv_te_bench.core.te import RunningStats, TeStats, output_phase_and_te, stats_of_finite
 from rv_te_bench.errors import TeConfigError, TeInputError
 
 if TYPE_CHECKING:
@@ -164,7 +164,7 @@ class EncoderBatch:
     """Consecutive encoder blocks with their samples concatenated (offline reading).
 
     A bag reader hands over all the blocks of one MCAP chunk at once, so that checks,
-    Eq. 22 and statistics run over long arrays instead of block by block.
+    Wang 2020 Eq. 22 and statistics run over long arrays instead of block by block.
     :meth:`StreamingTeAnalyzer.push_batch` gives the same windows, gaps, statistics and
     counters as pushing :meth:`block` 0, 1, ... one by one (it only skips the decimated
     display TE). Only structure is checked on construction (values are the analyzer's job,
@@ -783,9 +783,8 @@ class StreamingTeAnalyzer:
         """Blocks k0..k1-1 of ``batch``: clean and continuous (checked by the caller)."""
         starts = np.asarray(batch.starts, dtype=np.intp)
         a, b = int(starts[k0]), int(starts[k1])
-        ratio = self._config.gear_ratio
-        phi = np.asarray(batch.theta_in_rad[a:b], dtype=np.float64) / ratio
-        te = np.asarray(batch.theta_out_rad[a:b], dtype=np.float64) - phi
+        phi, te = output_phase_and_te(batch.theta_in_rad[a:b], batch.theta_out_rad[a:b],
+                                      gear_ratio=self._config.gear_ratio, check=False)
         self._counters['blocks'] += k1 - k0
         self._cum.update(te)
         rel = starts[k0:k1 + 1] - a
@@ -855,9 +854,8 @@ class StreamingTeAnalyzer:
             self._end_stretch(windows)
         self._last_seq = seq
         self._last_t = float(t[-1])
-        ratio = self._config.gear_ratio
-        phi = clean.theta_in_rad / ratio
-        te = clean.theta_out_rad - phi
+        phi, te = output_phase_and_te(clean.theta_in_rad, clean.theta_out_rad,
+                                      gear_ratio=self._config.gear_ratio, check=False)
         self._cum.update(te)
         self._cum_rev += abs(float(phi[-1] - phi[0]))
         if self._last_phi is not None:

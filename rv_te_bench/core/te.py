@@ -1,6 +1,6 @@
-"""Transmission error from two shaft encoders (Wang 2020, Eq. 22) and its statistics.
+"""Transmission error from two shaft encoders (Wang 2020 Eq. 22) and its statistics.
 
-Eq. 22 of Wang 2020 is printed in the mesh-line form
+Wang 2020 Eq. 22 is printed in the mesh-line form
 
     TE = (theta_2 - r_g * theta_1 / r_p) * 10800 / (r_p * pi)    [arcmin]
 
@@ -32,28 +32,60 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
+from rv_te_bench.core._checks import finite_positive
 from rv_te_bench.core.units import rad_to_arcmin
 from rv_te_bench.errors import TeInputError
 
 if TYPE_CHECKING:
     import numpy.typing as npt
 
-__all__ = ['RunningStats', 'TeStats', 'stats_of_finite', 'te_statistics',
-           'transmission_error_rad']
+__all__ = ['RunningStats', 'TeStats', 'output_phase_and_te', 'stats_of_finite',
+           'te_statistics', 'transmission_error_rad']
 
 
 def _check_ratio(gear_ratio: float) -> float:
-    ratio = float(gear_ratio)
-    if not (math.isfinite(ratio) and ratio > 0.0):
-        msg = f'gear_ratio must be finite and > 0, got {gear_ratio!r}'
-        raise TeInputError(msg)
-    return ratio
+    return finite_positive(gear_ratio, 'gear_ratio', TeInputError)
+
+
+def output_phase_and_te(
+    theta_in_rad: npt.ArrayLike, theta_out_rad: npt.ArrayLike, *, gear_ratio: float,
+    check: bool = True,
+) -> tuple[np.ndarray, np.ndarray]:
+    """Wang 2020 Eq. 22 with the output phase it is taken at: (theta_in / i, TE).
+
+    The one place the suite forms TE = theta_out - theta_in / i from encoder angles
+    (batch, streaming, folding, acceptance steps): phi = theta_in / i first, then
+    TE = theta_out - phi, so every caller gets bit-identical values.
+
+    Args:
+        theta_in_rad: Unwrapped input-shaft angle [rad], any shape.
+        theta_out_rad: Unwrapped output-shaft angle [rad], same shape.
+        gear_ratio: Overall ratio i, input revolutions per output revolution (> 0).
+        check: Check ``gear_ratio`` and the shapes (False on hot paths whose caller holds a
+            checked ratio and arrays of one length; then nothing is checked here).
+
+    Returns:
+        ``(phi, te)``: the ideal output angle theta_in / i [rad] and TE [rad], float64,
+        same shape. Positive TE: the output leads the ideal ratio.
+
+    Raises:
+        TeInputError: With ``check``: shapes differ or ``gear_ratio`` is not finite and > 0.
+    """
+    theta_in = np.asarray(theta_in_rad, dtype=np.float64)
+    theta_out = np.asarray(theta_out_rad, dtype=np.float64)
+    if check:
+        gear_ratio = _check_ratio(gear_ratio)
+        if theta_in.shape != theta_out.shape:
+            msg = f'shape mismatch: {theta_in.shape=} vs {theta_out.shape=}'
+            raise TeInputError(msg)
+    phi = theta_in / gear_ratio
+    return phi, theta_out - phi
 
 
 def transmission_error_rad(
     theta_in_rad: npt.ArrayLike, theta_out_rad: npt.ArrayLike, *, gear_ratio: float,
 ) -> np.ndarray:
-    """Output-side transmission error, TE = theta_out - theta_in / i (Wang 2020, Eq. 22).
+    """Output-side transmission error, TE = theta_out - theta_in / i (Wang 2020 Eq. 22).
 
     Args:
         theta_in_rad: Unwrapped input-shaft angle [rad], any shape.
@@ -78,13 +110,7 @@ def transmission_error_rad(
         >>> round(float(rad_to_arcmin(te[0])), 12)
         1.0
     """
-    ratio = _check_ratio(gear_ratio)
-    theta_in = np.asarray(theta_in_rad, dtype=np.float64)
-    theta_out = np.asarray(theta_out_rad, dtype=np.float64)
-    if theta_in.shape != theta_out.shape:
-        msg = f'shape mismatch: {theta_in.shape=} vs {theta_out.shape=}'
-        raise TeInputError(msg)
-    return theta_out - theta_in / ratio
+    return output_phase_and_te(theta_in_rad, theta_out_rad, gear_ratio=gear_ratio)[1]
 
 
 def _none_if_nan(x: float) -> float | None:

@@ -25,6 +25,7 @@ __all__ = [
     'arcsec_to_rad',
     'deg_to_rad',
     'json_deg',
+    'json_float',
     'rad_s_to_rpm',
     'rad_to_arcmin',
     'rad_to_arcsec',
@@ -34,6 +35,17 @@ __all__ = [
 
 #: Decimals of degrees written to JSON: 1e-6 deg = 0.0036", far below any angle we measure.
 JSON_DEG_DIGITS = 6
+
+
+def json_float(x: float) -> float | None:
+    """A number for JSON: a plain float, None when not finite (JSON has no NaN).
+
+    Examples:
+        >>> json_float(1.5), json_float(float('nan'))
+        (1.5, None)
+    """
+    v = float(x)
+    return v if math.isfinite(v) else None
 
 
 def json_deg(x_rad: float) -> float | None:

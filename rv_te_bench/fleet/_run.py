@@ -86,7 +86,7 @@ def _one_line(exc: BaseException) -> str:
 
 def analyse_one(path: str, options: FleetOptions) -> UnitRecord:
     """Analyse one bag into its record (run on a worker; never raises for a bad bag)."""
-    from rv_te_bench.cli.allocator import tune_for_batch_work  # noqa: PLC0415
+    from rv_te_bench.allocator import tune_for_batch_work  # noqa: PLC0415
     from rv_te_bench.report.analysis import analyze_bag  # noqa: PLC0415
     from rv_te_bench.report.html import report_json  # noqa: PLC0415
     from sim.errors import SimError  # noqa: PLC0415

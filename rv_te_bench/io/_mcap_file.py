@@ -17,6 +17,7 @@ from dataclasses import dataclass, field
 from typing import TYPE_CHECKING, Any, Literal
 
 from mcap.data_stream import RecordBuilder
+from mcap.opcode import Opcode
 from mcap.records import (
     Channel,
     ChunkIndex,
@@ -28,6 +29,7 @@ from mcap.records import (
     Statistics,
     SummaryOffset,
 )
+from mcap.writer import MCAP0_MAGIC
 
 if TYPE_CHECKING:
     from collections.abc import Callable, Iterable, Sequence
@@ -40,17 +42,20 @@ __all__ = ['MAGIC', 'MAX_TIME_NS', 'MSG_HEADER', 'OP_MESSAGE', 'TRAILER', 'Chunk
 
 Compression = Literal['zstd', 'lz4', 'none']
 
-MAGIC = b'\x89MCAP0\r\n'
+#: The MCAP magic (``mcap``'s own), at the start and the end of every file.
+MAGIC: bytes = MCAP0_MAGIC
 MSG_HEADER = struct.Struct('<BQHIQQ')  # opcode, length, channel, sequence, log, publish
-OP_MESSAGE = 0x05
+# mcap's opcodes as plain ints (struct.pack and the readers' hot loops take ints)
+OP_MESSAGE = int(Opcode.MESSAGE)
 MAX_TIME_NS = 2**63 - 1
 _CHUNK_HEADER = struct.Struct('<QQQI')  # start, end, uncompressed size, crc
-_OP_CHUNK = 0x06
-_OP_MESSAGE_INDEX = 0x07
-_OP_FOOTER = 0x02
+_OP_CHUNK = int(Opcode.CHUNK)
+_OP_MESSAGE_INDEX = int(Opcode.MESSAGE_INDEX)
+_OP_FOOTER = int(Opcode.FOOTER)
+_OP_DATA_END = int(Opcode.DATA_END)
 # Data End (no CRC) + Footer without summary + magic: keeps the file valid between chunks.
-TRAILER = (struct.pack('<BQI', 0x0F, 4, 0) + struct.pack('<BQQQI', _OP_FOOTER, 20, 0, 0, 0)
-           + MAGIC)
+TRAILER = (struct.pack('<BQI', _OP_DATA_END, 4, 0)
+           + struct.pack('<BQQQI', _OP_FOOTER, 20, 0, 0, 0) + MAGIC)
 
 
 def record_bytes(*records: Any) -> bytes:  # noqa: ANN401 - mcap.records types
@@ -312,11 +317,11 @@ class McapFile:
             channel_message_counts={t.channel_id: self.counts.get(t.channel_id, 0)
                                     for t in in_file})
         tail = rec + _summary_tail(self.data_end + len(rec), [
-            (0x03, [t.schema() for t in schemas.values()]),
-            (0x04, [t.channel() for t in in_file]),
-            (0x0B, [statistics]),
-            (0x0D, meta_indexes),
-            (0x08, self.chunk_indexes)])
+            (Opcode.SCHEMA, [t.schema() for t in schemas.values()]),
+            (Opcode.CHANNEL, [t.channel() for t in in_file]),
+            (Opcode.STATISTICS, [statistics]),
+            (Opcode.METADATA_INDEX, meta_indexes),
+            (Opcode.CHUNK_INDEX, self.chunk_indexes)])
         try:
             self._write_at(self.data_end, [tail], len(tail))
             self.storage.truncate(self.fd, self.data_end + len(tail))

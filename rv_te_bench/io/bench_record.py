@@ -1,15 +1,62 @@
-"""What a bench recorded about itself (``BenchInfo.parameters_yaml``), read back bounded.
+"""What a bench recorded about itself: the BenchInfo record, one shape, read back bounded.
 
-The text comes from a bag or from the network: it is parsed by the suite's bounded loader
-(:mod:`rv_te_bench.safe_yaml`), so a hostile record costs at most its limits.
+* :func:`read_bench_info`: the last BenchInfo of a bag (through the summary's chunk index
+  when the file has one), as :func:`bench_info_values` plus its stamp and frame;
+
+* :func:`bench_info_values`: the fields of :class:`sim.bench.BenchInfoData` (the one list of
+  them) as plain Python values, from a ``BenchInfo`` message or a ``BenchInfoData``;
+* :func:`overrides_from_parameters_yaml` and :func:`preset_from_bench_info`: the preset a
+  bench ran with, rebuilt from its ``parameters_yaml``. The text comes from a bag or from
+  the network: it is parsed by the suite's bounded loader (:mod:`rv_te_bench.safe_yaml`),
+  so a hostile record costs at most its limits.
 """
 
 from __future__ import annotations
 
-from rv_te_bench.errors import YamlInputError
+import dataclasses
+import functools
+from typing import TYPE_CHECKING, Any
+
+from rv_te_bench.errors import BagError, YamlInputError
 from rv_te_bench.safe_yaml import DOCUMENT_LIMITS, load_yaml
 
-__all__ = ['PARAMETERS_YAML_LIMITS', 'overrides_from_parameters_yaml']
+if TYPE_CHECKING:
+    from collections.abc import Callable, Sequence
+    from pathlib import Path
+
+    from sim.presets import Preset
+
+__all__ = ['PARAMETERS_YAML_LIMITS', 'bench_info_field_names', 'bench_info_values',
+           'overrides_from_parameters_yaml', 'preset_from_bench_info', 'read_bench_info']
+
+#: BenchInfoData annotation -> conversion to the plain value (arrays as lists)
+_PLAIN: dict[str, Callable[[Any], Any]] = {
+    'str': str, 'float': float, 'int': int,
+    'tuple[float, ...]': lambda v: [float(x) for x in v],
+    'tuple[str, ...]': lambda v: [str(x) for x in v],
+}
+
+
+@functools.cache
+def _bench_info_fields() -> tuple[tuple[str, Callable[[Any], Any]], ...]:
+    from sim.bench import BenchInfoData  # noqa: PLC0415 - keeps sim.bench out of io's import
+
+    return tuple((f.name, _PLAIN[str(f.type)]) for f in dataclasses.fields(BenchInfoData))
+
+
+def bench_info_field_names() -> tuple[str, ...]:
+    """The fields of ``rv_te_msgs/BenchInfo`` without the header, in message order."""
+    return tuple(name for name, _ in _bench_info_fields())
+
+
+def bench_info_values(info: Any) -> dict[str, Any]:  # noqa: ANN401 - message or dataclass
+    """A BenchInfo's fields as plain values: ``str``, ``float``, ``int``, arrays as lists.
+
+    Args:
+        info: Anything with the attributes of :class:`sim.bench.BenchInfoData`: a
+            ``BenchInfo`` message (rclpy or rosbags) or the dataclass itself.
+    """
+    return {name: plain(getattr(info, name)) for name, plain in _bench_info_fields()}
 
 #: A BenchInfo record holds the preset's values and the bench settings: a few kB.
 PARAMETERS_YAML_LIMITS = DOCUMENT_LIMITS
@@ -36,3 +83,78 @@ def overrides_from_parameters_yaml(text: str) -> list[str]:
             isinstance(o, str | int | float) for o in overrides):
         return []
     return [str(o) for o in overrides]
+
+
+def preset_from_bench_info(preset: str, parameters_yaml: str,
+                           extra_overrides: Sequence[str] = ()) -> Preset:
+    """The preset a bench ran with: ``preset`` with the overrides it recorded, then ``extra``.
+
+    Raises:
+        PresetError: Unknown preset or a bad override (``sim.errors``).
+    """
+    from sim.presets import load_preset  # noqa: PLC0415
+
+    return load_preset(preset, [*overrides_from_parameters_yaml(parameters_yaml),
+                                *extra_overrides])
+
+
+def read_bench_info(path: str | Path, topic: str | None = None) -> dict[str, Any] | None:
+    """The last BenchInfo message of a bag as a dict of its fields, or None if there is none.
+
+    Args:
+        path: Bag folder or ``.mcap`` file.
+        topic: BenchInfo topic; None: every topic of type BenchInfo.
+
+    Raises:
+        BenchInfoError: The bag's encoder data is there but BenchInfo is damaged or does not
+            deserialise (the command line's ratio / preset can stand in for it).
+        BagError: Bad layout, or not a readable MCAP bag (no topic, or neither BenchInfo
+            nor encoder data readable).
+    """
+    from rv_te_bench.errors import BenchInfoError  # noqa: PLC0415
+    from rv_te_bench.io import _sqlite_bag as _sqlite  # noqa: PLC0415
+    from rv_te_bench.io import bag_reader as br  # noqa: PLC0415 - bag_reader re-exports this
+    from rv_te_bench.io._mcap_scan import _indexed_messages  # noqa: PLC0415
+    from rv_te_bench.io.msgdefs import BENCH_INFO, ENCODER_BLOCK, rv_te_typestore  # noqa: PLC0415
+
+    bag = br.open_bag(path)
+    types = bag.topic_types or br._scan_topic_types(bag)  # noqa: SLF001
+    if not types:
+        text = (f'{bag.path} is not a readable MCAP bag: no topic in it (not a bag, or '
+                'truncated before its first message)')
+        raise BagError(text)
+    names = [topic] if topic is not None else [t for t, ty in types.items() if ty == BENCH_INFO]
+    if not names:
+        return None
+    last: bytes | None = None
+    stream: br.MessageStream[Any] = br.MessageStream(lambda s: iter(()), strict=False)
+    for file in bag.files:
+        # the summary's chunk index finds the few chunks that hold the topic; without a
+        # summary (killed recorder) the file is scanned
+        indexed = None if _sqlite.is_sqlite(bag) else _indexed_messages(file, names)
+        if indexed is None:
+            one = br.Bag(path=bag.path, files=(file,), info=bag.info, topic_types=bag.topic_types)
+            messages = br._messages(one, stream, names)  # noqa: SLF001
+            indexed = [(msgtype, bytes(data)) for _, msgtype, _, data in messages]
+        for msgtype, data in indexed:
+            if msgtype == BENCH_INFO:
+                last = data
+    if last is None:
+        if stream.partial:   # the BenchInfo may be in the part that cannot be read
+            damage = br.summarize_problems(stream.problems).rstrip('.')
+            if ENCODER_BLOCK not in br._scan_topic_types(bag).values():  # noqa: SLF001
+                # nothing the command line could replace BenchInfo for (issue #21)
+                text = (f'{bag.path} is not a readable MCAP bag: neither BenchInfo nor '
+                        f'encoder data can be read: {damage}')
+                raise BagError(text)
+            text = f'Bag {bag.path}: no readable BenchInfo; the bag is damaged: {damage}'
+            raise BenchInfoError(text)
+        return None
+    try:
+        msg = rv_te_typestore().deserialize_cdr(last, BENCH_INFO)
+    except Exception as exc:  # noqa: BLE001
+        text = f'Bag {bag.path}: BenchInfo does not deserialise: {str(exc).rstrip(".")}'
+        raise BenchInfoError(text) from None
+    stamp = msg.header.stamp
+    return {'stamp_s': stamp.sec + stamp.nanosec * 1e-9, 'frame_id': msg.header.frame_id,
+            **bench_info_values(msg)}

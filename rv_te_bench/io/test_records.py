@@ -13,6 +13,7 @@ from typing import Any
 import numpy as np
 
 from rv_te_bench.errors import BagError
+from rv_te_bench.io.bench_record import bench_info_values
 
 __all__ = ['RecordedTest', 'read_recorded_test']
 
@@ -20,9 +21,6 @@ _FIELDS_REPORT = ('serial', 'operator_name', 'plan_name', 'verdict', 'reason', '
                   'tolerance_yaml', 'report_json')
 _FIELDS_STEP = ('serial', 'step_index', 'step_count', 'step_name', 'step_kind', 'state',
                 'first_seq', 'last_seq', 'parameters_yaml', 'result_yaml')
-_FIELDS_INFO = ('bench_id', 'preset', 'reducer_type', 'gear_ratio', 'crank_per_input',
-                'encoder_in_model', 'encoder_out_model', 'encoder_out_resolution_rad',
-                'sample_rate_hz', 'block_size')
 
 
 @dataclass(frozen=True)
@@ -33,7 +31,8 @@ class RecordedTest:
         report: The final TestReport's fields (``report_json`` as text).
         steps: The finished or ended TestStep records of that test, in order (dicts, with
             ``segment_blocks`` as a list).
-        bench_info: BenchInfo's fields (``mesh_orders``, ``mesh_labels`` as lists).
+        bench_info: BenchInfo's fields (:func:`~rv_te_bench.io.bench_record.bench_info_values`:
+            plain values, ``mesh_orders`` and ``mesh_labels`` as lists).
         blocks: EncoderBlock seq -> (theta_in_rad, theta_out_rad, torque_out_nm) of the steps.
     """
 
@@ -68,9 +67,7 @@ def read_recorded_test(bag: str | Path, *, serial: str | None = None) -> Recorde
                     d['segment_blocks'] = [int(n) for n in getattr(msg, 'segment_blocks', [])]
                     steps.append(d)
                 elif not info:
-                    info = {k: getattr(msg, k) for k in _FIELDS_INFO}
-                    info['mesh_orders'] = [float(x) for x in msg.mesh_orders]
-                    info['mesh_labels'] = list(msg.mesh_labels)
+                    info = bench_info_values(msg)
             ended = [r for r in reports if r['verdict'] != 'running'
                      and (serial is None or r['serial'] == serial)]
             if not ended:

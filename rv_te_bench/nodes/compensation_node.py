@@ -19,13 +19,14 @@ import math
 import sys
 import threading
 from concurrent.futures import Future, ThreadPoolExecutor
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 from diagnostic_msgs.msg import DiagnosticArray
 from rclpy.node import Node
 from rv_te_msgs.msg import BenchInfo, CompensationAdvice, TransmissionError
 
+from rv_te_bench.core.advice import advice_kind
 from rv_te_bench.nodes import convert, qos
 from rv_te_bench.nodes.common import (
     OK,
@@ -37,6 +38,13 @@ from rv_te_bench.nodes.common import (
     run_node,
 )
 from rv_te_bench.params import ParamSpec
+
+if TYPE_CHECKING:
+    from collections.abc import Callable
+
+    from rv_te_bench.core.advice import AdviceKind
+    from sim.presets import Preset
+
 
 PARAMS = (
     ParamSpec('preset', 'string', '',
@@ -95,6 +103,7 @@ class CompensationNode(Node):
         self.progress: dict[str, float] = {}
         self.preset: Any = None
         self.model_name = ''
+        self.advice: AdviceKind | None = None
         self.bench_id = ''
         self.published: dict[str, int] = {}
         self.errors: list[str] = []
@@ -113,17 +122,21 @@ class CompensationNode(Node):
         self.create_timer(0.2, self._collect)
         self.create_timer(self.p['diagnostics_period_s'], self._publish_diagnostics)
         if self.p['preset']:   # a bad preset parameter stops the node at start-up
-            self._set_preset(self.p['preset'], list(self.p['overrides']), strict=True)
+            from sim.presets import load_preset  # noqa: PLC0415
+
+            self._set_preset(self.p['preset'],
+                             lambda: load_preset(self.p['preset'], list(self.p['overrides'])),
+                             strict=True)
 
     # -- inputs ---------------------------------------------------------------------------
-    def _set_preset(self, name: str, overrides: list[str], *, strict: bool = False) -> None:
-        """Load the preset; ``strict`` (our own parameter) raises, a bench's is logged."""
-        from sim.presets import load_preset  # noqa: PLC0415
-
+    def _set_preset(self, name: str, load: Callable[[], Preset], *,
+                    strict: bool = False) -> None:
+        """Load the preset ``name`` with ``load()``; ``strict`` (our own parameter) raises,
+        a bench's is logged."""
         if self.preset is not None:
             return
         try:
-            self.preset = load_preset(name, overrides)
+            self.preset = load()
         except ValueError as exc:
             if strict:
                 raise
@@ -131,16 +144,18 @@ class CompensationNode(Node):
             self.get_logger().error(f'cannot load preset {name!r}: {exc}')
             return
         self.model_name = self.preset.model
+        self.advice = advice_kind(self.model_name)
         self.get_logger().info(f'preset {self.preset.name} (model {self.model_name})')
-        if self.model_name == 'wang2020-2kv' and self.p['optimize_phases']:
+        if self.advice == 'assembly-phases' and self.p['optimize_phases']:
             self._submit('assembly-phases', self._job_phases)
 
     def _on_info(self, msg: BenchInfo) -> None:
         self.bench_id = msg.bench_id
         if not self.p['preset']:
-            from rv_te_bench.io.bench_record import overrides_from_parameters_yaml  # noqa: PLC0415
+            from rv_te_bench.io.bench_record import preset_from_bench_info  # noqa: PLC0415
 
-            self._set_preset(msg.preset, overrides_from_parameters_yaml(msg.parameters_yaml))
+            self._set_preset(msg.preset,
+                             lambda: preset_from_bench_info(msg.preset, msg.parameters_yaml))
 
     def _on_samples(self, msg: TransmissionError) -> None:
         te = np.asarray(msg.te_rad, dtype=np.float64)
@@ -160,9 +175,9 @@ class CompensationNode(Node):
         if self.preset is None or not msg.window_complete:
             return
         measured = msg.window.pp_rad if self.p['te_metric'] == 'pp' else msg.window.amplitude_rad
-        if self.model_name == 'wang2020-2kv' and self.p['identify'] and self._te:
+        if self.advice == 'assembly-phases' and self.p['identify'] and self._te:
             self._request('identified-assembly-phases', self._identify_job)
-        elif self.model_name == 'hu2020-rv' and math.isfinite(measured) and measured > 0:
+        elif self.advice == 'tooth-profile' and math.isfinite(measured) and measured > 0:
             self._request('tooth-profile', lambda: lambda: self._job_tooth(measured))
 
     def _identify_job(self) -> Any:  # noqa: ANN401

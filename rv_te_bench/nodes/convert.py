@@ -19,12 +19,14 @@ from rv_te_msgs.msg import (
 )
 
 from rv_te_bench.core.units import rad_to_arcmin, rad_to_deg
+from rv_te_bench.io.bench_record import bench_info_values
 
 if TYPE_CHECKING:
     from rv_te_bench.core.advice import Advice
     from rv_te_bench.core.spectrum import OrderSpectrum
     from rv_te_bench.core.stream import EncoderBlockData, WindowResult
     from rv_te_bench.core.te import TeStats
+    from sim.bench import BenchInfoData
 
 
 def stamp_to_s(stamp: Time) -> float:
@@ -75,36 +77,14 @@ def make_encoder_block(*, bench_id: str, seq: int, stamp_s: float, sample_rate_h
     return msg
 
 
-def make_bench_info(info: Any, stamp: Time) -> BenchInfo:  # noqa: ANN401 - BenchInfoData
+def make_bench_info(info: BenchInfoData, stamp: Time) -> BenchInfo:
     """sim.bench.BenchInfoData -> BenchInfo message (field names are the same)."""
     msg = BenchInfo()
     msg.header.stamp = stamp
     msg.header.frame_id = info.bench_id
-    for field in ('bench_id', 'preset', 'reducer_type', 'encoder_in_model', 'encoder_out_model',
-                  'parameters_yaml'):
-        setattr(msg, field, str(getattr(info, field)))
-    for field in ('gear_ratio', 'crank_per_input', 'crank_rel_per_input',
-                  'encoder_in_resolution_rad', 'encoder_out_resolution_rad', 'sample_rate_hz'):
-        setattr(msg, field, float(getattr(info, field)))
-    msg.mesh_orders = [float(x) for x in info.mesh_orders]
-    msg.mesh_labels = [str(x) for x in info.mesh_labels]
-    msg.block_size = int(info.block_size)
+    for field, value in bench_info_values(info).items():
+        setattr(msg, field, value)
     return msg
-
-
-def bench_info_to_dict(msg: BenchInfo) -> dict[str, Any]:
-    """BenchInfo message -> plain dict (same keys as the bag reader returns)."""
-    return {
-        'bench_id': msg.bench_id, 'preset': msg.preset, 'reducer_type': msg.reducer_type,
-        'gear_ratio': msg.gear_ratio, 'crank_per_input': msg.crank_per_input,
-        'crank_rel_per_input': msg.crank_rel_per_input,
-        'mesh_orders': list(msg.mesh_orders), 'mesh_labels': list(msg.mesh_labels),
-        'encoder_in_model': msg.encoder_in_model, 'encoder_out_model': msg.encoder_out_model,
-        'encoder_in_resolution_rad': msg.encoder_in_resolution_rad,
-        'encoder_out_resolution_rad': msg.encoder_out_resolution_rad,
-        'sample_rate_hz': msg.sample_rate_hz, 'block_size': msg.block_size,
-        'parameters_yaml': msg.parameters_yaml,
-    }
 
 
 def make_te_statistics(stats: TeStats) -> TeStatistics:

@@ -16,7 +16,7 @@ def test_tuning_keeps_window_sized_blocks_off_fresh_pages() -> None:
     code = textwrap.dedent('''
         import resource, sys
         import numpy as np
-        from rv_te_bench.cli.allocator import tune_for_batch_work
+        from rv_te_bench.allocator import tune_for_batch_work
         if sys.argv[1] == 'tuned':
             assert tune_for_batch_work() is True
             assert tune_for_batch_work() is True   # once; the second call changes nothing

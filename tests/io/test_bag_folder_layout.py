@@ -16,7 +16,7 @@ from rosbags.highlevel import AnyReader
 from rv_te_bench.cli.main import main
 from rv_te_bench.errors import BagError
 from rv_te_bench.io.bag_reader import bag_summary, open_bag, read_encoder_blocks
-from tests.io import ENCODER_TOPIC, write_sample_bag
+from tests.io.bag_fixtures import ENCODER_TOPIC, write_sample_bag
 
 pytestmark = pytest.mark.timeout(60)
 

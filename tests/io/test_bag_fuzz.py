@@ -18,7 +18,7 @@ from rv_te_bench.io.bag_reader import (
     read_bench_info,
     read_encoder_blocks,
 )
-from tests.io import encoder_cdr, write_sample_bag
+from tests.io.bag_fixtures import encoder_cdr, write_sample_bag
 
 @pytest.fixture(scope='module')
 def templates(tmp_path_factory: pytest.TempPathFactory) -> dict[str, tuple[Path, bytes]]:

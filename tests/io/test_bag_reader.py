@@ -22,7 +22,7 @@ from rv_te_bench.io.bag_reader import (
 )
 from rv_te_bench.io.bag_writer import BagWriter
 from rv_te_bench.io.msgdefs import BENCH_INFO, ENCODER_BLOCK, full_msgdef, rv_te_typestore
-from tests.io import (
+from tests.io.bag_fixtures import (
     ENCODER_TOPIC,
     INFO_TOPIC,
     SAMPLE_RATE_HZ,

@@ -12,7 +12,7 @@ import pytest
 
 from rv_te_bench.core.stream import EncoderBatch, EncoderBlockData
 from rv_te_bench.errors import BagError
-from rv_te_bench.io import bag_reader
+from rv_te_bench.io import _mcap_scan, bag_reader
 from rv_te_bench.io.bag_reader import (
     open_bag,
     read_bench_info,
@@ -21,7 +21,7 @@ from rv_te_bench.io.bag_reader import (
 )
 from rv_te_bench.io.bag_writer import BagWriter
 from rv_te_bench.io.msgdefs import BENCH_INFO, ENCODER_BLOCK, rv_te_typestore
-from tests.io import (
+from tests.io.bag_fixtures import (
     ENCODER_TOPIC,
     INFO_TOPIC,
     T0_NS,
@@ -88,7 +88,7 @@ def _mixed_bag(path: Path) -> None:
 @pytest.mark.parametrize('prefetch', [True, False])
 def test_batches_equal_blocks_on_a_mixed_bag(tmp_path: Path, prefetch: bool,
                                              monkeypatch: pytest.MonkeyPatch) -> None:
-    monkeypatch.setitem(bag_reader._scan_units.__kwdefaults__, 'prefetch', prefetch)  # noqa: SLF001
+    monkeypatch.setitem(_mcap_scan._scan_units.__kwdefaults__, 'prefetch', prefetch)  # noqa: SLF001
     bag = tmp_path / 'mixed'
     _mixed_bag(bag)
     ref_stream = read_encoder_blocks(bag, strict=False)
@@ -134,14 +134,14 @@ def test_bench_info_from_the_summary_equals_a_scan(tmp_path: Path) -> None:
     bag = tmp_path / 'bag'
     write_sample_bag(bag, n_blocks=30, compression='zstd', chunk_size_bytes=4096)
     (file,) = open_bag(bag).files
-    indexed = bag_reader._indexed_messages(file, [INFO_TOPIC])  # noqa: SLF001
+    indexed = _mcap_scan._indexed_messages(file, [INFO_TOPIC])  # noqa: SLF001
     assert indexed == [(BENCH_INFO, bench_info_cdr())]
     fast = read_bench_info(bag)
     # a damaged summary (CRC mismatch) is not trusted: the reader scans the file instead
     data = bytearray(file.read_bytes())
     data[-8 - 37 + 9 + 16] ^= 0xFF   # the footer's summary CRC
     file.write_bytes(bytes(data))
-    assert bag_reader._indexed_messages(file, [INFO_TOPIC]) is None  # noqa: SLF001
+    assert _mcap_scan._indexed_messages(file, [INFO_TOPIC]) is None  # noqa: SLF001
     assert read_bench_info(bag) == fast
     assert fast is not None
     assert fast['preset'] == 'wang2020-2kv'
@@ -153,7 +153,7 @@ def test_bench_info_of_a_killed_recording(tmp_path: Path) -> None:
     writer = write_sample_bag(bag, n_blocks=10, close=False, chunk_size_bytes=2048)
     writer.flush()
     (file,) = open_bag(bag).files
-    assert bag_reader._indexed_messages(file, [INFO_TOPIC]) is None  # noqa: SLF001
+    assert _mcap_scan._indexed_messages(file, [INFO_TOPIC]) is None  # noqa: SLF001
     info = read_bench_info(bag)
     assert info is not None
     assert info['gear_ratio'] == 79.0
@@ -193,9 +193,9 @@ def test_bench_info_in_the_first_of_split_files(tmp_path: Path) -> None:
                      split_size_bytes=20_000)
     files = open_bag(bag).files
     assert len(files) > 1
-    assert bag_reader._indexed_messages(files[0], [INFO_TOPIC]) == [  # noqa: SLF001
+    assert _mcap_scan._indexed_messages(files[0], [INFO_TOPIC]) == [  # noqa: SLF001
         (BENCH_INFO, bench_info_cdr())]
-    assert bag_reader._indexed_messages(files[-1], [INFO_TOPIC]) == []  # noqa: SLF001
+    assert _mcap_scan._indexed_messages(files[-1], [INFO_TOPIC]) == []  # noqa: SLF001
     info = read_bench_info(bag)
     assert info is not None
     assert info['preset'] == 'wang2020-2kv'
@@ -224,7 +224,7 @@ def test_bag_topics_of_a_folder_and_of_its_lone_file(tmp_path: Path) -> None:
     writer = write_sample_bag(killed, n_blocks=5, close=False, chunk_size_bytes=2048)
     writer.flush()
     (kfile,) = open_bag(killed).files
-    assert bag_reader._summary(kfile) is None  # noqa: SLF001
+    assert _mcap_scan._summary(kfile) is None  # noqa: SLF001
     assert parsed(bag_topics(kfile)) == folder
     writer.close()
 

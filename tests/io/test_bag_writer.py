@@ -24,7 +24,7 @@ from rv_te_bench.errors import BagError
 from rv_te_bench.io.bag_reader import bag_summary, read_encoder_blocks
 from rv_te_bench.io.bag_writer import BagWriter
 from rv_te_bench.io.msgdefs import ENCODER_BLOCK, full_msgdef
-from tests.io import (
+from tests.io.bag_fixtures import (
     ENCODER_TOPIC,
     INFO_TOPIC,
     T0_NS,
@@ -144,7 +144,7 @@ def test_split_files_all_read_back(tmp_path: Path, split: dict) -> None:
 
 _KILLED_WRITER = r'''
 import sys, time
-from tests.io import write_sample_bag, encoder_cdr, ENCODER_TOPIC, T0_NS
+from tests.io.bag_fixtures import write_sample_bag, encoder_cdr, ENCODER_TOPIC, T0_NS
 from pathlib import Path
 w = write_sample_bag(Path(sys.argv[1]), n_blocks=0, close=False, flush_interval_s=0.2)
 seq = 0

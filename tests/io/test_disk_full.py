@@ -25,7 +25,7 @@ from rv_te_bench.core.stream import TeAnalysisConfig, analyze_blocks
 from rv_te_bench.io.bag_reader import bag_summary, read_encoder_blocks
 from rv_te_bench.io.bag_writer import RESERVE_NAME, BagWriter, qos_profile_dict
 from rv_te_bench.io.msgdefs import BENCH_INFO, ENCODER_BLOCK
-from tests.io import ENCODER_TOPIC, INFO_TOPIC, T0_NS, bench_info_cdr, block_arrays, encoder_cdr
+from tests.io.bag_fixtures import ENCODER_TOPIC, INFO_TOPIC, T0_NS, bench_info_cdr, block_arrays, encoder_cdr
 from tests.io.faults import SmallDisk, tmpfs
 
 pytestmark = pytest.mark.timeout(60)

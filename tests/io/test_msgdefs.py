@@ -13,7 +13,7 @@ from rosbags.highlevel import AnyReader
 from rv_te_bench.errors import BagError
 from rv_te_bench.io.bag_writer import BagWriter
 from rv_te_bench.io.msgdefs import SEPARATOR, full_msgdef, learn_type, rv_te_typestore
-from tests.io import T0_NS
+from tests.io.bag_fixtures import T0_NS
 
 PROBE = 'vendor_probe_msgs/msg/Probe'
 INNER_TEXT = '# one reading\nfloat64 value_rad\nuint8 channel\n'

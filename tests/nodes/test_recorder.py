@@ -33,7 +33,7 @@ from rv_te_bench.io.msgdefs import ENCODER_BLOCK, type_hash  # noqa: E402
 from rv_te_bench.nodes import qos  # noqa: E402
 from rv_te_bench.io.bag_reader import encoder_block_seq  # noqa: E402
 from rv_te_bench.nodes.recorder import RecorderNode  # noqa: E402
-from tests.io import block_arrays, encoder_cdr  # noqa: E402
+from tests.io.bag_fixtures import block_arrays, encoder_cdr  # noqa: E402
 from tests.nodes.rosutil import spin_until  # noqa: E402
 
 ROOT = Path(__file__).resolve().parents[2]

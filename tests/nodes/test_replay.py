@@ -26,7 +26,7 @@ from rv_te_bench.io.bag_writer import BagWriter, qos_profile_dict  # noqa: E402
 from rv_te_bench.io.msgdefs import BENCH_INFO, ENCODER_BLOCK  # noqa: E402
 from rv_te_bench.nodes import qos  # noqa: E402
 from rv_te_bench.nodes.replay import ReplayNode  # noqa: E402
-from tests.io import T0_NS, bench_info_cdr, encoder_cdr  # noqa: E402
+from tests.io.bag_fixtures import T0_NS, bench_info_cdr, encoder_cdr  # noqa: E402
 from tests.nodes.rosutil import spin_until  # noqa: E402
 
 N_BLOCKS = 60

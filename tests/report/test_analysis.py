@@ -25,7 +25,7 @@ from rv_te_bench.errors import BagError, TeConfigError
 from rv_te_bench.report import analysis
 from rv_te_bench.report.analysis import BenchDescription, analyze_bag, likely_source
 from sim.units import arcmin_to_rad
-from tests.report import (
+from tests.report.synthetic_bags import (
     CRANK_PER_OUTPUT,
     MESH_LABELS,
     MESH_ORDERS,

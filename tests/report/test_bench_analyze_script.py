@@ -5,7 +5,7 @@ from __future__ import annotations
 
 import pytest
 
-from tests import load_benchmark
+from tests.benchmark_loader import load_benchmark
 
 
 def test_bench_analyze_quick_run(capsys: pytest.CaptureFixture[str]) -> None:

@@ -17,7 +17,7 @@ import pytest
 
 from rv_te_bench.cli import analyze
 from sim.units import arcmin_to_rad, rad_to_arcmin
-from tests.report import CRANK_PER_OUTPUT, RATIO, Harmonic, write_bag
+from tests.report.synthetic_bags import CRANK_PER_OUTPUT, RATIO, Harmonic, write_bag
 
 if TYPE_CHECKING:
     from pathlib import Path

@@ -13,7 +13,7 @@ from rv_te_bench.report.plots import (
     te_figure,
 )
 from sim.units import arcmin_to_rad, rad_to_arcmin
-from tests.report import Harmonic, write_bag
+from tests.report.synthetic_bags import Harmonic, write_bag
 
 HARMONICS = (Harmonic(25.0, float(arcmin_to_rad(0.6)), 0.3),
              Harmonic(1300.0, float(arcmin_to_rad(0.02)), 0.0))

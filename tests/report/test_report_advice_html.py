@@ -11,7 +11,7 @@ import numpy as np
 from rv_te_bench.cli.main import main
 from tests import wang2020_reference as ref
 from sim.units import arcmin_to_rad
-from tests.report import Harmonic, write_bag
+from tests.report.synthetic_bags import Harmonic, write_bag
 from tests.unit_bags import unit_bag
 
 if TYPE_CHECKING:

@@ -257,3 +257,11 @@ def test_bad_mode_and_bad_block() -> None:
         model.te_rad(np.zeros(3), np.zeros(4), np.zeros(3), np.zeros(3))
     with pytest.raises(ModelInputError, match='non-finite'):
         model.te_rad(np.zeros(2), np.array([0.0, np.nan]), np.zeros(2), np.zeros(2))
+
+
+def test_hu2020_tca_at_a_torque_too_small_to_close_any_clearance() -> None:
+    from sim.hu2020 import HuRvParams, tooth_contact_analysis  # noqa: PLC0415
+
+    params = HuRvParams.from_preset(load_preset('hu2020-rv'))
+    with pytest.raises(ModelInputError, match='no pin closes'):
+        tooth_contact_analysis(params, torque_nm=1e-3)

@@ -425,3 +425,11 @@ def test_any_block_split_equals_one_shot(cuts: list[int]) -> None:
     parts = [model.te_rad(t[a:b], th[a:b], om[a:b], ld[a:b])
              for a, b in zip(edges[:-1], edges[1:], strict=True)]
     np.testing.assert_allclose(np.concatenate(parts), one, rtol=0, atol=1e-15)
+
+
+@pytest.mark.parametrize('nu', ['0.7', '1.0', '0.5'])
+def test_li2023_rejects_impossible_poisson_ratio(nu: str) -> None:
+    from sim.li2023 import build_te_model  # noqa: PLC0415
+
+    with pytest.raises(PresetError, match='material.poisson'):
+        build_te_model(load_preset('li2023-rv', [f'material.poisson={nu}']), 'dte')

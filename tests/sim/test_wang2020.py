@@ -410,3 +410,21 @@ def test_params_validation_names_key() -> None:
     with pytest.raises(PresetError, match="'2kv'"):
         Wang2kvParams.from_preset(load_preset('wang2020-2kv', ['kinematics.kind=rv',
                                                                'kinematics.z_ring=51']))
+
+
+def test_wang2020_dte_far_from_t0_equals_dte_near_t0() -> None:
+    """Float64 timestamps jitter far from t = 0; the DTE must not depend on that (the
+    integrator used to split such blocks into hundreds of runs)."""
+    from sim.wang2020 import build_te_model  # noqa: PLC0415
+
+    preset = load_preset('wang2020-2kv')
+    n, fs = 5000, 10_000.0
+    omega = 2 * np.pi * 300 / 60
+    k = np.arange(n)
+    out = []
+    for t0 in (0.0, 1.0e6):
+        model = build_te_model(preset, 'dte')
+        t = t0 + k / fs
+        th = omega * (k / fs)          # the same shaft angles in both runs
+        out.append(model.te_rad(t, th, np.full(n, omega), np.full(n, 30.0)))
+    np.testing.assert_allclose(out[1], out[0], rtol=0, atol=1e-9)

@@ -1,0 +1,440 @@
+"""The MCAP record walk of the bag reader: records, chunks, summary, read-ahead.
+
+The reader scans the records itself (no summary needed) so that files whose recorder was
+killed, or that were cut short, still yield every sound message; what could not be read is
+reported through a callback. A file's summary (when it has a sound one) answers the
+questions that do not need the data: schemas, channels, and which chunks hold a topic.
+
+The opcodes and the magic are ``mcap``'s (:class:`mcap.opcode.Opcode`, via
+:mod:`rv_te_bench.io._mcap_file`), bound to plain ints here: the walks compare the opcode
+of every record, and an ``IntEnum`` comparison costs more than an ``int`` one.
+"""
+
+from __future__ import annotations
+
+import collections
+import contextlib
+import mmap
+import os
+import struct
+import zlib
+from dataclasses import dataclass, field
+from typing import TYPE_CHECKING, Any
+
+from mcap.opcode import Opcode
+
+from rv_te_bench.io._mcap_file import MAGIC
+
+if TYPE_CHECKING:
+    from collections.abc import Callable, Collection, Iterator
+    from pathlib import Path
+
+__all__ = ['PREFETCH_CHUNKS', 'READ_AHEAD_ENV']
+
+_U16 = struct.Struct('<H')
+_U32 = struct.Struct('<I')
+_U64 = struct.Struct('<Q')
+_REC = struct.Struct('<BQ')
+_MSG = struct.Struct('<HIQQ')
+_CHUNK = struct.Struct('<QQQI')
+_OP_FOOTER = int(Opcode.FOOTER)
+_OP_SCHEMA = int(Opcode.SCHEMA)
+_OP_CHANNEL = int(Opcode.CHANNEL)
+_OP_MESSAGE = int(Opcode.MESSAGE)
+_OP_CHUNK = int(Opcode.CHUNK)
+_OP_CHUNK_INDEX = int(Opcode.CHUNK_INDEX)
+_OP_METADATA = int(Opcode.METADATA)
+_OP_DATA_END = int(Opcode.DATA_END)
+
+
+class _CorruptError(Exception):
+    """A record cannot be parsed (internal; turned into a problem or BagError)."""
+
+
+@dataclass(slots=True)
+class _ScanState:
+    schemas: dict[int, tuple[str, str]] = field(default_factory=dict)   # id -> (name, text)
+    channels: dict[int, tuple[str, int]] = field(default_factory=dict)  # id -> (topic, schema)
+    metadata: dict[str, dict[str, str]] = field(default_factory=dict)
+    channel_meta: dict[int, dict[str, str]] = field(default_factory=dict)  # id -> metadata
+
+
+def _string(buf: memoryview, pos: int) -> tuple[str, int]:
+    (n,) = _U32.unpack_from(buf, pos)
+    end = pos + 4 + n
+    if end > len(buf):
+        raise _CorruptError('string runs past its record')
+    return bytes(buf[pos + 4:end]).decode('utf-8'), end
+
+
+def _map(buf: memoryview, pos: int) -> tuple[dict[str, str], int]:
+    (n,) = _U32.unpack_from(buf, pos)
+    end = pos + 4 + n
+    if end > len(buf):
+        raise _CorruptError('map runs past its record')
+    out: dict[str, str] = {}
+    pos += 4
+    while pos < end:
+        key, pos = _string(buf, pos)
+        val, pos = _string(buf, pos)
+        out[key] = val
+    return out, end
+
+
+def _parse_meta_record(op: int, body: memoryview, state: _ScanState) -> None:
+    if op == _OP_SCHEMA:
+        (sid,) = _U16.unpack_from(body, 0)
+        name, pos = _string(body, 2)
+        _, pos = _string(body, pos)
+        (n,) = _U32.unpack_from(body, pos)
+        if pos + 4 + n > len(body):
+            raise _CorruptError('schema data runs past its record')
+        state.schemas[sid] = (name, bytes(body[pos + 4:pos + 4 + n]).decode('utf-8'))
+    elif op == _OP_CHANNEL:
+        cid, sid = struct.unpack_from('<HH', body, 0)
+        topic, pos = _string(body, 4)
+        state.channels[cid] = (topic, sid)
+        _, pos = _string(body, pos)   # message encoding
+        state.channel_meta[cid], _ = _map(body, pos)
+    elif op == _OP_METADATA:
+        name, pos = _string(body, 0)
+        state.metadata[name], _ = _map(body, pos)
+
+
+_MAX_CHUNK_BYTES = 1 << 32  # a larger uncompressed size is a corrupt header, not data
+
+
+def _decompress(compression: str, data: memoryview, size: int) -> bytes:
+    if size > _MAX_CHUNK_BYTES:
+        raise _CorruptError(f'chunk claims {size} uncompressed bytes')
+    if compression == '':
+        return bytes(data)
+    try:
+        if compression == 'zstd':
+            import zstandard  # noqa: PLC0415
+
+            return zstandard.ZstdDecompressor().decompress(data, max_output_size=size)
+        if compression == 'lz4':
+            import lz4.frame  # noqa: PLC0415
+
+            return lz4.frame.decompress(bytes(data))
+    except MemoryError:
+        raise _CorruptError(f'{compression} chunk does not fit in memory') from None
+    except Exception as exc:  # noqa: BLE001 - codecs raise assorted errors on bad input
+        raise _CorruptError(f'{compression} chunk does not decompress ({exc})') from None
+    raise _CorruptError(f'unsupported chunk compression {compression!r}')
+
+
+def _chunk_records(body: memoryview) -> memoryview:
+    start, end, usize, crc = _CHUNK.unpack_from(body, 0)
+    _ = start, end
+    compression, pos = _string(body, _CHUNK.size)
+    (csize,) = _U64.unpack_from(body, pos)
+    if pos + 8 + csize > len(body):
+        raise _CorruptError('chunk data runs past its record')
+    raw = _decompress(compression, body[pos + 8:pos + 8 + csize], usize)
+    if len(raw) != usize:
+        raise _CorruptError(f'chunk holds {len(raw)} bytes, header says {usize}')
+    if crc and zlib.crc32(raw) != crc:
+        raise _CorruptError('chunk CRC mismatch')
+    return memoryview(raw)
+
+
+def _iter_records(buf: memoryview, start: int) -> Iterator[tuple[int, int, memoryview]]:
+    """Yield (offset, opcode, body); raise _CorruptError at a record past the end."""
+    pos, n = start, len(buf)
+    while pos < n:
+        if pos + 9 > n:
+            raise _CorruptError(f'{n - pos} stray bytes at byte {pos} (truncated)')
+        op, length = _REC.unpack_from(buf, pos)
+        end = pos + 9 + length
+        if end > n:
+            raise _CorruptError(
+                f'record (opcode 0x{op:02x}) at byte {pos} claims {length} bytes, past the '
+                f'end at {n} (truncated or corrupt)')
+        yield pos, op, buf[pos + 9:end]
+        pos = end
+
+
+_Unit = tuple[memoryview, list[tuple[int, int, int, int]]]
+"""A decompressed chunk (or one loose message) and its messages as
+(channel_id, log_time_ns, data_start, data_end) byte positions in it."""
+
+#: Environment switch: ``0`` turns the read-ahead thread off (a Dask worker of a fleet run
+#: on a machine whose cores are all workers: parallel bags use the cores better).
+READ_AHEAD_ENV = 'RV_TE_READ_AHEAD'
+#: Chunks decompressed ahead of the one being consumed (by one worker thread: zstd, lz4 and
+#: crc32 release the GIL, so reading overlaps with the analysis on a second core).
+PREFETCH_CHUNKS = 2
+_AHEAD_RECORDS = 64
+
+
+def _walk_chunk(inner: memoryview, state: _ScanState,
+                out: list[tuple[int, int, int, int]]) -> None:
+    """Collect the messages of a decompressed chunk into ``out``, parse its other records.
+
+    Raises:
+        _CorruptError, struct.error, UnicodeDecodeError, ValueError: A record is damaged
+            (the messages before it are in ``out``).
+    """
+    pos, n = 0, len(inner)
+    rec, msg, op_message = _REC.unpack_from, _MSG.unpack_from, _OP_MESSAGE
+    head = 9 + _MSG.size
+    while pos < n:
+        if pos + 9 > n:
+            raise _CorruptError(f'{n - pos} stray bytes at byte {pos} (truncated)')
+        op, length = rec(inner, pos)
+        end = pos + 9 + length
+        if end > n:
+            raise _CorruptError(
+                f'record (opcode 0x{op:02x}) at byte {pos} claims {length} bytes, past the '
+                f'end at {n} (truncated or corrupt)')
+        if op == op_message:
+            if length < _MSG.size:
+                raise _CorruptError(f'message record at byte {pos} is {length} bytes long')
+            cid, _, log_time, _ = msg(inner, pos + 9)
+            out.append((cid, log_time, pos + head, end))
+        else:
+            _parse_meta_record(op, inner[pos + 9:end], state)
+        pos = end
+
+
+def _scan_units(  # noqa: C901, PLR0912, PLR0915
+    file: Path,
+    state: _ScanState,
+    report: Callable[[str], None],
+    *,
+    messages: bool = True,
+    prefetch: bool = True,
+) -> Iterator[_Unit]:
+    """Yield every sound message of one MCAP file, grouped by chunk (see ``_Unit``).
+
+    With ``prefetch`` the next chunks are decompressed and CRC-checked by a worker thread
+    while the caller works on the current one.
+    """
+    try:
+        with file.open('rb') as fh:
+            size = fh.seek(0, 2)
+            if size == 0:
+                report(f'{file} is empty (0 bytes)')
+                return
+            mm = mmap.mmap(fh.fileno(), 0, access=mmap.ACCESS_READ)
+    except (OSError, ValueError) as exc:
+        report(f'cannot read {file}: {exc}')
+        return
+    buf = memoryview(mm)
+    ended = False
+    pool = None
+    if prefetch and messages and os.environ.get(READ_AHEAD_ENV, '1') != '0':
+        from concurrent.futures import ThreadPoolExecutor  # noqa: PLC0415
+
+        pool = ThreadPoolExecutor(max_workers=1, thread_name_prefix='mcap-read')
+    ahead: collections.deque[tuple[int, int, memoryview, Any]] = collections.deque()
+    try:
+        if bytes(buf[:8]) != MAGIC:
+            report(f'{file} is not an MCAP file (bad magic)')
+            return
+        records = _iter_records(buf, 8)
+        exhausted = False
+        while True:
+            # read records ahead until PREFETCH_CHUNKS chunks are being decompressed (loose
+            # records are cheap views of the map; at most _AHEAD_RECORDS of them are held)
+            while not exhausted and (not ahead or (
+                    pool is not None and len(ahead) < _AHEAD_RECORDS
+                    and sum(1 for r in ahead if r[1] == _OP_CHUNK) <= PREFETCH_CHUNKS)):
+                try:
+                    item = next(records, None)
+                except _CorruptError as exc:
+                    ahead.append((-1, -1, memoryview(b''), str(exc)))
+                    exhausted = True
+                    break
+                if item is None:
+                    exhausted = True
+                    break
+                offset, op, body = item
+                job = None
+                if op == _OP_CHUNK and messages and pool is not None:
+                    job = pool.submit(_chunk_records, body)
+                ahead.append((offset, op, body, job))
+                if op in (_OP_DATA_END, _OP_FOOTER):
+                    exhausted = True
+            if not ahead:
+                break
+            offset, op, body, job = ahead.popleft()
+            if offset < 0:   # the record walk itself failed
+                report(f'{file}: {job}')
+                return
+            try:
+                if op == _OP_MESSAGE:
+                    if messages:
+                        if len(body) < _MSG.size:
+                            raise _CorruptError(f'message record is {len(body)} bytes long')
+                        cid, _, log_time, _ = _MSG.unpack_from(body, 0)
+                        yield memoryview(bytes(body)), [(cid, log_time, _MSG.size, len(body))]
+                elif op == _OP_CHUNK:
+                    # (a metadata-only scan decompresses too: schemas and channels live there)
+                    inner = _chunk_records(body) if job is None else job.result()
+                    found: list[tuple[int, int, int, int]] = []
+                    damage = None
+                    try:
+                        _walk_chunk(inner, state, found)
+                    except (_CorruptError, struct.error, UnicodeDecodeError, ValueError) as exc:
+                        damage = exc   # the messages before the damaged record are sound
+                    if found and messages:
+                        yield inner, found
+                    if damage is not None:
+                        raise damage
+                elif op in (_OP_DATA_END, _OP_FOOTER):
+                    ended = True
+                    break
+                else:
+                    _parse_meta_record(op, body, state)
+            except (_CorruptError, struct.error, UnicodeDecodeError, ValueError) as exc:
+                report(f'{file}: corrupt record (opcode 0x{op:02x}) at byte {offset}: {exc}; '
+                       'skipped')
+        if not ended:
+            report(f'{file} ends without a Data End record at byte {len(buf)}: the file was '
+                   'truncated')
+    finally:
+        if pool is not None:
+            for *_, job in ahead:
+                if job is not None:
+                    job.cancel()
+            pool.shutdown(wait=True)
+        ahead.clear()
+        # Views handed out are copies or slices of decompressed chunks, never of the map;
+        # a consumer holding a record body only delays the unmapping to garbage collection.
+        with contextlib.suppress(BufferError):
+            buf.release()
+            mm.close()
+
+
+def _scan_file(
+    file: Path,
+    state: _ScanState,
+    report: Callable[[str], None],
+    *,
+    messages: bool = True,
+) -> Iterator[tuple[int, int, memoryview]]:
+    """Yield (channel_id, log_time_ns, data) of every sound message of one MCAP file."""
+    for inner, found in _scan_units(file, state, report, messages=messages):
+        for cid, log_time, start, end in found:
+            yield cid, log_time, inner[start:end]
+
+
+def _file_channels(file: Path) -> _ScanState:
+    """Schemas and channels of one MCAP file: from its summary, else by a scan."""
+    state = _summary(file)
+    if state is None:
+        state = _ScanState()
+        for _ in _scan_file(file, state, lambda _t: None, messages=False):
+            pass
+    else:
+        state = state[0]
+    return state
+
+
+_FOOTER_TAIL = 1 + 8 + 20 + 8   # footer record (opcode, length, 8 + 8 + 4) and magic
+
+
+@contextlib.contextmanager
+def _mapped(file: Path) -> Iterator[memoryview | None]:
+    """The file mapped read-only, or None when it cannot be (missing, empty, unreadable)."""
+    try:
+        with file.open('rb') as fh:
+            mm = mmap.mmap(fh.fileno(), 0, access=mmap.ACCESS_READ)
+    except (OSError, ValueError):
+        yield None
+        return
+    buf = memoryview(mm)
+    try:
+        yield buf
+    finally:
+        with contextlib.suppress(BufferError):
+            buf.release()
+            mm.close()
+
+
+def _summary_in(buf: memoryview) -> tuple[_ScanState, list[tuple[int, set[int]]]] | None:
+    """Schemas, channels and chunk index (offset, channel ids) from an MCAP file's summary.
+
+    None when the file has no usable summary (a recorder that was killed writes none; a
+    summary whose CRC does not match is not trusted; a summary without channels or chunk
+    indexes cannot answer for the file) and the caller must scan it.
+    """
+    size = len(buf)
+    if size < 8 + _FOOTER_TAIL:
+        return None
+    foot = size - _FOOTER_TAIL
+    try:
+        if bytes(buf[size - 8:]) != MAGIC or buf[foot] != _OP_FOOTER:
+            return None
+        summary_start, _, crc = struct.unpack_from('<QQI', buf, foot + 9)
+        if not 8 < summary_start < foot:
+            return None
+        if crc and zlib.crc32(buf[summary_start:foot + 9 + 16]) != crc:
+            return None
+        state = _ScanState()
+        chunks: list[tuple[int, set[int]]] = []
+        for _, op, body in _iter_records(buf[:foot], summary_start):
+            if op == _OP_CHUNK_INDEX:
+                (offset,) = _U64.unpack_from(body, 16)
+                index, _ = _map_u16_u64(body, 32)
+                chunks.append((offset, set(index)))
+            else:
+                _parse_meta_record(op, body, state)
+    except (_CorruptError, struct.error, UnicodeDecodeError, ValueError):
+        return None
+    if not chunks or not state.channels:
+        return None
+    return state, chunks
+
+
+def _summary(file: Path) -> tuple[_ScanState, list[tuple[int, set[int]]]] | None:
+    """:func:`_summary_in` of a file (None also when it cannot be mapped)."""
+    with _mapped(file) as buf:
+        return None if buf is None else _summary_in(buf)
+
+
+def _indexed_messages(file: Path, topics: Collection[str]) -> list[tuple[str, bytes]] | None:
+    """Messages of ``topics`` in one MCAP file, found through its summary's chunk indexes.
+
+    Only the chunks that hold those channels are decompressed (a BenchInfo is one small
+    message in a long bag). Returns ``(schema name, cdr bytes)`` in file order, or None
+    when the file has no usable summary (see :func:`_summary_in`) and the caller must scan
+    it.
+    """
+    with _mapped(file) as buf:
+        found_summary = None if buf is None else _summary_in(buf)
+        if buf is None or found_summary is None:
+            return None
+        state, chunks = found_summary
+        wanted = {cid for cid, (topic, _) in state.channels.items() if topic in topics}
+        out: list[tuple[str, bytes]] = []
+        try:
+            for offset, cids in chunks:
+                if not cids & wanted:
+                    continue
+                op, length = _REC.unpack_from(buf, offset)
+                if op != _OP_CHUNK or offset + 9 + length > len(buf):
+                    return None
+                inner = _chunk_records(buf[offset + 9:offset + 9 + length])
+                found: list[tuple[int, int, int, int]] = []
+                _walk_chunk(inner, state, found)
+                for cid, _, start, end in found:
+                    if cid in wanted:
+                        sid = state.channels[cid][1]
+                        out.append((state.schemas.get(sid, ('', ''))[0],
+                                    bytes(inner[start:end])))
+        except (_CorruptError, struct.error, UnicodeDecodeError, ValueError, KeyError):
+            return None   # damaged: the full scan decides what is readable
+        return out
+
+
+def _map_u16_u64(buf: memoryview, pos: int) -> tuple[dict[int, int], int]:
+    """An MCAP map<uint16, uint64> (message index offsets by channel id)."""
+    (n,) = _U32.unpack_from(buf, pos)
+    end = pos + 4 + n
+    if end > len(buf) or n % 10:
+        raise _CorruptError('chunk index map runs past its record')
+    return {cid: off for cid, off in struct.iter_unpack('<HQ', buf[pos + 4:end])}, end

@@ -1,0 +1,305 @@
+"""The result types of the offline analysis and their JSON (unit-suffixed keys).
+
+:class:`AnalysisResult` is what :func:`rv_te_bench.report.analysis.analyze_bag` returns for
+one bag; the types are re-exported by :mod:`rv_te_bench.report.analysis`. Everything inside
+is SI; arcminutes appear only in ``to_json_dict`` (keys ending in ``_arcmin``).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import TYPE_CHECKING, Any
+
+import numpy as np
+
+from rv_te_bench.core.spectrum import SpectrumSummary, spectrum_line_json
+from rv_te_bench.core.units import json_float
+from rv_te_bench.errors import TeConfigError
+from sim.units import rad_to_arcmin
+
+if TYPE_CHECKING:
+    import numpy.typing as npt
+
+    from rv_te_bench.core.advice import Advice
+    from rv_te_bench.core.spectrum import SpectrumLine
+    from rv_te_bench.core.stream import GapEvent, WindowResult
+    from rv_te_bench.core.te import TeStats
+
+    FloatArray = npt.NDArray[np.float64]
+
+__all__ = [
+    'AnalysisResult',
+    'BenchDescription',
+    'DominantHarmonic',
+    'Recommendation',
+    'SessionInfo',
+    'SpectrumSummary',
+    'TeTrace',
+    'report_title',
+    'stats_json',
+]
+
+
+@dataclass(frozen=True)
+class BenchDescription:
+    """What the analysis knows about the bench that recorded a bag.
+
+    Attributes:
+        source: ``'bench_info'`` (from the bag), ``'cli'`` (from --ratio/--crank-per-output)
+            or ``'bench_info+cli'`` (bag values overridden by flags).
+        bench_id: Bench id ('' when unknown).
+        preset: Reducer preset name ('' when unknown).
+        reducer_type: ``'2kv'``, ``'rv'`` or ''.
+        gear_ratio: Overall ratio i, input revolutions per output revolution.
+        crank_per_output: |Absolute crank revolutions per output revolution|.
+        mesh_orders_out: Mesh frequencies as orders of the output rotation.
+        mesh_labels: One label per mesh order.
+        sample_rate_hz: Nominal DAQ rate from BenchInfo (NaN when unknown).
+        encoder_in_model: Input encoder model ('' when unknown).
+        encoder_out_model: Output encoder model ('' when unknown).
+        parameters_yaml: Effective preset values as YAML ('' when unknown).
+    """
+
+    source: str
+    gear_ratio: float
+    crank_per_output: float
+    bench_id: str = ''
+    preset: str = ''
+    reducer_type: str = ''
+    mesh_orders_out: tuple[float, ...] = ()
+    mesh_labels: tuple[str, ...] = ()
+    sample_rate_hz: float = math.nan
+    encoder_in_model: str = ''
+    encoder_out_model: str = ''
+    parameters_yaml: str = field(default='', repr=False)
+
+    def __post_init__(self) -> None:
+        """Validate ratio and crank order.
+
+        Raises:
+            TeConfigError: A non-finite or non-positive ratio / crank order.
+        """
+        for name in ('gear_ratio', 'crank_per_output'):
+            value = getattr(self, name)
+            if not (math.isfinite(value) and value > 0):
+                msg = f'{name} must be finite and > 0, got {value!r} (source: {self.source})'
+                raise TeConfigError(msg)
+
+    def to_json_dict(self) -> dict[str, Any]:
+        """JSON-friendly dict (unit-suffixed keys)."""
+        return {
+            'source': self.source, 'bench_id': self.bench_id, 'preset': self.preset,
+            'reducer_type': self.reducer_type, 'gear_ratio': self.gear_ratio,
+            'crank_per_output': self.crank_per_output,
+            'mesh_orders_out': list(self.mesh_orders_out), 'mesh_labels': list(self.mesh_labels),
+            'sample_rate_hz': json_float(self.sample_rate_hz),
+            'encoder_in_model': self.encoder_in_model,
+            'encoder_out_model': self.encoder_out_model,
+        }
+
+
+@dataclass(frozen=True)
+class DominantHarmonic:
+    """The labelled line with the largest averaged amplitude and its likely source."""
+
+    line: SpectrumLine
+    likely_source: str
+
+    def to_json_dict(self) -> dict[str, Any]:
+        """JSON-friendly dict."""
+        return {**spectrum_line_json(self.line, math.nan), 'likely_source': self.likely_source}
+
+
+@dataclass(frozen=True)
+class Recommendation:
+    """Compensation advice, or why there is none.
+
+    Attributes:
+        available: True when ``advice`` holds a recommendation.
+        reason: Why there is no recommendation, or where the advice comes from.
+        advice: The advice (``rv_te_bench.core.advice.Advice``) or None.
+        identification: The 2K-V identification the advice rests on, or that was judged
+            too poor for advice (JSON dict with the fit quality), or None.
+    """
+
+    available: bool
+    reason: str
+    advice: Advice | None = None
+    identification: dict[str, Any] | None = None
+
+    def to_json_dict(self) -> dict[str, Any]:
+        """JSON-friendly dict."""
+        return {'available': self.available, 'reason': self.reason,
+                'advice': None if self.advice is None else self.advice.to_json_dict(),
+                'identification': self.identification}
+
+
+@dataclass(frozen=True)
+class SessionInfo:
+    """What the bag says about its session (metadata.yaml ``custom_data``).
+
+    Attributes:
+        name: ``session`` from the metadata, else the bag folder's name (its parent's when
+            the folder is a generic ``bag``, as in ``bags/<session>/bag``).
+        started_utc: When the recorder started ('' when unknown).
+        unit_serial: Serial number of the unit under test (``unit_serial`` in the session
+            metadata, e.g. ``--param recorder.session_metadata_yaml='unit_serial: SN-42'``).
+        operator: ``operator`` in the session metadata ('' when unknown).
+        temperature_c: ``temperature_c`` in the session metadata, as written ('' unknown).
+        unit_notes: ``unit_notes`` in the session metadata (a bench description's notes).
+        imported_from: ``imported_from``: the DAQ file ``rv-te import`` read ('' if none).
+    """
+
+    name: str
+    started_utc: str = ''
+    unit_serial: str = ''
+    operator: str = ''
+    temperature_c: str = ''
+    unit_notes: str = ''
+    imported_from: str = ''
+
+    def to_json_dict(self) -> dict[str, Any]:
+        """JSON-friendly dict (the optional fields only when known)."""
+        out = {'name': self.name, 'started_utc': self.started_utc,
+               'unit_serial': self.unit_serial}
+        out.update({k: v for k, v in (('operator', self.operator),
+                                      ('temperature_c', self.temperature_c),
+                                      ('unit_notes', self.unit_notes),
+                                      ('imported_from', self.imported_from)) if v})
+        return out
+
+
+def report_title(result: AnalysisResult) -> str:
+    """What a bag is, for titles: preset, bench, session, start and the unit serial."""
+    b, sess = result.bench, result.session
+    parts = [b.preset or 'unknown reducer']
+    if b.bench_id:
+        parts.append(f'bench {b.bench_id}')
+    parts.append(f'session {sess.name}' + (f' ({sess.started_utc})' if sess.started_utc else ''))
+    if sess.unit_serial:
+        parts.append(f'unit {sess.unit_serial}')
+    return ', '.join(parts)
+
+
+@dataclass(frozen=True)
+class TeTrace:
+    """A thinned TE trace for plots: every ``stride``-th sample, NaN rows at gaps.
+
+    Attributes:
+        theta_out_rad: Output angle [rad] (unwrapped, as recorded).
+        te_rad: TE at those samples [rad].
+        stride: Every how many samples one was kept.
+    """
+
+    theta_out_rad: FloatArray = field(repr=False)
+    te_rad: FloatArray = field(repr=False)
+    stride: int = 1
+
+
+@dataclass(frozen=True)
+class AnalysisResult:
+    """Everything the offline analysis found in one bag.
+
+    Attributes:
+        path: The bag.
+        topic: Encoder topic asked for (None: the reader's choice).
+        bench: Ratio, orders and bench metadata used.
+        windows: Per-window results of the TE core (complete and the trailing partial one);
+            their spectra keep the labelled lines only (``OrderSpectrum.lines_only``: the
+            per-bin arrays are folded into ``spectrum`` as the windows close, so memory
+            does not grow with the length of the recording).
+        cumulative: Statistics over every clean sample.
+        spectrum: Averaged spectrum of the complete windows, or None when there is none.
+        dominant: Dominant labelled line, or None without a spectrum.
+        gaps: Gap events reported by the core.
+        counters: Counters reported by the core (blocks, samples, ...).
+        trace: Thinned TE trace for plots.
+        recommendation: Compensation advice or the reason there is none.
+        partial: True when the read ended early (see ``problems``).
+        problems: Human-readable problems met (read errors, no complete window, ...), one
+            line each; a long list of read errors is shortened (all are in ``read_problems``).
+        blocks_read: Encoder blocks read from the bag.
+        elapsed_s: Wall time of the analysis [s].
+        read_problems: Every problem the reader met (file, byte offset, what), in order.
+        session: The bag's session (name, start, unit serial) for titles.
+    """
+
+    path: Path
+    topic: str | None
+    bench: BenchDescription
+    windows: tuple[WindowResult, ...]
+    cumulative: TeStats
+    spectrum: SpectrumSummary | None
+    dominant: DominantHarmonic | None
+    gaps: tuple[GapEvent, ...]
+    counters: dict[str, Any]
+    trace: TeTrace
+    recommendation: Recommendation
+    partial: bool
+    problems: tuple[str, ...]
+    blocks_read: int
+    elapsed_s: float
+    read_problems: tuple[str, ...] = ()
+    session: SessionInfo = field(default_factory=lambda: SessionInfo(name=''))
+
+    @property
+    def complete_windows(self) -> tuple[WindowResult, ...]:
+        """The windows that cover whole output revolutions."""
+        return tuple(w for w in self.windows if w.complete)
+
+    def to_json_dict(self) -> dict[str, Any]:
+        """JSON-friendly dict with unit-suffixed keys (``te_pp_arcmin``, ``frequency_hz``)."""
+        return {
+            'bag': str(self.path),
+            'title': report_title(self),
+            'session': self.session.to_json_dict(),
+            'topic': self.topic,
+            'partial': self.partial,
+            'problems': list(self.problems),
+            'read_problems': list(self.read_problems),
+            'blocks_read': self.blocks_read,
+            'bench': self.bench.to_json_dict(),
+            'cumulative': stats_json(self.cumulative),
+            'windows': [{
+                'index': int(w.index), 'complete': bool(w.complete),
+                'start_stamp_s': json_float(w.start_stamp_s), 'end_stamp_s': json_float(w.end_stamp_s),
+                'first_seq': int(w.first_seq), 'last_seq': int(w.last_seq),
+                **stats_json(w.stats)} for w in self.windows],
+            'spectrum': None if self.spectrum is None else self.spectrum.to_json_dict(),
+            'dominant': None if self.dominant is None else self.dominant.to_json_dict(),
+            'gaps': [{'kind': g.kind, 'seq': int(g.seq), 'detail': g.detail} for g in self.gaps],
+            'counters': {k: _jsonable(v) for k, v in self.counters.items()},
+            'recommendation': self.recommendation.to_json_dict(),
+        }
+
+
+def stats_json(stats: TeStats) -> dict[str, Any]:
+    """TE statistics as a JSON dict in arcmin (and rad), keys carrying the unit."""
+    return {
+        'te_pp_arcmin': json_float(rad_to_arcmin(stats.pp_rad)),
+        'te_amplitude_arcmin': json_float(rad_to_arcmin(stats.amplitude_rad)),
+        'te_mean_arcmin': json_float(rad_to_arcmin(stats.mean_rad)),
+        'te_std_arcmin': json_float(rad_to_arcmin(stats.std_rad)),
+        'te_pp_rad': json_float(stats.pp_rad),
+        'te_amplitude_rad': json_float(stats.amplitude_rad),
+        'te_mean_rad': json_float(stats.mean_rad),
+        'te_std_rad': json_float(stats.std_rad),
+        'revolutions': json_float(stats.revolutions),
+        'n_samples': int(stats.n_samples),
+    }
+
+
+# --------------------------------------------------------------------------------------
+# analysis
+
+
+def _jsonable(v: Any) -> Any:  # noqa: ANN401
+    if isinstance(v, np.generic):
+        return v.item()
+    if isinstance(v, dict):
+        return {str(k): _jsonable(x) for k, x in v.items()}
+    if isinstance(v, list | tuple):
+        return [_jsonable(x) for x in v]
+    return v

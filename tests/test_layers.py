@@ -1,0 +1,59 @@
+"""The layering of docs/ARCHITECTURE.md, checked by import-linter (``[tool.importlinter]``).
+
+The first test runs the contracts on this repository; the second shows that they catch a
+lower layer importing a higher one, and ROS imported into the pure core, on a copy of the
+packages with both violations written in. (tests/test_no_ros_imports.py checks the other
+side: the pure packages really import and run with rclpy absent.)
+"""
+
+from __future__ import annotations
+
+import os
+import shutil
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+ROOT = Path(__file__).resolve().parents[1]
+LINT_IMPORTS = Path(sys.executable).parent / 'lint-imports'
+
+pytestmark = pytest.mark.skipif(not LINT_IMPORTS.exists(),
+                                reason='import-linter is not installed (pip install .[test])')
+
+
+def _lint(cwd: Path) -> subprocess.CompletedProcess[str]:
+    env = dict(os.environ)
+    env.pop('_ROS_WHEELS_BOOTSTRAP_COMPLETE', None)
+    # the copy's packages, not the editable install's, are the ones analysed
+    env['PYTHONPATH'] = str(cwd)
+    return subprocess.run([str(LINT_IMPORTS), '--no-cache'], cwd=cwd, env=env,
+                          capture_output=True, text=True, timeout=120, check=False)
+
+
+def test_the_repository_keeps_its_layers() -> None:
+    out = _lint(ROOT)
+    assert out.returncode == 0, out.stdout + out.stderr
+    assert '0 broken' in out.stdout
+
+
+def test_an_upward_import_and_rclpy_in_core_are_caught(tmp_path: Path) -> None:
+    ignore = shutil.ignore_patterns('__pycache__', '*.pyc')
+    for pkg in ('rv_te_bench', 'sim'):
+        shutil.copytree(ROOT / pkg, tmp_path / pkg, ignore=ignore)
+    shutil.copy(ROOT / 'pyproject.toml', tmp_path / 'pyproject.toml')
+    assert _lint(tmp_path).returncode == 0     # the copy alone is clean
+
+    te = tmp_path / 'rv_te_bench' / 'core' / 'te.py'
+    te.write_text(te.read_text(encoding='utf-8')
+                  + '\n\ndef _violation() -> None:\n'
+                    '    import rclpy  # noqa: F401, PLC0415\n'
+                    '    from rv_te_bench.report import analysis  # noqa: F401, PLC0415\n',
+                  encoding='utf-8')
+    out = _lint(tmp_path)
+    text = out.stdout + out.stderr
+    assert out.returncode != 0, text
+    assert 'BROKEN' in text
+    assert 'rv_te_bench.core.te -> rclpy' in text
+    assert 'rv_te_bench.core.te -> rv_te_bench.report.analysis' in text
