@@ -26,6 +26,7 @@ from sim.units import ARCMIN_PER_RAD, ARCSEC_PER_RAD
 
 if TYPE_CHECKING:
     from collections.abc import Callable
+    from pathlib import Path
 
 __all__ = [
     'ANGLE_UNITS',
@@ -49,6 +50,26 @@ _UNIT_ALIASES = {
 }
 TIME_UNITS = {'s': 1.0, 'ms': 1e-3, 'us': 1e-6, 'ns': 1e-9}
 _TWO_PI = 2.0 * math.pi
+
+
+def require_reader(module: str, what: str) -> object:
+    """Import the optional ``module`` a format needs (the ``daq`` extra), or one line saying
+    how to install it."""
+    import importlib  # noqa: PLC0415
+
+    try:
+        return importlib.import_module(module)
+    except ImportError:
+        msg = (f'reading {what} needs the {module} library: pip install "rv-te-bench[daq]" '
+               f'(or pip install {module})')
+        raise DataImportError(msg) from None
+
+
+def refuse_empty(path: Path) -> None:
+    """One line for a file of 0 bytes (the libraries' own errors on it are obscure)."""
+    if path.is_file() and path.stat().st_size == 0:
+        msg = f'{path}: the file is empty'
+        raise DataImportError(msg)
 
 
 def angle_unit(text: str | None) -> str | None:

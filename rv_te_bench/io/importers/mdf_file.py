@@ -18,7 +18,7 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 
 from rv_te_bench.errors import DataImportError
-from rv_te_bench.io.importers._common import RawChunk
+from rv_te_bench.io.importers._common import RawChunk, refuse_empty, require_reader
 
 if TYPE_CHECKING:
     from collections.abc import Iterator
@@ -41,18 +41,11 @@ class MdfReader:
     """
 
     def __init__(self, path: Path, options: ImportOptions) -> None:
-        try:
-            from asammdf import MDF  # noqa: PLC0415
-        except ImportError:
-            msg = ('reading MDF needs the asammdf library: pip install "rv-te-bench[daq]" '
-                   '(or pip install asammdf)')
-            raise DataImportError(msg) from None
+        MDF = require_reader('asammdf', 'MDF').MDF  # type: ignore[attr-defined]
         self.path = Path(path)
         self.origin = str(path)
         self.options = options
-        if self.path.is_file() and self.path.stat().st_size == 0:
-            msg = f'{path}: the file is empty'
-            raise DataImportError(msg)
+        refuse_empty(self.path)
         problem = None
         hook = sys.unraisablehook
         sys.unraisablehook = lambda _u: None    # a half-built MDF4 complains in __del__

@@ -18,7 +18,7 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 
 from rv_te_bench.errors import DataImportError
-from rv_te_bench.io.importers._common import RawChunk
+from rv_te_bench.io.importers._common import RawChunk, refuse_empty, require_reader
 
 if TYPE_CHECKING:
     from collections.abc import Iterator
@@ -67,18 +67,11 @@ class TdmsReader:
     """
 
     def __init__(self, path: Path, options: ImportOptions) -> None:
-        try:
-            from nptdms import TdmsFile  # noqa: PLC0415
-        except ImportError:
-            msg = ('reading TDMS needs the nptdms library: pip install "rv-te-bench[daq]" '
-                   '(or pip install nptdms)')
-            raise DataImportError(msg) from None
+        TdmsFile = require_reader('nptdms', 'TDMS').TdmsFile  # type: ignore[attr-defined]
         self.path = Path(path)
         self.origin = str(path)
         self.options = options
-        if self.path.is_file() and self.path.stat().st_size == 0:
-            msg = f'{path}: the file is empty'
-            raise DataImportError(msg)
+        refuse_empty(self.path)
         with _nptdms_warnings() as warned:
             try:
                 self._file = TdmsFile.open(self.path)
