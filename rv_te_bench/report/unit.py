@@ -382,7 +382,7 @@ def render_unit_html(report: dict[str, Any], images: dict[str, bytes]) -> str:
         img('spectrum.png', 'labelled lines of the TE order spectrum')
     for s in report['steps']:
         if s['kind'] == 'sweep':
-            p.append(f"<h2>Sweep {_e(s['name'])}: TE p-p against speed and load</h2><table>"
+            p.append(f"<h2>TE p-p against speed and load ({_e(s['name'])})</h2><table>"
                      '<tr><th>speed [rpm]</th><th>load [N m]</th><th>TE p-p [arcmin]</th>'
                      '<th>mean [arcmin]</th></tr>')
             for r in s['rows']:
