@@ -25,7 +25,6 @@ pytestmark = pytest.mark.ros
 rclpy = pytest.importorskip('rclpy')
 
 from builtin_interfaces.msg import Time  # noqa: E402
-from rclpy.executors import SingleThreadedExecutor  # noqa: E402
 from rclpy.parameter import Parameter  # noqa: E402
 from rv_te_msgs.msg import BenchInfo, EncoderBlock, TeSpectrum, TransmissionError  # noqa: E402
 from sensor_msgs.msg import JointState  # noqa: E402
@@ -61,21 +60,6 @@ def bench_values(**extra: object) -> dict[str, object]:
             'sample_rate_hz': RATE_HZ, 'block_size': BLOCK, 'duration_output_revs': 2.3,
             'time_mode': 'fast', 'speed_factor': 4.0, 'seed': 7, 'load_nm': 30.0, **extra}
 
-
-@pytest.fixture
-def graph(ros_context):  # noqa: ANN001, ANN201
-    nodes = []
-    ex = SingleThreadedExecutor(context=ros_context)
-
-    def add(node):  # noqa: ANN001, ANN202
-        nodes.append(node)
-        ex.add_node(node)
-        return node
-
-    yield ros_context, ex, add
-    ex.shutdown()
-    for n in reversed(nodes):
-        n.destroy_node()
 
 
 def reference_windows(values: dict[str, object]) -> list:  # noqa: ANN001

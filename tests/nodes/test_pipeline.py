@@ -15,7 +15,6 @@ pytestmark = pytest.mark.ros
 
 rclpy = pytest.importorskip('rclpy')
 
-from rclpy.executors import SingleThreadedExecutor  # noqa: E402
 from rclpy.parameter import Parameter  # noqa: E402
 from rv_te_msgs.msg import BenchInfo, EncoderBlock, TeSpectrum, TransmissionError  # noqa: E402
 
@@ -39,21 +38,6 @@ def bench_params(**extra: object) -> list[Parameter]:
               'speed_factor': 10.0, 'seed': 3, **extra}
     return [Parameter(k, value=v) for k, v in values.items()]
 
-
-@pytest.fixture
-def graph(ros_context):  # noqa: ANN001, ANN201
-    nodes = []
-    ex = SingleThreadedExecutor(context=ros_context)
-
-    def add(node):  # noqa: ANN001, ANN202
-        nodes.append(node)
-        ex.add_node(node)
-        return node
-
-    yield ros_context, ex, add
-    ex.shutdown()
-    for n in nodes:
-        n.destroy_node()
 
 
 def test_bench_to_te_node_live_equals_offline(graph) -> None:  # noqa: ANN001
