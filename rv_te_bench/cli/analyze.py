@@ -28,6 +28,7 @@ from rv_te_bench.safe_yaml import one_line
 from sim.units import rad_to_arcmin, rad_to_deg
 
 if TYPE_CHECKING:
+    from rv_te_bench.cli.argtypes import Subparsers
     from rv_te_bench.core.te import TeStats
     from rv_te_bench.report.analysis import AnalysisResult
 
@@ -86,7 +87,7 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument('--lot', default=None, help='production lot recorded with the result')
 
 
-def register(subparsers: Any) -> None:  # noqa: ANN401 - argparse's private type
+def register(subparsers: Subparsers) -> None:
     """Add the ``analyze`` subcommand."""
     p = subparsers.add_parser(
         'analyze', help='offline TE statistics, spectrum and report from recorded bags',

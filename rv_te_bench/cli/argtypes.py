@@ -4,12 +4,15 @@ from __future__ import annotations
 
 import argparse
 import math
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, TypeAlias
 
 from rv_te_bench.core._checks import finite_positive
 
 if TYPE_CHECKING:
     from collections.abc import Callable
+
+    #: What each subcommand's ``register(subparsers)`` receives (``add_subparsers()``).
+    Subparsers: TypeAlias = argparse._SubParsersAction[argparse.ArgumentParser]  # noqa: SLF001
 
 
 def positive_float(text: str) -> float:

@@ -3,7 +3,10 @@
 from __future__ import annotations
 
 import argparse
-from typing import Any
+from typing import TYPE_CHECKING
+
+if TYPE_CHECKING:
+    from rv_te_bench.cli.argtypes import Subparsers
 
 EPILOG = """\
 examples:
@@ -13,7 +16,7 @@ examples:
 """
 
 
-def register(subparsers: Any) -> None:  # noqa: ANN401
+def register(subparsers: Subparsers) -> None:
     """Add the ``bench`` subcommand."""
     p = subparsers.add_parser(
         'bench', help='run the simulated bench node alone',

@@ -11,12 +11,16 @@ import argparse
 import json
 import math
 import sys
-from typing import Any
+from typing import TYPE_CHECKING
 
 from rv_te_bench.errors import CompensationError, RvTeError
 from rv_te_bench.safe_yaml import one_line
 from sim.errors import SimError
 from sim.units import arcmin_to_rad, rad_to_arcmin
+
+if TYPE_CHECKING:
+    from rv_te_bench.cli.argtypes import Subparsers
+    from rv_te_bench.core.advice import Advice
 
 EXAMPLES = """\
 examples:
@@ -27,7 +31,7 @@ examples:
 """
 
 
-def register(subparsers: Any) -> None:  # noqa: ANN401 - argparse's private type
+def register(subparsers: Subparsers) -> None:
     """Add the ``compensate`` subcommand."""
     p = subparsers.add_parser(
         'compensate', help='tooth-profile TE compensation of an RV reducer (Hu 2020)',
@@ -48,7 +52,7 @@ def register(subparsers: Any) -> None:  # noqa: ANN401 - argparse's private type
     p.set_defaults(func=run)
 
 
-def _text(advice: Any) -> str:  # noqa: ANN401 - Advice
+def _text(advice: Advice) -> str:
     lines = [f'preset {advice.preset}: tooth-profile compensation (Hu 2020 Eq. 27, '
              f'scale {advice.details["scale"]})',
              f'  TE before {rad_to_arcmin(advice.te_before_rad):.4f} arcmin, predicted after '

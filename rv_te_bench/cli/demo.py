@@ -16,7 +16,10 @@ import sys
 import time
 from datetime import UTC, datetime
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
+
+if TYPE_CHECKING:
+    from rv_te_bench.cli.argtypes import Subparsers
 
 EPILOG = """\
 examples:
@@ -67,7 +70,7 @@ def _raise_keyboard_interrupt(*_: object) -> None:
     raise KeyboardInterrupt
 
 
-def register(subparsers: Any) -> None:  # noqa: ANN401
+def register(subparsers: Subparsers) -> None:
     """Add the ``demo`` subcommand."""
     from rv_te_bench.cli.launch import add_session_arguments  # noqa: PLC0415
 

@@ -22,11 +22,14 @@ import json
 import sys
 import time
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING
 
 from rv_te_bench.cli._db import add_db_argument, check_record_text, db_for_bags
 from rv_te_bench.cli.argtypes import int_at_least, nonnegative_int, positive_float, positive_int
 from rv_te_bench.errors import RvTeError
+
+if TYPE_CHECKING:
+    from rv_te_bench.cli.argtypes import Subparsers
 
 __all__ = ['register', 'run']
 
@@ -46,7 +49,7 @@ PROGRESS_PERIOD_S = 5.0
 MAX_WORKERS = 256
 
 
-def register(subparsers: Any) -> None:  # noqa: ANN401 - argparse's private type
+def register(subparsers: Subparsers) -> None:
     """Add ``fleet analyze``."""
     p = subparsers.add_parser(
         'fleet', help='analyse many bags in parallel (Dask) into the results store',

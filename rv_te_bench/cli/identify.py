@@ -20,7 +20,7 @@ import math
 import os
 import sys
 from dataclasses import dataclass, field, replace
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
@@ -33,6 +33,15 @@ from rv_te_bench.cli.optimize_phases import (
     load_wang_params,
 )
 from rv_te_bench.safe_yaml import one_line
+
+if TYPE_CHECKING:
+    from collections.abc import Callable
+
+    from rv_te_bench.cli.argtypes import Subparsers
+    from rv_te_bench.core.angle_fold import FoldedTe
+    from rv_te_bench.core.identify import Identification
+    from rv_te_bench.core.phases import EccentricGeometry
+    from sim.presets import Preset
 
 EXAMPLES = """\
 examples:
@@ -51,7 +60,7 @@ exit codes: 0 ok (partial results are marked PARTIAL; withheld advice is not an 
 MAGNITUDE_KEYS = ('eccentricity.e_p1_m', 'eccentricity.e_p2_m', 'eccentricity.e_g_m')
 
 
-def register(subparsers: Any) -> None:  # noqa: ANN401 - argparse's private type
+def register(subparsers: Subparsers) -> None:
     """Add the ``identify`` subcommand."""
     p = subparsers.add_parser(
         'identify', help='identify 2K-V eccentricities from a bag; recommend re-assembly',
@@ -91,7 +100,7 @@ class BagRecord:
         skipped_samples: Non-finite or malformed samples left out.
     """
 
-    folded: Any
+    folded: FoldedTe
     blocks: int = 0
     partial: bool = False
     problems: list[str] = field(default_factory=list)
@@ -99,7 +108,7 @@ class BagRecord:
 
 
 def fold_bag(path: str, topic: str | None, gear_ratio: float, *,
-             progress: Any = None) -> BagRecord:  # noqa: ANN401
+             progress: Callable[[int, int], None] | None = None) -> BagRecord:
     """Stream a bag's encoder blocks into an :class:`AngleFold` (phi = theta_in / i).
 
     Reads with ``strict=False``: a damaged part ends the read, what came before is kept
@@ -166,7 +175,7 @@ def _bench_info(args: argparse.Namespace) -> tuple[dict[str, Any] | None, str | 
 
 
 def _setup(args: argparse.Namespace, info: dict[str, Any] | None,
-           ) -> tuple[Any, Any, float, str]:  # noqa: ANN401
+           ) -> tuple[Preset, EccentricGeometry, float, str]:
     """(preset, params, gear ratio, source of the part magnitudes)."""
     from rv_te_bench.core.phases import EccentricGeometry  # noqa: PLC0415
     from rv_te_bench.errors import TeInputError  # noqa: PLC0415
@@ -204,7 +213,7 @@ def _deg(x: float) -> float:
     return float(rad_to_deg(x))
 
 
-def _text(idf: Any, source: str) -> str:  # noqa: ANN401
+def _text(idf: Identification, source: str) -> str:
     from rv_te_bench.core.identify import OBSERVABILITY  # noqa: PLC0415
 
     head = f'  {"quantity":<34} {"e [um]":>8} {"1s [um]":>8} {"phase [deg]":>11} {"1s [deg]":>8}'

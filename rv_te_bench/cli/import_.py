@@ -7,7 +7,10 @@ import datetime as dt
 import json
 import sys
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING
+
+if TYPE_CHECKING:
+    from rv_te_bench.cli.argtypes import Subparsers
 
 EXAMPLES = """\
 examples:
@@ -37,7 +40,7 @@ leaves nothing behind. TDMS and MDF need the extra: pip install "rv-te-bench[daq
 """
 
 
-def register(subparsers: Any) -> None:  # noqa: ANN401 - argparse's private type
+def register(subparsers: Subparsers) -> None:
     """Add the ``import`` subcommand."""
     p = subparsers.add_parser(
         'import', help='convert a DAQ measurement file (CSV, NI TDMS, ASAM MDF4) or a '

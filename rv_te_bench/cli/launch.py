@@ -7,7 +7,10 @@ import argparse
 import sys
 from pathlib import Path
 from importlib import resources
-from typing import Any
+from typing import TYPE_CHECKING, Any
+
+if TYPE_CHECKING:
+    from rv_te_bench.cli.argtypes import Subparsers
 
 EPILOG = """\
 examples:
@@ -55,7 +58,7 @@ def add_session_arguments(p: argparse.ArgumentParser, *, single_process: bool = 
                        help='all nodes in one process on one executor (default: one per node)')
 
 
-def register(subparsers: Any) -> None:  # noqa: ANN401
+def register(subparsers: Subparsers) -> None:
     """Add the ``launch`` subcommand."""
     p = subparsers.add_parser(
         'launch', help='run a session from a ROS 2 launch file or parameter files',

@@ -16,12 +16,15 @@ import math
 import sys
 import time
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
 from rv_te_bench.cli.argtypes import positive_float
 from rv_te_bench.safe_yaml import one_line
+
+if TYPE_CHECKING:
+    from rv_te_bench.cli.argtypes import Subparsers
 
 EXAMPLES = """\
 examples:
@@ -76,7 +79,7 @@ def _load_hz(text: str) -> float | str:
     return value
 
 
-def register(subparsers: Any) -> None:  # noqa: ANN401 - argparse's private type
+def register(subparsers: Subparsers) -> None:
     """Add the ``model`` subcommand."""
     p = subparsers.add_parser(
         'model', help="run a preset's TE model (NLTE / STE / DTE) and print statistics",

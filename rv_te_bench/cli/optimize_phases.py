@@ -13,10 +13,16 @@ import argparse
 import json
 import math
 import sys
-from typing import Any
+from typing import TYPE_CHECKING
 
 from rv_te_bench.cli._progress import ProgressBar
 from rv_te_bench.safe_yaml import one_line
+
+if TYPE_CHECKING:
+    from rv_te_bench.cli.argtypes import Subparsers
+    from rv_te_bench.core.phases import PhaseOptimisation
+    from sim.presets import Preset
+    from sim.wang2020 import Wang2kvParams
 
 EXAMPLES = """\
 examples:
@@ -35,7 +41,7 @@ def _loads(text: str) -> tuple[float, ...]:
     return values
 
 
-def register(subparsers: Any) -> None:  # noqa: ANN401 - argparse's private type
+def register(subparsers: Subparsers) -> None:
     """Add the ``optimize-phases`` subcommand."""
     p = subparsers.add_parser(
         'optimize-phases', help='Wang 2020 Eq. 21: assembly phases minimising max |NLTE|',
@@ -89,7 +95,7 @@ def check_search_arguments(args: argparse.Namespace) -> None:
         raise CompensationError(msg)
 
 
-def load_wang_params(name: str, overrides: list[str]) -> tuple[Any, Any]:  # noqa: ANN401
+def load_wang_params(name: str, overrides: list[str]) -> tuple[Preset, Wang2kvParams]:
     """(preset, Wang2kvParams) of a wang2020-2kv preset.
 
     Raises:
@@ -107,7 +113,7 @@ def load_wang_params(name: str, overrides: list[str]) -> tuple[Any, Any]:  # noq
     return preset, Wang2kvParams.from_preset(preset)
 
 
-def format_result(result: Any, title: str) -> str:  # noqa: ANN401
+def format_result(result: PhaseOptimisation, title: str) -> str:
     """Text report of a PhaseOptimisation (degrees and arcmin)."""
     from rv_te_bench.core.phases import PHASE_NAMES  # noqa: PLC0415
     from sim.units import rad_to_arcmin, rad_to_deg  # noqa: PLC0415

@@ -11,9 +11,12 @@ from __future__ import annotations
 
 import argparse
 import sys
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from rv_te_bench.cli.argtypes import float_between, int_between
+
+if TYPE_CHECKING:
+    from rv_te_bench.cli.argtypes import Subparsers
 
 __all__ = ['FLUSH_RANGE_S', 'MAX_DURATION_S', 'MAX_SPLIT_BYTES', 'MAX_STALL_BUFFER_BYTES',
            'register', 'run']
@@ -26,7 +29,7 @@ MAX_SPLIT_BYTES = 1 << 62
 MAX_STALL_BUFFER_BYTES = 1 << 40
 
 
-def register(subparsers: Any) -> None:  # noqa: ANN401 - argparse's private action type
+def register(subparsers: Subparsers) -> None:
     """Add the ``record`` subcommand to ``subparsers``."""
     parser = subparsers.add_parser(
         'record', help='record topics to a rosbag2 (MCAP) bag',

@@ -10,9 +10,12 @@ from __future__ import annotations
 
 import argparse
 import sys
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from rv_te_bench.cli.argtypes import float_between
+
+if TYPE_CHECKING:
+    from rv_te_bench.cli.argtypes import Subparsers
 
 __all__ = ['RATE_RANGE', 'START_OFFSET_RANGE_S', 'WAIT_RANGE_S', 'register', 'run']
 
@@ -22,7 +25,7 @@ START_OFFSET_RANGE_S = (0.0, 1e7)
 WAIT_RANGE_S = (0.0, 3600.0)
 
 
-def register(subparsers: Any) -> None:  # noqa: ANN401 - argparse's private action type
+def register(subparsers: Subparsers) -> None:
     """Add the ``replay`` subcommand to ``subparsers``."""
     parser = subparsers.add_parser(
         'replay', help='publish a recorded bag with its timing',

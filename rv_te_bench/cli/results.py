@@ -16,10 +16,13 @@ import os
 import sys
 from datetime import UTC, datetime, timedelta
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from rv_te_bench.cli._db import add_db_argument, db_to_read
 from sim.units import rad_to_arcmin
+
+if TYPE_CHECKING:
+    from rv_te_bench.cli.argtypes import Subparsers
 
 __all__ = ['add_filter_arguments', 'filter_from_args', 'register', 'run']
 
@@ -74,7 +77,7 @@ def filter_from_args(args: argparse.Namespace) -> Any:  # noqa: ANN401
                         lot=args.lot)
 
 
-def register(subparsers: Any) -> None:  # noqa: ANN401 - argparse's private type
+def register(subparsers: Subparsers) -> None:
     """Add the ``results`` subcommand."""
     p = subparsers.add_parser(
         'results', help='list, filter and export the records of the results store',

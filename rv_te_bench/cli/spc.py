@@ -20,11 +20,14 @@ import math
 import os
 import sys
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from rv_te_bench.cli._db import add_db_argument, db_to_read
 from rv_te_bench.cli.results import add_filter_arguments, filter_from_args
 from rv_te_bench.errors import SpcError
+
+if TYPE_CHECKING:
+    from rv_te_bench.cli.argtypes import Subparsers
 
 __all__ = ['register', 'run']
 
@@ -68,7 +71,7 @@ def _finite(text: str) -> float:
     return v
 
 
-def register(subparsers: Any) -> None:  # noqa: ANN401 - argparse's private type
+def register(subparsers: Subparsers) -> None:
     """Add the ``spc`` subcommand."""
     p = subparsers.add_parser(
         'spc', help='control charts across units (I-MR, X-bar/R), run rules, Cp/Cpk',

@@ -27,7 +27,10 @@ import sys
 import time
 from datetime import UTC, datetime
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
+
+if TYPE_CHECKING:
+    from rv_te_bench.cli.argtypes import Subparsers
 
 __all__ = ['EXIT_FAIL', 'register', 'run']
 
@@ -36,7 +39,7 @@ EXIT_FAIL = 3
 DEFAULT_TE_MODE = {'wang2020-2kv': 'nlte', 'hu2020-rv': 'elastic', 'li2023-rv': 'dte'}
 
 
-def register(subparsers: Any) -> None:  # noqa: ANN401
+def register(subparsers: Subparsers) -> None:
     """Add the ``test`` subcommand."""
     p = subparsers.add_parser(
         'test', help='run an acceptance test plan on a unit: verdict and unit report',

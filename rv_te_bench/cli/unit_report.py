@@ -19,7 +19,10 @@ import json
 import math
 import sys
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
+
+if TYPE_CHECKING:
+    from rv_te_bench.cli.argtypes import Subparsers
 
 __all__ = ['register', 'run']
 
@@ -28,7 +31,7 @@ __all__ = ['register', 'run']
 _SAME_REL = 1e-9
 
 
-def register(subparsers: Any) -> None:  # noqa: ANN401
+def register(subparsers: Subparsers) -> None:
     """Add the ``unit-report`` subcommand."""
     p = subparsers.add_parser(
         'unit-report', help="a unit's acceptance test again from its session bag (no ROS)",

@@ -65,7 +65,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, field, replace
-from typing import Any
+from typing import Any, SupportsFloat
 
 import numpy as np
 import numpy.typing as npt
@@ -84,6 +84,7 @@ from rv_te_bench.core.angle_fold import DEFAULT_BINS, AngleFold, FoldedTe
 from rv_te_bench.core.phases import (
     PHASE_NAMES,
     EccentricGeometry,
+    GeometrySource,
     PhaseOptimisation,
     ProgressCallback,
     _basis,
@@ -324,7 +325,7 @@ class Identification:
         }
 
 
-def _num(x: Any, digits: int | None = None) -> float | None:  # noqa: ANN401
+def _num(x: SupportsFloat, digits: int | None = None) -> float | None:
     """A finite float (rounded to ``digits`` decimals for the JSON edge) or None."""
     v = float(x)
     if not math.isfinite(v):
@@ -332,7 +333,7 @@ def _num(x: Any, digits: int | None = None) -> float | None:  # noqa: ANN401
     return round(v, digits) if digits is not None else v
 
 
-def _geometry(params: Any) -> EccentricGeometry:  # noqa: ANN401
+def _geometry(params: GeometrySource) -> EccentricGeometry:
     if isinstance(params, EccentricGeometry):
         return params
     return EccentricGeometry.from_params(params)
@@ -367,7 +368,7 @@ def _check_folded(folded: FoldedTe, crank_order: float) -> None:
 
 
 def identify_eccentricities(phase_out_rad: npt.ArrayLike, te_rad: npt.ArrayLike,
-                            params: Any, *, rng: np.random.Generator | None = None,  # noqa: ANN401
+                            params: GeometrySource, *, rng: np.random.Generator | None = None,
                             n_starts: int = 16, split: bool = True,
                             n_bins: int = DEFAULT_BINS) -> Identification:
     """Fit the Eqs 1-8 model to a TE record and identify the unit's eccentricities.
@@ -401,7 +402,7 @@ def identify_eccentricities(phase_out_rad: npt.ArrayLike, te_rad: npt.ArrayLike,
     return identify_folded(folded, params, rng=rng, n_starts=n_starts, split=split)
 
 
-def identify_folded(folded: FoldedTe, params: Any, *,  # noqa: ANN401
+def identify_folded(folded: FoldedTe, params: GeometrySource, *,
                     rng: np.random.Generator | None = None, n_starts: int = 16,
                     split: bool = True) -> Identification:
     """As :func:`identify_eccentricities`, for a record folded by an ``AngleFold``.
@@ -492,7 +493,7 @@ def _finish(geom: EccentricGeometry, folded: FoldedTe, x: FloatArray,  # noqa: P
         split_deg_per_pct=per_pct, split_deg_per_um=per_um)
 
 
-def recommend_reassembly(identification: Identification, params: Any, *,  # noqa: ANN401
+def recommend_reassembly(identification: Identification, params: GeometrySource, *,
                          step_deg: float = 10.0, refine: bool = False,
                          refine_tol_deg: float = 0.5,
                          progress: ProgressCallback | None = None) -> PhaseOptimisation:
@@ -539,7 +540,7 @@ def check_fit(identification: Identification) -> None:
 
 
 def identified_advice(phase_out_rad: npt.ArrayLike | FoldedTe, te_rad: npt.ArrayLike | None,  # noqa: PLR0913
-                      params: Any, *, preset_name: str, step_deg: float = 10.0,  # noqa: ANN401
+                      params: GeometrySource, *, preset_name: str, step_deg: float = 10.0,
                       refine: bool = False,
                       progress: ProgressCallback | None = None) -> Advice:
     """Identify this unit from its TE record and recommend re-assembly phases, as Advice.

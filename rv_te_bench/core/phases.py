@@ -38,7 +38,7 @@ import math
 import time
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field, replace
-from typing import Any
+from typing import TYPE_CHECKING, Any, TypeAlias
 
 import numpy as np
 import numpy.typing as npt
@@ -48,6 +48,9 @@ from rv_te_bench.core.te import TeStats, te_statistics
 from rv_te_bench.core.units import json_deg
 from rv_te_bench.errors import CompensationError
 from sim.units import deg_to_rad, rad_to_arcmin, rad_to_deg
+
+if TYPE_CHECKING:
+    from sim.wang2020 import Wang2kvParams
 
 __all__ = [
     'PHASE_NAMES',
@@ -64,6 +67,9 @@ __all__ = [
 
 FloatArray = npt.NDArray[np.float64]
 ProgressCallback = Callable[[float], None]
+#: What the optimiser and the identification take: a geometry, or the Wang 2020 parameters
+#: it is read from (:meth:`EccentricGeometry.from_params`).
+GeometrySource: TypeAlias = 'EccentricGeometry | Wang2kvParams'
 
 #: Order of the four phases everywhere in this module (Wang 2020 Eq. 21).
 PHASE_NAMES: tuple[str, str, str, str] = ('theta_p1', 'theta_p2', 'theta_g', 'theta_ot')
@@ -156,7 +162,7 @@ class EccentricGeometry:
         object.__setattr__(self, 'mesh_stiffness_n_m', ks)
 
     @classmethod
-    def from_params(cls, params: Any) -> EccentricGeometry:  # noqa: ANN401
+    def from_params(cls, params: Wang2kvParams) -> EccentricGeometry:
         """Geometry of a ``sim.wang2020.Wang2kvParams`` (or anything with its fields)."""
         return _geometry_from_params(params)
 
@@ -181,7 +187,7 @@ class EccentricGeometry:
         return self.crank_order**2 * (max(e1, e2) + eg) + eo
 
 
-def _geometry_from_params(params: Any) -> EccentricGeometry:  # noqa: ANN401
+def _geometry_from_params(params: Wang2kvParams) -> EccentricGeometry:
     """Read the fields of ``sim.wang2020.Wang2kvParams`` into a geometry."""
     try:
         kin = params.kinematics
@@ -569,7 +575,7 @@ def _stats(te_rad: FloatArray) -> TeStats:
     return te_statistics(te_rad, revolutions=1.0)
 
 
-def optimise_phases(geom_or_params: Any, *, step_deg: float = 10.0,  # noqa: ANN401
+def optimise_phases(geom_or_params: GeometrySource, *, step_deg: float = 10.0,
                     refine: bool = False, refine_tol_deg: float = 0.5,
                     loads_nm: Sequence[float] = (30.0, 100.0, 300.0),
                     progress: ProgressCallback | None = None) -> PhaseOptimisation:
