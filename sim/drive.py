@@ -30,7 +30,7 @@ from __future__ import annotations
 import dataclasses
 import math
 from dataclasses import dataclass
-from typing import TYPE_CHECKING, Any, ClassVar, Protocol, TypeAlias
+from typing import TYPE_CHECKING, Any, ClassVar, Protocol, TypeAlias, TypeVar
 
 import numpy as np
 
@@ -39,6 +39,8 @@ from sim.units import RAD_S_PER_RPM
 
 if TYPE_CHECKING:
     import numpy.typing as npt
+
+    from sim.kinematics import ReducerKinematics
 
 __all__ = [
     'DRIVE_KINDS',
@@ -370,9 +372,10 @@ DRIVE_KINDS: dict[str, type] = {
 }
 LOAD_KINDS: tuple[str, ...] = ('constant', 'sinusoidal')
 _TIE_TARGETS = ('input', 'output', 'crank', 'crank_rel', 'mesh')
+_P = TypeVar('_P')
 
 
-def _construct(kind_label: str, cls: type, params: dict[str, Any]) -> Any:  # noqa: ANN401
+def _construct(kind_label: str, cls: type[_P], params: dict[str, Any]) -> _P:
     """``cls(**params)`` with unknown/missing parameters reported by name."""
     fields = [f.name for f in dataclasses.fields(cls)]
     required = [f.name for f in dataclasses.fields(cls)
@@ -413,7 +416,7 @@ def drive_from_spec(kind: str, **params: Any) -> AnyDrive:  # noqa: ANN401
 
 
 def _tied_frequency_hz(tie_to: str, harmonic: float, mesh_index: int,
-                       kinematics: Any, drive: Any) -> float:  # noqa: ANN401
+                       kinematics: ReducerKinematics | None, drive: AnyDrive | None) -> float:
     """Frequency [Hz] of ``harmonic`` x the named reducer rate at the drive's nominal speed."""
     if tie_to not in _TIE_TARGETS:
         msg = f'load tie_to must be one of {_TIE_TARGETS}, got {tie_to!r}'
@@ -437,7 +440,8 @@ def _tied_frequency_hz(tie_to: str, harmonic: float, mesh_index: int,
     return harmonic * rate * f_in
 
 
-def load_from_spec(kind: str, *, kinematics: Any = None, drive: Any = None,  # noqa: ANN401
+def load_from_spec(kind: str, *, kinematics: ReducerKinematics | None = None,
+                   drive: AnyDrive | None = None,
                    **params: Any) -> AnyLoad:  # noqa: ANN401
     """Build a load profile from a kind name and its parameters.
 

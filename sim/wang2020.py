@@ -70,7 +70,7 @@ from __future__ import annotations
 import cmath
 import math
 from dataclasses import dataclass
-from typing import TYPE_CHECKING, Any, NamedTuple
+from typing import TYPE_CHECKING, Any, NamedTuple, TypeAlias
 
 import numpy as np
 
@@ -78,9 +78,15 @@ from sim.errors import ModelInputError, PresetError
 from sim.kinematics import ReducerKinematics, kinematics_from_preset
 
 if TYPE_CHECKING:
+    from collections.abc import Sequence
+
     import numpy.typing as npt
 
     from sim.presets import Preset
+
+    #: The four assembly phases (theta_p1_0, theta_p2_0, theta_g_0, theta_ot_0) [rad], each a
+    #: number or an array (broadcast over a grid of phases).
+    PhasesLike: TypeAlias = Sequence[npt.ArrayLike] | npt.NDArray[np.float64]
 
 __all__ = [
     'MeshIncrements',
@@ -307,7 +313,7 @@ def _check_theta(theta_out_rad: npt.ArrayLike) -> np.ndarray:
     return th
 
 
-def _phases(params: Wang2kvParams, phases_rad: Any) -> tuple[np.ndarray, ...]:  # noqa: ANN401
+def _phases(params: Wang2kvParams, phases_rad: PhasesLike | None) -> tuple[np.ndarray, ...]:
     if phases_rad is None:
         return tuple(np.float64(p) for p in params.phases_rad)
     if len(phases_rad) != 4:  # noqa: PLR2004
@@ -324,7 +330,7 @@ def _term(e: float, phase: np.ndarray, psi: float, cos_t: np.ndarray,
 
 
 def mesh_increments_m(theta_out_rad: npt.ArrayLike, params: Wang2kvParams, *,
-                      phases_rad: Any = None) -> MeshIncrements:  # noqa: ANN401
+                      phases_rad: PhasesLike | None = None) -> MeshIncrements:
     """Eqs 1-4: mesh-line and tooth-back increments of both gear pairs [m].
 
     Args:
@@ -342,7 +348,7 @@ def mesh_increments_m(theta_out_rad: npt.ArrayLike, params: Wang2kvParams, *,
 
 
 def _increments(theta_out_rad: npt.ArrayLike, params: Wang2kvParams,
-                phases_rad: Any,  # noqa: ANN401
+                phases_rad: PhasesLike | None,
                 *, back: bool) -> tuple[np.ndarray, np.ndarray]:
     """Eqs 1-2 (drive flanks) or Eqs 3-4 (tooth backs, ``back=True``) [m]."""
     th = _check_theta(theta_out_rad)
@@ -359,7 +365,7 @@ def _increments(theta_out_rad: npt.ArrayLike, params: Wang2kvParams,
 
 
 def nlte_pairs_rad(theta_out_rad: npt.ArrayLike, params: Wang2kvParams, *,
-                   phases_rad: Any = None) -> tuple[np.ndarray, np.ndarray]:  # noqa: ANN401
+                   phases_rad: PhasesLike | None = None) -> tuple[np.ndarray, np.ndarray]:
     """Eq. 5: non-load TE of gear pairs 1 and 2 [rad] (Delta_i / r_p).
 
     Broadcasting: see :func:`mesh_increments_m` (phases of shape (n_comb, 1) against
@@ -370,14 +376,14 @@ def nlte_pairs_rad(theta_out_rad: npt.ArrayLike, params: Wang2kvParams, *,
 
 
 def nlte_rad(theta_out_rad: npt.ArrayLike, params: Wang2kvParams, *,
-             phases_rad: Any = None) -> np.ndarray:  # noqa: ANN401
+             phases_rad: PhasesLike | None = None) -> np.ndarray:
     """Eq. 8: total non-load TE [rad], the larger of the two pairs' NLTE."""
     n1, n2 = nlte_pairs_rad(theta_out_rad, params, phases_rad=phases_rad)
     return np.maximum(n1, n2)
 
 
 def backlash_pairs_rad(theta_out_rad: npt.ArrayLike, params: Wang2kvParams, *,
-                       phases_rad: Any = None) -> tuple[np.ndarray, np.ndarray]:  # noqa: ANN401
+                       phases_rad: PhasesLike | None = None) -> tuple[np.ndarray, np.ndarray]:
     """Eq. 7: backlash of each pair [rad], B_i = NLTE_bi - NLTE_i + B_i(t0)."""
     inc = mesh_increments_m(theta_out_rad, params, phases_rad=phases_rad)
     r = params.r_p_m
@@ -386,7 +392,7 @@ def backlash_pairs_rad(theta_out_rad: npt.ArrayLike, params: Wang2kvParams, *,
 
 
 def nlte_curves(theta_out_rad: npt.ArrayLike, params: Wang2kvParams, *,
-                phases_rad: Any = None) -> NlteCurves:  # noqa: ANN401
+                phases_rad: PhasesLike | None = None) -> NlteCurves:
     """Eqs 5-9 at once: per-pair NLTE and backlash and their totals [rad]."""
     n1, n2 = nlte_pairs_rad(theta_out_rad, params, phases_rad=phases_rad)
     b1, b2 = backlash_pairs_rad(theta_out_rad, params, phases_rad=phases_rad)
@@ -395,7 +401,7 @@ def nlte_curves(theta_out_rad: npt.ArrayLike, params: Wang2kvParams, *,
 
 
 def backlash_rad(theta_out_rad: npt.ArrayLike, params: Wang2kvParams, *,
-                 phases_rad: Any = None) -> np.ndarray:  # noqa: ANN401
+                 phases_rad: PhasesLike | None = None) -> np.ndarray:
     """Eq. 9: backlash of the reducer [rad] (gap from the touching flank to the nearest back)."""
     return nlte_curves(theta_out_rad, params, phases_rad=phases_rad).backlash_rad
 

@@ -39,6 +39,7 @@ if TYPE_CHECKING:
 
     from rv_te_bench.acceptance.plan import Step, TestPlan
     from rv_te_bench.acceptance.tolerance import ToleranceProfile
+    from sim.program import ProgramSimulator
 
 __all__ = ['BenchContext', 'StepRunner', 'build_report', 'reanalyse', 'run_plan_offline']
 
@@ -383,7 +384,7 @@ def build_report(*, plan: TestPlan, profile: ToleranceProfile, ctx: BenchContext
 
 
 def run_plan_offline(plan: TestPlan, profile: ToleranceProfile, *, serial: str, operator: str,
-                     sim: Any, ctx: BenchContext,  # noqa: ANN401 - sim.program.ProgramSimulator
+                     sim: ProgramSimulator, ctx: BenchContext,
                      conditions: dict[str, Any] | None = None,
                      on_feedback: Callable[[int, str, float, str, float], None] | None = None,
                      ) -> dict[str, Any]:

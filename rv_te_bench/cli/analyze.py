@@ -31,6 +31,7 @@ if TYPE_CHECKING:
     from rv_te_bench.cli.argtypes import Subparsers
     from rv_te_bench.core.te import TeStats
     from rv_te_bench.report.analysis import AnalysisResult
+    from rv_te_bench.report.results import Recommendation
 
 __all__ = ['register', 'run']
 
@@ -265,7 +266,7 @@ def _fmt(x: float | None, width: int, digits: int) -> str:
     return f'{"-":>{width}}' if x is None else f'{x:>{width}.{digits}f}'
 
 
-def _print_identification(rec: Any, out: TextIO) -> None:  # noqa: ANN401
+def _print_identification(rec: Recommendation, out: TextIO) -> None:
     if rec.identification is None:
         return
     from rv_te_bench.report.analysis import describe_identification  # noqa: PLC0415

@@ -16,10 +16,19 @@ import sys
 import time
 from datetime import UTC, datetime
 from pathlib import Path
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING, Any, TypeAlias
 
 if TYPE_CHECKING:
+    from rv_te_msgs.msg import CompensationAdvice
+
     from rv_te_bench.cli.argtypes import Subparsers
+    from rv_te_bench.core.advice import Advice
+    from rv_te_bench.launch.session import SessionSpec
+    from rv_te_bench.nodes.monitor import SessionMonitor
+    from rv_te_bench.report.results import AnalysisResult, Recommendation
+
+    #: The advice the demo compares: offline (core) or live (the node's message).
+    AnyAdvice: TypeAlias = Advice | CompensationAdvice
 
 EPILOG = """\
 examples:
@@ -39,7 +48,7 @@ WANTED_ADVICE = frozenset({'assembly-phases', 'identified-assembly-phases'})
 NO_WINDOW_GRACE_S = 5.0
 
 
-def expected_advice(spec: Any, revolutions: float) -> tuple[frozenset[str], list[str]]:  # noqa: ANN401
+def expected_advice(spec: SessionSpec, revolutions: float) -> tuple[frozenset[str], list[str]]:
     """The live advice this session can give, and why some cannot come (one line each).
 
     The identified re-assembly needs a complete TE window (``window_revolutions`` output
@@ -96,7 +105,7 @@ def _fmt_arcmin(x_rad: float) -> str:
     return 'n/a' if not math.isfinite(x_rad) else f"{float(rad_to_arcmin(x_rad)):.3f}'"
 
 
-def _progress_line(mon: Any, target_revs: float) -> str:  # noqa: ANN401
+def _progress_line(mon: SessionMonitor, target_revs: float) -> str:
     tops = ', '.join(f'{lbl} {_fmt_arcmin(a)}' for lbl, a in mon.top_lines(3)) or '-'
     return (f'[demo] rev {mon.revolutions:5.2f}/{target_revs:g} | TE p-p so far '
             f'{_fmt_arcmin(mon.cumulative_pp_rad)} | gaps {mon.gaps} | top lines: {tops}')
@@ -228,7 +237,7 @@ def _report(bag_dir: Path, report_dir: Path, live_advice: dict[str, Any],
     return summary_text(result, live_advice)
 
 
-def summary_text(result: Any, live_advice: dict[str, Any] | None = None) -> str:  # noqa: ANN401
+def summary_text(result: AnalysisResult, live_advice: dict[str, Any] | None = None) -> str:
     """The short summary people read at the end of the demo.
 
     Args:
@@ -256,13 +265,13 @@ def summary_text(result: Any, live_advice: dict[str, Any] | None = None) -> str:
     return '\n'.join(lines)
 
 
-def _phases_deg(advice: Any) -> list[float]:  # noqa: ANN401 - Advice or CompensationAdvice
+def _phases_deg(advice: AnyAdvice) -> list[float]:
     from sim.units import rad_to_deg  # noqa: PLC0415
 
     return [float(rad_to_deg(m.recommended_value)) for m in advice.modifications]
 
 
-def _current_deg(advice: Any) -> list[float]:  # noqa: ANN401
+def _current_deg(advice: AnyAdvice) -> list[float]:
     from sim.units import rad_to_deg  # noqa: PLC0415
 
     return [float(rad_to_deg(m.current_value)) for m in advice.modifications]
@@ -272,11 +281,11 @@ def _max_diff_deg(a: list[float], b: list[float]) -> float:
     return max(abs((x - y + 180.0) % 360.0 - 180.0) for x, y in zip(a, b, strict=True))
 
 
-def _fmt_phases(advice: Any) -> str:  # noqa: ANN401
+def _fmt_phases(advice: AnyAdvice) -> str:
     return '[' + ', '.join(f'{p:.1f}' for p in _phases_deg(advice)) + '] deg'
 
 
-def _modification_lines(advice: Any) -> list[str]:  # noqa: ANN401
+def _modification_lines(advice: AnyAdvice) -> list[str]:
     from sim.units import rad_to_deg  # noqa: PLC0415
 
     out = []
@@ -290,7 +299,7 @@ def _modification_lines(advice: Any) -> list[str]:  # noqa: ANN401
     return out
 
 
-def recommendation_lines(rec: Any, live_advice: dict[str, Any]) -> list[str]:  # noqa: ANN401
+def recommendation_lines(rec: Recommendation, live_advice: dict[str, Any]) -> list[str]:
     """The recommendation for this unit, and the preset's nominal optimum beside it, saying
     which is which and why the first is the one to apply (issue #15: the live log shows both).
 

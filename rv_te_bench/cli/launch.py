@@ -7,10 +7,11 @@ import argparse
 import sys
 from pathlib import Path
 from importlib import resources
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING
 
 if TYPE_CHECKING:
     from rv_te_bench.cli.argtypes import Subparsers
+    from rv_te_bench.launch.session import SessionSpec
 
 EPILOG = """\
 examples:
@@ -93,7 +94,7 @@ def default_launch_file() -> str:
     return str(resources.files('rv_te_bench.launch').joinpath('session.launch.yaml'))
 
 
-def _spec_from_files(args: argparse.Namespace, nodes: list[str] | None) -> Any:  # noqa: ANN401
+def _spec_from_files(args: argparse.Namespace, nodes: list[str] | None) -> SessionSpec:
     """The SessionSpec of a launch file (with name:=value arguments) or of parameter files."""
     from rv_te_bench.errors import ParameterFileError  # noqa: PLC0415
     from rv_te_bench.launch import launch_file as lf  # noqa: PLC0415

@@ -25,6 +25,7 @@ from rv_te_bench.safe_yaml import one_line
 
 if TYPE_CHECKING:
     from rv_te_bench.cli.argtypes import Subparsers
+    from sim.presets import Preset
 
 EXAMPLES = """\
 examples:
@@ -122,7 +123,7 @@ def register(subparsers: Subparsers) -> None:
     p.set_defaults(func=run)
 
 
-def _float_or(preset: Any, key: str, default: float) -> float:  # noqa: ANN401
+def _float_or(preset: Preset, key: str, default: float) -> float:
     value = preset.get(key, default)
     return float(value) if isinstance(value, int | float) and not isinstance(value, bool) \
         else default

@@ -16,6 +16,8 @@ from typing import TYPE_CHECKING, Any
 from rv_te_bench.cli.argtypes import float_between, int_between
 
 if TYPE_CHECKING:
+    from rclpy.context import Context
+
     from rv_te_bench.cli.argtypes import Subparsers
 
 __all__ = ['FLUSH_RANGE_S', 'MAX_DURATION_S', 'MAX_SPLIT_BYTES', 'MAX_STALL_BUFFER_BYTES',
@@ -106,7 +108,7 @@ def run(args: argparse.Namespace) -> int:
         overrides.append(Parameter('topics', value=list(args.topics)))
     made: list[Any] = []
 
-    def factory(ctx: Any) -> Any:  # noqa: ANN401
+    def factory(ctx: Context) -> RecorderNode:
         node = RecorderNode(context=ctx, namespace=args.namespace,
                             parameter_overrides=overrides)
         made.append(node)

@@ -15,6 +15,8 @@ from typing import TYPE_CHECKING, Any
 from rv_te_bench.cli.argtypes import float_between
 
 if TYPE_CHECKING:
+    from rclpy.context import Context
+
     from rv_te_bench.cli.argtypes import Subparsers
 
 __all__ = ['RATE_RANGE', 'START_OFFSET_RANGE_S', 'WAIT_RANGE_S', 'register', 'run']
@@ -72,7 +74,7 @@ def run(args: argparse.Namespace) -> int:
         overrides.append(Parameter('topics', value=list(args.topics)))
     made: list[Any] = []
 
-    def factory(ctx: Any) -> Any:  # noqa: ANN401
+    def factory(ctx: Context) -> ReplayNode:
         node = ReplayNode(context=ctx, parameter_overrides=overrides)
         made.append(node)
         return node

@@ -23,6 +23,8 @@ from sim.units import rad_to_arcmin
 
 if TYPE_CHECKING:
     from rv_te_bench.cli.argtypes import Subparsers
+    from rv_te_bench.store import ResultFilter
+    from rv_te_bench.store.records import UnitRecord
 
 __all__ = ['add_filter_arguments', 'filter_from_args', 'register', 'run']
 
@@ -69,7 +71,7 @@ def add_filter_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument('--lot', default=None, help='production lot')
 
 
-def filter_from_args(args: argparse.Namespace) -> Any:  # noqa: ANN401
+def filter_from_args(args: argparse.Namespace) -> ResultFilter:
     """The :class:`ResultFilter` of the parsed filter options."""
     from rv_te_bench.store import ResultFilter  # noqa: PLC0415
     return ResultFilter(serial=args.serial, since=args.since, until=args.until,
@@ -115,7 +117,7 @@ def run(args: argparse.Namespace) -> int:
     return 0
 
 
-def _json(r: Any) -> dict[str, Any]:  # noqa: ANN401
+def _json(r: UnitRecord) -> dict[str, Any]:
     return {'id': r.id, 'serial': r.serial, 'lot': r.lot, 'preset': r.preset,
             'bench_id': r.bench_id, 'test': r.test, 'plan': r.plan,
             'tested_at': r.tested_at.isoformat(), 'analysed_at': r.analysed_at.isoformat(),

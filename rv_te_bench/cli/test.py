@@ -30,7 +30,12 @@ from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 if TYPE_CHECKING:
+    from rclpy.executors import Executor
+    from rclpy.node import Node
+    from rv_te_msgs.action import RunTestPlan
+
     from rv_te_bench.cli.argtypes import Subparsers
+    from rv_te_bench.launch.session import Session
 
 __all__ = ['EXIT_FAIL', 'register', 'run']
 
@@ -102,7 +107,7 @@ def _conditions(items: list[str]) -> dict[str, Any]:
     return out
 
 
-def _session(args: argparse.Namespace, out_dir: Path) -> Any:  # noqa: ANN401
+def _session(args: argparse.Namespace, out_dir: Path) -> Session:
     """Start the simulated session of ``--launch`` (validated first)."""
     from rv_te_bench.launch.session import Session, SessionSpec  # noqa: PLC0415
     from sim.presets import load_preset  # noqa: PLC0415
@@ -248,7 +253,7 @@ class _Progress:
         self.last = 0.0
         self.tty = sys.stderr.isatty()
 
-    def __call__(self, fb: Any) -> None:  # noqa: ANN401
+    def __call__(self, fb: RunTestPlan.Feedback) -> None:
         from rv_te_bench.report.unit import format_live  # noqa: PLC0415
 
         if fb.step_index != self.step:
@@ -337,7 +342,7 @@ def _run_goal(args: argparse.Namespace, plan_text: str, tol_text: str,
         rclpy.try_shutdown(context=ctx)
 
 
-def _busy_reason(node: Any, executor: Any) -> str:  # noqa: ANN401
+def _busy_reason(node: Node, executor: Executor) -> str:
     """Why a goal was rejected: the running test on the latched test/report."""
     from rv_te_msgs.msg import TestReport  # noqa: PLC0415
 

@@ -50,6 +50,8 @@ if TYPE_CHECKING:
     from collections.abc import Mapping
 
     from sim.bench import BenchInfoData
+    from sim.kinematics import ReducerKinematics
+    from sim.presets import Preset
 
 __all__ = [
     'REDUCER_KINDS',
@@ -254,12 +256,12 @@ class BenchDescription:
             return float(self._kinematics().crank_rel_per_input)
         return -self.crank_rel_per_output / self.gear_ratio
 
-    def _kinematics(self) -> Any:  # noqa: ANN401 - sim.kinematics.ReducerKinematics
+    def _kinematics(self) -> ReducerKinematics:
         from sim.kinematics import kinematics_from_preset  # noqa: PLC0415
 
         return kinematics_from_preset(self._preset())
 
-    def _preset(self) -> Any:  # noqa: ANN401 - sim.presets.Preset
+    def _preset(self) -> Preset:
         from sim.presets import load_preset  # noqa: PLC0415
 
         return load_preset(str(self.preset), list(self.preset_overrides))

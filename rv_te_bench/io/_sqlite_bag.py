@@ -16,7 +16,10 @@ from typing import TYPE_CHECKING, Any
 from rv_te_bench.errors import BagError
 
 if TYPE_CHECKING:
+    from collections.abc import Callable
     from collections.abc import Collection, Iterator
+
+    from rv_te_bench.io.bag_reader import Bag
 
 __all__ = ['UNIT_BYTES', 'is_sqlite', 'sqlite_bag', 'sqlite_units']
 
@@ -25,13 +28,13 @@ UNIT_BYTES = 1 << 20
 STORAGE = 'sqlite3'
 
 
-def is_sqlite(bag: Any) -> bool:  # noqa: ANN401 - bag_reader.Bag (no import cycle)
+def is_sqlite(bag: Bag) -> bool:
     """Whether ``bag`` (a ``bag_reader.Bag``) is stored as sqlite3."""
     return bool(bag.info) and bag.info.get('storage_identifier') == STORAGE
 
 
 def sqlite_bag(path: Path, info: dict[str, Any], topics: dict[str, str],
-               listed: list[Path]) -> Any:  # noqa: ANN401 - bag_reader.Bag
+               listed: list[Path]) -> Bag:
     """The layout of a sqlite3 bag folder (its ``.db3`` files must exist and be sqlite3).
 
     Raises:
@@ -54,7 +57,7 @@ def sqlite_bag(path: Path, info: dict[str, Any], topics: dict[str, str],
     return Bag(path=path, files=tuple(listed), info=info, topic_types=topics)
 
 
-def sqlite_units(bag: Any, report: Any, topics: Collection[str] | None,  # noqa: ANN401
+def sqlite_units(bag: Bag, report: Callable[[str], None], topics: Collection[str] | None,
                  ) -> Iterator[tuple[memoryview, list[tuple[str, str, int, int, int]]]]:
     """Messages of ``topics`` in recording order, in buffers of ~``UNIT_BYTES``.
 

@@ -35,7 +35,7 @@ import re
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 
 from rv_te_bench.errors import ParameterFileError, YamlInputError, YamlLimitError
@@ -46,6 +46,9 @@ from rv_te_bench.safe_yaml import (
     load_yaml,
     read_yaml_file,
 )
+
+if TYPE_CHECKING:
+    from rv_te_bench.launch.session import SessionSpec
 
 __all__ = [
     'EXEC_TO_NODE',
@@ -345,7 +348,7 @@ def _entries(p: Path, body: dict[str, Any], key: str, where: str) -> list[dict[s
 def session_from_launch(desc: LaunchDescription, *, overrides: Sequence[str] = (),
                         nodes: Sequence[str] | None = None, namespace: str = '',
                         remappings: Sequence[str] = (),
-                        single_process: bool = False) -> Any:  # noqa: ANN401 - SessionSpec
+                        single_process: bool = False) -> SessionSpec:
     """The session a launch file describes, checked like a parameter-file session.
 
     Each node gets its ``param`` entries in order (a file's keys for that node, then inline

@@ -187,7 +187,7 @@ class CompensationNode(Node):
         return lambda: self._job_identify(ph, te)
 
     # -- jobs (worker thread) -------------------------------------------------------------
-    def _progress(self, name: str) -> Any:  # noqa: ANN401
+    def _progress(self, name: str) -> Callable[[float], None]:
         """A progress callback for job ``name`` that also aborts it on shutdown."""
         def report(fraction: float) -> None:
             if self._cancel.is_set():

@@ -3,7 +3,7 @@
 from __future__ import annotations
 
 import math
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING
 
 import numpy as np
 from builtin_interfaces.msg import Time
@@ -22,6 +22,8 @@ from rv_te_bench.core.units import rad_to_arcmin, rad_to_deg
 from rv_te_bench.io.bench_record import bench_info_values
 
 if TYPE_CHECKING:
+    import numpy.typing as npt
+
     from rv_te_bench.core.advice import Advice
     from rv_te_bench.core.spectrum import OrderSpectrum
     from rv_te_bench.core.stream import EncoderBlockData, WindowResult
@@ -40,7 +42,7 @@ def s_to_stamp(t_s: float) -> Time:
     return Time(sec=ns // 1_000_000_000, nanosec=ns % 1_000_000_000)
 
 
-def _arr(values: Any) -> np.ndarray:  # noqa: ANN401 - array.array or sequence
+def _arr(values: npt.ArrayLike) -> npt.NDArray[np.float64]:
     """array.array('d') from a message -> float64 numpy array without a Python loop."""
     try:
         return np.frombuffer(values, dtype=np.float64).copy()

@@ -20,6 +20,8 @@ from sim.units import rad_to_arcmin
 if TYPE_CHECKING:
     from pathlib import Path
 
+    from matplotlib.figure import Figure
+
     from rv_te_bench.core.spc import Capability, ControlChart
     from rv_te_bench.store import Series
 
@@ -44,7 +46,7 @@ def _labels(series: Series, chart: ControlChart) -> list[str]:
 
 
 def spc_figure(chart: ControlChart, series: Series, *, title: str,
-               capability: Capability | None = None) -> Any:  # noqa: ANN401 - a Figure
+               capability: Capability | None = None) -> Figure:
     """The two-panel control chart (values above, moving range / range below)."""
     from matplotlib.backends.backend_agg import FigureCanvasAgg  # noqa: PLC0415
     from matplotlib.figure import Figure  # noqa: PLC0415

@@ -14,12 +14,16 @@ import html
 import json
 import math
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
 from rv_te_bench.report.plots import _new_figure, _short, png_bytes
 from sim.units import ARCMIN_PER_RAD, ARCSEC_PER_RAD
+
+if TYPE_CHECKING:
+    import numpy.typing as npt
+    from matplotlib.figure import Figure
 
 __all__ = ['format_live', 'human_reason', 'metric_rows', 'render_unit_html', 'unit_figures',
            'write_unit_report']
@@ -106,7 +110,7 @@ def format_live(name: str, value: float) -> str:
 # ----------------------------------------------------------------------------- figures
 
 
-def _te_figure(rows: list[dict[str, Any]]) -> Any:  # noqa: ANN401
+def _te_figure(rows: list[dict[str, Any]]) -> Figure:
     fig = _new_figure(9.0, 3.6, left=0.09, bottom=0.15)
     ax = fig.add_subplot(1, 1, 1)
     for r in rows:
@@ -124,14 +128,14 @@ def _te_figure(rows: list[dict[str, Any]]) -> Any:  # noqa: ANN401
     return fig
 
 
-def _hysteresis_figure(h: dict[str, Any]) -> Any:  # noqa: ANN401
+def _hysteresis_figure(h: dict[str, Any]) -> Figure:
     """The whole curve (left) and its middle, |T| <= 4 x the lost-motion torque (right)."""
     fig = _new_figure(10.0, 4.8, left=0.07, bottom=0.12, wspace=0.22)
     grid = fig.add_gridspec(1, 3)
     ax_all, ax_mid = fig.add_subplot(grid[0, :2]), fig.add_subplot(grid[0, 2])
     c = h['centre_rad'] or 0.0
 
-    def am(x: Any) -> np.ndarray:  # noqa: ANN401
+    def am(x: npt.ArrayLike) -> np.ndarray:
         return (np.asarray(x, dtype=float) - c) * ARCMIN_PER_RAD
 
     t = h['lost_motion_torque_nm']
@@ -177,7 +181,7 @@ def _hysteresis_figure(h: dict[str, Any]) -> Any:  # noqa: ANN401
     return fig
 
 
-def _spectrum_figure(rows: list[dict[str, Any]]) -> Any:  # noqa: ANN401
+def _spectrum_figure(rows: list[dict[str, Any]]) -> Figure:
     fig = _new_figure(9.0, 3.6, left=0.09, bottom=0.3)
     ax = fig.add_subplot(1, 1, 1)
     labels = []

@@ -29,7 +29,10 @@ from rv_te_bench.store._schema import LineRow, MetricRow, ResultRow
 if TYPE_CHECKING:
     from collections.abc import Iterable, Sequence
 
+    from sqlalchemy import Select
     from sqlalchemy.engine import Engine
+    from sqlalchemy.engine.interfaces import DBAPIConnection
+    from sqlalchemy.pool import ConnectionPoolEntry
 
     from rv_te_bench.store.records import UnitRecord
 
@@ -124,7 +127,7 @@ def _normalise_url(db: str | os.PathLike[str]) -> str:
     return text
 
 
-def _sqlite_pragmas(dbapi_conn: Any, _record: Any) -> None:  # noqa: ANN401
+def _sqlite_pragmas(dbapi_conn: DBAPIConnection, _record: ConnectionPoolEntry) -> None:
     cur = dbapi_conn.cursor()
     cur.execute('PRAGMA foreign_keys=ON')
     cur.execute('PRAGMA journal_mode=WAL')
@@ -268,7 +271,7 @@ class ResultStore:
                              .where(ResultRow.test == test, ResultRow.plan == plan)).all()
         return {r[0]: (r[1], r[2], r[3], r[4]) for r in rows}
 
-    def _where(self, stmt: Any, f: ResultFilter) -> Any:  # noqa: ANN401
+    def _where(self, stmt: Select[tuple[ResultRow]], f: ResultFilter) -> Select[tuple[ResultRow]]:
         conds = []
         for col, v in ((ResultRow.serial, f.serial), (ResultRow.verdict, f.verdict),
                        (ResultRow.preset, f.preset), (ResultRow.status, f.status),
