@@ -35,6 +35,8 @@ if TYPE_CHECKING:
     from collections.abc import Callable, Iterable, Sequence
     from pathlib import Path
 
+    from mcap.records import McapRecord
+
     from rv_te_bench.io._storage import Storage
 
 __all__ = ['MAGIC', 'MAX_TIME_NS', 'MSG_HEADER', 'OP_MESSAGE', 'TRAILER', 'Chunk',
@@ -58,7 +60,7 @@ TRAILER = (struct.pack('<BQI', _OP_DATA_END, 4, 0)
            + struct.pack('<BQQQI', _OP_FOOTER, 20, 0, 0, 0) + MAGIC)
 
 
-def record_bytes(*records: Any) -> bytes:  # noqa: ANN401 - mcap.records types
+def record_bytes(*records: McapRecord) -> bytes:
     """The serialised records, in order."""
     builder = RecordBuilder()
     for record in records:

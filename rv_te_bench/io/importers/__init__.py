@@ -10,7 +10,7 @@ and checks, :mod:`._to_bag` writes the bag whole or not at all.
 from __future__ import annotations
 
 from pathlib import Path
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING
 
 from rv_te_bench.errors import DataImportError
 from rv_te_bench.io.importers._common import ANGLE_UNITS, TIME_UNITS, ImportOptions
@@ -20,6 +20,7 @@ if TYPE_CHECKING:
     from collections.abc import Callable
 
     from rv_te_bench.core.bench_description import BenchDescription
+    from rv_te_bench.io.importers._common import ImportReader
 
 __all__ = [
     'ANGLE_UNITS',
@@ -56,8 +57,8 @@ def detect_format(path: Path) -> str:
     raise DataImportError(msg)
 
 
-def open_reader(path: Path, fmt: str, options: ImportOptions, *, header: bool = True,  # noqa: ANN401
-                joints: tuple[str | None, str | None] = (None, None)) -> Any:
+def open_reader(path: Path, fmt: str, options: ImportOptions, *, header: bool = True,
+                joints: tuple[str | None, str | None] = (None, None)) -> ImportReader:
     """Open ``path`` with the reader of ``fmt`` (checks the columns / channels).
 
     Raises:

@@ -17,7 +17,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
-from typing import TYPE_CHECKING, Literal
+from typing import TYPE_CHECKING, Literal, Protocol
 
 import numpy as np
 
@@ -25,7 +25,7 @@ from rv_te_bench.errors import DataImportError
 from sim.units import ARCMIN_PER_RAD, ARCSEC_PER_RAD
 
 if TYPE_CHECKING:
-    from collections.abc import Callable
+    from collections.abc import Callable, Iterator
     from pathlib import Path
 
 __all__ = [
@@ -158,6 +158,31 @@ class RawChunk:
     theta_in: np.ndarray
     theta_out: np.ndarray
     torque: np.ndarray | None = None
+
+
+class ImportReader(Protocol):
+    """An opened importer (CSV, TDMS, MDF, JointState bag): what :func:`write_bag` reads."""
+
+    path: Path
+    origin: str
+    labels: dict[str, str]
+    declared_units: dict[str, str | None]
+    has_time: bool
+    time_unit: str
+    declared_rate_hz: float | None
+    start_ns: int | None
+
+    def locate(self, index: int) -> str:
+        """Where sample ``index`` is in the file (for messages)."""
+        ...
+
+    def chunks(self) -> Iterator[RawChunk]:
+        """The samples in file order."""
+        ...
+
+    def close(self) -> None:
+        """Release the file."""
+        ...
 
 
 @dataclass(frozen=True)

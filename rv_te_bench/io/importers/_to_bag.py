@@ -34,7 +34,8 @@ if TYPE_CHECKING:
     from collections.abc import Callable, Iterator
 
     from rv_te_bench.core.bench_description import BenchDescription
-    from rv_te_bench.io.importers._common import ImportOptions
+    from rv_te_bench.io.importers._common import ImportOptions, ImportReader
+    from sim.bench import BenchInfoData
 
 __all__ = ['ENCODER_TOPIC', 'INFO_TOPIC', 'ImportSummary', 'write_bag']
 
@@ -148,7 +149,7 @@ def _estimate_rate_hz(chunk: SiChunk) -> float | None:
     return 1.0 / float(np.median(np.diff(chunk.t_s)))
 
 
-def write_bag(reader: Any, desc: BenchDescription, options: ImportOptions,  # noqa: ANN401, C901, PLR0912, PLR0915
+def write_bag(reader: ImportReader, desc: BenchDescription, options: ImportOptions,  # noqa: C901, PLR0912, PLR0915
               out: Path, *, fmt: str, on_note: Callable[[str], None] | None = None,
               ) -> ImportSummary:
     """Convert everything ``reader`` yields and write the bag ``out`` (see the module doc).
@@ -260,7 +261,7 @@ def write_bag(reader: Any, desc: BenchDescription, options: ImportOptions,  # no
         torque='torque' in labels)
 
 
-def _bench_info_cdr(info: Any, stamp_ns: int) -> bytes:  # noqa: ANN401 - BenchInfoData
+def _bench_info_cdr(info: BenchInfoData, stamp_ns: int) -> bytes:
     store = rv_te_typestore()
     types = store.types
     msg = types[BENCH_INFO](

@@ -23,6 +23,8 @@ from rv_te_bench.io.importers._common import RawChunk, refuse_empty, require_rea
 if TYPE_CHECKING:
     from collections.abc import Iterator
 
+    from nptdms import TdmsChannel
+
     from rv_te_bench.io.importers._common import ImportOptions
 
 __all__ = ['TdmsReader']
@@ -123,7 +125,7 @@ class TdmsReader:
     def _names(self) -> list[str]:
         return [f'{g.name}/{c.name}' for g in self._file.groups() for c in g.channels()]
 
-    def _channel(self, spec: str) -> Any:  # noqa: ANN401 - nptdms TdmsChannel
+    def _channel(self, spec: str) -> TdmsChannel:
         group, _, name = spec.rpartition('/')
         found = [c for g in self._file.groups() for c in g.channels()
                  if c.name == name and (not group or g.name == group)]
