@@ -34,6 +34,7 @@ from typing import TYPE_CHECKING, Any, ClassVar, Protocol, TypeAlias, TypeVar
 
 import numpy as np
 
+from sim._checks import Rule, real_number
 from sim.errors import ModelInputError
 from sim.units import RAD_S_PER_RPM
 
@@ -61,22 +62,9 @@ __all__ = [
 ]
 
 
-def _num(cls: str, name: str, value: Any, *, rule: str = '') -> float:  # noqa: ANN401
-    """``value`` as a finite float; ``rule`` in '', '>0', '>=0'. Names the field on failure."""
-    if isinstance(value, bool) or not isinstance(value, int | float | np.integer | np.floating):
-        msg = f'{cls}.{name} must be a real number, got {value!r}'
-        raise ModelInputError(msg)
-    v = float(value)
-    if not math.isfinite(v):
-        msg = f'{cls}.{name} must be finite, got {value!r}'
-        raise ModelInputError(msg)
-    if rule == '>0' and not v > 0:
-        msg = f'{cls}.{name} must be > 0, got {value!r}'
-        raise ModelInputError(msg)
-    if rule == '>=0' and not v >= 0:
-        msg = f'{cls}.{name} must be >= 0, got {value!r}'
-        raise ModelInputError(msg)
-    return v
+def _num(cls: str, name: str, value: Any, *, rule: Rule = '') -> float:  # noqa: ANN401
+    """``value`` as a finite float keeping ``rule``; the message names ``cls.name``."""
+    return real_number(f'{cls}.{name}', value, rule)
 
 
 def _set_nums(obj: object, rules: dict[str, str]) -> None:

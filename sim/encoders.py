@@ -31,6 +31,7 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
+from sim._checks import real_number
 from sim.errors import ModelInputError, PresetError
 from sim.units import arcsec_to_rad
 
@@ -51,17 +52,7 @@ _MAX_COUNTS_PER_REV = 2**40
 
 def _finite_float(name: str, value: Any, *, nonneg: bool = False) -> float:  # noqa: ANN401
     """Return ``value`` as float or raise naming ``name`` and the rule."""
-    if isinstance(value, bool) or not isinstance(value, int | float | np.integer | np.floating):
-        msg = f'{name} must be a real number, got {value!r}'
-        raise ModelInputError(msg)
-    v = float(value)
-    if not math.isfinite(v):
-        msg = f'{name} must be finite, got {value!r}'
-        raise ModelInputError(msg)
-    if nonneg and v < 0:
-        msg = f'{name} must be >= 0, got {value!r}'
-        raise ModelInputError(msg)
-    return v
+    return real_number(name, value, '>=0' if nonneg else '')
 
 
 @dataclass(frozen=True)

@@ -29,6 +29,7 @@ from typing import TYPE_CHECKING, Any, ClassVar
 
 import numpy as np
 
+from sim._checks import Rule, real_number
 from sim.bench import BenchBlock
 from sim.encoders import EncoderSpec, SimulatedEncoder, encoder_preset
 from sim.errors import ModelInputError
@@ -53,19 +54,8 @@ __all__ = [
 ]
 
 
-_RULES = {'': '', '>0': ' and > 0', '>=0': ' and >= 0', '!=0': ' and non-zero'}
-
-
-def _num(seg: str, name: str, value: Any, rule: str = '') -> float:  # noqa: ANN401
-    if isinstance(value, bool) or not isinstance(value, int | float | np.integer | np.floating):
-        msg = f'{seg}: {name} must be a number, got {value!r}'
-        raise ModelInputError(msg)
-    v = float(value)
-    ok = math.isfinite(v) and {'': True, '>0': v > 0, '>=0': v >= 0, '!=0': v != 0}[rule]
-    if not ok:
-        msg = f'{seg}: {name} must be finite{_RULES[rule]}, got {value!r}'
-        raise ModelInputError(msg)
-    return v
+def _num(seg: str, name: str, value: Any, rule: Rule = '') -> float:  # noqa: ANN401
+    return real_number(f'{seg}: {name}', value, rule)
 
 
 @dataclass(frozen=True)

@@ -33,6 +33,8 @@ from rv_te_bench.core.hysteresis import dwell_points, hysteresis_metrics
 from rv_te_bench.core.orders import OrderSet
 from rv_te_bench.core.te import output_phase_and_te
 from rv_te_bench.errors import AcceptanceError, TeInputError
+from sim.errors import ModelInputError
+from sim.program import program_from_plain
 
 if TYPE_CHECKING:
     from collections.abc import Callable
@@ -402,9 +404,6 @@ def run_plan_offline(plan: TestPlan, profile: ToleranceProfile, *, serial: str, 
     Raises:
         AcceptanceError: A step's program is refused by the bench.
     """
-    from sim.errors import ModelInputError  # noqa: PLC0415
-    from sim.program import program_from_plain  # noqa: PLC0415
-
     started = dt.datetime.now(dt.UTC).isoformat(timespec='seconds')
     results = []
     for j, step in enumerate(plan.steps):

@@ -21,9 +21,10 @@ import time
 from pathlib import Path
 from typing import TYPE_CHECKING, Any, TextIO
 
-from rv_te_bench.cli._db import add_db_argument, db_for_bags
+from rv_te_bench import __version__
+from rv_te_bench.cli._db import DB_ENV, add_db_argument, check_record_text, db_for_bags
 from rv_te_bench.cli.argtypes import int_between, positive_float
-from rv_te_bench.errors import RvTeError
+from rv_te_bench.errors import RvTeError, StoreError
 from rv_te_bench.safe_yaml import one_line
 from sim.units import rad_to_arcmin, rad_to_deg
 
@@ -145,7 +146,6 @@ def _run(args: argparse.Namespace) -> int:
     from rv_te_bench.allocator import tune_for_batch_work  # noqa: PLC0415
     from rv_te_bench.report.analysis import analyze_bag  # noqa: PLC0415
 
-    from rv_te_bench.cli._db import check_record_text  # noqa: PLC0415
     check_record_text(args)  # before the analysis: the store would refuse it at the end
     tune_for_batch_work()   # this process: keep window-sized arrays off fresh pages
     from rv_te_bench.report.html import (  # noqa: PLC0415
@@ -198,9 +198,6 @@ def _record(args: argparse.Namespace, doc: dict[str, Any]) -> str | None:
     A store given with --db (or $RV_TE_DB) that cannot be written is an error; the default
     store next to the bags only warns (a bag on a read-only share is still analysed).
     """
-    from rv_te_bench import __version__  # noqa: PLC0415
-    from rv_te_bench.cli._db import DB_ENV  # noqa: PLC0415
-    from rv_te_bench.errors import StoreError  # noqa: PLC0415
     from rv_te_bench.store import open_store, records_from_analysis_json  # noqa: PLC0415
 
     db = db_for_bags(args, args.bags)

@@ -15,13 +15,27 @@ if TYPE_CHECKING:
     Subparsers: TypeAlias = argparse._SubParsersAction[argparse.ArgumentParser]  # noqa: SLF001
 
 
+def _number(text: str) -> float:
+    """``float(text)``; a usage error naming the text (its first 50 characters) when not one."""
+    try:
+        return float(text)
+    except ValueError:
+        msg = f'not a number: {text[:50]!r}'
+        raise argparse.ArgumentTypeError(msg) from None
+
+
+def finite_float(text: str) -> float:
+    """A finite number."""
+    value = _number(text)
+    if not math.isfinite(value):
+        msg = f'must be finite, got {text!r}'
+        raise argparse.ArgumentTypeError(msg)
+    return value
+
+
 def positive_float(text: str) -> float:
     """A finite number > 0."""
-    try:
-        float(text)
-    except ValueError:
-        msg = f'not a number: {text!r}'
-        raise argparse.ArgumentTypeError(msg) from None
+    _number(text)
     return finite_positive(text, '', argparse.ArgumentTypeError)   # names the text given
 
 
@@ -30,7 +44,7 @@ def int_at_least(text: str, minimum: int) -> int:
     try:
         value = int(text)
     except ValueError:
-        msg = f'not an integer: {text!r}'
+        msg = f'not an integer: {text[:50]!r}'
         raise argparse.ArgumentTypeError(msg) from None
     if value < minimum:
         msg = f'must be >= {minimum}, got {text!r}'
@@ -52,11 +66,7 @@ def float_between(lo: float, hi: float) -> Callable[[str], float]:
     """An argparse type: a finite number in [lo, hi] (argparse names the flag on error)."""
 
     def parse(text: str) -> float:
-        try:
-            value = float(text)
-        except ValueError:
-            msg = f'not a number: {text!r}'
-            raise argparse.ArgumentTypeError(msg) from None
+        value = _number(text)
         if not (math.isfinite(value) and lo <= value <= hi):
             msg = f'must be between {lo:g} and {hi:g}, got {text!r}'
             raise argparse.ArgumentTypeError(msg)

@@ -18,6 +18,10 @@ from datetime import UTC, datetime
 from pathlib import Path
 from typing import TYPE_CHECKING, Any, TypeAlias
 
+from rv_te_bench.cli.launch import add_session_arguments, default_session_file
+from rv_te_bench.errors import RvTeError
+from sim.units import rad_to_arcmin, rad_to_deg
+
 if TYPE_CHECKING:
     from rv_te_msgs.msg import CompensationAdvice
 
@@ -81,8 +85,6 @@ def _raise_keyboard_interrupt(*_: object) -> None:
 
 def register(subparsers: Subparsers) -> None:
     """Add the ``demo`` subcommand."""
-    from rv_te_bench.cli.launch import add_session_arguments  # noqa: PLC0415
-
     p = subparsers.add_parser(
         'demo', help='run the full live session on wang2020-2kv, then report and advise',
         description=__doc__, epilog=EPILOG,
@@ -100,8 +102,6 @@ def register(subparsers: Subparsers) -> None:
 
 
 def _fmt_arcmin(x_rad: float) -> str:
-    from sim.units import rad_to_arcmin  # noqa: PLC0415
-
     return 'n/a' if not math.isfinite(x_rad) else f"{float(rad_to_arcmin(x_rad)):.3f}'"
 
 
@@ -115,8 +115,6 @@ def run(args: argparse.Namespace) -> int:  # noqa: C901, PLR0915
     """Run the session, then the report; print the summary. 0 on success."""
     import rclpy  # noqa: PLC0415
 
-    from rv_te_bench.cli.launch import default_session_file  # noqa: PLC0415
-    from rv_te_bench.errors import RvTeError  # noqa: PLC0415
     from rv_te_bench.io.files import claim_folder, folder_name_problem  # noqa: PLC0415
     from rv_te_bench.launch.session import Session, build_session, node_specs  # noqa: PLC0415
     from rv_te_bench.nodes.common import make_executor  # noqa: PLC0415
@@ -266,14 +264,10 @@ def summary_text(result: AnalysisResult, live_advice: dict[str, Any] | None = No
 
 
 def _phases_deg(advice: AnyAdvice) -> list[float]:
-    from sim.units import rad_to_deg  # noqa: PLC0415
-
     return [float(rad_to_deg(m.recommended_value)) for m in advice.modifications]
 
 
 def _current_deg(advice: AnyAdvice) -> list[float]:
-    from sim.units import rad_to_deg  # noqa: PLC0415
-
     return [float(rad_to_deg(m.current_value)) for m in advice.modifications]
 
 
@@ -286,8 +280,6 @@ def _fmt_phases(advice: AnyAdvice) -> str:
 
 
 def _modification_lines(advice: AnyAdvice) -> list[str]:
-    from sim.units import rad_to_deg  # noqa: PLC0415
-
     out = []
     for m in advice.modifications:
         if m.unit == 'rad':

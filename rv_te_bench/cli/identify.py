@@ -19,6 +19,7 @@ import json
 import math
 import os
 import sys
+import time
 from dataclasses import dataclass, field, replace
 from typing import TYPE_CHECKING, Any
 
@@ -32,7 +33,10 @@ from rv_te_bench.cli.optimize_phases import (
     format_result,
     load_wang_params,
 )
+from rv_te_bench.errors import BagError, BenchInfoError, CompensationError, RvTeError, TeInputError
 from rv_te_bench.safe_yaml import one_line
+from sim.errors import SimError
+from sim.units import rad_to_deg
 
 if TYPE_CHECKING:
     from collections.abc import Callable
@@ -119,7 +123,6 @@ def fold_bag(path: str, topic: str | None, gear_ratio: float, *,
     """
     from rv_te_bench.core.angle_fold import AngleFold  # noqa: PLC0415
     from rv_te_bench.core.stream import EncoderBatch  # noqa: PLC0415
-    from rv_te_bench.errors import BagError  # noqa: PLC0415
     from rv_te_bench.io.bag_reader import (  # noqa: PLC0415
         read_encoder_batches,
         summarize_problems,
@@ -159,7 +162,6 @@ def fold_bag(path: str, topic: str | None, gear_ratio: float, *,
 
 def _bench_info(args: argparse.Namespace) -> tuple[dict[str, Any] | None, str | None]:
     """(BenchInfo, problem): a damaged BenchInfo is a problem only without the flags."""
-    from rv_te_bench.errors import BagError, BenchInfoError  # noqa: PLC0415
     from rv_te_bench.io.bag_reader import read_bench_info  # noqa: PLC0415
 
     try:
@@ -178,7 +180,6 @@ def _setup(args: argparse.Namespace, info: dict[str, Any] | None,
            ) -> tuple[Preset, EccentricGeometry, float, str]:
     """(preset, params, gear ratio, source of the part magnitudes)."""
     from rv_te_bench.core.phases import EccentricGeometry  # noqa: PLC0415
-    from rv_te_bench.errors import TeInputError  # noqa: PLC0415
     from rv_te_bench.io.bench_record import overrides_from_parameters_yaml  # noqa: PLC0415
 
     if args.preset is None and info is None:
@@ -208,8 +209,6 @@ def _setup(args: argparse.Namespace, info: dict[str, Any] | None,
 
 
 def _deg(x: float) -> float:
-    from sim.units import rad_to_deg  # noqa: PLC0415
-
     return float(rad_to_deg(x))
 
 
@@ -253,8 +252,6 @@ class _Progress:
     """A progress line on stderr every 2 s while the bag is read."""
 
     def __init__(self, name: str) -> None:
-        import time  # noqa: PLC0415
-
         self._clock = time.monotonic
         self._t0 = self._clock()
         self._next = 2.0
@@ -286,8 +283,6 @@ def _run(args: argparse.Namespace) -> int:  # noqa: C901, PLR0912
         identify_folded,
         recommend_reassembly,
     )
-    from rv_te_bench.errors import CompensationError, RvTeError  # noqa: PLC0415
-    from sim.errors import SimError  # noqa: PLC0415
 
     tune_for_batch_work()
     bar = None

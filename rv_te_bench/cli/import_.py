@@ -6,8 +6,11 @@ import argparse
 import datetime as dt
 import json
 import sys
+from importlib import resources
 from pathlib import Path
 from typing import TYPE_CHECKING
+
+from rv_te_bench.errors import DataImportError
 
 if TYPE_CHECKING:
     from rv_te_bench.cli.argtypes import Subparsers
@@ -92,8 +95,6 @@ def register(subparsers: Subparsers) -> None:
 
 
 def _start_ns(text: str | None) -> int | None:
-    from rv_te_bench.errors import DataImportError  # noqa: PLC0415
-
     if text is None:
         return None
     try:
@@ -107,8 +108,6 @@ def _start_ns(text: str | None) -> int | None:
 
 
 def _write_example(path: Path) -> int:
-    from importlib import resources  # noqa: PLC0415
-
     from rv_te_bench.io.files import write_atomic  # noqa: PLC0415
 
     if path.exists():
@@ -130,7 +129,6 @@ def run(args: argparse.Namespace) -> int:
     if missing:
         args._parser.error(f'{", ".join(missing)} required')  # noqa: SLF001
     from rv_te_bench.core.bench_description import load_bench_description  # noqa: PLC0415
-    from rv_te_bench.errors import DataImportError  # noqa: PLC0415
     from rv_te_bench.io.importers import ImportOptions, import_file  # noqa: PLC0415
 
     desc = load_bench_description(args.bench)

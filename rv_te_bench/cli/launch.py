@@ -5,9 +5,11 @@ from __future__ import annotations
 
 import argparse
 import sys
-from pathlib import Path
 from importlib import resources
+from pathlib import Path
 from typing import TYPE_CHECKING
+
+from rv_te_bench.errors import ParameterFileError
 
 if TYPE_CHECKING:
     from rv_te_bench.cli.argtypes import Subparsers
@@ -96,7 +98,6 @@ def default_launch_file() -> str:
 
 def _spec_from_files(args: argparse.Namespace, nodes: list[str] | None) -> SessionSpec:
     """The SessionSpec of a launch file (with name:=value arguments) or of parameter files."""
-    from rv_te_bench.errors import ParameterFileError  # noqa: PLC0415
     from rv_te_bench.launch import launch_file as lf  # noqa: PLC0415
     from rv_te_bench.launch.session import build_session  # noqa: PLC0415
 
@@ -155,8 +156,6 @@ def run(args: argparse.Namespace) -> int:
 
 def _write_default(target: str) -> int:
     """Copy the packaged session file to ``target`` (never over an existing file)."""
-    from pathlib import Path  # noqa: PLC0415
-
     text = Path(default_session_file()).read_text(encoding='utf-8')
     try:
         with Path(target).open('x', encoding='utf-8') as f:

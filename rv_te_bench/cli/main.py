@@ -14,6 +14,9 @@ import sys
 from typing import TYPE_CHECKING
 
 from rv_te_bench import __version__
+from rv_te_bench.errors import RvTeError
+from rv_te_bench.safe_yaml import one_line
+from sim.errors import SimError
 
 if TYPE_CHECKING:
     from collections.abc import Sequence
@@ -61,10 +64,6 @@ def build_parser() -> argparse.ArgumentParser:
 
 def main(argv: Sequence[str] | None = None) -> int:
     """Entry point of ``rv-te``; returns the exit code."""
-    from rv_te_bench.errors import RvTeError  # noqa: PLC0415
-    from rv_te_bench.safe_yaml import one_line  # noqa: PLC0415
-    from sim.errors import SimError  # noqa: PLC0415
-
     _tolerant_stdout()
     try:
         parser = build_parser()

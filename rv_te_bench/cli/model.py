@@ -11,6 +11,7 @@ mean and standard deviation, in arcmin.
 from __future__ import annotations
 
 import argparse
+import io
 import json
 import math
 import sys
@@ -21,7 +22,10 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 
 from rv_te_bench.cli.argtypes import positive_float
+from rv_te_bench.errors import RvTeError, TeConfigError
 from rv_te_bench.safe_yaml import one_line
+from sim.errors import SimError
+from sim.units import ARCMIN_PER_RAD
 
 if TYPE_CHECKING:
     from rv_te_bench.cli.argtypes import Subparsers
@@ -136,11 +140,9 @@ def simulate(args: argparse.Namespace) -> tuple[dict[str, Any], dict[str, np.nda
         SimError: Bad preset, override or model input.
         RvTeError: Too many samples requested.
     """
-    from rv_te_bench.errors import TeConfigError  # noqa: PLC0415
     from sim.kinematics import kinematics_from_preset  # noqa: PLC0415
     from sim.models import build_te_model  # noqa: PLC0415
     from sim.presets import load_preset  # noqa: PLC0415
-    from sim.units import ARCMIN_PER_RAD  # noqa: PLC0415
 
     overrides = list(args.overrides)
     if args.phases_deg is not None:
@@ -228,8 +230,6 @@ def simulate(args: argparse.Namespace) -> tuple[dict[str, Any], dict[str, np.nda
 
 
 def _check_out(path: Path, force: bool) -> None:  # noqa: FBT001
-    from rv_te_bench.errors import TeConfigError  # noqa: PLC0415
-
     if path.exists() and not force:
         msg = f'output path {str(path)!r} exists already (use --force to overwrite)'
         raise TeConfigError(msg)
@@ -237,8 +237,6 @@ def _check_out(path: Path, force: bool) -> None:  # noqa: FBT001
 
 
 def _write_csv(path: Path, columns: dict[str, np.ndarray]) -> None:
-    import io  # noqa: PLC0415
-
     from rv_te_bench.io.files import write_atomic  # noqa: PLC0415
 
     data = np.column_stack(list(columns.values()))
@@ -248,8 +246,6 @@ def _write_csv(path: Path, columns: dict[str, np.ndarray]) -> None:
 
 
 def _plot(path: Path, stats: dict[str, Any], columns: dict[str, np.ndarray]) -> None:
-    import io  # noqa: PLC0415
-
     import matplotlib as mpl  # noqa: PLC0415
 
     from rv_te_bench.io.files import write_atomic  # noqa: PLC0415
@@ -279,8 +275,6 @@ def _check_plot_format(path: Path) -> None:
     """--plot FILE must name an image format matplotlib writes (checked before the work)."""
     from matplotlib.backend_bases import FigureCanvasBase  # noqa: PLC0415
 
-    from rv_te_bench.errors import RvTeError  # noqa: PLC0415
-
     kinds = FigureCanvasBase.get_supported_filetypes()
     suffix = path.suffix.lower().lstrip('.')
     if suffix not in kinds:
@@ -292,9 +286,6 @@ def _check_plot_format(path: Path) -> None:
 
 def run(args: argparse.Namespace) -> int:
     """Run the command; 0 ok, 1 domain error (one ``ERROR:`` line on stderr)."""
-    from rv_te_bench.errors import RvTeError  # noqa: PLC0415
-    from sim.errors import SimError  # noqa: PLC0415
-
     try:
         to_stdout = args.csv is not None and str(args.csv) == '-'
         for path in (None if to_stdout else args.csv, args.plot):

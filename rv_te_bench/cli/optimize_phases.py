@@ -16,7 +16,10 @@ import sys
 from typing import TYPE_CHECKING
 
 from rv_te_bench.cli._progress import ProgressBar
+from rv_te_bench.errors import CompensationError, RvTeError
 from rv_te_bench.safe_yaml import one_line
+from sim.errors import PresetError, SimError
+from sim.units import rad_to_arcmin, rad_to_deg
 
 if TYPE_CHECKING:
     from rv_te_bench.cli.argtypes import Subparsers
@@ -79,8 +82,6 @@ def check_search_arguments(args: argparse.Namespace) -> None:
     Raises:
         CompensationError: A non-finite or non-positive step or tolerance, step > 180.
     """
-    from rv_te_bench.errors import CompensationError  # noqa: PLC0415
-
     if not (math.isfinite(args.step_deg) and 0 < args.step_deg <= 180):  # noqa: PLR2004
         msg = f'--step-deg must be finite, > 0 and <= 180, got {args.step_deg!r}'
         raise CompensationError(msg)
@@ -101,7 +102,6 @@ def load_wang_params(name: str, overrides: list[str]) -> tuple[Preset, Wang2kvPa
     Raises:
         PresetError: Unknown preset, bad override, or a preset of another model.
     """
-    from sim.errors import PresetError  # noqa: PLC0415
     from sim.presets import load_preset  # noqa: PLC0415
     from sim.wang2020 import Wang2kvParams  # noqa: PLC0415
 
@@ -116,7 +116,6 @@ def load_wang_params(name: str, overrides: list[str]) -> tuple[Preset, Wang2kvPa
 def format_result(result: PhaseOptimisation, title: str) -> str:
     """Text report of a PhaseOptimisation (degrees and arcmin)."""
     from rv_te_bench.core.phases import PHASE_NAMES  # noqa: PLC0415
-    from sim.units import rad_to_arcmin, rad_to_deg  # noqa: PLC0415
 
     lines = [title, '', f'{"phase":<10} {"before_deg":>11} {"after_deg":>10}']
     for name, b, a in zip(PHASE_NAMES, result.phases_before_rad, result.phases_after_rad,
@@ -141,8 +140,6 @@ def format_result(result: PhaseOptimisation, title: str) -> str:
 def run(args: argparse.Namespace) -> int:
     """Run the command; 0 ok, 1 domain error (one ``ERROR:`` line on stderr)."""
     from rv_te_bench.core.phases import optimise_phases  # noqa: PLC0415
-    from rv_te_bench.errors import RvTeError  # noqa: PLC0415
-    from sim.errors import SimError  # noqa: PLC0415
 
     bar = None
     try:

@@ -16,13 +16,13 @@ from __future__ import annotations
 
 import argparse
 import json
-import math
 import os
 import sys
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 from rv_te_bench.cli._db import add_db_argument, db_to_read
+from rv_te_bench.cli.argtypes import finite_float, int_between
 from rv_te_bench.cli.results import add_filter_arguments, filter_from_args
 from rv_te_bench.errors import SpcError
 
@@ -47,30 +47,6 @@ _DEFAULT_BASELINE = 20
 _MAX_BASELINE = 100_000
 
 
-def _baseline(text: str) -> int:
-    try:
-        n = int(text)
-    except ValueError:
-        msg = f'not an integer: {text[:50]!r}'
-        raise argparse.ArgumentTypeError(msg) from None
-    if not 2 <= n <= _MAX_BASELINE:  # noqa: PLR2004
-        msg = f'must be in [2, {_MAX_BASELINE}], got {text!r}'
-        raise argparse.ArgumentTypeError(msg)
-    return n
-
-
-def _finite(text: str) -> float:
-    try:
-        v = float(text)
-    except ValueError:
-        msg = f'not a number: {text[:50]!r}'
-        raise argparse.ArgumentTypeError(msg) from None
-    if not math.isfinite(v):
-        msg = f'must be finite, got {text!r}'
-        raise argparse.ArgumentTypeError(msg)
-    return v
-
-
 def register(subparsers: Subparsers) -> None:
     """Add the ``spc`` subcommand."""
     p = subparsers.add_parser(
@@ -87,14 +63,14 @@ def register(subparsers: Subparsers) -> None:
     add_filter_arguments(p)
     p.add_argument('--by-lot', action='store_true',
                    help='X-bar/R chart with one subgroup per lot (2-25 units each)')
-    p.add_argument('--baseline', type=_baseline, default=_DEFAULT_BASELINE, metavar='N',
+    p.add_argument('--baseline', type=int_between(2, _MAX_BASELINE), default=_DEFAULT_BASELINE, metavar='N',
                    help=f'the first N points set the centre line and limits (default '
                         f'{_DEFAULT_BASELINE}; all points when there are fewer)')
     p.add_argument('--rules', choices=('nelson', 'western-electric'), default='nelson',
                    help='run rules (default: nelson, rules 1-8)')
-    p.add_argument('--usl', type=_finite, default=None, metavar='X',
+    p.add_argument('--usl', type=finite_float, default=None, metavar='X',
                    help='upper specification limit in the unit shown (arcmin for angles)')
-    p.add_argument('--lsl', type=_finite, default=None, metavar='X',
+    p.add_argument('--lsl', type=finite_float, default=None, metavar='X',
                    help='lower specification limit in the unit shown')
     p.add_argument('--report', type=Path, default=None, metavar='DIR',
                    help='write spc.png, spc.html and spc.json into DIR')

@@ -29,6 +29,13 @@ from datetime import UTC, datetime
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
+import yaml
+
+from rv_te_bench import __version__
+from rv_te_bench.cli._db import add_db_argument, check_record_text, db_for_bags
+from rv_te_bench.errors import StoreError
+from rv_te_bench.safe_yaml import SMALL_TEXT_LIMITS, brief, load_yaml
+
 if TYPE_CHECKING:
     from rclpy.executors import Executor
     from rclpy.node import Node
@@ -65,7 +72,6 @@ def register(subparsers: Subparsers) -> None:
     p.add_argument('--wait-s', type=float, default=20.0,
                    help='how long to wait for the test_sequencer [s]')
     p.add_argument('--json', action='store_true', help='print the result as JSON on stdout')
-    from rv_te_bench.cli._db import add_db_argument  # noqa: PLC0415
 
     add_db_argument(p, mode='also')
     g = p.add_argument_group('simulated session (--launch)')
@@ -89,7 +95,6 @@ def _conditions(items: list[str]) -> dict[str, Any]:
         YamlInputError,
         YamlLimitError,
     )
-    from rv_te_bench.safe_yaml import SMALL_TEXT_LIMITS, brief, load_yaml  # noqa: PLC0415
 
     out: dict[str, Any] = {}
     for item in items:
@@ -139,7 +144,6 @@ def _session(args: argparse.Namespace, out_dir: Path) -> Session:
 def run(args: argparse.Namespace) -> int:  # noqa: C901, PLR0912, PLR0915
     """Validate, (launch,) send the goal, follow it, report; 0 pass, 3 fail, 1 error."""
     from rv_te_bench.acceptance import load_plan, load_tolerance  # noqa: PLC0415
-    from rv_te_bench.cli._db import check_record_text  # noqa: PLC0415
     from rv_te_bench.launch.session import normalise_namespace  # noqa: PLC0415
 
     check_record_text(args)   # before the test: the store would refuse it at the end
@@ -150,7 +154,6 @@ def run(args: argparse.Namespace) -> int:  # noqa: C901, PLR0912, PLR0915
     elif plan.tolerance:
         base = Path(args.plan).parent if Path(args.plan).exists() else None
         _, tol_text = load_tolerance(plan.tolerance, relative_to=base)
-    import yaml  # noqa: PLC0415
 
     conditions = _conditions(args.condition)
     args.namespace_norm = normalise_namespace(args.namespace)
@@ -214,10 +217,7 @@ def verdict_exit(verdict: str, serial: str, reason: str,
 
 def _record(args: argparse.Namespace, report: dict[str, Any], bag: Path) -> None:
     """The test's record in the results store (next to the session folders by default)."""
-    from rv_te_bench import __version__  # noqa: PLC0415
     from rv_te_bench.acceptance._store import store_record  # noqa: PLC0415
-    from rv_te_bench.cli._db import db_for_bags  # noqa: PLC0415
-    from rv_te_bench.errors import StoreError  # noqa: PLC0415
     from rv_te_bench.store import open_store  # noqa: PLC0415
 
     db = db_for_bags(args, [bag.parent])

@@ -21,6 +21,9 @@ import sys
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
+from rv_te_bench.cli.test import show_report, verdict_exit
+from rv_te_bench.errors import AcceptanceError
+
 if TYPE_CHECKING:
     from rv_te_bench.cli.argtypes import Subparsers
 
@@ -66,8 +69,6 @@ def run(args: argparse.Namespace) -> int:
     from rv_te_bench.acceptance._files import parse_yaml_text  # noqa: PLC0415
     from rv_te_bench.acceptance.runner import reanalyse  # noqa: PLC0415
     from rv_te_bench.acceptance.tolerance import parse_tolerance  # noqa: PLC0415
-    from rv_te_bench.cli.test import show_report, verdict_exit  # noqa: PLC0415
-    from rv_te_bench.errors import AcceptanceError  # noqa: PLC0415
     from rv_te_bench.io.test_records import read_recorded_test  # noqa: PLC0415
 
     bag = Path(args.bag)

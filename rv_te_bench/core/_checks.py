@@ -1,8 +1,11 @@
-"""The shared "finite positive number" check (its message names the quantity and the value)."""
+"""The shared "finite positive number" check (its message names the quantity and the value).
+
+The rule itself is :func:`sim._checks.real_number` (``sim`` may not import the package).
+"""
 
 from __future__ import annotations
 
-import math
+from sim._checks import real_number
 
 __all__ = ['finite_positive']
 
@@ -27,9 +30,5 @@ def finite_positive(value: float, name: str, error: type[Exception]) -> float:
         ...
         ValueError: gear_ratio must be finite and > 0, got 0.0
     """
-    x = float(value)
-    if not (math.isfinite(x) and x > 0.0):
-        msg = f'{name} must be finite and > 0, got {value!r}' if name else \
-            f'must be finite and > 0, got {value!r}'
-        raise error(msg)
-    return x
+    float(value)   # its ValueError / TypeError goes to the caller
+    return real_number(name, value, '>0', error=error, coerce=True)

@@ -11,6 +11,7 @@ from dataclasses import dataclass, field
 from typing import Any, Literal, TypeAlias
 
 from rv_te_bench.errors import CompensationError
+from sim.units import rad_to_arcmin
 
 __all__ = ['Advice', 'AdviceKind', 'Modification', 'advice_kind']
 
@@ -101,8 +102,6 @@ class Advice:
 
     def to_json_dict(self) -> dict[str, Any]:
         """JSON-friendly dict with unit-suffixed keys (arcmin added for people)."""
-        from sim.units import rad_to_arcmin  # noqa: PLC0415
-
         return {
             'method': self.method, 'preset': self.preset, 'summary': self.summary,
             'te_metric': self.te_metric,

@@ -47,6 +47,7 @@ from rv_te_bench.core.advice import Advice, Modification
 from rv_te_bench.core.te import TeStats, te_statistics
 from rv_te_bench.core.units import json_deg
 from rv_te_bench.errors import CompensationError
+from sim._checks import real_number
 from sim.units import deg_to_rad, rad_to_arcmin, rad_to_deg
 
 if TYPE_CHECKING:
@@ -89,21 +90,8 @@ _TWO_PI = 2.0 * math.pi
 def _finite(name: str, value: Any, *, positive: bool = False, nonneg: bool = False,  # noqa: ANN401
             ) -> float:
     """Return ``value`` as float or raise CompensationError naming ``name``."""
-    try:
-        v = float(value)
-    except (TypeError, ValueError):
-        msg = f'{name} must be a real number, got {value!r}'
-        raise CompensationError(msg) from None
-    if not math.isfinite(v):
-        msg = f'{name} must be finite, got {value!r}'
-        raise CompensationError(msg)
-    if positive and v <= 0:
-        msg = f'{name} must be > 0, got {value!r}'
-        raise CompensationError(msg)
-    if nonneg and v < 0:
-        msg = f'{name} must be >= 0, got {value!r}'
-        raise CompensationError(msg)
-    return v
+    rule = '>0' if positive else '>=0' if nonneg else ''
+    return real_number(name, value, rule, error=CompensationError, coerce=True)
 
 
 def wrap_rad(x: npt.ArrayLike) -> np.ndarray:

@@ -16,8 +16,7 @@ from typing import TYPE_CHECKING, Any
 from rv_te_bench.errors import BagError
 
 if TYPE_CHECKING:
-    from collections.abc import Callable
-    from collections.abc import Collection, Iterator
+    from collections.abc import Callable, Collection, Iterator
 
     from rv_te_bench.io.bag_reader import Bag
 

@@ -17,6 +17,7 @@ There is no ``launch`` / ``ros2 launch`` on PyPI, so this module does what a lau
 
 from __future__ import annotations
 
+import importlib
 import os
 import signal
 import subprocess
@@ -66,7 +67,6 @@ STOP_ORDER = ('test_sequencer', 'bench', 'joint_state_adapter', 'te_node', 'comp
 def node_specs(name: str) -> tuple[ParamSpec, ...]:
     """The parameter specs of a node type (imports the node module's PARAMS only)."""
     module_name, _ = NODE_TYPES[name]
-    import importlib  # noqa: PLC0415
 
     return tuple(importlib.import_module(module_name).PARAMS)
 
@@ -525,8 +525,6 @@ def run_single_process(spec: SessionSpec, *, until: Callable[[], bool] | None = 
     stop; the nodes are then destroyed in data-flow order with the executor spinning in
     between, so the TE node's final window reaches the recorder before the bag closes.
     """
-    import importlib  # noqa: PLC0415
-
     import rclpy  # noqa: PLC0415
     from rclpy.exceptions import ParameterException  # noqa: PLC0415
     from rclpy.signals import SignalHandlerOptions  # noqa: PLC0415

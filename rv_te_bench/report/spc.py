@@ -8,7 +8,9 @@ stored in SI and converted here, at the edge (radians -> arcmin, N m/rad -> N m/
 
 from __future__ import annotations
 
+import base64
 import html
+import io
 import json
 from typing import TYPE_CHECKING, Any
 
@@ -127,8 +129,6 @@ def spc_document(chart: ControlChart, series: Series, *, title: str,
 def write_spc_report(directory: Path, chart: ControlChart, series: Series, *, title: str,
                      capability: Capability | None, baseline_text: str) -> list[Path]:
     """Write spc.png, spc.json and spc.html into ``directory`` (all or nothing)."""
-    import base64  # noqa: PLC0415
-    import io  # noqa: PLC0415
     directory.mkdir(parents=True, exist_ok=True)
     fig = spc_figure(chart, series, title=title, capability=capability)
     buf = io.BytesIO()

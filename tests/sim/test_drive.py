@@ -164,7 +164,7 @@ def test_factories_build_the_profiles() -> None:
     ('constant', {'speed_rpm': '300'}, 'speed_rpm must be a real number'),
     ('constant', {'speed': 300}, r"unknown parameter\(s\) \['speed'\]"),
     ('ramp', {'start_rpm': 0, 'end_rpm': 300}, r"missing parameter\(s\) \['duration_s'\]"),
-    ('ramp', {'start_rpm': 0, 'end_rpm': 300, 'duration_s': -1}, 'duration_s must be > 0'),
+    ('ramp', {'start_rpm': 0, 'end_rpm': 300, 'duration_s': -1}, 'duration_s must be finite and > 0'),
     ('ramp', {'start_rpm': 0, 'end_rpm': 0, 'duration_s': 1}, 'zero speed everywhere'),
     ('ramp', {'start_rpm': 10, 'end_rpm': -10, 'duration_s': 1}, 'allow_reversal=True'),
     ('sinusoidal', {'amplitude_rpm': 400, 'angular_freq_rad_s': 3, 'mean_rpm': 300},
@@ -172,12 +172,12 @@ def test_factories_build_the_profiles() -> None:
     ('sinusoidal', {'amplitude_rpm': 0, 'angular_freq_rad_s': 3, 'mean_rpm': 0},
      'zero speed everywhere'),
     ('sinusoidal', {'amplitude_rpm': 1, 'angular_freq_rad_s': 0, 'mean_rpm': 300},
-     'angular_freq_rad_s must be > 0'),
+     'angular_freq_rad_s must be finite and > 0'),
     ('sinusoidal', {'amplitude_rpm': -1, 'angular_freq_rad_s': 1, 'mean_rpm': 300},
-     'amplitude_rpm must be >= 0'),
+     'amplitude_rpm must be finite and >= 0'),
     ('forward_reverse', {'speed_rpm': 30, 'reverse_at_s': -1, 'ramp_s': 1},
-     'reverse_at_s must be >= 0'),
-    ('forward_reverse', {'speed_rpm': 30, 'reverse_at_s': 1, 'ramp_s': 0}, 'ramp_s must be > 0'),
+     'reverse_at_s must be finite and >= 0'),
+    ('forward_reverse', {'speed_rpm': 30, 'reverse_at_s': 1, 'ramp_s': 0}, 'ramp_s must be finite and > 0'),
 ])
 def test_nonsense_drives_raise_naming_the_parameter(kind: str, params: dict,
                                                     pattern: str) -> None:
@@ -196,9 +196,9 @@ def test_nonsense_drives_raise_naming_the_parameter(kind: str, params: dict,
      'needs the reducer kinematics'),
     ('sinusoidal', {'mean_nm': 1, 'amplitude_nm': 1, 'tie_to': 'moon'}, 'tie_to must be one of'),
     ('sinusoidal', {'mean_nm': 1, 'amplitude_nm': -1, 'frequency_hz': 2},
-     'amplitude_nm must be >= 0'),
+     'amplitude_nm must be finite and >= 0'),
     ('sinusoidal', {'mean_nm': 1, 'amplitude_nm': 1, 'frequency_hz': 0},
-     'frequency_hz must be > 0'),
+     'frequency_hz must be finite and > 0'),
 ])
 def test_bad_loads_raise_naming_the_parameter(kind: str, params: dict, pattern: str) -> None:
     with pytest.raises(ModelInputError, match=pattern):
@@ -211,6 +211,6 @@ def test_bad_mesh_index_and_harmonic() -> None:
     with pytest.raises(ModelInputError, match=r'mesh_index must be an integer in \[0, 1\]'):
         load_from_spec('sinusoidal', kinematics=kin, drive=d, mean_nm=1, amplitude_nm=1,
                        tie_to='mesh', mesh_index=2)
-    with pytest.raises(ModelInputError, match='harmonic must be > 0'):
+    with pytest.raises(ModelInputError, match='harmonic must be finite and > 0'):
         load_from_spec('sinusoidal', kinematics=kin, drive=d, mean_nm=1, amplitude_nm=1,
                        tie_to='crank', harmonic=0)

@@ -146,12 +146,12 @@ def test_unknown_encoder_lists_the_known_ones() -> None:
 @pytest.mark.parametrize(('changes', 'pattern'), [
     ({'counts_per_rev': 0}, r'counts_per_rev must be in \[1'),
     ({'counts_per_rev': 1.5}, 'counts_per_rev must be an integer'),
-    ({'noise_sigma_rad': -1e-9}, r'noise_sigma_rad must be >= 0'),
+    ({'noise_sigma_rad': -1e-9}, r'noise_sigma_rad must be finite and >= 0'),
     ({'noise_sigma_rad': float('nan')}, 'noise_sigma_rad must be finite'),
     ({'eccentricity_amplitude_rad': float('inf')}, 'eccentricity_amplitude_rad must be finite'),
     ({'graduation_orders': (2, 3)}, 'must have the same length'),
     ({'graduation_orders': (0, 3, 4, 5)}, 'graduation_orders must be integers >= 1'),
-    ({'graduation_amplitudes_rad': (-1.0, 0.0, 0.0, 0.0)}, 'graduation_amplitudes_rad must be >= 0'),
+    ({'graduation_amplitudes_rad': (-1.0, 0.0, 0.0, 0.0)}, 'graduation_amplitudes_rad must be finite and >= 0'),
     ({'name': ''}, 'name must be a non-empty string'),
     ({'wobble_rad': 1.0}, r"no field\(s\) \['wobble_rad'\]"),
 ])

@@ -15,6 +15,7 @@ unchanged by it.
 
 from __future__ import annotations
 
+import importlib
 import math
 from dataclasses import dataclass
 from typing import TYPE_CHECKING, Literal, Protocol
@@ -55,8 +56,6 @@ _TWO_PI = 2.0 * math.pi
 def require_reader(module: str, what: str) -> object:
     """Import the optional ``module`` a format needs (the ``daq`` extra), or one line saying
     how to install it."""
-    import importlib  # noqa: PLC0415
-
     try:
         return importlib.import_module(module)
     except ImportError:
