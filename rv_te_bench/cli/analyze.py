@@ -250,15 +250,6 @@ def _print_tables(results: list[AnalysisResult], out: TextIO) -> None:
                   f'{_fmt(row["te_amplitude_change_pct"], 10, 1)}', file=out)
 
 
-def _value(x: float, unit: str) -> str:
-    """A modification value for people: radians also in degrees, metres also in mm."""
-    if unit == 'rad':
-        return f'{x:.6g} rad ({float(rad_to_deg(x)):.2f} deg)'
-    if unit == 'm':
-        return f'{x:.6g} m ({x * 1e3:.4f} mm)'
-    return f'{x:.6g} {unit}'
-
-
 def _fmt(x: float | None, width: int, digits: int) -> str:
     return f'{"-":>{width}}' if x is None else f'{x:>{width}.{digits}f}'
 
@@ -273,6 +264,7 @@ def _print_identification(rec: Recommendation, out: TextIO) -> None:
 
 
 def _print_one(res: AnalysisResult, out: TextIO) -> None:
+    from rv_te_bench.core.advice import modification_value  # noqa: PLC0415
     from rv_te_bench.report.analysis import report_title  # noqa: PLC0415
 
     b = res.bench
@@ -328,8 +320,8 @@ def _print_one(res: AnalysisResult, out: TextIO) -> None:
         print(f'  recommendation ({a.method}): {a.summary}; TE {a.te_metric} '
               f'{_am(a.te_before_rad, 0)} -> {_am(a.te_after_rad, 0)} arcmin', file=out)
         for m in a.modifications:
-            print(f'    {m.factor} ({m.symbol}): {_value(m.current_value, m.unit)} -> '
-                  f'{_value(m.recommended_value, m.unit)}', file=out)
+            print(f'    {m.factor} ({m.symbol}): {modification_value(m.current_value, m.unit)} -> '
+                  f'{modification_value(m.recommended_value, m.unit)}', file=out)
         _print_identification(rec, out)
     for problem in res.problems:
         print(f'  {"PARTIAL" if res.partial else "note"}: {problem}', file=out)

@@ -11,9 +11,9 @@ from dataclasses import dataclass, field
 from typing import Any, Literal, TypeAlias
 
 from rv_te_bench.errors import CompensationError
-from sim.units import rad_to_arcmin
+from sim.units import rad_to_arcmin, rad_to_deg
 
-__all__ = ['Advice', 'AdviceKind', 'Modification', 'advice_kind']
+__all__ = ['Advice', 'AdviceKind', 'Modification', 'advice_kind', 'modification_value']
 
 #: The compensation the suite can advise: 2K-V assembly phases (Wang 2020 Eq. 21, identified
 #: from the measured TE or optimised on the preset) or RV tooth-profile modification (Hu 2020
@@ -68,6 +68,27 @@ class Modification:
             'recommended_value': _finite_or_none(self.recommended_value),
             'sensitivity_index': _finite_or_none(self.sensitivity_index),
         }
+
+
+def modification_value(x: float, unit: str, *, html: bool = False) -> str:
+    """A modification value for people: radians also in degrees, metres also in mm.
+
+    Text names the unit (``'0.1 rad (5.73 deg)'``); ``html`` leaves it to the table's unit
+    column (``'0.1 (5.73&deg;)'``).
+
+    Examples:
+        >>> modification_value(0.001, 'm')
+        '0.001 m (1.0000 mm)'
+        >>> modification_value(0.001, 'm', html=True)
+        '0.001 (1.0000 mm)'
+    """
+    head = f'{x:.6g}' if html else f'{x:.6g} {unit}'
+    if unit == 'rad':
+        deg = f'{float(rad_to_deg(x)):.2f}'
+        return f'{head} ({deg}&deg;)' if html else f'{head} ({deg} deg)'
+    if unit == 'm':
+        return f'{head} ({x * 1e3:.4f} mm)'
+    return head
 
 
 @dataclass(frozen=True)

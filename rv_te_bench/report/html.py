@@ -16,6 +16,7 @@ import math
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
+from rv_te_bench.core.advice import modification_value
 from rv_te_bench.errors import RvTeError
 from rv_te_bench.io.files import write_all
 from rv_te_bench.report.analysis import (
@@ -248,8 +249,8 @@ def _bag_section(res: AnalysisResult) -> str:  # noqa: C901 - one report section
                        '<th class="l">unit</th><th>current</th><th>recommended</th>'
                        + ('<th>sensitivity S<sub>j</sub></th>' if sens else '') + '</tr>')
             out += [f'<tr><td class="l">{_e(m.factor)}</td><td class="l">{_e(m.symbol)}</td>'
-                    f'<td class="l">{_e(m.unit)}</td><td>{_value(m.current_value, m.unit)}</td>'
-                    f'<td>{_value(m.recommended_value, m.unit)}</td>'
+                    f'<td class="l">{_e(m.unit)}</td><td>{modification_value(m.current_value, m.unit, html=True)}</td>'
+                    f'<td>{modification_value(m.recommended_value, m.unit, html=True)}</td>'
                     + (f'<td>{_sens(m.sensitivity_index)}</td>' if sens else '') + '</tr>'
                     for m in a.modifications]
             out.append('</table>')
@@ -309,13 +310,6 @@ def render_html(results: Sequence[AnalysisResult], images: dict[str, bytes],
     return '\n'.join(parts)
 
 
-def _value(x: float, unit: str) -> str:
-    """A modification value for people: radians also in degrees, metres also in mm."""
-    if unit == 'rad':
-        return f'{x:.6g} ({float(rad_to_deg(x)):.2f}&deg;)'
-    if unit == 'm':
-        return f'{x:.6g} ({x * 1e3:.4f} mm)'
-    return f'{x:.6g}'
 
 
 def _fmt(x: float | None, digits: int = 4) -> str:

@@ -6,7 +6,7 @@ import math
 
 import pytest
 
-from rv_te_bench.core.advice import Modification, advice_kind
+from rv_te_bench.core.advice import Modification, advice_kind, modification_value
 from sim.presets import load_preset
 
 
@@ -27,3 +27,14 @@ def test_modification_json_turns_nan_into_none() -> None:
     assert d['current_value'] == 1e-3
     assert d['sensitivity_index'] is None
     assert math.isnan(m.sensitivity_index)
+
+
+@pytest.mark.parametrize(('x', 'unit', 'text', 'html'), [
+    (math.pi / 2, 'rad', '1.5708 rad (90.00 deg)', '1.5708 (90.00&deg;)'),
+    (2.5e-5, 'm', '2.5e-05 m (0.0250 mm)', '2.5e-05 (0.0250 mm)'),
+    (3.0, 'N m', '3 N m', '3'),
+])
+def test_modification_value_for_text_and_html(x: float, unit: str, text: str, html: str) -> None:
+    """One formatter for the analyze text and the HTML table (the HTML unit has its column)."""
+    assert modification_value(x, unit) == text
+    assert modification_value(x, unit, html=True) == html
