@@ -4,10 +4,10 @@ Hu, Li, Zhu, Cui, "An elastic transmission error compensation method for rotary 
 speed reducers based on error sensitivity analysis", Appl. Sci. 10 (2020) 481.
 
 * Cycloid tooth profile with isometric (``delta_r_rp``) and shifting (``delta_r_p``)
-  modification, Eqs 1-4; ``K1' = a z_p / (r_p + delta_r_p)`` (0.78993 for Table 3).
-* The nine geometric error factors of s.2.2 (Eqs 5-14): TE per unit error
-  ``g_j = A_jj / (a z_c)`` with ``A`` the matrix of Eq. 24 (= 2 x the Table 2 coefficients),
-  except the eccentricity (Eq. 13: ``-2 k_n``). Sensitivity index
+  modification, Hu 2020 Eqs 1-4; ``K1' = a z_p / (r_p + delta_r_p)`` (0.78993 for Table 3).
+* The nine geometric error factors of s.2.2 (Hu 2020 Eqs 5-14): TE per unit error
+  ``g_j = A_jj / (a z_c)`` with ``A`` the matrix of Hu 2020 Eq. 24 (= 2 x the Table 2 coefficients),
+  except the eccentricity (Hu 2020 Eq. 13: ``-2 k_n``). Sensitivity index
   ``S_j = coefficient_j / sqrt(1 - K1'^2)`` reproduces Table 2 (DESIGN.md s.4).
 * A geometric TE model for the bench: each factor is a sinusoidal error of given amplitude
   and phase that excites one order of the output rotation (see :data:`FACTOR_ORDER`):
@@ -18,10 +18,10 @@ speed reducers based on error sensitivity analysis", Appl. Sci. 10 (2020) 481.
   at every pin appear at the pin-mesh order ``z_p z_c``. The crank eccentricity error is
   put at the crank order. No factor of the paper excites the output order itself (the pin
   ring is fixed).
-* Tooth contact analysis (Eqs 28-48): paper's fixed-point iteration for the maximum contact
+* Tooth contact analysis (Hu 2020 Eqs 28-48): paper's fixed-point iteration for the maximum contact
   force, the pins in mesh and the normal deformation per pin.
 * Elastic TE (issue #18): under the torque T_c the loaded cycloid disc turns by
-  ``beta = delta_max / r_c'`` against the pins (Eqs 35-37), and the output with it:
+  ``beta = delta_max / r_c'`` against the pins (Hu 2020 Eqs 35-37), and the output with it:
   TE_el = -sign(T) delta_max(|T|) / r_c' (:func:`elastic_te_rad`; mode ``'elastic'`` of the
   TE model adds it to the geometric TE at the live load). It is a load-dependent offset:
   it enters a TE peak-to-peak only where the load changes (2 beta for a full reversal).
@@ -29,15 +29,15 @@ speed reducers based on error sensitivity analysis", Appl. Sci. 10 (2020) 481.
 Readings of the printed equations (the paper has OCR noise and typos), chosen so that the
 paper's own numbers follow:
 
-* Eqs 1-2: ``a / (r_p + r_rp)`` is read ``a / (r_p + delta_r_p)`` (the standard modified
+* Hu 2020 Eqs 1-2: ``a / (r_p + r_rp)`` is read ``a / (r_p + delta_r_p)`` (the standard modified
   cycloid; only then is the profile a closed tooth of the right root/tip radii).
-* Eq. 32: the second term carries ``delta_r_p`` (printed ``delta_r_rp``); it then vanishes at
-  ``cos(phi) = K1`` (Eq. 33). Section 4 uses ``K1 = a z_p / r_p`` (no prime) and
+* Hu 2020 Eq. 32: the second term carries ``delta_r_p`` (printed ``delta_r_rp``); it then
+  vanishes at ``cos(phi) = K1`` (Hu 2020 Eq. 33). Section 4 uses ``K1 = a z_p / r_p`` (no prime) and
   ``r_c' = a z_c``. Pins sit at ``phi_i = 2 pi i / z_p`` from the line of centres; a pin is in
   mesh when ``delta_i = (l_i / r_c') delta_max > Delta_i`` and ``l_i > 0``. With these, the
   initial prototype meshes on the 9 pins at 18..90 deg, as Table 5 (whose ``delta_i`` are
   exactly ``(l_i / r_c') delta_max`` at those angles).
-* Eq. 45 is ``|F_1 - F_2| / 2`` (as printed it is negative) with ``F_1 = 2.2 T / (z_c r_p)``
+* Hu 2020 Eq. 45 is ``|F_1 - F_2| / 2`` (as printed it is negative) with ``F_1 = 2.2 T / (z_c r_p)``
   and ``F_2 = 0.55 T / r_p`` (``r_p' = r_p``).
 * E, Poisson ratio, torque and face width are not given; the presets state the values used.
 """
@@ -102,7 +102,7 @@ class HuRvParams:
         poisson: Poisson ratio [1].
         face_width_m: Cycloid face width b [m].
         torque_nm: Output torque T used by the TCA [N m].
-        load_share: Share of T on the more loaded cycloid disc (Eq. 31: 0.55).
+        load_share: Share of T on the more loaded cycloid disc (Hu 2020 Eq. 31: 0.55).
     """
 
     z_c: int
@@ -165,7 +165,7 @@ class HuRvParams:
 
     @property
     def k1_prime(self) -> float:
-        """Short-amplitude coefficient after shifting modification, Eq. 3 [1]."""
+        """Short-amplitude coefficient after shifting modification, Hu 2020 Eq. 3 [1]."""
         return self.a_m * self.z_p / (self.r_p_m + self.delta_r_p_m)
 
     @property
@@ -175,7 +175,7 @@ class HuRvParams:
 
     @property
     def r_c_m(self) -> float:
-        """Cycloid pitch radius ``r_c' = a z_c`` [m] (the maximum force arm, Eq. 29)."""
+        """Cycloid pitch radius ``r_c' = a z_c`` [m] (the maximum force arm, Hu 2020 Eq. 29)."""
         return self.a_m * self.z_c
 
     @classmethod
@@ -213,7 +213,7 @@ class HuRvParams:
 
 
 def cycloid_profile_m(params: HuRvParams, phi_rad: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Modified cycloid tooth profile, Eqs 1-4, in the cycloid frame O_c-x_c y_c.
+    """Modified cycloid tooth profile, Hu 2020 Eqs 1-4, in the cycloid frame O_c-x_c y_c.
 
     Args:
         params: Stage parameters.
@@ -232,7 +232,7 @@ def cycloid_profile_m(params: HuRvParams, phi_rad: np.ndarray) -> tuple[np.ndarr
     k = params.k1_prime
     i_h = params.z_p / params.z_c
     r_rp = params.r_rp_m + params.delta_r_rp_m
-    inv_s = (1.0 + k * k - 2.0 * k * np.cos(phi)) ** -0.5                       # Eq. 4
+    inv_s = (1.0 + k * k - 2.0 * k * np.cos(phi)) ** -0.5                       # Hu 2020 Eq. 4
     outer = params.r_p_m + params.delta_r_p_m - r_rp * inv_s
     inner = params.a_m - k * r_rp * inv_s        # a/(r_p+dr_p) * [r_p+dr_p - z_p r_rp Phi]
     x = outer * np.cos((1.0 - i_h) * phi) - inner * np.cos(i_h * phi)
@@ -241,7 +241,7 @@ def cycloid_profile_m(params: HuRvParams, phi_rad: np.ndarray) -> tuple[np.ndarr
 
 
 def modification_te_rad(params: HuRvParams) -> float:
-    """Mean geometric TE of the tooth-profile modifications, Eqs 5 + 6 [rad]."""
+    """Mean geometric TE of the tooth-profile modifications, Hu 2020 Eqs 5 + 6 [rad]."""
     s = math.sqrt(1.0 - params.k1_prime**2)
     az = params.a_m * params.z_c
     return 2.0 * params.delta_r_rp_m / az - 2.0 * params.delta_r_p_m * s / az
@@ -256,16 +256,18 @@ FACTOR_KEYS: tuple[str, ...] = (
     'eccentricity')
 
 _FACTOR_INFO = {  # key: (Table 2 name, symbol, equation)
-    'pin_circle_radius': ('Pinwheel center circle radius error', 'delta_a', 'Eq. 7'),
-    'pin_radius': ('Pinwheel housing radius error (pin radius)', 'delta_b', 'Eq. 8'),
-    'groove_clearance': ('Pinwheel groove matching clearance', 'delta_c', 'Eq. 9'),
-    'cycloid_runout': ('Cycloidal gear ring radial runout', 'delta_d', 'Eq. 10'),
+    'pin_circle_radius': ('Pinwheel center circle radius error', 'delta_a', 'Hu 2020 Eq. 7'),
+    'pin_radius': ('Pinwheel housing radius error (pin radius)', 'delta_b', 'Hu 2020 Eq. 8'),
+    'groove_clearance': ('Pinwheel groove matching clearance', 'delta_c', 'Hu 2020 Eq. 9'),
+    'cycloid_runout': ('Cycloidal gear ring radial runout', 'delta_d', 'Hu 2020 Eq. 10'),
     'pin_housing_position': ('Pinwheel housing circumferential position error', 'delta_e',
-                             'Eq. 11'),
-    'isometric_mod_error': ('Isometric tooth profile modification error', 'delta_f', 'Eq. 13'),
-    'shifting_mod_error': ('Shifting tooth profile modification error', 'delta_g', 'Eq. 13'),
-    'cumulative_pitch': ('Cumulative error of circumference', 'delta_h', 'Eq. 12'),
-    'eccentricity': ('Eccentricity error', 'delta_i', 'Eqs 13-14'),
+                             'Hu 2020 Eq. 11'),
+    'isometric_mod_error': ('Isometric tooth profile modification error', 'delta_f',
+                            'Hu 2020 Eq. 13'),
+    'shifting_mod_error': ('Shifting tooth profile modification error', 'delta_g',
+                           'Hu 2020 Eq. 13'),
+    'cumulative_pitch': ('Cumulative error of circumference', 'delta_h', 'Hu 2020 Eq. 12'),
+    'eccentricity': ('Eccentricity error', 'delta_i', 'Hu 2020 Eqs 13-14'),
 }
 
 #: Which order of the output rotation each factor excites in the geometric TE model:
@@ -293,11 +295,11 @@ class SensitivityRow:
         factor: Name as in Table 2.
         symbol: Table 2 symbol (``delta_a`` .. ``delta_i``).
         coefficient: Error coefficient of Table 2 [1]; the eccentricity row is ``k_n``
-            of Eq. 14 evaluated in mm, as the paper does [1/mm].
+            of Hu 2020 Eq. 14 evaluated in mm, as the paper does [1/mm].
         sensitivity_index: ``coefficient / sqrt(1 - K1'^2)`` (eccentricity row [1/mm]).
-            Eq. 14 as printed gives +6.1e-4 for Table 3 where Table 2 prints -0.00024;
+            Hu 2020 Eq. 14 as printed gives +6.1e-4 for Table 3 where Table 2 prints -0.00024;
             both are negligible (< 0.1 % of the reference), the paper's conclusion.
-        gain_rad_per_m: TE per unit error of the factor [rad/m] (Eqs 5-13).
+        gain_rad_per_m: TE per unit error of the factor [rad/m] (Hu 2020 Eqs 5-13).
     """
 
     key: str
@@ -309,9 +311,9 @@ class SensitivityRow:
 
 
 def _k_n_per_mm(params: HuRvParams) -> float:
-    """Eq. 14 as printed, evaluated with lengths in mm (the paper's units) [1/mm].
+    """Hu 2020 Eq. 14 as printed, evaluated with lengths in mm (the paper's units) [1/mm].
 
-    Eq. 14 is not dimensionally consistent (its second term is in 1/length^2), so its value
+    Hu 2020 Eq. 14 is not dimensionally consistent (its second term is in 1/length^2), so its value
     depends on the length unit; the paper works in mm, and so does this function.
     """
     a, rp = params.a_m * 1e3, params.r_p_m * 1e3
@@ -333,9 +335,9 @@ def _coefficients(params: HuRvParams) -> dict[str, float]:
 
 
 def error_gains_rad_per_m(params: HuRvParams) -> dict[str, float]:
-    """TE per unit error of each factor, ``d(TE)/d(delta_j)`` [rad/m] (Eqs 5-13).
+    """TE per unit error of each factor, ``d(TE)/d(delta_j)`` [rad/m] (Hu 2020 Eqs 5-13).
 
-    ``A_jj / (a z_c)`` with ``A`` of Eq. 24; eccentricity ``-2 k_n`` (Eq. 13).
+    ``A_jj / (a z_c)`` with ``A`` of Hu 2020 Eq. 24; eccentricity ``-2 k_n`` (Hu 2020 Eq. 13).
     """
     az = params.a_m * params.z_c
     gains = {key: 2.0 * c / az for key, c in _coefficients(params).items()}
@@ -506,24 +508,24 @@ def build_te_model(preset: Preset, mode: str) -> HuGeometricTeModel:
 
 @dataclass(frozen=True)
 class TcaResult:
-    """Result of the tooth contact analysis (Eqs 28-48) for one cycloid disc.
+    """Result of the tooth contact analysis (Hu 2020 Eqs 28-48) for one cycloid disc.
 
     Per-pin arrays cover the pins on the loaded side (``0 < phi_i < pi``), ordered by angle.
 
     Attributes:
-        f_max_n: Maximum contact force F_max (Eq. 48) [N].
-        delta_max_m: Maximum normal deformation delta_max at F_max (Eq. 38) [m].
+        f_max_n: Maximum contact force F_max (Hu 2020 Eq. 48) [N].
+        delta_max_m: Maximum normal deformation delta_max at F_max (Hu 2020 Eq. 38) [m].
         pins_in_mesh: Number of pins in mesh.
         pin_angle_rad: Angle phi_i of each pin from the line of centres [rad].
-        lever_arm_m: Normal distance l_i from the contact normal to O_c (Eq. 36) [m].
-        clearance_m: Initial normal clearance Delta(phi)_i of the modification (Eq. 32) [m].
-        deformation_m: Normal deformation delta_i = (l_i / r_c') delta_max (Eq. 37) [m].
-        force_n: Contact force F_i (Eq. 41), 0 for pins not in mesh [N].
+        lever_arm_m: Normal distance l_i from the contact normal to O_c (Hu 2020 Eq. 36) [m].
+        clearance_m: Initial normal clearance Delta(phi)_i of the modification (Hu 2020 Eq. 32) [m].
+        deformation_m: Normal deformation delta_i = (l_i / r_c') delta_max (Hu 2020 Eq. 37) [m].
+        force_n: Contact force F_i (Hu 2020 Eq. 41), 0 for pins not in mesh [N].
         in_mesh: Pin in mesh (delta_i > Delta_i).
         iterations: Iterations k of the paper's scheme until |F_k - F_k-1| <= 0.1 % F_k.
         history_n: F_max_0, F_max_1, ..., F_max_k [N].
         torque_cycloid_nm: Torque on the disc, T_c = load_share * T [N m].
-        rho_m: Tooth curvature radius at phi_0 (Eq. 40) [m].
+        rho_m: Tooth curvature radius at phi_0 (Hu 2020 Eq. 40) [m].
     """
 
     f_max_n: float
@@ -550,7 +552,7 @@ class TcaResult:
 
 
 def _delta_max_m(params: HuRvParams, f_n: float, rho_abs_m: float) -> float:
-    """Eqs 38-39: maximum normal deformation at contact force ``f_n`` [m]."""
+    """Hu 2020 Eqs 38-39: maximum normal deformation at contact force ``f_n`` [m]."""
     e, nu, b, r = params.e_pa, params.poisson, params.face_width_m, params.r_rp_m
     c = 4.99e-3 * math.sqrt(4.0 * (1 - nu * nu) * f_n * rho_abs_m * r
                             / (e * b * (rho_abs_m + r)))
@@ -560,12 +562,13 @@ def _delta_max_m(params: HuRvParams, f_n: float, rho_abs_m: float) -> float:
 
 def tooth_contact_analysis(params: HuRvParams, torque_nm: float | None = None, *,
                            max_iter: int = 200) -> TcaResult:
-    """Maximum contact force, pins in mesh and normal deformation (Hu 2020 s.4, Eqs 28-48).
+    """Maximum contact force, pins in mesh and normal deformation (Hu 2020 s.4, Hu 2020 Eqs 28-48).
 
-    The paper's iteration: start from F_max_0 (Eqs 45-47), compute delta_max (Eqs 38-40),
-    the pins in mesh (delta_i > Delta_i, Eqs 32, 37) and F_max_k (Eq. 44) until
-    ``|F_k - F_k-1| <= 0.1 % F_k``; F_max = (F_k + F_k-1) / 2 (Eq. 48). If the plain
-    iteration oscillates, it is continued with averaging (damping 1/2).
+    The paper's iteration: start from F_max_0 (Hu 2020 Eqs 45-47), compute delta_max
+    (Hu 2020 Eqs 38-40), the pins in mesh (delta_i > Delta_i, Hu 2020 Eqs 32, 37) and F_max_k
+    (Hu 2020 Eq. 44) until ``|F_k - F_k-1| <= 0.1 % F_k``; F_max = (F_k + F_k-1) / 2
+    (Hu 2020 Eq. 48). If the plain iteration oscillates, it is continued with averaging
+    (damping 1/2).
 
     Args:
         params: Stage parameters (E, Poisson ratio, face width, load share used).
@@ -589,12 +592,12 @@ def tooth_contact_analysis(params: HuRvParams, torque_nm: float | None = None, *
     phi = 2.0 * np.pi * np.arange(1, (zp + 1) // 2) / zp
     phi = phi[np.sin(phi) > 1e-12]
     root = np.sqrt(1.0 + k * k - 2.0 * k * np.cos(phi))
-    lever = rc * np.sin(phi) / root                                              # Eq. 36
+    lever = rc * np.sin(phi) / root                                              # Hu 2020 Eq. 36
     clearance = (params.delta_r_rp_m * (1.0 - np.sin(phi) / root)
                  - params.delta_r_p_m * (1.0 - k * np.cos(phi) - s * np.sin(phi)) / root)  # 32
-    cos0 = k                                                                     # Eq. 33
+    cos0 = k                                                                     # Hu 2020 Eq. 33
     rho = (params.r_p_m * (1.0 + k * k - 2.0 * k * cos0) ** 1.5
-           / (k * (zp + 1) * cos0 - (1.0 + zp * k * k)) + params.r_rp_m)           # Eq. 40
+           / (k * (zp + 1) * cos0 - (1.0 + zp * k * k)) + params.r_rp_m)           # Hu 2020 Eq. 40
     rho_abs = abs(rho)
     t_c = params.load_share * t
 
@@ -606,11 +609,11 @@ def tooth_contact_analysis(params: HuRvParams, torque_nm: float | None = None, *
                    f'clearance (smallest {float(np.min(clearance)):.3g} m); raise tca.torque_nm')
             raise ModelInputError(msg)
         denom = float(np.sum((lever[mesh] / rc - clearance[mesh] / d_max) * lever[mesh]))
-        return t_c / denom, d_max, mesh                                          # Eq. 44
+        return t_c / denom, d_max, mesh                                          # Hu 2020 Eq. 44
 
-    f1 = 2.2 * t / (params.z_c * params.r_p_m)                                   # Eq. 46
-    f2 = params.load_share * t / params.r_p_m                                    # Eq. 47
-    f_prev = abs(f1 - f2) / 2.0                                                  # Eq. 45
+    f1 = 2.2 * t / (params.z_c * params.r_p_m)                                   # Hu 2020 Eq. 46
+    f2 = params.load_share * t / params.r_p_m                                    # Hu 2020 Eq. 47
+    f_prev = abs(f1 - f2) / 2.0                                                  # Hu 2020 Eq. 45
     history = [f_prev]
     damping = 1.0
     for it in range(1, max_iter + 1):
@@ -618,7 +621,7 @@ def tooth_contact_analysis(params: HuRvParams, torque_nm: float | None = None, *
         f_new = f_prev + damping * (f_new - f_prev)
         history.append(f_new)
         if abs(f_new - f_prev) <= 1e-3 * f_new:
-            f_max = 0.5 * (f_new + f_prev)                                       # Eq. 48
+            f_max = 0.5 * (f_new + f_prev)                                       # Hu 2020 Eq. 48
             break
         if it == 50:
             damping = 0.5
@@ -627,9 +630,9 @@ def tooth_contact_analysis(params: HuRvParams, torque_nm: float | None = None, *
         msg = f'tooth contact analysis did not converge in {max_iter} iterations (T={t} N m)'
         raise ModelInputError(msg)
     d_max = _delta_max_m(params, f_max, rho_abs)
-    deformation = lever / rc * d_max                                             # Eq. 37
+    deformation = lever / rc * d_max                                             # Hu 2020 Eq. 37
     mesh = deformation > clearance
-    force = np.where(mesh, (deformation - clearance) / d_max * f_max, 0.0)       # Eq. 41
+    force = np.where(mesh, (deformation - clearance) / d_max * f_max, 0.0)       # Hu 2020 Eq. 41
     for arr in (phi, lever, clearance, deformation, force, mesh):
         arr.setflags(write=False)
     return TcaResult(f_max_n=float(f_max), delta_max_m=float(d_max),
@@ -663,11 +666,11 @@ _ELASTIC_CACHE: dict[HuRvParams, tuple[np.ndarray, np.ndarray]] = {}
 
 
 def elastic_te_rad(params: HuRvParams, torque_nm: np.ndarray | float) -> np.ndarray:
-    """Elastic TE of the cycloid-pin stage under an output torque [rad] (Eqs 35-44).
+    """Elastic TE of the cycloid-pin stage under an output torque [rad] (Hu 2020 Eqs 35-44).
 
     The more loaded disc (T_c = load_share T) turns by ``beta = delta_max / r_c'`` against
-    the pins (Eq. 37: delta_i = l_i beta, delta_max = r_c' beta) with delta_max from the
-    converged TCA (Eqs 38-48); the output follows it: TE = -sign(T) beta(|T|) (a positive
+    the pins (Hu 2020 Eq. 37: delta_i = l_i beta, delta_max = r_c' beta) with delta_max from the
+    converged TCA (Hu 2020 Eqs 38-48); the output follows it: TE = -sign(T) beta(|T|) (a positive
     torque resists the motion, the output lags). Interpolated in a table of TCAs from 0.1 %
     to 300 % of the preset torque (linear above it); beyond 3x the preset torque it is
     extrapolated linearly.

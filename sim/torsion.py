@@ -4,13 +4,14 @@ The hysteresis test (GB/T 35089-2018; docs/ACCEPTANCE.md) locks the input and tw
 output with a torque. This module gives each preset's static torsion characteristic at a
 locked input position, from the preset's own model:
 
-* **Wang 2020 (2K-V)**: Eq. 18 (``sim.wang2020.static_te_rad``) with the mesh stiffness k,
-  the uneven load sharing of the two planet pairs and the time-varying backlash of Eqs 7-9.
-  A torque twisting the output forwards closes the tooth backs (Eqs 3-4), a reverse torque
+* **Wang 2020 (2K-V)**: Wang 2020 Eq. 18 (``sim.wang2020.static_te_rad``) with the mesh stiffness k,
+  the uneven load sharing of the two planet pairs and the time-varying backlash of
+  Wang 2020 Eqs 7-9.
+  A torque twisting the output forwards closes the tooth backs (Wang 2020 Eqs 3-4), a reverse torque
   loads the drive flanks; with both pairs in contact the stiffness is 2 k r_p^2.
-* **Hu 2020 (RV)**: the load-deformation curve of the tooth contact analysis (Eqs 28-48):
-  the cycloid disc turns by beta = delta_max / r_c' (Eq. 37) under the torque; the initial
-  clearances of the tooth-profile modifications (Eq. 32) give a free play of
+* **Hu 2020 (RV)**: the load-deformation curve of the tooth contact analysis (Hu 2020 Eqs 28-48):
+  the cycloid disc turns by beta = delta_max / r_c' (Hu 2020 Eq. 37) under the torque; the initial
+  clearances of the tooth-profile modifications (Hu 2020 Eq. 32) give a free play of
   2 min_i(Delta_i / l_i) before the first pin touches.
 * **Li 2023 (RV)**: the lumped-parameter stiffness of the quasi-static model
   (``Li2023DteModel.static_response``, output rotation under the torque, kinematic input
@@ -341,7 +342,8 @@ def _hu_curve(preset: Preset, t_max: float) -> tuple[np.ndarray, np.ndarray, flo
     from sim import hu2020  # noqa: PLC0415
 
     params = hu2020.HuRvParams.from_preset(preset)
-    # the initial clearances (Eq. 32) and lever arms (Eq. 36) are geometry: any torque will do
+    # the initial clearances (Hu 2020 Eq. 32) and lever arms (Hu 2020 Eq. 36) are geometry: any
+    # torque will do
     tca = hu2020.tooth_contact_analysis(params)
     beta0 = float(np.min(tca.clearance_m / tca.lever_arm_m))
     grid = np.r_[0.0, np.geomspace(2e-3 * t_max, t_max, _GRID_POINTS - 1)]

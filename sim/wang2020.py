@@ -1,34 +1,37 @@
 """Wang 2020 2K-V reducer: eccentricity NLTE, time-varying backlash, static and dynamic TE.
 
 Reference: G. Wang, L. Su, S. Zou, "Uneven Load Contact Dynamic Modelling and Transmission
-Error Analysis of a 2K-V Reducer with Eccentricity Excitation", SV-JME 66 (2020) 2, Eqs 1-20.
+Error Analysis of a 2K-V Reducer with Eccentricity Excitation", SV-JME 66 (2020) 2,
+Wang 2020 Eqs 1-20.
 Ambiguities are resolved as in DESIGN.md s.4:
 
-* Angle laws (t0 = 0, Eqs 1-4): ``theta_p1``, ``theta_p2`` and ``theta_g`` advance at the
+* Angle laws (t0 = 0, Wang 2020 Eqs 1-4): ``theta_p1``, ``theta_p2`` and ``theta_g`` advance at the
   absolute crank rate (-25 x the output angle for the Table 1-2 reducer), ``theta_ot`` at the
   output rate, from the Table 2 phases. Every function here takes the output angle.
-* ``r_p`` (Eqs 5, 14, 17) is a parameter; the preset uses 65 mm x cos 20 deg = 61.08 mm.
+* ``r_p`` (Wang 2020 Eqs 5, 14, 17) is a parameter; the preset uses 65 mm x cos 20 deg = 61.08 mm.
 * Mesh stiffness ``k`` (not in the paper): 8.43e7 N/m reproduces the 30 N m STE mean.
 
 Sign convention: ``x`` is the displacement of the driven side along the mesh line [m],
-TE = x / r_p [rad] (Eq. 5 without the arcmin factor). Pair i's drive flank touches when
+TE = x / r_p [rad] (Wang 2020 Eq. 5 without the arcmin factor). Pair i's drive flank touches when
 ``x < Delta_i`` (force ``k (Delta_i - x)``), its back flank when
-``x > Delta_i + b_i = Delta_bi + B_i(t0) r_p`` (Eq. 7; force ``k (Delta_i + b_i - x) < 0``).
+``x > Delta_i + b_i = Delta_bi + B_i(t0) r_p`` (Wang 2020 Eq. 7; force
+``k (Delta_i + b_i - x) < 0``).
 A positive load torque T resists the motion (the output lags: TE decreases with load).
 
-Eq. 15 as printed gives a single pair only T/(2 r_p); force balance (Eq. 10, first line) and
-Eq. 16 need T/r_p, which :func:`contact_forces_n` returns. Eq. 19 as printed has
+Wang 2020 Eq. 15 as printed gives a single pair only T/(2 r_p); force balance (Wang 2020 Eq. 10,
+first line) and
+Wang 2020 Eq. 16 need T/r_p, which :func:`contact_forces_n` returns. Wang 2020 Eq. 19 as printed has
 inconsistent signs; the consistent form used here (DESIGN.md s.4) is
 
     m_e x'' = sum over touching flanks j of [k(t) (u_j - x) + C_g (u_j' - x')] - T / r_p,
 
-with u_j the four flank positions above. It reduces to Eq. 18 when quasi-static and covers
+with u_j the four flank positions above. It reduces to Wang 2020 Eq. 18 when quasi-static and covers
 the six contact cases of Fig. 3 (both drive flanks, one drive flank, one drive + one back
 flank (negative backlash), none (inside the backlash), one back flank, both back flanks).
 k(t) = k0 (1 + sum_n r_n cos(n phi_mesh + phi_n)) with phi_mesh the 2nd-stage mesh angle
-(Eq. 20 written in the angle domain so that it holds at any speed).
+(Wang 2020 Eq. 20 written in the angle domain so that it holds at any speed).
 
-Integrator (:class:`Wang2kvDynamics`). Between contact changes Eq. 19 is linear. The
+Integrator (:class:`Wang2kvDynamics`). Between contact changes Wang 2020 Eq. 19 is linear. The
 stiffness is split into its mean k0 and the ripple; the mean part is discretised exactly
 (closed-form matrix exponential of the 2x2 system, first-order hold on the forcing), the
 ripple term ``-n k~(t) x`` is moved to the forcing. Two paths share these exact steps:
@@ -45,7 +48,7 @@ ripple term ``-n k~(t) x`` is moved to the forcing. Two paths share these exact 
 
 The internal step is the sample interval divided into ``ceil(dt / max_step_s)`` sub-steps
 (preset: 25 us). Accuracy (tests): a constant load with constant stiffness gives the STE
-of Eq. 18 to 3e-4 arcmin; against an independent RK4 at 1 us through repeated impacts,
+of Wang 2020 Eq. 18 to 3e-4 arcmin; against an independent RK4 at 1 us through repeated impacts,
 ~0.07 arcmin at 25 us and 0.005 arcmin at 2.5 us (the error is in the impact timing,
 first order in the step). Speed: benchmarks/bench_wang2020_dte.py (one output revolution at
 10 kHz, 30 N m: 61x real time with a 10 % ripple (46x before issue #23 in the same run),
@@ -54,7 +57,7 @@ a load reversing at the mesh frequency, Fig. 7b, ~28,500 contact changes per rev
 a few times real time). The paper used a 4th-order Runge-Kutta scheme.
 
 At zero load nothing holds the flanks together: the DTE follows the drive flank while it
-pushes and floats inside the backlash when it pulls away (physically right for Eq. 19,
+pushes and floats inside the backlash when it pulls away (physically right for Wang 2020 Eq. 19,
 which has no drag). A bench run in 'dte' mode should apply some load.
 
 Start of a run (``solver.dte_start``): ``'loaded'`` starts at the first sample in
@@ -153,21 +156,21 @@ class Wang2kvParams:
         theta_p1_0_rad, theta_p2_0_rad, theta_g_0_rad, theta_ot_0_rad: Initial
             eccentricity phases [rad] (Table 2).
         pressure_angle_rad: Working pressure angle alpha of the 2nd stage [rad], (0, pi/2).
-        r_p_m: Radius turning mesh-line increments into angles (Eqs 5, 14, 17) [m] (> 0).
+        r_p_m: Radius turning mesh-line increments into angles (Wang 2020 Eqs 5, 14, 17) [m] (> 0).
         mesh_stiffness_n_m: Mean mesh stiffness k0 of one gear pair [N/m] (> 0).
-        stiffness_harmonic_ratio: k_n / k0 of the Eq. 20 harmonics at the mesh order.
-        stiffness_harmonic_phase_rad: phi_n of the Eq. 20 harmonics [rad].
-        equivalent_mass_kg: m_e of Eq. 19 [kg] (> 0).
-        mesh_damping_n_s_m: C_g of Eq. 19 per gear pair [N s/m] (>= 0).
-        backlash1_t0_rad, backlash2_t0_rad: B_i(t0) of Eq. 7 [rad] (negative: preload).
+        stiffness_harmonic_ratio: k_n / k0 of the Wang 2020 Eq. 20 harmonics at the mesh order.
+        stiffness_harmonic_phase_rad: phi_n of the Wang 2020 Eq. 20 harmonics [rad].
+        equivalent_mass_kg: m_e of Wang 2020 Eq. 19 [kg] (> 0).
+        mesh_damping_n_s_m: C_g of Wang 2020 Eq. 19 per gear pair [N s/m] (>= 0).
+        backlash1_t0_rad, backlash2_t0_rad: B_i(t0) of Wang 2020 Eq. 7 [rad] (negative: preload).
         input_speed_rpm: Default input speed of a drive [rpm] (> 0).
         max_step_s: Largest internal step of the DTE integrator [s] (> 0).
         dte_start: Initial state of a DTE run. ``'loaded'``: quasi-static equilibrium under
-            the first sample's load (Eq. 18 with k(t0)), a run that is already turning under
-            load. ``'unloaded'``: the unloaded contact state (x = NLTE of Eq. 8, no
-            deflection, moving with the touching drive flank) with the load acting from the
-            first sample on as a step, as an integration started from x = e or a bench
-            loaded from rest; the start-up transient is then part of the record.
+            the first sample's load (Wang 2020 Eq. 18 with k(t0)), a run that is already
+            turning under load. ``'unloaded'``: the unloaded contact state (x = NLTE of
+            Wang 2020 Eq. 8, no deflection, moving with the touching drive flank) with the load
+            acting from the first sample on as a step, as an integration started from x = e or
+            a bench loaded from rest; the start-up transient is then part of the record.
     """
 
     kinematics: ReducerKinematics
@@ -282,11 +285,11 @@ class Wang2kvParams:
         )
 
 
-# --------------------------------------------------------------------------- Eqs 1-9
+# --------------------------------------------------------------------------- Wang 2020 Eqs 1-9
 
 
 class MeshIncrements(NamedTuple):
-    """Mesh-line increments of Eqs 1-4 [m]: drive flanks and tooth backs of pairs 1, 2."""
+    """Mesh-line increments of Wang 2020 Eqs 1-4 [m]: drive flanks and tooth backs of pairs 1, 2."""
 
     delta1_m: np.ndarray
     delta2_m: np.ndarray
@@ -295,7 +298,7 @@ class MeshIncrements(NamedTuple):
 
 
 class NlteCurves(NamedTuple):
-    """Per-pair and total NLTE and backlash [rad] (Eqs 5-9), for plots and reports."""
+    """Per-pair and total NLTE and backlash [rad] (Wang 2020 Eqs 5-9), for plots and reports."""
 
     nlte1_rad: np.ndarray
     nlte2_rad: np.ndarray
@@ -331,7 +334,7 @@ def _term(e: float, phase: np.ndarray, psi: float, cos_t: np.ndarray,
 
 def mesh_increments_m(theta_out_rad: npt.ArrayLike, params: Wang2kvParams, *,
                       phases_rad: PhasesLike | None = None) -> MeshIncrements:
-    """Eqs 1-4: mesh-line and tooth-back increments of both gear pairs [m].
+    """Wang 2020 Eqs 1-4: mesh-line and tooth-back increments of both gear pairs [m].
 
     Args:
         theta_out_rad: Output angle [rad] (t0 = 0 at theta_out = 0).
@@ -350,7 +353,7 @@ def mesh_increments_m(theta_out_rad: npt.ArrayLike, params: Wang2kvParams, *,
 def _increments(theta_out_rad: npt.ArrayLike, params: Wang2kvParams,
                 phases_rad: PhasesLike | None,
                 *, back: bool) -> tuple[np.ndarray, np.ndarray]:
-    """Eqs 1-2 (drive flanks) or Eqs 3-4 (tooth backs, ``back=True``) [m]."""
+    """Wang 2020 Eqs 1-2 (drive flanks) or Wang 2020 Eqs 3-4 (tooth backs, ``back=True``) [m]."""
     th = _check_theta(theta_out_rad)
     p1, p2, g, ot = _phases(params, phases_rad)
     rc = params.kinematics.crank_per_input * params.kinematics.gear_ratio  # -25 for Wang
@@ -366,7 +369,7 @@ def _increments(theta_out_rad: npt.ArrayLike, params: Wang2kvParams,
 
 def nlte_pairs_rad(theta_out_rad: npt.ArrayLike, params: Wang2kvParams, *,
                    phases_rad: PhasesLike | None = None) -> tuple[np.ndarray, np.ndarray]:
-    """Eq. 5: non-load TE of gear pairs 1 and 2 [rad] (Delta_i / r_p).
+    """Wang 2020 Eq. 5: non-load TE of gear pairs 1 and 2 [rad] (Delta_i / r_p).
 
     Broadcasting: see :func:`mesh_increments_m` (phases of shape (n_comb, 1) against
     theta of shape (n_time,) give (n_comb, n_time)).
@@ -377,14 +380,14 @@ def nlte_pairs_rad(theta_out_rad: npt.ArrayLike, params: Wang2kvParams, *,
 
 def nlte_rad(theta_out_rad: npt.ArrayLike, params: Wang2kvParams, *,
              phases_rad: PhasesLike | None = None) -> np.ndarray:
-    """Eq. 8: total non-load TE [rad], the larger of the two pairs' NLTE."""
+    """Wang 2020 Eq. 8: total non-load TE [rad], the larger of the two pairs' NLTE."""
     n1, n2 = nlte_pairs_rad(theta_out_rad, params, phases_rad=phases_rad)
     return np.maximum(n1, n2)
 
 
 def backlash_pairs_rad(theta_out_rad: npt.ArrayLike, params: Wang2kvParams, *,
                        phases_rad: PhasesLike | None = None) -> tuple[np.ndarray, np.ndarray]:
-    """Eq. 7: backlash of each pair [rad], B_i = NLTE_bi - NLTE_i + B_i(t0)."""
+    """Wang 2020 Eq. 7: backlash of each pair [rad], B_i = NLTE_bi - NLTE_i + B_i(t0)."""
     inc = mesh_increments_m(theta_out_rad, params, phases_rad=phases_rad)
     r = params.r_p_m
     return ((inc.delta_b1_m - inc.delta1_m) / r + params.backlash1_t0_rad,
@@ -393,7 +396,7 @@ def backlash_pairs_rad(theta_out_rad: npt.ArrayLike, params: Wang2kvParams, *,
 
 def nlte_curves(theta_out_rad: npt.ArrayLike, params: Wang2kvParams, *,
                 phases_rad: PhasesLike | None = None) -> NlteCurves:
-    """Eqs 5-9 at once: per-pair NLTE and backlash and their totals [rad]."""
+    """Wang 2020 Eqs 5-9 at once: per-pair NLTE and backlash and their totals [rad]."""
     n1, n2 = nlte_pairs_rad(theta_out_rad, params, phases_rad=phases_rad)
     b1, b2 = backlash_pairs_rad(theta_out_rad, params, phases_rad=phases_rad)
     total = np.where(n1 >= n2, np.minimum(b1, b2 - n1 + n2), np.minimum(b1 - n2 + n1, b2))
@@ -402,11 +405,11 @@ def nlte_curves(theta_out_rad: npt.ArrayLike, params: Wang2kvParams, *,
 
 def backlash_rad(theta_out_rad: npt.ArrayLike, params: Wang2kvParams, *,
                  phases_rad: PhasesLike | None = None) -> np.ndarray:
-    """Eq. 9: backlash of the reducer [rad] (gap from the touching flank to the nearest back)."""
+    """Wang 2020 Eq. 9: backlash of the reducer [rad] (touching flank to the nearest back)."""
     return nlte_curves(theta_out_rad, params, phases_rad=phases_rad).backlash_rad
 
 
-# --------------------------------------------------------------------------- Eqs 10-18
+# --------------------------------------------------------------------------- Wang 2020 Eqs 10-18
 
 
 def _load_force(load_nm: npt.ArrayLike, params: Wang2kvParams) -> np.ndarray:
@@ -419,9 +422,9 @@ def _load_force(load_nm: npt.ArrayLike, params: Wang2kvParams) -> np.ndarray:
 
 def static_te_rad(theta_out_rad: npt.ArrayLike, load_nm: npt.ArrayLike,
                   params: Wang2kvParams) -> np.ndarray:
-    """Eq. 18: static TE under a load torque, with the uneven-load switch [rad].
+    """Wang 2020 Eq. 18: static TE under a load torque, with the uneven-load switch [rad].
 
-    For ``T >= 0`` this is Eq. 18 (both pairs touch while |Delta1 - Delta2| < T/(r_p k)).
+    For ``T >= 0`` this is Wang 2020 Eq. 18 (both pairs touch while |Delta1 - Delta2| < T/(r_p k)).
     For ``T < 0`` the mirror case on the tooth backs (extension; the paper loads one way):
     the flank positions are Delta_bi + B_i(t0) r_p and the deflection points the other way.
 
@@ -446,10 +449,10 @@ def static_te_rad(theta_out_rad: npt.ArrayLike, load_nm: npt.ArrayLike,
 
 def contact_forces_n(theta_out_rad: npt.ArrayLike, load_nm: npt.ArrayLike,
                      params: Wang2kvParams) -> tuple[np.ndarray, np.ndarray]:
-    """Eqs 10 and 15: static contact forces of gear pairs 1 and 2 [N] (T >= 0).
+    """Wang 2020 Eqs 10 and 15: static contact forces of gear pairs 1 and 2 [N] (T >= 0).
 
-    A single touching pair carries the whole T / r_p (Eq. 15 as printed says T / (2 r_p),
-    which breaks the force balance of Eq. 10; see module docstring). Negative loads give
+    A single touching pair carries the whole T / r_p (Wang 2020 Eq. 15 as printed says T / (2 r_p),
+    which breaks the force balance of Wang 2020 Eq. 10; see module docstring). Negative loads give
     the mirror forces on the tooth backs (negative values).
     """
     inc = mesh_increments_m(theta_out_rad, params)
@@ -467,7 +470,7 @@ def contact_forces_n(theta_out_rad: npt.ArrayLike, load_nm: npt.ArrayLike,
 
 
 def stiffness_n_m(theta_out_rad: npt.ArrayLike, params: Wang2kvParams) -> np.ndarray:
-    """Eq. 20 in the angle domain: mesh stiffness of one pair [N/m].
+    """Wang 2020 Eq. 20 in the angle domain: mesh stiffness of one pair [N/m].
 
     k = k0 (1 + sum_n r_n cos(n z_ring |w_abs/w_out| theta_out + phi_n)).
     """
@@ -480,7 +483,7 @@ def stiffness_n_m(theta_out_rad: npt.ArrayLike, params: Wang2kvParams) -> np.nda
     return params.mesh_stiffness_n_m * k
 
 
-# --------------------------------------------------------------------------- Eqs 19-20
+# --------------------------------------------------------------------------- Wang 2020 Eqs 19-20
 
 _N_CONTACTS = 4
 _ACTIVE = tuple(tuple(j for j in range(_N_CONTACTS) if m & (1 << j)) for m in range(16))
@@ -539,7 +542,7 @@ class _State:
 
 
 class Wang2kvDynamics:
-    """Eq. 19 integrated block by block (state carried); see the module docstring.
+    """Wang 2020 Eq. 19 integrated block by block (state carried); see the module docstring.
 
     ``te_rad(t_s, theta_in_rad, omega_in_rad_s, load_nm)`` returns DTE = x / r_p [rad] at
     the given samples. The run starts at the first sample in quasi-static equilibrium.
@@ -890,7 +893,7 @@ class Wang2kvDynamics:
 
     def _equilibrium(self, theta_in: float, omega_in: float, load: float) -> tuple[float, float]:
         """Initial state at the first sample: quasi-static equilibrium under ``load``
-        (stiffness k(t0), contact set of Eq. 18), or the unloaded contact state when the
+        (stiffness k(t0), contact set of Wang 2020 Eq. 18), or the unloaded contact state when the
         parameters say ``dte_start='unloaded'`` (the load then acts as a step)."""
         if self.params.dte_start == 'unloaded':
             load = 0.0
@@ -1025,7 +1028,8 @@ def _check_block(*arrays: npt.ArrayLike) -> tuple[np.ndarray, ...]:
 class Wang2kvTeModel:
     """The :class:`sim.models.TeModel` of the Wang 2020 2K-V model.
 
-    Mode ``'nlte'`` (Eq. 8), ``'ste'`` (Eq. 18) or ``'dte'`` (Eq. 19, stateful).
+    Mode ``'nlte'`` (Wang 2020 Eq. 8), ``'ste'`` (Wang 2020 Eq. 18) or ``'dte'``
+    (Wang 2020 Eq. 19, stateful).
     """
 
     def __init__(self, params: Wang2kvParams, mode: str) -> None:

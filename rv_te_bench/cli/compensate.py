@@ -1,7 +1,7 @@
 """``rv-te compensate PRESET --te-arcmin X [--set key=value ...] [--json]``.
 
 Hu 2020 tooth-profile compensation: assigns the measured TE to the pin radius, the shifting
-modification and the cumulative circumference error (Eq. 27, Table 6 structure) and prints
+modification and the cumulative circumference error (Hu 2020 Eq. 27, Table 6 structure) and prints
 the tooth contact analysis before and after (pins in mesh, F_max, delta_max).
 """
 
@@ -45,7 +45,7 @@ def register(subparsers: Subparsers) -> None:
     p.add_argument('--fraction', type=float, default=1.0,
                    help='part of the TE to compensate, in (0, 1] (default 1)')
     p.add_argument('--scale', choices=('eq27', 'table6'), default='eq27',
-                   help='eq27: Eq. 27 as written (default); table6: scaled to Table 6')
+                   help='eq27: Hu 2020 Eq. 27 as written (default); table6: scaled to Table 6')
     p.add_argument('--set', dest='overrides', action='append', default=[], metavar='KEY=VALUE',
                    help='override a preset value (repeatable)')
     p.add_argument('--json', action='store_true', help='machine-readable output')
@@ -73,8 +73,8 @@ def _text(advice: Advice) -> str:
         lines.append(f"  TCA {label}: {t['pins_in_mesh']:>2} pins in mesh "
                      f"({t['mesh_from_deg']:.0f}..{t['mesh_to_deg']:.0f} deg), "
                      f"F_max {t['f_max_n']:.1f} N, delta_max {t['delta_max_m'] * 1e3:.4f} mm")
-    lines.append(f"  Table 6 / Eq. 27 scale for the paper's TE: {d['table6_over_eq27']:.2f} "
-                 '(see --scale)')
+    lines.append("  Table 6 / Hu 2020 Eq. 27 scale for the paper's TE: "
+                 f"{d['table6_over_eq27']:.2f} (see --scale)")
     return '\n'.join(lines)
 
 

@@ -42,7 +42,7 @@ examples:
 """
 
 
-#: The live advice the demo waits for: the preset's Eq. 21 optimum and the re-assembly of
+#: The live advice the demo waits for: the preset's Wang 2020 Eq. 21 optimum and the re-assembly of
 #: this unit from its identified eccentricities.
 WANTED_ADVICE = frozenset({'assembly-phases', 'identified-assembly-phases'})
 

@@ -1,13 +1,13 @@
 """``rv-te identify BAG``: eccentricities of a 2K-V unit from a recorded TE session.
 
 Streams the encoder blocks of a rosbag2/MCAP bag (an MCAP chunk at a time, memory
-independent of the length), forms the TE of Eq. 22 (TE = theta_out - theta_in / i) and folds
-it onto one output revolution of the kinematic output angle theta_in / i (zero = the
+independent of the length), forms the TE of Wang 2020 Eq. 22 (TE = theta_out - theta_in / i)
+and folds it onto one output revolution of the kinematic output angle theta_in / i (zero = the
 assembly reference t0); fits the Wang 2020 Eqs 1-8 model and prints what one TE record can
 tell: the pair sums Q1, Q2 and the output-wheel eccentricity E (up to their label swap),
 with 1-sigma errors and the fit quality. The split into theta_p1, theta_p2, theta_g needs
 the part magnitudes e_p1, e_p2, e_g: the preset's values unless given (``--set``, from
-runout inspection); then it recommends re-assembly phases (Eq. 21), unless the model
+runout inspection); then it recommends re-assembly phases (Wang 2020 Eq. 21), unless the model
 explains too little of the TE (``--min-explained``). A damaged bag is read up to the damage
 and the result marked PARTIAL, as ``rv-te analyze`` does.
 """

@@ -33,7 +33,7 @@ examples:
   rv-te presets                                list reducer presets
   rv-te presets wang2020-2kv                   every value with unit and source
   rv-te model wang2020-2kv --kind nlte --json  NLTE statistics of one output revolution
-  rv-te optimize-phases wang2020-2kv --json    Eq. 21 assembly-phase optimisation
+  rv-te optimize-phases wang2020-2kv --json    Wang 2020 Eq. 21 assembly-phase optimisation
   rv-te compensate hu2020-rv --te-arcmin 1.2   tooth-profile compensation (Hu 2020)
   rv-te launch --default                       bench + TE + compensation + recorder
   rv-te analyze bags/sample --report out/rep   offline report from a recorded bag

@@ -34,9 +34,9 @@ if TYPE_CHECKING:
 EXAMPLES = """\
 examples:
   rv-te model wang2020-2kv                             NLTE of one output revolution
-  rv-te model wang2020-2kv --kind ste --load-nm 300    static TE under 300 N m (Eq. 18)
+  rv-te model wang2020-2kv --kind ste --load-nm 300    static TE under 300 N m (Wang 2020 Eq. 18)
   rv-te model wang2020-2kv --kind dte --load-nm 30 --load-hz crank --plot out/dte.png
-  rv-te model wang2020-2kv --phases-deg=-70,120,110,40 --json   optimised phases (Eq. 21)
+  rv-te model wang2020-2kv --phases-deg=-70,120,110,40 --json   optimised phases (Wang 2020 Eq. 21)
   rv-te model wang2020-2kv --kind dte --load-nm 300 --dte-start unloaded
                                                        DTE with the start-up transient
   rv-te model wang2020-2kv --set mesh.stiffness_n_m=9e7 --kind ste --csv out/ste.csv
@@ -102,7 +102,7 @@ def register(subparsers: Subparsers) -> None:
                         '(default: preset drive.load_hz or 0)')
     p.add_argument('--phases-deg', type=_phases, default=None, metavar='P1,P2,G,OT',
                    help='eccentricity phases theta_p1, theta_p2, theta_g, theta_ot [deg] '
-                        '(Wang 2020 Table 2 / Eq. 21)')
+                        '(Wang 2020 Table 2 / Wang 2020 Eq. 21)')
     p.add_argument('--dte-start', choices=('loaded', 'unloaded'), default=None,
                    help="2K-V DTE: start in equilibrium under the load ('loaded', the preset's "
                         "default) or from the unloaded contact state with the load as a step "

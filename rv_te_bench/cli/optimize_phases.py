@@ -123,7 +123,7 @@ def format_result(result: PhaseOptimisation, title: str) -> str:
         lines.append(f'{name:<10} {float(rad_to_deg(b)):11.2f} {float(rad_to_deg(a)):10.2f}')
     before = float(rad_to_arcmin(result.objective_before_rad))
     after = float(rad_to_arcmin(result.objective_after_rad))
-    lines += ['', f"max|NLTE| (Eq. 21): {before:.4f}' -> {after:.4f}' "
+    lines += ['', f"max|NLTE| (Wang 2020 Eq. 21): {before:.4f}' -> {after:.4f}' "
                   f'({100 * result.reduction:.1f} % less)',
               f'grid step {float(rad_to_deg(result.grid_step_rad)):g} deg, '
               f'{result.n_combinations:,} combinations, refined: {result.refined}, '

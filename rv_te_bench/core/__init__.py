@@ -1,4 +1,5 @@
-"""Measurement-side maths: Eq. 22, streaming windows, statistics, order spectra, compensation.
+"""Measurement-side maths: Wang 2020 Eq. 22, streaming windows, statistics, order spectra,
+compensation.
 
 Pure numpy/scipy (and ``sim``); never imports rclpy.
 """

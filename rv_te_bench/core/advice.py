@@ -17,7 +17,7 @@ __all__ = ['Advice', 'AdviceKind', 'Modification', 'advice_kind', 'modification_
 
 #: The compensation the suite can advise: 2K-V assembly phases (Wang 2020 Eq. 21, identified
 #: from the measured TE or optimised on the preset) or RV tooth-profile modification (Hu 2020
-#: Eqs 24-27).
+#: Hu 2020 Eqs 24-27).
 AdviceKind: TypeAlias = Literal['assembly-phases', 'tooth-profile']
 
 _ADVICE_BY_MODEL: dict[str, AdviceKind] = {

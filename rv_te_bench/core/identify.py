@@ -10,7 +10,7 @@ order (-25 for Wang's unit),
     Q1 = e_p1 e^{i theta_p1} + e_g e^{i theta_g},   Q2 = e_p2 e^{i theta_p2} - e_g e^{i theta_g}
     E  = e_ot e^{i theta_ot}
 
-``c`` is the unknown zero of the encoders (Eq. 22 TE has an arbitrary offset). The angle
+``c`` is the unknown zero of the encoders (Wang 2020 Eq. 22 TE has an arbitrary offset). The angle
 must be ``theta_in / i``, not the measured ``theta_out = theta_in / i + TE``: the latter
 shifts the crank phase by ``|k_c| TE`` (1.3 deg for 3' of TE) and biases the result by
 per cents (issue #15).
@@ -371,13 +371,13 @@ def identify_eccentricities(phase_out_rad: npt.ArrayLike, te_rad: npt.ArrayLike,
                             params: GeometrySource, *, rng: np.random.Generator | None = None,
                             n_starts: int = 16, split: bool = True,
                             n_bins: int = DEFAULT_BINS) -> Identification:
-    """Fit the Eqs 1-8 model to a TE record and identify the unit's eccentricities.
+    """Fit the Wang 2020 Eqs 1-8 model to a TE record and identify the unit's eccentricities.
 
     Args:
         phase_out_rad: Kinematic output angle ``theta_in / i`` of each sample, measured from
             the assembly reference (t0) [rad], 1-D; ideally one whole output revolution or
             more. Not the measured output angle (see the module docstring).
-        te_rad: Measured TE (Eq. 22, any constant offset) [rad], same shape.
+        te_rad: Measured TE (Wang 2020 Eq. 22, any constant offset) [rad], same shape.
         params: ``sim.wang2020.Wang2kvParams`` or :class:`EccentricGeometry`: alpha, r_p
             and the crank order are used; its e_p1, e_p2 and e_g are taken as the *known
             part magnitudes* that split the pair sums (see module docstring). Its phases
@@ -497,7 +497,7 @@ def recommend_reassembly(identification: Identification, params: GeometrySource,
                          step_deg: float = 10.0, refine: bool = False,
                          refine_tol_deg: float = 0.5,
                          progress: ProgressCallback | None = None) -> PhaseOptimisation:
-    """Re-assembly phases for an identified unit (Eq. 21 with its eccentricities).
+    """Re-assembly phases for an identified unit (Wang 2020 Eq. 21 with its eccentricities).
 
     The magnitudes are e_p1, e_p2, e_g as assumed in the identification (part
     magnitudes) and the identified e_ot; the current phases are the identified ones, so

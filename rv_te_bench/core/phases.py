@@ -1,6 +1,6 @@
 """Assembly-phase optimisation of a 2K-V reducer (Wang 2020, Eqs 1-8, 18 and 21).
 
-The no-load TE of the 2K-V second stage (Eqs 1-8) is the upper envelope of two mesh-line
+The no-load TE of the 2K-V second stage (Wang 2020 Eqs 1-8) is the upper envelope of two mesh-line
 increments divided by the ring base radius r_p. With the angle laws of DESIGN.md s.4 (the
 planet eccentricities theta_p1, theta_p2 and the revolution eccentricity theta_g advance
 at the absolute crank rate ``k_c * phi`` with ``k_c = -25`` for Wang's unit, the output
@@ -16,7 +16,7 @@ increment *linear* in four basis functions of ``phi``::
     bo + i ao = e_ot exp(i (theta_ot - alpha))                                   ("E")
     NLTE(phi) = max(Delta_1, Delta_2) / r_p                        [rad]
 
-The Eq. 21 objective S = max_phi |NLTE(phi)| over one output revolution (the "major
+The Wang 2020 Eq. 21 objective S = max_phi |NLTE(phi)| over one output revolution (the "major
 cycle": it contains |k_c| whole crank revolutions) is minimised over the four phases on the
 paper's grid [-180:10:180] deg (37^4 = 1,874,161 combinations).
 
@@ -101,16 +101,16 @@ def wrap_rad(x: npt.ArrayLike) -> np.ndarray:
 
 @dataclass(frozen=True)
 class EccentricGeometry:
-    """What Eqs 1-8 need of a 2K-V unit: eccentricities, phases, alpha, r_p, crank order.
+    """What Wang 2020 Eqs 1-8 need of a 2K-V unit: eccentricities, phases, alpha, r_p, crank order.
 
     Attributes:
         e_m: Eccentricity magnitudes (e_p1, e_p2, e_g, e_ot) [m], >= 0.
         phases_rad: Assembly phases (theta_p1, theta_p2, theta_g, theta_ot) at t0 [rad].
         alpha_rad: Working pressure angle of the 2nd stage [rad] (35.266 deg for Wang).
-        r_p_m: Ring base radius of Eq. 5 [m] (> 0; Wang preset 61.08 mm, DESIGN.md s.4).
+        r_p_m: Ring base radius of Wang 2020 Eq. 5 [m] (> 0; Wang preset 61.08 mm, DESIGN.md s.4).
         crank_order: Signed absolute crank revolutions per output revolution (-25 for
             Wang's unit); an integer, so one output revolution holds whole crank turns.
-        mesh_stiffness_n_m: Mesh stiffness k of Eqs 10-18 [N/m] (NaN: STE not available).
+        mesh_stiffness_n_m: Mesh stiffness k of Wang 2020 Eqs 10-18 [N/m] (NaN: STE not available).
     """
 
     e_m: tuple[float, float, float, float]
@@ -214,7 +214,7 @@ def _basis(phi_rad: FloatArray, crank_order: float) -> FloatArray:
 
 def delta_pair_m(phi_out_rad: npt.ArrayLike, geom: EccentricGeometry, *,
                  phases_rad: npt.ArrayLike | None = None) -> tuple[FloatArray, FloatArray]:
-    """Mesh-line increments Delta_1, Delta_2 of Eqs 1-2 [m].
+    """Mesh-line increments Delta_1, Delta_2 of Wang 2020 Eqs 1-2 [m].
 
     Args:
         phi_out_rad: Output angle since t0 [rad], shape (n,).
@@ -235,7 +235,7 @@ def delta_pair_m(phi_out_rad: npt.ArrayLike, geom: EccentricGeometry, *,
 
 def nlte_from_phases_rad(phi_out_rad: npt.ArrayLike, geom: EccentricGeometry, *,
                          phases_rad: npt.ArrayLike | None = None) -> FloatArray:
-    """No-load TE of Eq. 8, max(Delta_1, Delta_2) / r_p [rad], shape (..., n).
+    """No-load TE of Wang 2020 Eq. 8, max(Delta_1, Delta_2) / r_p [rad], shape (..., n).
 
     Examples:
         >>> g = EccentricGeometry((1e-5, 2e-5, 1e-5, 1e-5), (0.0, 0.0, 0.0, 0.0),
@@ -250,7 +250,7 @@ def nlte_from_phases_rad(phi_out_rad: npt.ArrayLike, geom: EccentricGeometry, *,
 def static_te_from_phases_rad(phi_out_rad: npt.ArrayLike, load_nm: float,
                               geom: EccentricGeometry, *,
                               phases_rad: npt.ArrayLike | None = None) -> FloatArray:
-    """Static TE of Eq. 18 under a constant load torque [rad].
+    """Static TE of Wang 2020 Eq. 18 under a constant load torque [rad].
 
     Args:
         phi_out_rad: Output angle since t0 [rad].
@@ -264,7 +264,8 @@ def static_te_from_phases_rad(phi_out_rad: npt.ArrayLike, load_nm: float,
     load = _finite('load_nm', load_nm, nonneg=True)
     k = geom.mesh_stiffness_n_m
     if math.isnan(k):
-        msg = 'mesh_stiffness_n_m is not set: static TE (Eq. 18) needs the mesh stiffness k'
+        msg = ('mesh_stiffness_n_m is not set: static TE (Wang 2020 Eq. 18) needs the mesh '
+               'stiffness k')
         raise CompensationError(msg)
     d1, d2 = delta_pair_m(phi_out_rad, geom, phases_rad=phases_rad)
     defl = load / (geom.r_p_m * k)
@@ -303,7 +304,7 @@ def _bounds_for_sets(phases_rad: FloatArray, geom: EccentricGeometry, n: int,
 
 def phase_objective_rad(phases_rad: npt.ArrayLike, geom: EccentricGeometry, *,
                         n_samples: int = _N_REPORT) -> FloatArray:
-    """Eq. 21 objective S = max |NLTE| over one output revolution [rad].
+    """Wang 2020 Eq. 21 objective S = max |NLTE| over one output revolution [rad].
 
     Args:
         phases_rad: Phase sets (..., 4) [rad] in :data:`PHASE_NAMES` order.
@@ -358,7 +359,7 @@ def _combos(ax: Sequence[FloatArray], flat: np.ndarray, shape: tuple[int, int, i
 def grid_search_phases(geom: EccentricGeometry, axes_rad: Sequence[npt.ArrayLike], *,
                        progress: ProgressCallback | None = None,
                        ) -> tuple[tuple[float, float, float, float], float, int]:
-    """Minimise the Eq. 21 objective over the Cartesian product of four phase axes.
+    """Minimise the Wang 2020 Eq. 21 objective over the Cartesian product of four phase axes.
 
     Args:
         geom: Unit geometry (magnitudes; its phases are ignored).
@@ -444,7 +445,7 @@ def grid_search_phases(geom: EccentricGeometry, axes_rad: Sequence[npt.ArrayLike
 
 @dataclass(frozen=True)
 class SteComparison:
-    """Static TE (Eq. 18) statistics at one load before and after re-assembly.
+    """Static TE (Wang 2020 Eq. 18) statistics at one load before and after re-assembly.
 
     Attributes:
         load_nm: Constant output load torque [N m].
@@ -459,7 +460,7 @@ class SteComparison:
 
 @dataclass(frozen=True)
 class PhaseOptimisation:
-    """Result of the Eq. 21 phase optimisation (Table 4 rows before/after).
+    """Result of the Wang 2020 Eq. 21 phase optimisation (Table 4 rows before/after).
 
     Attributes:
         phases_before_rad: Phases as assembled (theta_p1, theta_p2, theta_g, theta_ot).
@@ -554,7 +555,7 @@ class PhaseOptimisation:
 
 
 def _grid_axis(step_rad: float) -> FloatArray:
-    """The paper's axis [-180:step:180] deg in radians (both ends kept, as in Eq. 21)."""
+    """The paper's axis [-180:step:180] deg in radians (both ends kept, as in Wang 2020 Eq. 21)."""
     n = int(math.floor(_TWO_PI / step_rad + 1e-9))
     return -math.pi + step_rad * np.arange(n + 1, dtype=np.float64)
 
@@ -567,7 +568,7 @@ def optimise_phases(geom_or_params: GeometrySource, *, step_deg: float = 10.0,
                     refine: bool = False, refine_tol_deg: float = 0.5,
                     loads_nm: Sequence[float] = (30.0, 100.0, 300.0),
                     progress: ProgressCallback | None = None) -> PhaseOptimisation:
-    """Eq. 21: minimise max |NLTE| over the four assembly phases.
+    """Wang 2020 Eq. 21: minimise max |NLTE| over the four assembly phases.
 
     Args:
         geom_or_params: :class:`EccentricGeometry` or ``sim.wang2020.Wang2kvParams``.

@@ -2,34 +2,34 @@
 
 The measured total TE is assigned to the three error factors whose sensitivity index is
 negative (Table 2): the pin radius (``delta_b``), the shifting tooth-profile modification
-(``delta_g``) and the cumulative circumference error of the cycloid (``delta_h``). Eq. 27
+(``delta_g``) and the cumulative circumference error of the cycloid (``delta_h``). Hu 2020 Eq. 27
 turns the TE shares into error values::
 
     delta = (pi a z_c / (180 * 60)) A^-1 dtheta        (dtheta in arcmin)
           = a z_c A^-1 dtheta                           (dtheta in rad)
 
-with ``A`` the diagonal matrix of Eq. 24 (twice the Table 2 coefficients). The paper says
+with ``A`` the diagonal matrix of Hu 2020 Eq. 24 (twice the Table 2 coefficients). The paper says
 the TE is divided among the three factors "in inverse proportion"; its Table 6 changes
 (-0.0279, +0.0171, -0.011 mm) are in the ratio of the sensitivity indices
 (-1.6308 : -1 : -0.6441, DESIGN.md s.4). Shares ``dtheta_j = TE A_jj^2 / sum_k A_kk^2``
-are the ones that give exactly that ratio through Eq. 27, so they are used here.
+are the ones that give exactly that ratio through Hu 2020 Eq. 27, so they are used here.
 
 Ambiguities of the paper, stated rather than hidden:
 
-* **Absolute scale.** Eq. 27 with the paper's total TE (1.4559 arcmin) gives changes of
+* **Absolute scale.** Hu 2020 Eq. 27 with the paper's total TE (1.4559 arcmin) gives changes of
   0.0081 / 0.0050 / 0.0032 mm; Table 6 has 0.0279 / 0.0171 / 0.011 mm, about 3.45 times
-  more. No reading of Eq. 27 found reproduces the Table 6 scale. The recommendation follows
-  Eq. 27 as written (``scale='eq27'``); ``scale='table6'`` scales it to Table 6 instead.
-  ``Advice.details`` carries Table 6, what Eq. 27 gives for the paper's TE, and their ratio.
-* **Direction of the shifting modification.** Eq. 27 gives all three errors negative
+  more. No reading of Hu 2020 Eq. 27 found reproduces the Table 6 scale. The recommendation follows
+  Hu 2020 Eq. 27 as written (``scale='eq27'``); ``scale='table6'`` scales it to Table 6 instead.
+  ``Advice.details`` carries Table 6, what Hu 2020 Eq. 27 gives for the paper's TE, and their ratio.
+* **Direction of the shifting modification.** Hu 2020 Eq. 27 gives all three errors negative
   (``A_jj < 0``, TE shares positive). Table 6 applies the pin radius and cumulative errors
   as signed changes (3 -> 2.9721 mm, 0 -> -0.011 mm) but moves the shifting modification
   towards zero (-0.0437 -> -0.0266 mm), i.e. it reduces the magnitude of the shift. That is
   what the paper built and tested (more pins in mesh, lower F_max, -47 % TE on the bench), so
   the recommendation does the same: ``delta_r_p_new = delta_r_p - delta_g``.
-* **Predicted TE (issue #18).** The linear model (Eq. 23) cancels the assigned TE
+* **Predicted TE (issue #18).** The linear model (Hu 2020 Eq. 23) cancels the assigned TE
   completely, which no one should believe: part of a measured TE is elastic, the cycloid disc
-  turning by ``beta = delta_max / r_c'`` against the pins under the torque (TCA, Eqs 35-48,
+  turning by ``beta = delta_max / r_c'`` against the pins under the torque (TCA, Hu 2020 Eqs 35-48,
   :func:`sim.hu2020.elastic_te_rad`). A geometric modification does not cancel it; it only
   changes it through the TCA of the new geometry (more pins in mesh, smaller delta_max). The
   prediction is therefore ``TE_after = (1 - fraction) * G + E_after`` with ``E`` the elastic
@@ -85,7 +85,7 @@ PAPER_TABLE6: dict[str, Any] = {
 
 
 def _diag_a(params: HuRvParams) -> dict[str, float]:
-    """Diagonal of Eq. 24's A for the three negative factors."""
+    """Diagonal of Hu 2020 Eq. 24's A for the three negative factors."""
     coef = {r.key: r.coefficient for r in sensitivity_table(params)}
     return {k: 2.0 * coef[k] for k in NEGATIVE_FACTORS}
 
@@ -98,7 +98,7 @@ def te_shares_rad(params: HuRvParams, te_rad: float) -> dict[str, float]:
 
 
 def eq27_errors_m(params: HuRvParams, shares_rad: dict[str, float]) -> dict[str, float]:
-    """Eq. 27: error values from TE shares, ``delta_j = a z_c dtheta_j / A_jj`` [m].
+    """Hu 2020 Eq. 27: error values from TE shares, ``delta_j = a z_c dtheta_j / A_jj`` [m].
 
     ``A`` is diagonal, so ``A^-1`` acts per factor; only the factors given are solved (the
     full 9 x 9 ``A`` is singular without modification, where ``k_n = 0``).
@@ -129,10 +129,10 @@ def tooth_profile_compensation(params: HuRvParams, te_rad: float, *, preset: str
             (peak-to-peak) unless ``te_metric`` says otherwise.
         preset: Preset name recorded in the advice.
         fraction: Part of the TE to compensate, in (0, 1].
-        scale: ``'eq27'`` (default): Eq. 27 as written. ``'table6'``: the same directions
+        scale: ``'eq27'`` (default): Hu 2020 Eq. 27 as written. ``'table6'``: the same directions
             and ratios, scaled to the paper's Table 6, i.e. 0.0171 mm per unit sensitivity
             index for 1.4559 arcmin, proportional to the TE (an empirical calibration on
-            the paper's one example, about 3.45 x Eq. 27).
+            the paper's one example, about 3.45 x Hu 2020 Eq. 27).
         te_metric: Which statistic ``te_rad`` is, ``'pp'`` or ``'amplitude'`` (recorded).
         with_tca: Also run the tooth contact analysis before/after (into ``details``).
         load_case: How the load acts over the measured period, for the elastic part of the
@@ -142,7 +142,7 @@ def tooth_profile_compensation(params: HuRvParams, te_rad: float, *, preset: str
 
     Returns:
         Advice with method ``'tooth-profile'``, three Modification items in Table 6 order
-        (values in m) and ``details`` holding the Eq. 27 numbers, the paper's Table 6 and,
+        (values in m) and ``details`` holding the Hu 2020 Eq. 27 numbers, the paper's Table 6 and,
         with ``with_tca``, the TCA summaries before and after.
 
     Raises:
@@ -206,9 +206,10 @@ def tooth_profile_compensation(params: HuRvParams, te_rad: float, *, preset: str
         'table6_over_eq27': abs(PAPER_TABLE6['change_m']['pin_radius'] / paper_eq27['pin_radius']),
         'k1_prime_before': params.k1_prime,
         'k1_prime_after': after.k1_prime,
-        'ambiguity': ('Eq. 27 as written gives ~1/3.45 of the Table 6 changes for the same TE; '
+        'ambiguity': ('Hu 2020 Eq. 27 as written gives ~1/3.45 of the Table 6 changes for the '
+                      'same TE; '
                       'the shifting modification is moved towards zero as in Table 6, the '
-                      'opposite sign of the Eq. 27 error. See module docstring.'),
+                      'opposite sign of the Hu 2020 Eq. 27 error. See module docstring.'),
     }
     if with_tca:
         try:
@@ -230,12 +231,13 @@ def tooth_profile_compensation(params: HuRvParams, te_rad: float, *, preset: str
         'elastic_pp_before_rad': elastic_before, 'elastic_pp_after_rad': elastic_after,
         'geometric_part_rad': geometric,
         'te_after_linear_model_rad': (1.0 - fraction) * te_rad,
-        'prediction': ('TE_after = (1 - fraction) * G + E_after: the linear model (Eq. 23) '
+        'prediction': ('TE_after = (1 - fraction) * G + E_after: the linear model (Hu 2020 Eq. 23) '
                        'removes the geometric part G = TE - E_before; the elastic part E '
                        '(disc rotation delta_max / r_c\' of the TCA, x2 for a reversing '
                        'load) follows the TCA of the new geometry'),
     }
-    summary = (f'[{scale}] assign {fraction:.0%} of the TE to r_rp, delta_r_p, delta_delta_8 (Eq. 27): '
+    summary = (f'[{scale}] assign {fraction:.0%} of the TE to r_rp, delta_r_p, delta_delta_8 '
+               '(Hu 2020 Eq. 27): '
                f'r_rp {params.r_rp_m * 1e3:.4f} -> {new_r_rp * 1e3:.4f} mm, delta_r_p '
                f'{params.delta_r_p_m * 1e3:.4f} -> {new_shift * 1e3:.4f} mm, '
                f'delta_delta_8 {params.cumulative_mod_m * 1e3:.4f} -> {new_cum * 1e3:.4f} mm')

@@ -295,8 +295,8 @@ def _advice(report: dict[str, Any]) -> list[str]:
                            f"{likely_source(top['output_order'], bench)}.")
     if {'te_pp_ccw_rad', 'te_pp_cw_rad'} & failed:
         out.append('TE out of limit: see the strongest line above; for a 2K-V, rv-te identify '
-                   'and the Eq. 21 re-assembly phases; for an RV, the Hu 2020 tooth-profile '
-                   'compensation (rv-te compensate).')
+                   'and the Wang 2020 Eq. 21 re-assembly phases; for an RV, the Hu 2020 '
+                   'tooth-profile compensation (rv-te compensate).')
     if {'backlash_rad', 'lost_motion_rad'} & failed:
         out.append('Backlash / lost motion out of limit: clearances of the pin-cycloid mesh '
                    '(tooth-profile modifications), crank bearings and pin holes; a unit with '
