@@ -1,7 +1,7 @@
 """``rv-te analyze``: table, JSON, report files, comparison, bad input and exit codes.
 
 Expected numbers come from the TE written into the synthetic bags (see
-``tests/report/__init__.py``): 1 f_w = 0.6', 2 f_w = 0.2', f_out = 0.1', mean -0.15'.
+``tests/report/synthetic_bags.py``): 1 f_w = 0.6', 2 f_w = 0.2', f_out = 0.1', mean -0.15'.
 """
 
 from __future__ import annotations
