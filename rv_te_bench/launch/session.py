@@ -47,6 +47,7 @@ from rv_te_bench.safe_yaml import (
 
 if TYPE_CHECKING:
     from collections.abc import Callable, Sequence
+    from typing import IO
 
 # node name -> (module, class name); the order is the start order; shutdown runs reversed
 # except that the recorder always stops last.
@@ -348,7 +349,7 @@ class Session:
     """A running session (process per node). Use as a context manager or call stop()."""
 
     def __init__(self, spec: SessionSpec, *, log: Callable[[str], None] | None = None,
-                 stdout: Any = None) -> None:  # noqa: ANN401 - file object or None
+                 stdout: IO[Any] | int | None = None) -> None:
         """Prepare; nothing starts until :meth:`start`."""
         self.spec = spec
         self.log = log or (lambda s: print(s, file=sys.stderr))
