@@ -205,8 +205,7 @@ def open_bag(path: str | Path) -> Bag:
         msg = f'{meta_path} is not rosbag2 metadata (missing or bad key {exc}).'
         raise BagError(msg) from None
     if storage == 'sqlite3':   # read through rosbags (issue #19 s.4)
-        from rv_te_bench.io._sqlite_bag import sqlite_bag  # noqa: PLC0415
-        return sqlite_bag(path, info, topics, listed)
+        return _sqlite.sqlite_bag(path, info, topics, listed)
     if storage != 'mcap':
         msg = f'Bag {path} uses storage {storage!r}; only mcap and sqlite3 are supported.'
         raise BagError(msg)

@@ -18,6 +18,7 @@ import functools
 from typing import TYPE_CHECKING, Any
 
 from rv_te_bench.errors import BagError, BenchInfoError, YamlInputError
+from rv_te_bench.io import _sqlite_bag as _sqlite
 from rv_te_bench.safe_yaml import DOCUMENT_LIMITS, load_yaml
 
 if TYPE_CHECKING:
@@ -111,7 +112,6 @@ def read_bench_info(path: str | Path, topic: str | None = None) -> dict[str, Any
         BagError: Bad layout, or not a readable MCAP bag (no topic, or neither BenchInfo
             nor encoder data readable).
     """
-    from rv_te_bench.io import _sqlite_bag as _sqlite  # noqa: PLC0415
     from rv_te_bench.io import bag_reader as br  # noqa: PLC0415 - bag_reader re-exports this
     from rv_te_bench.io._mcap_scan import _indexed_messages  # noqa: PLC0415
     from rv_te_bench.io.msgdefs import BENCH_INFO, ENCODER_BLOCK, rv_te_typestore  # noqa: PLC0415

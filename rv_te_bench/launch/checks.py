@@ -18,6 +18,7 @@ from typing import TYPE_CHECKING, Any
 
 from rv_te_bench.errors import ParameterFileError, RvTeError
 from rv_te_bench.safe_yaml import brief
+from sim.errors import SimError
 
 if TYPE_CHECKING:
     from collections.abc import Iterator, Sequence
@@ -195,7 +196,6 @@ def check_node_config(node: str, values: dict[str, Any], *, namespace: str) -> N
         ParameterFileError: The node would refuse these parameters at start (names the
             node and the rule).
     """
-    from sim.errors import SimError  # noqa: PLC0415
 
     from rv_te_bench.launch.session import node_specs  # noqa: PLC0415
 

@@ -35,10 +35,18 @@ import re
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import TYPE_CHECKING, Any
-
+from typing import Any
 
 from rv_te_bench.errors import ParameterFileError, YamlInputError, YamlLimitError
+from rv_te_bench.launch.session import (
+    SessionSpec,
+    build_session,
+    check_session,
+    node_specs,
+    normalise_namespace,
+    parse_param_override,
+)
+from rv_te_bench.params import check_parameters, coerce_parameters
 from rv_te_bench.safe_yaml import (
     DOCUMENT_LIMITS,
     SMALL_TEXT_LIMITS,
@@ -46,9 +54,6 @@ from rv_te_bench.safe_yaml import (
     load_yaml,
     read_yaml_file,
 )
-
-if TYPE_CHECKING:
-    from rv_te_bench.launch.session import SessionSpec
 
 __all__ = [
     'EXEC_TO_NODE',
@@ -369,16 +374,6 @@ def session_from_launch(desc: LaunchDescription, *, overrides: Sequence[str] = (
             namespaces or with different remappings, a node named twice or not in the file,
             a recorder on sim time beside a bench that publishes no /clock.
     """
-    from rv_te_bench.launch.session import (  # noqa: PLC0415
-        SessionSpec,
-        build_session,
-        check_session,
-        node_specs,
-        normalise_namespace,
-        parse_param_override,
-    )
-    from rv_te_bench.params import check_parameters, coerce_parameters  # noqa: PLC0415
-
     p = desc.path
     names = [n.node for n in desc.nodes]
     twice = sorted({n for n in names if names.count(n) > 1})

@@ -30,10 +30,12 @@ from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 from rv_te_bench.errors import ParameterFileError, YamlInputError, YamlLimitError
+from rv_te_bench.launch.checks import check_namespace, check_node_config, check_ros_names
 from rv_te_bench.params import (
     ParamSpec,
     check_parameters,
     coerce_parameters,
+    coerce_value,
     load_parameter_file,
 )
 from rv_te_bench.safe_yaml import (
@@ -78,8 +80,6 @@ def normalise_namespace(ns: str) -> str:
     Raises:
         ParameterFileError: Not a valid ROS namespace (rmw's rule named).
     """
-    from rv_te_bench.launch.checks import check_namespace  # noqa: PLC0415
-
     return check_namespace(ns)
 
 
@@ -183,8 +183,6 @@ def check_session(spec: SessionSpec) -> None:
     Raises:
         ParameterFileError: A node would refuse to start; names the node and the rule.
     """
-    from rv_te_bench.launch.checks import check_node_config, check_ros_names  # noqa: PLC0415
-
     for node in spec.nodes:
         values = node_parameters(spec, node)
         topics = values.get('topics', next(
@@ -201,8 +199,6 @@ def _match_node_key(node_key: str, ns: str, f: str | Path) -> list[str]:
     Namespaces and node names follow ROS's rules (rcl refuses a file that breaks them), so
     a key that can never match a node (``/1x/bench``, ``a//bench``) is an error.
     """
-    from rv_te_bench.launch.checks import check_namespace  # noqa: PLC0415
-
     if node_key == '/**':
         return list(NODE_TYPES)
     key = node_key if node_key.startswith('/') else f'{ns}/{node_key}' if ns else node_key
@@ -279,7 +275,6 @@ def typed_parameter(name: str, value: Any, specs: tuple[ParamSpec, ...]) -> Any:
     from rclpy.parameter import Parameter  # noqa: PLC0415
 
     from rv_te_bench.nodes.common import PARAMETER_TYPES  # noqa: PLC0415
-    from rv_te_bench.params import coerce_value  # noqa: PLC0415
 
     spec = next((s for s in specs if s.name == name), None)
     if spec is None:
