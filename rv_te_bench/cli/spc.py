@@ -63,7 +63,8 @@ def register(subparsers: Subparsers) -> None:
     add_filter_arguments(p)
     p.add_argument('--by-lot', action='store_true',
                    help='X-bar/R chart with one subgroup per lot (2-25 units each)')
-    p.add_argument('--baseline', type=int_between(2, _MAX_BASELINE), default=_DEFAULT_BASELINE, metavar='N',
+    p.add_argument('--baseline', type=int_between(2, _MAX_BASELINE), default=_DEFAULT_BASELINE,
+                   metavar='N',
                    help=f'the first N points set the centre line and limits (default '
                         f'{_DEFAULT_BASELINE}; all points when there are fewer)')
     p.add_argument('--rules', choices=('nelson', 'western-electric'), default='nelson',

@@ -249,7 +249,8 @@ def _bag_section(res: AnalysisResult) -> str:  # noqa: C901 - one report section
                        '<th class="l">unit</th><th>current</th><th>recommended</th>'
                        + ('<th>sensitivity S<sub>j</sub></th>' if sens else '') + '</tr>')
             out += [f'<tr><td class="l">{_e(m.factor)}</td><td class="l">{_e(m.symbol)}</td>'
-                    f'<td class="l">{_e(m.unit)}</td><td>{modification_value(m.current_value, m.unit, html=True)}</td>'
+                    f'<td class="l">{_e(m.unit)}</td>'
+                    f'<td>{modification_value(m.current_value, m.unit, html=True)}</td>'
                     f'<td>{modification_value(m.recommended_value, m.unit, html=True)}</td>'
                     + (f'<td>{_sens(m.sensitivity_index)}</td>' if sens else '') + '</tr>'
                     for m in a.modifications]
