@@ -123,6 +123,24 @@ def _lapack_dposv() -> Any:  # noqa: ANN401
 
 
 _DPOSV = _lapack_dposv()
+# Newmark steps whose effective matrices are assembled at once on the TE path: 64 x 900
+# doubles (0.5 MB) stay in the L2 cache for the solves (2048 at once cost ~2.5 us a step),
+# and 64 x 23 x ~120 keeps the product below OpenBLAS's threading threshold (m n k =
+# 262144): on the shared 2-core machine a threaded small product waited for a busy core
+# (blocks of 1000 ran at 0.9x real time instead of 12x).
+_SUB_STEPS = 64
+_BLAS_SERIAL_MNK = 200_000
+
+
+def _serial_matmul(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """``a @ b`` (2-D) in row slices small enough that OpenBLAS runs them on one thread."""
+    rows = max(1, _BLAS_SERIAL_MNK // max(1, a.shape[1] * b.shape[1]))
+    if a.shape[0] <= rows:
+        return a @ b
+    out = np.empty((a.shape[0], b.shape[1]))
+    for r0 in range(0, a.shape[0], rows):
+        np.matmul(a[r0:r0 + rows], b, out=out[r0:r0 + rows])
+    return out
 
 if TYPE_CHECKING:
     import numpy.typing as npt
@@ -580,7 +598,7 @@ class Li2023DteModel:
         self._ksp_harm = 2.0 * k1 / (np.pi * ls) * np.sin(ls * width / 2.0)
         self._build_matrices()
         self._build_error_patterns()
-        self._keff_buf = np.empty((0, self.ndof**2))
+        self._keff_buf = np.empty((_SUB_STEPS, self.ndof**2))
         self._ops_cache: dict[float, tuple[np.ndarray, np.ndarray]] = {}
         self.reset()
 
@@ -688,6 +706,10 @@ class Li2023DteModel:
         self._basis = np.concatenate([k0.reshape(1, -1), self._sp_mats, *arm, *pin])
         self._vary_cols = np.nonzero(np.any(self._basis[1:] != 0, axis=0))[0]
         self._vary_basis = self._basis[1:, self._vary_cols]
+        # dposv (uplo 'L' on the C-ordered matrix) reads only the upper triangle (row <= col)
+        up = self._vary_cols[self._vary_cols // nd <= self._vary_cols % nd]
+        self._vary_cols_up = up
+        self._vary_basis_up = np.ascontiguousarray(self._basis[1:, up])
         # mean over the eccentric angles and mesh phases: the constant terms
         k_mean = (k0 + p.k_sun_planet_n_m * self._sp_mats.sum(0).reshape(nd, nd)
                   + sum(a[0].reshape(nd, nd) for a in arm)
@@ -794,7 +816,7 @@ class Li2023DteModel:
                         kce * (self._r_c * cb)], axis=-1)                    # (S, N, 3)
         feat = np.concatenate([np.stack(feats, axis=1), arm.reshape(s, -1),
                                pin.reshape(s, -1)], axis=1)
-        return feat @ self._err_pattern + self._f_hole
+        return _serial_matmul(feat, self._err_pattern) + self._f_hole
 
     def _build_error_patterns(self) -> None:
         """Fixed parts of :meth:`_error_forces`: DOF patterns, hole-error constants."""
@@ -1011,18 +1033,12 @@ class Li2023DteModel:
         # K_eff = K0 + a0 M + a1 C + (time-varying part, nonzero on few entries only)
         m_flat, c_flat = self.mass_matrix.ravel(), c.ravel()
         phase = self._phase(th)
-        # one buffer per model (a fresh 0.7 MB array per block cost page faults)
-        if self._keff_buf.shape[0] < th.size:
-            self._keff_buf = np.empty((th.size, nd * nd))
-        keff = self._keff_buf[:th.size]
-        if np.all(h == h[0]):
-            keff[:] = self._ops(float(h[0]))[4]
-        else:
-            keff[:] = self._basis[0] + a0[:, None] * m_flat + a1[:, None] * c_flat
-        keff[:, self._vary_cols] += self._coeffs(th, phase)[:, 1:] @ self._vary_basis
+        vary = self._coeffs(th, phase)[:, 1:]
         f = self.forces(th, ld, phase)
         if _DPOSV is not None and int(watch.max()) < nd:
-            return self._run_chunk_q(keff, f, h, watch)
+            return self._run_chunk_q(vary, f, h, watch)
+        keff = self._basis[0] + a0[:, None] * m_flat + a1[:, None] * c_flat
+        keff[:, self._vary_cols] += vary @ self._vary_basis
         x = self._state
         io = int(watch[0])
         single = watch.size == 1
@@ -1067,7 +1083,7 @@ class Li2023DteModel:
             ops = self._ops_cache[h] = (np.concatenate([pmat, rmat]), lmat, pmat, wmat, keff0)
         return ops
 
-    def _run_chunk_q(self, keff: np.ndarray, f: np.ndarray, h: np.ndarray,
+    def _run_chunk_q(self, vary: np.ndarray, f: np.ndarray, h: np.ndarray,
                      watch: np.ndarray) -> np.ndarray:
         """Newmark over one batch when only displacements are watched (the TE path).
 
@@ -1077,12 +1093,15 @@ class Li2023DteModel:
         ``u' = 4 a0 q' - a2 w - u`` and ``w' = 2 a1 q' - w``, so a step is one add
         (``p + F``), one Cholesky solve (LAPACK dposv called directly, no wrapper
         overhead) and one 2n x 3n matrix-vector product. q, v, a are recovered at the end.
+        The effective matrices (``vary`` holds their time-varying coefficients) are
+        assembled ``_SUB_STEPS`` at a time into one buffer that stays in the CPU cache.
         """
         nd, steps = self.ndof, h.size
         out = np.empty((steps, watch.size))
         cuts = [0, *(np.flatnonzero(h[1:] != h[:-1]) + 1).tolist(), steps]
-        keff = np.ascontiguousarray(keff)
         f = np.ascontiguousarray(f)
+        keff = self._keff_buf
+        vcols, vbasis = self._vary_cols_up, self._vary_basis_up
         info = ctypes.c_int(0)
         uplo, n_c, one = ctypes.c_char(b'L'), ctypes.c_int(nd), ctypes.c_int(1)
         p_uplo, p_n, p_one, p_info = (ctypes.addressof(o) for o in (uplo, n_c, one, info))
@@ -1092,7 +1111,7 @@ class Li2023DteModel:
         for s0, s1 in zip(cuts[:-1], cuts[1:], strict=True):
             hs = float(h[s0])
             a0, a1, a2 = 4.0 / hs**2, 2.0 / hs, 4.0 / hs
-            _, _, pmat, wmat, _ = self._ops(hs)
+            _, _, pmat, wmat, keff0 = self._ops(hs)
             m = s1 - s0
             zb = np.empty((m + 1, 3 * nd))
             zs = self._zstate
@@ -1101,20 +1120,26 @@ class Li2023DteModel:
             else:
                 zb[0, nd:2 * nd] = pmat @ x
                 zb[0, 2 * nd:] = a2 * mdiag * (a1 * x[:nd] + x[nd:2 * nd])
-            base_k = keff.ctypes.data + s0 * keff.strides[0]
-            stride_k = keff.strides[0]
+            base_k, stride_k = keff.ctypes.data, keff.strides[0]
             base_q, stride_q = zb.ctypes.data, zb.strides[0]
             add, matmul = np.add, np.matmul
-            for n, (zp, fn, zq, za, zn) in enumerate(zip(
-                    zb[:m, nd:2 * nd], f[s0:s1], zb[:m, :nd], zb[:m], zb[1:, nd:],
-                    strict=True)):
-                add(zp, fn, out=zq)
-                _DPOSV(p_uplo, p_n, p_one, base_k + n * stride_k, p_n,
-                       base_q + n * stride_q, p_n, p_info)
-                if info.value != 0:
-                    msg = f'Newmark step matrix not positive definite (dposv info {info.value})'
-                    raise ModelInputError(msg)
-                matmul(wmat, za, out=zn)
+            for b0 in range(0, m, _SUB_STEPS):
+                b1 = min(m, b0 + _SUB_STEPS)
+                kb = keff[:b1 - b0]
+                kb[:] = keff0
+                kb[:, vcols] += vary[s0 + b0:s0 + b1] @ vbasis
+                addr_k = base_k - b0 * stride_k
+                for n, (zp, fn, zq, za, zn) in enumerate(zip(
+                        zb[b0:b1, nd:2 * nd], f[s0 + b0:s0 + b1], zb[b0:b1, :nd],
+                        zb[b0:b1], zb[b0 + 1:b1 + 1, nd:], strict=True), start=b0):
+                    add(zp, fn, out=zq)
+                    _DPOSV(p_uplo, p_n, p_one, addr_k + n * stride_k, p_n,
+                           base_q + n * stride_q, p_n, p_info)
+                    if info.value != 0:
+                        msg = ('Newmark step matrix not positive definite '
+                               f'(dposv info {info.value})')
+                        raise ModelInputError(msg)
+                    matmul(wmat, za, out=zn)
             q_all = zb[:m, :nd]
             out[s0:s1] = q_all[:, watch]
             # back to x = [q, v, a]
