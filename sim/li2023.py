@@ -81,10 +81,14 @@ not accuracy), a real-time factor of ~0.003 in Python. Here: Newmark average acc
 damping) with steps of at most ``solver.max_step_s`` = 0.25 ms, which differs from a 16x
 finer step by <= 0.11 arcsec. ``K(t)`` is a trigonometric polynomial in the eccentric
 angles times the mesh stiffnesses, so the effective matrices ``K + 2/h C + 4/h^2 M`` of a
-whole batch of steps come from one matrix product; the sequential part is one Cholesky
-solve (LAPACK dposv, 30 x 30) and two small matrix-vector products per step. Real-time
-factor at 1 kHz samples: 3 to 10 on the shared 2-core machine
-(``benchmarks/bench_li2023.py``).
+batch of steps come from one matrix product (64 steps at a time on the TE path, so that
+they stay in the CPU cache). When only displacements are watched (``te_rad``), a step
+runs on z = [p; a2 M w] (p: the right-hand side without the force) instead of
+x = [q, v, a]: one add, one Cholesky solve (LAPACK dposv, 30 x 30, called through SciPy's
+Cython LAPACK table without the f2py wrapper) and one 60 x 90 matrix-vector product,
+~5 us; the same scheme as the x form (equal to ~1e-11 arcsec; the x form runs when a
+velocity or acceleration is watched). Real-time factor at 10 kHz samples, blocks of 100:
+~11 (benchmarks/README.md, ``benchmarks/bench_li2023.py``).
 """
 
 from __future__ import annotations
@@ -731,11 +735,14 @@ class Li2023DteModel:
         p = self.params
         ls = np.arange(1, self._ksp_harm.size + 1)
         ph = p.z_sun * (ang['sun_rel'][:, None] + self._psi[None, :])          # Eq. 8
-        ksp = p.k_sun_planet_n_m + np.cos(ls * ph[..., None]) @ self._ksp_harm
+        # einsum, not @: numpy hands (S, M, L) @ (L,) to BLAS as one (S M) x L gemv, which
+        # OpenBLAS splits over threads from S ~ 600 on (a busy second core stalls it)
+        ksp = p.k_sun_planet_n_m + np.einsum('sml,l->sm', np.cos(ls * ph[..., None]),
+                                             self._ksp_harm)
         lc = np.arange(1, self._kcr_harm.size + 1)
         big = ang['crank_abs'][:, None] + self._disc_phase[None, :]
         ex = np.exp(1j * lc * p.z_pin * big[..., None])
-        kcr = self._kcr_mean + np.real(ex @ self._kcr_harm)
+        kcr = self._kcr_mean + np.real(np.einsum('snl,l->sn', ex, self._kcr_harm))
         return ksp, kcr
 
     def stiffness_matrix(self, theta_in_rad: npt.ArrayLike) -> np.ndarray:
@@ -1051,7 +1058,7 @@ class Li2023DteModel:
                 and 16 * np.count_nonzero(h[1:] != h[:-1]) <= h.size):
             return self._run_chunk_q(vary, f, h, watch)
         keff = self._basis[0] + a0[:, None] * m_flat + a1[:, None] * c_flat
-        keff[:, self._vary_cols] += vary @ self._vary_basis
+        keff[:, self._vary_cols] += _serial_matmul(vary, self._vary_basis)
         x = self._state
         io = int(watch[0])
         single = watch.size == 1
