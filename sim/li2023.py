@@ -127,12 +127,13 @@ def _lapack_dposv() -> Any:  # noqa: ANN401
 
 
 _DPOSV = _lapack_dposv()
-# Newmark steps whose effective matrices are assembled at once on the TE path: 64 x 900
-# doubles (0.5 MB) stay in the L2 cache for the solves (2048 at once cost ~2.5 us a step),
-# and 64 x 23 x ~120 keeps the product below OpenBLAS's threading threshold (m n k =
-# 262144): on the shared 2-core machine a threaded small product waited for a busy core
-# (blocks of 1000 ran at 0.9x real time instead of 12x).
-_SUB_STEPS = 64
+# Newmark steps whose effective matrices are assembled at once on the TE path: 100 x 900
+# doubles (0.7 MB) stay in the L2 cache for the solves (2048 at once cost ~2.5 us a step;
+# 100: a bench block of 100 samples at 10 kHz in one go). Products of more than ~200,000
+# multiply-adds are cut into row slices (_serial_matmul): above OpenBLAS's threading
+# threshold (m n k = 262144) a small product waited for a busy second core on the shared
+# 2-core machine (blocks of 1000 ran at 0.9x real time instead of 12x).
+_SUB_STEPS = 100
 _BLAS_SERIAL_MNK = 200_000
 
 
@@ -1187,7 +1188,7 @@ class Li2023DteModel:
                 b1 = min(m, b0 + _SUB_STEPS)
                 kb = keff[:b1 - b0]
                 kb[:] = keff0
-                kb[:, vcols] += vary[s0 + b0:s0 + b1] @ vbasis
+                kb[:, vcols] += _serial_matmul(vary[s0 + b0:s0 + b1], vbasis)
                 addr_k = base_k - b0 * stride_k
                 for n, (zp, fn, zq, za, zn) in enumerate(zip(
                         zb[b0:b1, nd:2 * nd], f[s0 + b0:s0 + b1], zb[b0:b1, :nd],
