@@ -1082,7 +1082,9 @@ class Li2023DteModel:
 
         The effective matrices ``K(t_n+1) + (2/h) C + (4/h^2) M`` of the whole batch come
         from one matrix product; each step then costs one Cholesky solve (LAPACK dposv;
-        the matrix is symmetric positive definite).
+        the matrix is symmetric positive definite). When only displacements are watched
+        the steps run in :meth:`_run_chunk_q` (same scheme, cheaper form); this loop on
+        x = [q, v, a] serves velocities and accelerations.
         """
         nd = self.ndof
         c = self.damping_matrix
