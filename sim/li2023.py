@@ -81,14 +81,19 @@ not accuracy), a real-time factor of ~0.003 in Python. Here: Newmark average acc
 damping) with steps of at most ``solver.max_step_s`` = 0.25 ms, which differs from a 16x
 finer step by <= 0.11 arcsec. ``K(t)`` is a trigonometric polynomial in the eccentric
 angles times the mesh stiffnesses, so the effective matrices ``K + 2/h C + 4/h^2 M`` of a
-whole batch of steps come from one matrix product; the sequential part is one Cholesky
-solve (LAPACK dposv, 30 x 30) and two small matrix-vector products per step. Real-time
-factor at 1 kHz samples: 3 to 10 on the shared 2-core machine
-(``benchmarks/bench_li2023.py``).
+batch of steps come from one matrix product (64 steps at a time on the TE path, so that
+they stay in the CPU cache). When only displacements are watched (``te_rad``), a step
+runs on z = [p; a2 M w] (p: the right-hand side without the force) instead of
+x = [q, v, a]: one add, one Cholesky solve (LAPACK dposv, 30 x 30, called through SciPy's
+Cython LAPACK table without the f2py wrapper) and one 60 x 90 matrix-vector product,
+~5 us; the same scheme as the x form (equal to ~1e-11 arcsec; the x form runs when a
+velocity or acceleration is watched). Real-time factor at 10 kHz samples, blocks of 100:
+~11 (benchmarks/README.md, ``benchmarks/bench_li2023.py``).
 """
 
 from __future__ import annotations
 
+import ctypes
 import functools
 import math
 from dataclasses import dataclass, fields
@@ -99,6 +104,48 @@ from scipy.linalg.lapack import dposv as _dposv
 
 from sim.errors import ModelInputError, PresetError
 from sim.kinematics import kinematics_from_preset
+
+
+def _lapack_dposv() -> Any:  # noqa: ANN401
+    """LAPACK dposv as a ctypes function (SciPy's public Cython LAPACK table), or None.
+
+    Called with the addresses of its eight arguments; about 1.5 us less per call than the
+    f2py wrapper, which matters at one solve per Newmark step.
+    """
+    try:
+        from scipy.linalg import cython_lapack  # noqa: PLC0415
+        cap = cython_lapack.__pyx_capi__['dposv']
+        get_name = ctypes.pythonapi.PyCapsule_GetName
+        get_name.restype, get_name.argtypes = ctypes.c_char_p, [ctypes.py_object]
+        get_ptr = ctypes.pythonapi.PyCapsule_GetPointer
+        get_ptr.restype = ctypes.c_void_p
+        get_ptr.argtypes = [ctypes.py_object, ctypes.c_char_p]
+        ptr = get_ptr(cap, get_name(cap))
+    except (ImportError, KeyError, AttributeError, ValueError):
+        return None
+    return ctypes.PYFUNCTYPE(None, *[ctypes.c_void_p] * 8)(ptr)
+
+
+_DPOSV = _lapack_dposv()
+# Newmark steps whose effective matrices are assembled at once on the TE path: 100 x 900
+# doubles (0.7 MB) stay in the L2 cache for the solves (2048 at once cost ~2.5 us a step;
+# 100: a bench block of 100 samples at 10 kHz in one go). Products of more than ~200,000
+# multiply-adds are cut into row slices (_serial_matmul): above OpenBLAS's threading
+# threshold (m n k = 262144) a small product waited for a busy second core on the shared
+# 2-core machine (blocks of 1000 ran at 0.9x real time instead of 12x).
+_SUB_STEPS = 100
+_BLAS_SERIAL_MNK = 200_000
+
+
+def _serial_matmul(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """``a @ b`` (2-D) in row slices small enough that OpenBLAS runs them on one thread."""
+    rows = max(1, _BLAS_SERIAL_MNK // max(1, a.shape[1] * b.shape[1]))
+    if a.shape[0] <= rows:
+        return a @ b
+    out = np.empty((a.shape[0], b.shape[1]))
+    for r0 in range(0, a.shape[0], rows):
+        np.matmul(a[r0:r0 + rows], b, out=out[r0:r0 + rows])
+    return out
 
 if TYPE_CHECKING:
     import numpy.typing as npt
@@ -469,7 +516,11 @@ def _quantise(h: np.ndarray) -> np.ndarray:
     own error).
     """
     e = np.floor(np.log10(h))
-    return np.round(h / 10.0**e, 5) * 10.0**e
+    mant = np.round(h / 10.0**e, 5)
+    # a step just below a power of ten rounds to a mantissa of 10: renormalise, so that
+    # 0.99999999e-4 and 1.00000001e-4 both give 1.0 * 1e-4 (one operator set, not two)
+    up = mant >= 10.0
+    return np.where(up, mant / 10.0, mant) * 10.0 ** np.where(up, e + 1.0, e)
 
 
 # --------------------------------------------------------------------------------------
@@ -551,6 +602,8 @@ class Li2023DteModel:
         ls = np.arange(1, p.sun_planet_harmonics + 1)
         self._ksp_harm = 2.0 * k1 / (np.pi * ls) * np.sin(ls * width / 2.0)
         self._build_matrices()
+        self._build_error_patterns()
+        self._keff_buf = np.empty((_SUB_STEPS, self.ndof**2))
         self._ops_cache: dict[float, tuple[np.ndarray, np.ndarray]] = {}
         self.reset()
 
@@ -658,6 +711,10 @@ class Li2023DteModel:
         self._basis = np.concatenate([k0.reshape(1, -1), self._sp_mats, *arm, *pin])
         self._vary_cols = np.nonzero(np.any(self._basis[1:] != 0, axis=0))[0]
         self._vary_basis = self._basis[1:, self._vary_cols]
+        # dposv (uplo 'L' on the C-ordered matrix) reads only the upper triangle (row <= col)
+        up = self._vary_cols[self._vary_cols // nd <= self._vary_cols % nd]
+        self._vary_cols_up = up
+        self._vary_basis_up = np.ascontiguousarray(self._basis[1:, up])
         # mean over the eccentric angles and mesh phases: the constant terms
         k_mean = (k0 + p.k_sun_planet_n_m * self._sp_mats.sum(0).reshape(nd, nd)
                   + sum(a[0].reshape(nd, nd) for a in arm)
@@ -679,11 +736,14 @@ class Li2023DteModel:
         p = self.params
         ls = np.arange(1, self._ksp_harm.size + 1)
         ph = p.z_sun * (ang['sun_rel'][:, None] + self._psi[None, :])          # Eq. 8
-        ksp = p.k_sun_planet_n_m + np.cos(ls * ph[..., None]) @ self._ksp_harm
+        # einsum, not @: numpy hands (S, M, L) @ (L,) to BLAS as one (S M) x L gemv, which
+        # OpenBLAS splits over threads from S ~ 600 on (a busy second core stalls it)
+        ksp = p.k_sun_planet_n_m + np.einsum('sml,l->sm', np.cos(ls * ph[..., None]),
+                                             self._ksp_harm)
         lc = np.arange(1, self._kcr_harm.size + 1)
         big = ang['crank_abs'][:, None] + self._disc_phase[None, :]
         ex = np.exp(1j * lc * p.z_pin * big[..., None])
-        kcr = self._kcr_mean + np.real(ex @ self._kcr_harm)
+        kcr = self._kcr_mean + np.real(np.einsum('snl,l->sn', ex, self._kcr_harm))
         return ksp, kcr
 
     def stiffness_matrix(self, theta_in_rad: npt.ArrayLike) -> np.ndarray:
@@ -691,58 +751,166 @@ class Li2023DteModel:
         th = np.atleast_1d(np.asarray(theta_in_rad, dtype=np.float64))
         return (self._coeffs(th) @ self._basis).reshape(th.size, self.ndof, self.ndof)
 
-    def _coeffs(self, th: np.ndarray) -> np.ndarray:
+    def _phase(self, th: np.ndarray) -> tuple[dict[str, np.ndarray], np.ndarray, np.ndarray]:
+        """Kinematic angles and mesh stiffnesses at input angles ``th``."""
         ang = self._angles(th)
-        ksp, kcr = self._mesh_stiffness(ang)
+        return (ang, *self._mesh_stiffness(ang))
+
+    def _coeffs(self, th: np.ndarray,
+                _phase: tuple[dict[str, np.ndarray], np.ndarray, np.ndarray] | None = None,
+                ) -> np.ndarray:
+        ang, ksp, kcr = self._phase(th) if _phase is None else _phase
         phi = ang['crank_rel'][:, None] + self._disc_phase[None, :]           # (S, N)
         w = _trig2(phi)                                                       # (S, N, 5)
         s = th.size
         return np.concatenate([np.ones((s, 1)), ksp, w.reshape(s, -1),
                                (w * kcr[..., None]).reshape(s, -1)], axis=1)
 
-    def forces(self, theta_in_rad: np.ndarray, load_nm: np.ndarray) -> np.ndarray:
+    def forces(self, theta_in_rad: np.ndarray, load_nm: np.ndarray,
+               _phase: tuple[dict[str, np.ndarray], np.ndarray, np.ndarray] | None = None,
+               ) -> np.ndarray:
         """Generalised force vector F(t) (load + error excitation), shape (S, n)."""
-        p, lay = self.params, self._lay
+        lay = self._lay
         th = np.atleast_1d(np.asarray(theta_in_rad, dtype=np.float64))
         f = np.zeros((th.size, lay.ndof))
         f[:, lay.out + 2] = -np.asarray(load_nm, dtype=np.float64)
-        if not p.errors_enabled:
+        if not self.params.errors_enabled:
             return f
-        ang = self._angles(th)
-        ksp, kcr = self._mesh_stiffness(ang)
-        rad = np.deg2rad
-
-        def vec(mag: float, angle: np.ndarray) -> np.ndarray:
-            return mag * np.stack([np.cos(angle), np.sin(angle)], axis=-1)
-
-        # sun / output assembly errors: fixed in the housing, seen from the output frame
-        d_sa = vec(p.sun_assembly_m, rad(p.sun_assembly_deg) - ang['out'])
-        f[:, 0:2] += p.k_sun_radial_n_m * d_sa
-        d_oa = vec(p.output_assembly_m, rad(p.output_assembly_deg) - ang['out'])
-        f[:, lay.out:lay.out + 2] += p.k_output_radial_n_m * d_oa
-        # sun-planet mesh: eccentricities turning with the sun and the planets (Eq. 12)
-        d_s = vec(p.sun_ecc_m, rad(p.sun_ecc_deg) + ang['sun_rel'])
-        d_p = vec(p.planet_ecc_m, rad(p.planet_ecc_deg) + ang['crank_rel'])
-        for i in range(lay.m):
-            n = self._n_sp(i)
-            eps = (d_s - d_p) @ n
-            f -= (ksp[:, i] * eps)[:, None] * self._g_mesh(i)[None, :]
-        for i in range(lay.m):
-            # crank support: hole error in the output disc, fixed in the disc (Eq. 19)
-            d_oh = vec(p.output_hole_m, np.array(self._psi[i] + rad(p.output_hole_deg)))
-            f += p.k_crank_bearing_n_m * (d_oh @ self._g_carrier(i))[None, :]
-            for j in range(lay.n):
-                phi = ang['crank_rel'] + self._disc_phase[j]
-                d_cam = vec(p.cam_ecc_m, phi + rad(p.cam_ecc_deg))                # Eq. 16
-                d_hole = vec(p.disc_hole_m, np.array(self._psi[i] + rad(p.disc_hole_deg)))
-                eps = d_cam - d_hole                                              # (S, 2)
-                g = self._g_arm(i, j, phi)                                        # (S,2,n)
-                f -= p.k_arm_bearing_n_m * np.einsum('sr,srn->sn', eps, g)
-        for j in range(lay.n):
-            phi = ang['crank_rel'] + self._disc_phase[j]
-            e_cr = p.pin_composite_m * np.sin(ang['out'] + rad(p.pin_composite_deg))  # Eq. 18
-            f -= (kcr[:, j] * e_cr)[:, None] * self._g_pin(j, phi)
+        ang, ksp, kcr = self._phase(th) if _phase is None else _phase
+        f += _serial_matmul(self._error_basis(ang, ksp, kcr), self._err_map) + self._f_hole
         return f
+
+    @staticmethod
+    def _error_basis(ang: dict[str, np.ndarray], ksp: np.ndarray,
+                     kcr: np.ndarray) -> np.ndarray:
+        """Functions of time the error forces are linear in, shape (S, 3 + 2 + 4 M + 6 N).
+
+        [1, cos c, sin c, cos o, sin o, k_sp,i (cos s, sin s, cos c, sin c),
+        k_cr,j (cos o, sin o) x (1, cos c, sin c)] with o the output angle, s the sun and
+        c the crank angle relative to the output frame: every term of
+        :meth:`_error_forces` is a constant times one of these (angle-sum identities).
+        """
+        s = ang['out'].size
+        trig = np.empty((s, 6))
+        np.cos(ang['crank_rel'], out=trig[:, 0])
+        np.sin(ang['crank_rel'], out=trig[:, 1])
+        np.cos(ang['out'], out=trig[:, 2])
+        np.sin(ang['out'], out=trig[:, 3])
+        np.cos(ang['sun_rel'], out=trig[:, 4])
+        np.sin(ang['sun_rel'], out=trig[:, 5])
+        crank = np.concatenate([np.ones((s, 1)), trig[:, :2]], axis=1)       # (S, 3)
+        sp = ksp[:, :, None] * trig[:, None, [4, 5, 0, 1]]                    # (S, M, 4)
+        pin = (kcr[:, :, None, None] * trig[:, None, 2:4, None]
+               * crank[:, None, None, :])                                     # (S,N,2,3)
+        return np.concatenate([crank, trig[:, 2:4], sp.reshape(s, -1),
+                               pin.reshape(s, -1)], axis=1)
+
+    def _error_forces(self, ang: dict[str, np.ndarray], ksp: np.ndarray,
+                      kcr: np.ndarray) -> np.ndarray:
+        """F = -sum k g eps of the Table 3 errors, spring by spring, shape (S, n).
+
+        The physics, written out; :meth:`forces` uses the same forces as one product
+        ``_error_basis(...) @ _err_map`` fitted from this at construction (exact to
+        ~4e-15 of the largest force: they are linear in the basis functions).
+        """
+        p, lay = self.params, self._lay
+        rad = math.radians
+        out, crank = ang['out'], ang['crank_rel']
+        s = out.size
+        feats: list[np.ndarray] = []
+        # sun / output assembly errors: fixed in the housing, seen from the output frame
+        a_s = rad(p.sun_assembly_deg) - out
+        a_o = rad(p.output_assembly_deg) - out
+        feats += [p.sun_assembly_m * np.cos(a_s), p.sun_assembly_m * np.sin(a_s),
+                  p.output_assembly_m * np.cos(a_o), p.output_assembly_m * np.sin(a_o)]
+        # sun-planet mesh: eccentricities turning with the sun and the planets (Eq. 12)
+        b_s = rad(p.sun_ecc_deg) + ang['sun_rel']
+        b_p = rad(p.planet_ecc_deg) + crank
+        dx = p.sun_ecc_m * np.cos(b_s) - p.planet_ecc_m * np.cos(b_p)
+        dy = p.sun_ecc_m * np.sin(b_s) - p.planet_ecc_m * np.sin(b_p)
+        nsp = self._nsp_all                                                   # (2, M)
+        feats += list((ksp * (dx[:, None] * nsp[0] + dy[:, None] * nsp[1])).T)
+        # turning-arm bearings: cam error (Eq. 16) minus the disc-hole error (Eq. 15)
+        phi = crank[:, None] + self._disc_phase[None, :]                     # (S, N)
+        cphi, sphi = np.cos(phi), np.sin(phi)
+        cam = phi + rad(p.cam_ecc_deg)
+        ex = (p.cam_ecc_m * np.cos(cam))[:, None, :] - self._hole_xy[0][None, :, None]
+        ey = (p.cam_ecc_m * np.sin(cam))[:, None, :] - self._hole_xy[1][None, :, None]
+        e = p.eccentricity_m
+        arm = np.stack([ex, ey, e * (ey * cphi[:, None, :] - ex * sphi[:, None, :]),
+                        ex * self._ah_sc[0][None, :, None]
+                        - ey * self._ah_sc[1][None, :, None]], axis=-1)       # (S,M,N,4)
+        # pin mesh: composite error (Eq. 18)
+        e_cr = p.pin_composite_m * np.sin(out + rad(p.pin_composite_deg))
+        kce = kcr * e_cr[:, None]                                            # (S, N)
+        cb, sb = math.cos(self.beta_rad), math.sin(self.beta_rad)
+        pin = np.stack([kce * (sb * cphi - cb * sphi), kce * (cb * cphi + sb * sphi),
+                        kce * (self._r_c * cb)], axis=-1)                    # (S, N, 3)
+        feat = np.concatenate([np.stack(feats, axis=1), arm.reshape(s, -1),
+                               pin.reshape(s, -1)], axis=1)
+        return _serial_matmul(feat, self._err_pattern) + self._f_hole
+
+    def _build_error_patterns(self) -> None:
+        """Fixed parts of :meth:`_error_forces`: DOF patterns, hole-error constants."""
+        p, lay = self.params, self._lay
+        nd, rad = lay.ndof, math.radians
+        self._nsp_all = np.stack([self._n_sp(i) for i in range(lay.m)], axis=1)
+        hole = rad(p.disc_hole_deg) + self._psi
+        self._hole_xy = np.stack([p.disc_hole_m * np.cos(hole), p.disc_hole_m * np.sin(hole)])
+        self._ah_sc = np.stack([self._a_h * np.sin(self._psi), self._a_h * np.cos(self._psi)])
+        rows: list[np.ndarray] = []
+
+        def row() -> np.ndarray:
+            rows.append(np.zeros(nd))
+            return rows[-1]
+
+        o = lay.out
+        row()[0] = p.k_sun_radial_n_m
+        row()[1] = p.k_sun_radial_n_m
+        row()[o] = p.k_output_radial_n_m
+        row()[o + 1] = p.k_output_radial_n_m
+        for i in range(lay.m):
+            row()[:] = -self._g_mesh(i)
+        k = p.k_arm_bearing_n_m
+        for i in range(lay.m):
+            c = lay.crank[i]
+            for j in range(lay.n):
+                d = lay.disc[j]
+                r = row()
+                r[c], r[d] = -k, k
+                r = row()
+                r[c + 1], r[d + 1] = -k, k
+                row()[c + 2] = -k
+                row()[d + 2] = -k
+        for j in range(lay.n):
+            d = lay.disc[j]
+            row()[d] = 1.0
+            row()[d + 1] = 1.0
+            row()[d + 2] = 1.0
+        self._err_pattern = np.array(rows)
+        # crank support: hole error in the output disc, fixed in the disc (Eq. 19)
+        f_hole = np.zeros(nd)
+        for i in range(lay.m):
+            ang = self._psi[i] + rad(p.output_hole_deg)
+            d_oh = p.output_hole_m * np.array([math.cos(ang), math.sin(ang)])
+            f_hole += p.k_crank_bearing_n_m * (d_oh @ self._g_carrier(i))
+        self._f_hole = f_hole
+        # the error forces as one linear map of _error_basis, fitted on random angles and
+        # mesh stiffnesses (exact: the forces are linear in those functions)
+        rng = np.random.default_rng(0)
+        n_fit = 8 * (5 + 4 * lay.m + 6 * lay.n)
+        ang = {k: rng.uniform(0.0, 2.0 * np.pi, n_fit) for k in ('out', 'sun_rel', 'crank_rel')}
+        # stiffnesses of their real size: every term then weighs in the fit as in use
+        ksp = p.k_sun_planet_n_m * rng.uniform(0.5, 1.5, (n_fit, lay.m))
+        kcr = self._kcr_mean * rng.uniform(0.5, 1.5, (n_fit, lay.n))
+        basis = self._error_basis(ang, ksp, kcr)
+        target = self._error_forces(ang, ksp, kcr) - f_hole
+        scale = np.abs(basis).max(axis=0)                 # columns of 1 and of ~1e9
+        self._err_map = np.linalg.lstsq(basis / scale, target, rcond=None)[0] / scale[:, None]
+        resid = np.abs(basis @ self._err_map - target).max()
+        if not resid <= 1e-12 * max(1.0, float(np.abs(target).max())):
+            msg = f'error forces are not linear in their basis (residual {resid:.3g})'
+            raise RuntimeError(msg)
 
     def static_response(self, theta_in_rad: float, load_nm: float) -> np.ndarray:
         """Quasi-static displacement q = K^-1 F at one input angle, shape (n,)."""
@@ -754,6 +922,7 @@ class Li2023DteModel:
     def reset(self) -> None:
         """Forget the state: the next call starts at static equilibrium."""
         self._state: np.ndarray | None = None
+        self._zstate: tuple[float, np.ndarray, np.ndarray] | None = None
         self._last: tuple[float, float, float, float] | None = None
 
     def te_rad(self, t_s: npt.ArrayLike, theta_in_rad: npt.ArrayLike,
@@ -873,6 +1042,16 @@ class Li2023DteModel:
         dt = np.diff(t)
         nsub = np.maximum(1, np.ceil(dt / p.max_step_s - 1e-9)).astype(np.int64)
         total = int(nsub.sum())
+        if total == dt.size:
+            # one step per sample interval (sampling at >= 1 / max_step_s): the Hermite
+            # weights at s = 1 are (0, 0, 1, 0), so the same values without the arithmetic
+            h = _quantise(dt)
+            th_s, ld_s = th[1:], ld[:-1] + (ld[1:] - ld[:-1])
+            out = np.empty((dt.size, watch.size))
+            for c0 in range(0, total, p.chunk_steps):
+                c1 = min(total, c0 + p.chunk_steps)
+                out[c0:c1] = self._run_chunk(th_s[c0:c1], ld_s[c0:c1], h[c0:c1], watch)
+            return out
         interval = np.repeat(np.arange(dt.size), nsub)
         offset = np.arange(total) - np.repeat(np.cumsum(nsub) - nsub, nsub)
         frac = (offset + 1) / nsub[interval]                    # end of each step in (0, 1]
@@ -903,7 +1082,9 @@ class Li2023DteModel:
 
         The effective matrices ``K(t_n+1) + (2/h) C + (4/h^2) M`` of the whole batch come
         from one matrix product; each step then costs one Cholesky solve (LAPACK dposv;
-        the matrix is symmetric positive definite).
+        the matrix is symmetric positive definite). When only displacements are watched
+        the steps run in :meth:`_run_chunk_q` (same scheme, cheaper form); this loop on
+        x = [q, v, a] serves velocities and accelerations.
         """
         nd = self.ndof
         c = self.damping_matrix
@@ -911,12 +1092,16 @@ class Li2023DteModel:
         a1 = 2.0 / h
         # K_eff = K0 + a0 M + a1 C + (time-varying part, nonzero on few entries only)
         m_flat, c_flat = self.mass_matrix.ravel(), c.ravel()
-        if np.all(h == h[0]):
-            keff = np.tile(self._basis[0] + a0[0] * m_flat + a1[0] * c_flat, (th.size, 1))
-        else:
-            keff = self._basis[0] + a0[:, None] * m_flat + a1[:, None] * c_flat
-        keff[:, self._vary_cols] += self._coeffs(th)[:, 1:] @ self._vary_basis
-        f = self.forces(th, ld)
+        phase = self._phase(th)
+        vary = self._coeffs(th, phase)[:, 1:]
+        f = self.forces(th, ld, phase)
+        # the z form pays a conversion per run of equal steps: for steps that change all
+        # the time (jittery sample clocks) the x form below is cheaper
+        if (_DPOSV is not None and int(watch.max()) < nd
+                and 16 * np.count_nonzero(h[1:] != h[:-1]) <= h.size):
+            return self._run_chunk_q(vary, f, h, watch)
+        keff = self._basis[0] + a0[:, None] * m_flat + a1[:, None] * c_flat
+        keff[:, self._vary_cols] += _serial_matmul(vary, self._vary_basis)
         x = self._state
         io = int(watch[0])
         single = watch.size == 1
@@ -925,14 +1110,7 @@ class Li2023DteModel:
         for n in range(th.size):
             if h[n] != h_prev:
                 h_prev = h[n]
-                ops = self._ops_cache.get(h_prev)
-                if ops is None:
-                    if len(self._ops_cache) > 64:
-                        self._ops_cache.clear()
-                    pmat, lmat, rmat = self._newmark_operators(float(h_prev))
-                    # [P; R] x in one product
-                    ops = self._ops_cache[h_prev] = (np.concatenate([pmat, rmat]), lmat)
-                stacked, lmat = ops
+                stacked, lmat = self._ops(float(h_prev))[:2]
             y = stacked @ x
             rhs = y[:nd]
             rhs += f[n]
@@ -948,7 +1126,95 @@ class Li2023DteModel:
             else:
                 te[n] = x[watch]
         self._state = x
+        self._zstate = None
         return te
+
+    def _ops(self, h: float) -> tuple[np.ndarray, ...]:
+        """Cached Newmark operators of step ``h``: ([P; R], L, W) (see :meth:`_run_chunk_q`)."""
+        ops = self._ops_cache.get(h)
+        if ops is None:
+            if len(self._ops_cache) > 64:
+                self._ops_cache.clear()
+            nd = self.ndof
+            pmat, lmat, rmat = self._newmark_operators(h)
+            a0 = 4.0 / h**2
+            eye, m = np.eye(nd), self.mass_matrix
+            # z' = W [q'; z], z = [p; m2]: p' = B q' - p - m2, m2' = 4 a0 M q' - m2
+            bq = 4.0 * a0 * m + (4.0 / h) * self.damping_matrix
+            wmat = np.block([[bq, -eye, -eye], [4.0 * a0 * m, np.zeros((nd, nd)), -eye]])
+            keff0 = self._basis[0] + a0 * m.ravel() + (2.0 / h) * self.damping_matrix.ravel()
+            ops = self._ops_cache[h] = (np.concatenate([pmat, rmat]), lmat, pmat, wmat, keff0)
+        return ops
+
+    def _run_chunk_q(self, vary: np.ndarray, f: np.ndarray, h: np.ndarray,
+                     watch: np.ndarray) -> np.ndarray:
+        """Newmark over one batch when only displacements are watched (the TE path).
+
+        Same scheme as :meth:`_run_chunk`, written on the 2 n vector z = [p; m2] with
+        ``p = M u + C w`` (the right-hand side without the force), ``u = a0 q + a2 v + a``,
+        ``w = a1 q + v`` and ``m2 = a2 M w``: the Newmark updates of v and a become
+        ``u' = 4 a0 q' - a2 w - u`` and ``w' = 2 a1 q' - w``, so a step is one add
+        (``p + F``), one Cholesky solve (LAPACK dposv called directly, no wrapper
+        overhead) and one 2n x 3n matrix-vector product. q, v, a are recovered at the end.
+        The effective matrices (``vary`` holds their time-varying coefficients) are
+        assembled ``_SUB_STEPS`` at a time into one buffer that stays in the CPU cache.
+        """
+        nd, steps = self.ndof, h.size
+        out = np.empty((steps, watch.size))
+        cuts = [0, *(np.flatnonzero(h[1:] != h[:-1]) + 1).tolist(), steps]
+        f = np.ascontiguousarray(f)
+        keff = self._keff_buf
+        vcols, vbasis = self._vary_cols_up, self._vary_basis_up
+        info = ctypes.c_int(0)
+        uplo, n_c, one = ctypes.c_char(b'L'), ctypes.c_int(nd), ctypes.c_int(1)
+        p_uplo, p_n, p_one, p_info = (ctypes.addressof(o) for o in (uplo, n_c, one, info))
+        x = self._state
+        mdiag = np.diag(self.mass_matrix)
+        c = self.damping_matrix
+        for s0, s1 in zip(cuts[:-1], cuts[1:], strict=True):
+            hs = float(h[s0])
+            a0, a1, a2 = 4.0 / hs**2, 2.0 / hs, 4.0 / hs
+            _, _, pmat, wmat, keff0 = self._ops(hs)
+            m = s1 - s0
+            zb = np.empty((m + 1, 3 * nd))
+            zs = self._zstate
+            if zs is not None and zs[0] == hs and zs[1] is x:
+                zb[0, nd:] = zs[2]
+            else:
+                zb[0, nd:2 * nd] = pmat @ x
+                zb[0, 2 * nd:] = a2 * mdiag * (a1 * x[:nd] + x[nd:2 * nd])
+            base_k, stride_k = keff.ctypes.data, keff.strides[0]
+            base_q, stride_q = zb.ctypes.data, zb.strides[0]
+            add, matmul = np.add, np.matmul
+            for b0 in range(0, m, _SUB_STEPS):
+                b1 = min(m, b0 + _SUB_STEPS)
+                kb = keff[:b1 - b0]
+                kb[:] = keff0
+                kb[:, vcols] += _serial_matmul(vary[s0 + b0:s0 + b1], vbasis)
+                addr_k = base_k - b0 * stride_k
+                for n, (zp, fn, zq, za, zn) in enumerate(zip(
+                        zb[b0:b1, nd:2 * nd], f[s0 + b0:s0 + b1], zb[b0:b1, :nd],
+                        zb[b0:b1], zb[b0 + 1:b1 + 1, nd:], strict=True), start=b0):
+                    add(zp, fn, out=zq)
+                    _DPOSV(p_uplo, p_n, p_one, addr_k + n * stride_k, p_n,
+                           base_q + n * stride_q, p_n, p_info)
+                    if info.value != 0:
+                        msg = ('Newmark step matrix not positive definite '
+                               f'(dposv info {info.value})')
+                        raise ModelInputError(msg)
+                    matmul(wmat, za, out=zn)
+            q_all = zb[:m, :nd]
+            out[s0:s1] = q_all[:, watch]
+            # back to x = [q, v, a]
+            q = q_all[-1].copy()
+            z_end = zb[m, nd:].copy()
+            w = z_end[nd:] / (a2 * mdiag)
+            v = w - a1 * q
+            a = (z_end[:nd] - c @ w) / mdiag - a0 * q - a2 * v
+            x = np.concatenate([q, v, a])
+            self._zstate = (hs, x, z_end)
+        self._state = x
+        return out
 
     def _newmark_operators(self, h: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """Constant parts of one Newmark step of size ``h`` on x = [q, v, a].
