@@ -47,7 +47,7 @@ from typing import TYPE_CHECKING, Any, Literal
 import numpy as np
 
 from rv_te_bench.core.orders import OrderSet
-from rv_te_bench.core.spectrum import OrderSpectrum, order_spectrum
+from rv_te_bench.core.spectrum import OrderSpectrum, SpectrumWorkspace, order_spectrum
 from rv_te_bench.core.te import RunningStats, TeStats, moments_of_finite, output_phase_and_te
 from rv_te_bench.errors import TeConfigError, TeInputError
 
@@ -596,6 +596,7 @@ class StreamingTeAnalyzer:
         self._cum_folded = 0
         self._cum_rev = 0.0
         self._buf = _WindowBuffer(config.max_window_samples)
+        self._spectrum_work = SpectrumWorkspace()   # the window spectra's work arrays
         self._pending: list[WindowResult] = []
         self._last_seq: int | None = None
         self._last_t: float | None = None
@@ -704,7 +705,7 @@ class StreamingTeAnalyzer:
                     spectrum = order_spectrum(
                         phi, te, self._config.orders, duration_s=buf.t_last - buf.t_first,
                         samples_per_rev=self._config.samples_per_rev,
-                        revolutions=round(w_rev))
+                        revolutions=round(w_rev), workspace=self._spectrum_work)
                 except TeInputError:
                     spectrum = None
                     self._counters['spectrum_failures'] += 1
