@@ -565,7 +565,10 @@ class SpectrumAverager:
             return
         # windows of the same length share the order grid m / R up to their own Nyquist order
         size = min(self._sum.size, amp.size)
-        if self._same_grid and not np.allclose(orders[:size], self._ref_orders[:size]):
+        # (windows of one length have bit-equal grids m / R: the exact test settles them
+        # in one pass; allclose, ~8 passes, only when they differ)
+        if self._same_grid and not np.array_equal(orders[:size], self._ref_orders[:size]) \
+                and not np.allclose(orders[:size], self._ref_orders[:size]):
             self._same_grid = False
         self._sum = self._sum[:size] + amp[:size]
         self._ref_orders = self._ref_orders[:size]
