@@ -623,7 +623,9 @@ class StreamingTeAnalyzer:
         """
         buf = self._buf
         if buf.n > self._cum_folded:
-            self._cum.update(buf.te[self._cum_folded:buf.n])
+            # the buffered TE is finite (checked on the way in): no check, no new array
+            self._cum.add_moments(moments_of_finite(buf.te[self._cum_folded:buf.n],
+                                                    scratch=buf.scratch()))
             self._cum_folded = buf.n
         return self._cum.stats(revolutions=self._cum_rev / _TWO_PI)
 
@@ -695,8 +697,9 @@ class StreamingTeAnalyzer:
         moments = moments_of_finite(te, scratch=buf.scratch())
         if self._cum_folded == 0:
             self._cum.add_moments(moments)
-        else:   # part of the window went in when `cumulative` was read
-            self._cum.update(te[self._cum_folded:])
+        elif self._cum_folded < te.size:   # part went in when `cumulative` was read
+            self._cum.add_moments(moments_of_finite(te[self._cum_folded:],
+                                                    scratch=buf.scratch()))
         self._cum_folded = 0
         if complete:
             stats = moments.stats(w_rev)
