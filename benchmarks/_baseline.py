@@ -29,3 +29,54 @@ def load_at(rev: str, path: str, name: str) -> ModuleType:
     sys.modules[mod_name] = module
     exec(compile(text, module.__file__, 'exec'), module.__dict__)  # noqa: S102
     return module
+
+
+# the TE core as one unit: stream imports spectrum and te at import time, so an old stream
+# must see the old spectrum and te (its own revision), not the current ones
+CORE_MODULES = (('rv_te_bench/core/te.py', 'rv_te_bench.core.te'),
+                ('rv_te_bench/core/spectrum.py', 'rv_te_bench.core.spectrum'),
+                ('rv_te_bench/core/stream.py', 'rv_te_bench.core.stream'))
+
+
+def load_core_at(rev: str) -> dict[str, ModuleType]:
+    """The TE core modules (te, spectrum, stream) as of ``rev``, keyed by module name.
+
+    Each is compiled while the ones loaded before it stand in for their current versions in
+    ``sys.modules``, so the old stream uses the old spectrum and te. Use :func:`swapped`
+    to run code that imports them by name (e.g. ``analyze_bag``) against the old ones.
+    """
+    loaded: dict[str, ModuleType] = {}
+    for path, name in CORE_MODULES:
+        with swapped(loaded):
+            loaded[name] = load_at(rev, path, name)
+    return loaded
+
+
+class swapped:  # noqa: N801 - used like a function: with swapped(mods): ...
+    """Context: ``sys.modules`` entries (and the parent packages' attributes) replaced by
+    ``modules`` ({name: module}), restored on exit."""
+
+    def __init__(self, modules: dict[str, ModuleType]) -> None:
+        self._modules = modules
+        self._saved: dict[str, tuple[ModuleType | None, ModuleType | None]] = {}
+
+    def __enter__(self) -> None:
+        import importlib  # noqa: PLC0415
+
+        for name, mod in self._modules.items():
+            parent_name, _, attr = name.rpartition('.')
+            parent = importlib.import_module(parent_name)
+            self._saved[name] = (sys.modules.get(name), getattr(parent, attr, None))
+            sys.modules[name] = mod
+            setattr(parent, attr, mod)
+
+    def __exit__(self, *exc: object) -> None:
+        for name, (mod, attr_mod) in self._saved.items():
+            parent_name, _, attr = name.rpartition('.')
+            if mod is None:
+                sys.modules.pop(name, None)
+            else:
+                sys.modules[name] = mod
+            if attr_mod is not None:
+                setattr(sys.modules[parent_name], attr, attr_mod)
+        self._saved.clear()

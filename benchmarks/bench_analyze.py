@@ -1,8 +1,8 @@
 """Offline analysis throughput: `rv-te analyze` core path on a long bag vs a bare rosbags read.
 
 Writes a wang2020-2kv bench session (default 10 minutes at 10 kHz, RON 886) with the same
-code as bags/make_sample.py, once per block size (default 100 and 1000 samples per
-EncoderBlock: the bench node's default and the large end of DESIGN.md's range), then
+code as bags/make_sample.py, once per block size (default 100, 1000, 3000 and 10000 samples per
+EncoderBlock: the bench node's default, the large end of DESIGN.md's range and beyond), then
 times, side by side and interleaved in one run:
 
   * rosbags AnyReader reading and deserialising every EncoderBlock (the floor),
@@ -18,8 +18,12 @@ Then, as whole commands in fresh processes (interpreter start and imports includ
 `rv-te analyze BAG --json --no-advice` command against a Python process that imports
 rosbags and reads the bag as above.
 
-    .venv/bin/python benchmarks/bench_analyze.py [--minutes 10] [--blocks 100 1000]
-        [--repeats 5] [--allocator tuned|default]
+With ``--baseline REV`` the TE core (core/te.py, core/spectrum.py, core/stream.py) as of
+that git revision also runs ``analyze_bag``, interleaved with the others (the "before").
+
+    .venv/bin/python benchmarks/bench_analyze.py [--minutes 10]
+        [--blocks 100 1000 3000 10000] [--repeats 5] [--allocator tuned|default]
+        [--baseline REV]
 """
 
 from __future__ import annotations
@@ -43,7 +47,9 @@ def main(argv: list[str] | None = None) -> int:  # noqa: PLR0915
                                  formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument('--minutes', type=float, default=10.0)
     ap.add_argument('--rate-hz', type=float, default=10_000.0)
-    ap.add_argument('--blocks', type=int, nargs='+', default=[100, 1000])
+    ap.add_argument('--blocks', type=int, nargs='+', default=[100, 1000, 3000, 10000])
+    ap.add_argument('--baseline', default=None, metavar='REV',
+                    help='also run analyze_bag with the TE core of this git revision')
     ap.add_argument('--repeats', type=int, default=5)
     ap.add_argument('--allocator', choices=('tuned', 'default'), default='tuned')
     ap.add_argument('--process-repeats', type=int, default=3,
@@ -59,6 +65,16 @@ def main(argv: list[str] | None = None) -> int:  # noqa: PLR0915
     from rv_te_bench.io.bag_reader import read_encoder_batches  # noqa: PLC0415
     from rv_te_bench.report.analysis import analyze_bag  # noqa: PLC0415
 
+    base_core = None
+    if args.baseline:
+        sys.path.insert(0, str(ROOT / 'benchmarks'))
+        from _baseline import load_core_at, swapped  # noqa: PLC0415
+        base_core = load_core_at(args.baseline)
+
+        def analyze_base(bag: Path) -> int:
+            with swapped(base_core):
+                return int(analyze_bag(bag, with_advice=False).cumulative.n_samples)
+    load0 = os.getloadavg()
     tmp = Path(tempfile.mkdtemp(prefix='rv-te-analyze-bench-'))
     rows = []
     proc_rows: list[tuple[int, dict[str, float]]] = []
@@ -79,11 +95,14 @@ def main(argv: list[str] | None = None) -> int:  # noqa: PLR0915
         def analyze(bag: Path = bag) -> int:
             return int(analyze_bag(bag, with_advice=False).cumulative.n_samples)
 
-        wall: dict[str, list[float]] = {'rosbags': [], 'read': [], 'analyze': []}
-        cpu: dict[str, list[float]] = {'rosbags': [], 'read': [], 'analyze': []}
+        paths = [('rosbags', lambda bag=bag: rosbags_read(bag)), ('read', ours_read),
+                 ('analyze', analyze)]
+        if base_core is not None:
+            paths.insert(2, ('base', lambda bag=bag: analyze_base(bag)))
+        wall: dict[str, list[float]] = {name: [] for name, _fn in paths}
+        cpu: dict[str, list[float]] = {name: [] for name, _fn in paths}
         for _ in range(args.repeats):   # interleaved, so machine noise hits all alike
-            for name, fn in (('rosbags', lambda bag=bag: rosbags_read(bag)), ('read', ours_read),
-                             ('analyze', analyze)):
+            for name, fn in paths:
                 c0, t0 = time.process_time(), time.perf_counter()
                 got = fn()
                 wall[name].append(time.perf_counter() - t0)
@@ -93,7 +112,8 @@ def main(argv: list[str] | None = None) -> int:  # noqa: PLR0915
                     return 1
         med = {k: statistics.median(v) for k, v in wall.items()}
         med_cpu = {k: statistics.median(v) for k, v in cpu.items()}
-        ratios = sorted(a / r for a, r in zip(wall['analyze'], wall['rosbags'], strict=True))
+        ratios = {k: sorted(a / r for a, r in zip(wall[k], wall['rosbags'], strict=True))
+                  for k in ('analyze', 'base') if k in wall}
         rows.append((block, n, size_mb, med, med_cpu, ratios))
         if args.process_repeats > 0:
             proc_rows.append((block, _whole_commands(bag, args.process_repeats)))
@@ -101,16 +121,23 @@ def main(argv: list[str] | None = None) -> int:  # noqa: PLR0915
     print(f'\nmachine: {platform.node()} {platform.machine()}, {os.cpu_count()} cores, '
           f'python {platform.python_version()}, date {time.strftime("%Y-%m-%d")}; '
           f'{args.minutes:g} min at {args.rate_hz:g} Hz, median of {args.repeats}; '
-          f'allocator: {"tuned as rv-te analyze" if tuned else "glibc defaults"}\n')
+          f'allocator: {"tuned as rv-te analyze" if tuned else "glibc defaults"}; '
+          f'load average {load0[0]:.2f} at the start, {os.getloadavg()[0]:.2f} at the end'
+          + (f'; before = TE core at {args.baseline}' if args.baseline else '') + '\n')
     print('| block | path | wall [s] | CPU [s] | samples/s | wall / rosbags read |')
     print('|---|---|---|---|---|---|')
     for block, n, size_mb, med, med_cpu, ratios in rows:
         for name, label in (('rosbags', 'rosbags AnyReader read + deserialise (floor)'),
                             ('read', 'read_encoder_batches (our reader)'),
+                            ('base', f'analyze_bag, TE core before ({args.baseline})'),
                             ('analyze', 'analyze_bag (read + TE + windows + spectra)')):
+            if name not in med:
+                continue
             extra = ''
-            if name == 'analyze':
-                extra = f' (per repeat {ratios[0]:.2f}..{ratios[-1]:.2f})'
+            if name in ratios:
+                extra = f' (per repeat {ratios[name][0]:.2f}..{ratios[name][-1]:.2f})'
+            if name == 'analyze' and 'base' in med:
+                extra += f'; {med["base"] / med["analyze"]:.2f}x faster than before'
             print(f'| {block} ({size_mb:.0f} MB) | {label} | {med[name]:.2f} | '
                   f'{med_cpu[name]:.2f} | {n / med[name] / 1e6:.2f} M | '
                   f'{med[name] / med["rosbags"]:.2f}{extra} |')

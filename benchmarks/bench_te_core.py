@@ -2,7 +2,8 @@
 
 Run from the project root::
 
-    .venv/bin/python benchmarks/bench_te_core.py [--revolutions 10] [--quick]
+    .venv/bin/python benchmarks/bench_te_core.py [--revolutions 10] [--repeats 5]
+        [--baseline REV] [--quick]
 
 Realistic settings: the Wang 2020 2K-V (i = 79, f_w = 25 f_out, mesh order 1300) at
 300 rpm input (15.8 s per output revolution), one-revolution windows with their order
@@ -10,8 +11,13 @@ spectrum (K = 10 crank harmonics, sidebands, mesh line), input speed varying +-5
 (Hu 2020 style) so the angle-domain resampling does real work.
 
 - Throughput: 10 kHz sampling (158,000 samples per window) in 1000-sample blocks, pushed
-  as fast as possible; samples/s, and the time relative to a bare ``numpy.fft.rfft`` of
-  the same samples cut into the same window lengths (target >= 5e6 samples/s per core).
+  as fast as possible; samples/s per CPU second (target >= 15e6 per core, issue #23), also
+  with ``cumulative`` read after every push as the TE node does, and the time relative to
+  two floors over the same window lengths: a bare ``numpy.fft.rfft``, and the bare numpy
+  arithmetic of the window analysis (Eq. 22, min/max/mean/std, linear ``np.interp`` onto
+  the angle grid, rfft, abs). ``--baseline REV`` runs the TE core (core/te.py,
+  core/spectrum.py, core/stream.py) as of that git revision interleaved with the current
+  one (``--repeats`` times each; medians, and the median of the per-repeat ratios).
 - Latency: ``push()`` at 1 kHz sampling with blocks of 100 and 1000 samples, median and
   p99 over every push, window closes included (target median < 10 ms).
 
@@ -22,13 +28,19 @@ from __future__ import annotations
 
 import argparse
 import math
+import os
+import platform
+import statistics
 import sys
 import time
 from pathlib import Path
+from types import ModuleType
+from typing import Any
 
 import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
+sys.path.insert(0, str(Path(__file__).resolve().parent))
 
 from rv_te_bench.core.orders import OrderSet  # noqa: E402
 from rv_te_bench.core.stream import (  # noqa: E402
@@ -67,35 +79,94 @@ def make_blocks(sample_rate_hz: float, block_size: int, n_blocks: int,
             for k in range(n_blocks)]
 
 
-def throughput(revolutions: float, rng: np.random.Generator) -> dict[str, float]:
-    """Samples/s of push() over 1000-sample blocks at 10 kHz, and the rfft baseline.
+def _push_all(stream_mod: ModuleType, blocks: list[EncoderBlockData], *,
+              read_cumulative: bool = False) -> tuple[float, float, list]:
+    """Push every block through a fresh analyzer of ``stream_mod``: (wall s, CPU s, windows).
 
-    Both wall-clock and process CPU time are measured: on a shared machine the CPU time is
-    the better estimate of what one core does.
+    ``read_cumulative``: read ``analyzer.cumulative`` after every push, as the TE node does
+    for its te/samples message.
     """
-    rate_hz, block = 10_000.0, 1000
-    n_blocks = math.ceil(revolutions * OUTPUT_PERIOD_S * rate_hz / block)
-    blocks = make_blocks(rate_hz, block, n_blocks, rng)
-    analyzer = StreamingTeAnalyzer(TeAnalysisConfig(orders=ORDERS))
-    windows = []
+    analyzer = stream_mod.StreamingTeAnalyzer(stream_mod.TeAnalysisConfig(orders=ORDERS))
+    windows: list = []
     t0, c0 = time.perf_counter(), time.process_time()
     for b in blocks:
         windows += analyzer.push(b).windows
-    wall_s, cpu_s = time.perf_counter() - t0, time.process_time() - c0
-    n = n_blocks * block
-    # baseline: a bare numpy rfft of the same samples, window by window, at the FFT length
-    # the analyzer used (a fast length), i.e. the least any spectrum per window costs
-    te_all = np.concatenate([b.theta_out_rad - b.theta_in_rad / RATIO for b in blocks])
-    cuts = [(w.stats.n_samples, int(w.spectrum.samples_per_rev * w.spectrum.revolutions))
-            for w in windows if w.complete and w.spectrum is not None]
-    t0, c0 = time.perf_counter(), time.process_time()
+        if read_cumulative:
+            _ = analyzer.cumulative
+    return time.perf_counter() - t0, time.process_time() - c0, windows
+
+
+def _floor(te_all: np.ndarray, phi_all: np.ndarray,
+           cuts: list[tuple[int, int]]) -> tuple[float, float]:
+    """CPU s of the bare numpy floors over the same windows: (rfft only, arithmetic).
+
+    ``arithmetic``: what any implementation of the window analysis has to do, in numpy's
+    cheapest form: Eq. 22 (divide, subtract) over the samples, min / max / mean / std,
+    linear ``np.interp`` onto the angle grid, ``np.fft.rfft``, ``abs``.
+    """
+    c0 = time.process_time()
     start = 0
     for m, n_fft in cuts:
         np.fft.rfft(te_all[start:start + m], n=n_fft)
         start += m
-    fft_wall_s, fft_cpu_s = time.perf_counter() - t0, time.process_time() - c0
-    return {'samples': n, 'windows': len(cuts), 'wall_s': wall_s, 'cpu_s': cpu_s,
-            'fft_wall_s': fft_wall_s, 'fft_cpu_s': fft_cpu_s,
+    fft_cpu = time.process_time() - c0
+    theta_in = phi_all * RATIO
+    theta_out = phi_all + te_all
+    c0 = time.process_time()
+    start = 0
+    for m, n_fft in cuts:
+        phi = theta_in[start:start + m] / RATIO
+        te = theta_out[start:start + m] - phi
+        te.min(), te.max(), te.mean(), te.std()
+        grid = np.arange(n_fft) * (2.0 * math.pi / n_fft) + phi[0]
+        np.abs(np.fft.rfft(np.interp(grid, phi, te)))
+        start += m
+    return fft_cpu, time.process_time() - c0
+
+
+def throughput(revolutions: float, rng: np.random.Generator, *, repeats: int = 1,
+               baseline: ModuleType | None = None) -> dict[str, Any]:
+    """Samples/s of push() over 1000-sample blocks at 10 kHz, and the numpy floors.
+
+    Both wall-clock and process CPU time are measured: on a shared machine the CPU time is
+    the better estimate of what one core does. With ``baseline`` (the stream module of an
+    older revision) both run interleaved, ``repeats`` times each; medians are reported.
+    """
+    import rv_te_bench.core.stream as current  # noqa: PLC0415
+
+    rate_hz, block = 10_000.0, 1000
+    n_blocks = math.ceil(revolutions * OUTPUT_PERIOD_S * rate_hz / block)
+    blocks = make_blocks(rate_hz, block, n_blocks, rng)
+    variants = {'now': (current, False), 'now+cum': (current, True)}
+    if baseline is not None:
+        variants = {'base': (baseline, False), **variants, 'base+cum': (baseline, True)}
+    cpu: dict[str, list[float]] = {k: [] for k in variants}
+    wall: dict[str, list[float]] = {k: [] for k in variants}
+    floors: dict[str, list[float]] = {'fft': [], 'arith': []}
+    windows: list = []
+    n = n_blocks * block
+    te_all = np.concatenate([b.theta_out_rad - b.theta_in_rad / RATIO for b in blocks])
+    phi_all = np.concatenate([b.theta_in_rad / RATIO for b in blocks])
+    for _ in range(repeats):   # interleaved: machine noise hits every variant alike
+        for name, (mod, read_cum) in variants.items():
+            w_s, c_s, ws = _push_all(mod, blocks, read_cumulative=read_cum)
+            wall[name].append(w_s)
+            cpu[name].append(c_s)
+            if name == 'now':
+                windows = ws
+        cuts = [(w.stats.n_samples, int(w.spectrum.samples_per_rev * w.spectrum.revolutions))
+                for w in windows if w.complete and w.spectrum is not None]
+        fft_s, arith_s = _floor(te_all, phi_all, cuts)
+        floors['fft'].append(fft_s)
+        floors['arith'].append(arith_s)
+    med = statistics.median
+    return {'samples': n, 'windows': len(cuts), 'repeats': repeats,
+            'cpu_s': {k: med(v) for k, v in cpu.items()},
+            'wall_s': {k: med(v) for k, v in wall.items()},
+            'ratio': (statistics.median(b / a for a, b in zip(cpu['now'], cpu['base'],
+                                                              strict=True))
+                      if 'base' in cpu else math.nan),
+            'fft_cpu_s': med(floors['fft']), 'arith_cpu_s': med(floors['arith']),
             'n_fft': cuts[0][1] if cuts else 0}
 
 
@@ -120,23 +191,50 @@ def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument('--revolutions', type=float, default=10.0,
                         help='output revolutions for the throughput run')
+    parser.add_argument('--repeats', type=int, default=5,
+                        help='interleaved repeats of the throughput run (medians reported)')
+    parser.add_argument('--baseline', default=None, metavar='REV',
+                        help='also run the TE core (te, spectrum, stream) as of this git '
+                             'revision, side by side (e.g. 48604b2)')
     parser.add_argument('--quick', action='store_true', help='smaller runs (smoke test)')
     args = parser.parse_args(argv)
     rng = np.random.default_rng(0)
     revs = 2.0 if args.quick else args.revolutions
-    tp = throughput(revs, rng)
+    base = None
+    if args.baseline:
+        from _baseline import load_core_at  # noqa: PLC0415  (benchmarks/ is on sys.path)
+        base = load_core_at(args.baseline)['rv_te_bench.core.stream']
+    load0 = os.getloadavg()[0]
+    tp = throughput(revs, rng, repeats=1 if args.quick else args.repeats, baseline=base)
     lat_blocks = {100: 400 if args.quick else 4000, 1000: 60 if args.quick else 600}
     lats = {bs: latency(bs, nb, rng) for bs, nb in lat_blocks.items()}
+    print(f'machine: {platform.machine()}, {os.cpu_count()} cores, python '
+          f'{platform.python_version()}, numpy {np.__version__}, {time.strftime("%Y-%m-%d %H:%M")}; '
+          f'load average {load0:.2f} -> {os.getloadavg()[0]:.2f}; median of {tp["repeats"]} '
+          'interleaved repeats\n')
+    n = tp['samples']
+    cpu = tp['cpu_s']
     print('| measurement | value | target |')
     print('|---|---|---|')
+    if 'base' in cpu:
+        print(f"| throughput before ({args.baseline}), per CPU second | "
+              f"{n / cpu['base'] / 1e6:.2f} M samples/s | - |")
     print(f"| throughput, 1000-sample blocks @ 10 kHz, {tp['windows']} one-rev windows "
-          f"({tp['samples']:,} samples), per CPU second | "
-          f"{tp['samples'] / tp['cpu_s'] / 1e6:.2f} M samples/s | >= 5 M samples/s |")
-    print(f"| same, per wall-clock second | {tp['samples'] / tp['wall_s'] / 1e6:.2f} M samples/s "
-          f"| - |")
-    print(f"| analyzer time / bare numpy rfft of the same windows (n_fft {tp['n_fft']:,}) | "
-          f"{tp['cpu_s'] / tp['fft_cpu_s']:.1f} x CPU ({tp['cpu_s'] * 1e3:.0f} ms vs "
-          f"{tp['fft_cpu_s'] * 1e3:.0f} ms) | - |")
+          f"({n:,} samples), per CPU second | {n / cpu['now'] / 1e6:.2f} M samples/s"
+          + (f" (**{tp['ratio']:.2f}x** before, median of per-repeat ratios)"
+             if 'base' in cpu else '') + ' | >= 15 M samples/s (#23) |')
+    line = (f"| same, per wall-clock second; per CPU second reading `cumulative` after every "
+            f"push (the TE node does) | {n / tp['wall_s']['now'] / 1e6:.2f} M samples/s; "
+            f"{n / cpu['now+cum'] / 1e6:.2f} M samples/s")
+    if 'base+cum' in cpu:
+        line += f" (before {n / cpu['base+cum'] / 1e6:.2f})"
+    print(line + ' | - |')
+    print(f"| analyzer time / bare numpy floors of the same windows: rfft only (n_fft "
+          f"{tp['n_fft']:,}); arithmetic (Eq. 22, min/max/mean/std, np.interp to the grid, rfft, "
+          f"abs: {n / tp['arith_cpu_s'] / 1e6:.1f} M samples/s) | "
+          f"{cpu['now'] / tp['fft_cpu_s']:.1f} x ({cpu['now'] * 1e3:.0f} ms vs "
+          f"{tp['fft_cpu_s'] * 1e3:.0f} ms); {cpu['now'] / tp['arith_cpu_s']:.2f} x "
+          f"({tp['arith_cpu_s'] * 1e3:.0f} ms) CPU | - |")
     for bs, lat in lats.items():
         print(f"| push() latency, {bs}-sample blocks @ 1 kHz ({lat['pushes']} pushes, "
               f"{lat['windows']} windows closed) | median {lat['median_ms']:.3f} ms, "

@@ -54,7 +54,7 @@ if TYPE_CHECKING:
     FloatArray = npt.NDArray[np.float64]
 
 __all__ = ['AngleResampled', 'OrderSpectrum', 'SpectrumAverager', 'SpectrumLine',
-           'SpectrumSummary', 'order_spectrum', 'resample_to_output_angle',
+           'SpectrumSummary', 'SpectrumWorkspace', 'order_spectrum', 'resample_to_output_angle',
            'spectrum_line_json']
 
 _TWO_PI = 2.0 * math.pi
@@ -189,67 +189,132 @@ class AngleResampled:
 _CHUNK = 16384  # grid points per pass: keeps the temporaries in cache and off mmap
 
 
-def _lagrange4_uniform(x: np.ndarray, y: np.ndarray, spacing: float, n_grid: int) -> np.ndarray:
+class SpectrumWorkspace:
+    """Work arrays kept between spectra of windows of about one size (not thread-safe).
+
+    :func:`order_spectrum` given one writes its ~12 window-long intermediate arrays (angle
+    offsets, steps, divided differences, stencil indices, the angle grid) into these
+    instead of allocating them per window: the streaming analysis holds one per analyzer.
+    The arrays grow to the largest window seen and are not shrunk. It also keeps the
+    read-only order grid m / R of the last window length, which spectra of windows of that
+    length then share (``OrderSpectrum.orders``: one array instead of one per window, e.g.
+    0.6 MB and its fresh pages for a 10 kHz one-revolution window).
+    """
+
+    __slots__ = ('_arrays', '_orders')
+
+    def __init__(self) -> None:
+        """Start empty."""
+        self._arrays: dict[str, np.ndarray] = {}
+        self._orders: tuple[int, int, np.ndarray] | None = None
+
+    def orders(self, n_bins: int, revolutions: int) -> np.ndarray:
+        """The read-only order of each bin, ``arange(n_bins) / revolutions`` (shared)."""
+        if self._orders is None or self._orders[:2] != (n_bins, revolutions):
+            grid = np.arange(n_bins, dtype=np.float64) / revolutions
+            grid.setflags(write=False)
+            self._orders = (n_bins, revolutions, grid)
+        return self._orders[2]
+
+    def array(self, name: str, size: int, dtype: type = np.float64) -> np.ndarray:
+        """A 1-D array ``name`` of ``size`` elements (contents undefined)."""
+        arr = self._arrays.get(name)
+        if arr is None or arr.size < size:
+            arr = np.empty(size + size // 8, dtype=dtype)   # room for a slightly longer one
+            self._arrays[name] = arr
+        return arr[:size]
+
+
+def _lagrange4_uniform(x: np.ndarray, y: np.ndarray, spacing: float, n_grid: int, *,
+                       dx: np.ndarray | None = None,
+                       work: SpectrumWorkspace | None = None) -> np.ndarray:
     """Cubic Lagrange interpolation of (x, y) at the grid 0, spacing, ..., (n_grid-1) spacing.
 
-    ``x`` increases strictly from 0. Each grid point uses the four nodes around it (two
-    at or below, two above; the end intervals use the first/last four nodes). The node
-    index is found by counting nodes per grid cell (bincount + cumsum, O(n)). The cubic
-    through nodes j..j+3 is evaluated in Newton form,
+    ``x`` increases strictly from 0; ``dx`` is ``np.diff(x)`` when the caller has it (read
+    only). Each grid point uses the four nodes around it (two at or below, two above; the
+    end intervals use the first/last four nodes). The node index is found by counting nodes
+    per grid cell (bincount + cumsum, O(n)). The cubic through nodes j..j+3 is evaluated in
+    Newton form,
 
         p(x) = y_j + (x - x_j) (f[j,j+1] + (x - x_j+1) (f[j..j+2] + (x - x_j+2) f[j..j+3])),
 
     with the divided differences f[...] computed once per node (the same polynomial as the
     Lagrange form, about half the arithmetic and no division per grid point); the
-    evaluation runs in chunks of the grid so that temporaries stay small.
+    evaluation runs in chunks of the grid so that temporaries stay small. With ``work`` the
+    intermediate arrays and the result live in its arrays (the result is overwritten by the
+    next call with the same workspace); the values are the same either way.
     """
     n = x.size
     if n < 4:  # noqa: PLR2004 - four nodes make a cubic
         return np.interp(np.arange(n_grid) * spacing, x, y)
+    ws = work if work is not None else SpectrumWorkspace()
     # count[m] = number of nodes with x <= m * spacing: a node in ((m-1) s, m s] goes to
     # cell m (ceil; a node that rounds onto a grid point may land one cell off, which only
     # shifts the 4-node stencil by one)
-    cell_f = x * (1.0 / spacing)
+    cell_f = np.multiply(x, 1.0 / spacing, out=ws.array('cell_f', n))
     np.ceil(cell_f, out=cell_f)
     np.minimum(cell_f, n_grid, out=cell_f)
-    j_all = np.cumsum(np.bincount(cell_f.astype(np.intp), minlength=n_grid + 1)[:n_grid])
+    cell = ws.array('cell', n, np.intp)
+    np.copyto(cell, cell_f, casting='unsafe')
+    j_all = np.cumsum(np.bincount(cell, minlength=n_grid + 1)[:n_grid],
+                      out=ws.array('j_all', n_grid, np.intp))
     j_all -= 2
     np.clip(j_all, 0, n - 4, out=j_all)
-    dx = np.diff(x)
-    dd1 = np.diff(y)
-    dd1 /= dx
-    dd2 = np.diff(dd1)
-    np.subtract(x[2:], x[:-2], out=dx[:-1])
-    dd2 /= dx[:-1]
-    dd3 = np.diff(dd2)
-    np.subtract(x[3:], x[:-3], out=dx[:-2])
-    dd3 /= dx[:-2]
-    x1, x2 = x[1:], x[2:]           # x[j + 1], x[j + 2] without index arithmetic
-    out = np.empty(n_grid)
-    for a in range(0, n_grid, _CHUNK):
+    out = ws.array('grid', n_grid) if work is not None else np.empty(n_grid)
+    # the grid in chunks, each with the nodes its stencils use (j_all is non-decreasing):
+    # the divided differences of those nodes and the evaluation stay in cache (the same
+    # element-wise operations as over the whole record, so the same values). The gathers
+    # use mode='clip' (j is within 0..k-4 by construction): with out= and the default
+    # mode='raise' numpy gathers into a temporary and copies (about twice the time).
+    firsts = j_all[0:n_grid:_CHUNK]
+    lasts = j_all[np.minimum(np.arange(_CHUNK, n_grid + _CHUNK, _CHUNK), n_grid) - 1]
+    k_max = int((lasts - firsts).max()) + 4
+    dd1_buf = ws.array('dd1', k_max)
+    dd2_buf = ws.array('dd2', k_max)
+    dd3_buf = ws.array('dd3', k_max)
+    span_buf = ws.array('span', k_max)
+    steps = np.arange(_CHUNK, dtype=np.float64)
+    xq_buf = ws.array('xq', _CHUNK)
+    acc_buf = ws.array('acc', _CHUNK)
+    t_buf = ws.array('t', _CHUNK)
+    jl_buf = ws.array('jl', _CHUNK, np.intp)
+    for c, a in enumerate(range(0, n_grid, _CHUNK)):
         b = min(a + _CHUNK, n_grid)
-        j = j_all[a:b]
-        xq = np.arange(a, b, dtype=np.float64)
+        m = b - a
+        lo = int(firsts[c])
+        k = int(lasts[c]) + 4 - lo           # nodes lo .. lo + k - 1
+        xs, ys = x[lo:lo + k], y[lo:lo + k]
+        dd1 = np.subtract(ys[1:], ys[:-1], out=dd1_buf[:k - 1])
+        if dx is None:
+            dd1 /= np.subtract(xs[1:], xs[:-1], out=span_buf[:k - 1])
+        else:
+            dd1 /= dx[lo:lo + k - 1]
+        dd2 = np.subtract(dd1[1:], dd1[:-1], out=dd2_buf[:k - 2])
+        dd2 /= np.subtract(xs[2:], xs[:-2], out=span_buf[:k - 2])
+        dd3 = np.subtract(dd2[1:], dd2[:-1], out=dd3_buf[:k - 3])
+        dd3 /= np.subtract(xs[3:], xs[:-3], out=span_buf[:k - 3])
+        j = np.subtract(j_all[a:b], lo, out=jl_buf[:m])
+        xq = np.add(steps[:m], a, out=xq_buf[:m])
         xq *= spacing
-        acc = x2.take(j)
+        acc = xs[2:].take(j, out=acc_buf[:m], mode='clip')      # x[j + 2]
         np.subtract(xq, acc, out=acc)
-        acc *= dd3.take(j)
-        acc += dd2.take(j)
-        t = x1.take(j)
+        acc *= dd3.take(j, out=t_buf[:m], mode='clip')
+        acc += dd2.take(j, out=t_buf[:m], mode='clip')
+        t = xs[1:].take(j, out=t_buf[:m], mode='clip')          # x[j + 1]
         np.subtract(xq, t, out=t)
         acc *= t
-        acc += dd1.take(j)
-        x.take(j, out=t)
+        acc += dd1.take(j, out=t_buf[:m], mode='clip')
+        xs.take(j, out=t, mode='clip')
         np.subtract(xq, t, out=t)
         acc *= t
-        acc += y.take(j)
-        out[a:b] = acc
+        np.add(acc, ys.take(j, out=t, mode='clip'), out=out[a:b])
     return out
 
 
 def resample_to_output_angle(
     phase_out_rad: npt.ArrayLike, te_rad: npt.ArrayLike, *,
     revolutions: int | None = None, samples_per_rev: int | None = None,
+    workspace: SpectrumWorkspace | None = None,
 ) -> AngleResampled:
     """Resample TE onto a uniform output-angle grid over whole revolutions.
 
@@ -261,6 +326,8 @@ def resample_to_output_angle(
             record must cover them (span plus one sample step). None: as many as covered.
         samples_per_rev: Grid points per revolution; None keeps the record's mean density
             (rounded up to a fast FFT length).
+        workspace: Work arrays to reuse (:class:`SpectrumWorkspace`); the returned
+            ``te_rad`` is then one of them, overwritten by the next call with it.
 
     Returns:
         The resampled record.
@@ -291,14 +358,16 @@ def resample_to_output_angle(
     if not (math.isfinite(float(np.add.reduce(phi))) and math.isfinite(float(np.add.reduce(te)))):
         msg = 'phase_out_rad or te_rad holds NaN or infinite values (or values beyond 1e300)'
         raise TeInputError(msg)
-    step = np.diff(phi)
+    n = phi.size
+    step = np.subtract(phi[1:], phi[:-1],
+                       out=None if workspace is None else workspace.array('dx', n - 1))
     if step[0] < 0.0:
         phi, te, step = phi[::-1], te[::-1], -step[::-1]
-    if not np.all(step > 0.0):
+    if not float(np.minimum.reduce(step)) > 0.0:
         msg = 'phase_out_rad must be strictly monotonic (no stop or reversal in the record)'
         raise TeInputError(msg)
     phi0 = float(phi[0])
-    covered_rev = (float(phi[-1]) - phi0 + float(step.max())) / _TWO_PI
+    covered_rev = (float(phi[-1]) - phi0 + float(np.maximum.reduce(step))) / _TWO_PI
     n_rev = math.floor(covered_rev + _REV_TOL)
     if revolutions is not None:
         if isinstance(revolutions, bool) or int(revolutions) != revolutions or revolutions < 1:
@@ -321,7 +390,8 @@ def resample_to_output_angle(
             msg = f'samples_per_rev must be an int >= 2, got {samples_per_rev!r}'
             raise TeInputError(msg)
         spr = int(samples_per_rev)
-    te_grid = _lagrange4_uniform(phi - phi0, te, _TWO_PI / spr, n_rev * spr)
+    x = np.subtract(phi, phi0, out=None if workspace is None else workspace.array('x', n))
+    te_grid = _lagrange4_uniform(x, te, _TWO_PI / spr, n_rev * spr, dx=step, work=workspace)
     return AngleResampled(phi0_rad=phi0, revolutions=n_rev, samples_per_rev=spr, te_rad=te_grid)
 
 
@@ -336,7 +406,7 @@ def _wrap_pi_inplace(x: np.ndarray) -> np.ndarray:
 def order_spectrum(
     phase_out_rad: npt.ArrayLike, te_rad: npt.ArrayLike, orders: OrderSet, *,
     duration_s: float | None = None, samples_per_rev: int | None = None,
-    revolutions: int | None = None,
+    revolutions: int | None = None, workspace: SpectrumWorkspace | None = None,
 ) -> OrderSpectrum:
     """Order spectrum of TE over whole output revolutions, with the lines of ``orders``.
 
@@ -353,6 +423,8 @@ def order_spectrum(
             ``crank_hz`` and each line's ``frequency_hz`` (NaN when None).
         samples_per_rev: Grid points per output revolution (None: record density).
         revolutions: Whole revolutions to analyse (None: as many as the record covers).
+        workspace: Work arrays to reuse between calls (:class:`SpectrumWorkspace`; the
+            returned spectrum holds none of them); None allocates them per call.
 
     Returns:
         The spectrum.
@@ -374,7 +446,7 @@ def order_spectrum(
         (2.0, 0.3)
     """
     res = resample_to_output_angle(phase_out_rad, te_rad, revolutions=revolutions,
-                                   samples_per_rev=samples_per_rev)
+                                   samples_per_rev=samples_per_rev, workspace=workspace)
     phi = np.asarray(phase_out_rad, dtype=np.float64)
     if duration_s is None:
         output_hz = math.nan
@@ -391,7 +463,10 @@ def order_spectrum(
     amplitude[0] *= 0.5
     if n_grid % 2 == 0:
         amplitude[-1] *= 0.5
-    bin_orders = np.arange(spec.size, dtype=np.float64) / res.revolutions
+    if workspace is None:
+        bin_orders = np.arange(spec.size, dtype=np.float64) / res.revolutions
+    else:
+        bin_orders = workspace.orders(spec.size, res.revolutions)
     lines = []
     for order, label in orders.lines():
         m = round(order * res.revolutions)
@@ -404,7 +479,8 @@ def order_spectrum(
             frequency_hz=order * output_hz, amplitude_rad=float(amplitude[m]),
             phase_rad=float(_wrap_pi_inplace(phase)[0]), label=label))
     for arr in (bin_orders, amplitude, spec):
-        arr.setflags(write=False)
+        if arr.flags.writeable:
+            arr.setflags(write=False)
     return OrderSpectrum(
         output_hz=output_hz, crank_hz=output_hz * orders.crank_per_output,
         revolutions=float(res.revolutions), lines=tuple(lines), orders=bin_orders,
@@ -507,7 +583,10 @@ class SpectrumAverager:
             return
         # windows of the same length share the order grid m / R up to their own Nyquist order
         size = min(self._sum.size, amp.size)
-        if self._same_grid and not np.allclose(orders[:size], self._ref_orders[:size]):
+        # (windows of one length have bit-equal grids m / R: the exact test settles them
+        # in one pass; allclose, ~8 passes, only when they differ)
+        if self._same_grid and not np.array_equal(orders[:size], self._ref_orders[:size]) \
+                and not np.allclose(orders[:size], self._ref_orders[:size]):
             self._same_grid = False
         self._sum = self._sum[:size] + amp[:size]
         self._ref_orders = self._ref_orders[:size]

@@ -47,8 +47,8 @@ from typing import TYPE_CHECKING, Any, Literal
 import numpy as np
 
 from rv_te_bench.core.orders import OrderSet
-from rv_te_bench.core.spectrum import OrderSpectrum, order_spectrum
-from rv_te_bench.core.te import RunningStats, TeStats, output_phase_and_te, stats_of_finite
+from rv_te_bench.core.spectrum import OrderSpectrum, SpectrumWorkspace, order_spectrum
+from rv_te_bench.core.te import RunningStats, TeStats, moments_of_finite, output_phase_and_te
 from rv_te_bench.errors import TeConfigError, TeInputError
 
 if TYPE_CHECKING:
@@ -67,6 +67,8 @@ _EMPTY.setflags(write=False)
 _INITIAL_CAPACITY = 1 << 16
 _MIN_WINDOW_SAMPLES = 16
 _SCAN_PIECE = 1 << 16  # samples examined at a time when looking for a window's end
+_OFFS_BOUND = 1e300
+_OFFS_SUM_SAFE_N = 10**8
 
 
 def _empty_array() -> np.ndarray:
@@ -290,17 +292,25 @@ def _normalize(block: Any) -> _Clean | _Problem:  # noqa: ANN401, C901, PLR0911,
     # one pass without a temporary: a NaN or inf makes the sum non-finite (finite values
     # overflow only beyond 1e304, which no angle or time reaches). The torque is not used
     # by the TE analysis: a bad torque sample must not cost the block its angles.
+    # Time offsets that increase strictly between finite ends within +-1e300 are all finite
+    # and sum without overflow (n < 1e8): the increase test (needed anyway) covers them.
+    increasing = n == 1 or bool((offs[1:] > offs[:-1]).all())
+    offs_ok = increasing and n < _OFFS_SUM_SAFE_N and -_OFFS_BOUND <= float(offs[0]) \
+        and float(offs[-1]) <= _OFFS_BOUND
+    names = ('time_offset_s', 'theta_in_rad', 'theta_out_rad')
+    arrays = (offs, th_in, th_out)
+    if offs_ok:
+        names, arrays = names[1:], arrays[1:]
     with np.errstate(over='ignore', invalid='ignore'):
-        totals = [float(np.add.reduce(a)) for a in (offs, th_in, th_out)]
-    for name, arr, total in zip(('time_offset_s', 'theta_in_rad', 'theta_out_rad'),
-                                (offs, th_in, th_out), totals, strict=True):
+        totals = [float(np.add.reduce(a)) for a in arrays]
+    for name, arr, total in zip(names, arrays, totals, strict=True):
         if not math.isfinite(total):
             bad_idx = np.flatnonzero(~np.isfinite(arr))
             if bad_idx.size:
                 bad = int(bad_idx[0])
                 return _Problem('non_finite', f'{where}: {name}[{bad}] is {float(arr[bad])!r}')
             return _Problem('malformed', f'{where}: {name} values out of range (|x| > 1e300)')
-    if n > 1 and not (offs[1:] > offs[:-1]).all():
+    if not increasing:
         return _Problem('malformed', f'{where}: time_offset_s not strictly increasing')
     return _Clean(int(seq), offs + stamp, th_in, th_out, rate)
 
@@ -517,6 +527,11 @@ def _first_reach(phi: np.ndarray, start: float, bound: float) -> int:
     Scans piece by piece, so the cost grows with the distance to that sample, not with the
     length of ``phi`` (a long batch holds many windows).
     """
+    if phi.size <= _SCAN_PIECE:   # one piece (a block pushed live): no slicing
+        if (float(np.maximum.reduce(phi)) - start >= bound
+                or start - float(np.minimum.reduce(phi)) >= bound):
+            return int((np.abs(phi - start) >= bound).argmax())
+        return -1
     for a in range(0, phi.size, _SCAN_PIECE):
         piece = phi[a:a + _SCAN_PIECE]
         if (float(np.maximum.reduce(piece)) - start >= bound
@@ -575,9 +590,13 @@ class StreamingTeAnalyzer:
     def __init__(self, config: TeAnalysisConfig) -> None:
         """Start a session with ``config``."""
         self._config = config
+        # cumulative statistics: every closed window's moments (one pass per window, the
+        # window's own), plus the open window's samples up to _cum_folded when read
         self._cum = RunningStats()
+        self._cum_folded = 0
         self._cum_rev = 0.0
         self._buf = _WindowBuffer(config.max_window_samples)
+        self._spectrum_work = SpectrumWorkspace()   # the window spectra's work arrays
         self._pending: list[WindowResult] = []
         self._last_seq: int | None = None
         self._last_t: float | None = None
@@ -598,8 +617,16 @@ class StreamingTeAnalyzer:
     def cumulative(self) -> TeStats:
         """Statistics over every clean sample since the start (or the last reset).
 
-        ``revolutions`` is the output angle travelled over clean, contiguous data.
+        ``revolutions`` is the output angle travelled over clean, contiguous data. The open
+        window's samples are folded in here (what was not yet): a closed window adds the
+        moments its statistics come from, so pushing blocks does no per-block pass for this.
         """
+        buf = self._buf
+        if buf.n > self._cum_folded:
+            # the buffered TE is finite (checked on the way in): no check, no new array
+            self._cum.add_moments(moments_of_finite(buf.te[self._cum_folded:buf.n],
+                                                    scratch=buf.scratch()))
+            self._cum_folded = buf.n
         return self._cum.stats(revolutions=self._cum_rev / _TWO_PI)
 
     @property
@@ -624,6 +651,7 @@ class StreamingTeAnalyzer:
             reset_cumulative = config.gear_ratio != self._config.gear_ratio
         if reset_cumulative:
             self._cum = RunningStats()
+            self._cum_folded = 0
             self._cum_rev = 0.0
         if config.max_window_samples != self._config.max_window_samples:
             self._buf = _WindowBuffer(config.max_window_samples)
@@ -666,20 +694,26 @@ class StreamingTeAnalyzer:
         complete = reason == 'complete'
         w_rev = self._config.window_revolutions
         spectrum = None
+        moments = moments_of_finite(te, scratch=buf.scratch())
+        if self._cum_folded == 0:
+            self._cum.add_moments(moments)
+        elif self._cum_folded < te.size:   # part went in when `cumulative` was read
+            self._cum.add_moments(moments_of_finite(te[self._cum_folded:],
+                                                    scratch=buf.scratch()))
+        self._cum_folded = 0
         if complete:
-            stats = stats_of_finite(te, revolutions=w_rev, scratch=buf.scratch())
+            stats = moments.stats(w_rev)
             if self._config.compute_spectrum:
                 try:
                     spectrum = order_spectrum(
                         phi, te, self._config.orders, duration_s=buf.t_last - buf.t_first,
                         samples_per_rev=self._config.samples_per_rev,
-                        revolutions=round(w_rev))
+                        revolutions=round(w_rev), workspace=self._spectrum_work)
                 except TeInputError:
                     spectrum = None
                     self._counters['spectrum_failures'] += 1
         else:
-            stats = stats_of_finite(te, revolutions=abs(float(phi[-1] - phi[0])) / _TWO_PI,
-                                    scratch=buf.scratch())
+            stats = moments.stats(abs(float(phi[-1] - phi[0])) / _TWO_PI)
         result = WindowResult(
             index=self._n_windows, start_stamp_s=buf.t_first, end_stamp_s=buf.t_last,
             complete=complete, stats=stats, spectrum=spectrum, first_seq=buf.first_seq,
@@ -786,7 +820,6 @@ class StreamingTeAnalyzer:
         phi, te = output_phase_and_te(batch.theta_in_rad[a:b], batch.theta_out_rad[a:b],
                                       gear_ratio=self._config.gear_ratio, check=False)
         self._counters['blocks'] += k1 - k0
-        self._cum.update(te)
         rel = starts[k0:k1 + 1] - a
         # angle travelled: within each block first -> last, and between blocks (as push does)
         ends = np.empty(2 * (k1 - k0))
@@ -856,7 +889,6 @@ class StreamingTeAnalyzer:
         self._last_t = float(t[-1])
         phi, te = output_phase_and_te(clean.theta_in_rad, clean.theta_out_rad,
                                       gear_ratio=self._config.gear_ratio, check=False)
-        self._cum.update(te)
         self._cum_rev += abs(float(phi[-1] - phi[0]))
         if self._last_phi is not None:
             self._cum_rev += abs(float(phi[0]) - self._last_phi)

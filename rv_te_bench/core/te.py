@@ -39,7 +39,8 @@ from rv_te_bench.errors import TeInputError
 if TYPE_CHECKING:
     import numpy.typing as npt
 
-__all__ = ['RunningStats', 'TeStats', 'output_phase_and_te', 'stats_of_finite',
+__all__ = ['RunningStats', 'TeMoments', 'TeStats', 'moments_of_finite',
+           'output_phase_and_te', 'stats_of_finite',
            'te_statistics', 'transmission_error_rad']
 
 
@@ -198,20 +199,53 @@ def stats_of_finite(te_rad: np.ndarray, *, revolutions: float = math.nan,
     of a new array. The arithmetic is numpy's ``mean``/``std`` (pairwise sums), so the
     values equal those of :func:`te_statistics` bit for bit.
     """
+    return moments_of_finite(te_rad, scratch=scratch).stats(revolutions)
+
+
+@dataclass(frozen=True)
+class TeMoments:
+    """Count, extremes, mean and sum of squared deviations (M2) of a finite TE record.
+
+    What :class:`RunningStats` merges (:meth:`RunningStats.add_moments`) and what
+    :class:`TeStats` is derived from, so that a window's statistics and the cumulative
+    statistics come from one pass over the window.
+
+    Attributes:
+        n_samples: Number of samples (> 0).
+        min_rad: Smallest TE [rad].
+        max_rad: Largest TE [rad].
+        mean_rad: Mean TE [rad].
+        m2_rad2: Sum of squared deviations from the mean [rad^2].
+    """
+
+    n_samples: int
+    min_rad: float
+    max_rad: float
+    mean_rad: float
+    m2_rad2: float
+
+    def stats(self, revolutions: float = math.nan) -> TeStats:
+        """The :class:`TeStats` of the record."""
+        lo, hi = self.min_rad, self.max_rad
+        return TeStats(pp_rad=hi - lo, amplitude_rad=max(abs(lo), abs(hi)),
+                       mean_rad=self.mean_rad,
+                       std_rad=math.sqrt(self.m2_rad2 / self.n_samples),
+                       revolutions=float(revolutions), n_samples=self.n_samples)
+
+
+def moments_of_finite(te_rad: np.ndarray, *, scratch: np.ndarray | None = None) -> TeMoments:
+    """:class:`TeMoments` of a non-empty 1-D float64 record known to be finite.
+
+    Pairwise sums as numpy's ``mean``/``std``; the deviations are squared in ``scratch``
+    (at least as long as ``te_rad``) when given, else in a new array.
+    """
     n = te_rad.size
     lo = float(np.minimum.reduce(te_rad))
     hi = float(np.maximum.reduce(te_rad))
     mean = float(np.add.reduce(te_rad)) / n
     dev = np.subtract(te_rad, mean, out=None if scratch is None else scratch[:n])
     np.multiply(dev, dev, out=dev)
-    return TeStats(
-        pp_rad=hi - lo,
-        amplitude_rad=max(abs(lo), abs(hi)),
-        mean_rad=mean,
-        std_rad=math.sqrt(float(np.add.reduce(dev)) / n),
-        revolutions=float(revolutions),
-        n_samples=int(n),
-    )
+    return TeMoments(int(n), lo, hi, mean, float(np.add.reduce(dev)))
 
 
 class RunningStats:
@@ -277,6 +311,12 @@ class RunningStats:
         np.multiply(dev, dev, out=dev)
         self._combine(n_b, mean_b, float(np.add.reduce(dev)), float(np.minimum.reduce(te)),
                       float(np.maximum.reduce(te)))
+
+    def add_moments(self, moments: TeMoments) -> None:
+        """Fold in a record summarised by its :class:`TeMoments` (as :meth:`update` would,
+        to rounding: the record's own pass is reused instead of a second one)."""  # noqa: D205, D209
+        self._combine(moments.n_samples, moments.mean_rad, moments.m2_rad2, moments.min_rad,
+                      moments.max_rad)
 
     def merge(self, other: RunningStats) -> None:
         """Fold in another accumulator (as if its samples had been added here)."""

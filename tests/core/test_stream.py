@@ -371,3 +371,32 @@ def test_non_finite_torque_does_not_cost_the_angles() -> None:
     assert upd.gaps == ()
     assert an.counters['blocks'] == 1
     assert an.counters['samples'] == n
+
+
+def test_cumulative_read_mid_window_matches_the_samples_so_far() -> None:
+    """The cumulative statistics fold the open window in when read (issue #23): read after
+    every block they equal the statistics of every sample pushed so far, and reading them
+    or not gives the same final values (to rounding)."""
+    s = _samples(9 * BLOCK + 137)
+    blocks = _blocks(s, [BLOCK] * 9 + [137])
+    te_all = s['theta_out'] - s['theta_in'] / RATIO
+    reading = StreamingTeAnalyzer(TeAnalysisConfig(orders=ORDERS))
+    silent = StreamingTeAnalyzer(TeAnalysisConfig(orders=ORDERS))
+    pushed = 0
+    for k, block in enumerate(blocks):
+        reading.push(block)
+        silent.push(block)
+        pushed += block.theta_in_rad.size
+        got = reading.cumulative
+        want = te_statistics(te_all[:pushed])
+        assert got.n_samples == pushed
+        assert (got.pp_rad, got.amplitude_rad) == (want.pp_rad, want.amplitude_rad)
+        assert_allclose([got.mean_rad, got.std_rad], [want.mean_rad, want.std_rad], rtol=REL)
+        if k == 4:
+            reading.cumulative  # noqa: B018 - a second read folds nothing twice
+            assert reading.cumulative.n_samples == pushed
+    reading.flush()
+    silent.flush()
+    a, b = reading.cumulative, silent.cumulative
+    assert (a.n_samples, a.pp_rad, a.amplitude_rad) == (b.n_samples, b.pp_rad, b.amplitude_rad)
+    assert_allclose([a.mean_rad, a.std_rad], [b.mean_rad, b.std_rad], rtol=1e-12)
