@@ -390,10 +390,11 @@ def floor_publisher(ns: str, rate_hz: float, block: int, duration_s: float) -> i
     total = int(round(duration_s / period))
     t = np.arange(block) / rate_hz
     state = {'sent': 0, 'start': None, 'lag_max': 0.0}
+    give_up = time.monotonic() + 60.0   # no subscriber by then: publish anyway (gaps show)
 
     def tick() -> None:
         if state['start'] is None:
-            if pub.get_subscription_count() < 1:
+            if pub.get_subscription_count() < 1 and time.monotonic() < give_up:
                 return
             state['start'] = time.monotonic()
         due = min(total, int((time.monotonic() - state['start']) / period) + 1)
@@ -493,7 +494,11 @@ def run_floor(n: int, rate_hz: float, block: int, duration_s: float,
                 [*me, '--_floor-pub', ns, *common], env=child_env(), stdout=subprocess.PIPE,
                 text=True)
         last = 0.0
+        deadline = t0 + duration_s + 150.0
         while any(p.poll() is None for p in procs.values()):
+            if time.monotonic() > deadline:
+                print('floor: a process did not end in time: stopping it', file=sys.stderr)
+                break
             time.sleep(0.1)
             now = time.monotonic()
             pids = {k: p.pid for k, p in procs.items()}
