@@ -320,9 +320,20 @@ def ros_args(spec: SessionSpec, node: str, params_file: Path | None) -> list[str
     return args
 
 
+#: BLAS / OpenMP thread pools of a node process: one thread each unless the user set them.
+#: A session runs four node processes (a multi-bench set-up 16) on a few cores; numpy's
+#: OpenBLAS otherwise starts a spinning thread per core in every process, and the
+#: compensation node's searches then cost twice the CPU for no gain in time (issue #23
+#: item 1: 1.37 CPU s vs 0.72 CPU s per Eq. 21 grid on 2 cores) and starve the benches.
+NODE_THREAD_ENV = ('OPENBLAS_NUM_THREADS', 'OMP_NUM_THREADS', 'MKL_NUM_THREADS')
+
+
 def child_env() -> dict[str, str]:
-    """Environment for node processes (the ROS wheel bootstrap marker must not leak)."""
+    """Environment for node processes (the ROS wheel bootstrap marker must not leak; one
+    BLAS thread per process unless set, see :data:`NODE_THREAD_ENV`)."""
     env = dict(os.environ)
+    for var in NODE_THREAD_ENV:
+        env.setdefault(var, '1')
     env.pop('_ROS_WHEELS_BOOTSTRAP_COMPLETE', None)
     env.pop('RV_TE_LAUNCHER_PID', None)   # set by Session.start for its own children only
     env.pop('RV_TE_SESSION', None)

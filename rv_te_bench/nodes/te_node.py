@@ -241,8 +241,8 @@ class TeNode(Node):
         msg.window_index = self.analyzer.counters.get('windows', 0) if self.analyzer else 0
         msg.window_complete = False
         msg.sample_rate_hz = float(self.p['decimated_rate_hz'])
-        msg.te_rad = np.ascontiguousarray(update.te_rad, dtype=np.float64)
-        msg.theta_out_rad = np.ascontiguousarray(update.phase_out_rad, dtype=np.float64)
+        msg.te_rad = convert.float64_field(update.te_rad)
+        msg.theta_out_rad = convert.float64_field(update.phase_out_rad)
         if self.analyzer is not None:
             msg.cumulative = convert.make_te_statistics(self.analyzer.cumulative)
         if self._last_window is not None:

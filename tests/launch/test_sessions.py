@@ -151,3 +151,17 @@ def test_two_namespaced_fast_sessions_keep_their_own_clock(tmp_path) -> None:  #
         assert list(clocks) == [f'/{ns}/clock'], list(clocks)   # its own clock only
         own = clocks[f'/{ns}/clock']
         assert min(stamp_ns) <= min(own) and max(own) <= max(stamp_ns) + block_ns + 1000
+
+
+def test_node_processes_get_one_blas_thread_unless_set(monkeypatch) -> None:  # noqa: ANN001
+    """Issue #23 item 1: every node process has one BLAS / OpenMP thread by default (16 node
+    processes of four benches on 2 cores: OpenBLAS's spinning pool doubled the compensation
+    node's CPU); a value the user set is kept."""
+    from rv_te_bench.launch.session import NODE_THREAD_ENV, child_env  # noqa: PLC0415
+
+    for var in NODE_THREAD_ENV:
+        monkeypatch.delenv(var, raising=False)
+    env = child_env()
+    assert all(env[v] == '1' for v in NODE_THREAD_ENV)
+    monkeypatch.setenv('OPENBLAS_NUM_THREADS', '2')
+    assert child_env()['OPENBLAS_NUM_THREADS'] == '2'

@@ -53,3 +53,24 @@ def test_te_statistics_keep_nan_and_zero_unknown_revolutions() -> None:
     assert msg.n_samples == 0
     msg = convert.make_te_statistics(TeStats(1e-4, 6e-5, 1e-6, 2e-5, 2.0, 100))
     assert (msg.pp_rad, msg.revolutions_covered, msg.n_samples) == (1e-4, 2.0, 100)
+
+
+def test_float64_field_is_an_exact_array_copy() -> None:
+    """Issue #23 item 1: float64[] fields get an array.array('d') by one memory copy, equal
+    bit for bit to what the message's own setter stores, from any array-like."""
+    import array  # noqa: PLC0415
+
+    from rv_te_msgs.msg import EncoderBlock  # noqa: PLC0415
+
+    x = np.linspace(-1e6, 1e6, 201) + 1e-9
+    for values in (x, x[::2], x.astype(np.float32), list(x[:5]), np.empty(0)):
+        got = convert.float64_field(values)
+        assert isinstance(got, array.array)
+        assert got.typecode == 'd'
+        m = EncoderBlock()
+        m.theta_in_rad = values
+        assert got.tobytes() == m.theta_in_rad.tobytes()
+    src = x.copy()
+    got = convert.float64_field(src)
+    src[0] = 42.0   # a copy, not a view
+    assert got[0] == x[0]

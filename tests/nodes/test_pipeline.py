@@ -7,6 +7,7 @@ published and runs the core offline on them, and checks Eq. 22 against the model
 from __future__ import annotations
 
 import math
+import sys
 
 import numpy as np
 import pytest
@@ -290,3 +291,33 @@ def test_compensation_node_aborts_a_running_search_on_shutdown(ros_context) -> N
     node.destroy_node()
     assert time.monotonic() - t0 < 5.0
     assert node.published == {}
+
+
+@pytest.mark.skipif(not sys.platform.startswith('linux'), reason='per-thread nice is Linux')
+def test_compensation_search_thread_runs_niced(ros_context) -> None:  # noqa: ANN001
+    """The searches yield the cores to the benches' data path (issue #23 item 1): the worker
+    thread runs at the node's niceness + search_nice; the node's own thread is unchanged."""
+    import os  # noqa: PLC0415
+    import threading  # noqa: PLC0415
+
+    from rv_te_bench.nodes.compensation_node import CompensationNode  # noqa: PLC0415
+
+    base = os.getpriority(os.PRIO_PROCESS, threading.get_native_id())
+    node = CompensationNode(context=ros_context, parameter_overrides=[
+        Parameter('preset', value='hu2020-rv'), Parameter('search_nice', value=5)])
+    try:
+        seen = node.pool.submit(
+            lambda: os.getpriority(os.PRIO_PROCESS, threading.get_native_id())).result(10)
+        assert seen == min(19, base + 5) == node.search_nice
+        assert os.getpriority(os.PRIO_PROCESS, threading.get_native_id()) == base
+    finally:
+        node.destroy_node()
+    off = CompensationNode(context=ros_context, parameter_overrides=[
+        Parameter('preset', value='hu2020-rv'), Parameter('search_nice', value=0)])
+    try:
+        seen = off.pool.submit(
+            lambda: os.getpriority(os.PRIO_PROCESS, threading.get_native_id())).result(10)
+        assert seen == base
+        assert off.search_nice is None
+    finally:
+        off.destroy_node()

@@ -1,0 +1,612 @@
+"""Four benches live (issue #23 item 1): N sessions side by side, each in its own namespace.
+
+Each session is a full one (bench -> TE node -> compensation node, recorder), one process per
+node, real time, in namespace ``/benchK`` (the launcher's namespace support: ``rv-te launch
+--namespace benchK``). For each bench it reports what bench_pipeline.py reports for one:
+blocks published / seen by the probe / recorded / processed by the TE node, TE gaps, CPU per
+node (utime + stime from /proc over the wall time), the bench's largest lag behind its clock,
+and the latency from a block's arrival to the TE samples computed from it (at a probe node in
+each namespace; the probes read raw CDR and decode the stamp only, so they cost little).
+
+    .venv/bin/python benchmarks/bench_multibench.py                     # 4 x 10 kHz, 10 min
+    .venv/bin/python benchmarks/bench_multibench.py --benches 2 --duration-s 60
+    .venv/bin/python benchmarks/bench_multibench.py --floor             # the middleware floor
+
+``--floor`` runs N bare rclpy publisher / subscriber pairs (a process each) of the same
+EncoderBlock messages (same size, same rate, ENCODER_QOS, EventsExecutor, a timer that
+publishes what the clock says is due, like the bench): the cost of rclpy + Fast DDS alone,
+the least any node that sends or receives these blocks can cost.
+
+Everything goes to a temporary folder that is removed at the end (``--keep`` keeps the bags).
+Prints a markdown table per bench and a total CPU line.
+"""
+
+from __future__ import annotations
+
+import argparse
+import contextlib
+import json
+import os
+import platform
+import shutil
+import signal
+import struct
+import subprocess
+import sys
+import tempfile
+import time
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
+
+CLK_TCK = os.sysconf('SC_CLK_TCK')
+NODES = ('bench', 'te_node', 'compensation', 'recorder')
+PROBE = 'multibench_probe'
+
+
+def cpu_s(pid: int) -> float:
+    """utime + stime of a process [s] (0 when it is gone)."""
+    try:
+        fields = Path(f'/proc/{pid}/stat').read_text().rsplit(')', 1)[1].split()
+    except OSError:
+        return 0.0
+    return (int(fields[11]) + int(fields[12])) / CLK_TCK
+
+
+def cdr_stamp_s(data: bytes) -> float:
+    """header.stamp of a serialised message whose first field is a std_msgs/Header [s]."""
+    fmt = '<iI' if data[1] == 1 else '>iI'   # encapsulation: CDR_LE (0x0001) or CDR_BE
+    sec, nsec = struct.unpack_from(fmt, data, 4)
+    return sec + nsec * 1e-9
+
+
+class CpuMeter:
+    """CPU of named processes from a start (after warm-up) to their last reading alive."""
+
+    def __init__(self) -> None:
+        """Nothing measured yet."""
+        self.start: dict[str, tuple[float, float]] = {}
+        self.end: dict[str, tuple[float, float]] = {}
+
+    def begin(self, pids: dict[str, int]) -> None:
+        """Take the first reading of every process."""
+        now = time.monotonic()
+        self.start = {n: (cpu_s(p), now) for n, p in pids.items()}
+
+    def sample(self, pids: dict[str, int], alive: dict[str, bool]) -> None:
+        """Keep the last reading of each live process (a bench exits at its end)."""
+        now = time.monotonic()
+        for n, p in pids.items():
+            c = cpu_s(p)
+            if c > 0 and alive.get(n, True):
+                self.end[n] = (c, now)
+
+    def pct(self) -> dict[str, float]:
+        """Percent of one core per process over its measured interval."""
+        out = {}
+        for n, (c1, w1) in self.end.items():
+            if n in self.start:
+                c0, w0 = self.start[n]
+                out[n] = 100.0 * (c1 - c0) / max(w1 - w0, 1e-9)
+        return out
+
+    def seconds(self) -> dict[str, float]:
+        """CPU seconds per process over its measured interval."""
+        return {n: c1 - self.start[n][0] for n, (c1, _) in self.end.items() if n in self.start}
+
+
+def _stop_on_sigterm() -> dict[str, Any]:
+    """SIGTERM / SIGINT raise KeyboardInterrupt once (the finally blocks stop every node)."""
+    def handler(*_: object) -> None:
+        signal.signal(signal.SIGTERM, signal.SIG_IGN)
+        raise KeyboardInterrupt
+
+    return {s: signal.signal(s, handler) for s in (signal.SIGTERM,)}
+
+
+# -- the pipeline: N full sessions ---------------------------------------------------------
+
+def run_benches(n_benches: int, rate_hz: float, block: int, duration_s: float,  # noqa: C901, PLR0912, PLR0915
+                out_dir: Path, warmup_s: float = 2.0, profile_s: float = 0.0,
+                start_timeout_s: float = 90.0, extra_params: tuple[str, ...] = (),
+                ) -> dict[str, Any]:
+    """Run N sessions side by side; return per-bench results and per-process CPU."""
+    import rclpy  # noqa: PLC0415
+    from diagnostic_msgs.msg import DiagnosticArray  # noqa: PLC0415
+    from rv_te_msgs.msg import EncoderBlock, TransmissionError  # noqa: PLC0415
+
+    from rv_te_bench.io.bag_reader import bag_summary  # noqa: PLC0415
+    from rv_te_bench.launch.session import Session, build_session  # noqa: PLC0415
+    from rv_te_bench.nodes import qos  # noqa: PLC0415
+    from rv_te_bench.nodes.common import make_executor  # noqa: PLC0415
+
+    names = [f'bench{k + 1}' for k in range(n_benches)]
+    specs = {}
+    for ns in names:
+        specs[ns] = build_session([], namespace=ns, nodes=list(NODES), overrides=[
+            'bench.te_mode=nlte', f'bench.bench_id={ns}', f'bench.sample_rate_hz={rate_hz}',
+            f'bench.block_size={block}', f'bench.duration_s={duration_s}',
+            'bench.time_mode=realtime',
+            f'recorder.output_dir={out_dir}', f'recorder.bag_name={ns}',
+            f'bench.wait_for_nodes=[te_node, recorder, {PROBE}]',
+            f'bench.wait_timeout_s={start_timeout_s + 30.0}', *extra_params])
+    ctx = rclpy.context.Context()
+    rclpy.init(context=ctx)
+    ex = make_executor('events', context=ctx)
+    probes = []
+    block_arrival: dict[str, list[tuple[float, float]]] = {ns: [] for ns in names}
+    te_arrival: dict[str, list[tuple[float, float]]] = {ns: [] for ns in names}
+    diags: dict[str, dict[str, str]] = {}
+
+    def on_diag(m: DiagnosticArray) -> None:
+        for st in m.status:
+            diags[st.name] = {kv.key: kv.value for kv in st.values}
+
+    watch = rclpy.create_node('multibench_watch', context=ctx)
+    watch.create_subscription(DiagnosticArray, '/diagnostics', on_diag, qos.DIAGNOSTICS_QOS)
+    ex.add_node(watch)
+
+    def add_probes() -> None:
+        """The probes the benches wait for: made once every node of every session is up,
+        so that the benches start their clocks together, after the start-up of all."""
+        for ns in names:
+            p = rclpy.create_node(PROBE, namespace=ns, context=ctx)
+            blocks, tes = block_arrival[ns], te_arrival[ns]
+            p.create_subscription(EncoderBlock, 'bench/encoders',
+                                  lambda d, b=blocks: b.append((cdr_stamp_s(d), time.time())),
+                                  qos.ENCODER_QOS, raw=True)
+            p.create_subscription(TransmissionError, 'te/samples',
+                                  lambda d, t=tes: t.append((cdr_stamp_s(d), time.time())),
+                                  qos.ENCODER_QOS, raw=True)
+            ex.add_node(p)
+            probes.append(p)
+
+    def all_up() -> bool:
+        have = set(watch.get_node_names_and_namespaces())
+        return all((n, f'/{ns}') in have for ns in names for n in NODES)
+
+    sessions = {ns: Session(specs[ns], log=lambda s: print(s, file=sys.stderr))
+                for ns in names}
+    meter = CpuMeter()
+    crashed: list[str] = []
+    interrupted = False
+    old = _stop_on_sigterm()
+    try:
+        for s in sessions.values():
+            s.start()
+        up_by = time.monotonic() + start_timeout_s
+        while not all_up():
+            ex.spin_once(timeout_sec=0.1)
+            for s in sessions.values():
+                s.poll()
+            if time.monotonic() > up_by or any(s.failures for s in sessions.values()):
+                print('not every node came up: starting the benches anyway', file=sys.stderr)
+                break
+        add_probes()
+
+        def pids() -> dict[str, int]:
+            d = {f'{ns}/{n}': p.proc.pid for ns, s in sessions.items()
+                 for n, p in s.procs.items()}
+            d['driver (probes)'] = os.getpid()
+            return d
+
+        def alive() -> dict[str, bool]:
+            return {f'{ns}/{n}': p.proc.poll() is None for ns, s in sessions.items()
+                    for n, p in s.procs.items()}
+
+        last, streaming = 0.0, 0.0
+        spies: list[subprocess.Popen[bytes]] = []
+        while True:
+            ex.spin_once(timeout_sec=0.1)
+            now = time.monotonic()
+            if not streaming and all(block_arrival.values()):
+                streaming = now   # every bench publishes: measure from warm-up on
+            if not meter.start and streaming and now - streaming > warmup_s:
+                meter.begin(pids())
+                if profile_s > 0:
+                    spies = start_profiles(sessions[names[0]], profile_s, out_dir / 'profile')
+            if meter.start and now - last > 1.0:
+                last = now
+                meter.sample(pids(), alive())
+            for ns, s in sessions.items():
+                s.poll()
+                if s.failures and ns not in crashed:
+                    crashed.append(ns)
+            if crashed or all(s.procs['bench'].proc.poll() is not None
+                              for s in sessions.values()):
+                break
+        end = time.monotonic() + 3.0   # the TE nodes and the recorders take the last blocks
+        while time.monotonic() < end:
+            ex.spin_once(timeout_sec=0.05)
+    except KeyboardInterrupt:
+        interrupted = True
+        print('interrupted: stopping every session', file=sys.stderr)
+    finally:
+        for spy in spies:
+            try:
+                spy.wait(timeout=profile_s + 30)
+            except subprocess.TimeoutExpired:
+                spy.kill()
+                spy.wait()
+        codes = {ns: s.stop() for ns, s in sessions.items()}
+        ex.shutdown()
+        for p in [*probes, watch]:
+            p.destroy_node()
+        rclpy.try_shutdown(context=ctx)
+        for sig, h in old.items():
+            signal.signal(sig, h)
+    if interrupted:
+        raise KeyboardInterrupt
+    cpu = meter.pct()
+    expected = int(round(duration_s * rate_hz / block))
+    benches = []
+    for ns in names:
+        topics = bag_summary(out_dir / ns).get('topics', {})
+        recorded = next((t.get('count', t.get('message_count')) for name, t in topics.items()
+                         if name.endswith('bench/encoders')), None) \
+            if isinstance(topics, dict) else None
+        lat = []
+        b = np.asarray(block_arrival[ns]) if block_arrival[ns] else np.zeros((0, 2))
+        if len(b):
+            order = np.argsort(b[:, 0])
+            b = b[order]
+            for stamp, arr in te_arrival[ns]:
+                k = np.searchsorted(b[:, 0], stamp, side='right') - 1
+                if 0 <= k < len(b) and stamp < b[k, 0] + block / rate_hz + 1e-9:
+                    lat.append(arr - b[k, 1])
+        lat_ms = np.asarray(lat) * 1e3 if lat else np.asarray([np.nan])
+        # lag seen at the probe: a block's arrival after the end of its samples (bench lag +
+        # delivery), after the warm-up; and when the worst one came (s after the first block)
+        probe_lag = (b[:, 1] - b[:, 0] - block / rate_hz) if len(b) else np.asarray([np.nan])
+        skip = int(warmup_s * rate_hz / block)
+        steady = probe_lag[skip:] if len(probe_lag) > skip else probe_lag
+        worst = int(np.nanargmax(steady)) + (skip if len(probe_lag) > skip else 0) \
+            if np.isfinite(steady).any() else 0
+        te_diag = diags.get(f'/{ns}/te_node: te analysis', {})
+        bench_diag = diags.get(f'/{ns}/bench: bench', {})
+        published = bench_diag.get('blocks_published')
+        if bench_diag.get('finished') != 'True' and published is not None:
+            published = f'>={published}'   # the bench's last diagnostics did not arrive
+        benches.append({
+            'ns': ns, 'expected': expected,
+            'published': published,
+            'probe': len(block_arrival[ns]), 'recorded': recorded,
+            'te': te_diag.get('blocks'), 'te_gaps': te_diag.get('gaps_reported'),
+            'lag_max_s': bench_diag.get('lag_max_s'),
+            'crashed': ns in crashed or any(c not in (0, None) for c in codes[ns].values()),
+            'cpu': {n: cpu.get(f'{ns}/{n}', float('nan')) for n in NODES},
+            'probe_lag_max_ms': float(np.nanmax(steady)) * 1e3,
+            'probe_lag_p99_ms': float(np.nanpercentile(steady, 99)) * 1e3,
+            'probe_lag_worst_at_s': worst * block / rate_hz,
+            'lat_median_ms': float(np.nanmedian(lat_ms)),
+            'lat_p99_ms': float(np.nanpercentile(lat_ms, 99)),
+        })
+    return {'benches': benches, 'cpu': cpu,
+            'profiles': sorted((out_dir / 'profile').glob('*.txt')) if profile_s else []}
+
+
+def start_profiles(session: Any, seconds: float, folder: Path,  # noqa: ANN401
+                   ) -> list[subprocess.Popen[bytes]]:
+    """py-spy record (collapsed stacks, all threads, GIL-idle excluded) of each node of one
+    session for ``seconds``; [] when py-spy is not installed."""
+    spy = shutil.which('py-spy') or str(Path(sys.executable).parent / 'py-spy')
+    if not Path(spy).exists():
+        print('--profile-s: py-spy not found (pip install py-spy)', file=sys.stderr)
+        return []
+    folder.mkdir(parents=True, exist_ok=True)
+    procs = []
+    for name, np_ in session.procs.items():
+        procs.append(subprocess.Popen(
+            [spy, 'record', '--pid', str(np_.proc.pid), '--duration', str(int(seconds)),
+             '--rate', '250', '--nonblocking', '--format', 'raw',
+             '--output', str(folder / f'{name}.txt')],
+            stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL))
+    return procs
+
+
+def print_profiles(paths: list[Path], top: int = 12) -> None:
+    """Per node: where the sampled (non-idle) time goes, by innermost frame of our code or
+    of rclpy, and by the top-level callback."""
+    for path in paths:
+        leaf: dict[str, int] = {}
+        total = 0
+        for line in path.read_text().splitlines():
+            stack, _, count = line.rpartition(' ')
+            if not count.isdigit():
+                continue
+            n = int(count)
+            total += n
+            frames = stack.split(';')
+            key = frames[-1]
+            leaf[key] = leaf.get(key, 0) + n
+        print(f'\nprofile {path.stem}: {total} samples (self time by function)\n')
+        print('| function | share |')
+        print('|---|---|')
+        for k, v in sorted(leaf.items(), key=lambda kv: -kv[1])[:top]:
+            print(f'| `{k[:110]}` | {100.0 * v / max(total, 1):.1f} % |')
+
+
+def _f(v: Any, fmt: str = '{:.1f}') -> str:  # noqa: ANN401
+    try:
+        return fmt.format(float(v))
+    except (TypeError, ValueError):
+        return str(v)
+
+
+def print_benches(res: dict[str, Any], args: argparse.Namespace) -> bool:
+    """The per-bench table and the total CPU line; True when every bench met the target."""
+    period_ms = 1e3 * args.block_size / args.rate_hz
+    print(f'\n{args.benches} benches x {args.rate_hz:g} Hz, blocks of {args.block_size} '
+          f'(block period {period_ms:g} ms), {args.duration_s:g} s real time\n')
+    print('| bench | blocks expected / published / probe / recorded / TE | TE gaps | crashed | '
+          'CPU bench / TE / compensation / recorder | bench lag max | '
+          'block arrival after its end, max / p99 (worst at) | '
+          'latency block->TE median / p99 |')
+    print('|---|---|---|---|---|---|---|---|')
+    ok = True
+    for b in res['benches']:
+        c = b['cpu']
+        lag_ms = float(b['lag_max_s']) * 1e3 if b['lag_max_s'] is not None else float('nan')
+        counts = [b['published'], b['probe'], b['recorded'], b['te']]
+        good = (all(str(x) == str(b['expected']) for x in counts[1:]) and str(b['te_gaps']) == '0'
+                and not b['crashed'] and lag_ms < period_ms)
+        ok &= good
+        print(f"| {b['ns']} | {b['expected']} / {' / '.join(str(x) for x in counts)} | "
+              f"{b['te_gaps']} | {b['crashed']} | "
+              f"{' / '.join(_f(c[n], '{:.0f}') + ' %' for n in NODES)} | "
+              f"{_f(lag_ms)} ms | {_f(b['probe_lag_max_ms'])} / {_f(b['probe_lag_p99_ms'])} "
+              f"ms ({b['probe_lag_worst_at_s']:.0f} s) | "
+              f"{_f(b['lat_median_ms'], '{:.2f}')} / "
+              f"{_f(b['lat_p99_ms'], '{:.2f}')} ms |")
+    cpu = res['cpu']
+    per_kind = {n: sum(v for k, v in cpu.items() if k.endswith('/' + n)) for n in NODES}
+    total = sum(cpu.values())
+    print(f"\ntotal CPU {total:.0f} % of one core (of {os.cpu_count() * 100} %): "
+          + ', '.join(f'{n} {v:.0f} %' for n, v in per_kind.items())
+          + f", driver (probes) {cpu.get('driver (probes)', float('nan')):.0f} %")
+    print(f"result: {'PASS' if ok else 'FAIL'} (0 lost, 0 gaps, no crash, lag < "
+          f'{period_ms:g} ms on every bench)')
+    return ok
+
+
+# -- the floor: N bare rclpy publisher / subscriber pairs ---------------------------------
+
+def floor_publisher(ns: str, rate_hz: float, block: int, duration_s: float) -> int:
+    """A bare publisher of EncoderBlocks at the bench's rate (a child process)."""
+    import rclpy  # noqa: PLC0415
+    from rv_te_msgs.msg import EncoderBlock  # noqa: PLC0415
+
+    from rv_te_bench.nodes import qos  # noqa: PLC0415
+    from rv_te_bench.nodes.common import make_executor  # noqa: PLC0415
+
+    ctx = rclpy.context.Context()
+    rclpy.init(context=ctx)
+    node = rclpy.create_node('floor_pub', namespace=ns, context=ctx)
+    pub = node.create_publisher(EncoderBlock, 'bench/encoders', qos.ENCODER_QOS)
+    period = block / rate_hz
+    total = int(round(duration_s / period))
+    t = np.arange(block) / rate_hz
+    state = {'sent': 0, 'start': None, 'lag_max': 0.0}
+    give_up = time.monotonic() + 60.0   # no subscriber by then: publish anyway (gaps show)
+
+    def tick() -> None:
+        if state['start'] is None:
+            if pub.get_subscription_count() < 1 and time.monotonic() < give_up:
+                return
+            state['start'] = time.monotonic()
+        due = min(total, int((time.monotonic() - state['start']) / period) + 1)
+        while state['sent'] < due:
+            k = state['sent']
+            m = EncoderBlock()
+            ns_ = round((time.time()) * 1e9)
+            m.header.stamp.sec, m.header.stamp.nanosec = divmod(ns_, 1_000_000_000)
+            m.header.frame_id = ns
+            m.seq = k
+            m.sample_rate_hz = rate_hz
+            m.time_offset_s = t
+            m.theta_in_rad = t * 31.4 + k
+            m.theta_out_rad = t * 0.4 + k
+            m.torque_out_nm = np.full(block, 30.0)
+            pub.publish(m)
+            state['sent'] += 1
+        lag = time.monotonic() - state['start'] - state['sent'] * period
+        state['lag_max'] = max(state['lag_max'], lag)
+
+    node.create_timer(period, tick)
+    ex = make_executor('events', context=ctx)
+    ex.add_node(node)
+    try:
+        while state['sent'] < total:
+            ex.spin_once(timeout_sec=0.1)
+        from rclpy.duration import Duration  # noqa: PLC0415
+
+        pub.wait_for_all_acked(Duration(seconds=5.0))
+    except KeyboardInterrupt:
+        pass
+    finally:
+        print(json.dumps({'sent': state['sent'], 'lag_max_s': state['lag_max']}), flush=True)
+        ex.shutdown()
+        node.destroy_node()
+        rclpy.try_shutdown(context=ctx)
+    return 0
+
+
+def floor_subscriber(ns: str, expected: int, timeout_s: float) -> int:
+    """A bare subscriber (deserialising, as the TE node does) counting blocks and gaps."""
+    import rclpy  # noqa: PLC0415
+    from rv_te_msgs.msg import EncoderBlock  # noqa: PLC0415
+
+    from rv_te_bench.nodes import qos  # noqa: PLC0415
+    from rv_te_bench.nodes.common import make_executor  # noqa: PLC0415
+
+    ctx = rclpy.context.Context()
+    rclpy.init(context=ctx)
+    node = rclpy.create_node('floor_sub', namespace=ns, context=ctx)
+    state = {'n': 0, 'gaps': 0, 'next': 0}
+
+    def on_block(m: EncoderBlock) -> None:
+        if m.seq != state['next']:
+            state['gaps'] += 1
+        state['next'] = m.seq + 1
+        state['n'] += 1
+
+    node.create_subscription(EncoderBlock, 'bench/encoders', on_block, qos.ENCODER_QOS)
+    ex = make_executor('events', context=ctx)
+    ex.add_node(node)
+    end = time.monotonic() + timeout_s
+    try:
+        while state['n'] < expected and time.monotonic() < end:
+            ex.spin_once(timeout_sec=0.1)
+    except KeyboardInterrupt:
+        pass
+    finally:
+        print(json.dumps({'received': state['n'], 'gaps': state['gaps']}), flush=True)
+        ex.shutdown()
+        node.destroy_node()
+        rclpy.try_shutdown(context=ctx)
+    return 0
+
+
+def run_floor(n: int, rate_hz: float, block: int, duration_s: float,
+              warmup_s: float = 3.0) -> dict[str, Any]:
+    """N publisher / subscriber process pairs; counts, gaps and CPU per message."""
+    from rv_te_bench.launch.session import child_env  # noqa: PLC0415
+
+    expected = int(round(duration_s * rate_hz / block))
+    me = [sys.executable, str(Path(__file__).resolve())]
+    common = ['--rate-hz', str(rate_hz), '--block-size', str(block),
+              '--duration-s', str(duration_s)]
+    procs: dict[str, subprocess.Popen[str]] = {}
+    meter = CpuMeter()
+    old = _stop_on_sigterm()
+    interrupted = False
+    t0 = time.monotonic()
+    try:
+        for k in range(n):
+            ns = f'floor{k + 1}'
+            procs[f'{ns}/sub'] = subprocess.Popen(
+                [*me, '--_floor-sub', ns, *common, '--_expected', str(expected)],
+                env=child_env(), stdout=subprocess.PIPE, text=True)
+            procs[f'{ns}/pub'] = subprocess.Popen(
+                [*me, '--_floor-pub', ns, *common], env=child_env(), stdout=subprocess.PIPE,
+                text=True)
+        last = 0.0
+        deadline = t0 + duration_s + 150.0
+        while any(p.poll() is None for p in procs.values()):
+            if time.monotonic() > deadline:
+                print('floor: a process did not end in time: stopping it', file=sys.stderr)
+                break
+            time.sleep(0.1)
+            now = time.monotonic()
+            pids = {k: p.pid for k, p in procs.items()}
+            if not meter.start and now - t0 > warmup_s:
+                meter.begin(pids)
+            if meter.start and now - last > 1.0:
+                last = now
+                meter.sample(pids, {k: p.poll() is None for k, p in procs.items()})
+    except KeyboardInterrupt:
+        interrupted = True
+    finally:
+        for p in procs.values():
+            if p.poll() is None:
+                p.send_signal(signal.SIGINT)
+        for p in procs.values():
+            try:
+                p.wait(timeout=10)
+            except subprocess.TimeoutExpired:
+                p.kill()
+                p.wait()
+        for sig, h in old.items():
+            signal.signal(sig, h)
+    if interrupted:
+        raise KeyboardInterrupt
+    out = {}
+    for k, p in procs.items():
+        text = p.stdout.read() if p.stdout else ''
+        lines = [ln for ln in text.splitlines() if ln.startswith('{')]
+        out[k] = json.loads(lines[-1]) if lines else {}
+    return {'expected': expected, 'results': out, 'cpu': meter.pct(),
+            'cpu_s': meter.seconds(), 'measured_s': duration_s - warmup_s}
+
+
+def print_floor(res: dict[str, Any], args: argparse.Namespace) -> None:
+    """One row per pair: counts, gaps, CPU and CPU per message."""
+    msgs_per_s = args.rate_hz / args.block_size
+    print(f'\nfloor: {args.benches} bare rclpy publisher / subscriber pairs of EncoderBlock '
+          f'({args.block_size} samples), {msgs_per_s:g} msg/s each, {args.duration_s:g} s\n')
+    print('| pair | blocks expected / sent / received | gaps | publisher lag max | '
+          'CPU publisher / subscriber | CPU per message publisher / subscriber |')
+    print('|---|---|---|---|---|---|')
+    cpu = res['cpu']
+    for k in range(args.benches):
+        ns = f'floor{k + 1}'
+        pub, sub = res['results'].get(f'{ns}/pub', {}), res['results'].get(f'{ns}/sub', {})
+        cp, cs = cpu.get(f'{ns}/pub', float('nan')), cpu.get(f'{ns}/sub', float('nan'))
+        # percent of a core at msgs_per_s messages per second -> us per message
+        print(f"| {ns} | {res['expected']} / {pub.get('sent')} / {sub.get('received')} | "
+              f"{sub.get('gaps')} | {_f(1e3 * float(pub.get('lag_max_s', 'nan')))} ms | "
+              f'{cp:.1f} % / {cs:.1f} % | {cp * 1e4 / msgs_per_s:.0f} / '
+              f'{cs * 1e4 / msgs_per_s:.0f} us |')
+    print(f'\ntotal CPU {sum(cpu.values()):.0f} % of one core (of {os.cpu_count() * 100} %)')
+
+
+def main() -> int:
+    ap = argparse.ArgumentParser(description=__doc__,
+                                 formatter_class=argparse.RawDescriptionHelpFormatter)
+    ap.add_argument('--benches', type=int, default=4)
+    ap.add_argument('--rate-hz', type=float, default=10000.0)
+    ap.add_argument('--block-size', type=int, default=100)
+    ap.add_argument('--duration-s', type=float, default=600.0)
+    ap.add_argument('--floor', action='store_true',
+                    help='bare rclpy publisher/subscriber pairs instead of the sessions')
+    ap.add_argument('--profile-s', type=float, default=0.0,
+                    help='py-spy record bench1\'s nodes for this long after the warm-up '
+                         '(collapsed stacks in the temporary folder; see --keep)')
+    ap.add_argument('--param', action='append', default=[], metavar='NODE.KEY=VALUE',
+                    help='a parameter for every session, as rv-te launch --param '
+                         '(e.g. compensation.identify=false to see what the searches cost)')
+    ap.add_argument('--keep', action='store_true', help='keep the temporary folder (bags)')
+    ap.add_argument('--_floor-pub', dest='floor_pub', help=argparse.SUPPRESS)
+    ap.add_argument('--_floor-sub', dest='floor_sub', help=argparse.SUPPRESS)
+    ap.add_argument('--_expected', dest='expected', type=int, help=argparse.SUPPRESS)
+    args = ap.parse_args()
+    if args.floor_pub:
+        return floor_publisher(args.floor_pub, args.rate_hz, args.block_size, args.duration_s)
+    if args.floor_sub:
+        return floor_subscriber(args.floor_sub, args.expected, args.duration_s + 60.0)
+    os.environ.setdefault('ROS_AUTOMATIC_DISCOVERY_RANGE', 'LOCALHOST')
+    os.environ.setdefault('ROS_DOMAIN_ID', str(150 + os.getpid() % 50))
+    with contextlib.suppress(OSError):
+        load = os.getloadavg()
+    print(f'machine: {platform.node()} {platform.machine()}, {os.cpu_count()} cores, '
+          f'python {platform.python_version()}, date {time.strftime("%Y-%m-%d %H:%M")}, '
+          f'load average before {load[0]:.2f} {load[1]:.2f} {load[2]:.2f}', file=sys.stderr)
+    out = Path(tempfile.mkdtemp(prefix='rv-te-multibench-'))
+    try:
+        if args.floor:
+            res = run_floor(args.benches, args.rate_hz, args.block_size, args.duration_s)
+            print_floor(res, args)
+            ok = True
+        else:
+            res = run_benches(args.benches, args.rate_hz, args.block_size, args.duration_s,
+                              out, profile_s=args.profile_s, extra_params=tuple(args.param))
+            ok = print_benches(res, args)
+            print_profiles(res['profiles'])
+    except KeyboardInterrupt:
+        print('interrupted', file=sys.stderr)
+        ok = False
+    finally:
+        if args.keep:
+            print(f'kept: {out}', file=sys.stderr)
+        else:
+            shutil.rmtree(out, ignore_errors=True)
+    load = os.getloadavg()
+    print(f'load average after: {load[0]:.2f} {load[1]:.2f} {load[2]:.2f}')
+    return 0 if ok else 1
+
+
+if __name__ == '__main__':
+    sys.exit(main())
