@@ -509,6 +509,16 @@ class _WindowBuffer:
         self.last_seq = seq_last
         self.n = need
 
+    def take(self, m: int, t_first: float, t_last: float, seq_first: int,  # noqa: PLR0913
+             seq_last: int) -> None:
+        """Take in the ``m`` samples already written past the end (at ``[n, n + m)``)."""
+        if self.n == 0:
+            self.t_first = t_first
+            self.first_seq = seq_first
+        self.t_last = t_last
+        self.last_seq = seq_last
+        self.n += m
+
     def clear(self) -> None:
         # the capacity is kept (the next window is about as long; bounded by the cap)
         self.n = 0
@@ -901,16 +911,31 @@ class StreamingTeAnalyzer:
         self._last_seq = seq
         self._last_t = float(t[-1])
         config = self._config
-        phi, te = output_phase_and_te(theta_in, theta_out, gear_ratio=config.gear_ratio,
-                                      check=False)
+        buf = self._buf
+        n = theta_in.size
+        n0 = buf.n
+        in_place = n0 + n <= buf.phi.size and n0 + n <= config.max_window_samples
+        if in_place:
+            # Eq. 22 straight into the window buffer (as output_phase_and_te, bit for bit:
+            # phi = theta_in / i, TE = theta_out - phi): no new arrays, no copy
+            phi = np.divide(theta_in, config.gear_ratio, out=buf.phi[n0:n0 + n])
+            te = np.subtract(theta_out, phi, out=buf.te[n0:n0 + n])
+        else:
+            phi, te = output_phase_and_te(theta_in, theta_out, gear_ratio=config.gear_ratio,
+                                          check=False)
         phi_first, phi_last = float(phi[0]), float(phi[-1])
         self._cum_rev += abs(phi_last - phi_first)
         if self._last_phi is not None:
             self._cum_rev += abs(phi_first - self._last_phi)
         self._last_phi = phi_last
-        n = phi.size
         self._counters['samples'] += n
-        self._feed(phi, te, lambda i: float(t[i]), lambda _i: seq, windows)
+        if in_place and _first_reach(phi, phi_first if n0 == 0 else float(buf.phi[0]),
+                                     _TWO_PI * config.window_revolutions) < 0:
+            buf.take(n, float(t[0]), float(t[-1]), seq, seq)   # the window goes on
+        else:
+            if in_place:   # a window ends in this block: _feed closes it and appends
+                phi, te = phi.copy(), te.copy()
+            self._feed(phi, te, lambda i: float(t[i]), lambda _i: seq, windows)
         q = max(1, round(rate / config.decimated_rate_hz))
         start = self._decim_offset % q
         te_d, phi_d, t_d = te[start::q].copy(), phi[start::q].copy(), t[start::q].copy()
