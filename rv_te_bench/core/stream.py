@@ -290,7 +290,8 @@ def _normalize(block: Any) -> _Clean | _Problem:  # noqa: ANN401, C901, PLR0911,
     # by the TE analysis: a bad torque sample must not cost the block its angles.
     # Time offsets that increase strictly between finite ends within +-1e300 are all finite
     # and sum without overflow (n < 1e8): the increase test (needed anyway) covers them.
-    increasing = n == 1 or bool((offs[1:] > offs[:-1]).all())
+    # count_nonzero of the comparison: no .all() wrapper (a NaN compares False: not increasing)
+    increasing = n == 1 or int(np.count_nonzero(offs[1:] > offs[:-1])) == n - 1
     offs_ok = increasing and n < _OFFS_SUM_SAFE_N and -_OFFS_BOUND <= float(offs[0]) \
         and float(offs[-1]) <= _OFFS_BOUND
     add = np.add.reduce
