@@ -152,13 +152,9 @@ class _Problem:
     detail: str
 
 
-@dataclass(frozen=True)
-class _Clean:
-    seq: int
-    t_s: np.ndarray
-    theta_in_rad: np.ndarray
-    theta_out_rad: np.ndarray
-    sample_rate_hz: float
+# a clean block from _normalize: (seq, sample times t_s, theta_in_rad, theta_out_rad,
+# sample_rate_hz); a plain tuple, built once per pushed block
+_Clean = tuple[int, np.ndarray, np.ndarray, np.ndarray, float]
 
 
 @dataclass(frozen=True)
@@ -294,15 +290,24 @@ def _normalize(block: Any) -> _Clean | _Problem:  # noqa: ANN401, C901, PLR0911,
     # by the TE analysis: a bad torque sample must not cost the block its angles.
     # Time offsets that increase strictly between finite ends within +-1e300 are all finite
     # and sum without overflow (n < 1e8): the increase test (needed anyway) covers them.
-    increasing = n == 1 or bool((offs[1:] > offs[:-1]).all())
+    # count_nonzero of the comparison: no .all() wrapper (a NaN compares False: not increasing)
+    increasing = n == 1 or int(np.count_nonzero(offs[1:] > offs[:-1])) == n - 1
     offs_ok = increasing and n < _OFFS_SUM_SAFE_N and -_OFFS_BOUND <= float(offs[0]) \
         and float(offs[-1]) <= _OFFS_BOUND
-    names = ('time_offset_s', 'theta_in_rad', 'theta_out_rad')
-    arrays = (offs, th_in, th_out)
+    add = np.add.reduce
     if offs_ok:
-        names, arrays = names[1:], arrays[1:]
-    with np.errstate(over='ignore', invalid='ignore'):
-        totals = [float(np.add.reduce(a)) for a in arrays]
+        with np.errstate(over='ignore', invalid='ignore'):
+            total_in, total_out = float(add(th_in)), float(add(th_out))
+        if math.isfinite(total_in) and math.isfinite(total_out):   # the clean block
+            return (int(seq), offs + stamp, th_in, th_out, rate)
+        names: tuple[str, ...] = ('theta_in_rad', 'theta_out_rad')
+        arrays: tuple[np.ndarray, ...] = (th_in, th_out)
+        totals = [total_in, total_out]
+    else:
+        names = ('time_offset_s', 'theta_in_rad', 'theta_out_rad')
+        arrays = (offs, th_in, th_out)
+        with np.errstate(over='ignore', invalid='ignore'):
+            totals = [float(add(a)) for a in arrays]
     for name, arr, total in zip(names, arrays, totals, strict=True):
         if not math.isfinite(total):
             bad_idx = np.flatnonzero(~np.isfinite(arr))
@@ -312,7 +317,7 @@ def _normalize(block: Any) -> _Clean | _Problem:  # noqa: ANN401, C901, PLR0911,
             return _Problem('malformed', f'{where}: {name} values out of range (|x| > 1e300)')
     if not increasing:
         return _Problem('malformed', f'{where}: time_offset_s not strictly increasing')
-    return _Clean(int(seq), offs + stamp, th_in, th_out, rate)
+    return (int(seq), offs + stamp, th_in, th_out, rate)
 
 
 def _whole_number(name: str, value: float, minimum: int) -> None:
@@ -505,6 +510,16 @@ class _WindowBuffer:
         self.last_seq = seq_last
         self.n = need
 
+    def take(self, m: int, t_first: float, t_last: float, seq_first: int,  # noqa: PLR0913
+             seq_last: int) -> None:
+        """Take in the ``m`` samples already written past the end (at ``[n, n + m)``)."""
+        if self.n == 0:
+            self.t_first = t_first
+            self.first_seq = seq_first
+        self.t_last = t_last
+        self.last_seq = seq_last
+        self.n += m
+
     def clear(self) -> None:
         # the capacity is kept (the next window is about as long; bounded by the cap)
         self.n = 0
@@ -595,6 +610,7 @@ class StreamingTeAnalyzer:
         self._cum = RunningStats()
         self._cum_folded = 0
         self._cum_rev = 0.0
+        self._cum_key: tuple[Any, ...] = (None, 0, 0.0, None)   # the last read, see cumulative
         self._buf = _WindowBuffer(config.max_window_samples)
         self._spectrum_work = SpectrumWorkspace()   # the window spectra's work arrays
         self._pending: list[WindowResult] = []
@@ -622,12 +638,20 @@ class StreamingTeAnalyzer:
         moments its statistics come from, so pushing blocks does no per-block pass for this.
         """
         buf = self._buf
-        if buf.n > self._cum_folded:
+        n = buf.n
+        cum = self._cum
+        if n > self._cum_folded:
             # the buffered TE is finite (checked on the way in): no check, no new array
-            self._cum.add_moments(moments_of_finite(buf.te[self._cum_folded:buf.n],
-                                                    scratch=buf.scratch()))
-            self._cum_folded = buf.n
-        return self._cum.stats(revolutions=self._cum_rev / _TWO_PI)
+            cum.add_finite(buf.te[self._cum_folded:n], buf.scratch())
+            self._cum_folded = n
+        # a second read with nothing new (the TE node's plot message) reuses the first:
+        # same accumulator object, as many samples, same angle travelled
+        key = self._cum_key
+        if key[0] is cum and key[1] == cum.n_samples and key[2] == self._cum_rev:
+            return key[3]
+        stats = cum.stats(self._cum_rev / _TWO_PI)
+        self._cum_key = (cum, cum.n_samples, self._cum_rev, stats)
+        return stats
 
     @property
     def counters(self) -> dict[str, int]:
@@ -870,7 +894,7 @@ class StreamingTeAnalyzer:
             if seq_int >= 0:
                 self._last_seq = seq_int
             return StreamUpdate(math.nan, _EMPTY, _EMPTY, tuple(windows), tuple(gaps))
-        seq, t = clean.seq, clean.t_s
+        seq, t, theta_in, theta_out, rate = clean
         n_gaps = len(gaps)   # (push_batch passes one list for all its blocks)
         if self._last_seq is not None and seq != self._last_seq + 1:
             self._gap(gaps, 'seq_jump', seq, f'expected seq {self._last_seq + 1}, got {seq}')
@@ -887,23 +911,42 @@ class StreamingTeAnalyzer:
             self._end_stretch(windows)
         self._last_seq = seq
         self._last_t = float(t[-1])
-        phi, te = output_phase_and_te(clean.theta_in_rad, clean.theta_out_rad,
-                                      gear_ratio=self._config.gear_ratio, check=False)
-        self._cum_rev += abs(float(phi[-1] - phi[0]))
+        config = self._config
+        buf = self._buf
+        n = theta_in.size
+        n0 = buf.n
+        in_place = n0 + n <= buf.phi.size and n0 + n <= config.max_window_samples
+        if in_place:
+            # Eq. 22 straight into the window buffer (as output_phase_and_te, bit for bit:
+            # phi = theta_in / i, TE = theta_out - phi): no new arrays, no copy
+            phi = np.divide(theta_in, config.gear_ratio, out=buf.phi[n0:n0 + n])
+            te = np.subtract(theta_out, phi, out=buf.te[n0:n0 + n])
+        else:
+            phi, te = output_phase_and_te(theta_in, theta_out, gear_ratio=config.gear_ratio,
+                                          check=False)
+        phi_first, phi_last = float(phi[0]), float(phi[-1])
+        self._cum_rev += abs(phi_last - phi_first)
         if self._last_phi is not None:
-            self._cum_rev += abs(float(phi[0]) - self._last_phi)
-        self._last_phi = float(phi[-1])
-        self._counters['samples'] += phi.size
-        self._feed(phi, te, lambda i: float(t[i]), lambda _i: seq, windows)
-        q = max(1, round(clean.sample_rate_hz / self._config.decimated_rate_hz))
+            self._cum_rev += abs(phi_first - self._last_phi)
+        self._last_phi = phi_last
+        self._counters['samples'] += n
+        if in_place and _first_reach(phi, phi_first if n0 == 0 else float(buf.phi[0]),
+                                     _TWO_PI * config.window_revolutions) < 0:
+            buf.take(n, float(t[0]), float(t[-1]), seq, seq)   # the window goes on
+        else:
+            if in_place:   # a window ends in this block: _feed closes it and appends
+                phi, te = phi.copy(), te.copy()
+            self._feed(phi, te, lambda i: float(t[i]), lambda _i: seq, windows)
+        q = max(1, round(rate / config.decimated_rate_hz))
         start = self._decim_offset % q
-        idx = slice(start, None, q)
-        te_d, phi_d, t_d = te[idx].copy(), phi[idx].copy(), t[idx].copy()
-        self._decim_offset = (start - phi.size) % q
-        return StreamUpdate(
-            stamp_s=float(t_d[0]) if t_d.size else math.nan, te_rad=_readonly(te_d),
-            phase_out_rad=_readonly(phi_d), windows=tuple(windows), gaps=tuple(gaps),
-            time_s=_readonly(t_d), period_s=q / clean.sample_rate_hz)
+        te_d, phi_d, t_d = te[start::q].copy(), phi[start::q].copy(), t[start::q].copy()
+        te_d.setflags(write=False)
+        phi_d.setflags(write=False)
+        t_d.setflags(write=False)
+        self._decim_offset = (start - n) % q
+        # positional: stamp_s, te_rad, phase_out_rad, windows, gaps, time_s, period_s
+        return StreamUpdate(float(t_d[0]) if t_d.size else math.nan, te_d, phi_d,
+                            tuple(windows), tuple(gaps), t_d, q / rate)
 
     def _end_stretch(self, windows: list[WindowResult]) -> None:
         """A gap: close the open window as partial and forget continuity."""
