@@ -4,10 +4,10 @@ Subscribes ``bench/info`` (preset and ratio), ``te/statistics`` (closed windows)
 ``te/samples`` (decimated TE with the output angle). Publishes ``compensation/advice``
 (CompensationAdvice, transient-local) and ``/diagnostics`` (search progress).
 
-* 2K-V presets (wang2020-2kv): the Eq. 21 assembly-phase optimisation of the preset
-  (predicted before/after), and, after each complete window, identification of this unit's
-  eccentricities from the measured TE with re-assembly phases for it.
-* RV presets with a tooth-profile model (hu2020-rv): the Eqs 24-27 tooth-profile
+* 2K-V presets (wang2020-2kv): the Wang 2020 Eq. 21 assembly-phase optimisation of the
+  preset (predicted before/after), and, after each complete window, identification of this
+  unit's eccentricities from the measured TE with re-assembly phases for it.
+* RV presets with a tooth-profile model (hu2020-rv): the Hu 2020 Eqs 24-27 tooth-profile
   compensation of the measured TE.
 
 Long searches run on a worker thread, off the executor; results are published from a timer.
@@ -52,7 +52,7 @@ PARAMS = (
               'Reducer preset; empty = the preset named in bench/info [-]'),
     ParamSpec('overrides', 'string_array', [], 'Preset overrides "key=value" [-]'),
     ParamSpec('optimize_phases', 'bool', True,
-              'Run the Eq. 21 assembly-phase optimisation for 2K-V presets'),
+              'Run the Wang 2020 Eq. 21 assembly-phase optimisation for 2K-V presets'),
     ParamSpec('step_deg', 'double', 10.0, 'Phase grid step [deg]', min_value=0.5,
               max_value=90.0),
     ParamSpec('refine', 'bool', True, 'Refine the grid optimum below the grid step'),

@@ -1,4 +1,4 @@
-"""TeNode: transmission error online (Eq. 22), window statistics and order spectra.
+"""TeNode: transmission error online (Wang 2020 Eq. 22), window statistics and order spectra.
 
 Subscribes ``bench/encoders`` (EncoderBlock) and ``bench/info`` (BenchInfo, transient-local).
 Publishes ``te/samples`` (TransmissionError, decimated TE for live display), ``te/plot``
