@@ -2,19 +2,21 @@
 
 Li, Huang, Ding, Guo, Niu, *Machines* 2023, 11, 626. Two parts:
 
-1. **Loaded tooth contact analysis** of the cycloid-pin pair (Eqs 1-7, :func:`ltca`): Hertz
-   line-contact stiffness per pin (Eq. 2), compatibility (Eq. 3: unmodified profile, zero
-   initial backlash, so every pin on the loaded side touches), moment equilibrium (Eq. 4),
-   resultant force at the pitch point (Eqs 5-6) and the equivalent pressure angle
+1. **Loaded tooth contact analysis** of the cycloid-pin pair (Li 2023 Eqs 1-7,
+   :func:`ltca`): Hertz line-contact stiffness per pin (Li 2023 Eq. 2), compatibility
+   (Li 2023 Eq. 3: unmodified profile, zero initial backlash, so every pin on the loaded side
+   touches), moment equilibrium (Li 2023 Eq. 4), resultant force at the pitch point
+   (Li 2023 Eqs 5-6) and the equivalent pressure angle
    ``beta = atan(F_r / F_t)`` and mesh stiffness ``k_cr = F_cr cos(beta) / (e z_c dphi)``
-   (Eq. 7). Eq. 5 as printed sums the *magnitudes* of the radial components,
+   (Li 2023 Eq. 7). Li 2023 Eq. 5 as printed sums the *magnitudes* of the radial components,
    ``F_ci sqrt(1 - (l_ci / r_c)^2)``; that is what is implemented (it gives the paper's
    ~32 deg).
-2. **Dynamic model** (Eqs 8-36, :class:`Li2023DteModel`): sun, M planets, M crankshafts,
-   N cycloid discs and the output disc, 3 DOF each (x, y, theta): 6M + 3N + 6 DOF. Every
-   elastic element is a spring on a relative displacement ``delta = g(t) . q + eps(t)``;
+2. **Dynamic model** (Li 2023 Eqs 8-36, :class:`Li2023DteModel`): sun, M planets, M
+   crankshafts, N cycloid discs and the output disc, 3 DOF each (x, y, theta): 6M + 3N + 6
+   DOF. Every elastic element is a spring on a relative displacement
+   ``delta = g(t) . q + eps(t)``;
    the stiffness matrix is ``K(t) = sum k(t) g g^T`` and the error force
-   ``F = -sum k g eps``. That keeps K symmetric, which the printed Eqs 29-33 are not.
+   ``F = -sum k g eps``. That keeps K symmetric, which the printed Li 2023 Eqs 29-33 are not.
 
 Coordinates: translations in a frame turning with the output at its nominal (kinematic)
 angle ``theta_in / i`` (the paper's S_i); rotations are absolute deviations from the
@@ -26,17 +28,17 @@ Relative displacements (n_i = cos(alpha) e_t(psi_i) + sin(alpha) e_r(psi_i), phi
 eccentric direction of disc j in the output frame, t_j/r_j its tangential/radial unit
 vectors, a_H the crank circle radius, r_c = e z_c):
 
-* sun-planet mesh (Eq. 23): ``n_i . (u_s - u_pi) + r_bs th_s + r_bp th_pi
-  + n_i . (d_s - d_pi)`` (sun/planet eccentricity, Eq. 12);
+* sun-planet mesh (Li 2023 Eq. 23): ``n_i . (u_s - u_pi) + r_bs th_s + r_bp th_pi
+  + n_i . (d_s - d_pi)`` (sun/planet eccentricity, Li 2023 Eq. 12);
 * planet-crank bending/torsion (k_H, k_Ht): ``u_pi - u_Hi``, ``th_pi - th_Hi``;
-* crank support in the output disc (Eq. 26): ``u_Hi - u_o - a_H th_o e_t(psi_i) - d_oHi``
-  (hole error, Eq. 19);
-* turning-arm bearing (Eq. 25): ``u_Hi + e th_Hi t_j - u_cj - a_H th_cj e_t(psi_i)
-  + d_dj - d_cHi`` (cam and disc-hole errors, Eqs 15-16);
-* pin mesh (Eq. 28): ``-(cos(beta) t_j + sin(beta) r_j) . u_cj - r_c cos(beta) th_cj
-  + e_crj`` (composite error, Eq. 18);
-* supports (Eqs 24, 27): ``u_s - d_sa``, ``u_o - d_oa`` (assembly errors fixed in the
-  housing, Eqs 14, 21); sun torsion ``th_s`` (k_st); output torsion ``th_o`` (k_ot).
+* crank support in the output disc (Li 2023 Eq. 26): ``u_Hi - u_o - a_H th_o e_t(psi_i) - d_oHi``
+  (hole error, Li 2023 Eq. 19);
+* turning-arm bearing (Li 2023 Eq. 25): ``u_Hi + e th_Hi t_j - u_cj - a_H th_cj e_t(psi_i)
+  + d_dj - d_cHi`` (cam and disc-hole errors, Li 2023 Eqs 15-16);
+* pin mesh (Li 2023 Eq. 28): ``-(cos(beta) t_j + sin(beta) r_j) . u_cj - r_c cos(beta) th_cj
+  + e_crj`` (composite error, Li 2023 Eq. 18);
+* supports (Li 2023 Eqs 24, 27): ``u_s - d_sa``, ``u_o - d_oa`` (assembly errors fixed in the
+  housing, Li 2023 Eqs 14, 21); sun torsion ``th_s`` (k_st); output torsion ``th_o`` (k_ot).
 
 The kinematic motion (input advanced by a, output a / i, cranks -z_c a / i, discs
 translated along their eccentric and turned by a / i) leaves every one of these at zero
@@ -44,23 +46,23 @@ except the input shaft: the ratios are built in, not fitted (tests check it).
 
 Documented simplifications (the paper is unclear or silent):
 
-* Gyroscopic and centripetal terms (omega_o G, omega_o^2 K_Omega, F_c of Eqs 34-36) are
+* Gyroscopic and centripetal terms (omega_o G, omega_o^2 K_Omega, F_c of Li 2023 Eqs 34-36) are
   dropped: omega_o = 1.3 rad/s at 1500 rpm, so m omega_o^2 <= 26 N/m against stiffnesses
   >= 4.7e7 N/m (< 1e-6 relative).
 * Inertial loads of input speed changes are not modelled: the nominal motion follows the
   given theta_in sample by sample (cubic Hermite between samples with omega_in).
 * beta is the paper's mean 31.9 deg (``tca.pressure_angle_deg``; 0 selects the LTCA mean,
   32.9 deg here: docs/DESIGN_NOTES.md 'Paper vs suite'); k_cr(t) keeps
-  the LTCA harmonics (Eq. 11); both are computed at the preset's TCA torque, not the live
+  the LTCA harmonics (Li 2023 Eq. 11); both are computed at the preset's TCA torque, not the live
   load. Tooth-profile modification is not modelled (LTCA of the unmodified profile).
 * Sun-planet mesh stiffness: rectangular wave between k1 (single pair) and 2 k1 (double
-  pair) over the contact ratio, mean from the preset, truncated Fourier series (Eq. 9).
-* Bearing clearances (Eqs 17, 20, 22) are left out: the paper gives no values, and in a
+  pair) over the contact ratio, mean from the preset, truncated Fourier series (Li 2023 Eq. 9).
+* Bearing clearances (Li 2023 Eqs 17, 20, 22) are left out: the paper gives no values, and in a
   linear model a clearance is only a constant offset.
 * Damping: stiffness-proportional, ``C = b K_mean`` (not given in the paper; zeta calibrated
   to the paper's 0.78" DTE without errors, E_cr to its 17.25" with errors).
-* The sun assembly error acts only through the sun support (Eq. 24); adding Eq. 13's mesh
-  term as well would count it twice.
+* The sun assembly error acts only through the sun support (Li 2023 Eq. 24); adding
+  Li 2023 Eq. 13's mesh term as well would count it twice.
 * The pin-mesh stiffness mean is the paper's 1.24e9 N/m (``stiffness.pin_mesh_n_m``, the
   value the paper feeds into its dynamic model); the LTCA curve is scaled to it. The
   LTCA here gives ~3.6e9 N/m (0 in the preset selects it).
@@ -71,7 +73,7 @@ apart (z_r pi = 0 mod 2 pi), the sun/planet eccentricities and the sun/output as
 errors of Table 3 (same value on every part) excite only translational modes, which are
 exactly decoupled from the torsion: they move the members (Fig. 10) but not the TE. The
 hole and cam errors, fixed in the output frame, shift the mean TE. The once-per-output-rev
-DTE comes from the composite mesh error E_cr (Eq. 18).
+DTE comes from the composite mesh error E_cr (Li 2023 Eq. 18).
 
 Integration: the mesh stiffnesses make the system stiff (natural frequencies 0.4 to
 10.8 kHz against mesh excitation at ~300 Hz at 1500 rpm). Measured: scipy RK45 (the
@@ -376,7 +378,7 @@ def params_from_preset(preset: Preset) -> Li2023Params:
 
 
 # --------------------------------------------------------------------------------------
-# Loaded tooth contact analysis (Eqs 1-7)
+# Loaded tooth contact analysis (Li 2023 Eqs 1-7)
 # --------------------------------------------------------------------------------------
 
 @dataclass(frozen=True)
@@ -386,9 +388,9 @@ class LtcaResult:
     Attributes:
         crank_angle_rad: Absolute eccentric angle Phi (pin 0 at angle 0), shape (G,),
             spanning one mesh period [0, 2 pi / z_pin).
-        pressure_angle_rad: Equivalent pressure angle beta (Eq. 7), shape (G,).
-        mesh_stiffness_n_m: Equivalent mesh stiffness k_cr (Eq. 7), shape (G,).
-        rotation_rad: Elastic rotation dphi_c of the disc (Eqs 3-4), shape (G,).
+        pressure_angle_rad: Equivalent pressure angle beta (Li 2023 Eq. 7), shape (G,).
+        mesh_stiffness_n_m: Equivalent mesh stiffness k_cr (Li 2023 Eq. 7), shape (G,).
+        rotation_rad: Elastic rotation dphi_c of the disc (Li 2023 Eqs 3-4), shape (G,).
         contacts: Number of loaded pins, shape (G,).
         max_pin_force_n: Largest pin force, shape (G,).
     """
@@ -423,7 +425,7 @@ def _cycloid_curvature_radius(theta_rel: np.ndarray, p: Li2023Params) -> np.ndar
 
 
 def _hertz_stiffness(force_n: np.ndarray, rho_c: np.ndarray, p: Li2023Params) -> np.ndarray:
-    """Hertz line-contact stiffness k_n of Eq. 2 [N/m] at a pin force (half-width b)."""
+    """Hertz line-contact stiffness k_n of Li 2023 Eq. 2 [N/m] at a pin force (half-width b)."""
     c = (1.0 - p.poisson**2) / p.youngs_modulus_pa
     rr = p.pin_radius_m
     inv_r = 1.0 / rr + 1.0 / rho_c                 # concave tooth: rho_c < 0
@@ -436,11 +438,11 @@ def _hertz_stiffness(force_n: np.ndarray, rho_c: np.ndarray, p: Li2023Params) ->
 
 def ltca(params: Li2023Params, *, torque_nm: float | None = None,
          crank_angle_rad: npt.ArrayLike | None = None) -> LtcaResult:
-    """Loaded TCA of one cycloid disc (Eqs 2-7), unmodified profile.
+    """Loaded TCA of one cycloid disc (Li 2023 Eqs 2-7), unmodified profile.
 
-    Every pin on the loaded side (relative angle in (pi, 2 pi)) is in contact (Eq. 3 with
-    zero backlash); its normal deflection is ``l_i dphi`` (Eq. 4), its force
-    ``k_n(F) l_i dphi`` with the load-dependent Hertz stiffness of Eq. 2; ``dphi`` is found
+    Every pin on the loaded side (relative angle in (pi, 2 pi)) is in contact (Li 2023 Eq. 3 with
+    zero backlash); its normal deflection is ``l_i dphi`` (Li 2023 Eq. 4), its force
+    ``k_n(F) l_i dphi`` with the load-dependent Hertz stiffness of Li 2023 Eq. 2; ``dphi`` is found
     so that ``sum F_i l_i`` equals the disc torque.
 
     Args:
@@ -490,11 +492,11 @@ def ltca(params: Li2023Params, *, torque_nm: float | None = None,
         lo = np.where(too_big, lo, mid)
     dphi = np.sqrt(lo * hi)
     f = forces(dphi)
-    f_t = np.sum(f * lever, axis=1) / r_c                             # Eq. 5
+    f_t = np.sum(f * lever, axis=1) / r_c                             # Li 2023 Eq. 5
     f_r = np.sum(f * np.sqrt(np.clip(1.0 - (lever / r_c) ** 2, 0.0, None)), axis=1)
-    beta = np.arctan2(f_r, f_t)                                       # Eq. 7
-    f_cr = np.hypot(f_t, f_r)                                         # Eq. 6
-    k_cr = f_cr * np.cos(beta) / (r_c * dphi)                         # Eq. 7
+    beta = np.arctan2(f_r, f_t)                                       # Li 2023 Eq. 7
+    f_cr = np.hypot(f_t, f_r)                                         # Li 2023 Eq. 6
+    k_cr = f_cr * np.cos(beta) / (r_c * dphi)                         # Li 2023 Eq. 7
     arrays = (phi.copy(), beta, k_cr, dphi, loaded.sum(axis=1), f.max(axis=1))
     for arr in arrays:
         arr.setflags(write=False)
@@ -732,10 +734,10 @@ class Li2023DteModel:
                 'crank_abs': theta_in * kin.crank_per_input}
 
     def _mesh_stiffness(self, ang: dict[str, np.ndarray]) -> tuple[np.ndarray, np.ndarray]:
-        """k_sp (S, M) and k_cr (S, N) [N/m] (Eqs 8-11)."""
+        """k_sp (S, M) and k_cr (S, N) [N/m] (Li 2023 Eqs 8-11)."""
         p = self.params
         ls = np.arange(1, self._ksp_harm.size + 1)
-        ph = p.z_sun * (ang['sun_rel'][:, None] + self._psi[None, :])          # Eq. 8
+        ph = p.z_sun * (ang['sun_rel'][:, None] + self._psi[None, :])          # Li 2023 Eq. 8
         # einsum, not @: numpy hands (S, M, L) @ (L,) to BLAS as one (S M) x L gemv, which
         # OpenBLAS splits over threads from S ~ 600 on (a busy second core stalls it)
         ksp = p.k_sun_planet_n_m + np.einsum('sml,l->sm', np.cos(ls * ph[..., None]),
@@ -823,14 +825,15 @@ class Li2023DteModel:
         a_o = rad(p.output_assembly_deg) - out
         feats += [p.sun_assembly_m * np.cos(a_s), p.sun_assembly_m * np.sin(a_s),
                   p.output_assembly_m * np.cos(a_o), p.output_assembly_m * np.sin(a_o)]
-        # sun-planet mesh: eccentricities turning with the sun and the planets (Eq. 12)
+        # sun-planet mesh: eccentricities turning with the sun and the planets (Li 2023 Eq. 12)
         b_s = rad(p.sun_ecc_deg) + ang['sun_rel']
         b_p = rad(p.planet_ecc_deg) + crank
         dx = p.sun_ecc_m * np.cos(b_s) - p.planet_ecc_m * np.cos(b_p)
         dy = p.sun_ecc_m * np.sin(b_s) - p.planet_ecc_m * np.sin(b_p)
         nsp = self._nsp_all                                                   # (2, M)
         feats += list((ksp * (dx[:, None] * nsp[0] + dy[:, None] * nsp[1])).T)
-        # turning-arm bearings: cam error (Eq. 16) minus the disc-hole error (Eq. 15)
+        # turning-arm bearings: cam error (Li 2023 Eq. 16) minus the disc-hole error
+        # (Li 2023 Eq. 15)
         phi = crank[:, None] + self._disc_phase[None, :]                     # (S, N)
         cphi, sphi = np.cos(phi), np.sin(phi)
         cam = phi + rad(p.cam_ecc_deg)
@@ -840,7 +843,7 @@ class Li2023DteModel:
         arm = np.stack([ex, ey, e * (ey * cphi[:, None, :] - ex * sphi[:, None, :]),
                         ex * self._ah_sc[0][None, :, None]
                         - ey * self._ah_sc[1][None, :, None]], axis=-1)       # (S,M,N,4)
-        # pin mesh: composite error (Eq. 18)
+        # pin mesh: composite error (Li 2023 Eq. 18)
         e_cr = p.pin_composite_m * np.sin(out + rad(p.pin_composite_deg))
         kce = kcr * e_cr[:, None]                                            # (S, N)
         cb, sb = math.cos(self.beta_rad), math.sin(self.beta_rad)
@@ -888,7 +891,7 @@ class Li2023DteModel:
             row()[d + 1] = 1.0
             row()[d + 2] = 1.0
         self._err_pattern = np.array(rows)
-        # crank support: hole error in the output disc, fixed in the disc (Eq. 19)
+        # crank support: hole error in the output disc, fixed in the disc (Li 2023 Eq. 19)
         f_hole = np.zeros(nd)
         for i in range(lay.m):
             ang = self._psi[i] + rad(p.output_hole_deg)

@@ -324,7 +324,8 @@ def ros_args(spec: SessionSpec, node: str, params_file: Path | None) -> list[str
 #: A session runs four node processes (a multi-bench set-up 16) on a few cores; numpy's
 #: OpenBLAS otherwise starts a spinning thread per core in every process, and the
 #: compensation node's searches then cost twice the CPU for no gain in time (issue #23
-#: item 1: 1.37 CPU s vs 0.72 CPU s per Wang 2020 Eq. 21 grid on 2 cores) and starve the benches.
+#: item 1: 1.37 CPU s vs 0.72 CPU s per Wang 2020 Eq. 21 grid on 2 cores) and starve the
+#: benches.
 NODE_THREAD_ENV = ('OPENBLAS_NUM_THREADS', 'OMP_NUM_THREADS', 'MKL_NUM_THREADS')
 
 

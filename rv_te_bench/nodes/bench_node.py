@@ -24,7 +24,7 @@ from __future__ import annotations
 import math
 import sys
 import time
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
@@ -48,6 +48,12 @@ from rv_te_bench.nodes.common import (
 )
 from rv_te_bench.params import ParamSpec
 from rv_te_bench.safe_yaml import DOCUMENT_LIMITS, load_yaml
+
+if TYPE_CHECKING:  # annotations only: the sim and the services load when the node starts
+    from rv_te_msgs.srv import RunBenchProgram
+    from std_srvs.srv import Trigger
+
+    from sim.bench import BenchBlock, BenchConfig, BenchSimulator
 
 PARAMS = (
     ParamSpec('bench_id', 'string', 'bench0', 'Bench id (frame_id of every message) [-]'),
@@ -140,7 +146,7 @@ PARAMS = (
 )
 
 
-def bench_config_from_params(p: dict[str, Any]) -> Any:  # noqa: ANN401 - sim.bench.BenchConfig
+def bench_config_from_params(p: dict[str, Any]) -> BenchConfig:
     """Node parameters -> validated :class:`sim.bench.BenchConfig` (shared with the CLI).
 
     Raises:
@@ -191,7 +197,7 @@ FINISH_ACK_S = 3.0
 MAX_BLOCK_RATE_HZ = 1000.0
 
 
-def build_simulator(p: dict[str, Any]) -> tuple[Any, float]:  # noqa: ANN401
+def build_simulator(p: dict[str, Any]) -> tuple[BenchSimulator, float]:
     """The bench's start-up: simulator and session length [s] from its parameters.
 
     Run by the node and by ``rv-te launch --check`` (the same checks).
@@ -230,7 +236,7 @@ def build_simulator(p: dict[str, Any]) -> tuple[Any, float]:  # noqa: ANN401
 class BenchNode(Node):
     """Simulated bench publishing encoder blocks from :class:`sim.bench.BenchSimulator`."""
 
-    def __init__(self, **kwargs: Any) -> None:  # noqa: ANN401
+    def __init__(self, **kwargs: Any) -> None:  # noqa: ANN401 - to rclpy Node
         """Declare parameters, build the simulator; ``kwargs`` go to ``Node``.
 
         Raises:
@@ -306,7 +312,8 @@ class BenchNode(Node):
         self.create_service(RunBenchProgram, 'bench/run_program', self._on_run_program)
         self.create_service(Trigger, 'bench/stop', self._on_stop)
 
-    def _on_run_program(self, request: Any, response: Any) -> Any:  # noqa: ANN401
+    def _on_run_program(self, request: RunBenchProgram.Request,
+                        response: RunBenchProgram.Response) -> RunBenchProgram.Response:
         from sim.errors import SimError  # noqa: PLC0415
         from sim.program import program_from_plain  # noqa: PLC0415
 
@@ -337,7 +344,8 @@ class BenchNode(Node):
                                f'{response.first_seq}')
         return response
 
-    def _on_stop(self, _request: Any, response: Any) -> Any:  # noqa: ANN401
+    def _on_stop(self, _request: Trigger.Request,
+                 response: Trigger.Response) -> Trigger.Response:
         was = self.program.running
         self.program.stop()
         response.success = True
@@ -465,7 +473,7 @@ class BenchNode(Node):
     def _publish_one(self) -> None:
         self._publish_block(self.sim.next_block())
 
-    def _publish_block(self, b: Any) -> None:  # noqa: ANN401 - sim.bench.BenchBlock
+    def _publish_block(self, b: BenchBlock) -> None:
         if self.joint_state:
             self._publish_joint_states(b)
         else:
@@ -482,7 +490,7 @@ class BenchNode(Node):
             self.pub_clock.publish(Clock(clock=convert.s_to_stamp(self.wall_start
                                                                   + self.sim_time_s)))
 
-    def _publish_joint_states(self, b: Any) -> None:  # noqa: ANN401 - sim.bench.BenchBlock
+    def _publish_joint_states(self, b: BenchBlock) -> None:
         """One JointState per DAQ sample (per joint and sample when separate)."""
         base_ns = round(self.wall_start * 1e9)
         stamps = (base_ns + np.round((b.t0_s + b.time_offset_s) * 1e9).astype(np.int64)).tolist()

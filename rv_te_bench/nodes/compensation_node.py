@@ -4,10 +4,10 @@ Subscribes ``bench/info`` (preset and ratio), ``te/statistics`` (closed windows)
 ``te/samples`` (decimated TE with the output angle). Publishes ``compensation/advice``
 (CompensationAdvice, transient-local) and ``/diagnostics`` (search progress).
 
-* 2K-V presets (wang2020-2kv): the Eq. 21 assembly-phase optimisation of the preset
-  (predicted before/after), and, after each complete window, identification of this unit's
-  eccentricities from the measured TE with re-assembly phases for it.
-* RV presets with a tooth-profile model (hu2020-rv): the Eqs 24-27 tooth-profile
+* 2K-V presets (wang2020-2kv): the Wang 2020 Eq. 21 assembly-phase optimisation of the
+  preset (predicted before/after), and, after each complete window, identification of this
+  unit's eccentricities from the measured TE with re-assembly phases for it.
+* RV presets with a tooth-profile model (hu2020-rv): the Hu 2020 Eqs 24-27 tooth-profile
   compensation of the measured TE.
 
 Long searches run on a worker thread, off the executor; results are published from a timer.
@@ -43,7 +43,7 @@ from rv_te_bench.params import ParamSpec
 if TYPE_CHECKING:
     from collections.abc import Callable
 
-    from rv_te_bench.core.advice import AdviceKind
+    from rv_te_bench.core.advice import Advice, AdviceKind
     from sim.presets import Preset
 
 
@@ -52,7 +52,7 @@ PARAMS = (
               'Reducer preset; empty = the preset named in bench/info [-]'),
     ParamSpec('overrides', 'string_array', [], 'Preset overrides "key=value" [-]'),
     ParamSpec('optimize_phases', 'bool', True,
-              'Run the Eq. 21 assembly-phase optimisation for 2K-V presets'),
+              'Run the Wang 2020 Eq. 21 assembly-phase optimisation for 2K-V presets'),
     ParamSpec('step_deg', 'double', 10.0, 'Phase grid step [deg]', min_value=0.5,
               max_value=90.0),
     ParamSpec('refine', 'bool', True, 'Refine the grid optimum below the grid step'),
@@ -91,7 +91,7 @@ class _Cancelled(Exception):  # noqa: N818 - a control-flow signal, not an error
 class CompensationNode(Node):
     """Advice from the measured TE; searches on a worker thread."""
 
-    def __init__(self, **kwargs: Any) -> None:  # noqa: ANN401
+    def __init__(self, **kwargs: Any) -> None:  # noqa: ANN401 - to rclpy Node
         """Declare parameters and topics; ``kwargs`` go to ``Node``."""
         super().__init__('compensation', **kwargs)
         self.p = declare_from_specs(self, PARAMS)
@@ -102,10 +102,10 @@ class CompensationNode(Node):
         self.pool = ThreadPoolExecutor(max_workers=1, thread_name_prefix='compensation',
                                        initializer=self._lower_search_priority)
         self._cancel = threading.Event()
-        self.jobs: list[tuple[str, Future[Any]]] = []
+        self.jobs: list[tuple[str, Future[Advice]]] = []
         #: A request of a kind whose search still runs: the newest one (a builder of the job
         #: from the data at the time it starts), run when the current search ends.
-        self.pending: dict[str, Any] = {}
+        self.pending: dict[str, Callable[[], Callable[[], Advice]]] = {}
         #: Requests folded into a later run of the same kind, by kind.
         self.coalesced: dict[str, int] = {}
         self.progress: dict[str, float] = {}
@@ -204,7 +204,7 @@ class CompensationNode(Node):
         elif self.advice == 'tooth-profile' and math.isfinite(measured) and measured > 0:
             self._request('tooth-profile', lambda: lambda: self._job_tooth(measured))
 
-    def _identify_job(self) -> Any:  # noqa: ANN401
+    def _identify_job(self) -> Callable[[], Advice]:
         """The identification job on all the decimated TE received so far."""
         te = np.concatenate(self._te)
         ph = np.concatenate(self._phase)
@@ -219,7 +219,7 @@ class CompensationNode(Node):
             self.progress[name] = float(fraction)
         return report
 
-    def _request(self, name: str, build: Any) -> None:  # noqa: ANN401
+    def _request(self, name: str, build: Callable[[], Callable[[], Advice]]) -> None:
         """Run the job ``build()`` returns now, or, while a search of this kind still runs,
         once it ends, on the data there is then (issue #15: a request that came during a
         search was dropped, and the last advice missed the last windows)."""
@@ -232,11 +232,11 @@ class CompensationNode(Node):
             return
         self._submit(name, build())
 
-    def _submit(self, name: str, fn: Any) -> None:  # noqa: ANN401
+    def _submit(self, name: str, fn: Callable[[], Advice]) -> None:
         self.progress[name] = 0.0
         self.jobs.append((name, self.pool.submit(fn)))
 
-    def _job_phases(self) -> Any:  # noqa: ANN401
+    def _job_phases(self) -> Advice:
         from rv_te_bench.core.phases import optimise_phases  # noqa: PLC0415
         from sim.wang2020 import Wang2kvParams  # noqa: PLC0415
 
@@ -246,7 +246,7 @@ class CompensationNode(Node):
             progress=self._progress('assembly-phases'))
         return result.to_advice(self.preset.name)
 
-    def _job_identify(self, phase_out_rad: np.ndarray, te_rad: np.ndarray) -> Any:  # noqa: ANN401
+    def _job_identify(self, phase_out_rad: np.ndarray, te_rad: np.ndarray) -> Advice:
         from rv_te_bench.core.identify import identified_advice  # noqa: PLC0415
         from sim.wang2020 import Wang2kvParams  # noqa: PLC0415
 
@@ -256,7 +256,7 @@ class CompensationNode(Node):
                                  step_deg=self.p['step_deg'], refine=self.p['refine'],
                                  progress=self._progress('identified-assembly-phases'))
 
-    def _job_tooth(self, measured_rad: float) -> Any:  # noqa: ANN401
+    def _job_tooth(self, measured_rad: float) -> Advice:
         from rv_te_bench.core.tooth_compensation import tooth_profile_advice  # noqa: PLC0415
 
         return tooth_profile_advice(self.preset, measured_rad, te_metric=self.p['te_metric'])

@@ -181,7 +181,7 @@ def check_config(p: dict[str, Any]) -> None:
 class JointStateAdapterNode(Node):
     """JointState (ros2_control) in, EncoderBlock + BenchInfo out; logic in the core."""
 
-    def __init__(self, **kwargs: Any) -> None:  # noqa: ANN401
+    def __init__(self, **kwargs: Any) -> None:  # noqa: ANN401 - to rclpy Node
         """Declare parameters, read the bench description; ``kwargs`` go to ``Node``.
 
         Raises:

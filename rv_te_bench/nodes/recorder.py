@@ -23,7 +23,7 @@ import importlib
 import platform
 import struct
 import sys
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from importlib import metadata as importlib_metadata
 from pathlib import Path
 from typing import Any
@@ -190,7 +190,8 @@ class RecorderNode(Node):
         BagError: The bag folder exists already or cannot be created.
     """
 
-    def __init__(self, node_name: str = 'recorder', **kwargs: Any) -> None:  # noqa: ANN401
+    def __init__(self, node_name: str = 'recorder',
+                 **kwargs: Any) -> None:  # noqa: ANN401 - to rclpy Node
         super().__init__(node_name, **kwargs)
         p = self._declare_parameters()
         self.finished = False
@@ -390,7 +391,7 @@ class RecorderNode(Node):
             return self._sim_clock_ns
         return self.get_clock().now().nanoseconds
 
-    def _make_callback(self, state: _TopicState) -> Any:  # noqa: ANN401
+    def _make_callback(self, state: _TopicState) -> Callable[[bytes], None]:
         now = self._log_time_ns
         record = self._record
 
@@ -429,7 +430,7 @@ class RecorderNode(Node):
         for state, data in held:
             self._record(state, t_ns, data)
 
-    def _make_encoder_callback(self, state: _TopicState) -> Any:  # noqa: ANN401
+    def _make_encoder_callback(self, state: _TopicState) -> Callable[[bytes], None]:
         plain = self._make_callback(state)
 
         def on_block(data: bytes) -> None:

@@ -16,7 +16,7 @@ from __future__ import annotations
 import sys
 import threading
 import time
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from typing import Any
 
 from rcl_interfaces.msg import FloatingPointRange, ParameterDescriptor, ParameterType
@@ -76,7 +76,8 @@ class ReplayNode(Node):
         BagError: The bag cannot be opened or a topic type cannot be imported.
     """
 
-    def __init__(self, node_name: str = 'replay', **kwargs: Any) -> None:  # noqa: ANN401
+    def __init__(self, node_name: str = 'replay',
+                 **kwargs: Any) -> None:  # noqa: ANN401 - to rclpy Node
         super().__init__(node_name, **kwargs)
         p = self._declare_parameters()
         self.bag = open_bag(p['bag'])
@@ -127,7 +128,7 @@ class ReplayNode(Node):
                                f'{sorted(self._replay_pubs)}')
 
     def _declare_parameters(self) -> dict[str, Any]:
-        def d(text: str, **extra: Any) -> ParameterDescriptor:  # noqa: ANN401
+        def d(text: str, **extra: Any) -> ParameterDescriptor:  # noqa: ANN401 - descriptor fields
             return ParameterDescriptor(description=text, read_only=True, **extra)
 
         def f_range(lo: float, hi: float) -> list[FloatingPointRange]:
@@ -158,7 +159,7 @@ class ReplayNode(Node):
         return out
 
     # ------------------------------------------------------------------ playback
-    def _sleep_until(self, due: float, bag_time_at: Any) -> bool:  # noqa: ANN401
+    def _sleep_until(self, due: float, bag_time_at: Callable[[float], float]) -> bool:
         """Sleep until monotonic ``due``, publishing /clock; False when stopped."""
         while True:
             now = time.monotonic()

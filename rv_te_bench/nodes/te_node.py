@@ -1,4 +1,4 @@
-"""TeNode: transmission error online (Eq. 22), window statistics and order spectra.
+"""TeNode: transmission error online (Wang 2020 Eq. 22), window statistics and order spectra.
 
 Subscribes ``bench/encoders`` (EncoderBlock) and ``bench/info`` (BenchInfo, transient-local).
 Publishes ``te/samples`` (TransmissionError, decimated TE for live display), ``te/plot``
@@ -25,7 +25,7 @@ from rclpy.node import Node
 from rv_te_msgs.msg import BenchInfo, EncoderBlock, TePlot, TeSpectrum, TransmissionError
 
 from rv_te_bench.core.orders import OrderSet
-from rv_te_bench.core.stream import StreamingTeAnalyzer, TeAnalysisConfig
+from rv_te_bench.core.stream import StreamingTeAnalyzer, StreamUpdate, TeAnalysisConfig
 from rv_te_bench.nodes import convert, qos
 from rv_te_bench.nodes.common import (
     OK,
@@ -95,7 +95,7 @@ def initial_orders(p: dict[str, Any]) -> OrderSet | None:
 class TeNode(Node):
     """Online TE analysis on top of :class:`StreamingTeAnalyzer`."""
 
-    def __init__(self, **kwargs: Any) -> None:  # noqa: ANN401
+    def __init__(self, **kwargs: Any) -> None:  # noqa: ANN401 - to rclpy Node
         """Declare parameters, create topics; ``kwargs`` go to ``Node`` (context, overrides)."""
         super().__init__('te_node', **kwargs)
         self.p = declare_from_specs(self, PARAMS)
@@ -232,7 +232,7 @@ class TeNode(Node):
         if len(self._latency_ms) > 1000:
             del self._latency_ms[:500]
 
-    def _publish_samples(self, update: Any, frame_id: str) -> None:  # noqa: ANN401
+    def _publish_samples(self, update: StreamUpdate, frame_id: str) -> None:
         msg = TransmissionError()
         msg.header.stamp = convert.s_to_stamp(update.stamp_s)
         msg.header.frame_id = frame_id
@@ -250,7 +250,7 @@ class TeNode(Node):
         msg.gaps = self._gaps_total
         self.pub_samples.publish(msg)
 
-    def _publish_plot(self, update: Any, frame_id: str, *, force: bool) -> None:  # noqa: ANN401
+    def _publish_plot(self, update: StreamUpdate, frame_id: str, *, force: bool) -> None:
         rate = self.p['plot_rate_hz']
         t_s = float(update.time_s[-1]) if len(update.time_s) else float(update.stamp_s)
         if rate <= 0 or self.analyzer is None or (

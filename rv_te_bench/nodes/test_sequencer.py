@@ -26,7 +26,7 @@ import math
 import sys
 import time
 import traceback
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 import yaml
@@ -45,6 +45,12 @@ from rv_te_bench.errors import AcceptanceError
 from rv_te_bench.nodes import qos
 from rv_te_bench.nodes.common import DropCounter, declare_from_specs, run_node
 from rv_te_bench.params import ParamSpec
+
+if TYPE_CHECKING:
+    from rclpy.action.server import ServerGoalHandle
+
+    from rv_te_bench.acceptance.plan import Step
+    from rv_te_bench.acceptance.tolerance import Measured
 
 __all__ = ['PARAMS', 'TestSequencerNode', 'main']
 
@@ -72,7 +78,7 @@ class TestSequencerNode(Node):
 
     __test__ = False
 
-    def __init__(self, **kwargs: Any) -> None:  # noqa: ANN401
+    def __init__(self, **kwargs: Any) -> None:  # noqa: ANN401 - to rclpy Node
         """Declare parameters, the action server, clients, topics; ``kwargs`` go to Node."""
         super().__init__('test_sequencer', **kwargs)
         self.p = declare_from_specs(self, PARAMS)
@@ -109,7 +115,7 @@ class TestSequencerNode(Node):
             encoder_out_resolution_rad=msg.encoder_out_resolution_rad,
             reducer_type=msg.reducer_type)
 
-    def _on_goal(self, goal: Any) -> GoalResponse:  # noqa: ANN401
+    def _on_goal(self, goal: RunTestPlan.Goal) -> GoalResponse:
         if self.busy is not None:
             b = self.busy
             self.get_logger().warning(
@@ -159,7 +165,7 @@ class TestSequencerNode(Node):
         await self._wake
 
     # -- goal -------------------------------------------------------------------------------------
-    async def _execute(self, goal_handle: Any) -> Any:  # noqa: ANN401
+    async def _execute(self, goal_handle: ServerGoalHandle) -> RunTestPlan.Result:
         req = goal_handle.request
         result = RunTestPlan.Result()
         started = time.time()
@@ -237,8 +243,9 @@ class TestSequencerNode(Node):
             await self._sleep()
         return self.ctx
 
-    async def _run_step(self, goal_handle: Any, req: Any, j: int, step: Any,  # noqa: ANN401
-                        ctx: BenchContext, n_steps: int) -> Any:  # noqa: ANN401
+    async def _run_step(self, goal_handle: ServerGoalHandle, req: RunTestPlan.Goal, j: int,
+                        step: Step, ctx: BenchContext,
+                        n_steps: int) -> tuple[list[Measured], dict[str, Any]]:
         runner = StepRunner(step, ctx)
         call = RunBenchProgram.Request(program_yaml=yaml.safe_dump(runner.program()))
         future = self.cli_program.call_async(call)
@@ -294,7 +301,7 @@ class TestSequencerNode(Node):
             await self._sleep()
 
     # -- messages -------------------------------------------------------------------------
-    def _feedback(self, goal_handle: Any, j: int, n: int, step: Any,  # noqa: ANN401
+    def _feedback(self, goal_handle: ServerGoalHandle, j: int, n: int, step: Step,
                   runner: StepRunner) -> None:
         prog = self._prog
         frac = prog['next'] / prog['total'] if prog.get('total') else 0.0
@@ -305,7 +312,7 @@ class TestSequencerNode(Node):
                                   message=f'step {j + 1}/{n} {step.name}: {100 * frac:.0f} %')
         goal_handle.publish_feedback(fb)
 
-    def _publish_step(self, req: Any, j: int, n: int, step: Any, state: str,  # noqa: ANN401
+    def _publish_step(self, req: RunTestPlan.Goal, j: int, n: int, step: Step, state: str,
                       params: str, result: str) -> None:
         msg = TestStep(serial=req.serial, step_index=j, step_count=n, step_name=step.name,
                        step_kind=step.kind, state=state,
@@ -318,7 +325,7 @@ class TestSequencerNode(Node):
         msg.header.frame_id = self.ctx.bench_id if self.ctx else ''
         self.pub_step.publish(msg)
 
-    def _publish_report(self, req: Any, plan_name: str, verdict: str, reason: str,  # noqa: ANN401
+    def _publish_report(self, req: RunTestPlan.Goal, plan_name: str, verdict: str, reason: str,
                         metrics: list[MetricVerdict], report_json: str) -> None:
         msg = TestReport(serial=req.serial, operator_name=req.operator_name, plan_name=plan_name,
                          verdict=verdict, reason=reason, metrics=metrics,
@@ -327,7 +334,7 @@ class TestSequencerNode(Node):
         msg.header.stamp = self.get_clock().now().to_msg()
         self.pub_report.publish(msg)
 
-    def _finish(self, result: Any, req: Any, plan_name: str,  # noqa: ANN401
+    def _finish(self, result: RunTestPlan.Result, req: RunTestPlan.Goal, plan_name: str,
                 report: dict[str, Any]) -> None:
         metrics = [_metric_msg(m) for m in report['metrics']]
         text = json.dumps(report, allow_nan=False)
@@ -337,7 +344,7 @@ class TestSequencerNode(Node):
         self.get_logger().info(f'unit {req.serial!r}: {report["verdict"]} ({report["reason"]})')
 
 
-def _plain(x: Any) -> Any:  # noqa: ANN401
+def _plain(x: object) -> object:
     if isinstance(x, dict):
         return {k: _plain(v) for k, v in x.items()}
     if isinstance(x, list | tuple):
@@ -346,7 +353,7 @@ def _plain(x: Any) -> Any:  # noqa: ANN401
 
 
 def _metric_msg(m: dict[str, Any]) -> MetricVerdict:
-    def num(x: Any) -> float:  # noqa: ANN401
+    def num(x: float | None) -> float:
         return math.nan if x is None else float(x)
     return MetricVerdict(name=m['name'], step=m['step'], unit=m['unit'], value=num(m['value']),
                          limit_min=num(m['limit_min']), limit_max=num(m['limit_max']),

@@ -149,7 +149,7 @@ def test_analysis_states_what_the_recorder_could_not_write(
     import time  # noqa: PLC0415
 
     from tests.io.faults import SmallDisk  # noqa: PLC0415
-    from tests.io.test_disk_full import (  # noqa: PLC0415
+    from tests.io.conftest import (  # noqa: PLC0415
         FLUSH_S, block, log_ns, start_bag, write_until_stalled)
 
     disk = SmallDisk(1_000_000)

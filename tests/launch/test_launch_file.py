@@ -208,7 +208,7 @@ def test_nodes_subset_drops_them_from_the_bench_wait() -> None:
 
 def test_exec_names_are_the_installed_executables() -> None:
     """EXEC_TO_NODE agrees with the ament setup.py's executables and the session's modules."""
-    from tests.package.test_package_manifest import setup_py_value  # noqa: PLC0415
+    from tests.package.conftest import setup_py_value  # noqa: PLC0415
 
     exes = setup_py_value('EXECUTABLES')
     for exe, node in EXEC_TO_NODE.items():

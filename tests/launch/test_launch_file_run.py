@@ -17,7 +17,7 @@ def test_rv_te_launch_runs_the_shipped_launch_file(tmp_path: Path,
                                                     capsys: pytest.CaptureFixture[str]) -> None:
     from rv_te_bench.cli.launch import default_launch_file  # noqa: PLC0415
     from rv_te_bench.cli.main import main  # noqa: PLC0415
-    from tests.launch.test_viewer_recording import read_decoded  # noqa: PLC0415
+    from tests.launch.conftest import read_decoded  # noqa: PLC0415
 
     code = main(['launch', default_launch_file(), 'namespace:=rig',
                  '--param', 'bench.duration_output_revs=1.0',

@@ -16,6 +16,8 @@ from pathlib import Path
 import pytest
 import yaml
 
+from tests.launch.conftest import read_decoded
+
 pytestmark = pytest.mark.ros
 
 pytest.importorskip('rclpy')
@@ -38,22 +40,6 @@ def fast_session(tmp_path_factory: pytest.TempPathFactory) -> tuple[Path, float]
     t0 = time.monotonic()
     assert run_session(spec, log=lambda _s: None) == 0
     return out / 'bag', time.monotonic() - t0
-
-
-def read_decoded(bag: Path, topics: list[str]) -> list[tuple[str, int, object]]:
-    """(topic, log time [ns], decoded message) of ``topics``, read with mcap + mcap_ros2."""
-    from mcap.reader import make_reader  # noqa: PLC0415
-    from mcap_ros2.decoder import DecoderFactory  # noqa: PLC0415
-
-    out = []
-    files = sorted(bag.glob('*.mcap'))
-    assert files
-    for f in files:
-        with f.open('rb') as stream:
-            reader = make_reader(stream, decoder_factories=[DecoderFactory()])
-            for _s, channel, message, msg in reader.iter_decoded_messages(topics=topics):
-                out.append((channel.topic, message.log_time, msg))
-    return out
 
 
 def test_fast_session_bag_spans_the_simulated_duration(
@@ -142,7 +128,7 @@ def test_foxglove_layout_paths_have_data_in_the_recording(
     """Every te/* path of docs/foxglove_te_session.json yields finite numbers from the
     recorded session (compensation/advice and /diagnostics are checked by definition only,
     tests/package/test_foxglove_layout.py; this session has no compensation node)."""
-    from tests.package.test_foxglove_layout import layout_paths  # noqa: PLC0415
+    from tests.package.conftest import layout_paths  # noqa: PLC0415
 
     bag, _ = fast_session
     paths = sorted({p for _, p in layout_paths() if p.startswith('/te/')})

@@ -21,8 +21,6 @@ pytestmark = pytest.mark.ros
 rclpy = pytest.importorskip('rclpy')
 
 from diagnostic_msgs.msg import DiagnosticArray  # noqa: E402
-from mcap.reader import NonSeekingReader  # noqa: E402
-from mcap_ros2.decoder import DecoderFactory  # noqa: E402
 from rclpy.experimental import EventsExecutor  # noqa: E402
 from rclpy.parameter import Parameter  # noqa: E402
 from rosbags.highlevel import AnyReader  # noqa: E402
@@ -33,24 +31,9 @@ from rv_te_bench.io.msgdefs import ENCODER_BLOCK, type_hash  # noqa: E402
 from rv_te_bench.nodes import qos  # noqa: E402
 from rv_te_bench.io.bag_reader import encoder_block_seq  # noqa: E402
 from rv_te_bench.nodes.recorder import RecorderNode  # noqa: E402
-from tests.io.bag_fixtures import block_arrays, encoder_cdr  # noqa: E402
+from tests.io.bag_fixtures import encoder_cdr  # noqa: E402
+from tests.nodes.conftest import ROOT, cli_process, make_block, read_back  # noqa: E402
 from tests.nodes.rosutil import spin_until  # noqa: E402
-
-ROOT = Path(__file__).resolve().parents[2]
-
-
-def make_block(seq: int, n: int = 100) -> EncoderBlock:
-    msg = EncoderBlock()
-    msg.header.frame_id = 'bench0'
-    msg.header.stamp.sec = 1000 + seq
-    msg.seq = seq
-    msg.sample_rate_hz = 10_000.0
-    arrays = block_arrays(seq, n)
-    msg.time_offset_s = arrays['time_offset_s']
-    msg.theta_in_rad = arrays['theta_in_rad']
-    msg.theta_out_rad = arrays['theta_out_rad']
-    msg.torque_out_nm = arrays['torque_out_nm']
-    return msg
 
 
 def make_info() -> BenchInfo:
@@ -59,32 +42,6 @@ def make_info() -> BenchInfo:
     msg.preset = 'wang2020-2kv'
     msg.gear_ratio = 79.0
     return msg
-
-
-def read_back(bag: Path, topic: str) -> tuple[list[int], list[int], dict[str, int]]:
-    """Encoder seqs by rosbags and by mcap_ros2 (content checked), and metadata.yaml counts."""
-    with AnyReader([bag]) as reader:
-        rb = []
-        for conn, _, raw in reader.messages(
-                connections=[c for c in reader.connections if c.topic == topic]):
-            msg = reader.deserialize(raw, conn.msgtype)
-            ref = block_arrays(int(msg.seq), len(msg.theta_in_rad))
-            for key in ('time_offset_s', 'theta_in_rad', 'theta_out_rad', 'torque_out_nm'):
-                np.testing.assert_array_equal(getattr(msg, key), ref[key])
-            rb.append(int(msg.seq))
-    mc = []
-    for file in sorted(bag.glob('*.mcap')):
-        with file.open('rb') as fh:
-            for _, channel, _, msg in NonSeekingReader(
-                    fh, decoder_factories=[DecoderFactory()]).iter_decoded_messages():
-                if channel.topic == topic:
-                    np.testing.assert_array_equal(
-                        msg.theta_out_rad, block_arrays(msg.seq, 100)['theta_out_rad'])
-                    mc.append(int(msg.seq))
-    info = yaml.safe_load((bag / 'metadata.yaml').read_text())['rosbag2_bagfile_information']
-    counts = {t['topic_metadata']['name']: t['message_count']
-              for t in info['topics_with_message_count']}
-    return rb, mc, counts
 
 
 def test_encoder_seq_parser_matches_serialised_seq() -> None:
@@ -291,28 +248,6 @@ def test_10khz_session_recorded_without_loss(ros_context: Any, ros_domain_id: in
         np.testing.assert_array_equal(b.theta_in_rad, th_in)
         np.testing.assert_array_equal(b.theta_out_rad, th_out)
         np.testing.assert_array_equal(b.time_offset_s, t)
-
-
-CLI = r'''
-import argparse, sys
-from rv_te_bench.cli import record, replay
-parser = argparse.ArgumentParser(prog='rv-te')
-sub = parser.add_subparsers(required=True)
-record.register(sub)
-replay.register(sub)
-args = parser.parse_args(sys.argv[1:])
-sys.exit(args.func(args))
-'''
-
-
-def cli_process(argv: list[str], domain: int) -> subprocess.Popen[str]:
-    """``rv-te <argv>`` in a child process (cli/main.py belongs to the integrator)."""
-    env = dict(os.environ)
-    env.pop('_ROS_WHEELS_BOOTSTRAP_COMPLETE', None)
-    env['ROS_DOMAIN_ID'] = str(domain)
-    env['PYTHONPATH'] = str(ROOT)
-    return subprocess.Popen([sys.executable, '-c', CLI, *argv], cwd=ROOT, env=env, text=True,
-                            stdout=subprocess.PIPE, stderr=subprocess.PIPE)
 
 
 def test_cli_record_refuses_existing_bag(tmp_path: Path, capsys: Any) -> None:

@@ -30,7 +30,7 @@ from rv_te_bench.io.msgdefs import rv_te_typestore  # noqa: E402
 from rv_te_bench.nodes import qos  # noqa: E402
 from tests.io.faults import tmpfs  # noqa: E402
 from tests.nodes.rosutil import spin_until  # noqa: E402
-from tests.nodes.test_recorder import ROOT, cli_process, make_block, read_back  # noqa: E402
+from tests.nodes.conftest import ROOT, cli_process, make_block, read_back  # noqa: E402
 
 
 def _metadata(bag: Path) -> dict[str, Any]:

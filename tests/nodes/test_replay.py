@@ -142,7 +142,7 @@ def test_replay_refuses_unknown_topic_and_missing_bag(ros_context: Any, bag_and_
 
 
 def test_cli_replay_process(ros_context: Any, ros_domain_id: int, bag_and_topics: Any) -> None:
-    from tests.nodes.test_recorder import cli_process  # noqa: PLC0415
+    from tests.nodes.conftest import cli_process  # noqa: PLC0415
 
     bag, enc, _ = bag_and_topics
     sub_node = rclpy.create_node('cli_replay_sub', context=ros_context)

@@ -13,15 +13,14 @@ recorded session is checked in tests/launch/test_viewer_recording.py.
 
 from __future__ import annotations
 
-import json
 import re
 from pathlib import Path
 from typing import Any
 
 import pytest
 
-REPO = Path(__file__).resolve().parents[2]
-LAYOUT = REPO / 'docs' / 'foxglove_te_session.json'
+from tests.package.conftest import REPO, layout_paths, load_layout
+
 
 # panels/index.ts (builtin), the panel types this layout may use
 BUILTIN_PANEL_TYPES = {
@@ -49,10 +48,6 @@ TOPIC_TYPES = {
     '/compensation/advice': 'rv_te_msgs/msg/CompensationAdvice',
     '/diagnostics': 'diagnostic_msgs/msg/DiagnosticArray',
 }
-
-
-def load_layout() -> dict[str, Any]:
-    return json.loads(LAYOUT.read_text(encoding='utf-8'))
 
 
 def typestore():  # noqa: ANN201 - rosbags Typestore
@@ -132,20 +127,6 @@ def test_panel_configs_follow_their_types() -> None:
             assert {'minLevel', 'pinnedIds', 'topicToRender', 'hardwareIdFilter'} <= set(cfg)
         else:
             pytest.fail(f'{panel_id}: no check for this panel type')
-
-
-def layout_paths() -> list[tuple[str, str]]:
-    """(panel id, message path) of every path in the layout."""
-    out = []
-    for panel_id, cfg in load_layout()['configById'].items():
-        for p in cfg.get('paths', []):
-            out.append((panel_id, p['value']))
-        if 'xAxisPath' in cfg:
-            out.append((panel_id, cfg['xAxisPath']['value']))
-        for key in ('topicPath', 'topicToRender'):
-            if key in cfg:
-                out.append((panel_id, cfg[key]))
-    return out
 
 
 def test_every_path_resolves_and_plots_end_at_numbers() -> None:

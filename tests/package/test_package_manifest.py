@@ -15,25 +15,13 @@ from pathlib import Path
 
 import pytest
 
-REPO = Path(__file__).resolve().parents[2]
-PKG_DIR = REPO / 'rv_te_bench_ros'
+from tests.package.conftest import PKG_DIR, REPO, setup_py_value
 
 
 def manifest():  # noqa: ANN201 - catkin_pkg.package.Package
     from catkin_pkg.package import parse_package  # noqa: PLC0415
 
     return parse_package(str(PKG_DIR / 'package.xml'))
-
-
-def setup_py_value(name: str) -> object:
-    """A module-level constant of rv_te_bench_ros/setup.py, read without running setup()."""
-    tree = ast.parse((PKG_DIR / 'setup.py').read_text(encoding='utf-8'))
-    for node in tree.body:
-        if isinstance(node, ast.Assign) and any(
-                isinstance(t, ast.Name) and t.id == name for t in node.targets):
-            return ast.literal_eval(node.value)
-    msg = f'{name} not in setup.py'
-    raise AssertionError(msg)
 
 
 def test_manifest_is_valid_ament_python() -> None:
