@@ -334,8 +334,9 @@ def _recommend(bench: BenchDescription, cumulative: TeStats, folded: FoldedTe | 
 
     * ``wang2020-2kv`` model: eccentricities and assembly phases identified from the
       measured TE folded on theta_in / i (``core.identify``; withheld on a poor fit, with
-      the fit quality), else, with nothing to identify from, the Eq. 21 optimisation on the
-      preset's own eccentricities (``core.phases``; then the advice is model-based);
+      the fit quality), else, with nothing to identify from, the Wang 2020 Eq. 21
+      optimisation on the preset's own eccentricities (``core.phases``; then the advice is
+      model-based);
     * ``hu2020-rv`` model: tooth-profile compensation for the measured TE peak-to-peak
       over all clean samples (``core.tooth_compensation``);
     * any other preset: no compensation model.
@@ -375,8 +376,8 @@ def _recommend(bench: BenchDescription, cumulative: TeStats, folded: FoldedTe | 
 
 def _advice_2kv(preset: Any, folded: FoldedTe | None,  # noqa: ANN401
                 search: tuple[float, bool]) -> Recommendation:
-    """Identified assembly phases when possible, else the model-based Eq. 21 optimum;
-    ``search`` = (grid step [deg], refine) for both."""
+    """Identified assembly phases when possible, else the model-based Wang 2020 Eq. 21
+    optimum; ``search`` = (grid step [deg], refine) for both."""
     from rv_te_bench.core.identify import PoorFitError, identified_advice  # noqa: PLC0415
     from rv_te_bench.core.phases import optimise_phases  # noqa: PLC0415
     from sim.wang2020 import Wang2kvParams  # noqa: PLC0415
@@ -395,8 +396,8 @@ def _advice_2kv(preset: Any, folded: FoldedTe | None,  # noqa: ANN401
     advice = optimise_phases(params, step_deg=search[0], refine=search[1]).to_advice(
         preset.name)
     return Recommendation(available=True, reason=(
-        "Eq. 21 assembly-phase optimum for the preset's own eccentricities (model-based, "
-        'not identified from this measurement)'), advice=advice)
+        "Wang 2020 Eq. 21 assembly-phase optimum for the preset's own eccentricities "
+        '(model-based, not identified from this measurement)'), advice=advice)
 
 
 def describe_identification(ident: dict[str, Any]) -> list[str]:
