@@ -917,8 +917,8 @@ class StreamingTeAnalyzer:
         n0 = buf.n
         in_place = n0 + n <= buf.phi.size and n0 + n <= config.max_window_samples
         if in_place:
-            # Eq. 22 straight into the window buffer (as output_phase_and_te, bit for bit:
-            # phi = theta_in / i, TE = theta_out - phi): no new arrays, no copy
+            # Wang 2020 Eq. 22 straight into the window buffer (as output_phase_and_te, bit
+            # for bit: phi = theta_in / i, TE = theta_out - phi): no new arrays, no copy
             phi = np.divide(theta_in, config.gear_ratio, out=buf.phi[n0:n0 + n])
             te = np.subtract(theta_out, phi, out=buf.te[n0:n0 + n])
         else:
