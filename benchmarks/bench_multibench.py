@@ -140,10 +140,18 @@ def run_benches(n_benches: int, rate_hz: float, block: int, duration_s: float,  
     block_arrival: dict[str, list[tuple[float, float]]] = {ns: [] for ns in names}
     te_arrival: dict[str, list[tuple[float, float]]] = {ns: [] for ns in names}
     diags: dict[str, dict[str, str]] = {}
+    # the benches' own lag after the warm-up: the largest 'lag_period_max_s' (the bench's
+    # largest lag since its previous diagnostics message) of the messages sent after it
+    steady_lag: dict[str, float] = {}
+    in_steady = [False]
 
     def on_diag(m: DiagnosticArray) -> None:
         for st in m.status:
-            diags[st.name] = {kv.key: kv.value for kv in st.values}
+            values = {kv.key: kv.value for kv in st.values}
+            diags[st.name] = values
+            if in_steady[0] and 'lag_period_max_s' in values:
+                steady_lag[st.name] = max(steady_lag.get(st.name, 0.0),
+                                          float(values['lag_period_max_s']))
 
     watch = rclpy.create_node('multibench_watch', context=ctx)
     watch.create_subscription(DiagnosticArray, '/diagnostics', on_diag, qos.DIAGNOSTICS_QOS)
@@ -206,6 +214,7 @@ def run_benches(n_benches: int, rate_hz: float, block: int, duration_s: float,  
                 streaming = now   # every bench publishes: measure from warm-up on
             if not meter.start and streaming and now - streaming > warmup_s:
                 meter.begin(pids())
+                in_steady[0] = True
                 if profile_s > 0:
                     spies = start_profiles(sessions[names[0]], profile_s, out_dir / 'profile')
             if meter.start and now - last > 1.0:
@@ -276,6 +285,7 @@ def run_benches(n_benches: int, rate_hz: float, block: int, duration_s: float,  
             'probe': len(block_arrival[ns]), 'recorded': recorded,
             'te': te_diag.get('blocks'), 'te_gaps': te_diag.get('gaps_reported'),
             'lag_max_s': bench_diag.get('lag_max_s'),
+            'steady_lag_max_s': steady_lag.get(f'/{ns}/bench: bench'),
             'crashed': ns in crashed or any(c not in (0, None) for c in codes[ns].values()),
             'cpu': {n: cpu.get(f'{ns}/{n}', float('nan')) for n in NODES},
             'probe_lag_max_ms': float(np.nanmax(steady)) * 1e3,
@@ -342,7 +352,8 @@ def print_benches(res: dict[str, Any], args: argparse.Namespace) -> bool:
     print(f'\n{args.benches} benches x {args.rate_hz:g} Hz, blocks of {args.block_size} '
           f'(block period {period_ms:g} ms), {args.duration_s:g} s real time\n')
     print('| bench | blocks expected / published / probe / recorded / TE | TE gaps | crashed | '
-          'CPU bench / TE / compensation / recorder | bench lag max | '
+          'CPU bench / TE / compensation / recorder | '
+          'bench lag max after the warm-up (whole run) | '
           'block arrival after its end, max / p99 (worst at) | '
           'latency block->TE median / p99 |')
     print('|---|---|---|---|---|---|---|---|')
@@ -350,14 +361,16 @@ def print_benches(res: dict[str, Any], args: argparse.Namespace) -> bool:
     for b in res['benches']:
         c = b['cpu']
         lag_ms = float(b['lag_max_s']) * 1e3 if b['lag_max_s'] is not None else float('nan')
+        steady_ms = (float(b['steady_lag_max_s']) * 1e3 if b['steady_lag_max_s'] is not None
+                     else float('nan'))
         counts = [b['published'], b['probe'], b['recorded'], b['te']]
         good = (all(str(x) == str(b['expected']) for x in counts[1:]) and str(b['te_gaps']) == '0'
-                and not b['crashed'] and lag_ms < period_ms)
+                and not b['crashed'] and steady_ms < period_ms)
         ok &= good
         print(f"| {b['ns']} | {b['expected']} / {' / '.join(str(x) for x in counts)} | "
               f"{b['te_gaps']} | {b['crashed']} | "
               f"{' / '.join(_f(c[n], '{:.0f}') + ' %' for n in NODES)} | "
-              f"{_f(lag_ms)} ms | {_f(b['probe_lag_max_ms'])} / {_f(b['probe_lag_p99_ms'])} "
+              f"{_f(steady_ms)} ms ({_f(lag_ms)} ms) | {_f(b['probe_lag_max_ms'])} / {_f(b['probe_lag_p99_ms'])} "
               f"ms ({b['probe_lag_worst_at_s']:.0f} s) | "
               f"{_f(b['lat_median_ms'], '{:.2f}')} / "
               f"{_f(b['lat_p99_ms'], '{:.2f}')} ms |")
@@ -367,8 +380,8 @@ def print_benches(res: dict[str, Any], args: argparse.Namespace) -> bool:
     print(f"\ntotal CPU {total:.0f} % of one core (of {os.cpu_count() * 100} %): "
           + ', '.join(f'{n} {v:.0f} %' for n, v in per_kind.items())
           + f", driver (probes) {cpu.get('driver (probes)', float('nan')):.0f} %")
-    print(f"result: {'PASS' if ok else 'FAIL'} (0 lost, 0 gaps, no crash, lag < "
-          f'{period_ms:g} ms on every bench)')
+    print(f"result: {'PASS' if ok else 'FAIL'} (0 lost, 0 gaps, no crash, lag after the "
+          f'warm-up < {period_ms:g} ms on every bench)')
     return ok
 
 

@@ -285,6 +285,7 @@ class BenchNode(Node):
         self._diag_last = (time.monotonic(), 0)
         self._lag_s = 0.0
         self._lag_max_s = 0.0
+        self._lag_period_max_s = 0.0   # since the previous diagnostics message
         tick = self.block_period_s if not self.fast else max(
             1e-3, self.block_period_s / self.p['speed_factor'] if self.p['speed_factor'] > 0
             else 1e-3)
@@ -461,14 +462,22 @@ class BenchNode(Node):
             return
         if self.finished or (not self.started and not self._wait_for_subscribers()):
             return
-        for _ in range(self._due_blocks()):
+        due = self._due_blocks()
+        # lag: how long after the end of its samples a block leaves (a DAQ delivers a block
+        # once its last sample is taken). The first block of a late tick is the latest one;
+        # the last one shows a catch-up burst that took long.
+        first_end_s = self.sim_time_s + self.block_period_s
+        t_first_s = time.monotonic() - self.mono_start
+        for _ in range(due):
             if self.duration_s > 0 and self.sim_time_s >= self.duration_s - 1e-12:
                 self._finish()
                 return
             self._publish_one()
-        if not self.fast:
-            self._lag_s = (time.monotonic() - self.mono_start) - self.sim_time_s
+        if not self.fast and due:
+            self._lag_s = max(t_first_s - first_end_s,
+                              (time.monotonic() - self.mono_start) - self.sim_time_s)
             self._lag_max_s = max(self._lag_max_s, self._lag_s)
+            self._lag_period_max_s = max(self._lag_period_max_s, self._lag_s)
 
     def _publish_one(self) -> None:
         self._publish_block(self.sim.next_block())
@@ -554,8 +563,12 @@ class BenchNode(Node):
             'realtime_factor': self.sim_time_s / wall if wall > 0 else 0.0,
             'lag_s': self._lag_s,
             'lag_max_s': self._lag_max_s,
+            # the largest lag since the previous diagnostics message: a monitor (or
+            # bench_multibench.py) sees the steady state apart from the start-up
+            'lag_period_max_s': self._lag_period_max_s,
             'finished': self.finished,
         }
+        self._lag_period_max_s = 0.0
         if self.joint_state:
             values['joint_states_published'] = self.joint_states_published
         late = (not self.fast) and self._lag_s > self.block_period_s

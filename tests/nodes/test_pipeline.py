@@ -321,3 +321,34 @@ def test_compensation_search_thread_runs_niced(ros_context) -> None:  # noqa: AN
         assert off.search_nice is None
     finally:
         off.destroy_node()
+
+
+def test_realtime_bench_reports_a_late_tick_as_lag(graph) -> None:  # noqa: ANN001
+    """A bench whose process stalls (here: the executor does not spin for 0.3 s) publishes
+    the blocks that fell due in one catch-up tick; the first of them leaves ~0.3 s after the
+    end of its samples, and that is the lag the diagnostics report (the largest lag since
+    the previous diagnostics message too). Before, the lag was taken after the catch-up
+    only, so a stall of any length under 100 blocks showed as no lag at all."""
+    import time  # noqa: PLC0415
+
+    from diagnostic_msgs.msg import DiagnosticArray  # noqa: PLC0415
+
+    ctx, ex, add = graph
+    diags: list[dict[str, str]] = []
+    probe = add(rclpy.create_node('probe', context=ctx))
+    probe.create_subscription(
+        DiagnosticArray, '/diagnostics',
+        lambda m: diags.extend({kv.key: kv.value for kv in s.values} for s in m.status
+                               if s.name.endswith('bench: bench')), qos.DIAGNOSTICS_QOS)
+    bench = add(BenchNode(context=ctx, parameter_overrides=bench_params(
+        time_mode='realtime', sample_rate_hz=1000.0, block_size=10,
+        duration_output_revs=0.0, diagnostics_period_s=0.2)))
+    assert spin_until(ex, lambda: bench.blocks_published >= 20, 20.0)
+    spin_for(ex, 0.5)
+    steady = max(float(d['lag_period_max_s']) for d in diags)
+    time.sleep(0.3)                       # the stall: no timer callback runs
+    n = len(diags)
+    assert spin_until(ex, lambda: any(float(d['lag_period_max_s']) > 0.2 for d in diags[n:]),
+                      5.0), f'no lag reported after a 0.3 s stall (steady {steady:.4f} s)'
+    assert float(diags[-1]['lag_max_s']) >= 0.2
+    assert steady < 0.2, 'the bench lagged before the stall (machine too busy to tell)'
