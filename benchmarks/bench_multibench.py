@@ -42,18 +42,12 @@ import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
-CLK_TCK = os.sysconf('SC_CLK_TCK')
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+
+from bench_pipeline import cpu_s  # noqa: E402  (the benchmarks' one /proc CPU reader)
+
 NODES = ('bench', 'te_node', 'compensation', 'recorder')
 PROBE = 'multibench_probe'
-
-
-def cpu_s(pid: int) -> float:
-    """utime + stime of a process [s] (0 when it is gone)."""
-    try:
-        fields = Path(f'/proc/{pid}/stat').read_text().rsplit(')', 1)[1].split()
-    except OSError:
-        return 0.0
-    return (int(fields[11]) + int(fields[12])) / CLK_TCK
 
 
 def cdr_stamp_s(data: bytes) -> float:
