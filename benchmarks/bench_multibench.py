@@ -284,6 +284,8 @@ def run_benches(n_benches: int, rate_hz: float, block: int, duration_s: float,  
             'cpu': {n: cpu.get(f'{ns}/{n}', float('nan')) for n in NODES},
             'probe_lag_max_ms': float(np.nanmax(steady)) * 1e3,
             'probe_lag_p99_ms': float(np.nanpercentile(steady, 99)) * 1e3,
+            'probe_late': int(np.count_nonzero(steady > block / rate_hz)),
+            'probe_n': int(steady.size),
             'probe_lag_worst_at_s': worst * block / rate_hz,
             'lat_median_ms': float(np.nanmedian(lat_ms)),
             'lat_p99_ms': float(np.nanpercentile(lat_ms, 99)),
@@ -349,8 +351,9 @@ def print_benches(res: dict[str, Any], args: argparse.Namespace) -> bool:
           'CPU bench / TE / compensation / recorder | '
           'bench lag max after the warm-up (whole run) | '
           'block arrival after its end, max / p99 (worst at) | '
+          'blocks arriving > 1 period after their end | '
           'latency block->TE median / p99 |')
-    print('|---|---|---|---|---|---|---|---|')
+    print('|---|---|---|---|---|---|---|---|---|')
     ok = True
     for b in res['benches']:
         c = b['cpu']
@@ -366,6 +369,7 @@ def print_benches(res: dict[str, Any], args: argparse.Namespace) -> bool:
               f"{' / '.join(_f(c[n], '{:.0f}') + ' %' for n in NODES)} | "
               f"{_f(steady_ms)} ms ({_f(lag_ms)} ms) | {_f(b['probe_lag_max_ms'])} / {_f(b['probe_lag_p99_ms'])} "
               f"ms ({b['probe_lag_worst_at_s']:.0f} s) | "
+              f"{b['probe_late']} of {b['probe_n']} | "
               f"{_f(b['lat_median_ms'], '{:.2f}')} / "
               f"{_f(b['lat_p99_ms'], '{:.2f}')} ms |")
     cpu = res['cpu']
