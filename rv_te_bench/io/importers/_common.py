@@ -37,6 +37,7 @@ __all__ = [
     'RawChunk',
     'SiChunk',
     'angle_unit',
+    'channel_roles',
 ]
 
 AngleUnit = Literal['rad', 'deg', 'arcmin', 'arcsec', 'counts', 'rev']
@@ -69,6 +70,24 @@ def refuse_empty(path: Path) -> None:
     if path.is_file() and path.stat().st_size == 0:
         msg = f'{path}: the file is empty'
         raise DataImportError(msg)
+
+
+def channel_roles(path: Path, options: ImportOptions,
+                  names: Callable[[], list[str]]) -> dict[str, str]:
+    """The channels ``options`` names, by role (``in``, ``out``, ``torque``, ``time``), for a
+    file of named channels (TDMS, MDF): the two angles have no default there.
+
+    Raises:
+        DataImportError: An angle channel is not named; the message lists the file's first
+            20 channels (``names()``, called only then).
+    """
+    if options.theta_in is None or options.theta_out is None:
+        msg = (f'{path}: name the angle channels with --theta-in and --theta-out '
+               f'(channels: {", ".join(names()[:20])})')
+        raise DataImportError(msg)
+    roles = {'in': options.theta_in, 'out': options.theta_out, 'torque': options.torque,
+             'time': options.time}
+    return {r: spec for r, spec in roles.items() if spec is not None}
 
 
 def angle_unit(text: str | None) -> str | None:

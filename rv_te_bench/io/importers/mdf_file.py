@@ -18,7 +18,12 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 
 from rv_te_bench.errors import DataImportError
-from rv_te_bench.io.importers._common import RawChunk, refuse_empty, require_reader
+from rv_te_bench.io.importers._common import (
+    RawChunk,
+    channel_roles,
+    refuse_empty,
+    require_reader,
+)
 
 if TYPE_CHECKING:
     from collections.abc import Iterator
@@ -61,13 +66,8 @@ class MdfReader:
         if problem is not None:
             msg = f'{path}: not a readable MDF file, truncated or damaged ({problem})'
             raise DataImportError(msg)
-        if options.theta_in is None or options.theta_out is None:
-            msg = (f'{path}: name the angle channels with --theta-in and --theta-out '
-                   f'(channels: {", ".join(self._names()[:20])})')
-            raise DataImportError(msg)
-        roles = {'in': options.theta_in, 'out': options.theta_out, 'torque': options.torque,
-                 'time': options.time}
-        self.where = {r: self._find(spec) for r, spec in roles.items() if spec is not None}
+        roles = channel_roles(path, options, self._names)
+        self.where = {r: self._find(spec) for r, spec in roles.items()}
         self.labels = {r: str(roles[r]) for r in self.where}
         groups = {gp for gp, _ in self.where.values()}
         if len(groups) > 1:

@@ -18,7 +18,12 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 
 from rv_te_bench.errors import DataImportError
-from rv_te_bench.io.importers._common import RawChunk, refuse_empty, require_reader
+from rv_te_bench.io.importers._common import (
+    RawChunk,
+    channel_roles,
+    refuse_empty,
+    require_reader,
+)
 
 if TYPE_CHECKING:
     from collections.abc import Iterator
@@ -82,13 +87,8 @@ class TdmsReader:
                 raise DataImportError(msg) from None
         if any('less data than expected' in w or 'not a multiple' in w for w in warned):
             self._truncated()
-        if options.theta_in is None or options.theta_out is None:
-            msg = (f'{path}: name the angle channels with --theta-in and --theta-out '
-                   f'(channels: {", ".join(self._names()[:20])})')
-            raise DataImportError(msg)
-        roles = {'in': options.theta_in, 'out': options.theta_out, 'torque': options.torque,
-                 'time': options.time}
-        self.channels = {r: self._channel(spec) for r, spec in roles.items() if spec is not None}
+        roles = channel_roles(path, options, self._names)
+        self.channels = {r: self._channel(spec) for r, spec in roles.items()}
         self.labels = {r: f'{c.group_name}/{c.name}' for r, c in self.channels.items()}
         self.declared_units = {r: c.properties.get('unit_string') or None
                                for r, c in self.channels.items()}
