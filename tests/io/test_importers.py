@@ -210,3 +210,27 @@ def test_report_shows_the_unit(session: tuple, tmp_path: Path,
     page = (tmp_path / 'rep' / 'report.html').read_text(encoding='utf-8')
     assert '<th class="l">operator</th><td class="l">pytest</td>' in page
     assert 'temperature [degC]' in page and str(tmp_path / 'run.csv') in page
+
+
+@pytest.mark.parametrize(('write', 'name', 'listed'), [
+    (daq_files.write_tdms, 'run.tdms', 'encoders/theta_in, encoders/theta_out, encoders/torque'),
+    (daq_files.write_mdf, 'run.mf4', 'theta_in'),
+])
+def test_named_channel_files_need_both_angle_channels(session: tuple, tmp_path: Path,
+                                                       write: object, name: str,
+                                                       listed: str) -> None:
+    """TDMS and MDF have no column order to fall back on: without --theta-in / --theta-out
+    the import stops with one line that lists the file's channels, and writes nothing."""
+    from rv_te_bench.errors import DataImportError
+
+    s, _, _ = session
+    short = daq_files.Session(*(a[:2000] for a in (s.t_s, s.theta_in_rad, s.theta_out_rad,
+                                                   s.torque_nm)))
+    path = write(tmp_path / name, short)   # type: ignore[operator]
+    desc = load_bench_description(daq_files.bench_yaml(tmp_path / 'bench.yaml'))
+    with pytest.raises(DataImportError) as exc:
+        import_file(path, desc, tmp_path / 'out', options=ImportOptions(theta_out='theta_out'))
+    text = str(exc.value)
+    assert text.startswith(f'{path}: name the angle channels with --theta-in and --theta-out')
+    assert listed in text
+    assert not (tmp_path / 'out').exists()
