@@ -916,14 +916,10 @@ class StreamingTeAnalyzer:
         n = theta_in.size
         n0 = buf.n
         in_place = n0 + n <= buf.phi.size and n0 + n <= config.max_window_samples
-        if in_place:
-            # Wang 2020 Eq. 22 straight into the window buffer (as output_phase_and_te, bit
-            # for bit: phi = theta_in / i, TE = theta_out - phi): no new arrays, no copy
-            phi = np.divide(theta_in, config.gear_ratio, out=buf.phi[n0:n0 + n])
-            te = np.subtract(theta_out, phi, out=buf.te[n0:n0 + n])
-        else:
-            phi, te = output_phase_and_te(theta_in, theta_out, gear_ratio=config.gear_ratio,
-                                          check=False)
+        # Wang 2020 Eq. 22, straight into the window buffer when the block fits (no copy)
+        phi, te = output_phase_and_te(
+            theta_in, theta_out, gear_ratio=config.gear_ratio, check=False,
+            out=(buf.phi[n0:n0 + n], buf.te[n0:n0 + n]) if in_place else None)
         phi_first, phi_last = float(phi[0]), float(phi[-1])
         self._cum_rev += abs(phi_last - phi_first)
         if self._last_phi is not None:

@@ -53,7 +53,7 @@ def _check_ratio(gear_ratio: float) -> float:
 
 def output_phase_and_te(
     theta_in_rad: npt.ArrayLike, theta_out_rad: npt.ArrayLike, *, gear_ratio: float,
-    check: bool = True,
+    check: bool = True, out: tuple[np.ndarray, np.ndarray] | None = None,
 ) -> tuple[np.ndarray, np.ndarray]:
     """Wang 2020 Eq. 22 with the output phase it is taken at: (theta_in / i, TE).
 
@@ -67,6 +67,8 @@ def output_phase_and_te(
         gear_ratio: Overall ratio i, input revolutions per output revolution (> 0).
         check: Check ``gear_ratio`` and the shapes (False on hot paths whose caller holds a
             checked ratio and arrays of one length; then nothing is checked here).
+        out: ``(phi, te)`` float64 arrays of the angles' shape to write into (the streaming
+            analysis writes straight into its window buffer); None: new arrays.
 
     Returns:
         ``(phi, te)``: the ideal output angle theta_in / i [rad] and TE [rad], float64,
@@ -82,6 +84,9 @@ def output_phase_and_te(
         if theta_in.shape != theta_out.shape:
             msg = f'shape mismatch: {theta_in.shape=} vs {theta_out.shape=}'
             raise TeInputError(msg)
+    if out is not None:
+        phi = np.divide(theta_in, gear_ratio, out=out[0])
+        return phi, np.subtract(theta_out, phi, out=out[1])
     phi = theta_in / gear_ratio
     return phi, theta_out - phi
 

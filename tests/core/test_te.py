@@ -16,7 +16,13 @@ import rv_te_bench.core.orders
 import rv_te_bench.core.spectrum
 import rv_te_bench.core.stream
 import rv_te_bench.core.te
-from rv_te_bench.core.te import RunningStats, TeStats, te_statistics, transmission_error_rad
+from rv_te_bench.core.te import (
+    RunningStats,
+    TeStats,
+    output_phase_and_te,
+    te_statistics,
+    transmission_error_rad,
+)
 from rv_te_bench.core.units import arcmin_to_rad, rad_to_arcmin
 from rv_te_bench.errors import TeInputError
 
@@ -177,3 +183,20 @@ def test_running_stats_no_cancellation_at_large_offset() -> None:
         rs.update(b)
     whole = np.concatenate(blocks)
     assert_allclose(rs.stats().std_rad, np.std(whole), rtol=1e-6)
+
+
+def test_output_phase_and_te_into_given_arrays_is_bit_identical() -> None:
+    """The streaming analysis writes Wang 2020 Eq. 22 into its window buffer through
+    ``out=``: the same values, bit for bit, as the arrays the function makes itself."""
+    rng = np.random.default_rng(7)
+    theta_in = np.cumsum(rng.uniform(0.0, 0.01, 5000))
+    theta_out = theta_in / 79.0 + rng.normal(0.0, 1e-4, 5000)
+    phi_new, te_new = output_phase_and_te(theta_in, theta_out, gear_ratio=79.0)
+    buf_phi, buf_te = np.full(6000, np.nan), np.full(6000, np.nan)
+    phi, te = output_phase_and_te(theta_in, theta_out, gear_ratio=79.0, check=False,
+                                  out=(buf_phi[100:5100], buf_te[100:5100]))
+    assert np.shares_memory(phi, buf_phi) and np.shares_memory(te, buf_te)
+    assert np.array_equal(buf_phi[100:5100], phi_new)
+    assert np.array_equal(buf_te[100:5100], te_new)
+    assert np.array_equal(te_new, theta_out - theta_in / 79.0)
+    assert np.isnan(buf_phi[:100]).all() and np.isnan(buf_te[5100:]).all()
