@@ -11,6 +11,11 @@ each namespace; the probes read raw CDR and decode the stamp only, so they cost 
     .venv/bin/python benchmarks/bench_multibench.py                     # 4 x 10 kHz, 10 min
     .venv/bin/python benchmarks/bench_multibench.py --benches 2 --duration-s 60
     .venv/bin/python benchmarks/bench_multibench.py --floor             # the middleware floor
+    .venv/bin/python benchmarks/bench_multibench.py --realtime-priority 0   # no SCHED_FIFO
+
+The benches run with ``realtime_priority: 50`` by default (their pacing thread on SCHED_FIFO,
+as a test PC runs its DAQ node; root or an rtprio limit needed, else they say 'normal' in the
+scheduling line and run without it).
 
 ``--floor`` runs N bare rclpy publisher / subscriber pairs (a process each) of the same
 EncoderBlock messages (same size, same rate, ENCODER_QOS, EventsExecutor, a timer that
@@ -106,7 +111,7 @@ def _stop_on_sigterm() -> dict[str, Any]:
 def run_benches(n_benches: int, rate_hz: float, block: int, duration_s: float,  # noqa: C901, PLR0912, PLR0915
                 out_dir: Path, warmup_s: float = 2.0, profile_s: float = 0.0,
                 start_timeout_s: float = 90.0, extra_params: tuple[str, ...] = (),
-                ) -> dict[str, Any]:
+                rt_probe_priority: int = -1) -> dict[str, Any]:
     """Run N sessions side by side; return per-bench results and per-process CPU."""
     import rclpy  # noqa: PLC0415
     from diagnostic_msgs.msg import DiagnosticArray  # noqa: PLC0415
@@ -201,6 +206,7 @@ def run_benches(n_benches: int, rate_hz: float, block: int, duration_s: float,  
 
         last, streaming = 0.0, 0.0
         spies: list[subprocess.Popen[bytes]] = []
+        rt_probe: subprocess.Popen[str] | None = None
         while True:
             ex.spin_once(timeout_sec=0.1)
             now = time.monotonic()
@@ -211,6 +217,9 @@ def run_benches(n_benches: int, rate_hz: float, block: int, duration_s: float,  
                 in_steady[0] = True
                 if profile_s > 0:
                     spies = start_profiles(sessions[names[0]], profile_s, out_dir / 'profile')
+                if rt_probe_priority >= 0:   # the machine's wake-up floor, beside the benches
+                    rt_probe = start_rt_probe(duration_s - warmup_s - 1.0,
+                                              block / rate_hz, rt_probe_priority)
             if meter.start and now - last > 1.0:
                 last = now
                 meter.sample(pids(), alive())
@@ -228,6 +237,7 @@ def run_benches(n_benches: int, rate_hz: float, block: int, duration_s: float,  
         interrupted = True
         print('interrupted: stopping every session', file=sys.stderr)
     finally:
+        floor = finish_rt_probe(rt_probe)
         for spy in spies:
             try:
                 spy.wait(timeout=profile_s + 30)
@@ -280,6 +290,7 @@ def run_benches(n_benches: int, rate_hz: float, block: int, duration_s: float,  
             'te': te_diag.get('blocks'), 'te_gaps': te_diag.get('gaps_reported'),
             'lag_max_s': bench_diag.get('lag_max_s'),
             'steady_lag_max_s': steady_lag.get(f'/{ns}/bench: bench'),
+            'scheduling': bench_diag.get('scheduling', '?'),
             'crashed': ns in crashed or any(c not in (0, None) for c in codes[ns].values()),
             'cpu': {n: cpu.get(f'{ns}/{n}', float('nan')) for n in NODES},
             'probe_lag_max_ms': float(np.nanmax(steady)) * 1e3,
@@ -290,8 +301,60 @@ def run_benches(n_benches: int, rate_hz: float, block: int, duration_s: float,  
             'lat_median_ms': float(np.nanmedian(lat_ms)),
             'lat_p99_ms': float(np.nanpercentile(lat_ms, 99)),
         })
-    return {'benches': benches, 'cpu': cpu,
+    return {'benches': benches, 'cpu': cpu, 'rt_floor': floor,
             'profiles': sorted((out_dir / 'profile').glob('*.txt')) if profile_s else []}
+
+
+def rt_probe(seconds: float, period_s: float, priority: int) -> int:
+    """The machine's floor for a paced thread (a child process): a bare thread that sleeps
+    to every period boundary, on SCHED_FIFO ``priority`` as the benches (0: normal), with no
+    Python work, middleware or messages; prints how late it woke (JSON, ms)."""
+    import gc  # noqa: PLC0415
+
+    sched = 'normal'
+    if priority > 0:
+        try:
+            os.sched_setscheduler(0, os.SCHED_FIFO, os.sched_param(priority))
+            sched = f'SCHED_FIFO {priority}'
+        except PermissionError:
+            sched = f'normal (SCHED_FIFO {priority} not permitted)'
+    gc.disable()
+    late = np.empty(int(seconds / period_s) + 1)
+    t0 = time.monotonic()
+    for k in range(late.size):
+        target = t0 + (k + 1) * period_s
+        wait = target - time.monotonic()
+        if wait > 0:
+            time.sleep(wait)
+        late[k] = time.monotonic() - target
+    ms = late * 1e3
+    print(json.dumps({'scheduling': sched, 'n': int(ms.size), 'max_ms': float(ms.max()),
+                      'p99_ms': float(np.percentile(ms, 99)),
+                      'over_period': int(np.count_nonzero(ms > period_s * 1e3))}), flush=True)
+    return 0
+
+
+def start_rt_probe(seconds: float, period_s: float, priority: int) -> subprocess.Popen[str]:
+    """Start :func:`rt_probe` in a child process for ``seconds``."""
+    return subprocess.Popen(
+        [sys.executable, __file__, '--_rt-probe', str(max(1.0, seconds)),
+         '--_period', str(period_s), '--_priority', str(priority)],
+        stdout=subprocess.PIPE, text=True)
+
+
+def finish_rt_probe(proc: subprocess.Popen[str] | None) -> dict[str, Any] | None:
+    """The probe's result (it ends on its own; stopped if the run was cut short)."""
+    if proc is None:
+        return None
+    try:
+        out, _ = proc.communicate(timeout=30)
+    except subprocess.TimeoutExpired:
+        proc.kill()
+        proc.communicate()
+        return None
+    with contextlib.suppress(ValueError):
+        return json.loads(out.strip().splitlines()[-1]) if out.strip() else None
+    return None
 
 
 def start_profiles(session: Any, seconds: float, folder: Path,  # noqa: ANN401
@@ -372,6 +435,14 @@ def print_benches(res: dict[str, Any], args: argparse.Namespace) -> bool:
               f"{b['probe_late']} of {b['probe_n']} | "
               f"{_f(b['lat_median_ms'], '{:.2f}')} / "
               f"{_f(b['lat_p99_ms'], '{:.2f}')} ms |")
+    kinds = sorted({str(b['scheduling']) for b in res['benches']})
+    print(f"\nbench scheduling (diagnostics): {'; '.join(kinds)}")
+    fl = res.get('rt_floor')
+    if fl:
+        print(f"machine floor over the same time (a bare paced thread, {fl['scheduling']}, "
+              f"no middleware): woke up to {fl['max_ms']:.1f} ms late (p99 "
+              f"{fl['p99_ms']:.2f} ms), {fl['over_period']} of {fl['n']} periods more than "
+              f"one block period late; kernel {platform.release()} {platform.version()}")
     cpu = res['cpu']
     per_kind = {n: sum(v for k, v in cpu.items() if k.endswith('/' + n)) for n in NODES}
     total = sum(cpu.values())
@@ -579,11 +650,23 @@ def main() -> int:
     ap.add_argument('--param', action='append', default=[], metavar='NODE.KEY=VALUE',
                     help='a parameter for every session, as rv-te launch --param '
                          '(e.g. compensation.identify=false to see what the searches cost)')
+    ap.add_argument('--realtime-priority', type=int, default=50,
+                    help='the benches\' realtime_priority (SCHED_FIFO of the pacing thread, '
+                         'as a test PC runs its DAQ node; needs root or an rtprio limit); '
+                         '0 = normal scheduling')
+    ap.add_argument('--no-rt-probe', action='store_true',
+                    help='do not measure the machine floor (a bare paced thread beside the '
+                         'benches, same scheduling)')
     ap.add_argument('--keep', action='store_true', help='keep the temporary folder (bags)')
+    ap.add_argument('--_rt-probe', dest='rt_probe', type=float, help=argparse.SUPPRESS)
+    ap.add_argument('--_period', dest='period', type=float, help=argparse.SUPPRESS)
+    ap.add_argument('--_priority', dest='priority', type=int, help=argparse.SUPPRESS)
     ap.add_argument('--_floor-pub', dest='floor_pub', help=argparse.SUPPRESS)
     ap.add_argument('--_floor-sub', dest='floor_sub', help=argparse.SUPPRESS)
     ap.add_argument('--_expected', dest='expected', type=int, help=argparse.SUPPRESS)
     args = ap.parse_args()
+    if args.rt_probe:
+        return rt_probe(args.rt_probe, args.period, args.priority)
     if args.floor_pub:
         return floor_publisher(args.floor_pub, args.rate_hz, args.block_size, args.duration_s)
     if args.floor_sub:
@@ -603,7 +686,11 @@ def main() -> int:
             ok = True
         else:
             res = run_benches(args.benches, args.rate_hz, args.block_size, args.duration_s,
-                              out, profile_s=args.profile_s, extra_params=tuple(args.param))
+                              out, profile_s=args.profile_s,
+                              extra_params=(f'bench.realtime_priority={args.realtime_priority}',
+                                            *args.param),
+                              rt_probe_priority=-1 if args.no_rt_probe
+                              else args.realtime_priority)
             ok = print_benches(res, args)
             print_profiles(res['profiles'])
     except KeyboardInterrupt:

@@ -143,6 +143,12 @@ PARAMS = (
     ParamSpec('commanded', 'bool', False,
               'Idle until a program arrives on bench/run_program (test_sequencer), instead '
               'of running the drive profile from the start'),
+    ParamSpec('realtime_priority', 'int', 0,
+              'realtime time mode: SCHED_FIFO priority of the thread that paces and '
+              'publishes the blocks, its middleware threads at nice -10 (Linux; needs '
+              'CAP_SYS_NICE or an rtprio limit, as ros2_control\'s thread_priority); 0 = '
+              'normal scheduling. Keeps a bench on time beside other benches on a shared PC '
+              '[-]', min_value=0, max_value=99),
 )
 
 
@@ -291,11 +297,35 @@ class BenchNode(Node):
             else 1e-3)
         self.timer = self.create_timer(tick, self._on_tick)
         self.create_timer(self.p['diagnostics_period_s'], self._publish_diagnostics)
+        #: What real-time scheduling took effect (diagnostics 'scheduling').
+        self.scheduling = self._realtime_scheduling()
         self.get_logger().info(
             f'bench {info.bench_id}: preset {info.preset} ({info.reducer_type}, '
             f'i={info.gear_ratio:.6g}), {self.p["sample_rate_hz"]:g} Hz, blocks of '
             f'{self.p["block_size"]}, {self.p["time_mode"]} time'
             + (f', {self.duration_s:.3f} s' if self.duration_s > 0 else ''))
+
+    def _realtime_scheduling(self) -> str:
+        """``realtime_priority`` > 0: SCHED_FIFO for this thread (the node's, which then
+        spins the executor: its timer thread inherits it), nice -10 for the middleware's
+        threads. Only in realtime mode: a real-time thread that simulates as fast as it can
+        (fast mode) would take a core from every other process."""
+        want = int(self.p['realtime_priority'])
+        if want == 0:
+            return 'normal'
+        if self.fast:
+            self.get_logger().warning(
+                f'realtime_priority {want} ignored in fast time mode (a real-time thread '
+                'that computes as fast as it can would take a core from everything else)')
+            return 'normal (fast time mode)'
+        from rv_te_bench.nodes.scheduling import realtime_scheduling  # noqa: PLC0415
+
+        got = realtime_scheduling(want)
+        if got.startswith('normal') or 'not permitted' in got:
+            self.get_logger().warning(f'scheduling: {got}')
+        else:
+            self.get_logger().info(f'scheduling: {got}')
+        return got
 
     # -- commanded mode (bench programs from the test_sequencer) --------------------------
     def _start_commanded(self) -> None:
@@ -567,6 +597,7 @@ class BenchNode(Node):
             # bench_multibench.py) sees the steady state apart from the start-up
             'lag_period_max_s': self._lag_period_max_s,
             'finished': self.finished,
+            'scheduling': self.scheduling,
         }
         self._lag_period_max_s = 0.0
         if self.joint_state:

@@ -1,0 +1,89 @@
+"""Real-time scheduling of a node's pacing thread (Linux), as ros2_control's ``thread_priority``.
+
+A DAQ node that must hand over a block every 10 ms on a shared industrial PC cannot wait for
+the time-sharing scheduler: with four benches on two cores, the blocks of a bench left up to
+89 ms late when the four TE windows closed together (issue #23 item 1), although the bench
+itself needs 7 % of a core. :func:`realtime_scheduling` gives
+
+* the calling thread (the one that runs the executor: timers, publishing) ``SCHED_FIFO`` at
+  ``priority``. Threads it starts afterwards inherit that (the executor's timer thread);
+* the threads that exist already (the middleware's: Fast DDS receive, events, shared memory
+  watchdog) nice ``middleware_nice``. They hold the writer's locks while they process
+  acknowledgements; left at nice 0 they were preempted holding them, and a publish then
+  waited 7-13 ms for them (priority inversion). ``SCHED_FIFO`` for them as well made it far
+  worse (ticks up to 1.2 s late: real-time threads of equal priority do not share a core).
+
+It needs ``CAP_SYS_NICE`` or an rtprio / nice limit (``/etc/security/limits.conf``:
+``@realtime - rtprio 98`` and ``@realtime - nice -20``), as every real-time ROS 2 control loop.
+Without it nothing changes and the returned line says so. Only a node that paces to the wall
+clock should ask: a ``SCHED_FIFO`` thread that computes as fast as it can takes a core from
+everything else.
+"""
+
+from __future__ import annotations
+
+import os
+import sys
+import threading
+
+#: The nice the existing (middleware) threads get with real-time scheduling.
+MIDDLEWARE_NICE = -10
+
+
+def _thread_ids() -> list[int]:
+    try:
+        return sorted(int(t) for t in os.listdir('/proc/self/task'))
+    except OSError:
+        return []
+
+
+def realtime_scheduling(priority: int, middleware_nice: int = MIDDLEWARE_NICE) -> str:
+    """Put the calling thread on ``SCHED_FIFO`` at ``priority``, the other threads at nice
+    ``middleware_nice``; return one line saying what took effect.
+
+    Args:
+        priority: 1..99 (``sched_get_priority_max(SCHED_FIFO)``); 0 leaves everything alone.
+        middleware_nice: -20..19 for the threads that exist already.
+
+    Returns:
+        ``'SCHED_FIFO 50, middleware threads nice -10'``, ``'normal'`` (priority 0), or
+        ``'normal (SCHED_FIFO 50 not permitted: ...)'``: never raises for a missing permission.
+
+    Raises:
+        ValueError: ``priority`` outside 0..99 or ``middleware_nice`` outside -20..19 (named).
+    """
+    if isinstance(priority, bool) or not isinstance(priority, int) or not 0 <= priority <= 99:
+        msg = f'realtime priority must be an integer 0..99, got {priority!r}'
+        raise ValueError(msg)
+    if isinstance(middleware_nice, bool) or not isinstance(middleware_nice, int) \
+            or not -20 <= middleware_nice <= 19:
+        msg = f'middleware nice must be an integer -20..19, got {middleware_nice!r}'
+        raise ValueError(msg)
+    if priority == 0:
+        return 'normal'
+    if not sys.platform.startswith('linux'):
+        return f'normal (SCHED_FIFO {priority} is only set on Linux)'
+    top = os.sched_get_priority_max(os.SCHED_FIFO)
+    if priority > top:
+        return f'normal (SCHED_FIFO {priority} is above this system\'s maximum {top})'
+    own = threading.get_native_id()
+    niced, refused = 0, 0
+    for tid in _thread_ids():
+        if tid == own:
+            continue
+        try:
+            os.setpriority(os.PRIO_PROCESS, tid, middleware_nice)
+            niced += 1
+        except PermissionError:
+            refused += 1
+        except ProcessLookupError:   # a thread that ended meanwhile
+            continue
+    try:
+        os.sched_setscheduler(0, os.SCHED_FIFO, os.sched_param(priority))
+    except PermissionError:
+        return (f'normal (SCHED_FIFO {priority} not permitted: needs CAP_SYS_NICE or an '
+                f'rtprio limit >= {priority}, e.g. in /etc/security/limits.conf)')
+    if refused:
+        return (f'SCHED_FIFO {priority}, middleware threads nice 0 (nice {middleware_nice} '
+                f'not permitted for {refused} of {niced + refused})')
+    return f'SCHED_FIFO {priority}, middleware threads nice {middleware_nice}'

@@ -1,0 +1,196 @@
+"""Real-time scheduling of the bench's pacing thread (issue #23 item 1).
+
+What took effect is read back from ``/proc/<pid>/task/<tid>/stat`` (the kernel's view, not
+the function's own report): field 19 nice, 40 rt_priority, 41 policy (1 = SCHED_FIFO).
+Everything that changes a thread's scheduling runs in a child process, so the test runner's
+own threads stay as they were.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import shutil
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import pytest
+
+from rv_te_bench.nodes.scheduling import realtime_scheduling
+
+ROOT = Path(__file__).resolve().parents[2]
+linux = pytest.mark.skipif(not sys.platform.startswith('linux'), reason='Linux scheduling')
+
+SCHED_OTHER, SCHED_FIFO = 0, 1
+
+
+def task_sched(pid: int) -> dict[int, tuple[int, int, int]]:
+    """{tid: (policy, rt_priority, nice)} of every thread of ``pid``, from /proc."""
+    out = {}
+    for tid in os.listdir(f'/proc/{pid}/task'):
+        try:
+            stat = Path(f'/proc/{pid}/task/{tid}/stat').read_text()
+        except OSError:   # the thread ended meanwhile
+            continue
+        fields = stat[stat.rindex(')') + 2:].split()   # fields from 3 (state) on
+        out[int(tid)] = (int(fields[41 - 3]), int(fields[40 - 3]), int(fields[19 - 3]))
+    return out
+
+
+def may_set_fifo(priority: int) -> bool:
+    """Whether this user may set SCHED_FIFO ``priority``: CAP_SYS_NICE in the effective set
+    (bit 23 of CapEff) or an RLIMIT_RTPRIO at least that high."""
+    import resource  # noqa: PLC0415
+
+    caps = next(int(line.split()[1], 16) for line in
+                Path('/proc/self/status').read_text().splitlines()
+                if line.startswith('CapEff:'))
+    return bool(caps >> 23 & 1) or resource.getrlimit(resource.RLIMIT_RTPRIO)[0] >= priority
+
+
+CHILD = r'''
+import json, os, sys, threading
+from rv_te_bench.nodes.scheduling import realtime_scheduling
+go = threading.Event()
+before = [threading.Thread(target=go.wait) for _ in range(2)]
+for t in before:
+    t.start()
+line = realtime_scheduling(int(sys.argv[1]))
+after = threading.Thread(target=go.wait)
+after.start()
+print(json.dumps({'line': line, 'main': threading.get_native_id(),
+                  'before': [t.native_id for t in before], 'after': after.native_id}),
+      flush=True)
+sys.stdin.readline()        # the test reads /proc meanwhile
+go.set()
+'''
+
+
+def run_child(priority: int, prefix: tuple[str, ...] = ()) -> tuple[dict, dict]:
+    """CHILD in a process (optionally under ``prefix``, e.g. setpriv): its report and the
+    scheduling of its threads from /proc."""
+    env = dict(os.environ, PYTHONPATH=str(ROOT))
+    p = subprocess.Popen([*prefix, sys.executable, '-c', CHILD, str(priority)], cwd=ROOT,
+                         env=env, text=True, stdin=subprocess.PIPE, stdout=subprocess.PIPE,
+                         stderr=subprocess.PIPE)
+    try:
+        first = p.stdout.readline()
+        assert first, p.stderr.read()
+        report = json.loads(first)
+        seen = task_sched(p.pid)
+        p.stdin.write('\n')
+        p.stdin.flush()
+        assert p.wait(timeout=20) == 0, p.stderr.read()
+    finally:
+        if p.poll() is None:
+            p.kill()
+            p.wait()
+    return report, seen
+
+
+def test_priority_zero_changes_nothing() -> None:
+    before = (os.sched_getscheduler(0), os.getpriority(os.PRIO_PROCESS, 0))
+    assert realtime_scheduling(0) == 'normal'
+    assert (os.sched_getscheduler(0), os.getpriority(os.PRIO_PROCESS, 0)) == before
+
+
+@pytest.mark.parametrize(('priority', 'nice', 'message'), [
+    (-1, -10, 'priority must be an integer 0..99, got -1'),
+    (100, -10, 'priority must be an integer 0..99, got 100'),
+    (True, -10, 'priority must be an integer 0..99, got True'),
+    (1.5, -10, 'priority must be an integer 0..99, got 1.5'),
+    (10, -21, 'nice must be an integer -20..19, got -21'),
+    (10, 20, 'nice must be an integer -20..19, got 20')])
+def test_out_of_range_values_are_named(priority: object, nice: int, message: str) -> None:
+    with pytest.raises(ValueError) as err:
+        realtime_scheduling(priority, nice)  # type: ignore[arg-type]
+    assert message in str(err.value)
+
+
+@linux
+def test_pacing_thread_fifo_middleware_threads_niced() -> None:
+    """The calling thread gets SCHED_FIFO at the priority, the threads that existed before
+    nice -10 (normal policy), a thread it starts afterwards inherits SCHED_FIFO; when the
+    user may not (no CAP_SYS_NICE, rtprio limit 0), nothing changes and the line says so."""
+    report, seen = run_child(7)
+    main, before, after = report['main'], report['before'], report['after']
+    if may_set_fifo(7):
+        assert report['line'] == 'SCHED_FIFO 7, middleware threads nice -10'
+        assert seen[main][:2] == (SCHED_FIFO, 7)
+        assert [seen[t] for t in before] == [(SCHED_OTHER, 0, -10)] * 2
+        assert seen[after][:2] == (SCHED_FIFO, 7)
+    else:
+        assert report['line'].startswith('normal (SCHED_FIFO 7 not permitted')
+        assert {seen[t][:2] for t in (main, *before, after)} == {(SCHED_OTHER, 0)}
+
+
+@linux
+@pytest.mark.skipif(os.geteuid() != 0 or shutil.which('setpriv') is None,
+                    reason='needs root to start a child as an unprivileged user')
+def test_without_permission_nothing_changes_and_the_line_says_why() -> None:
+    """As user nobody (no capabilities, RLIMIT_RTPRIO 0): no error, normal scheduling,
+    a line that names the priority and what would permit it."""
+    report, seen = run_child(7, ('setpriv', '--reuid=65534', '--regid=65534',
+                                 '--clear-groups', '--inh-caps=-all'))
+    assert report['line'] == ('normal (SCHED_FIFO 7 not permitted: needs CAP_SYS_NICE or an '
+                              'rtprio limit >= 7, e.g. in /etc/security/limits.conf)')
+    threads = (report['main'], *report['before'], report['after'])
+    assert {seen[t] for t in threads} == {(SCHED_OTHER, 0, 0)}
+
+
+@linux
+@pytest.mark.skipif(not may_set_fifo(20), reason='SCHED_FIFO not permitted for this user')
+def test_bench_node_process_runs_its_pacing_thread_on_fifo(ros_domain_id: int) -> None:
+    """A bench node with realtime_priority 20 in realtime mode: its main thread (which
+    spins the executor) is SCHED_FIFO 20 and its other threads run at nice <= -10 or
+    inherited SCHED_FIFO, as the kernel reports it, while it publishes."""
+    env = dict(os.environ, PYTHONPATH=str(ROOT), ROS_DOMAIN_ID=str(ros_domain_id))
+    env.pop('_ROS_WHEELS_BOOTSTRAP_COMPLETE', None)
+    p = subprocess.Popen(
+        [sys.executable, '-m', 'rv_te_bench.nodes._entry', 'rv_te_bench.nodes.bench_node',
+         '--ros-args', '-p', 'realtime_priority:=20', '-p', 'time_mode:=realtime',
+         '-p', 'duration_s:=60.0', '-p', 'encoder_in:=ideal', '-p', 'encoder_out:=ideal'],
+        cwd=ROOT, env=env, text=True, stdout=subprocess.PIPE, stderr=subprocess.STDOUT)
+    try:
+        lines = []
+        deadline = time.monotonic() + 60
+        while time.monotonic() < deadline:
+            line = p.stdout.readline()
+            lines.append(line)
+            if 'scheduling:' in line or not line:
+                break
+        assert any('scheduling: SCHED_FIFO 20, middleware threads nice -10' in x
+                   for x in lines), ''.join(lines)
+        time.sleep(1.0)   # the executor and its timer thread are up
+        seen = task_sched(p.pid)
+        assert seen[p.pid][:2] == (SCHED_FIFO, 20)
+        others = [v for t, v in seen.items() if t != p.pid]
+        assert others, 'no middleware threads seen'
+        assert all(v[:2] == (SCHED_FIFO, 20) or (v[0] == SCHED_OTHER and v[2] <= -10)
+                   for v in others), seen
+        assert any(v[0] == SCHED_OTHER and v[2] == -10 for v in others), seen
+    finally:
+        p.terminate()
+        try:
+            p.wait(timeout=20)
+        except subprocess.TimeoutExpired:
+            p.kill()
+            p.wait()
+
+
+def test_fast_mode_bench_keeps_normal_scheduling(graph) -> None:  # noqa: ANN001
+    """In fast time mode the bench computes as fast as it can: realtime_priority is ignored
+    (with a warning), and the thread that built the node stays as it was."""
+    from rclpy.parameter import Parameter  # noqa: PLC0415
+
+    from rv_te_bench.nodes.bench_node import BenchNode  # noqa: PLC0415
+
+    ctx, _ex, add = graph
+    before = (os.sched_getscheduler(0), os.getpriority(os.PRIO_PROCESS, 0))
+    bench = add(BenchNode(context=ctx, parameter_overrides=[
+        Parameter('time_mode', value='fast'), Parameter('realtime_priority', value=20),
+        Parameter('duration_s', value=1.0)]))
+    assert bench.scheduling == 'normal (fast time mode)'
+    assert (os.sched_getscheduler(0), os.getpriority(os.PRIO_PROCESS, 0)) == before
