@@ -18,6 +18,11 @@ It needs ``CAP_SYS_NICE`` or an rtprio / nice limit (``/etc/security/limits.conf
 Without it nothing changes and the returned line says so. Only a node that paces to the wall
 clock should ask: a ``SCHED_FIFO`` thread that computes as fast as it can takes a core from
 everything else.
+
+What is left after it is the kernel's wake-up latency. On the 2-core VM of the benchmarks
+(a ``PREEMPT_NONE`` kernel) a bare real-time thread that does nothing but wake every 10 ms
+was up to 23 ms late beside the four benches, and the benches' worst lag matched it
+(``benchmarks/README.md``, four benches, round 3).
 """
 
 from __future__ import annotations
@@ -66,6 +71,11 @@ def realtime_scheduling(priority: int, middleware_nice: int = MIDDLEWARE_NICE) -
     top = os.sched_get_priority_max(os.SCHED_FIFO)
     if priority > top:
         return f'normal (SCHED_FIFO {priority} is above this system\'s maximum {top})'
+    try:   # first: without it nothing is changed (the middleware threads stay as they are)
+        os.sched_setscheduler(0, os.SCHED_FIFO, os.sched_param(priority))
+    except PermissionError:
+        return (f'normal (SCHED_FIFO {priority} not permitted: needs CAP_SYS_NICE or an '
+                f'rtprio limit >= {priority}, e.g. in /etc/security/limits.conf)')
     own = threading.get_native_id()
     niced, refused = 0, 0
     for tid in _thread_ids():
@@ -78,11 +88,6 @@ def realtime_scheduling(priority: int, middleware_nice: int = MIDDLEWARE_NICE) -
             refused += 1
         except ProcessLookupError:   # a thread that ended meanwhile
             continue
-    try:
-        os.sched_setscheduler(0, os.SCHED_FIFO, os.sched_param(priority))
-    except PermissionError:
-        return (f'normal (SCHED_FIFO {priority} not permitted: needs CAP_SYS_NICE or an '
-                f'rtprio limit >= {priority}, e.g. in /etc/security/limits.conf)')
     if refused:
         return (f'SCHED_FIFO {priority}, middleware threads nice 0 (nice {middleware_nice} '
                 f'not permitted for {refused} of {niced + refused})')

@@ -194,3 +194,33 @@ def test_fast_mode_bench_keeps_normal_scheduling(graph) -> None:  # noqa: ANN001
         Parameter('duration_s', value=1.0)]))
     assert bench.scheduling == 'normal (fast time mode)'
     assert (os.sched_getscheduler(0), os.getpriority(os.PRIO_PROCESS, 0)) == before
+
+
+@linux
+def test_fifo_permitted_but_nice_not_says_so(monkeypatch: pytest.MonkeyPatch) -> None:
+    """An rtprio limit without a nice limit (limits.conf with rtprio only): the pacing
+    thread gets SCHED_FIFO, the middleware threads keep nice 0, and the line says how many
+    were refused. (The kernel calls and the thread list are replaced here: the test
+    runner's own threads are not to be changed.)"""
+    import threading  # noqa: PLC0415
+
+    from rv_te_bench.nodes import scheduling  # noqa: PLC0415
+
+    fifo: list[tuple[int, int, int]] = []
+    tried: list[int] = []
+
+    def refuse(_which: int, tid: int, _nice: int) -> None:
+        tried.append(tid)
+        raise PermissionError(13, 'Permission denied')
+
+    monkeypatch.setattr(os, 'sched_setscheduler',
+                        lambda pid, policy, param: fifo.append((pid, policy,
+                                                                param.sched_priority)))
+    monkeypatch.setattr(os, 'setpriority', refuse)
+    own = threading.get_native_id()
+    monkeypatch.setattr(scheduling, '_thread_ids', lambda: [own, 101, 102, 103])
+    line = realtime_scheduling(7)
+    assert fifo == [(0, os.SCHED_FIFO, 7)]
+    assert tried == [101, 102, 103]          # every thread but the caller's
+    assert line == ('SCHED_FIFO 7, middleware threads nice 0 (nice -10 not permitted for '
+                    '3 of 3)')
