@@ -225,3 +225,67 @@ def test_bag_without_jointstate(tmp_path: Path, capsys: pytest.CaptureFixture[st
     assert code == 1
     line = one_error_line(err)
     assert str(sample) in line and 'no topic of type sensor_msgs/msg/JointState' in line
+
+
+def _wait_for(cond, timeout_s: float) -> bool:  # noqa: ANN001
+    import time  # noqa: PLC0415
+
+    end = time.monotonic() + timeout_s
+    while time.monotonic() < end:
+        if cond():
+            return True
+        time.sleep(0.002)
+    return False
+
+
+def test_import_killed_mid_write_is_cleaned_up_by_the_next(
+        tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    """``rv-te import`` killed with SIGKILL while writing (no Python clean-up runs) leaves its
+    hidden work folder beside the bag. The next import to the same bag removes it, says so
+    in one note, and writes the bag; a work folder whose process is alive is left alone."""
+    import os  # noqa: PLC0415
+    import signal  # noqa: PLC0415
+    import subprocess  # noqa: PLC0415
+
+    n = 600_000   # ~0.5 s of import: long enough to be killed while it writes
+    t = np.arange(n) / daq_files.RATE_HZ
+    th_in = 2 * np.pi * 5.0 * t
+    big = tmp_path / 'big.csv'
+    np.savetxt(big, np.c_[t, th_in, th_in / 79.0], fmt='%.12g', delimiter=',',
+               header='t_s,theta_in_rad,theta_out_rad', comments='')
+    bench = daq_files.bench_yaml(tmp_path / 'bench.yaml')
+    bags = tmp_path / 'bags'
+    bags.mkdir()
+    out = bags / 'unit7'
+    argv = ['import', str(big), '--bench', str(bench), '--out', str(out), '--theta-in',
+            'theta_in_rad', '--theta-out', 'theta_out_rad', '--chunk-samples', '20000']
+    env = {**os.environ, 'PYTHONPATH': str(Path(__file__).resolve().parents[2])}
+    p = subprocess.Popen([sys.executable, '-m', 'rv_te_bench.cli.main', *argv], env=env,
+                         stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True)
+    try:
+        def writing() -> bool:
+            work = list(bags.glob('.unit7.importing-*/unit7/*.mcap'))
+            return bool(work) and work[0].stat().st_size > 0
+
+        assert _wait_for(lambda: writing() or p.poll() is not None, 60.0)
+        assert p.poll() is None, f'the import ended before it could be killed: {p.stderr.read()}'
+        p.send_signal(signal.SIGKILL)
+    finally:
+        if p.poll() is None:
+            p.kill()
+        p.wait()
+    left = list(bags.iterdir())
+    assert [x.name.split('-')[0] for x in left] == ['.unit7.importing'], left
+    assert not out.exists()
+    # a work folder of a live import to the same bag (this test's own parent: alive)
+    alive = bags / f'.unit7.importing-{os.getppid()}-1'
+    (alive / 'unit7').mkdir(parents=True)
+    capsys.readouterr()
+    small = daq_files.write_csv(tmp_path / 'small.csv', daq_files.simulate(duration_s=1.0))
+    assert main(['import', str(small), '--bench', str(bench), '--out', str(out),
+                 '--theta-in', 'theta_in_rad', '--theta-out', 'theta_out_rad']) == 0
+    err = capsys.readouterr().err
+    removed = [ln for ln in err.splitlines() if 'left by an earlier import' in ln]
+    assert len(removed) == 1, err
+    assert str(left[0]) in removed[0] and f'process {p.pid} was killed' in removed[0]
+    assert sorted(x.name for x in bags.iterdir()) == [alive.name, 'unit7']

@@ -171,6 +171,7 @@ def write_bag(reader: ImportReader, desc: BenchDescription, options: ImportOptio
     if out.exists() or out.is_symlink():
         msg = f'Output {out} exists already, not overwriting.'
         raise BagExistsError(msg)
+    _remove_killed_imports(out, note)
     origin = reader.origin
     labels = reader.labels
     unit_in = _unit('in', options.unit_in, reader.declared_units, labels, origin)
@@ -259,6 +260,41 @@ def write_bag(reader: ImportReader, desc: BenchDescription, options: ImportOptio
         start_utc=_utc(start_ns), start_from=start_from, unit_in=unit_in, unit_out=unit_out,
         wraps_in=conv.unwrap_in.wraps, wraps_out=conv.unwrap_out.wraps,
         torque='torque' in labels)
+
+
+def _remove_killed_imports(out: Path, note: Callable[[str], None]) -> None:
+    """Remove the hidden work folders of earlier imports to ``out`` whose process is gone.
+
+    An import writes ``.NAME.importing-PID-NS`` beside ``out`` and renames the bag into
+    place at the end; Ctrl-C and errors remove the folder, but a SIGKILL (or SIGTERM, the
+    OOM killer, a power cut) leaves it, as large as the part written. A folder whose process
+    still runs (an import beside this one, or a recycled pid: kept to be safe) is left alone.
+    """
+    prefix = f'.{out.name}.importing-'
+    try:
+        siblings = list(out.parent.iterdir())
+    except OSError:   # no parent yet: nothing left behind either
+        return
+    for path in siblings:
+        pid_text = path.name[len(prefix):].split('-', 1)[0] if path.name.startswith(prefix) \
+            else ''
+        if not pid_text.isdigit() or not path.is_dir() or path.is_symlink():
+            continue
+        pid = int(pid_text)
+        if pid == os.getpid():
+            continue
+        try:
+            os.kill(pid, 0)
+        except ProcessLookupError:
+            pass          # gone: its folder is a leftover
+        except OSError:   # alive (another user's process, PermissionError), or unknown
+            continue
+        else:
+            continue      # alive
+        size = sum(f.stat().st_size for f in path.rglob('*') if f.is_file())
+        shutil.rmtree(path, ignore_errors=True)
+        note(f'removed {path}: {size / 1e6:.1f} MB left by an earlier import to the same '
+             f'bag whose process {pid} was killed')
 
 
 def _bench_info_cdr(info: BenchInfoData, stamp_ns: int) -> bytes:
