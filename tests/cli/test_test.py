@@ -200,3 +200,84 @@ def test_whole_unit_exit_codes(tmp_path: Path, capsys: pytest.CaptureFixture[str
     again = json.loads((tmp_path / 'again' / 'report.json').read_text())
     assert [m['value'] for m in again['metrics']] == pytest.approx(
         [m['value'] for m in report['metrics']], rel=1e-9)
+
+
+def _children(pid: int) -> list[int]:
+    """Process ids whose parent is ``pid`` (from /proc)."""
+    out = []
+    for d in Path('/proc').iterdir():
+        if d.name.isdigit():
+            try:
+                stat = (d / 'stat').read_text()
+            except OSError:
+                continue
+            if int(stat[stat.rindex(')') + 2:].split()[1]) == pid:
+                out.append(int(d.name))
+    return out
+
+
+@pytest.mark.ros
+@pytest.mark.timeout(300)
+def test_ctrl_c_cancels_the_test_stops_the_bench_and_keeps_the_bag(
+        tmp_path: Path, ros_domain_id: int) -> None:
+    """Ctrl-C in the terminal (SIGINT to the command's process group) during a step of
+    ``rv-te test --launch``: the test is cancelled, the bench and the other nodes stop, the
+    exit code is 1 with one ERROR line, the report says 'cancelled', and the bag of what was
+    measured is complete and readable by rosbags."""
+    import os  # noqa: PLC0415
+    import signal  # noqa: PLC0415
+    import subprocess  # noqa: PLC0415
+    import sys  # noqa: PLC0415
+    import threading  # noqa: PLC0415
+    import time  # noqa: PLC0415
+
+    from rosbags.highlevel import AnyReader  # noqa: PLC0415
+
+    from rv_te_bench.io.msgdefs import rv_te_typestore  # noqa: PLC0415
+
+    env = {**os.environ, 'ROS_DOMAIN_ID': str(ros_domain_id),
+           'PYTHONPATH': str(Path(__file__).resolve().parents[2])}
+    env.pop('_ROS_WHEELS_BOOTSTRAP_COMPLETE', None)
+    p = subprocess.Popen(
+        [sys.executable, '-m', 'rv_te_bench.cli.main', 'test', 'wang2020-2kv', '--serial',
+         'SN-C', '--operator', 'pytest', '--launch', 'wang2020-2kv', '--out-dir',
+         str(tmp_path / 'out'), '--speed-factor', '1'],
+        env=env, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
+        start_new_session=True)   # its own process group, as a terminal's foreground job
+    err: list[str] = []
+    reader = threading.Thread(target=lambda: err.extend(iter(p.stderr.readline, '')))
+    reader.start()
+    try:
+        def step_pct() -> float:   # the last progress line: '  32.6 % of the step, ...'
+            pcts = [float(ln.split('%')[0]) for ln in err if '% of the step' in ln]
+            return pcts[-1] if pcts else -1.0
+
+        end = time.monotonic() + 120
+        while step_pct() < 10.0 and time.monotonic() < end and p.poll() is None:
+            time.sleep(0.1)
+        assert step_pct() >= 10.0, ''.join(err)   # well into the first step
+        nodes = _children(p.pid)
+        assert len(nodes) >= 3, nodes   # bench, test_sequencer, recorder
+        os.killpg(p.pid, signal.SIGINT)
+        p.wait(timeout=90)
+        out = p.stdout.read()   # (short: the verdict table)
+    finally:
+        if p.poll() is None:
+            os.killpg(p.pid, signal.SIGKILL)
+            p.wait()
+        reader.join(timeout=10)
+    assert p.returncode == 1, ''.join(err)
+    text = ''.join(err)
+    assert 'cancelling the test (the bench stops)' in text
+    errors = [ln for ln in err if ln.startswith('ERROR')]
+    assert errors == ['ERROR: test of unit SN-C cancelled: cancelled after 0 of 3 steps\n'], text
+    assert all(not Path(f'/proc/{pid}').exists() for pid in nodes), 'a node outlived the test'
+    (run,) = [d for d in (tmp_path / 'out').iterdir() if d.is_dir()]
+    report = json.loads((run / 'report' / 'report.json').read_text())
+    assert report['verdict'] == 'cancelled'
+    assert 'report:' in out
+    with AnyReader([run / 'bag'], default_typestore=rv_te_typestore()) as bag:
+        conns = [c for c in bag.connections if c.topic.endswith('bench/encoders')]
+        seqs = [bag.deserialize(raw, c.msgtype).seq for c, _t, raw in bag.messages(conns)]
+    assert len(seqs) > 10
+    assert seqs == list(range(seqs[0], seqs[0] + len(seqs)))   # no gap in what was measured
