@@ -95,19 +95,15 @@ def test_naive_filter_dates_rejected() -> None:
         ResultFilter(since=datetime(2026, 1, 1))  # noqa: DTZ001
 
 
-def test_crash_mid_write_leaves_a_consistent_store(tmp_path: Path) -> None:
-    """A writer killed with SIGKILL while it writes records of 300 metrics each: every
-    record in the store afterwards has all its 300 + 4 metrics and 2 lines, and SQLite's
-    integrity check passes (measured: the kill lands mid-transaction in most runs; the
-    test checks consistency whatever the moment)."""
-    db = tmp_path / 'r.sqlite'
-    open_store(db).close()
+def _kill_a_writer_mid_write(db: str) -> None:
+    """Start a process that upserts records of 300 metrics each into ``db`` in a loop and
+    SIGKILL it 1.5 s after its third record (in most runs mid-transaction)."""
     code = textwrap.dedent(f"""
         import sys
         sys.path.insert(0, {str(ROOT)!r})
         from rv_te_bench.store import open_store
         from tests.store.conftest import make_record
-        st = open_store({str(db)!r})
+        st = open_store({db!r})
         i = 0
         while True:
             st.upsert(make_record(i % 50, n_extra_metrics=300))
@@ -125,6 +121,16 @@ def test_crash_mid_write_leaves_a_consistent_store(tmp_path: Path) -> None:
     finally:
         if proc.poll() is None:
             proc.kill()
+
+
+def test_crash_mid_write_leaves_a_consistent_store(tmp_path: Path) -> None:
+    """A writer killed with SIGKILL while it writes records of 300 metrics each: every
+    record in the store afterwards has all its 300 + 4 metrics and 2 lines, and SQLite's
+    integrity check passes (measured: the kill lands mid-transaction in most runs; the
+    test checks consistency whatever the moment)."""
+    db = tmp_path / 'r.sqlite'
+    open_store(db).close()
+    _kill_a_writer_mid_write(str(db))
     con = sqlite3.connect(db)
     try:
         assert con.execute('pragma integrity_check').fetchone() == ('ok',)
@@ -138,6 +144,35 @@ def test_crash_mid_write_leaves_a_consistent_store(tmp_path: Path) -> None:
     assert lines == 2 * len(counts)
     with open_store(db) as st:              # and it still takes writes
         st.upsert(make_record(99))
+
+
+def test_postgresql_crash_mid_write_leaves_a_consistent_store(fresh_pg_db: str) -> None:
+    """The same on a real PostgreSQL server: after the SIGKILL the server has rolled the
+    killed connection's transaction back (no session of it is left, no lock held), every
+    stored record has all its metrics and lines, and the store takes writes at once."""
+    import psycopg  # noqa: PLC0415
+
+    open_store(fresh_pg_db).close()
+    _kill_a_writer_mid_write(fresh_pg_db)
+    dbname = fresh_pg_db.rsplit('/', 1)[1]
+    with psycopg.connect(fresh_pg_db) as con:
+        end = time.monotonic() + 10.0   # the server notices the closed socket at once
+        while True:
+            left = con.execute('select count(*) from pg_stat_activity where datname = %s '
+                               'and pid <> pg_backend_pid()', (dbname,)).fetchone()[0]
+            if left == 0 or time.monotonic() > end:
+                break
+            time.sleep(0.1)
+        assert left == 0, 'a session of the killed writer is still open'
+        counts = con.execute('select r.id, count(m.id) from results r left join metrics m '
+                             'on m.result_id = r.id group by r.id').fetchall()
+        lines = con.execute('select count(*) from lines').fetchone()[0]
+    assert counts, 'the writer wrote nothing before it was killed'
+    assert {c for _, c in counts} == {304}
+    assert lines == 2 * len(counts)
+    with open_store(fresh_pg_db) as st:     # no lock left behind: this write goes through
+        st.upsert(make_record(99))      # (the writer used units 0..49: a new record)
+        assert len(st.query()) == len(counts) + 1
 
 
 def test_migrations_match_the_orm(tmp_path: Path) -> None:
@@ -218,7 +253,7 @@ def test_postgresql_and_sqlite_give_the_same_results(tmp_path: Path, fresh_pg_db
     assert len(out[0][0][0]) == 12  # noqa: PLR2004
 
 
-def test_postgresql_crash_consistency_and_concurrent_upsert(fresh_pg_db: str) -> None:
+def test_postgresql_concurrent_upsert_of_one_key(fresh_pg_db: str) -> None:
     """Two stores writing the same key one after the other end with one record."""
     with open_store(fresh_pg_db) as a, open_store(fresh_pg_db) as b:
         a.upsert(make_record(1))
