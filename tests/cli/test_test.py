@@ -12,6 +12,7 @@ import yaml
 from rv_te_bench.acceptance import load_plan, parse_plan, shipped_plans, shipped_tolerances
 from rv_te_bench.acceptance.tolerance import load_tolerance
 from rv_te_bench.cli.main import main
+from tests.procs import alive, children
 
 GOOD_STEP = {'kind': 'te', 'name': 'te', 'speed_rpm': 1500}
 GOOD_LIMITS = {'te_pp_arcmin': {'max': 1.0, 'source': 's'}}
@@ -202,20 +203,6 @@ def test_whole_unit_exit_codes(tmp_path: Path, capsys: pytest.CaptureFixture[str
         [m['value'] for m in report['metrics']], rel=1e-9)
 
 
-def _children(pid: int) -> list[int]:
-    """Process ids whose parent is ``pid`` (from /proc)."""
-    out = []
-    for d in Path('/proc').iterdir():
-        if d.name.isdigit():
-            try:
-                stat = (d / 'stat').read_text()
-            except OSError:
-                continue
-            if int(stat[stat.rindex(')') + 2:].split()[1]) == pid:
-                out.append(int(d.name))
-    return out
-
-
 @pytest.mark.ros
 @pytest.mark.timeout(300)
 def test_ctrl_c_cancels_the_test_stops_the_bench_and_keeps_the_bag(
@@ -256,7 +243,7 @@ def test_ctrl_c_cancels_the_test_stops_the_bench_and_keeps_the_bag(
         while step_pct() < 10.0 and time.monotonic() < end and p.poll() is None:
             time.sleep(0.1)
         assert step_pct() >= 10.0, ''.join(err)   # well into the first step
-        nodes = _children(p.pid)
+        nodes = children(p.pid)
         assert len(nodes) >= 3, nodes   # bench, test_sequencer, recorder
         os.killpg(p.pid, signal.SIGINT)
         p.wait(timeout=90)
@@ -271,7 +258,7 @@ def test_ctrl_c_cancels_the_test_stops_the_bench_and_keeps_the_bag(
     assert 'cancelling the test (the bench stops)' in text
     errors = [ln for ln in err if ln.startswith('ERROR')]
     assert errors == ['ERROR: test of unit SN-C cancelled: cancelled after 0 of 3 steps\n'], text
-    assert all(not Path(f'/proc/{pid}').exists() for pid in nodes), 'a node outlived the test'
+    assert not any(alive(pid) for pid in nodes), 'a node outlived the test'
     (run,) = [d for d in (tmp_path / 'out').iterdir() if d.is_dir()]
     report = json.loads((run / 'report' / 'report.json').read_text())
     assert report['verdict'] == 'cancelled'

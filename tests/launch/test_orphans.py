@@ -18,30 +18,10 @@ from pathlib import Path
 
 import pytest
 
+from tests.procs import alive, children
+
 pytestmark = [pytest.mark.ros, pytest.mark.skipif(not sys.platform.startswith('linux'),
                                                    reason='parent-death signal: Linux')]
-
-
-def _children(pid: int) -> list[int]:
-    out = []
-    for d in Path('/proc').iterdir():
-        if d.name.isdigit():
-            try:
-                fields = (d / 'stat').read_text().rsplit(')', 1)[1].split()
-            except OSError:
-                continue
-            if int(fields[1]) == pid:
-                out.append(int(d.name))
-    return out
-
-
-def _alive(pid: int) -> bool:
-    """Running (a zombie waiting for its new parent to reap it counts as gone)."""
-    try:
-        state = Path(f'/proc/{pid}/stat').read_text().rsplit(')', 1)[1].split()[0]
-    except OSError:
-        return False
-    return state != 'Z'
 
 
 @pytest.mark.timeout(120)
@@ -62,7 +42,7 @@ def test_nodes_die_with_a_sigkilled_launcher(tmp_path: Path, ros_domain_id: int)
     try:
         deadline = time.monotonic() + 60.0
         while time.monotonic() < deadline and proc.poll() is None:
-            nodes = _children(proc.pid)
+            nodes = children(proc.pid)
             if len(nodes) == 4 and (tmp_path / 'orphan' / 'metadata.yaml').exists():  # noqa: PLR2004
                 break
             time.sleep(0.2)
@@ -74,13 +54,13 @@ def test_nodes_die_with_a_sigkilled_launcher(tmp_path: Path, ros_domain_id: int)
         proc.send_signal(signal.SIGKILL)
         proc.wait(timeout=10)
         deadline = time.monotonic() + 2.0
-        while time.monotonic() < deadline and any(_alive(p) for p in nodes):
+        while time.monotonic() < deadline and any(alive(p) for p in nodes):
             time.sleep(0.05)
-        left = [p for p in nodes if _alive(p)]
+        left = [p for p in nodes if alive(p)]
         assert not left, f'node processes left running after the launcher died: {left}'
     finally:
         for p in nodes:
-            if _alive(p):
+            if alive(p):
                 os.kill(p, signal.SIGKILL)
         if proc.poll() is None:
             proc.kill()
@@ -131,19 +111,19 @@ def test_a_busy_compensation_node_dies_with_a_sigkilled_launcher(
         # busy: the compensation node loaded the preset from bench/info and started its search
         assert _wait_for(lambda: proc.poll() is not None or 'preset wang2020-2kv (model'
                          in log.read_text(errors='replace'), 90.0, 0.2), log.read_text()
-        nodes = _children(proc.pid)
+        nodes = children(proc.pid)
         assert len(nodes) == 4, (nodes, proc.poll(), log.read_text())  # noqa: PLR2004
         time.sleep(0.5)   # the search runs (its first chunk alone takes seconds)
         proc.send_signal(signal.SIGKILL)
         proc.wait(timeout=10)
         t_kill = time.monotonic()
-        _wait_for(lambda: not any(_alive(p) for p in nodes), 2.0)
-        left = {p: _cmdline(p).split()[-5:] for p in nodes if _alive(p)}
+        _wait_for(lambda: not any(alive(p) for p in nodes), 2.0)
+        left = {p: _cmdline(p).split()[-5:] for p in nodes if alive(p)}
         took = time.monotonic() - t_kill
         assert not left, f'node processes left running 2 s after the launcher died: {left}'
     finally:
         for p in nodes:
-            if _alive(p):
+            if alive(p):
                 os.kill(p, signal.SIGKILL)
         if proc.poll() is None:
             proc.kill()
@@ -173,7 +153,7 @@ def test_double_ctrl_c_keeps_the_recorder_summary(tmp_path: Path, ros_domain_id:
             'preset wang2020-2kv (model' in log.read_text(errors='replace')
             and sum(f.stat().st_size for f in (tmp_path / 'twice').glob('*.mcap')) > 30_000),
             90.0, 0.2), log.read_text()   # (blocks reach the bag)
-        seen.update(_children(proc.pid))
+        seen.update(children(proc.pid))
         os.killpg(proc.pid, signal.SIGINT)
         time.sleep(0.3)
         os.killpg(proc.pid, signal.SIGINT)
@@ -185,9 +165,9 @@ def test_double_ctrl_c_keeps_the_recorder_summary(tmp_path: Path, ros_domain_id:
             os.killpg(proc.pid, signal.SIGKILL)
             proc.wait(timeout=10)
         seen.update(_started_by(proc.pid))
-        _wait_for(lambda: not any(_alive(p) for p in seen), 5.0)
+        _wait_for(lambda: not any(alive(p) for p in seen), 5.0)
         for p in seen:
-            if _alive(p):
+            if alive(p):
                 os.kill(p, signal.SIGKILL)
     text = log.read_text(errors='replace')
     print(f'launcher ended {took:.2f} s after the second Ctrl-C, code {proc.returncode}')
@@ -249,7 +229,7 @@ def test_a_crashed_te_node_is_contained(tmp_path: Path, ros_domain_id: int) -> N
         te = None
         deadline = time.monotonic() + 60.0
         while time.monotonic() < deadline and proc.poll() is None:
-            te = next((p for p in _children(proc.pid)
+            te = next((p for p in children(proc.pid)
                        if 'rv_te_bench.nodes.te_node' in _cmdline(p)), None)
             if te is not None and sum(f.stat().st_size for f in
                                       (tmp_path / 'crash').glob('*.mcap')) > 100_000:  # noqa: PLR2004
@@ -307,7 +287,7 @@ def test_ctrl_c_while_the_session_starts(tmp_path: Path, ros_domain_id: int,
 
     def watch() -> None:
         while proc.poll() is None:
-            seen.update(_children(proc.pid))
+            seen.update(children(proc.pid))
             time.sleep(0.02)
 
     watcher = threading.Thread(target=watch, daemon=True)
@@ -324,7 +304,7 @@ def test_ctrl_c_while_the_session_starts(tmp_path: Path, ros_domain_id: int,
     assert 'Traceback' not in out, out
     assert proc.returncode in {0, 130}, out
     nodes = seen | set(_started_by(proc.pid))
-    _wait_for(lambda: not any(_alive(p) for p in nodes), 2.0)
+    _wait_for(lambda: not any(alive(p) for p in nodes), 2.0)
     print(f"delay {delay_s} s: {len(nodes)} node processes seen")
-    left = {p: _cmdline(p)[-120:] for p in nodes if _alive(p)}
+    left = {p: _cmdline(p)[-120:] for p in nodes if alive(p)}
     assert not left, left

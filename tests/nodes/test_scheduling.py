@@ -19,6 +19,7 @@ from pathlib import Path
 import pytest
 
 from rv_te_bench.nodes.scheduling import realtime_scheduling
+from tests.procs import stat_fields
 
 ROOT = Path(__file__).resolve().parents[2]
 linux = pytest.mark.skipif(not sys.platform.startswith('linux'), reason='Linux scheduling')
@@ -31,10 +32,9 @@ def task_sched(pid: int) -> dict[int, tuple[int, int, int]]:
     out = {}
     for tid in os.listdir(f'/proc/{pid}/task'):
         try:
-            stat = Path(f'/proc/{pid}/task/{tid}/stat').read_text()
+            fields = stat_fields(f'/proc/{pid}/task/{tid}/stat')   # fields 3.. (index 0)
         except OSError:   # the thread ended meanwhile
             continue
-        fields = stat[stat.rindex(')') + 2:].split()   # fields from 3 (state) on
         out[int(tid)] = (int(fields[41 - 3]), int(fields[40 - 3]), int(fields[19 - 3]))
     return out
 
