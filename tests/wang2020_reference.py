@@ -129,6 +129,16 @@ def dphase_deg(a: float, b: float) -> float:
     return abs(math.degrees((a - b + math.pi) % (2 * math.pi) - math.pi))
 
 
+def identified_phasors(ident: dict) -> tuple[complex, complex, complex]:
+    """(Q1, Q2, E) of an identification as the JSON of ``rv-te identify`` / ``analyze``
+    gives it (``e_m`` and ``phases_rad`` of pair1, pair2, e_ot): what :func:`vector_error`
+    compares with the true unit."""
+    def z(mag: str, ph: str) -> complex:
+        return ident['e_m'][mag] * complex(math.cos(ident['phases_rad'][ph]),
+                                           math.sin(ident['phases_rad'][ph]))
+    return z('pair1', 'pair1'), z('pair2', 'pair2'), z('e_ot', 'theta_ot')
+
+
 def vector_error(u: Unit, got: tuple[complex, complex, complex]) -> tuple[float, bool]:
     """Largest |identified - true| over (Q1, Q2, E) / largest |true|, in the labelling that
     fits best; and whether that is the swapped one (Q2, Q1, -E)."""

@@ -43,13 +43,6 @@ def _json(capsys: pytest.CaptureFixture[str], argv: list[str]) -> tuple[dict, st
     return json.loads(out), err
 
 
-def _phasors(idf: dict) -> tuple[complex, complex, complex]:
-    def z(mag: str, ph: str) -> complex:
-        return idf['e_m'][mag] * complex(math.cos(idf['phases_rad'][ph]),
-                                         math.sin(idf['phases_rad'][ph]))
-    return z('pair1', 'pair1'), z('pair2', 'pair2'), z('e_ot', 'theta_ot')
-
-
 @pytest.fixture(scope='module')
 def bags(tmp_path_factory: pytest.TempPathFactory) -> list[tuple[ref.Unit, Path, bool]]:
     rng = np.random.default_rng(1_15)
@@ -71,7 +64,7 @@ def test_random_units_identified(bags, capsys: pytest.CaptureFixture[str]) -> No
     for u, bag, well_posed in bags:
         data, _ = _json(capsys, [str(bag), '--no-recommend', *_magnitudes(u)])
         idf = data['identification']
-        err, swapped = ref.vector_error(u, _phasors(idf))
+        err, swapped = ref.vector_error(u, ref.identified_phasors(idf))
         assert err <= 0.01, (bag.name, err)
         fit = idf['fit']
         assert fit['residual_rms_arcsec'] == pytest.approx(SIGMA_ARCSEC, rel=0.03)
@@ -157,7 +150,7 @@ def test_truncated_bag_is_partial(bags, tmp_path: Path,  # noqa: ANN001
     assert data['partial'] is True
     assert data['problems']
     assert 'PARTIAL' in err
-    assert ref.vector_error(u, _phasors(data['identification']))[0] <= 0.01
+    assert ref.vector_error(u, ref.identified_phasors(data['identification']))[0] <= 0.01
     assert 0.5 < data['identification']['output_revolutions'] < 1.2  # noqa: PLR2004
 
 
@@ -178,7 +171,7 @@ def test_damaged_bench_info(bags, tmp_path: Path,  # noqa: ANN001
     assert data['partial'] is True
     assert 'no readable BenchInfo' in data['problems'][0]
     assert 'PARTIAL' in err
-    assert ref.vector_error(u, _phasors(data['identification']))[0] <= 0.01
+    assert ref.vector_error(u, ref.identified_phasors(data['identification']))[0] <= 0.01
 
 
 def test_non_finite_samples_are_left_out(tmp_path: Path,
@@ -193,4 +186,4 @@ def test_non_finite_samples_are_left_out(tmp_path: Path,
     data, err = _json(capsys, [str(bag), '--no-recommend'])
     assert data['skipped_samples'] == 1
     assert '1 non-finite or malformed samples left out' in err
-    assert ref.vector_error(u, _phasors(data['identification']))[0] <= 0.01
+    assert ref.vector_error(u, ref.identified_phasors(data['identification']))[0] <= 0.01

@@ -30,13 +30,6 @@ def _analyze(capsys: pytest.CaptureFixture[str], argv: list[str]) -> tuple[dict,
     return json.loads(out)['bags'][0], err
 
 
-def _phasors(ident: dict) -> tuple[complex, complex, complex]:
-    def z(mag: str, ph: str) -> complex:
-        return ident['e_m'][mag] * complex(math.cos(ident['phases_rad'][ph]),
-                                           math.sin(ident['phases_rad'][ph]))
-    return z('pair1', 'pair1'), z('pair2', 'pair2'), z('e_ot', 'theta_ot')
-
-
 @pytest.fixture(scope='module')
 def units(tmp_path_factory: pytest.TempPathFactory) -> list[tuple[ref.Unit, Path]]:
     """Three random units (preset part magnitudes, random phases and e_ot) and the Table 2
@@ -63,7 +56,7 @@ def test_advice_rests_on_the_right_angle(units, capsys: pytest.CaptureFixture[st
         rec = doc['recommendation']
         assert rec['available'], rec['reason']
         ident = rec['identification']
-        assert ref.vector_error(u, _phasors(ident))[0] <= 0.01
+        assert ref.vector_error(u, ref.identified_phasors(ident))[0] <= 0.01
         fit = ident['fit']
         assert fit['residual_rms_arcsec'] == pytest.approx(0.2, rel=0.03)
         assert fit['explained_fraction'] > 0.999  # noqa: PLR2004
