@@ -307,17 +307,14 @@ def run_benches(n_benches: int, rate_hz: float, block: int, duration_s: float,  
 
 def rt_probe(seconds: float, period_s: float, priority: int) -> int:
     """The machine's floor for a paced thread (a child process): a bare thread that sleeps
-    to every period boundary, on SCHED_FIFO ``priority`` as the benches (0: normal), with no
-    Python work, middleware or messages; prints how late it woke (JSON, ms)."""
+    to every period boundary, scheduled as the benches' pacing threads (``realtime_priority``
+    ``priority``; 0: normal), with no middleware, messages or other work; prints how late it
+    woke (JSON, ms)."""
     import gc  # noqa: PLC0415
 
-    sched = 'normal'
-    if priority > 0:
-        try:
-            os.sched_setscheduler(0, os.SCHED_FIFO, os.sched_param(priority))
-            sched = f'SCHED_FIFO {priority}'
-        except PermissionError:
-            sched = f'normal (SCHED_FIFO {priority} not permitted)'
+    from rv_te_bench.nodes.scheduling import realtime_scheduling  # noqa: PLC0415
+
+    sched = realtime_scheduling(priority)   # what the benches' pacing threads get
     gc.disable()
     late = np.empty(int(seconds / period_s) + 1)
     t0 = time.monotonic()
@@ -439,8 +436,8 @@ def print_benches(res: dict[str, Any], args: argparse.Namespace) -> bool:
     print(f"\nbench scheduling (diagnostics): {'; '.join(kinds)}")
     fl = res.get('rt_floor')
     if fl:
-        print(f"machine floor over the same time (a bare paced thread, {fl['scheduling']}, "
-              f"no middleware): woke up to {fl['max_ms']:.1f} ms late (p99 "
+        print(f"machine floor over the same time (a bare paced thread scheduled as the "
+              f"benches: {fl['scheduling']}; no messages): woke up to {fl['max_ms']:.1f} ms late (p99 "
               f"{fl['p99_ms']:.2f} ms), {fl['over_period']} of {fl['n']} periods more than "
               f"one block period late; kernel {platform.release()} {platform.version()}")
     cpu = res['cpu']
@@ -455,6 +452,16 @@ def print_benches(res: dict[str, Any], args: argparse.Namespace) -> bool:
 
 
 # -- the floor: N bare rclpy publisher / subscriber pairs ---------------------------------
+
+def _report_and_close(result: dict[str, Any], ex: Any, node: Any, ctx: Any) -> None:  # noqa: ANN401
+    """End of a floor process: its result as one JSON line, then rclpy shut down."""
+    import rclpy  # noqa: PLC0415
+
+    print(json.dumps(result), flush=True)
+    ex.shutdown()
+    node.destroy_node()
+    rclpy.try_shutdown(context=ctx)
+
 
 def floor_publisher(ns: str, rate_hz: float, block: int, duration_s: float) -> int:
     """A bare publisher of EncoderBlocks at the bench's rate (a child process)."""
@@ -509,10 +516,8 @@ def floor_publisher(ns: str, rate_hz: float, block: int, duration_s: float) -> i
     except KeyboardInterrupt:
         pass
     finally:
-        print(json.dumps({'sent': state['sent'], 'lag_max_s': state['lag_max']}), flush=True)
-        ex.shutdown()
-        node.destroy_node()
-        rclpy.try_shutdown(context=ctx)
+        _report_and_close({'sent': state['sent'], 'lag_max_s': state['lag_max']}, ex, node,
+                          ctx)
     return 0
 
 
@@ -545,10 +550,7 @@ def floor_subscriber(ns: str, expected: int, timeout_s: float) -> int:
     except KeyboardInterrupt:
         pass
     finally:
-        print(json.dumps({'received': state['n'], 'gaps': state['gaps']}), flush=True)
-        ex.shutdown()
-        node.destroy_node()
-        rclpy.try_shutdown(context=ctx)
+        _report_and_close({'received': state['n'], 'gaps': state['gaps']}, ex, node, ctx)
     return 0
 
 
