@@ -7,9 +7,10 @@ repository's packages, so there is one copy of the code. The pip install
 
 from __future__ import annotations
 
+import sys
 from pathlib import Path
 
-from setuptools import find_packages, setup
+from setuptools import Extension, find_packages, setup
 
 PACKAGE = 'rv_te_bench'
 HERE = Path(__file__).resolve().parent
@@ -47,6 +48,10 @@ setup(
         # launch and parameter files: the ones rv-te launch uses (rv_te_bench/launch/)
         (f'share/{PACKAGE}/launch', _files('rv_te_bench/launch/*.yaml')),
     ],
+    # the optional compiled resampler, as in the repository's setup.py (numpy path without it)
+    ext_modules=[Extension('rv_te_bench.core._lagrange', ['rv_te_bench/core/_lagrange.c'],
+                           extra_compile_args=[] if sys.platform == 'win32'
+                           else ['-O3', '-ffp-contract=off'], optional=True)],
     install_requires=['setuptools'],
     zip_safe=False,
     maintainer='rv-te-bench developers',

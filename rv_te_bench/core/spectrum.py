@@ -188,6 +188,13 @@ class AngleResampled:
 
 _CHUNK = 16384  # grid points per pass: keeps the temporaries in cache and off mmap
 
+try:   # the compiled resampler (setup.py; optional: without a C compiler numpy does it)
+    from rv_te_bench.core import _lagrange as _KERNEL
+except ImportError:   # pragma: no cover - depends on how the package was installed
+    _KERNEL = None
+#: Which resampler :func:`order_spectrum` uses: ``'compiled'`` or ``'numpy'`` (same values).
+RESAMPLER = 'numpy' if _KERNEL is None else 'compiled'
+
 
 class SpectrumWorkspace:
     """Work arrays kept between spectra of windows of about one size (not thread-safe).
@@ -228,6 +235,23 @@ class SpectrumWorkspace:
 def _lagrange4_uniform(x: np.ndarray, y: np.ndarray, spacing: float, n_grid: int, *,
                        dx: np.ndarray | None = None,
                        work: SpectrumWorkspace | None = None) -> np.ndarray:
+    """Cubic Lagrange interpolation of (x, y) at the grid 0, spacing, ..., (n_grid-1) spacing.
+
+    The compiled kernel (``_lagrange``) when it was built, else :func:`_lagrange4_numpy`:
+    the same operations in the same order, so the same values bit for bit (the kernel is
+    about 3x faster and runs without the GIL). Arguments and result as there.
+    """
+    if _KERNEL is None or x.size < 4:  # noqa: PLR2004 - four nodes make a cubic
+        return _lagrange4_numpy(x, y, spacing, n_grid, dx=dx, work=work)
+    out = work.array('grid', n_grid) if work is not None else np.empty(n_grid)
+    _KERNEL.lagrange4_uniform(np.ascontiguousarray(x), np.ascontiguousarray(y),
+                              None if dx is None else np.ascontiguousarray(dx), spacing, out)
+    return out
+
+
+def _lagrange4_numpy(x: np.ndarray, y: np.ndarray, spacing: float, n_grid: int, *,
+                     dx: np.ndarray | None = None,
+                     work: SpectrumWorkspace | None = None) -> np.ndarray:
     """Cubic Lagrange interpolation of (x, y) at the grid 0, spacing, ..., (n_grid-1) spacing.
 
     ``x`` increases strictly from 0; ``dx`` is ``np.diff(x)`` when the caller has it (read

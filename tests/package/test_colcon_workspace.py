@@ -26,7 +26,7 @@ VENV_BIN = Path(sys.executable).parent
 EXECUTABLES = ('bench_node', 'te_node', 'compensation_node', 'recorder', 'replay', 'rv-te')
 # what a fresh clone holds that the build needs; the rest (tests, bags, venvs) stays out
 IGNORE = shutil.ignore_patterns('.git', '.venv', '.hypothesis', '.pytest_cache', '__pycache__',
-                                '*.egg-info', 'build', 'install', 'log', 'bags', 'tests',
+                                '*.egg-info', '*.so', 'build', 'install', 'log', 'bags', 'tests',
                                 'benchmarks', 'out')
 
 
@@ -91,10 +91,12 @@ def sourced(workspace: Path, command: str) -> list[str]:
 def test_sourced_install_imports_from_the_workspace(workspace: Path) -> None:
     out = subprocess.run(
         sourced(workspace, 'python3 -c "import rv_te_bench, rv_te_msgs.msg as m; '
-                           'print(rv_te_bench.__file__); print(m.__file__)"'),
+                           'from rv_te_bench.core import spectrum as s; '
+                           'print(rv_te_bench.__file__); print(m.__file__); print(s.RESAMPLER)"'),
         env=user_env(), cwd=workspace, capture_output=True, text=True, timeout=120,
         check=True).stdout
-    bench_py, msgs_py = out.split()
+    bench_py, msgs_py, resampler = out.split()
+    assert resampler == 'compiled'   # colcon built the C kernel (setup.py's ext_modules)
     assert bench_py.startswith(str(workspace / 'install' / 'rv_te_bench'))
     assert msgs_py.startswith(str(workspace / 'install' / 'rv_te_msgs'))
 
