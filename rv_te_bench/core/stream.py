@@ -41,6 +41,7 @@ re-zeroed counter); both show up in the window statistics.
 from __future__ import annotations
 
 import math
+from collections import deque
 from dataclasses import dataclass, field, replace
 from typing import TYPE_CHECKING, Any, Literal
 
@@ -53,9 +54,10 @@ from rv_te_bench.errors import TeConfigError, TeInputError
 
 if TYPE_CHECKING:
     from collections.abc import Callable, Iterable
+    from concurrent.futures import Future
 
-__all__ = ['BatchUpdate', 'EncoderBatch', 'EncoderBlockData', 'GapEvent', 'OfflineResult',
-           'StreamUpdate', 'StreamingTeAnalyzer', 'TeAnalysisConfig', 'WindowResult',
+__all__ = ['SPECTRA_AHEAD', 'BatchUpdate', 'EncoderBatch', 'EncoderBlockData', 'GapEvent',
+           'OfflineResult', 'StreamUpdate', 'StreamingTeAnalyzer', 'TeAnalysisConfig', 'WindowResult',
            'analyze_blocks']
 
 GapKind = Literal['seq_jump', 'time_backwards', 'non_finite', 'malformed', 'leading_loss']
@@ -613,6 +615,10 @@ class StreamingTeAnalyzer:
         self._cum_key: tuple[Any, ...] = (None, 0, 0.0, None)   # the last read, see cumulative
         self._buf = _WindowBuffer(config.max_window_samples)
         self._spectrum_work = SpectrumWorkspace()   # the window spectra's work arrays
+        # analyze_blocks(spectra_thread=True): called with (window index, window buffer)
+        # instead of computing a complete window's spectrum here; it may take the buffer's
+        # arrays (and give it others of the same size)
+        self._spectrum_hook: Callable[[int, _WindowBuffer], None] | None = None
         self._pending: list[WindowResult] = []
         self._last_seq: int | None = None
         self._last_t: float | None = None
@@ -727,7 +733,9 @@ class StreamingTeAnalyzer:
         self._cum_folded = 0
         if complete:
             stats = moments.stats(w_rev)
-            if self._config.compute_spectrum:
+            if self._config.compute_spectrum and self._spectrum_hook is not None:
+                self._spectrum_hook(self._n_windows, buf)
+            elif self._config.compute_spectrum:
                 try:
                     spectrum = order_spectrum(
                         phi, te, self._config.orders, duration_s=buf.t_last - buf.t_first,
@@ -954,7 +962,8 @@ class StreamingTeAnalyzer:
 
 
 def analyze_blocks(blocks: Iterable[EncoderBlockData | EncoderBatch], config: TeAnalysisConfig,
-                   *, on_window: Callable[[WindowResult], None] | None = None) -> OfflineResult:
+                   *, on_window: Callable[[WindowResult], None] | None = None,
+                   spectra_thread: bool = False) -> OfflineResult:
     """Run a whole recording through a :class:`StreamingTeAnalyzer` (offline analysis).
 
     Args:
@@ -962,6 +971,11 @@ def analyze_blocks(blocks: Iterable[EncoderBlockData | EncoderBatch], config: Te
         config: Analysis settings.
         on_window: Called with each window as it closes; the windows are then not kept
             (memory stays bounded by one window however long the recording).
+        spectra_thread: Compute the window spectra on a second thread while the next
+            blocks are analysed (the resampler and the FFT run without the GIL). The
+            windows, their order, the spectra and the counters are the same as without;
+            at most :data:`SPECTRA_AHEAD` windows wait for their spectrum (each holds its
+            phi and TE arrays).
 
     Returns:
         All windows (the last, partial one from the final flush; none with ``on_window``),
@@ -971,11 +985,103 @@ def analyze_blocks(blocks: Iterable[EncoderBlockData | EncoderBatch], config: Te
     windows: list[WindowResult] = []
     gaps: list[GapEvent] = []
     keep = windows.extend if on_window is None else (lambda ws: [on_window(w) for w in ws])
-    for item in blocks:
-        update = analyzer.push_batch(item) if isinstance(item, EncoderBatch) \
-            else analyzer.push(item)
-        keep(update.windows)
-        gaps.extend(update.gaps)
-    keep(analyzer.flush())
+    if spectra_thread and config.compute_spectrum:
+        with _SpectraThread(analyzer, keep) as spectra:
+            for item in blocks:
+                update = analyzer.push_batch(item) if isinstance(item, EncoderBatch) \
+                    else analyzer.push(item)
+                spectra.closed(update.windows)
+                gaps.extend(update.gaps)
+            spectra.closed(analyzer.flush())
+            spectra.drain()
+    else:
+        for item in blocks:
+            update = analyzer.push_batch(item) if isinstance(item, EncoderBatch) \
+                else analyzer.push(item)
+            keep(update.windows)
+            gaps.extend(update.gaps)
+        keep(analyzer.flush())
     return OfflineResult(windows=tuple(windows), cumulative=analyzer.cumulative,
                          counters=analyzer.counters, gaps=tuple(gaps))
+
+
+#: Windows of an offline analysis whose spectrum may be pending on the spectra thread.
+SPECTRA_AHEAD = 4
+
+
+class _SpectraThread:
+    """The window spectra of :func:`analyze_blocks` on one worker thread, handed on in order.
+
+    The analyzer's spectrum hook hands over a complete window's phi and TE arrays (the
+    window buffer gets arrays of finished jobs, so nothing is copied) and submits its
+    spectrum; :meth:`closed` queues the closed windows and hands on, in closing order,
+    those whose spectrum is done (waiting for the oldest once more than SPECTRA_AHEAD are
+    pending). A spectrum that fails counts in ``spectrum_failures`` and leaves the window
+    without one, as the analyzer does itself.
+    """
+
+    def __init__(self, analyzer: StreamingTeAnalyzer,
+                 keep: Callable[[list[WindowResult]], object]) -> None:
+        from concurrent.futures import ThreadPoolExecutor  # noqa: PLC0415
+
+        self._analyzer = analyzer
+        self._keep = keep
+        self._pool = ThreadPoolExecutor(max_workers=1, thread_name_prefix='te-spectra')
+        self._work = SpectrumWorkspace()            # used by the worker thread only
+        # window index -> (its spectrum's job, the phi and TE arrays the job reads)
+        self._jobs: dict[int, tuple[Future[OrderSpectrum], np.ndarray, np.ndarray]] = {}
+        self._spare: list[tuple[np.ndarray, np.ndarray]] = []   # arrays of finished jobs
+        self._queue: deque[WindowResult] = deque()
+        analyzer._spectrum_hook = self._submit  # noqa: SLF001 - the hook is for this class
+
+    def __enter__(self) -> _SpectraThread:
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self._analyzer._spectrum_hook = None  # noqa: SLF001
+        self._pool.shutdown(wait=True, cancel_futures=True)
+
+    def _submit(self, index: int, buf: _WindowBuffer) -> None:
+        """Take the window's arrays (no copy) and give the buffer spare ones; submit."""
+        cfg = self._analyzer.config
+        n = buf.n
+        phi, te = buf.phi, buf.te
+        spare = next((k for k, (p, _t) in enumerate(self._spare) if p.size == phi.size), None)
+        buf.phi, buf.te = (self._spare.pop(spare) if spare is not None
+                           else (np.empty_like(phi), np.empty_like(te)))
+        self._jobs[index] = (self._pool.submit(
+            order_spectrum, phi[:n], te[:n], cfg.orders, duration_s=buf.t_last - buf.t_first,
+            samples_per_rev=cfg.samples_per_rev, revolutions=round(cfg.window_revolutions),
+            workspace=self._work), phi, te)
+
+    def closed(self, windows: Iterable[WindowResult]) -> None:
+        """Queue closed windows; hand on those at the head whose spectrum is done."""
+        self._queue.extend(windows)
+        ready = []
+        while self._queue:
+            job = self._jobs.get(self._queue[0].index)
+            if job is not None and not job[0].done() and len(self._jobs) <= SPECTRA_AHEAD:
+                break
+            ready.append(self._finish(self._queue.popleft()))
+        if ready:
+            self._keep(ready)
+
+    def drain(self) -> None:
+        """Wait for every pending spectrum and hand on the rest of the windows."""
+        if self._queue:
+            self._keep([self._finish(w) for w in self._queue])
+            self._queue.clear()
+
+    def _finish(self, window: WindowResult) -> WindowResult:
+        job = self._jobs.pop(window.index, None)
+        if job is None:
+            return window
+        try:
+            spectrum = job[0].result()
+        except TeInputError:
+            self._analyzer._counters['spectrum_failures'] += 1  # noqa: SLF001
+            return window
+        finally:   # the job is over: its arrays serve a later window
+            if len(self._spare) <= SPECTRA_AHEAD:
+                self._spare.append(job[1:])
+        return replace(window, spectrum=spectrum)

@@ -29,7 +29,7 @@ if TYPE_CHECKING:
     from collections.abc import Callable, Collection, Iterator
     from pathlib import Path
 
-__all__ = ['PREFETCH_CHUNKS', 'READ_AHEAD_ENV']
+__all__ = ['PREFETCH_CHUNKS', 'READ_AHEAD_ENV', 'helper_threads_allowed']
 
 _U16 = struct.Struct('<H')
 _U32 = struct.Struct('<I')
@@ -160,9 +160,17 @@ _Unit = tuple[memoryview, list[tuple[int, int, int, int]]]
 """A decompressed chunk (or one loose message) and its messages as
 (channel_id, log_time_ns, data_start, data_end) byte positions in it."""
 
-#: Environment switch: ``0`` turns the read-ahead thread off (a Dask worker of a fleet run
-#: on a machine whose cores are all workers: parallel bags use the cores better).
+#: Environment switch: ``0`` turns the helper threads of one bag's analysis off, the
+#: read-ahead here and the spectra thread of ``analyze_bag`` (a Dask worker of a fleet run on
+#: a machine whose cores are all workers: parallel bags use the cores better).
 READ_AHEAD_ENV = 'RV_TE_READ_AHEAD'
+
+
+def helper_threads_allowed() -> bool:
+    """True unless ``RV_TE_READ_AHEAD=0`` or the machine has a single core."""
+    return os.environ.get(READ_AHEAD_ENV, '1') != '0' and (os.cpu_count() or 1) > 1
+
+
 #: Chunks decompressed ahead of the one being consumed (by one worker thread: zstd, lz4 and
 #: crc32 release the GIL, so reading overlaps with the analysis on a second core).
 PREFETCH_CHUNKS = 2

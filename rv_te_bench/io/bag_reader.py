@@ -43,6 +43,7 @@ from rv_te_bench.io._mcap_scan import (
     _scan_file,
     _scan_units,
     _ScanState,
+    helper_threads_allowed,
 )
 from rv_te_bench.io.bench_record import read_bench_info
 from rv_te_bench.io.msgdefs import ENCODER_BLOCK, rv_te_typestore
@@ -64,6 +65,7 @@ __all__ = [
     'decode_encoder_block',
     'decode_encoder_block_rosbags',
     'encoder_block_seq',
+    'helper_threads_allowed',
     'iter_messages',
     'open_bag',
     'read_bench_info',

@@ -149,6 +149,7 @@ def analyze_bag(  # noqa: PLR0913 - keyword-only analysis options
     """
     from rv_te_bench.core.stream import TeAnalysisConfig, analyze_blocks  # noqa: PLC0415
     from rv_te_bench.io.bag_reader import (  # noqa: PLC0415
+        helper_threads_allowed,
         open_bag,
         read_encoder_batches,
         summarize_problems,
@@ -180,7 +181,8 @@ def analyze_bag(  # noqa: PLR0913 - keyword-only analysis options
             w = replace(w, spectrum=w.spectrum.lines_only())
         kept.append(w)
 
-    offline = analyze_blocks(reader, config, on_window=on_window)
+    offline = analyze_blocks(reader, config, on_window=on_window,
+                             spectra_thread=helper_threads_allowed())
     read_problems = [*([] if info_problem is None else [info_problem]),
                      *stream.problems,
                      *([] if reader.error is None else [reader.error])]

@@ -1,0 +1,175 @@
+"""analyze_blocks(spectra_thread=True): the window spectra on a second thread change nothing.
+
+The reference is the same call with the spectra computed in line (spectra_thread=False),
+itself checked block by block in test_stream_batch.py. Compared: every window (stats,
+seqs, close reason) with its whole spectrum bit for bit, the gaps, the counters (including
+``spectrum_failures``) and the order in which ``on_window`` sees the windows. Then what the
+thread must not do: run more than SPECTRA_AHEAD windows ahead, outlive an error of the
+blocks' source, or run at all under RV_TE_READ_AHEAD=0 in ``analyze_bag``.
+"""
+
+from __future__ import annotations
+
+import math
+import threading
+import time
+
+import numpy as np
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+from rv_te_bench.core import stream
+from rv_te_bench.core.stream import (
+    SPECTRA_AHEAD,
+    EncoderBatch,
+    EncoderBlockData,
+    TeAnalysisConfig,
+    analyze_blocks,
+)
+from tests.core.test_stream_batch import FAULTS, FS_HZ, ORDERS, RATIO, _group, _stream
+
+
+def _full_key(w: stream.WindowResult) -> tuple:
+    """Everything of a window, the spectrum's arrays as bytes (bit-for-bit comparison)."""
+    spec = w.spectrum
+    spec_key = None if spec is None else (
+        spec.revolutions, spec.samples_per_rev, spec.phi0_rad, spec.output_hz, spec.crank_hz,
+        spec.mean_rad, spec.amplitude_rad.tobytes(), spec.bins.tobytes(),
+        tuple((ln.label, ln.amplitude_rad, ln.phase_rad) for ln in spec.lines))
+    return (w.index, w.start_stamp_s, w.end_stamp_s, w.complete, w.stats, w.first_seq,
+            w.last_seq, w.close_reason, spec_key)
+
+
+def _both(items: list, config: TeAnalysisConfig) -> tuple[tuple, tuple]:
+    results = []
+    for threaded in (False, True):
+        seen: list[stream.WindowResult] = []
+        res = analyze_blocks(items, config, on_window=seen.append, spectra_thread=threaded)
+        results.append(([_full_key(w) for w in seen], res.gaps, res.counters,
+                        res.cumulative))
+    return results[0], results[1]
+
+
+@settings(max_examples=40, deadline=None)
+@given(data=st.data(), direction=st.sampled_from([1.0, -1.0]),
+       max_window_samples=st.sampled_from([2_000_000, 1500]))
+def test_spectra_thread_gives_the_same_analysis(data: st.DataObject, direction: float,
+                                                max_window_samples: int) -> None:
+    n_blocks = data.draw(st.integers(1, 40), label='n_blocks')
+    sizes = data.draw(st.lists(st.integers(1, 400), min_size=n_blocks, max_size=n_blocks),
+                      label='sizes')
+    faults = data.draw(st.lists(st.sampled_from(FAULTS), min_size=n_blocks,
+                                max_size=n_blocks), label='faults')
+    cuts = set(data.draw(st.lists(st.integers(1, max(1, n_blocks - 1)), max_size=8),
+                         label='cuts'))
+    config = TeAnalysisConfig(orders=ORDERS, max_window_samples=max_window_samples)
+    inline, threaded = _both(_group(_stream(sizes, faults, direction), faults, cuts), config)
+    assert threaded == inline
+
+
+def test_spectra_thread_with_many_windows_and_kept_windows() -> None:
+    """40 whole-revolution windows (the spare arrays cycle many times), kept in the result."""
+    blocks = _stream([500] * 200, ['ok'] * 200, 1.0)
+    config = TeAnalysisConfig(orders=ORDERS)
+    items = [EncoderBatch.from_blocks(blocks[k:k + 7]) for k in range(0, 200, 7)]
+    inline = analyze_blocks(items, config)
+    threaded = analyze_blocks(items, config, spectra_thread=True)
+    assert len(inline.windows) >= 40  # noqa: PLR2004
+    assert sum(w.spectrum is not None for w in inline.windows) >= 40  # noqa: PLR2004
+    assert [_full_key(w) for w in threaded.windows] == [_full_key(w) for w in inline.windows]
+    assert threaded.counters == inline.counters
+
+
+def test_a_failed_spectrum_is_counted_as_in_line() -> None:
+    """A window that goes back a little (not a gap) completes, but has no spectrum."""
+    n = 6000
+    t = np.arange(n) / FS_HZ
+    theta_in = 2 * math.pi * 2.0 * RATIO * t
+    theta_in[1500:1510] = theta_in[1500] - 1e-3 * np.arange(10)     # a short reversal
+    theta_out = theta_in / RATIO + 1e-4 * np.cos(25 * theta_in / RATIO)
+    blocks = [EncoderBlockData(seq=k, stamp_s=float(t[a]), sample_rate_hz=FS_HZ,
+                               time_offset_s=t[a:a + 500] - t[a],
+                               theta_in_rad=theta_in[a:a + 500],
+                               theta_out_rad=theta_out[a:a + 500])
+              for k, a in enumerate(range(0, n, 500))]
+    config = TeAnalysisConfig(orders=ORDERS)
+    inline, threaded = _both([EncoderBatch.from_blocks(blocks)], config)
+    assert threaded == inline
+    assert inline[2]['spectrum_failures'] == 1
+    assert inline[2]['complete_windows'] >= 2  # noqa: PLR2004
+
+
+def test_spectra_thread_runs_at_most_spectra_ahead_windows_ahead(
+        monkeypatch: pytest.MonkeyPatch) -> None:
+    """With a slow spectrum the analysis waits instead of piling up windows (memory)."""
+    real = stream.order_spectrum
+    submitted: list[int] = []
+    real_submit = stream._SpectraThread._submit
+
+    def slow(*args: object, **kwargs: object) -> object:
+        time.sleep(0.01)
+        return real(*args, **kwargs)
+
+    def counting_submit(self: object, index: int, buf: object) -> None:
+        submitted.append(index)
+        real_submit(self, index, buf)
+
+    monkeypatch.setattr(stream, 'order_spectrum', slow)
+    monkeypatch.setattr(stream._SpectraThread, '_submit', counting_submit)
+    blocks = _stream([250] * 100, ['ok'] * 100, 1.0)     # 20 windows, one per 1000 samples
+    handed: list[tuple[int, int]] = []
+    analyze_blocks(blocks, TeAnalysisConfig(orders=ORDERS),
+                   on_window=lambda w: handed.append((w.index, len(submitted))),
+                   spectra_thread=True)
+    complete = [k for k, _ in handed]
+    assert len(complete) >= 15  # noqa: PLR2004
+    ahead = [n_sub - (index + 1) for index, n_sub in handed]
+    assert max(ahead) <= SPECTRA_AHEAD
+    assert max(ahead) >= 1   # the thread did run ahead (the test exercises the bound)
+
+
+def test_an_error_of_the_source_stops_the_spectra_thread() -> None:
+    blocks = _stream([500] * 20, ['ok'] * 20, 1.0)
+
+    def source() -> object:
+        yield from blocks
+        msg = 'the bag went away'
+        raise OSError(msg)
+
+    with pytest.raises(OSError, match='went away'):
+        analyze_blocks(source(), TeAnalysisConfig(orders=ORDERS), spectra_thread=True)
+    assert not [t for t in threading.enumerate() if t.name.startswith('te-spectra')]
+
+
+@pytest.mark.parametrize(('env', 'thread'), [(None, 'te-spectra'), ('0', 'MainThread')])
+def test_analyze_bag_spectra_thread_follows_the_read_ahead_switch(
+        tmp_path: object, monkeypatch: pytest.MonkeyPatch, env: str | None,
+        thread: str) -> None:
+    """analyze_bag uses the thread unless RV_TE_READ_AHEAD=0 (a fleet worker per core)."""
+    from rv_te_bench.io.bag_reader import READ_AHEAD_ENV
+    from rv_te_bench.report.analysis import analyze_bag
+    from tests.unit_bags import write_unit_bag
+
+    if env is None:
+        monkeypatch.delenv(READ_AHEAD_ENV, raising=False)
+    else:
+        monkeypatch.setenv(READ_AHEAD_ENV, env)
+    monkeypatch.setattr('os.cpu_count', lambda: 2)
+    names: set[str] = set()
+    real = stream.order_spectrum
+
+    def spy(*args: object, **kwargs: object) -> object:
+        names.add(threading.current_thread().name.split('_')[0])
+        return real(*args, **kwargs)
+
+    monkeypatch.setattr(stream, 'order_spectrum', spy)
+    # 2 output revolutions of an independently generated unit (2 kHz, 1 crank-order line)
+    rate = 2000.0
+    t = np.arange(int(2 * 15.8 * rate)) / rate
+    theta_in = 2 * math.pi * (300 / 60) * t
+    theta_out = theta_in / 79.0 + 1e-4 * np.cos(25 * theta_in / 79.0)
+    bag = write_unit_bag(tmp_path / 'bag', theta_in, theta_out, rate_hz=rate, block=1000)
+    result = analyze_bag(bag, with_advice=False)
+    assert result.spectrum is not None
+    assert names == {thread}
