@@ -125,6 +125,12 @@ def _decompress(compression: str, data: memoryview, size: int) -> bytes:
     raise _CorruptError(f'unsupported chunk compression {compression!r}')
 
 
+try:   # ISA-L's CRC-32 (carry-less multiply): ~15x zlib's; the same checksum (tested)
+    from isal.isal_zlib import crc32 as _crc32
+except ImportError:   # pragma: no cover - a platform without an isal wheel
+    _crc32 = zlib.crc32
+
+
 def _chunk_records(body: memoryview) -> memoryview:
     start, end, usize, crc = _CHUNK.unpack_from(body, 0)
     _ = start, end
@@ -135,7 +141,7 @@ def _chunk_records(body: memoryview) -> memoryview:
     raw = _decompress(compression, body[pos + 8:pos + 8 + csize], usize)
     if len(raw) != usize:
         raise _CorruptError(f'chunk holds {len(raw)} bytes, header says {usize}')
-    if crc and zlib.crc32(raw) != crc:
+    if crc and _crc32(raw) != crc:
         raise _CorruptError('chunk CRC mismatch')
     return memoryview(raw)
 
@@ -172,8 +178,10 @@ def helper_threads_allowed() -> bool:
 
 
 #: Chunks decompressed ahead of the one being consumed (by one worker thread: zstd, lz4 and
-#: crc32 release the GIL, so reading overlaps with the analysis on a second core).
-PREFETCH_CHUNKS = 2
+#: crc32 release the GIL, so reading overlaps with the analysis on a second core). Eight
+#: rather than two smooth out the hand-over with the spectra thread (issue 23: 1.17x ->
+#: 1.08x the rosbags read with blocks of 10000); at most eight decompressed chunks are held.
+PREFETCH_CHUNKS = 8
 _AHEAD_RECORDS = 64
 
 
