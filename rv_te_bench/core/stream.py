@@ -27,7 +27,9 @@ size before completing is closed as partial (``close_reason='overflow'``).
 Offline, :meth:`StreamingTeAnalyzer.push_batch` takes many consecutive blocks at once (an
 :class:`EncoderBatch`, one MCAP chunk) and analyses runs of clean, continuous blocks as one
 array, with the same windows, gaps and counters as block by block; :func:`analyze_blocks`
-can hand each window to a callback instead of keeping them all.
+can hand each window to a callback instead of keeping them all, and compute the window
+spectra on a second thread while it reads on (``spectra_thread``: the same results; a few
+windows' arrays are then held besides the open one, see there).
 
 A bench numbers its blocks from 0, so a first block with a seq above 0 is a gap too
 (``'leading_loss'``: a recorder or TE node that started after the bench lost the blocks before
@@ -56,7 +58,7 @@ if TYPE_CHECKING:
     from collections.abc import Callable, Iterable
     from concurrent.futures import Future
 
-__all__ = ['SPECTRA_AHEAD', 'BatchUpdate', 'EncoderBatch', 'EncoderBlockData', 'GapEvent',
+__all__ = ['SPECTRA_AHEAD', 'SPECTRA_BYTES', 'BatchUpdate', 'EncoderBatch', 'EncoderBlockData', 'GapEvent',
            'OfflineResult', 'StreamUpdate', 'StreamingTeAnalyzer', 'TeAnalysisConfig', 'WindowResult',
            'analyze_blocks']
 
@@ -974,8 +976,10 @@ def analyze_blocks(blocks: Iterable[EncoderBlockData | EncoderBatch], config: Te
         spectra_thread: Compute the window spectra on a second thread while the next
             blocks are analysed (the resampler and the FFT run without the GIL). The
             windows, their order, the spectra and the counters are the same as without;
-            at most :data:`SPECTRA_AHEAD` windows wait for their spectrum (each holds its
-            phi and TE arrays).
+            at most :data:`SPECTRA_AHEAD` windows wait for their spectrum, fewer when
+            their phi and TE arrays would pass :data:`SPECTRA_BYTES` (at least one). With
+            the hand-over and one spare pair, the thread holds the arrays of at most that
+            many windows + 2 besides the open window's.
 
     Returns:
         All windows (the last, partial one from the final flush; none with ``on_window``),
@@ -1005,8 +1009,11 @@ def analyze_blocks(blocks: Iterable[EncoderBlockData | EncoderBatch], config: Te
                          counters=analyzer.counters, gaps=tuple(gaps))
 
 
-#: Windows of an offline analysis whose spectrum may be pending on the spectra thread.
+#: Windows of an offline analysis whose spectrum may be pending on the spectra thread...
 SPECTRA_AHEAD = 4
+#: ... and the bytes of phi and TE arrays they may hold in all (about one default-size
+#: window buffer, so large windows wait one at a time).
+SPECTRA_BYTES = 32 << 20
 
 
 class _SpectraThread:
@@ -1015,8 +1022,8 @@ class _SpectraThread:
     The analyzer's spectrum hook hands over a complete window's phi and TE arrays (the
     window buffer gets arrays of finished jobs, so nothing is copied) and submits its
     spectrum; :meth:`closed` queues the closed windows and hands on, in closing order,
-    those whose spectrum is done (waiting for the oldest once more than SPECTRA_AHEAD are
-    pending). A spectrum that fails counts in ``spectrum_failures`` and leaves the window
+    those whose spectrum is done (waiting for the oldest once more than the limit are
+    pending: SPECTRA_AHEAD windows, fewer when their arrays pass SPECTRA_BYTES). A spectrum that fails counts in ``spectrum_failures`` and leaves the window
     without one, as the analyzer does itself.
     """
 
@@ -1032,6 +1039,7 @@ class _SpectraThread:
         self._jobs: dict[int, tuple[Future[OrderSpectrum], np.ndarray, np.ndarray]] = {}
         self._spare: list[tuple[np.ndarray, np.ndarray]] = []   # arrays of finished jobs
         self._queue: deque[WindowResult] = deque()
+        self._limit = SPECTRA_AHEAD
         analyzer._spectrum_hook = self._submit  # noqa: SLF001 - the hook is for this class
 
     def __enter__(self) -> _SpectraThread:
@@ -1046,8 +1054,9 @@ class _SpectraThread:
         cfg = self._analyzer.config
         n = buf.n
         phi, te = buf.phi, buf.te
-        spare = next((k for k, (p, _t) in enumerate(self._spare) if p.size == phi.size), None)
-        buf.phi, buf.te = (self._spare.pop(spare) if spare is not None
+        self._limit = max(1, min(SPECTRA_AHEAD, SPECTRA_BYTES // (phi.nbytes + te.nbytes)))
+        self._spare = [a for a in self._spare if a[0].size == phi.size]
+        buf.phi, buf.te = (self._spare.pop() if self._spare
                            else (np.empty_like(phi), np.empty_like(te)))
         self._jobs[index] = (self._pool.submit(
             order_spectrum, phi[:n], te[:n], cfg.orders, duration_s=buf.t_last - buf.t_first,
@@ -1060,7 +1069,7 @@ class _SpectraThread:
         ready = []
         while self._queue:
             job = self._jobs.get(self._queue[0].index)
-            if job is not None and not job[0].done() and len(self._jobs) <= SPECTRA_AHEAD:
+            if job is not None and not job[0].done() and len(self._jobs) <= self._limit:
                 break
             ready.append(self._finish(self._queue.popleft()))
         if ready:
@@ -1081,7 +1090,7 @@ class _SpectraThread:
         except TeInputError:
             self._analyzer._counters['spectrum_failures'] += 1  # noqa: SLF001
             return window
-        finally:   # the job is over: its arrays serve a later window
-            if len(self._spare) <= SPECTRA_AHEAD:
+        finally:   # the job is over: its arrays serve the next window (one pair kept)
+            if not self._spare:
                 self._spare.append(job[1:])
         return replace(window, spectrum=spectrum)

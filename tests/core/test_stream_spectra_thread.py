@@ -100,9 +100,9 @@ def test_a_failed_spectrum_is_counted_as_in_line() -> None:
     assert inline[2]['complete_windows'] >= 2  # noqa: PLR2004
 
 
-def test_spectra_thread_runs_at_most_spectra_ahead_windows_ahead(
-        monkeypatch: pytest.MonkeyPatch) -> None:
-    """With a slow spectrum the analysis waits instead of piling up windows (memory)."""
+def _how_far_ahead(monkeypatch: pytest.MonkeyPatch, n_blocks: int) -> list[int]:
+    """With a slow spectrum (10 ms): per window handed on, how many windows had been
+    submitted beyond it at that moment."""
     real = stream.order_spectrum
     submitted: list[int] = []
     real_submit = stream._SpectraThread._submit
@@ -117,16 +117,29 @@ def test_spectra_thread_runs_at_most_spectra_ahead_windows_ahead(
 
     monkeypatch.setattr(stream, 'order_spectrum', slow)
     monkeypatch.setattr(stream._SpectraThread, '_submit', counting_submit)
-    blocks = _stream([250] * 100, ['ok'] * 100, 1.0)     # 20 windows, one per 1000 samples
-    handed: list[tuple[int, int]] = []
+    blocks = _stream([250] * n_blocks, ['ok'] * n_blocks, 1.0)   # a window per 4 blocks
+    ahead: list[int] = []
     analyze_blocks(blocks, TeAnalysisConfig(orders=ORDERS),
-                   on_window=lambda w: handed.append((w.index, len(submitted))),
+                   on_window=lambda w: ahead.append(len(submitted) - (w.index + 1)),
                    spectra_thread=True)
-    complete = [k for k, _ in handed]
-    assert len(complete) >= 15  # noqa: PLR2004
-    ahead = [n_sub - (index + 1) for index, n_sub in handed]
+    return ahead
+
+
+def test_spectra_thread_runs_at_most_spectra_ahead_windows_ahead(
+        monkeypatch: pytest.MonkeyPatch) -> None:
+    """With a slow spectrum the analysis waits instead of piling up windows (memory)."""
+    ahead = _how_far_ahead(monkeypatch, 100)
+    assert len(ahead) >= 15  # noqa: PLR2004
     assert max(ahead) <= SPECTRA_AHEAD
     assert max(ahead) >= 1   # the thread did run ahead (the test exercises the bound)
+
+
+def test_large_windows_wait_one_at_a_time(monkeypatch: pytest.MonkeyPatch) -> None:
+    """Windows whose arrays pass SPECTRA_BYTES: one pending spectrum, not SPECTRA_AHEAD."""
+    monkeypatch.setattr(stream, 'SPECTRA_BYTES', 1)
+    ahead = _how_far_ahead(monkeypatch, 60)
+    assert len(ahead) >= 10  # noqa: PLR2004
+    assert max(ahead) == 1
 
 
 def test_an_error_of_the_source_stops_the_spectra_thread() -> None:
@@ -173,3 +186,4 @@ def test_analyze_bag_spectra_thread_follows_the_read_ahead_switch(
     result = analyze_bag(bag, with_advice=False)
     assert result.spectrum is not None
     assert names == {thread}
+
