@@ -19,7 +19,8 @@ Then, as whole commands in fresh processes (interpreter start and imports includ
 rosbags and reads the bag as above.
 
 With ``--baseline REV`` the TE core (core/te.py, core/spectrum.py, core/stream.py) as of
-that git revision also runs ``analyze_bag``, interleaved with the others (the "before").
+that git revision also runs ``analyze_bag``, interleaved with the others (the "before"),
+with the reader set as before round 4 of issue 23 (2 chunks read ahead, zlib's CRC-32).
 
     .venv/bin/python benchmarks/bench_analyze.py [--minutes 10]
         [--blocks 100 1000 3000 10000] [--repeats 5] [--allocator tuned|default]
@@ -72,7 +73,7 @@ def main(argv: list[str] | None = None) -> int:  # noqa: PLR0915
         base_core = load_core_at(args.baseline)
 
         def analyze_base(bag: Path) -> int:
-            with swapped(base_core):
+            with swapped(base_core), _reader_as_before(base_core):
                 return int(analyze_bag(bag, with_advice=False).cumulative.n_samples)
     load0 = os.getloadavg()
     tmp = Path(tempfile.mkdtemp(prefix='rv-te-analyze-bench-'))
@@ -129,7 +130,8 @@ def main(argv: list[str] | None = None) -> int:  # noqa: PLR0915
     for block, n, size_mb, med, med_cpu, ratios in rows:
         for name, label in (('rosbags', 'rosbags AnyReader read + deserialise (floor)'),
                             ('read', 'read_encoder_batches (our reader)'),
-                            ('base', f'analyze_bag, TE core before ({args.baseline})'),
+                            ('base', f'analyze_bag before (TE core at {args.baseline}, '
+                                     'reader as before)'),
                             ('analyze', 'analyze_bag (read + TE + windows + spectra)')):
             if name not in med:
                 continue
@@ -151,6 +153,39 @@ def main(argv: list[str] | None = None) -> int:  # noqa: PLR0915
             print(f'| {block} | {t["rosbags"]:.2f} | {t["analyze"]:.2f} | '
                   f'{t["analyze"] / t["rosbags"]:.2f} |')
     return 0
+
+
+class _reader_as_before:  # noqa: N801 - used like a function
+    """The bag reader's settings before issue 23's round 4, for the "before" rows.
+
+    Two chunks read ahead instead of eight and zlib's CRC-32 instead of isal's; an old
+    ``analyze_blocks`` without ``spectra_thread`` gets the call without it (its spectra
+    then run in line, as they did).
+    """
+
+    def __init__(self, core: dict) -> None:
+        self._stream = core['rv_te_bench.core.stream']
+
+    def __enter__(self) -> None:
+        import inspect  # noqa: PLC0415
+        import zlib  # noqa: PLC0415
+
+        from rv_te_bench.io import _mcap_scan  # noqa: PLC0415
+
+        self._saved = (_mcap_scan.PREFETCH_CHUNKS, _mcap_scan._crc32,
+                       self._stream.analyze_blocks)
+        _mcap_scan.PREFETCH_CHUNKS, _mcap_scan._crc32 = 2, zlib.crc32
+        old = self._stream.analyze_blocks
+        if 'spectra_thread' not in inspect.signature(old).parameters:
+            self._stream.analyze_blocks = (
+                lambda blocks, config, *, on_window=None, spectra_thread=False:  # noqa: ARG005
+                old(blocks, config, on_window=on_window))
+
+    def __exit__(self, *exc: object) -> None:
+        from rv_te_bench.io import _mcap_scan  # noqa: PLC0415
+
+        _mcap_scan.PREFETCH_CHUNKS, _mcap_scan._crc32, self._stream.analyze_blocks = \
+            self._saved
 
 
 def rosbags_read(bag: str | Path) -> int:
