@@ -335,3 +335,25 @@ def test_store_at_revision_0001_is_upgraded_keeping_its_records(tmp_path: Path) 
     assert 'VARCHAR(256)' in con.execute(
         "select sql from sqlite_master where name = 'results'").fetchone()[0]
     con.close()
+
+
+def test_schema_head_is_alembics_head() -> None:
+    """SCHEMA_HEAD (the store's no-alembic check) names the newest migration."""
+    from alembic.config import Config
+    from alembic.script import ScriptDirectory
+
+    from rv_te_bench.store._store import _MIGRATIONS, SCHEMA_HEAD
+    cfg = Config()
+    cfg.set_main_option('script_location', os.fspath(_MIGRATIONS))
+    assert ScriptDirectory.from_config(cfg).get_current_head() == SCHEMA_HEAD
+
+
+def test_a_store_at_the_head_opens_without_alembic(tmp_path: Path) -> None:
+    """Opening an up-to-date store (every rv-te analyze) does not import alembic; a new or
+    old store does (it is migrated)."""
+    db = tmp_path / 'r.sqlite'
+    code = ('import sys; from rv_te_bench.store import open_store; '
+            f'open_store({str(db)!r}).close(); print("alembic" in sys.modules)')
+    runs = [subprocess.run([sys.executable, '-c', code], capture_output=True, text=True,
+                           check=True, timeout=120).stdout.split()[-1] for _ in range(2)]
+    assert runs == ['True', 'False']   # created (migrated), then opened as it is
