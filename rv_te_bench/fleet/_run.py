@@ -173,7 +173,8 @@ def _client(workers: int, scheduler: str | None) -> tuple[Any, Any]:
     # the scheduler's HTTP server on a free port: with None it still tries 8787 and warns
     # on stderr when another cluster holds it (one clear line is all the command prints)
     # with a worker per core, bags in parallel use the cores better than each analysis's
-    # read-ahead thread (which makes one analysis take ~1.16 cores): off in the workers
+    # helper threads (read-ahead and window spectra: one analysis takes ~1.6 cores): off in
+    # the workers
     env = {READ_AHEAD_ENV: '0'} if workers >= (os.cpu_count() or 1) else {}
     cluster = LocalCluster(n_workers=workers, threads_per_worker=1, processes=True,
                            dashboard_address=':0', silence_logs=logging.ERROR, env=env)

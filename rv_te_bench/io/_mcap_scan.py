@@ -173,8 +173,12 @@ READ_AHEAD_ENV = 'RV_TE_READ_AHEAD'
 
 
 def helper_threads_allowed() -> bool:
-    """True unless ``RV_TE_READ_AHEAD=0`` or the machine has a single core."""
-    return os.environ.get(READ_AHEAD_ENV, '1') != '0' and (os.cpu_count() or 1) > 1
+    """True unless ``RV_TE_READ_AHEAD=0`` or this process may run on a single core."""
+    if os.environ.get(READ_AHEAD_ENV, '1') == '0':
+        return False
+    cores = len(os.sched_getaffinity(0)) if hasattr(os, 'sched_getaffinity') \
+        else (os.cpu_count() or 1)
+    return cores > 1
 
 
 #: Chunks decompressed ahead of the one being consumed (by one worker thread: zstd, lz4 and

@@ -155,11 +155,13 @@ def test_an_error_of_the_source_stops_the_spectra_thread() -> None:
     assert not [t for t in threading.enumerate() if t.name.startswith('te-spectra')]
 
 
-@pytest.mark.parametrize(('env', 'thread'), [(None, 'te-spectra'), ('0', 'MainThread')])
-def test_analyze_bag_spectra_thread_follows_the_read_ahead_switch(
-        tmp_path: object, monkeypatch: pytest.MonkeyPatch, env: str | None,
+@pytest.mark.parametrize(('env', 'cores', 'thread'), [
+    (None, {0, 1}, 'te-spectra'), ('0', {0, 1}, 'MainThread'), (None, {1}, 'MainThread')])
+def test_analyze_bag_spectra_thread_follows_the_read_ahead_switch(  # noqa: PLR0913
+        tmp_path: object, monkeypatch: pytest.MonkeyPatch, env: str | None, cores: set[int],
         thread: str) -> None:
-    """analyze_bag uses the thread unless RV_TE_READ_AHEAD=0 (a fleet worker per core)."""
+    """analyze_bag uses the thread unless RV_TE_READ_AHEAD=0 (a fleet worker per core) or
+    the process may run on one core only (taskset, a cpuset)."""
     from rv_te_bench.io.bag_reader import READ_AHEAD_ENV
     from rv_te_bench.report.analysis import analyze_bag
     from tests.unit_bags import write_unit_bag
@@ -168,7 +170,7 @@ def test_analyze_bag_spectra_thread_follows_the_read_ahead_switch(
         monkeypatch.delenv(READ_AHEAD_ENV, raising=False)
     else:
         monkeypatch.setenv(READ_AHEAD_ENV, env)
-    monkeypatch.setattr('os.cpu_count', lambda: 2)
+    monkeypatch.setattr('os.sched_getaffinity', lambda _pid: cores)
     names: set[str] = set()
     real = stream.order_spectrum
 
