@@ -100,6 +100,19 @@ def _group(blocks: list[EncoderBlockData], faults: list[str],
     return items
 
 
+def draw_faulty_stream(data: st.DataObject) -> tuple[list[int], list[str], set[int]]:
+    """Block sizes, a fault per block and the batch cuts of a random stream (for _stream
+    and _group)."""
+    n_blocks = data.draw(st.integers(1, 40), label='n_blocks')
+    sizes = data.draw(st.lists(st.integers(1, 400), min_size=n_blocks, max_size=n_blocks),
+                      label='sizes')
+    faults = data.draw(st.lists(st.sampled_from(FAULTS), min_size=n_blocks,
+                                max_size=n_blocks), label='faults')
+    cuts = set(data.draw(st.lists(st.integers(1, max(1, n_blocks - 1)), max_size=8),
+                         label='cuts'))
+    return sizes, faults, cuts
+
+
 def _window_key(w: object) -> tuple:
     spec = w.spectrum
     lines = None if spec is None else tuple((ln.label, ln.amplitude_rad, ln.phase_rad)
@@ -115,13 +128,7 @@ def _window_key(w: object) -> tuple:
 def test_push_batch_equals_block_by_block(data: st.DataObject, direction: float,
                                           window_revolutions: int,
                                           max_window_samples: int) -> None:
-    n_blocks = data.draw(st.integers(1, 40), label='n_blocks')
-    sizes = data.draw(st.lists(st.integers(1, 400), min_size=n_blocks, max_size=n_blocks),
-                      label='sizes')
-    faults = data.draw(st.lists(st.sampled_from(FAULTS), min_size=n_blocks,
-                                max_size=n_blocks), label='faults')
-    cuts = set(data.draw(st.lists(st.integers(1, max(1, n_blocks - 1)), max_size=8),
-                         label='cuts'))
+    sizes, faults, cuts = draw_faulty_stream(data)
     blocks = _stream(sizes, faults, direction)
     config = TeAnalysisConfig(orders=ORDERS, window_revolutions=window_revolutions,
                               max_window_samples=max_window_samples, decimated_rate_hz=170.0)

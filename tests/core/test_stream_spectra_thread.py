@@ -27,7 +27,14 @@ from rv_te_bench.core.stream import (
     TeAnalysisConfig,
     analyze_blocks,
 )
-from tests.core.test_stream_batch import FAULTS, FS_HZ, ORDERS, RATIO, _group, _stream
+from tests.core.test_stream_batch import (
+    FS_HZ,
+    ORDERS,
+    RATIO,
+    _group,
+    _stream,
+    draw_faulty_stream,
+)
 
 
 def _full_key(w: stream.WindowResult) -> tuple:
@@ -56,13 +63,7 @@ def _both(items: list, config: TeAnalysisConfig) -> tuple[tuple, tuple]:
        max_window_samples=st.sampled_from([2_000_000, 1500]))
 def test_spectra_thread_gives_the_same_analysis(data: st.DataObject, direction: float,
                                                 max_window_samples: int) -> None:
-    n_blocks = data.draw(st.integers(1, 40), label='n_blocks')
-    sizes = data.draw(st.lists(st.integers(1, 400), min_size=n_blocks, max_size=n_blocks),
-                      label='sizes')
-    faults = data.draw(st.lists(st.sampled_from(FAULTS), min_size=n_blocks,
-                                max_size=n_blocks), label='faults')
-    cuts = set(data.draw(st.lists(st.integers(1, max(1, n_blocks - 1)), max_size=8),
-                         label='cuts'))
+    sizes, faults, cuts = draw_faulty_stream(data)
     config = TeAnalysisConfig(orders=ORDERS, max_window_samples=max_window_samples)
     inline, threaded = _both(_group(_stream(sizes, faults, direction), faults, cuts), config)
     assert threaded == inline
