@@ -58,9 +58,9 @@ if TYPE_CHECKING:
     from collections.abc import Callable, Iterable
     from concurrent.futures import Future
 
-__all__ = ['SPECTRA_AHEAD', 'SPECTRA_BYTES', 'BatchUpdate', 'EncoderBatch', 'EncoderBlockData', 'GapEvent',
-           'OfflineResult', 'StreamUpdate', 'StreamingTeAnalyzer', 'TeAnalysisConfig', 'WindowResult',
-           'analyze_blocks']
+__all__ = ['SPECTRA_AHEAD', 'SPECTRA_BYTES', 'BatchUpdate', 'EncoderBatch', 'EncoderBlockData',
+           'GapEvent', 'OfflineResult', 'StreamUpdate', 'StreamingTeAnalyzer',
+           'TeAnalysisConfig', 'WindowResult', 'analyze_blocks']
 
 GapKind = Literal['seq_jump', 'time_backwards', 'non_finite', 'malformed', 'leading_loss']
 CloseReason = Literal['complete', 'gap', 'overflow', 'flush', 'reconfigure']
@@ -1023,8 +1023,9 @@ class _SpectraThread:
     window buffer gets arrays of finished jobs, so nothing is copied) and submits its
     spectrum; :meth:`closed` queues the closed windows and hands on, in closing order,
     those whose spectrum is done (waiting for the oldest once more than the limit are
-    pending: SPECTRA_AHEAD windows, fewer when their arrays pass SPECTRA_BYTES). A spectrum that fails counts in ``spectrum_failures`` and leaves the window
-    without one, as the analyzer does itself.
+    pending: SPECTRA_AHEAD windows, fewer when their arrays pass SPECTRA_BYTES). A spectrum
+    that fails counts in ``spectrum_failures`` and leaves the window without one, as the
+    analyzer does itself.
     """
 
     def __init__(self, analyzer: StreamingTeAnalyzer,

@@ -122,7 +122,8 @@ def test_cubic_reproduced_exactly(path: str) -> None:
     ((np.zeros(3), np.zeros(3), None, 0.1, np.empty(4)), ValueError, 'got 3, 3, 0'),
     ((np.zeros(8), np.zeros(7), None, 0.1, np.empty(4)), ValueError, 'got 8, 7, 0'),
     ((np.zeros(8), np.zeros(8), np.zeros(5), 0.1, np.empty(4)), ValueError, 'got 8, 8, 5'),
-    ((np.zeros(8), np.zeros(8), None, 0.0, np.empty(4)), ValueError, 'spacing must be > 0, got 0.0'),
+    ((np.zeros(8), np.zeros(8), None, 0.0, np.empty(4)), ValueError,
+     'spacing must be > 0, got 0.0'),
 ])
 def test_kernel_names_bad_arguments(args: tuple, error: type, match: str) -> None:
     with pytest.raises(error, match=match):

@@ -2,7 +2,8 @@
 
 MCAP chunks carry the CRC-32 (IEEE 802.3, zlib's) of their uncompressed records. The reader
 computes it with isal (about 15x faster; issue 23), and zlib's ``crc32`` is the reference
-here: every length 0..300 (the SIMD kernels' tails), odd alignments and chunk sizes. A mismatch is still found (tests/io/test_bag_reader.py, the damaged chunk).
+here: every length 0..300 (the SIMD kernels' tails), odd alignments and chunk sizes. A
+mismatch is still found (tests/io/test_bag_reader.py, the damaged chunk).
 """
 
 from __future__ import annotations
