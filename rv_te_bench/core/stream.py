@@ -42,6 +42,7 @@ re-zeroed counter); both show up in the window statistics.
 
 from __future__ import annotations
 
+import contextlib
 import math
 from collections import deque
 from concurrent.futures import Future
@@ -739,10 +740,8 @@ class StreamingTeAnalyzer:
                 self._spectrum_hook(self._n_windows, buf)
             elif self._config.compute_spectrum:
                 try:
-                    spectrum = order_spectrum(
-                        phi, te, self._config.orders, duration_s=buf.t_last - buf.t_first,
-                        samples_per_rev=self._config.samples_per_rev,
-                        revolutions=round(w_rev), workspace=self._spectrum_work)
+                    spectrum = self._window_spectrum(phi, te, buf.t_last - buf.t_first,
+                                                     self._spectrum_work)
                 except TeInputError:
                     spectrum = None
                     self._counters['spectrum_failures'] += 1
@@ -759,6 +758,14 @@ class StreamingTeAnalyzer:
         if pending:
             self._pending.append(result)
         return result
+
+    def _window_spectrum(self, phi: np.ndarray, te: np.ndarray, duration_s: float,
+                         workspace: SpectrumWorkspace) -> OrderSpectrum:
+        """The order spectrum of a complete window (raises TeInputError as order_spectrum)."""
+        cfg = self._config
+        return order_spectrum(phi, te, cfg.orders, duration_s=duration_s,
+                              samples_per_rev=cfg.samples_per_rev,
+                              revolutions=round(cfg.window_revolutions), workspace=workspace)
 
     def _feed(self, phi: np.ndarray, te: np.ndarray, time_at: Callable[[int], float],
               seq_at: Callable[[int], int], out: list[WindowResult]) -> None:
@@ -988,22 +995,17 @@ def analyze_blocks(blocks: Iterable[EncoderBlockData | EncoderBatch], config: Te
     windows: list[WindowResult] = []
     gaps: list[GapEvent] = []
     keep = windows.extend if on_window is None else (lambda ws: [on_window(w) for w in ws])
-    if spectra_thread and config.compute_spectrum:
-        with _SpectraThread(analyzer, keep) as spectra:
-            for item in blocks:
-                update = analyzer.push_batch(item) if isinstance(item, EncoderBatch) \
-                    else analyzer.push(item)
-                spectra.closed(update.windows)
-                gaps.extend(update.gaps)
-            spectra.closed(analyzer.flush())
-            spectra.drain()
-    else:
+    threaded = spectra_thread and config.compute_spectrum
+    with _SpectraThread(analyzer, keep) if threaded else contextlib.nullcontext() as spectra:
+        closed = keep if spectra is None else spectra.closed
         for item in blocks:
             update = analyzer.push_batch(item) if isinstance(item, EncoderBatch) \
                 else analyzer.push(item)
-            keep(update.windows)
+            closed(update.windows)
             gaps.extend(update.gaps)
-        keep(analyzer.flush())
+        closed(analyzer.flush())
+        if spectra is not None:
+            spectra.drain()
     return OfflineResult(windows=tuple(windows), cumulative=analyzer.cumulative,
                          counters=analyzer.counters, gaps=tuple(gaps))
 
@@ -1050,16 +1052,14 @@ class _SpectraThread:
 
     def _submit(self, index: int, buf: _WindowBuffer) -> None:
         """The window's spectrum: to the thread if it is free, else computed here."""
-        cfg = self._analyzer.config
+        ana = self._analyzer
         n = buf.n
-        kwargs = {'duration_s': buf.t_last - buf.t_first, 'samples_per_rev': cfg.samples_per_rev,
-                  'revolutions': round(cfg.window_revolutions)}
+        duration_s = buf.t_last - buf.t_first
         if self._on_thread is not None and not self._on_thread.done():
             job: Future[OrderSpectrum] = Future()
-            work = self._analyzer._spectrum_work  # noqa: SLF001 - the caller's own workspace
-            try:
-                job.set_result(order_spectrum(buf.phi[:n], buf.te[:n], cfg.orders, **kwargs,
-                                              workspace=work))
+            try:   # with the caller's own workspace
+                job.set_result(ana._window_spectrum(  # noqa: SLF001
+                    buf.phi[:n], buf.te[:n], duration_s, ana._spectrum_work))  # noqa: SLF001
             except TeInputError as exc:
                 job.set_exception(exc)
             self._jobs[index] = job
@@ -1071,7 +1071,7 @@ class _SpectraThread:
                            else (np.empty_like(phi), np.empty_like(te)))
         self._thread_arrays = (phi, te)
         self._on_thread = self._jobs[index] = self._pool.submit(
-            order_spectrum, phi[:n], te[:n], cfg.orders, **kwargs, workspace=self._work)
+            ana._window_spectrum, phi[:n], te[:n], duration_s, self._work)  # noqa: SLF001
 
     def closed(self, windows: Iterable[WindowResult]) -> None:
         """Queue closed windows; hand on those at the head whose spectrum is done."""

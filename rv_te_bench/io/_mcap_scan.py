@@ -172,9 +172,13 @@ _Unit = tuple[memoryview, list[tuple[int, int, int, int]]]
 READ_AHEAD_ENV = 'RV_TE_READ_AHEAD'
 
 
+def _read_ahead_on() -> bool:
+    return os.environ.get(READ_AHEAD_ENV, '1') != '0'
+
+
 def helper_threads_allowed() -> bool:
     """True unless ``RV_TE_READ_AHEAD=0`` or this process may run on a single core."""
-    if os.environ.get(READ_AHEAD_ENV, '1') == '0':
+    if not _read_ahead_on():
         return False
     cores = len(os.sched_getaffinity(0)) if hasattr(os, 'sched_getaffinity') \
         else (os.cpu_count() or 1)
@@ -245,7 +249,7 @@ def _scan_units(  # noqa: C901, PLR0912, PLR0915
     buf = memoryview(mm)
     ended = False
     pool = None
-    if prefetch and messages and os.environ.get(READ_AHEAD_ENV, '1') != '0':
+    if prefetch and messages and _read_ahead_on():
         from concurrent.futures import ThreadPoolExecutor  # noqa: PLC0415
 
         pool = ThreadPoolExecutor(max_workers=1, thread_name_prefix='mcap-read')
