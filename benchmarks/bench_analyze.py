@@ -18,9 +18,10 @@ Then, as whole commands in fresh processes (interpreter start and imports includ
 `rv-te analyze BAG --json --no-advice` command against a Python process that imports
 rosbags and reads the bag as above.
 
-With ``--baseline REV`` the TE core (core/te.py, core/spectrum.py, core/stream.py) as of
-that git revision also runs ``analyze_bag``, interleaved with the others (the "before"),
-with the reader set as before round 4 of issue 23 (2 chunks read ahead, zlib's CRC-32).
+With ``--baseline REV`` the analysis as of that git revision also runs, interleaved with the
+others (the "before"): ``analyze_bag`` (report/analysis.py: how it drives the core and its
+threads) and the TE core (core/te.py, core/spectrum.py, core/stream.py) at REV, with
+today's reader set as REV's (chunks read ahead; isal's or zlib's CRC-32).
 
     .venv/bin/python benchmarks/bench_analyze.py [--minutes 10]
         [--blocks 100 1000 3000 10000] [--repeats 5] [--allocator tuned|default]
@@ -69,12 +70,16 @@ def main(argv: list[str] | None = None) -> int:  # noqa: PLR0915
     base_core = None
     if args.baseline:
         sys.path.insert(0, str(ROOT / 'benchmarks'))
-        from _baseline import load_core_at, swapped  # noqa: PLC0415
+        from _baseline import load_at, load_core_at, swapped  # noqa: PLC0415
         base_core = load_core_at(args.baseline)
+        with swapped(base_core):
+            base_analysis = load_at(args.baseline, 'rv_te_bench/report/analysis.py',
+                                    'rv_te_bench.report.analysis')
 
         def analyze_base(bag: Path) -> int:
-            with swapped(base_core), _reader_as_before(base_core):
-                return int(analyze_bag(bag, with_advice=False).cumulative.n_samples)
+            with swapped(base_core), _reader_as_at(args.baseline, base_core):
+                return int(base_analysis.analyze_bag(bag, with_advice=False)
+                           .cumulative.n_samples)
     load0 = os.getloadavg()
     tmp = Path(tempfile.mkdtemp(prefix='rv-te-analyze-bench-'))
     rows = []
@@ -124,14 +129,13 @@ def main(argv: list[str] | None = None) -> int:  # noqa: PLR0915
           f'{args.minutes:g} min at {args.rate_hz:g} Hz, median of {args.repeats}; '
           f'allocator: {"tuned as rv-te analyze" if tuned else "glibc defaults"}; '
           f'load average {load0[0]:.2f} at the start, {os.getloadavg()[0]:.2f} at the end'
-          + (f'; before = TE core at {args.baseline}' if args.baseline else '') + '\n')
+          + (f'; before = analysis at {args.baseline}' if args.baseline else '') + '\n')
     print('| block | path | wall [s] | CPU [s] | samples/s | wall / rosbags read |')
     print('|---|---|---|---|---|---|')
     for block, n, size_mb, med, med_cpu, ratios in rows:
         for name, label in (('rosbags', 'rosbags AnyReader read + deserialise (floor)'),
                             ('read', 'read_encoder_batches (our reader)'),
-                            ('base', f'analyze_bag before (TE core at {args.baseline}, '
-                                     'reader as before)'),
+                            ('base', f'analyze_bag before (analysis at {args.baseline})'),
                             ('analyze', 'analyze_bag (read + TE + windows + spectra)')):
             if name not in med:
                 continue
@@ -155,15 +159,25 @@ def main(argv: list[str] | None = None) -> int:  # noqa: PLR0915
     return 0
 
 
-class _reader_as_before:  # noqa: N801 - used like a function
-    """The bag reader's settings before issue 23's round 4, for the "before" rows.
+class _reader_as_at:  # noqa: N801 - used like a function
+    """Today's bag reader set as at git revision ``rev``, for the "before" rows.
 
-    Two chunks read ahead instead of eight and zlib's CRC-32 instead of isal's; an old
+    The chunks read ahead (``PREFETCH_CHUNKS``, 2 before issue 23's round 4) and the CRC-32
+    (isal's from round 4, zlib's before) are read from ``rev``'s _mcap_scan.py; an old
     ``analyze_blocks`` without ``spectra_thread`` gets the call without it (its spectra
     then run in line, as they did).
     """
 
-    def __init__(self, core: dict) -> None:
+    def __init__(self, rev: str, core: dict) -> None:
+        import re  # noqa: PLC0415
+        import subprocess  # noqa: PLC0415
+
+        text = subprocess.run(
+            ['git', '-C', str(ROOT), 'show', f'{rev}:rv_te_bench/io/_mcap_scan.py'],
+            check=True, capture_output=True, text=True).stdout
+        found = re.search(r'^PREFETCH_CHUNKS = (\d+)', text, re.MULTILINE)
+        self._prefetch = int(found.group(1)) if found else 2
+        self._isal = 'isal' in text
         self._stream = core['rv_te_bench.core.stream']
 
     def __enter__(self) -> None:
@@ -174,7 +188,9 @@ class _reader_as_before:  # noqa: N801 - used like a function
 
         self._saved = (_mcap_scan.PREFETCH_CHUNKS, _mcap_scan._crc32,
                        self._stream.analyze_blocks)
-        _mcap_scan.PREFETCH_CHUNKS, _mcap_scan._crc32 = 2, zlib.crc32
+        _mcap_scan.PREFETCH_CHUNKS = self._prefetch
+        if not self._isal:
+            _mcap_scan._crc32 = zlib.crc32
         old = self._stream.analyze_blocks
         if 'spectra_thread' not in inspect.signature(old).parameters:
             self._stream.analyze_blocks = (

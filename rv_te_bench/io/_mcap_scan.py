@@ -27,6 +27,7 @@ from rv_te_bench.io._mcap_file import MAGIC
 
 if TYPE_CHECKING:
     from collections.abc import Callable, Collection, Iterator
+    from concurrent.futures import Executor
     from pathlib import Path
 
 __all__ = ['PREFETCH_CHUNKS', 'READ_AHEAD_ENV', 'helper_threads_allowed']
@@ -230,11 +231,13 @@ def _scan_units(  # noqa: C901, PLR0912, PLR0915
     *,
     messages: bool = True,
     prefetch: bool = True,
+    executor: Executor | None = None,
 ) -> Iterator[_Unit]:
     """Yield every sound message of one MCAP file, grouped by chunk (see ``_Unit``).
 
     With ``prefetch`` the next chunks are decompressed and CRC-checked by a worker thread
-    while the caller works on the current one.
+    while the caller works on the current one: the one of ``executor`` when given (shared
+    with the caller's other jobs; left running), else a thread of its own.
     """
     try:
         with file.open('rb') as fh:
@@ -248,11 +251,12 @@ def _scan_units(  # noqa: C901, PLR0912, PLR0915
         return
     buf = memoryview(mm)
     ended = False
-    pool = None
+    pool: Executor | None = None
     if prefetch and messages and _read_ahead_on():
         from concurrent.futures import ThreadPoolExecutor  # noqa: PLC0415
 
-        pool = ThreadPoolExecutor(max_workers=1, thread_name_prefix='mcap-read')
+        pool = executor if executor is not None else ThreadPoolExecutor(
+            max_workers=1, thread_name_prefix='mcap-read')
     ahead: collections.deque[tuple[int, int, memoryview, Any]] = collections.deque()
     try:
         if bytes(buf[:8]) != MAGIC:
@@ -321,10 +325,14 @@ def _scan_units(  # noqa: C901, PLR0912, PLR0915
                    'truncated')
     finally:
         if pool is not None:
-            for *_, job in ahead:
-                if job is not None:
-                    job.cancel()
-            pool.shutdown(wait=True)
+            # a job still reading the map is waited for before the map is closed
+            running = [job for *_, job in ahead if job is not None and not job.cancel()]
+            if pool is executor:
+                from concurrent.futures import wait  # noqa: PLC0415
+
+                wait(running)
+            else:
+                pool.shutdown(wait=True)
         ahead.clear()
         # Views handed out are copies or slices of decompressed chunks, never of the map;
         # a consumer holding a record body only delays the unmapping to garbage collection.

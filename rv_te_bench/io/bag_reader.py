@@ -51,6 +51,7 @@ from rv_te_bench.safe_yaml import BAG_METADATA_LIMITS, read_yaml_file
 
 if TYPE_CHECKING:
     from collections.abc import Callable, Collection, Iterator
+    from concurrent.futures import Executor
 
     from rv_te_bench.core.stream import EncoderBatch, EncoderBlockData
 
@@ -251,8 +252,12 @@ def _check_magic(file: Path) -> None:
 
 def _units(
     bag: Bag, stream: MessageStream[Any], topics: Collection[str] | None,
+    executor: Executor | None = None,
 ) -> Iterator[tuple[memoryview, list[tuple[str, str, int, int, int]]]]:
-    """Per chunk: the buffer and its wanted messages (topic, msgtype, log_time, start, end)."""
+    """Per chunk: the buffer and its wanted messages (topic, msgtype, log_time, start, end).
+
+    ``executor``: the thread that reads MCAP chunks ahead (None: one of the scan's own).
+    """
     wanted = None if topics is None else set(topics)
     if _sqlite.is_sqlite(bag):   # issue #19 s.4
         yield from _sqlite.sqlite_units(bag, stream.report_problem, wanted)
@@ -260,7 +265,7 @@ def _units(
     for file in bag.files:
         state = _ScanState()
         resolved: dict[int, tuple[str, str] | None] = {}
-        for inner, found in _scan_units(file, state, stream.report_problem):
+        for inner, found in _scan_units(file, state, stream.report_problem, executor=executor):
             out = []
             for cid, log_time, start, end in found:
                 target = resolved.get(cid, False)
@@ -421,6 +426,7 @@ def read_encoder_blocks(
 
 def read_encoder_batches(
     path: str | Path, topic: str | None = None, *, strict: bool = True,
+    executor: Executor | None = None,
 ) -> MessageStream[EncoderBatch | EncoderBlockData]:
     """Encoder blocks of a bag, a whole MCAP chunk at a time (the fast offline path).
 
@@ -435,6 +441,10 @@ def read_encoder_batches(
         path: Bag folder or ``.mcap`` file.
         topic: The EncoderBlock topic; None: the single topic of that type.
         strict: Raise ``BagError`` after the last sound block if part was unreadable.
+        executor: Decompress the chunks ahead on this executor's (one) worker thread,
+            shared with other work of the caller (``analyze_bag`` computes window spectra
+            on it too); None: on a thread of the reader's own. Either way not under
+            ``RV_TE_READ_AHEAD=0``.
 
     Returns:
         Stream of batches and single blocks in recording order.
@@ -448,7 +458,7 @@ def read_encoder_batches(
 
     def produce(stream: MessageStream[Any]) -> Iterator[EncoderBatch | EncoderBlockData]:
         index = 0
-        for buf, found in _units(bag, stream, [name]):
+        for buf, found in _units(bag, stream, [name], executor):
             typed = []
             for _, msgtype, log_time, start, end in found:
                 if msgtype != ENCODER_BLOCK:

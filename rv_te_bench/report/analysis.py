@@ -147,6 +147,8 @@ def analyze_bag(  # noqa: PLR0913 - keyword-only analysis options
         BagError: The bag cannot be opened, has no encoder topic, or no block could be read.
         TeConfigError: Ratio/crank order missing (no BenchInfo and no flags) or invalid.
     """
+    from concurrent.futures import ThreadPoolExecutor  # noqa: PLC0415
+
     from rv_te_bench.core.stream import TeAnalysisConfig, analyze_blocks  # noqa: PLC0415
     from rv_te_bench.io.bag_reader import (  # noqa: PLC0415
         helper_threads_allowed,
@@ -165,24 +167,32 @@ def analyze_bag(  # noqa: PLR0913 - keyword-only analysis options
     config = TeAnalysisConfig(orders=_order_set(bench, n_crank_harmonics),
                               window_revolutions=window_revolutions)
 
-    stream = read_encoder_batches(path, topic, strict=False)
-    # a 2K-V unit is identified from every sample, folded on theta_in / i as it is read
-    fold = AngleFold() if with_advice and bench.reducer_type == '2kv' else None
-    reader = _GuardedBlocks(stream, bench.gear_ratio, progress=progress, t_start=t_start,
-                            fold=fold, max_points=MAX_TRACE_POINTS)
-    averager = SpectrumAverager()
-    kept: list[WindowResult] = []
+    # one helper thread reads the bag ahead and computes window spectra: with the caller,
+    # two runnable threads on two cores (a third preempts the caller: issue 23)
+    helper = ThreadPoolExecutor(max_workers=1, thread_name_prefix='te-helper') \
+        if helper_threads_allowed() else None
+    try:
+        stream = read_encoder_batches(path, topic, strict=False, executor=helper)
+        # a 2K-V unit is identified from every sample, folded on theta_in / i as it is read
+        fold = AngleFold() if with_advice and bench.reducer_type == '2kv' else None
+        reader = _GuardedBlocks(stream, bench.gear_ratio, progress=progress, t_start=t_start,
+                                fold=fold, max_points=MAX_TRACE_POINTS)
+        averager = SpectrumAverager()
+        kept: list[WindowResult] = []
 
-    def on_window(w: WindowResult) -> None:
-        # fold the spectrum into the average; keep the window without its per-bin arrays
-        if w.spectrum is not None:
-            if w.complete:
-                averager.add(w.spectrum)
-            w = replace(w, spectrum=w.spectrum.lines_only())
-        kept.append(w)
+        def on_window(w: WindowResult) -> None:
+            # fold the spectrum into the average; keep the window without its per-bin arrays
+            if w.spectrum is not None:
+                if w.complete:
+                    averager.add(w.spectrum)
+                w = replace(w, spectrum=w.spectrum.lines_only())
+            kept.append(w)
 
-    offline = analyze_blocks(reader, config, on_window=on_window,
-                             spectra_thread=helper_threads_allowed())
+        offline = analyze_blocks(reader, config, on_window=on_window,
+                                 spectra_thread=False if helper is None else helper)
+    finally:
+        if helper is not None:
+            helper.shutdown(wait=True, cancel_futures=True)
     read_problems = [*([] if info_problem is None else [info_problem]),
                      *stream.problems,
                      *([] if reader.error is None else [reader.error])]

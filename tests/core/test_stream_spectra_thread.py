@@ -13,6 +13,7 @@ from __future__ import annotations
 import math
 import threading
 import time
+from concurrent.futures import ThreadPoolExecutor
 
 import numpy as np
 import pytest
@@ -49,12 +50,16 @@ def _full_key(w: stream.WindowResult) -> tuple:
 
 
 def _both(items: list, config: TeAnalysisConfig) -> tuple[tuple, tuple]:
+    """(in line, on a thread): the thread of the analysis's own and a shared executor's
+    (analyze_bag's helper, which reads the bag too) must give the same."""
     results = []
-    for threaded in (False, True):
-        seen: list[stream.WindowResult] = []
-        res = analyze_blocks(items, config, on_window=seen.append, spectra_thread=threaded)
-        results.append(([_full_key(w) for w in seen], res.gaps, res.counters,
-                        res.cumulative))
+    with ThreadPoolExecutor(max_workers=1) as helper:
+        for threaded in (False, True, helper):
+            seen: list[stream.WindowResult] = []
+            res = analyze_blocks(items, config, on_window=seen.append, spectra_thread=threaded)
+            results.append(([_full_key(w) for w in seen], res.gaps, res.counters,
+                            res.cumulative))
+    assert results[2] == results[1]
     return results[0], results[1]
 
 
@@ -157,13 +162,49 @@ def test_an_error_of_the_source_stops_the_spectra_thread() -> None:
     assert not [t for t in threading.enumerate() if t.name.startswith('te-spectra')]
 
 
-@pytest.mark.parametrize(('env', 'cores', 'thread'), [
-    (None, {0, 1}, 'te-spectra'), ('0', {0, 1}, 'MainThread'), (None, {1}, 'MainThread')])
-def test_analyze_bag_spectra_thread_follows_the_read_ahead_switch(  # noqa: PLR0913
+def test_an_error_of_the_source_leaves_a_shared_executor_running_and_idle(
+        monkeypatch: pytest.MonkeyPatch) -> None:
+    """With the caller's executor, an error of the source cancels this analysis's queued
+    spectra and waits for the running one; the executor itself is left running."""
+    blocks = _stream([250] * 60, ['ok'] * 60, 1.0)   # a window per 4 blocks
+    real = stream.order_spectrum
+    ran: list[str] = []
+
+    def slow(*args: object, **kwargs: object) -> object:
+        ran.append(threading.current_thread().name)
+        if ran[-1].startswith('shared'):
+            time.sleep(0.02)
+        return real(*args, **kwargs)
+
+    monkeypatch.setattr(stream, 'order_spectrum', slow)
+
+    def source() -> object:
+        yield from blocks
+        msg = 'the bag went away'
+        raise OSError(msg)
+
+    with ThreadPoolExecutor(max_workers=1, thread_name_prefix='shared') as helper:
+        blocker = helper.submit(time.sleep, 0.3)   # the reader's job, ahead in the queue
+        with pytest.raises(OSError, match='went away'):
+            analyze_blocks(source(), TeAnalysisConfig(orders=ORDERS), spectra_thread=helper)
+        at_return = len(ran)
+        assert helper.submit(lambda: 42).result() == 42
+        assert len(ran) == at_return      # no spectrum of the ended analysis ran later
+        assert blocker.done()
+    assert 'MainThread' in ran            # the caller computed spectra while it was busy
+
+
+@pytest.mark.parametrize(('env', 'cores', 'spectra', 'reads'), [
+    (None, {0, 1}, 'te-helper', 'te-helper'), ('0', {0, 1}, 'MainThread', 'MainThread'),
+    (None, {1}, 'MainThread', 'mcap-read')])
+def test_analyze_bag_helper_thread_follows_the_read_ahead_switch(  # noqa: PLR0913
         tmp_path: object, monkeypatch: pytest.MonkeyPatch, env: str | None, cores: set[int],
-        thread: str) -> None:
-    """analyze_bag uses the thread unless RV_TE_READ_AHEAD=0 (a fleet worker per core) or
-    the process may run on one core only (taskset, a cpuset)."""
+        spectra: str, reads: str) -> None:
+    """analyze_bag reads ahead and computes spectra on one helper thread, shared (no third
+    thread on two cores), unless RV_TE_READ_AHEAD=0 (a fleet worker per core: nothing off
+    the main thread) or the process may run on one core only (taskset, a cpuset: the spectra
+    in line; the reader still decompresses ahead on a thread of its own, as before)."""
+    from rv_te_bench.io import _mcap_scan
     from rv_te_bench.io.bag_reader import READ_AHEAD_ENV
     from rv_te_bench.report.analysis import analyze_bag
     from tests.unit_bags import write_unit_bag
@@ -173,22 +214,32 @@ def test_analyze_bag_spectra_thread_follows_the_read_ahead_switch(  # noqa: PLR0
     else:
         monkeypatch.setenv(READ_AHEAD_ENV, env)
     monkeypatch.setattr('os.sched_getaffinity', lambda _pid: cores)
-    names: set[str] = set()
-    real = stream.order_spectrum
+    spectra_on: set[str] = set()
+    reads_on: set[str] = set()
 
-    def spy(*args: object, **kwargs: object) -> object:
-        names.add(threading.current_thread().name.split('_')[0])
-        return real(*args, **kwargs)
+    def spy(real: object, names: set[str]) -> object:
+        def call(*args: object, **kwargs: object) -> object:
+            names.add(threading.current_thread().name.split('_')[0])
+            return real(*args, **kwargs)
+        return call
 
-    monkeypatch.setattr(stream, 'order_spectrum', spy)
-    # 2 output revolutions of an independently generated unit (2 kHz, 1 crank-order line)
+    monkeypatch.setattr(stream, 'order_spectrum', spy(stream.order_spectrum, spectra_on))
+    monkeypatch.setattr(_mcap_scan, '_chunk_records', spy(_mcap_scan._chunk_records, reads_on))
+    monkeypatch.setattr(_mcap_scan, 'PREFETCH_CHUNKS', 1)   # the small bag: read on the thread
+    # 4 output revolutions of an independently generated unit (2 kHz, 1 crank-order line)
     rate = 2000.0
-    t = np.arange(int(2 * 15.8 * rate)) / rate
+    t = np.arange(int(4 * 15.8 * rate)) / rate
     theta_in = 2 * math.pi * (300 / 60) * t
     theta_out = theta_in / 79.0 + 1e-4 * np.cos(25 * theta_in / 79.0)
     bag = write_unit_bag(tmp_path / 'bag', theta_in, theta_out, rate_hz=rate, block=1000)
     result = analyze_bag(bag, with_advice=False)
     assert result.spectrum is not None
-    # the first spectrum goes to the thread; the caller computes one while it is busy
-    assert thread in names if thread == 'te-spectra' else names == {thread}
-
+    assert reads in reads_on
+    if spectra == 'te-helper':
+        # the first spectrum goes to the helper; the caller computes one while it is busy
+        assert spectra in spectra_on
+        assert spectra_on <= {'te-helper', 'MainThread'}
+        assert reads_on <= {'te-helper', 'MainThread'}   # no thread of the reader's own
+    else:
+        assert spectra_on == {spectra}
+    assert not [t.name for t in threading.enumerate() if t.name.startswith('te-helper')]

@@ -5,6 +5,8 @@ nothing but the speed."""
 from __future__ import annotations
 
 import threading
+import time
+from concurrent.futures import ThreadPoolExecutor
 from pathlib import Path
 
 import numpy as np
@@ -85,16 +87,19 @@ def _mixed_bag(path: Path) -> None:
                                                                'std_msgs/msg/String')))
 
 
-@pytest.mark.parametrize('prefetch', [True, False])
-def test_batches_equal_blocks_on_a_mixed_bag(tmp_path: Path, prefetch: bool,
+@pytest.mark.parametrize('read_ahead', ['own thread', 'shared executor', 'none'])
+def test_batches_equal_blocks_on_a_mixed_bag(tmp_path: Path, read_ahead: str,
                                              monkeypatch: pytest.MonkeyPatch) -> None:
-    monkeypatch.setitem(_mcap_scan._scan_units.__kwdefaults__, 'prefetch', prefetch)  # noqa: SLF001
+    monkeypatch.setitem(_mcap_scan._scan_units.__kwdefaults__, 'prefetch',  # noqa: SLF001
+                        read_ahead != 'none')
     bag = tmp_path / 'mixed'
     _mixed_bag(bag)
     ref_stream = read_encoder_blocks(bag, strict=False)
     ref = list(ref_stream)
-    stream = read_encoder_batches(bag, strict=False)
-    items = list(stream)
+    with ThreadPoolExecutor(max_workers=1) as helper:
+        stream = read_encoder_batches(
+            bag, strict=False, executor=helper if read_ahead == 'shared executor' else None)
+        items = list(stream)
     assert any(isinstance(i, EncoderBatch) and i.n_blocks > 1 for i in items)
     _assert_same_blocks(_flatten(items), ref)
     assert [b.seq for b in ref] == [s for s in range(60) if s != 21]
@@ -128,6 +133,33 @@ def test_abandoned_read_leaves_no_worker_thread(tmp_path: Path) -> None:
     stream._it.close()  # noqa: SLF001 - what garbage collection does to a dropped reader
     assert not {t.name for t in threading.enumerate()
                 if t.name.startswith('mcap-read')} - before
+
+
+def test_abandoned_read_leaves_a_shared_executor_running_and_idle(
+        tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    """A read that stops early with a caller's executor (analyze_bag's helper thread): the
+    chunks queued ahead are cancelled, the one being decompressed is waited for (the file's
+    map is closed after it), and the executor is not shut down."""
+    bag = tmp_path / 'bag'
+    write_sample_bag(bag, n_blocks=40, compression='zstd', chunk_size_bytes=2048)
+    real = _mcap_scan._chunk_records  # noqa: SLF001
+    decompressed: list[str] = []
+
+    def counted(body: memoryview) -> memoryview:
+        decompressed.append(threading.current_thread().name)
+        time.sleep(0.002)   # the read-ahead queue is still full when the read stops
+        return real(body)
+
+    monkeypatch.setattr(_mcap_scan, '_chunk_records', counted)
+    with ThreadPoolExecutor(max_workers=1, thread_name_prefix='shared') as helper:
+        stream = read_encoder_batches(bag, executor=helper)
+        next(stream)
+        stream._it.close()  # noqa: SLF001 - what garbage collection does to a dropped reader
+        at_close = len(decompressed)
+        assert helper.submit(lambda: 42).result() == 42   # still running; runs after them
+        assert len(decompressed) == at_close               # nothing queued was left to run
+    assert set(decompressed) == {'shared_0'}
+    assert at_close < 20   # noqa: PLR2004 - of the ~40 chunks: the read did stop early
 
 
 def test_bench_info_from_the_summary_equals_a_scan(tmp_path: Path) -> None:
