@@ -230,7 +230,10 @@ def test_ctrl_c_cancels_the_test_stops_the_bench_and_keeps_the_bag(
          'SN-C', '--operator', 'pytest', '--launch', 'wang2020-2kv', '--out-dir',
          str(tmp_path / 'out'), '--speed-factor', '1'],
         env=env, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
-        start_new_session=True)   # its own process group, as a terminal's foreground job
+        start_new_session=True,   # its own process group, as a terminal's foreground job
+        # a terminal's job takes Ctrl-C; a suite started in the background (nohup ... &)
+        # ignores SIGINT, and its children would inherit that
+        preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_DFL))  # noqa: PLW1509
     err: list[str] = []
     reader = threading.Thread(target=lambda: err.extend(iter(p.stderr.readline, '')))
     reader.start()
