@@ -86,6 +86,8 @@ def _next_fast_len(n: int) -> int:
             p35 *= 3
         p5 *= 5
     return best
+
+
 _REV_TOL = 1e-9
 _EMPTY_F = np.empty(0, dtype=np.float64)
 _EMPTY_F.setflags(write=False)

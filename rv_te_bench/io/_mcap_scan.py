@@ -17,6 +17,7 @@ import contextlib
 import mmap
 import os
 import struct
+import threading
 import zlib
 from dataclasses import dataclass, field
 from typing import TYPE_CHECKING, Any
@@ -251,6 +252,7 @@ def _scan_units(  # noqa: C901, PLR0912, PLR0915
         return
     buf = memoryview(mm)
     ended = False
+    reader_thread = threading.get_ident()
     pool: Executor | None = None
     if prefetch and messages and _read_ahead_on():
         from concurrent.futures import ThreadPoolExecutor  # noqa: PLC0415
@@ -327,12 +329,14 @@ def _scan_units(  # noqa: C901, PLR0912, PLR0915
         if pool is not None:
             # a job still reading the map is waited for before the map is closed
             running = [job for *_, job in ahead if job is not None and not job.cancel()]
-            if pool is executor:
+            if pool is not executor:
+                pool.shutdown(wait=True)
+            elif threading.get_ident() == reader_thread:
                 from concurrent.futures import wait  # noqa: PLC0415
 
                 wait(running)
-            else:
-                pool.shutdown(wait=True)
+            # (an abandoned reader closed by the garbage collector on another thread, maybe
+            # the executor's own, does not wait on it: the map's views keep it open instead)
         ahead.clear()
         # Views handed out are copies or slices of decompressed chunks, never of the map;
         # a consumer holding a record body only delays the unmapping to garbage collection.

@@ -162,6 +162,38 @@ def test_abandoned_read_leaves_a_shared_executor_running_and_idle(
     assert at_close < 20   # noqa: PLR2004 - of the ~40 chunks: the read did stop early
 
 
+def test_a_reader_closed_on_the_shared_executors_thread_does_not_wait_for_itself(
+        tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    """The garbage collector may finalise an abandoned reader on any thread, also inside a
+    job of the shared executor: the reader then must not wait for its jobs (one of them is
+    the job it runs in), or the executor's only thread would wait for itself forever."""
+    bag = tmp_path / 'bag'
+    write_sample_bag(bag, n_blocks=40, compression='zstd', chunk_size_bytes=2048)
+    real = _mcap_scan._chunk_records  # noqa: SLF001
+    calls: list[int] = []
+    caller_out, closed = threading.Event(), threading.Event()
+    box: dict[str, object] = {}
+
+    def closing_in_the_second_job(body: memoryview) -> memoryview:
+        calls.append(1)
+        if len(calls) == 2:   # noqa: PLR2004 - as a collection inside a job would
+            assert caller_out.wait(5.0)
+            box['stream']._it.close()  # noqa: SLF001
+            closed.set()
+        return real(body)
+
+    monkeypatch.setattr(_mcap_scan, '_chunk_records', closing_in_the_second_job)
+    helper = ThreadPoolExecutor(max_workers=1)
+    try:
+        box['stream'] = stream = read_encoder_batches(bag, executor=helper)
+        next(stream)
+        caller_out.set()
+        assert closed.wait(10.0), 'the reader waited for the job it was closed in'
+        assert helper.submit(lambda: 42).result(timeout=10.0) == 42
+    finally:
+        helper.shutdown(wait=False, cancel_futures=True)   # (a deadlocked one: report it)
+
+
 def test_bench_info_from_the_summary_equals_a_scan(tmp_path: Path) -> None:
     bag = tmp_path / 'bag'
     write_sample_bag(bag, n_blocks=30, compression='zstd', chunk_size_bytes=4096)
