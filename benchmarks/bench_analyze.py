@@ -76,8 +76,10 @@ def main(argv: list[str] | None = None) -> int:  # noqa: PLR0915
             base_analysis = load_at(args.baseline, 'rv_te_bench/report/analysis.py',
                                     'rv_te_bench.report.analysis')
 
+        reader_as_then = _reader_as_at(args.baseline, base_core)   # (git show: not timed)
+
         def analyze_base(bag: Path) -> int:
-            with swapped(base_core), _reader_as_at(args.baseline, base_core):
+            with swapped(base_core), reader_as_then:
                 return int(base_analysis.analyze_bag(bag, with_advice=False)
                            .cumulative.n_samples)
     load0 = os.getloadavg()
