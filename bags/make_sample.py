@@ -46,12 +46,12 @@ def write_sample(path: Path, *, duration_s: float = DURATION_S,
     Returns:
         ``{'blocks', 'samples', 'duration_s'}``.
     """
-    import numpy as np  # noqa: PLC0415
+    import numpy as np
 
-    from rv_te_bench.io.bag_writer import BagWriter, qos_profile_dict  # noqa: PLC0415
-    from rv_te_bench.io.msgdefs import BENCH_INFO, ENCODER_BLOCK, rv_te_typestore  # noqa: PLC0415
-    from sim.bench import BenchConfig, BenchSimulator  # noqa: PLC0415
-    from sim.drive import ConstantSpeed  # noqa: PLC0415
+    from rv_te_bench.io.bag_writer import BagWriter, qos_profile_dict
+    from rv_te_bench.io.msgdefs import BENCH_INFO, ENCODER_BLOCK, rv_te_typestore
+    from sim.bench import BenchConfig, BenchSimulator
+    from sim.drive import ConstantSpeed
 
     sim = BenchSimulator(BenchConfig(
         preset=PRESET, drive=ConstantSpeed(INPUT_SPEED_RPM), te_mode='nlte',

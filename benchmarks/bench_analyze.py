@@ -44,7 +44,7 @@ sys.path.insert(0, str(ROOT))
 sys.path.insert(0, str(ROOT / 'bags'))
 
 
-def main(argv: list[str] | None = None) -> int:  # noqa: PLR0915
+def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(description=__doc__,
                                  formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument('--minutes', type=float, default=10.0)
@@ -58,19 +58,19 @@ def main(argv: list[str] | None = None) -> int:  # noqa: PLR0915
                     help='repeats of the whole-command comparison (0: skip it)')
     args = ap.parse_args(argv)
 
-    from rv_te_bench.allocator import tune_for_batch_work  # noqa: PLC0415
+    from rv_te_bench.allocator import tune_for_batch_work
 
     tuned = tune_for_batch_work() if args.allocator == 'tuned' else False
-    from make_sample import write_sample  # noqa: PLC0415
+    from make_sample import write_sample
 
-    from rv_te_bench.core.stream import EncoderBatch  # noqa: PLC0415
-    from rv_te_bench.io.bag_reader import read_encoder_batches  # noqa: PLC0415
-    from rv_te_bench.report.analysis import analyze_bag  # noqa: PLC0415
+    from rv_te_bench.core.stream import EncoderBatch
+    from rv_te_bench.io.bag_reader import read_encoder_batches
+    from rv_te_bench.report.analysis import analyze_bag
 
     base_core = None
     if args.baseline:
         sys.path.insert(0, str(ROOT / 'benchmarks'))
-        from _baseline import load_at, load_core_at, swapped  # noqa: PLC0415
+        from _baseline import load_at, load_core_at, swapped
         base_core = load_core_at(args.baseline)
         with swapped(base_core):
             base_analysis = load_at(args.baseline, 'rv_te_bench/report/analysis.py',
@@ -171,8 +171,8 @@ class _reader_as_at:  # noqa: N801 - used like a function
     """
 
     def __init__(self, rev: str, core: dict) -> None:
-        import re  # noqa: PLC0415
-        import subprocess  # noqa: PLC0415
+        import re
+        import subprocess
 
         text = subprocess.run(
             ['git', '-C', str(ROOT), 'show', f'{rev}:rv_te_bench/io/_mcap_scan.py'],
@@ -183,10 +183,10 @@ class _reader_as_at:  # noqa: N801 - used like a function
         self._stream = core['rv_te_bench.core.stream']
 
     def __enter__(self) -> None:
-        import inspect  # noqa: PLC0415
-        import zlib  # noqa: PLC0415
+        import inspect
+        import zlib
 
-        from rv_te_bench.io import _mcap_scan  # noqa: PLC0415
+        from rv_te_bench.io import _mcap_scan
 
         self._saved = (_mcap_scan.PREFETCH_CHUNKS, _mcap_scan._crc32,
                        self._stream.analyze_blocks)
@@ -196,11 +196,11 @@ class _reader_as_at:  # noqa: N801 - used like a function
         old = self._stream.analyze_blocks
         if 'spectra_thread' not in inspect.signature(old).parameters:
             self._stream.analyze_blocks = (
-                lambda blocks, config, *, on_window=None, spectra_thread=False:  # noqa: ARG005
+                lambda blocks, config, *, on_window=None, spectra_thread=False:
                 old(blocks, config, on_window=on_window))
 
     def __exit__(self, *exc: object) -> None:
-        from rv_te_bench.io import _mcap_scan  # noqa: PLC0415
+        from rv_te_bench.io import _mcap_scan
 
         _mcap_scan.PREFETCH_CHUNKS, _mcap_scan._crc32, self._stream.analyze_blocks = \
             self._saved
@@ -208,9 +208,9 @@ class _reader_as_at:  # noqa: N801 - used like a function
 
 def rosbags_read(bag: str | Path) -> int:
     """The floor: rosbags AnyReader reads and deserialises every EncoderBlock; samples seen."""
-    from rosbags.highlevel import AnyReader  # noqa: PLC0415
+    from rosbags.highlevel import AnyReader
 
-    from rv_te_bench.io.msgdefs import rv_te_typestore  # noqa: PLC0415
+    from rv_te_bench.io.msgdefs import rv_te_typestore
 
     count = 0
     with AnyReader([Path(bag)], default_typestore=rv_te_typestore()) as reader:
@@ -227,7 +227,7 @@ _ROSBAGS_SCRIPT = ('import sys; sys.path[:0] = sys.argv[2:]; '
 
 def _whole_commands(bag: Path, repeats: int) -> dict[str, float]:
     """Median wall time of the two commands, interleaved."""
-    import subprocess  # noqa: PLC0415
+    import subprocess
 
     commands = {
         'rosbags': [sys.executable, '-c', _ROSBAGS_SCRIPT, str(bag), str(ROOT / 'benchmarks'),

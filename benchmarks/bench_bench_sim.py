@@ -39,7 +39,7 @@ class _SineTe:
 
     kinematics: ReducerKinematics
 
-    def te_rad(self, t_s, theta_in_rad, omega_in_rad_s, load_nm):  # noqa: ANN001, ANN201, ARG002
+    def te_rad(self, t_s, theta_in_rad, omega_in_rad_s, load_nm):
         return 2.9e-4 * np.sin(25.0 * theta_in_rad / self.kinematics.gear_ratio)
 
     def reset(self) -> None:

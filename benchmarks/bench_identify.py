@@ -65,7 +65,7 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument('--repeats', type=int, default=3)
     args = ap.parse_args(argv)
 
-    from make_sample import write_sample  # noqa: PLC0415
+    from make_sample import write_sample
 
     tmp = Path(tempfile.mkdtemp(prefix='rv-te-identify-bench-'))
     bag = tmp / 'bag'

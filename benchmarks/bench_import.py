@@ -130,7 +130,7 @@ def write_csv(path: Path, n: int) -> None:
 
 
 def write_tdms(path: Path, n: int) -> None:
-    from nptdms import ChannelObject, TdmsWriter  # noqa: PLC0415
+    from nptdms import ChannelObject, TdmsWriter
 
     props = {'wf_increment': 1.0 / RATE_HZ, 'unit_string': 'rad'}
     with TdmsWriter(str(path)) as w:
@@ -141,7 +141,7 @@ def write_tdms(path: Path, n: int) -> None:
 
 
 def write_mdf(path: Path, n: int) -> None:
-    from asammdf import MDF, Signal  # noqa: PLC0415
+    from asammdf import MDF, Signal
 
     c = columns(0, n)
     mdf = MDF(version='4.10')

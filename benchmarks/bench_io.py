@@ -18,8 +18,6 @@ import tempfile
 import time
 from pathlib import Path
 
-import numpy as np
-
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
@@ -37,7 +35,7 @@ from tests.io.bag_fixtures import encoder_cdr  # noqa: E402
 TOPIC = '/bench/encoders'
 
 
-def _best_of(fn, repeats: int = 3) -> float:  # noqa: ANN001
+def _best_of(fn, repeats: int = 3) -> float:
     times = []
     for _ in range(repeats):
         t0 = time.perf_counter()
@@ -118,11 +116,11 @@ def bench_read(tmp: Path, n_msgs: int, block: int) -> list[tuple[str, float, flo
 
 
 def bench_session(tmp: Path, seconds: float) -> str:
-    import rclpy  # noqa: PLC0415
-    from rclpy.experimental import EventsExecutor  # noqa: PLC0415
-    from rclpy.parameter import Parameter  # noqa: PLC0415
+    import rclpy
+    from rclpy.experimental import EventsExecutor
+    from rclpy.parameter import Parameter
 
-    from rv_te_bench.nodes.recorder import RecorderNode  # noqa: PLC0415
+    from rv_te_bench.nodes.recorder import RecorderNode
 
     n_blocks = int(seconds * 100)
     topic = f'/bench_io_{os.getpid()}/bench/encoders'

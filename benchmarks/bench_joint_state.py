@@ -37,11 +37,11 @@ def cpu_s() -> float:
 
 
 def role_pub(rate_hz: float, n: int) -> None:
-    import rclpy  # noqa: PLC0415
-    from builtin_interfaces.msg import Time  # noqa: PLC0415
-    from sensor_msgs.msg import JointState  # noqa: PLC0415
+    import rclpy
+    from builtin_interfaces.msg import Time
+    from sensor_msgs.msg import JointState
 
-    from rv_te_bench.nodes import qos  # noqa: PLC0415
+    from rv_te_bench.nodes import qos
 
     ctx = rclpy.context.Context()
     rclpy.init(context=ctx)
@@ -73,12 +73,12 @@ def role_pub(rate_hz: float, n: int) -> None:
 
 
 def role_recv(kind: str, rate_hz: float, n: int, timeout_s: float) -> None:
-    import rclpy  # noqa: PLC0415
-    from rclpy.parameter import Parameter  # noqa: PLC0415
-    from sensor_msgs.msg import JointState  # noqa: PLC0415
+    import rclpy
+    from rclpy.parameter import Parameter
+    from sensor_msgs.msg import JointState
 
-    from rv_te_bench.nodes import qos  # noqa: PLC0415
-    from rv_te_bench.nodes.common import make_executor  # noqa: PLC0415
+    from rv_te_bench.nodes import qos
+    from rv_te_bench.nodes.common import make_executor
 
     ctx = rclpy.context.Context()
     rclpy.init(context=ctx)
@@ -96,7 +96,7 @@ def role_recv(kind: str, rate_hz: float, n: int, timeout_s: float) -> None:
         def count() -> int:
             return state['count']
     else:
-        from rv_te_bench.nodes.joint_state_adapter import JointStateAdapterNode  # noqa: PLC0415
+        from rv_te_bench.nodes.joint_state_adapter import JointStateAdapterNode
 
         node = JointStateAdapterNode(context=ctx, parameter_overrides=[
             Parameter('sample_rate_hz', value=rate_hz),

@@ -95,7 +95,7 @@ def main(argv: list[str] | None = None) -> int:
     args = ap.parse_args(argv)
     base = None
     if args.baseline:
-        from _baseline import load_at  # noqa: PLC0415  (benchmarks/ is on sys.path)
+        from _baseline import load_at
         base = load_at(args.baseline, 'sim/li2023.py', 'sim.li2023')
     preset = load_preset('li2023-rv')
     rates = [float(x) for x in args.fs.split(',')]

@@ -49,7 +49,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 
-from bench_pipeline import cpu_s  # noqa: E402  (the benchmarks' one /proc CPU reader)
+from bench_pipeline import cpu_s
 
 NODES = ('bench', 'te_node', 'compensation', 'recorder')
 PROBE = 'multibench_probe'
@@ -108,19 +108,19 @@ def _stop_on_sigterm() -> dict[str, Any]:
 
 # -- the pipeline: N full sessions ---------------------------------------------------------
 
-def run_benches(n_benches: int, rate_hz: float, block: int, duration_s: float,  # noqa: C901, PLR0912, PLR0915
+def run_benches(n_benches: int, rate_hz: float, block: int, duration_s: float,
                 out_dir: Path, warmup_s: float = 2.0, profile_s: float = 0.0,
                 start_timeout_s: float = 90.0, extra_params: tuple[str, ...] = (),
                 rt_probe_priority: int = -1) -> dict[str, Any]:
     """Run N sessions side by side; return per-bench results and per-process CPU."""
-    import rclpy  # noqa: PLC0415
-    from diagnostic_msgs.msg import DiagnosticArray  # noqa: PLC0415
-    from rv_te_msgs.msg import EncoderBlock, TransmissionError  # noqa: PLC0415
+    import rclpy
+    from diagnostic_msgs.msg import DiagnosticArray
+    from rv_te_msgs.msg import EncoderBlock, TransmissionError
 
-    from rv_te_bench.io.bag_reader import bag_summary  # noqa: PLC0415
-    from rv_te_bench.launch.session import Session, build_session  # noqa: PLC0415
-    from rv_te_bench.nodes import qos  # noqa: PLC0415
-    from rv_te_bench.nodes.common import make_executor  # noqa: PLC0415
+    from rv_te_bench.io.bag_reader import bag_summary
+    from rv_te_bench.launch.session import Session, build_session
+    from rv_te_bench.nodes import qos
+    from rv_te_bench.nodes.common import make_executor
 
     names = [f'bench{k + 1}' for k in range(n_benches)]
     specs = {}
@@ -310,9 +310,9 @@ def rt_probe(seconds: float, period_s: float, priority: int) -> int:
     to every period boundary, scheduled as the benches' pacing threads (``realtime_priority``
     ``priority``; 0: normal), with no middleware, messages or other work; prints how late it
     woke (JSON, ms)."""
-    import gc  # noqa: PLC0415
+    import gc
 
-    from rv_te_bench.nodes.scheduling import realtime_scheduling  # noqa: PLC0415
+    from rv_te_bench.nodes.scheduling import realtime_scheduling
 
     sched = realtime_scheduling(priority)   # what the benches' pacing threads get
     gc.disable()
@@ -354,7 +354,7 @@ def finish_rt_probe(proc: subprocess.Popen[str] | None) -> dict[str, Any] | None
     return None
 
 
-def start_profiles(session: Any, seconds: float, folder: Path,  # noqa: ANN401
+def start_profiles(session: Any, seconds: float, folder: Path,
                    ) -> list[subprocess.Popen[bytes]]:
     """py-spy record (collapsed stacks, all threads, GIL-idle excluded) of each node of one
     session for ``seconds``; [] when py-spy is not installed."""
@@ -395,7 +395,7 @@ def print_profiles(paths: list[Path], top: int = 12) -> None:
             print(f'| `{k[:110]}` | {100.0 * v / max(total, 1):.1f} % |')
 
 
-def _f(v: Any, fmt: str = '{:.1f}') -> str:  # noqa: ANN401
+def _f(v: Any, fmt: str = '{:.1f}') -> str:
     try:
         return fmt.format(float(v))
     except (TypeError, ValueError):
@@ -453,9 +453,9 @@ def print_benches(res: dict[str, Any], args: argparse.Namespace) -> bool:
 
 # -- the floor: N bare rclpy publisher / subscriber pairs ---------------------------------
 
-def _report_and_close(result: dict[str, Any], ex: Any, node: Any, ctx: Any) -> None:  # noqa: ANN401
+def _report_and_close(result: dict[str, Any], ex: Any, node: Any, ctx: Any) -> None:
     """End of a floor process: its result as one JSON line, then rclpy shut down."""
-    import rclpy  # noqa: PLC0415
+    import rclpy
 
     print(json.dumps(result), flush=True)
     ex.shutdown()
@@ -465,11 +465,11 @@ def _report_and_close(result: dict[str, Any], ex: Any, node: Any, ctx: Any) -> N
 
 def floor_publisher(ns: str, rate_hz: float, block: int, duration_s: float) -> int:
     """A bare publisher of EncoderBlocks at the bench's rate (a child process)."""
-    import rclpy  # noqa: PLC0415
-    from rv_te_msgs.msg import EncoderBlock  # noqa: PLC0415
+    import rclpy
+    from rv_te_msgs.msg import EncoderBlock
 
-    from rv_te_bench.nodes import qos  # noqa: PLC0415
-    from rv_te_bench.nodes.common import make_executor  # noqa: PLC0415
+    from rv_te_bench.nodes import qos
+    from rv_te_bench.nodes.common import make_executor
 
     ctx = rclpy.context.Context()
     rclpy.init(context=ctx)
@@ -510,7 +510,7 @@ def floor_publisher(ns: str, rate_hz: float, block: int, duration_s: float) -> i
     try:
         while state['sent'] < total:
             ex.spin_once(timeout_sec=0.1)
-        from rclpy.duration import Duration  # noqa: PLC0415
+        from rclpy.duration import Duration
 
         pub.wait_for_all_acked(Duration(seconds=5.0))
     except KeyboardInterrupt:
@@ -523,11 +523,11 @@ def floor_publisher(ns: str, rate_hz: float, block: int, duration_s: float) -> i
 
 def floor_subscriber(ns: str, expected: int, timeout_s: float) -> int:
     """A bare subscriber (deserialising, as the TE node does) counting blocks and gaps."""
-    import rclpy  # noqa: PLC0415
-    from rv_te_msgs.msg import EncoderBlock  # noqa: PLC0415
+    import rclpy
+    from rv_te_msgs.msg import EncoderBlock
 
-    from rv_te_bench.nodes import qos  # noqa: PLC0415
-    from rv_te_bench.nodes.common import make_executor  # noqa: PLC0415
+    from rv_te_bench.nodes import qos
+    from rv_te_bench.nodes.common import make_executor
 
     ctx = rclpy.context.Context()
     rclpy.init(context=ctx)
@@ -557,7 +557,7 @@ def floor_subscriber(ns: str, expected: int, timeout_s: float) -> int:
 def run_floor(n: int, rate_hz: float, block: int, duration_s: float,
               warmup_s: float = 3.0) -> dict[str, Any]:
     """N publisher / subscriber process pairs; counts, gaps and CPU per message."""
-    from rv_te_bench.launch.session import child_env  # noqa: PLC0415
+    from rv_te_bench.launch.session import child_env
 
     expected = int(round(duration_s * rate_hz / block))
     me = [sys.executable, str(Path(__file__).resolve())]

@@ -36,15 +36,15 @@ def cpu_s(pid: int) -> float:
     return (int(fields[11]) + int(fields[12])) / CLK_TCK
 
 
-def run_one(rate_hz: float, block: int, duration_s: float, out_dir: Path) -> dict[str, object]:  # noqa: PLR0915
-    import rclpy  # noqa: PLC0415
-    from diagnostic_msgs.msg import DiagnosticArray  # noqa: PLC0415
-    from rv_te_msgs.msg import EncoderBlock, TransmissionError  # noqa: PLC0415
+def run_one(rate_hz: float, block: int, duration_s: float, out_dir: Path) -> dict[str, object]:
+    import rclpy
+    from diagnostic_msgs.msg import DiagnosticArray
+    from rv_te_msgs.msg import EncoderBlock, TransmissionError
 
-    from rv_te_bench.io.bag_reader import bag_summary  # noqa: PLC0415
-    from rv_te_bench.launch.session import Session, build_session  # noqa: PLC0415
-    from rv_te_bench.nodes import qos  # noqa: PLC0415
-    from rv_te_bench.nodes.common import make_executor  # noqa: PLC0415
+    from rv_te_bench.io.bag_reader import bag_summary
+    from rv_te_bench.launch.session import Session, build_session
+    from rv_te_bench.nodes import qos
+    from rv_te_bench.nodes.common import make_executor
 
     bag = out_dir / f'pipeline_{int(rate_hz)}hz'
     spec = build_session([], nodes=['bench', 'te_node', 'recorder'], overrides=[

@@ -44,13 +44,13 @@ import numpy as np
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 
-from rv_te_bench.core.orders import OrderSet  # noqa: E402
-from rv_te_bench.core.stream import (  # noqa: E402
+from rv_te_bench.core.orders import OrderSet
+from rv_te_bench.core.stream import (
     EncoderBlockData,
     StreamingTeAnalyzer,
     TeAnalysisConfig,
 )
-from rv_te_bench.core.units import arcmin_to_rad  # noqa: E402
+from rv_te_bench.core.units import arcmin_to_rad
 
 RATIO = 79.0
 CRANK_PER_OUTPUT = 25.0
@@ -134,7 +134,7 @@ def throughput(revolutions: float, rng: np.random.Generator, *, repeats: int = 1
     the better estimate of what one core does. With ``baseline`` (the stream module of an
     older revision) both run interleaved, ``repeats`` times each; medians are reported.
     """
-    import rv_te_bench.core.stream as current  # noqa: PLC0415
+    import rv_te_bench.core.stream as current
 
     rate_hz, block = 10_000.0, 1000
     n_blocks = math.ceil(revolutions * OUTPUT_PERIOD_S * rate_hz / block)
@@ -207,7 +207,7 @@ def main(argv: list[str] | None = None) -> int:
     revs = 2.0 if args.quick else args.revolutions
     base = None
     if args.baseline:
-        from _baseline import load_core_at  # noqa: PLC0415  (benchmarks/ is on sys.path)
+        from _baseline import load_core_at
         base = load_core_at(args.baseline)['rv_te_bench.core.stream']
     load0 = os.getloadavg()[0]
     tp = throughput(revs, rng, repeats=1 if args.quick else args.repeats, baseline=base)

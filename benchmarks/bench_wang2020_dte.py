@@ -69,7 +69,7 @@ def main() -> None:
     args = ap.parse_args()
     base = None
     if args.baseline:
-        from _baseline import load_at  # noqa: PLC0415  (benchmarks/ is on sys.path)
+        from _baseline import load_at
         base = load_at(args.baseline, 'sim/wang2020.py', 'sim.wang2020')
     params = current.Wang2kvParams.from_preset(load_preset('wang2020-2kv'))
     freqs = params.kinematics.frequencies(params.input_speed_rpm / 60.0)

@@ -64,14 +64,14 @@ class ParamSpec:
             msg = f'ParamSpec {self.name!r}: default {problem}'
             raise ValueError(msg)
 
-    def check(self, value: Any) -> str | None:  # noqa: ANN401
+    def check(self, value: Any) -> str | None:
         """Return None when ``value`` is acceptable, else the rule it breaks (one phrase)."""
         problem = self._check_type(value)
         if problem is None and self.rule is not None:
             problem = self.rule(value)
         return problem
 
-    def _check_type(self, value: Any) -> str | None:  # noqa: ANN401, C901, PLR0911, PLR0912
+    def _check_type(self, value: Any) -> str | None:
         t = self.type
         if t == 'bool':
             return None if isinstance(value, bool) else f'must be a bool, got {brief(value)}'
@@ -125,7 +125,7 @@ def _is_utf8(text: str) -> bool:
     return True
 
 
-def coerce_value(spec: ParamSpec, value: Any) -> Any:  # noqa: ANN401
+def coerce_value(spec: ParamSpec, value: Any) -> Any:
     """The value in the declared type where that is lossless (an int for a double).
 
     ROS parameter files write ``300`` for 300.0; rclpy would reject the integer for a

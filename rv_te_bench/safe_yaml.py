@@ -106,7 +106,7 @@ _REPR.maxlevel = 3
 _BRIEF_MAX = 80
 
 
-def brief(value: Any) -> str:  # noqa: ANN401 - any value a user gave
+def brief(value: Any) -> str:
     """``repr(value)`` cut to a few dozen characters, without walking all of ``value``.
 
     >>> brief('x' * 1000)[:12], len(brief('x' * 1000)) < 70
@@ -140,7 +140,7 @@ def decode_text(data: bytes, origin: str) -> str:
 
 def read_yaml_file(path: str | Path, *, what: str, limits: YamlLimits,
                    scalars: Literal['yaml', 'ros'] = 'yaml', unique_keys: bool = True,
-                   ) -> Any:  # noqa: ANN401 - parsed YAML
+                   ) -> Any:
     """Read and parse one YAML file within ``limits``.
 
     Only regular files are read (a FIFO or a device would block or never end), and never
@@ -183,7 +183,7 @@ def _size(n: int) -> str:
 
 def load_yaml(text: str | bytes, *, origin: str, limits: YamlLimits,
               scalars: Literal['yaml', 'ros'] = 'yaml', unique_keys: bool = True,
-              ) -> Any:  # noqa: ANN401 - parsed YAML
+              ) -> Any:
     """Parse one YAML document within ``limits`` (see the module doc).
 
     Args:
@@ -310,19 +310,19 @@ class _Builder:
         self.aliases = 0
         self.nodes = 0
 
-    def fail(self, event: Any, text: str,  # noqa: ANN401
+    def fail(self, event: Any, text: str,
              kind: type[YamlInputError] = YamlInputError) -> YamlInputError:
         line = event.start_mark.line + 1 if getattr(event, 'start_mark', None) else '?'
         return kind(f'{self.origin}, line {line}: {text}')
 
-    def count(self, event: Any, n: int) -> None:  # noqa: ANN401
+    def count(self, event: Any, n: int) -> None:
         self.nodes += n
         if self.nodes > self.limits.max_nodes:
             msg = (f'more than {self.limits.max_nodes} YAML nodes (aliases expanded): '
                    'not read')
             raise self.fail(event, msg, YamlLimitError)
 
-    def run(self, text: str) -> Any:  # noqa: ANN401, C901, PLR0912
+    def run(self, text: str) -> Any:
         # stack entries: [container, anchor, expanded size, pending key, has key, start event]
         stack: list[list[Any]] = []
         root: Any = None
@@ -391,13 +391,13 @@ class _Builder:
                 top[3], top[4] = None, False
         return root
 
-    def check_tag(self, event: Any, kind: str) -> None:  # noqa: ANN401
+    def check_tag(self, event: Any, kind: str) -> None:
         tag = event.tag
         if tag in (None, '!', f'{_STD}{kind}'):
             return
         raise self.fail(event, f'not valid YAML data: tag {brief(tag)} is not allowed')
 
-    def scalar(self, event: Any, *, key: bool) -> Any:  # noqa: ANN401
+    def scalar(self, event: Any, *, key: bool) -> Any:
         tag = event.tag
         plain = bool(event.implicit[0]) and not event.style
         if tag not in (None, '!') and tag not in _SCALAR_TAGS:
@@ -423,7 +423,7 @@ class _RosDumper(yaml.SafeDumper):
     """Every string double-quoted (rcl would read a plain ``y``, ``1e5`` or ``on`` as a bool or
     number), no anchors or aliases (rcl refuses them)."""
 
-    def ignore_aliases(self, data: Any) -> bool:  # noqa: ANN401, ARG002
+    def ignore_aliases(self, data: Any) -> bool:
         return True
 
 
@@ -434,7 +434,7 @@ def _quoted_str(dumper: yaml.SafeDumper, data: str) -> yaml.ScalarNode:
 _RosDumper.add_representer(str, _quoted_str)
 
 
-def dump_ros_yaml(data: Any) -> str:  # noqa: ANN401
+def dump_ros_yaml(data: Any) -> str:
     """YAML that rcl's parameter parser and :func:`load_yaml` read back to ``data`` exactly."""
     return yaml.dump(data, Dumper=_RosDumper, sort_keys=True, allow_unicode=True,
                      default_flow_style=False)

@@ -16,17 +16,17 @@ from pathlib import Path
 import matplotlib as mpl
 
 mpl.use('Agg')
-import matplotlib.pyplot as plt  # noqa: E402
-import numpy as np  # noqa: E402
+import matplotlib.pyplot as plt
+import numpy as np
 
-from sim.hu2020 import (  # noqa: E402
+from sim.hu2020 import (
     FACTOR_KEYS,
     HuRvParams,
     build_te_model,
     tooth_contact_analysis,
 )
-from sim.presets import load_preset  # noqa: E402
-from sim.units import rad_to_arcmin, rad_to_deg  # noqa: E402
+from sim.presets import load_preset
+from sim.units import rad_to_arcmin, rad_to_deg
 
 
 def plot_tca(out: Path) -> Path:

@@ -22,12 +22,12 @@ from pathlib import Path
 import matplotlib as mpl
 
 mpl.use('Agg')
-import matplotlib.pyplot as plt  # noqa: E402
-import numpy as np  # noqa: E402
+import matplotlib.pyplot as plt
+import numpy as np
 
-from sim.li2023 import build_te_model, ltca, params_from_preset  # noqa: E402
-from sim.presets import load_preset  # noqa: E402
-from sim.units import rad_to_arcsec, rad_to_deg, rpm_to_rad_s  # noqa: E402
+from sim.li2023 import build_te_model, ltca, params_from_preset
+from sim.presets import load_preset
+from sim.units import rad_to_arcsec, rad_to_deg, rpm_to_rad_s
 
 FS_HZ = 1000.0
 RUN_IN = 500

@@ -22,12 +22,12 @@ from pathlib import Path
 import matplotlib as mpl
 
 mpl.use('Agg')
-import matplotlib.pyplot as plt  # noqa: E402
-import numpy as np  # noqa: E402
+import matplotlib.pyplot as plt
+import numpy as np
 
-from sim.presets import load_preset  # noqa: E402
-from sim.units import rad_to_arcmin  # noqa: E402
-from sim.wang2020 import (  # noqa: E402
+from sim.presets import load_preset
+from sim.units import rad_to_arcmin
+from sim.wang2020 import (
     Wang2kvDynamics,
     Wang2kvParams,
     nlte_curves,
@@ -42,7 +42,7 @@ def _stats(te_arcmin: np.ndarray) -> str:
             f"mean {np.mean(te_arcmin):.3f}'")
 
 
-def main() -> None:  # noqa: PLR0915
+def main() -> None:
     """Compute and save the figures."""
     ap = argparse.ArgumentParser(description=__doc__,
                                  formatter_class=argparse.RawDescriptionHelpFormatter)

@@ -32,7 +32,7 @@ def _holds(v: float, rule: Rule) -> bool:
     return True
 
 
-def real_number(label: str, value: Any, rule: Rule = '', *,  # noqa: ANN401 - checked here
+def real_number(label: str, value: Any, rule: Rule = '', *,
                 error: type[Exception] = ModelInputError, coerce: bool = False) -> float:
     """``value`` as a float when it is a finite real number that keeps ``rule``.
 

@@ -75,7 +75,7 @@ class BenchConfig:
     bench_id: str = 'bench'
     start_time_s: float = 0.0
 
-    def __post_init__(self) -> None:  # noqa: C901 - one check per field
+    def __post_init__(self) -> None:
         """Validate every field.
 
         Raises:

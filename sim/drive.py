@@ -45,9 +45,9 @@ if TYPE_CHECKING:
 
 __all__ = [
     'DRIVE_KINDS',
+    'LOAD_KINDS',
     'AnyDrive',
     'AnyLoad',
-    'LOAD_KINDS',
     'ConstantLoad',
     'ConstantSpeed',
     'DriveProfile',
@@ -62,7 +62,7 @@ __all__ = [
 ]
 
 
-def _num(cls: str, name: str, value: Any, *, rule: Rule = '') -> float:  # noqa: ANN401
+def _num(cls: str, name: str, value: Any, *, rule: Rule = '') -> float:
     """``value`` as a finite float keeping ``rule``; the message names ``cls.name``."""
     return real_number(f'{cls}.{name}', value, rule)
 
@@ -379,7 +379,7 @@ def _construct(kind_label: str, cls: type[_P], params: dict[str, Any]) -> _P:
     return cls(**params)
 
 
-def drive_from_spec(kind: str, **params: Any) -> AnyDrive:  # noqa: ANN401
+def drive_from_spec(kind: str, **params: Any) -> AnyDrive:
     """Build a speed profile from a kind name and its parameters (e.g. node parameters).
 
     Args:
@@ -430,7 +430,7 @@ def _tied_frequency_hz(tie_to: str, harmonic: float, mesh_index: int,
 
 def load_from_spec(kind: str, *, kinematics: ReducerKinematics | None = None,
                    drive: AnyDrive | None = None,
-                   **params: Any) -> AnyLoad:  # noqa: ANN401
+                   **params: Any) -> AnyLoad:
     """Build a load profile from a kind name and its parameters.
 
     ``'constant'``: ``torque_nm``. ``'sinusoidal'``: ``mean_nm``, ``amplitude_nm``,

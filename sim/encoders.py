@@ -50,7 +50,7 @@ _TWO_PI = 2.0 * math.pi
 _MAX_COUNTS_PER_REV = 2**40
 
 
-def _finite_float(name: str, value: Any, *, nonneg: bool = False) -> float:  # noqa: ANN401
+def _finite_float(name: str, value: Any, *, nonneg: bool = False) -> float:
     """Return ``value`` as float or raise naming ``name`` and the rule."""
     return real_number(name, value, '>=0' if nonneg else '')
 
@@ -88,7 +88,7 @@ class EncoderSpec:
     source: str = ''
     assumptions: str = field(default='', repr=False)
 
-    def __post_init__(self) -> None:  # noqa: C901 - one check per field
+    def __post_init__(self) -> None:
         """Validate every field; sequences are stored as tuples of float/int.
 
         Raises:
@@ -181,7 +181,7 @@ class EncoderSpec:
         return {k: list(v) if isinstance(v, tuple) else v for k, v in out.items()}
 
 
-def encoder_spec_with(spec: EncoderSpec, **changes: Any) -> EncoderSpec:  # noqa: ANN401
+def encoder_spec_with(spec: EncoderSpec, **changes: Any) -> EncoderSpec:
     """Copy of ``spec`` with fields replaced and validated again.
 
     Args:

@@ -202,7 +202,7 @@ class HuRvParams:
                 raise PresetError(msg)
         return cls(**kw)
 
-    def replace(self, **changes: Any) -> HuRvParams:  # noqa: ANN401
+    def replace(self, **changes: Any) -> HuRvParams:
         """Copy with some fields changed (validated again)."""
         kw = {f: getattr(self, f) for f in self.__dataclass_fields__}
         kw.update(changes)
@@ -691,7 +691,7 @@ def elastic_te_rad(params: HuRvParams, torque_nm: np.ndarray | float) -> np.ndar
         raise ModelInputError(msg)
     table = _ELASTIC_CACHE.get(params)
     if table is None:
-        if len(_ELASTIC_CACHE) > 16:  # noqa: PLR2004
+        if len(_ELASTIC_CACHE) > 16:
             _ELASTIC_CACHE.clear()
         table = _ELASTIC_CACHE[params] = _elastic_table(params)
     tt, bb = table

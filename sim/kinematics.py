@@ -53,7 +53,7 @@ __all__ = [
 _KINDS = ('2kv', 'rv')
 
 
-def _check_teeth(name: str, value: Any) -> int:  # noqa: ANN401 - validated here
+def _check_teeth(name: str, value: Any) -> int:
     """Return ``value`` as a positive int or raise naming ``name``."""
     if isinstance(value, bool) or not isinstance(value, int | np.integer):
         msg = f'{name} must be an integer tooth count, got {value!r}'

@@ -108,14 +108,14 @@ from sim.errors import ModelInputError, PresetError
 from sim.kinematics import kinematics_from_preset
 
 
-def _lapack_dposv() -> Any:  # noqa: ANN401
+def _lapack_dposv() -> Any:
     """LAPACK dposv as a ctypes function (SciPy's public Cython LAPACK table), or None.
 
     Called with the addresses of its eight arguments; about 1.5 us less per call than the
     f2py wrapper, which matters at one solve per Newmark step.
     """
     try:
-        from scipy.linalg import cython_lapack  # noqa: PLC0415
+        from scipy.linalg import cython_lapack
         cap = cython_lapack.__pyx_capi__['dposv']
         get_name = ctypes.pythonapi.PyCapsule_GetName
         get_name.restype, get_name.argtypes = ctypes.c_char_p, [ctypes.py_object]
@@ -232,7 +232,7 @@ _FIELDS: dict[str, tuple[str, str]] = {
 }
 
 
-def _check(name: str, key: str, rule: str, value: Any) -> None:  # noqa: ANN401, C901
+def _check(name: str, key: str, rule: str, value: Any) -> None:
     """Raise PresetError naming ``key`` when ``value`` breaks ``rule``."""
     if rule == 'bool':
         if not isinstance(value, bool):
@@ -338,7 +338,7 @@ class Li2023Params:
         for f in fields(self):
             key, rule = _FIELDS[f.name]
             _check(f.name, key, rule, getattr(self, f.name))
-        if not self.beta_fixed_deg < 90.0:  # noqa: PLR2004
+        if not self.beta_fixed_deg < 90.0:
             msg = f'tca.pressure_angle_deg must be in [0, 90), got {self.beta_fixed_deg!r}'
             raise PresetError(msg)
         if self.z_pin != self.z_cycloid + 1:

@@ -60,7 +60,7 @@ class Preset:
     description: str
     values: dict[str, PresetValue] = field(repr=False)
 
-    def __getitem__(self, key: str) -> Any:  # noqa: ANN401 - preset values are heterogeneous
+    def __getitem__(self, key: str) -> Any:
         """Return the plain value of ``key``.
 
         Raises:
@@ -72,7 +72,7 @@ class Preset:
             msg = f'preset {self.name!r} has no key {key!r}'
             raise PresetError(msg) from None
 
-    def get(self, key: str, default: Any = None) -> Any:  # noqa: ANN401
+    def get(self, key: str, default: Any = None) -> Any:
         """Return the plain value of ``key`` or ``default``."""
         pv = self.values.get(key)
         return default if pv is None else pv.value
@@ -140,7 +140,7 @@ def parse_override_items(overrides: dict[str, str] | list[str]) -> dict[str, str
     return out
 
 
-def _coerce(key: str, text: str, like: Any) -> Any:  # noqa: ANN401, C901, PLR0911
+def _coerce(key: str, text: str, like: Any) -> Any:
     """Parse ``text`` into the type of ``like``; name the key on failure."""
     try:
         if isinstance(like, bool):
@@ -149,7 +149,7 @@ def _coerce(key: str, text: str, like: Any) -> Any:  # noqa: ANN401, C901, PLR09
                 return True
             if low in {'false', '0', 'no'}:
                 return False
-            raise ValueError(text)  # noqa: TRY301
+            raise ValueError(text)
         if isinstance(like, int):
             return int(text)
         if isinstance(like, float):

@@ -54,7 +54,7 @@ __all__ = [
 ]
 
 
-def _num(seg: str, name: str, value: Any, rule: Rule = '') -> float:  # noqa: ANN401
+def _num(seg: str, name: str, value: Any, rule: Rule = '') -> float:
     return real_number(f'{seg}: {name}', value, rule)
 
 
@@ -127,7 +127,7 @@ SEGMENT_KINDS: dict[str, type] = {c.kind: c for c in (DriveSegment, TorqueSegmen
                                                       OutputSpeedSegment)}
 
 
-def program_from_plain(items: Any) -> tuple[Segment, ...]:  # noqa: ANN401
+def program_from_plain(items: Any) -> tuple[Segment, ...]:
     """Segments from a list of ``{kind: ..., field: value}`` dicts (a YAML program).
 
     Raises:
@@ -227,7 +227,7 @@ class ProgramSimulator:
         """The torsion characteristic at a locked input angle (cached)."""
         key = round(float(theta_in_rad), 12)
         if key not in self._curves:
-            if len(self._curves) > 64:  # noqa: PLR2004
+            if len(self._curves) > 64:
                 self._curves.clear()
             self._curves[key] = torsion_curve(self.preset, key)
         return self._curves[key]
@@ -364,7 +364,7 @@ class ProgramSimulator:
         if self.preset.model == 'wang2020-2kv':
             if self.te_mode in {'ste', 'dte'}:
                 return 0.0
-            from sim import wang2020  # noqa: PLC0415
+            from sim import wang2020
 
             params = wang2020.Wang2kvParams.from_preset(self.preset)
             return wang2020.backlash_rad(theta_in / self.gear_ratio, params)

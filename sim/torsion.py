@@ -145,7 +145,7 @@ class TorsionCurve:
         t = np.asarray(self.torque_nm, dtype=np.float64)
         dp = np.asarray(self.deflection_pos_rad, dtype=np.float64)
         dn = np.asarray(self.deflection_neg_rad, dtype=np.float64)
-        if t.ndim != 1 or t.size < 2 or t.shape != dp.shape or t.shape != dn.shape:  # noqa: PLR2004
+        if t.ndim != 1 or t.size < 2 or t.shape != dp.shape or t.shape != dn.shape:
             msg = 'torque and deflection tables must be 1-D, of one length >= 2'
             raise ModelInputError(msg)
         if not (np.all(np.isfinite(t)) and np.all(np.isfinite(dp)) and np.all(np.isfinite(dn))):
@@ -324,7 +324,7 @@ def _with_series(t: np.ndarray, d: np.ndarray, k_s: float) -> np.ndarray:
 
 def _wang_curve(preset: Preset, theta_in_rad: float, grid: np.ndarray,
                 ) -> tuple[np.ndarray, np.ndarray, float, float]:
-    from sim import wang2020  # noqa: PLC0415
+    from sim import wang2020
 
     p = wang2020.Wang2kvParams.from_preset(preset)
     th = theta_in_rad / p.kinematics.gear_ratio
@@ -339,7 +339,7 @@ def _wang_curve(preset: Preset, theta_in_rad: float, grid: np.ndarray,
 
 def _hu_curve(preset: Preset, t_max: float) -> tuple[np.ndarray, np.ndarray, float]:
     """The TCA rotation beta(T) (``sim.hu2020.elastic_te_rad``) past the first pin contact."""
-    from sim import hu2020  # noqa: PLC0415
+    from sim import hu2020
 
     params = hu2020.HuRvParams.from_preset(preset)
     # the initial clearances (Hu 2020 Eq. 32) and lever arms (Hu 2020 Eq. 36) are geometry: any
@@ -357,7 +357,7 @@ def _hu_curve(preset: Preset, t_max: float) -> tuple[np.ndarray, np.ndarray, flo
 
 
 def _li_stiffness(preset: Preset, theta_in_rad: float) -> float:
-    from sim import li2023  # noqa: PLC0415
+    from sim import li2023
 
     model = li2023.build_te_model(preset, 'dte')
     i_out = model.state_index('output')

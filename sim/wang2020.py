@@ -139,7 +139,7 @@ _KEYS: dict[str, str] = {
 DTE_STARTS = ('loaded', 'unloaded')
 
 
-def _fail(name: str, value: Any, rule: str) -> None:  # noqa: ANN401
+def _fail(name: str, value: Any, rule: str) -> None:
     msg = f'{_KEYS.get(name, name)} = {value!r}: {rule}'
     raise PresetError(msg)
 
@@ -195,7 +195,7 @@ class Wang2kvParams:
     max_step_s: float = 2.5e-5
     dte_start: str = 'loaded'
 
-    def __post_init__(self) -> None:  # noqa: C901
+    def __post_init__(self) -> None:
         """Check every rule; the message names the preset key, the value and the rule.
 
         Raises:
@@ -319,7 +319,7 @@ def _check_theta(theta_out_rad: npt.ArrayLike) -> np.ndarray:
 def _phases(params: Wang2kvParams, phases_rad: PhasesLike | None) -> tuple[np.ndarray, ...]:
     if phases_rad is None:
         return tuple(np.float64(p) for p in params.phases_rad)
-    if len(phases_rad) != 4:  # noqa: PLR2004
+    if len(phases_rad) != 4:
         msg = ('phases_rad must be (theta_p1_0, theta_p2_0, theta_g_0, theta_ot_0), '
                f'got {len(phases_rad)} items')
         raise ModelInputError(msg)
@@ -597,7 +597,7 @@ class Wang2kvDynamics:
         if nsub > 1:
             fastest = max(abs(self._rc), 1.0, len(self.params.stiffness_harmonic_ratio)
                           * self.kinematics.mesh_orders_out[-1] * self._ripple)
-            if fastest * float(np.max(np.abs(np.diff(th)), initial=0.0)) > 0.2:  # noqa: PLR2004
+            if fastest * float(np.max(np.abs(np.diff(th)), initial=0.0)) > 0.2:
                 pos = np.arange((th.size - 1) * nsub + 1) / nsub
                 idx = np.arange(th.size)
                 th, om, load = (np.interp(pos, idx, a) for a in (th, om, load))
@@ -627,7 +627,7 @@ class Wang2kvDynamics:
         i1 = -1.0 / lam + (phi - 1.0) / (lam * lam * h)
         b = np.array([-1.0, 1.0]) / (m * (lam[1] - lam[0]))
         out = (lam, phi, b * (i0 - i1), b * i1)
-        if len(self._cache) < 64:  # noqa: PLR2004
+        if len(self._cache) < 64:
             self._cache[key] = out
         return out
 
@@ -638,7 +638,7 @@ class Wang2kvDynamics:
         Returns x and the velocity, evaluated only where asked (the integrator needs it at
         one index of a stretch).
         """
-        from scipy.signal import lfilter  # noqa: PLC0415 - scipy.signal costs 0.7 s to import
+        from scipy.signal import lfilter
 
         m = self.params.equivalent_mass_kg
         if n == 0:
@@ -750,11 +750,11 @@ class Wang2kvDynamics:
         hit = self._cache.get(key)
         if hit is None:
             hit = self._disc(n, h)
-            if len(self._cache) < 64:  # noqa: PLR2004
+            if len(self._cache) < 64:
                 self._cache[key] = hit
         return hit
 
-    def _scalar_run(self, g: _Grid, i: int, x: float, v: float,  # noqa: C901, PLR0915
+    def _scalar_run(self, g: _Grid, i: int, x: float, v: float,
                     xs: np.ndarray) -> tuple[int, float, float]:
         """Step one internal step at a time from index i (state valid there) until
         ``_QUIET_STEPS`` steps pass without a contact change (``_QUIET_STEPS_SINGLE`` after

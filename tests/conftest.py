@@ -30,7 +30,7 @@ def ros_domain_id() -> int:
 
 
 @pytest.fixture
-def ros_context(ros_domain_id: int):  # noqa: ANN201
+def ros_context(ros_domain_id: int):
     """An initialised rclpy Context of its own, shut down after the test."""
     rclpy = pytest.importorskip('rclpy')
     ctx = rclpy.context.Context()
@@ -79,7 +79,7 @@ def pytest_sessionstart(session: pytest.Session) -> None:
     session.config.stash[_LITTER_KEY] = repo_litter()
 
 
-def pytest_sessionfinish(session: pytest.Session, exitstatus: int) -> None:  # noqa: ARG001
+def pytest_sessionfinish(session: pytest.Session, exitstatus: int) -> None:
     before = session.config.stash.get(_LITTER_KEY, None)
     after = repo_litter()
     if before is None or after is None:

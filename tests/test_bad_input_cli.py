@@ -133,12 +133,12 @@ def test_cases_are_forty_distinct_commands_the_parser_knows() -> None:
 
 def _subcommands() -> set[str]:
     """The subcommands of the real ``rv-te`` parser."""
-    import argparse  # noqa: PLC0415
+    import argparse
 
-    from rv_te_bench.cli.main import build_parser  # noqa: PLC0415
+    from rv_te_bench.cli.main import build_parser
 
-    (sub,) = [a for a in build_parser()._actions  # noqa: SLF001
-              if isinstance(a, argparse._SubParsersAction)]  # noqa: SLF001
+    (sub,) = [a for a in build_parser()._actions
+              if isinstance(a, argparse._SubParsersAction)]
     return set(sub.choices)
 
 

@@ -10,9 +10,8 @@ work without a bound. Each case ends within its time limit with the exit code an
 
 from __future__ import annotations
 
-import re
-
 import json
+import re
 import shutil
 import time
 from pathlib import Path
@@ -225,7 +224,7 @@ def test_hostile_input_to_ros_commands(work: Path, argv: list[str],
 
 def test_numbers_as_ros_reads_them(work: Path) -> None:
     """1.0e1 and 3e2 are doubles for rcl (strings in YAML 1.1), 0x10 an integer."""
-    from rv_te_bench.launch.session import build_session  # noqa: PLC0415
+    from rv_te_bench.launch.session import build_session
 
     spec = build_session(['ros_numbers.yaml'], nodes=['bench'],
                          overrides=['bench.load_nm=1e1'])
@@ -238,7 +237,7 @@ def test_numbers_as_ros_reads_them(work: Path) -> None:
 
 def test_utf16_parameter_file_is_read(work: Path, capsys: pytest.CaptureFixture[str]) -> None:
     """YAML allows UTF-16 with a byte-order mark (libyaml and so rcl read it): accepted."""
-    from rv_te_bench.launch.session import build_session  # noqa: PLC0415
+    from rv_te_bench.launch.session import build_session
 
     assert main(['launch', 'utf16.yaml', '--check']) == 0, capsys.readouterr().err
     spec = build_session(['utf16.yaml'], nodes=['bench'])
@@ -288,13 +287,13 @@ def test_namespace_at_the_length_limit_passes(work: Path,
 
 @pytest.mark.ros
 @pytest.mark.timeout(60)
-def test_name_length_limit_is_what_rcl_enforces(ros_context) -> None:  # noqa: ANN001
+def test_name_length_limit_is_what_rcl_enforces(ros_context) -> None:
     """The compensation node (the longest name) starts with a 208-character namespace and
     not with 209: the limit --check states is rcl's."""
-    import rclpy  # noqa: PLC0415
+    import rclpy
 
-    from rv_te_bench.errors import ParameterFileError  # noqa: PLC0415
-    from rv_te_bench.launch.checks import check_ros_names  # noqa: PLC0415
+    from rv_te_bench.errors import ParameterFileError
+    from rv_te_bench.launch.checks import check_ros_names
 
     for length, ok in ((208, True), (209, False)):
         namespace = '/' + 'a' * (length - 1)
@@ -322,18 +321,18 @@ def test_hostile_cases_are_forty_distinct_commands_the_parser_knows() -> None:
 
 def _subcommands() -> set[str]:
     """The subcommands of the real ``rv-te`` parser."""
-    import argparse  # noqa: PLC0415
+    import argparse
 
-    from rv_te_bench.cli.main import build_parser  # noqa: PLC0415
+    from rv_te_bench.cli.main import build_parser
 
-    (sub,) = [a for a in build_parser()._actions  # noqa: SLF001
-              if isinstance(a, argparse._SubParsersAction)]  # noqa: SLF001
+    (sub,) = [a for a in build_parser()._actions
+              if isinstance(a, argparse._SubParsersAction)]
     return set(sub.choices)
 
 
 def test_param_bomb_is_a_bomb() -> None:
     """The --param case is a real bomb: PyYAML builds it (shared lists), 9**7 leaves."""
-    import yaml  # noqa: PLC0415
+    import yaml
 
     doc = yaml.safe_load(PARAM_BOMB)
     leaves, node = 1, doc['a6']
@@ -347,10 +346,10 @@ def test_bench_info_with_a_yaml_bomb_is_analysed(tmp_path: Path,
                                                  capsys: pytest.CaptureFixture[str]) -> None:
     """A BenchInfo whose parameters_yaml is an alias bomb (from a bag or the network): the
     record is ignored (base preset) instead of being expanded while looking for overrides."""
-    import numpy as np  # noqa: PLC0415
+    import numpy as np
 
-    from tests import unit_bags  # noqa: PLC0415
-    from tests import wang2020_reference as ref  # noqa: PLC0415
+    from tests import unit_bags
+    from tests import wang2020_reference as ref
 
     record = BOMB + 'bench:\n  overrides: [*a8, *a8]\n'
     bag = unit_bags.unit_bag(tmp_path / 'bag', ref.table2_unit(), np.random.default_rng(3),
@@ -374,7 +373,7 @@ def test_record_byte_flags_name_the_flag_and_state_the_limit(
     was any non-negative integer, neither help gave a maximum)."""
     with pytest.raises(SystemExit) as exc:
         main(['record', flag, str(limit + 1), '--duration', '1'])
-    assert exc.value.code == 2    # noqa: PLR2004
+    assert exc.value.code == 2
     err = capsys.readouterr().err.strip().splitlines()[-1]
     assert err.endswith(f"argument {flag}: must be <= {limit}, got '{limit + 1}'"), err
     assert 'stall_buffer_bytes' not in err and 'split_size_bytes' not in err
@@ -388,21 +387,21 @@ def test_record_byte_flags_name_the_flag_and_state_the_limit(
 def test_cli_ranges_are_the_node_parameter_ranges() -> None:
     """The flags of rv-te record / replay check (and --help states) the nodes' own ranges,
     so a range error names the flag the user typed, not a node parameter."""
-    from rv_te_bench.cli import analyze, record, replay  # noqa: PLC0415
-    from rv_te_bench.nodes import recorder as rec_node  # noqa: PLC0415
-    from rv_te_bench.nodes import replay as replay_node  # noqa: PLC0415
-    from rv_te_bench.nodes import te_node  # noqa: PLC0415
+    from rv_te_bench.cli import analyze, record, replay
+    from rv_te_bench.nodes import recorder as rec_node
+    from rv_te_bench.nodes import replay as replay_node
+    from rv_te_bench.nodes import te_node
 
     spec = {s.name: s for s in rec_node.PARAMS}
-    assert record.MAX_DURATION_S == spec['duration_s'].max_value
-    assert record.MAX_DURATION_S == spec['split_duration_s'].max_value
-    assert record.FLUSH_RANGE_S == (spec['flush_interval_s'].min_value,
-                                    spec['flush_interval_s'].max_value)
-    assert record.MAX_SPLIT_BYTES == spec['split_size_bytes'].max_value
-    assert record.MAX_STALL_BUFFER_BYTES == spec['stall_buffer_bytes'].max_value
+    assert spec['duration_s'].max_value == record.MAX_DURATION_S
+    assert spec['split_duration_s'].max_value == record.MAX_DURATION_S
+    assert (spec['flush_interval_s'].min_value,
+                                    spec['flush_interval_s'].max_value) == record.FLUSH_RANGE_S
+    assert spec['split_size_bytes'].max_value == record.MAX_SPLIT_BYTES
+    assert spec['stall_buffer_bytes'].max_value == record.MAX_STALL_BUFFER_BYTES
     assert replay.RATE_RANGE == replay_node.RATE_RANGE
     assert replay.START_OFFSET_RANGE_S == replay_node.START_OFFSET_RANGE_S
     assert replay.WAIT_RANGE_S == replay_node.WAIT_RANGE_S
     te = {s.name: s for s in te_node.PARAMS}
-    assert analyze.MAX_HARMONICS == te['n_crank_harmonics'].max_value
-    assert analyze.MAX_WINDOW_REVOLUTIONS == te['window_revolutions'].max_value
+    assert te['n_crank_harmonics'].max_value == analyze.MAX_HARMONICS
+    assert te['window_revolutions'].max_value == analyze.MAX_WINDOW_REVOLUTIONS

@@ -61,7 +61,7 @@ def test_long_name_is_shown_shortened() -> None:
 
 
 def test_launch_refuses_a_recorder_bag_name_outside_its_folder() -> None:
-    from rv_te_bench.launch.session import build_session  # noqa: PLC0415
+    from rv_te_bench.launch.session import build_session
 
     with pytest.raises(ParameterFileError, match=r"'bag_name' must be a plain folder name"):
         build_session([], overrides=['recorder.bag_name=../../x'])
@@ -79,9 +79,9 @@ def test_claim_folder_numbers_default_names_and_refuses_given_ones(tmp_path: Pat
 def test_two_default_named_recorders_in_the_same_second_get_two_bags(
         ros_context: object, tmp_path: Path) -> None:
     pytest.importorskip('rclpy')
-    from rclpy.parameter import Parameter  # noqa: PLC0415
+    from rclpy.parameter import Parameter
 
-    from rv_te_bench.nodes.recorder import RecorderNode  # noqa: PLC0415
+    from rv_te_bench.nodes.recorder import RecorderNode
 
     now = dt.datetime.now(dt.UTC)
     # the default names of this second and the next are taken (by another recorder that
@@ -133,14 +133,14 @@ def test_write_all_is_all_or_nothing(tmp_path: Path, monkeypatch: pytest.MonkeyP
 
 @pytest.fixture(scope='module')
 def analysis() -> object:
-    from rv_te_bench.report.analysis import analyze_bag  # noqa: PLC0415
+    from rv_te_bench.report.analysis import analyze_bag
 
     return analyze_bag(Path(__file__).resolve().parents[1] / 'bags' / 'sample')
 
 
 def test_report_on_a_full_disk_leaves_no_partial_file(
         tmp_path: Path, monkeypatch: pytest.MonkeyPatch, analysis: object) -> None:
-    from rv_te_bench.report.html import write_report  # noqa: PLC0415
+    from rv_te_bench.report.html import write_report
 
     good = write_report([analysis], tmp_path / 'report')
     before = {p.name: p.read_bytes() for p in good}

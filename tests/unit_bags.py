@@ -24,7 +24,7 @@ INFO_TOPIC = '/bench/info'
 T0_NS = 1_700_000_000_000_000_000
 
 
-def write_unit_bag(path: Path, theta_in: np.ndarray, theta_out: np.ndarray, *,  # noqa: PLR0913
+def write_unit_bag(path: Path, theta_in: np.ndarray, theta_out: np.ndarray, *,
                    rate_hz: float, block: int = 100, info: bool = True,
                    preset: str = 'wang2020-2kv', bench_id: str = 'unit-bench',
                    parameters_yaml: str = '', custom_data: dict[str, str] | None = None,
@@ -33,7 +33,7 @@ def write_unit_bag(path: Path, theta_in: np.ndarray, theta_out: np.ndarray, *,  
     ``custom_data`` goes to metadata.yaml (session metadata, e.g. a unit serial);
     ``first_seq`` > 0 leaves out the blocks before it (a recorder that started late);
     ``storage='sqlite3'`` writes rosbag2's sqlite3 storage instead of MCAP."""
-    from rosbags.rosbag2 import StoragePlugin, Writer  # noqa: PLC0415
+    from rosbags.rosbag2 import StoragePlugin, Writer
 
     store = rv_te_typestore()
     types = store.types
@@ -106,12 +106,12 @@ def damage_bench_info(bag: Path) -> None:
         return int.from_bytes(data[at:at + 8], 'little')
 
     pos = 8                                  # after the magic: walk the records to the chunk
-    while data[pos] != 0x06:  # noqa: PLR2004 - opcode of a Chunk record
+    while data[pos] != 0x06:
         pos += 9 + u64(pos + 1)
     at = pos + 9 + 8 + 8 + 8 + 4             # start/end time, uncompressed size, crc
     assert int.from_bytes(data[at:at + 4], 'little') == 0, 'expected an uncompressed chunk'
     at += 4 + 8                              # empty compression string, records length
-    while data[at] != 0x05:  # noqa: PLR2004 - opcode of a Message record
+    while data[at] != 0x05:
         at += 9 + u64(at + 1)
     data[at + 1:at + 9] = b'\xff' * 8
     file.write_bytes(bytes(data))

@@ -182,7 +182,7 @@ def split_well_posed(u: Unit, rng: np.random.Generator) -> bool:
     for _ in range(20):
         d = 1e-3 * big * np.exp(1j * rng.uniform(-math.pi, math.pi, 2))
         moved, _ = split_brute(q1 + d[0], q2 + d[1], e)
-        if max(dphase_deg(a, b) for a, b in zip(moved, base, strict=True)) > 0.5:  # noqa: PLR2004
+        if max(dphase_deg(a, b) for a, b in zip(moved, base, strict=True)) > 0.5:
             return False
     _, swapped_misfit = split_brute(q2, q1, e)
     return swapped_misfit > 5e-3 * max(e)

@@ -12,7 +12,7 @@ from rv_te_bench.safe_yaml import DOCUMENT_LIMITS, load_yaml
 _MAX_TEXT = DOCUMENT_LIMITS.max_bytes
 
 
-def parse_yaml_text(text: str, origin: str, error: type[Exception]) -> Any:  # noqa: ANN401
+def parse_yaml_text(text: str, origin: str, error: type[Exception]) -> Any:
     """A plan or tolerance file through the suite's bounded loader (size, depth, aliases,
     expanded nodes: :mod:`rv_te_bench.safe_yaml`), errors on one line as ``error``."""
     try:

@@ -27,7 +27,7 @@ _VERDICT = {'pass': 'pass', 'fail': 'fail', 'not_measured': 'not-measured', 'inf
 def store_record(report: dict[str, Any], bag: Path, *, software_version: str = '',
                  ) -> UnitRecord:
     """The store record of ``report`` (:func:`rv_te_bench.acceptance.build_report`)."""
-    from rv_te_bench.store import MetricValue, UnitRecord, bag_fingerprint  # noqa: PLC0415
+    from rv_te_bench.store import MetricValue, UnitRecord, bag_fingerprint
 
     sha, size, mtime = bag_fingerprint(bag)
     metrics = []

@@ -57,14 +57,14 @@ _MAX_STEPS = 100
 class _Fields:
     """Pops and checks the keys of one mapping; names where and what on failure."""
 
-    def __init__(self, data: Any, where: str) -> None:  # noqa: ANN401
+    def __init__(self, data: Any, where: str) -> None:
         if not isinstance(data, dict):
             msg = f'{where}: must be a mapping, got {type(data).__name__}'
             raise PlanError(msg)
         self.data = dict(data)
         self.where = where
 
-    def fail(self, key: str, rule: str, value: Any = None) -> None:  # noqa: ANN401
+    def fail(self, key: str, rule: str, value: Any = None) -> None:
         got = '' if value is None else f', got {value!r}'
         msg = f'{self.where}: {key} {rule}{got}'
         raise PlanError(msg)
@@ -103,7 +103,7 @@ class _Fields:
             self.fail(key, f'must be one of {list(choices)}', v)
         return v.strip()
 
-    def flag(self, key: str, default: bool) -> bool:  # noqa: FBT001
+    def flag(self, key: str, default: bool) -> bool:
         v = self.data.pop(key, default)
         if not isinstance(v, bool):
             self.fail(key, 'must be true or false', v)
@@ -114,7 +114,7 @@ class _Fields:
         if key not in self.data and default is not None:
             return tuple(default)
         v = self.data.pop(key, None)
-        if not isinstance(v, list) or not v or len(v) > 50:  # noqa: PLR2004
+        if not isinstance(v, list) or not v or len(v) > 50:
             self.fail(key, 'must be a list of 1..50 numbers', v)
         out = []
         for j, x in enumerate(v):
@@ -223,7 +223,7 @@ def _hysteresis_step(f: _Fields, name: str) -> HysteresisStep:
                rig)
     regions = []
     for rname, span in rig.items():
-        if not isinstance(span, list) or len(span) != 2:  # noqa: PLR2004
+        if not isinstance(span, list) or len(span) != 2:
             f.fail(f'rigidity.{rname}', 'must be [lo, hi] (fractions of the rated torque)',
                    span)
         regions.append((str(rname), *span))
@@ -238,7 +238,7 @@ def _hysteresis_step(f: _Fields, name: str) -> HysteresisStep:
         positions=f.integer('positions', 1, lo=1),
         reposition_speed_rpm=f.num('reposition_speed_rpm', 300.0, lo=0.0, lo_open=True,
                                    hi=1e5))
-    if step.positions > 36:  # noqa: PLR2004
+    if step.positions > 36:
         f.fail('positions', 'must be <= 36', step.positions)
     try:
         step.config()
@@ -258,7 +258,7 @@ def _sweep_step(f: _Fields, name: str) -> SweepStep:
 _KINDS = {'te': _te_step, 'hysteresis': _hysteresis_step, 'sweep': _sweep_step}
 
 
-def parse_plan(data: Any, origin: str = '<plan>') -> TestPlan:  # noqa: ANN401
+def parse_plan(data: Any, origin: str = '<plan>') -> TestPlan:
     """Validate a plan mapping (parsed YAML).
 
     Raises:
@@ -266,7 +266,7 @@ def parse_plan(data: Any, origin: str = '<plan>') -> TestPlan:  # noqa: ANN401
     """
     top = _Fields(data, origin)
     name = top.text('plan')
-    from rv_te_bench.store.records import FIELD_MAX_CHARS  # noqa: PLC0415
+    from rv_te_bench.store.records import FIELD_MAX_CHARS
     if len(name) > FIELD_MAX_CHARS['plan']:   # the results store keeps 128 (issue #21)
         top.fail('plan', f'is {len(name)} characters, the results store keeps at most '
                  f"{FIELD_MAX_CHARS['plan']}", name[:40] + '...')

@@ -244,7 +244,7 @@ class StepRunner:
             row: dict[str, Any] = {**seg.label, 'samples': int(th_in.size)}
             try:
                 if hole := self._incomplete([seg]):
-                    raise TeInputError(hole)  # noqa: TRY301
+                    raise TeInputError(hole)
                 d = direction_te(th_in[settle:], th_out[settle:], gear_ratio=self.ctx.gear_ratio,
                                  orders=self.ctx.orders(),
                                  duration_s=max(th_in[settle:].size - 1, 1)

@@ -102,7 +102,7 @@ class ToleranceProfile:
                            for lim in self.limits]}
 
 
-def parse_tolerance(data: Any, origin: str = '<tolerance>') -> ToleranceProfile:  # noqa: ANN401, C901
+def parse_tolerance(data: Any, origin: str = '<tolerance>') -> ToleranceProfile:
     """Validate a tolerance mapping (parsed YAML).
 
     Raises:

@@ -64,12 +64,12 @@ def check_record_text(args: argparse.Namespace, names: Sequence[str] = ('serial'
     Raises:
         StoreError: One line naming the flag, its length and the limit.
     """
-    from rv_te_bench.store.records import FIELD_MAX_CHARS  # noqa: PLC0415
+    from rv_te_bench.store.records import FIELD_MAX_CHARS
     for name in names:
         value = getattr(args, name, None)
         limit = FIELD_MAX_CHARS[name]
         if isinstance(value, str) and len(value) > limit:
-            shown = value[:40] + '...' if len(value) > 40 else value  # noqa: PLR2004
+            shown = value[:40] + '...' if len(value) > 40 else value
             msg = (f'--{name} is {len(value)} characters, the results store keeps at most '
                    f'{limit}: {shown!r}')
             raise StoreError(msg)

@@ -143,12 +143,12 @@ def run(args: argparse.Namespace) -> int:
 
 
 def _run(args: argparse.Namespace) -> int:
-    from rv_te_bench.allocator import tune_for_batch_work  # noqa: PLC0415
-    from rv_te_bench.report.analysis import analyze_bag  # noqa: PLC0415
+    from rv_te_bench.allocator import tune_for_batch_work
+    from rv_te_bench.report.analysis import analyze_bag
 
     check_record_text(args)  # before the analysis: the store would refuse it at the end
     tune_for_batch_work()   # this process: keep window-sized arrays off fresh pages
-    from rv_te_bench.report.html import (  # noqa: PLC0415
+    from rv_te_bench.report.html import (
         ReportExistsError,
         report_json,
         write_report,
@@ -198,7 +198,7 @@ def _record(args: argparse.Namespace, doc: dict[str, Any]) -> str | None:
     A store given with --db (or $RV_TE_DB) that cannot be written is an error; the default
     store next to the bags only warns (a bag on a read-only share is still analysed).
     """
-    from rv_te_bench.store import open_store, records_from_analysis_json  # noqa: PLC0415
+    from rv_te_bench.store import open_store, records_from_analysis_json
 
     db = db_for_bags(args, args.bags)
     if db is None:
@@ -236,7 +236,7 @@ def _print_tables(results: list[AnalysisResult], out: TextIO) -> None:
     for res in results:
         _print_one(res, out)
     if len(results) > 1:
-        from rv_te_bench.report.analysis import compare_results  # noqa: PLC0415
+        from rv_te_bench.report.analysis import compare_results
 
         print('comparison (first bag = reference; TE in arcmin)', file=out)
         print(f'  {"bag":<28} {"p-p":>9} {"ampl":>9} {"mean":>9} {"std":>9} '
@@ -257,15 +257,15 @@ def _fmt(x: float | None, width: int, digits: int) -> str:
 def _print_identification(rec: Recommendation, out: TextIO) -> None:
     if rec.identification is None:
         return
-    from rv_te_bench.report.analysis import describe_identification  # noqa: PLC0415
+    from rv_te_bench.report.analysis import describe_identification
 
     for line in describe_identification(rec.identification):
         print(f'    {line}', file=out)
 
 
 def _print_one(res: AnalysisResult, out: TextIO) -> None:
-    from rv_te_bench.core.advice import modification_value  # noqa: PLC0415
-    from rv_te_bench.report.analysis import report_title  # noqa: PLC0415
+    from rv_te_bench.core.advice import modification_value
+    from rv_te_bench.report.analysis import report_title
 
     b = res.bench
     flag = '  [PARTIAL]' if res.partial else ''
@@ -290,7 +290,7 @@ def _print_one(res: AnalysisResult, out: TextIO) -> None:
         width = max([22, *(len(ln.label) for ln in spec.lines)])
         print(f'    {"line":<{width}} {"output order":>12} {"crank order":>11} {"freq[Hz]":>10} '
               f'{"ampl[arcmin]":>12} {"phase[deg]":>10}', file=out)
-        from rv_te_bench.report.analysis import PHASE_MIN_FRACTION  # noqa: PLC0415
+        from rv_te_bench.report.analysis import PHASE_MIN_FRACTION
 
         strongest = max((ln.amplitude_rad for ln in spec.lines), default=0.0)
         for ln in spec.lines:
@@ -307,7 +307,7 @@ def _print_one(res: AnalysisResult, out: TextIO) -> None:
         print(f'  gaps: {len(res.gaps)}', file=out)
         for g in res.gaps[:10]:
             print(f'    {g.kind} at seq {g.seq}: {g.detail}', file=out)
-        if len(res.gaps) > 10:  # noqa: PLR2004
+        if len(res.gaps) > 10:
             print(f'    ... {len(res.gaps) - 10} more (see --json)', file=out)
     else:
         print('  gaps: none', file=out)

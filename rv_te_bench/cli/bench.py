@@ -31,7 +31,7 @@ def register(subparsers: Subparsers) -> None:
 
 def run(args: argparse.Namespace) -> int:
     """Validate the parameters, then run the bench until its duration ends or Ctrl-C."""
-    from rv_te_bench.launch.session import build_session, run_single_process  # noqa: PLC0415
+    from rv_te_bench.launch.session import build_session, run_single_process
 
     spec = build_session(args.param_files, namespace=args.namespace,
                          overrides=[f'bench.{p}' for p in args.params], nodes=['bench'])

@@ -84,8 +84,8 @@ def run(args: argparse.Namespace) -> int:
     Everything is computed before anything is printed, so a failure writes nothing to
     stdout.
     """
-    from rv_te_bench.core.tooth_compensation import compensate_preset  # noqa: PLC0415
-    from sim.presets import load_preset  # noqa: PLC0415
+    from rv_te_bench.core.tooth_compensation import compensate_preset
+    from sim.presets import load_preset
 
     try:
         te = args.te_arcmin

@@ -58,7 +58,7 @@ def expected_advice(spec: SessionSpec, revolutions: float) -> tuple[frozenset[st
     The identified re-assembly needs a complete TE window (``window_revolutions`` output
     revolutions of the TE node); a shorter run can never give it (issue #15: the demo waited
     the whole --advice-timeout-s for it)."""
-    from rv_te_bench.launch.session import node_specs  # noqa: PLC0415
+    from rv_te_bench.launch.session import node_specs
 
     def params(node: str) -> dict[str, Any]:
         return {**{p.name: p.default for p in node_specs(node)},
@@ -111,14 +111,14 @@ def _progress_line(mon: SessionMonitor, target_revs: float) -> str:
             f'{_fmt_arcmin(mon.cumulative_pp_rad)} | gaps {mon.gaps} | top lines: {tops}')
 
 
-def run(args: argparse.Namespace) -> int:  # noqa: C901, PLR0915
+def run(args: argparse.Namespace) -> int:
     """Run the session, then the report; print the summary. 0 on success."""
-    import rclpy  # noqa: PLC0415
+    import rclpy
 
-    from rv_te_bench.io.files import claim_folder, folder_name_problem  # noqa: PLC0415
-    from rv_te_bench.launch.session import Session, build_session, node_specs  # noqa: PLC0415
-    from rv_te_bench.nodes.common import make_executor  # noqa: PLC0415
-    from rv_te_bench.nodes.monitor import SessionMonitor  # noqa: PLC0415
+    from rv_te_bench.io.files import claim_folder, folder_name_problem
+    from rv_te_bench.launch.session import Session, build_session, node_specs
+    from rv_te_bench.nodes.common import make_executor
+    from rv_te_bench.nodes.monitor import SessionMonitor
 
     os.environ.setdefault('ROS_AUTOMATIC_DISCOVERY_RANGE', 'LOCALHOST')
     if args.revolutions <= 0 or not math.isfinite(args.revolutions):
@@ -227,8 +227,8 @@ def _report(bag_dir: Path, report_dir: Path, live_advice: dict[str, Any],
     ``search``: the compensation node's (step_deg, refine), so that the offline advice for
     this unit is searched as the live ones were.
     """
-    from rv_te_bench.report.analysis import analyze_bag  # noqa: PLC0415
-    from rv_te_bench.report.html import write_report  # noqa: PLC0415
+    from rv_te_bench.report.analysis import analyze_bag
+    from rv_te_bench.report.html import write_report
 
     result = analyze_bag(bag_dir, advice_search=search)
     write_report([result], report_dir)

@@ -103,7 +103,7 @@ class _Progress:
         self.bar = None
         if sys.stderr.isatty():
             try:
-                from tqdm import tqdm  # noqa: PLC0415
+                from tqdm import tqdm
                 self.bar = tqdm(total=total, unit='bag', file=sys.stderr, dynamic_ncols=True)
             except ModuleNotFoundError:
                 self.bar = None
@@ -126,8 +126,8 @@ class _Progress:
 
 def run(args: argparse.Namespace) -> int:
     """Analyse the bags; 0 all analysed, 1 some failed."""
-    from rv_te_bench.fleet import FleetOptions, discover_bags, run_fleet  # noqa: PLC0415
-    from rv_te_bench.store import open_store  # noqa: PLC0415
+    from rv_te_bench.fleet import FleetOptions, discover_bags, run_fleet
+    from rv_te_bench.store import open_store
 
     check_record_text(args)   # before the run: every record would be refused
     bags = discover_bags(list(args.bags))

@@ -121,9 +121,9 @@ def fold_bag(path: str, topic: str | None, gear_ratio: float, *,
     Raises:
         BagError: Not a bag, no encoder topic, or no block readable.
     """
-    from rv_te_bench.core.angle_fold import AngleFold  # noqa: PLC0415
-    from rv_te_bench.core.stream import EncoderBatch  # noqa: PLC0415
-    from rv_te_bench.io.bag_reader import (  # noqa: PLC0415
+    from rv_te_bench.core.angle_fold import AngleFold
+    from rv_te_bench.core.stream import EncoderBatch
+    from rv_te_bench.io.bag_reader import (
         read_encoder_batches,
         summarize_problems,
     )
@@ -162,7 +162,7 @@ def fold_bag(path: str, topic: str | None, gear_ratio: float, *,
 
 def _bench_info(args: argparse.Namespace) -> tuple[dict[str, Any] | None, str | None]:
     """(BenchInfo, problem): a damaged BenchInfo is a problem only without the flags."""
-    from rv_te_bench.io.bag_reader import read_bench_info  # noqa: PLC0415
+    from rv_te_bench.io.bag_reader import read_bench_info
 
     try:
         return read_bench_info(args.bag), None
@@ -179,8 +179,8 @@ def _bench_info(args: argparse.Namespace) -> tuple[dict[str, Any] | None, str | 
 def _setup(args: argparse.Namespace, info: dict[str, Any] | None,
            ) -> tuple[Preset, EccentricGeometry, float, str]:
     """(preset, params, gear ratio, source of the part magnitudes)."""
-    from rv_te_bench.core.phases import EccentricGeometry  # noqa: PLC0415
-    from rv_te_bench.io.bench_record import overrides_from_parameters_yaml  # noqa: PLC0415
+    from rv_te_bench.core.phases import EccentricGeometry
+    from rv_te_bench.io.bench_record import overrides_from_parameters_yaml
 
     if args.preset is None and info is None:
         msg = (f'{args.bag}: no BenchInfo in the bag: give --preset (and --ratio if the bench '
@@ -213,7 +213,7 @@ def _deg(x: float) -> float:
 
 
 def _text(idf: Identification, source: str) -> str:
-    from rv_te_bench.core.identify import OBSERVABILITY  # noqa: PLC0415
+    from rv_te_bench.core.identify import OBSERVABILITY
 
     head = f'  {"quantity":<34} {"e [um]":>8} {"1s [um]":>8} {"phase [deg]":>11} {"1s [deg]":>8}'
     lines = ['identified from the TE record (' + OBSERVABILITY['identified_from_te'][3] + '):',
@@ -276,9 +276,9 @@ def run(args: argparse.Namespace) -> int:
         return 0
 
 
-def _run(args: argparse.Namespace) -> int:  # noqa: C901, PLR0912
-    from rv_te_bench.allocator import tune_for_batch_work  # noqa: PLC0415
-    from rv_te_bench.core.identify import (  # noqa: PLC0415
+def _run(args: argparse.Namespace) -> int:
+    from rv_te_bench.allocator import tune_for_batch_work
+    from rv_te_bench.core.identify import (
         MIN_EXPLAINED_FRACTION,
         identify_folded,
         recommend_reassembly,
@@ -321,7 +321,7 @@ def _run(args: argparse.Namespace) -> int:  # noqa: C901, PLR0912
         return 1
     if bar is not None:
         bar.close()
-    from rv_te_bench.io.bag_reader import summarize_problems  # noqa: PLC0415
+    from rv_te_bench.io.bag_reader import summarize_problems
 
     if record.partial:
         print(f'PARTIAL: {args.bag}: {record.blocks} blocks read; part of the bag is '

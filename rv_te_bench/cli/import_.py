@@ -108,7 +108,7 @@ def _start_ns(text: str | None) -> int | None:
 
 
 def _write_example(path: Path) -> int:
-    from rv_te_bench.io.files import write_atomic  # noqa: PLC0415
+    from rv_te_bench.io.files import write_atomic
 
     if path.exists():
         print(f'ERROR: {path} exists already, not overwriting', file=sys.stderr)
@@ -127,9 +127,9 @@ def run(args: argparse.Namespace) -> int:
     missing = [f for f, v in (('FILE', args.file), ('--bench', args.bench),
                               ('--out', args.out)) if v is None]
     if missing:
-        args._parser.error(f'{", ".join(missing)} required')  # noqa: SLF001
-    from rv_te_bench.core.bench_description import load_bench_description  # noqa: PLC0415
-    from rv_te_bench.io.importers import ImportOptions, import_file  # noqa: PLC0415
+        args._parser.error(f'{", ".join(missing)} required')
+    from rv_te_bench.core.bench_description import load_bench_description
+    from rv_te_bench.io.importers import ImportOptions, import_file
 
     desc = load_bench_description(args.bench)
     options = ImportOptions(

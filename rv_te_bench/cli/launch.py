@@ -98,8 +98,8 @@ def default_launch_file() -> str:
 
 def _spec_from_files(args: argparse.Namespace, nodes: list[str] | None) -> SessionSpec:
     """The SessionSpec of a launch file (with name:=value arguments) or of parameter files."""
-    from rv_te_bench.launch import launch_file as lf  # noqa: PLC0415
-    from rv_te_bench.launch.session import build_session  # noqa: PLC0415
+    from rv_te_bench.launch import launch_file as lf
+    from rv_te_bench.launch.session import build_session
 
     items = list(args.param_files)
     if args.default:
@@ -130,7 +130,7 @@ def _spec_from_files(args: argparse.Namespace, nodes: list[str] | None) -> Sessi
 
 def run(args: argparse.Namespace) -> int:
     """Validate, then run the session; 0 ok, 1 on a crash or a bad file."""
-    from rv_te_bench.launch.session import run_session, run_single_process  # noqa: PLC0415
+    from rv_te_bench.launch.session import run_session, run_single_process
 
     if args.write_default is not None:
         return _write_default(args.write_default)

@@ -64,7 +64,7 @@ def _phases(text: str) -> tuple[float, float, float, float]:
     except ValueError:
         msg = f'--phases-deg {text!r}: expected four numbers P1,P2,G,OT [deg]'
         raise argparse.ArgumentTypeError(msg) from None
-    if len(values) != 4 or not all(math.isfinite(v) for v in values):  # noqa: PLR2004
+    if len(values) != 4 or not all(math.isfinite(v) for v in values):
         msg = f'--phases-deg {text!r}: expected four finite numbers P1,P2,G,OT [deg]'
         raise argparse.ArgumentTypeError(msg)
     return values  # type: ignore[return-value]
@@ -140,9 +140,9 @@ def simulate(args: argparse.Namespace) -> tuple[dict[str, Any], dict[str, np.nda
         SimError: Bad preset, override or model input.
         RvTeError: Too many samples requested.
     """
-    from sim.kinematics import kinematics_from_preset  # noqa: PLC0415
-    from sim.models import build_te_model  # noqa: PLC0415
-    from sim.presets import load_preset  # noqa: PLC0415
+    from sim.kinematics import kinematics_from_preset
+    from sim.models import build_te_model
+    from sim.presets import load_preset
 
     overrides = list(args.overrides)
     if args.phases_deg is not None:
@@ -181,7 +181,7 @@ def simulate(args: argparse.Namespace) -> tuple[dict[str, Any], dict[str, np.nda
     period_s = kin.output_period_s(f_in)
     duration_s = args.revolutions * period_s
     n = round(duration_s * fs)
-    if n < 2 or n > MAX_SAMPLES:  # noqa: PLR2004
+    if n < 2 or n > MAX_SAMPLES:
         msg = (f'--revolutions {args.revolutions:g} at --sample-rate-hz {fs:g} give {n} '
                f'samples; need 2..{MAX_SAMPLES}')
         raise TeConfigError(msg)
@@ -200,7 +200,7 @@ def simulate(args: argparse.Namespace) -> tuple[dict[str, Any], dict[str, np.nda
     te_arcmin = te * ARCMIN_PER_RAD
     amp = np.abs(np.fft.rfft(te_arcmin - te_arcmin.mean())) * 2.0 / n
     freq = np.fft.rfftfreq(n, 1.0 / fs)
-    k_peak = int(np.argmax(amp[1:]) + 1) if n > 2 else 0  # noqa: PLR2004
+    k_peak = int(np.argmax(amp[1:]) + 1) if n > 2 else 0
     stats: dict[str, Any] = {
         'preset': preset.name, 'model': preset.model, 'kind': kind,
         'te_pp_arcmin': float(np.ptp(te_arcmin)),
@@ -229,7 +229,7 @@ def simulate(args: argparse.Namespace) -> tuple[dict[str, Any], dict[str, np.nda
     return stats, columns
 
 
-def _check_out(path: Path, force: bool) -> None:  # noqa: FBT001
+def _check_out(path: Path, force: bool) -> None:
     if path.exists() and not force:
         msg = f'output path {str(path)!r} exists already (use --force to overwrite)'
         raise TeConfigError(msg)
@@ -237,7 +237,7 @@ def _check_out(path: Path, force: bool) -> None:  # noqa: FBT001
 
 
 def _write_csv(path: Path, columns: dict[str, np.ndarray]) -> None:
-    from rv_te_bench.io.files import write_atomic  # noqa: PLC0415
+    from rv_te_bench.io.files import write_atomic
 
     data = np.column_stack(list(columns.values()))
     buf = io.BytesIO()
@@ -246,12 +246,12 @@ def _write_csv(path: Path, columns: dict[str, np.ndarray]) -> None:
 
 
 def _plot(path: Path, stats: dict[str, Any], columns: dict[str, np.ndarray]) -> None:
-    import matplotlib as mpl  # noqa: PLC0415
+    import matplotlib as mpl
 
-    from rv_te_bench.io.files import write_atomic  # noqa: PLC0415
+    from rv_te_bench.io.files import write_atomic
 
     mpl.use('Agg')
-    import matplotlib.pyplot as plt  # noqa: PLC0415
+    import matplotlib.pyplot as plt
 
     fig, ax = plt.subplots(figsize=(9, 4))
     ax.plot(columns['t_s'], columns['te_arcmin'], lw=0.6)
@@ -273,7 +273,7 @@ def _plot(path: Path, stats: dict[str, Any], columns: dict[str, np.ndarray]) -> 
 
 def _check_plot_format(path: Path) -> None:
     """--plot FILE must name an image format matplotlib writes (checked before the work)."""
-    from matplotlib.backend_bases import FigureCanvasBase  # noqa: PLC0415
+    from matplotlib.backend_bases import FigureCanvasBase
 
     kinds = FigureCanvasBase.get_supported_filetypes()
     suffix = path.suffix.lower().lstrip('.')

@@ -82,7 +82,7 @@ def check_search_arguments(args: argparse.Namespace) -> None:
     Raises:
         CompensationError: A non-finite or non-positive step or tolerance, step > 180.
     """
-    if not (math.isfinite(args.step_deg) and 0 < args.step_deg <= 180):  # noqa: PLR2004
+    if not (math.isfinite(args.step_deg) and 0 < args.step_deg <= 180):
         msg = f'--step-deg must be finite, > 0 and <= 180, got {args.step_deg!r}'
         raise CompensationError(msg)
     if not (math.isfinite(args.refine_tol_deg) and args.refine_tol_deg > 0):
@@ -102,8 +102,8 @@ def load_wang_params(name: str, overrides: list[str]) -> tuple[Preset, Wang2kvPa
     Raises:
         PresetError: Unknown preset, bad override, or a preset of another model.
     """
-    from sim.presets import load_preset  # noqa: PLC0415
-    from sim.wang2020 import Wang2kvParams  # noqa: PLC0415
+    from sim.presets import load_preset
+    from sim.wang2020 import Wang2kvParams
 
     preset = load_preset(name, overrides)
     if preset.model != 'wang2020-2kv':
@@ -115,7 +115,7 @@ def load_wang_params(name: str, overrides: list[str]) -> tuple[Preset, Wang2kvPa
 
 def format_result(result: PhaseOptimisation, title: str) -> str:
     """Text report of a PhaseOptimisation (degrees and arcmin)."""
-    from rv_te_bench.core.phases import PHASE_NAMES  # noqa: PLC0415
+    from rv_te_bench.core.phases import PHASE_NAMES
 
     lines = [title, '', f'{"phase":<10} {"before_deg":>11} {"after_deg":>10}']
     for name, b, a in zip(PHASE_NAMES, result.phases_before_rad, result.phases_after_rad,
@@ -139,7 +139,7 @@ def format_result(result: PhaseOptimisation, title: str) -> str:
 
 def run(args: argparse.Namespace) -> int:
     """Run the command; 0 ok, 1 domain error (one ``ERROR:`` line on stderr)."""
-    from rv_te_bench.core.phases import optimise_phases  # noqa: PLC0415
+    from rv_te_bench.core.phases import optimise_phases
 
     bar = None
     try:

@@ -27,7 +27,7 @@ def register(subparsers: Subparsers) -> None:
 
 def run(args: argparse.Namespace) -> int:
     """List presets or describe one; 0 on success (errors raise PresetError)."""
-    from sim.presets import available_presets, load_preset  # noqa: PLC0415
+    from sim.presets import available_presets, load_preset
 
     if not args.name:
         rows = []

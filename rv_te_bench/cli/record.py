@@ -77,18 +77,18 @@ def register(subparsers: Subparsers) -> None:
 
 def run(args: argparse.Namespace) -> int:
     """Record until ``--duration`` passes or SIGINT/SIGTERM; 0 ok, 1 error or data lost."""
-    from rv_te_bench.io.files import folder_name_problem  # noqa: PLC0415
-    from rv_te_bench.launch.session import normalise_namespace  # noqa: PLC0415
+    from rv_te_bench.io.files import folder_name_problem
+    from rv_te_bench.launch.session import normalise_namespace
 
     args.namespace = normalise_namespace(args.namespace) or '/'   # one line if invalid
     if args.name and (problem := folder_name_problem(args.name)):
         print(f'ERROR: --name {problem}', file=sys.stderr)
         return 2
     try:
-        from rclpy.parameter import Parameter  # noqa: PLC0415
+        from rclpy.parameter import Parameter
 
-        from rv_te_bench.nodes.common import run_node  # noqa: PLC0415
-        from rv_te_bench.nodes.recorder import RecorderNode  # noqa: PLC0415
+        from rv_te_bench.nodes.common import run_node
+        from rv_te_bench.nodes.recorder import RecorderNode
     except ImportError as exc:
         print(f'ERROR: recording needs ROS 2 (rclpy): {exc}', file=sys.stderr)
         return 1

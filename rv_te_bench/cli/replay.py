@@ -55,10 +55,10 @@ def register(subparsers: Subparsers) -> None:
 def run(args: argparse.Namespace) -> int:
     """Play the bag once (or until Ctrl-C with ``--loop``); 0 ok, 1 error."""
     try:
-        from rclpy.parameter import Parameter  # noqa: PLC0415
+        from rclpy.parameter import Parameter
 
-        from rv_te_bench.nodes.common import run_node  # noqa: PLC0415
-        from rv_te_bench.nodes.replay import ReplayNode  # noqa: PLC0415
+        from rv_te_bench.nodes.common import run_node
+        from rv_te_bench.nodes.replay import ReplayNode
     except ImportError as exc:
         print(f'ERROR: replay needs ROS 2 (rclpy): {exc}', file=sys.stderr)
         return 1

@@ -52,7 +52,7 @@ def _date(text: str) -> datetime:
 def _date_until(text: str) -> datetime:
     """End of the range (exclusive): a bare date YYYY-MM-DD means the end of that day."""
     d = _date(text)
-    if len(text.strip()) == 10:  # noqa: PLR2004 - YYYY-MM-DD
+    if len(text.strip()) == 10:
         d += timedelta(days=1)
     return d
 
@@ -73,7 +73,7 @@ def add_filter_arguments(p: argparse.ArgumentParser) -> None:
 
 def filter_from_args(args: argparse.Namespace) -> ResultFilter:
     """The :class:`ResultFilter` of the parsed filter options."""
-    from rv_te_bench.store import ResultFilter  # noqa: PLC0415
+    from rv_te_bench.store import ResultFilter
     return ResultFilter(serial=args.serial, since=args.since, until=args.until,
                         verdict=args.verdict, preset=args.preset, status=args.status,
                         lot=args.lot)
@@ -99,7 +99,7 @@ def _am(v: float | None) -> str:
 
 def run(args: argparse.Namespace) -> int:
     """List or export the records; 0 ok."""
-    from rv_te_bench.store import export_records, open_store  # noqa: PLC0415
+    from rv_te_bench.store import export_records, open_store
     flt = filter_from_args(args)
     with open_store(db_to_read(args)) as st:
         rows = st.query(flt)

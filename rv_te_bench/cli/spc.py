@@ -81,9 +81,9 @@ def register(subparsers: Subparsers) -> None:
 
 def run(args: argparse.Namespace) -> int:
     """Chart the metric; 0 ok."""
-    from rv_te_bench.core import spc  # noqa: PLC0415
-    from rv_te_bench.report.spc import display_unit, spc_document  # noqa: PLC0415
-    from rv_te_bench.store import open_store  # noqa: PLC0415
+    from rv_te_bench.core import spc
+    from rv_te_bench.report.spc import display_unit, spc_document
+    from rv_te_bench.store import open_store
 
     with open_store(db_to_read(args)) as st:
         if args.list:
@@ -98,7 +98,7 @@ def run(args: argparse.Namespace) -> int:
         known = ([n for n, d in st.metric_names() if d == args.direction]
                  + [f'line:{lab}' for lab in st.line_labels()])
     if not series.values:
-        hint = ', '.join(known[:8]) + (' ...' if len(known) > 8 else '')  # noqa: PLR2004
+        hint = ', '.join(known[:8]) + (' ...' if len(known) > 8 else '')
         msg = (f'no values of {args.metric[:80]!r} (direction {args.direction}) in the records '
                f'selected; stored: {hint or "nothing"}')
         raise SpcError(msg)
@@ -133,7 +133,7 @@ def run(args: argparse.Namespace) -> int:
         + f' across {len(series.values)} units' + (f' [{unit}]' if unit else '')
     doc = spc_document(chart, series, title=title, capability=cap, baseline_text=base_text)
     if args.report is not None:
-        from rv_te_bench.report.spc import write_spc_report  # noqa: PLC0415
+        from rv_te_bench.report.spc import write_spc_report
         files = write_spc_report(args.report, chart, series, title=title, capability=cap,
                                  baseline_text=base_text)
         print(f'report written: {", ".join(str(f) for f in files)}', file=sys.stderr)
@@ -169,7 +169,7 @@ def _summary(doc: dict[str, Any]) -> list[str]:
             who = doc['units'][h['index']]['serial'] if ch['kind'] == 'individuals' else None
             out.append(f'    point {h["index"]:>4} {who or "-":<14} {h["rule"]:<4} '
                        f'{h["description"]}')
-        if len(ch['hits']) > 20:  # noqa: PLR2004
+        if len(ch['hits']) > 20:
             out.append(f'    ... {len(ch["hits"]) - 20} more (see --json or --report)')
     else:
         out.append('  no rule violated')

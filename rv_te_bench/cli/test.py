@@ -90,7 +90,7 @@ def register(subparsers: Subparsers) -> None:
 
 
 def _conditions(items: list[str]) -> dict[str, Any]:
-    from rv_te_bench.errors import (  # noqa: PLC0415
+    from rv_te_bench.errors import (
         AcceptanceError,
         YamlInputError,
         YamlLimitError,
@@ -114,12 +114,12 @@ def _conditions(items: list[str]) -> dict[str, Any]:
 
 def _session(args: argparse.Namespace, out_dir: Path) -> Session:
     """Start the simulated session of ``--launch`` (validated first)."""
-    from rv_te_bench.launch.session import Session, SessionSpec  # noqa: PLC0415
-    from sim.presets import load_preset  # noqa: PLC0415
+    from rv_te_bench.launch.session import Session, SessionSpec
+    from sim.presets import load_preset
 
     preset = load_preset(args.launch, list(args.set))   # a bad preset or --set: one line
     mode = args.te_mode or DEFAULT_TE_MODE.get(preset.model, 'nlte')
-    from sim.program import ProgramSimulator  # noqa: PLC0415
+    from sim.program import ProgramSimulator
 
     ProgramSimulator(preset=args.launch, overrides=tuple(args.set), te_mode=mode,
                      encoder_in=args.encoder, encoder_out=args.encoder,
@@ -141,10 +141,10 @@ def _session(args: argparse.Namespace, out_dir: Path) -> Session:
     return session, log
 
 
-def run(args: argparse.Namespace) -> int:  # noqa: C901, PLR0912, PLR0915
+def run(args: argparse.Namespace) -> int:
     """Validate, (launch,) send the goal, follow it, report; 0 pass, 3 fail, 1 error."""
-    from rv_te_bench.acceptance import load_plan, load_tolerance  # noqa: PLC0415
-    from rv_te_bench.launch.session import normalise_namespace  # noqa: PLC0415
+    from rv_te_bench.acceptance import load_plan, load_tolerance
+    from rv_te_bench.launch.session import normalise_namespace
 
     check_record_text(args)   # before the test: the store would refuse it at the end
     plan, plan_text = load_plan(args.plan)
@@ -188,7 +188,7 @@ def run(args: argparse.Namespace) -> int:  # noqa: C901, PLR0912, PLR0915
 
 def show_report(report: dict[str, Any], directory: Path, *, as_json: bool) -> None:
     """Write the unit report; print the record as JSON or the verdict table and its path."""
-    from rv_te_bench.report.unit import write_unit_report  # noqa: PLC0415
+    from rv_te_bench.report.unit import write_unit_report
 
     paths = write_unit_report(report, directory)
     if as_json:
@@ -201,7 +201,7 @@ def show_report(report: dict[str, Any], directory: Path, *, as_json: bool) -> No
 def verdict_exit(verdict: str, serial: str, reason: str,
                  report: dict[str, Any] | None) -> int:
     """The verdict line and the exit code: 0 pass, 3 fail, 1 anything else."""
-    from rv_te_bench.report.unit import human_reason  # noqa: PLC0415
+    from rv_te_bench.report.unit import human_reason
 
     if report is not None:
         reason = human_reason(report)
@@ -217,8 +217,8 @@ def verdict_exit(verdict: str, serial: str, reason: str,
 
 def _record(args: argparse.Namespace, report: dict[str, Any], bag: Path) -> None:
     """The test's record in the results store (next to the session folders by default)."""
-    from rv_te_bench.acceptance._store import store_record  # noqa: PLC0415
-    from rv_te_bench.store import open_store  # noqa: PLC0415
+    from rv_te_bench.acceptance._store import store_record
+    from rv_te_bench.store import open_store
 
     db = db_for_bags(args, [bag.parent])
     if db is None or not (bag / 'metadata.yaml').exists():
@@ -234,7 +234,7 @@ def _record(args: argparse.Namespace, report: dict[str, Any], bag: Path) -> None
 
 
 def _print_table(report: dict[str, Any]) -> None:
-    from rv_te_bench.report.unit import metric_rows  # noqa: PLC0415
+    from rv_te_bench.report.unit import metric_rows
 
     print(f"unit {report['unit']['serial']}  operator {report['unit']['operator']}  "
           f"{report['unit']['date_utc']}  plan {report['plan']['plan']}  "
@@ -254,7 +254,7 @@ class _Progress:
         self.tty = sys.stderr.isatty()
 
     def __call__(self, fb: RunTestPlan.Feedback) -> None:
-        from rv_te_bench.report.unit import format_live  # noqa: PLC0415
+        from rv_te_bench.report.unit import format_live
 
         if fb.step_index != self.step:
             if self.tty and self.step >= 0:
@@ -275,10 +275,10 @@ class _Progress:
 def _run_goal(args: argparse.Namespace, plan_text: str, tol_text: str,
               conditions: str) -> tuple[str, str, str] | None:
     """Send the goal and follow it; (verdict, reason, report_json), None on an error."""
-    import rclpy  # noqa: PLC0415
-    from rclpy.action import ActionClient  # noqa: PLC0415
-    from rclpy.executors import SingleThreadedExecutor  # noqa: PLC0415
-    from rv_te_msgs.action import RunTestPlan  # noqa: PLC0415
+    import rclpy
+    from rclpy.action import ActionClient
+    from rclpy.executors import SingleThreadedExecutor
+    from rv_te_msgs.action import RunTestPlan
 
     ctx = rclpy.context.Context()
     rclpy.init(context=ctx)
@@ -344,9 +344,9 @@ def _run_goal(args: argparse.Namespace, plan_text: str, tol_text: str,
 
 def _busy_reason(node: Node, executor: Executor) -> str:
     """Why a goal was rejected: the running test on the latched test/report."""
-    from rv_te_msgs.msg import TestReport  # noqa: PLC0415
+    from rv_te_msgs.msg import TestReport
 
-    from rv_te_bench.nodes import qos  # noqa: PLC0415
+    from rv_te_bench.nodes import qos
 
     got: list[Any] = []
     sub = node.create_subscription(TestReport, 'test/report', got.append, qos.LATCHED_QOS)

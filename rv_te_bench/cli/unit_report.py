@@ -65,11 +65,11 @@ def _differences(new: dict[str, Any], old: dict[str, Any]) -> list[str]:
 
 def run(args: argparse.Namespace) -> int:
     """Recompute, compare, report; 0 pass, 3 fail, 1 error."""
-    from rv_te_bench.acceptance import BenchContext, load_tolerance, parse_plan  # noqa: PLC0415
-    from rv_te_bench.acceptance._files import parse_yaml_text  # noqa: PLC0415
-    from rv_te_bench.acceptance.runner import reanalyse  # noqa: PLC0415
-    from rv_te_bench.acceptance.tolerance import parse_tolerance  # noqa: PLC0415
-    from rv_te_bench.io.test_records import read_recorded_test  # noqa: PLC0415
+    from rv_te_bench.acceptance import BenchContext, load_tolerance, parse_plan
+    from rv_te_bench.acceptance._files import parse_yaml_text
+    from rv_te_bench.acceptance.runner import reanalyse
+    from rv_te_bench.acceptance.tolerance import parse_tolerance
+    from rv_te_bench.io.test_records import read_recorded_test
 
     bag = Path(args.bag)
     rec = read_recorded_test(bag, serial=args.serial)

@@ -111,13 +111,13 @@ def search(folded: FoldedTe, geom: EccentricGeometry, rng: np.random.Generator,
         x, cost = alternate(x0, bas, w, y)
         if cost < best_cost:
             best_x, best_cost = x, cost
-    assert best_x is not None  # noqa: S101 - at least the four deterministic starts ran
+    assert best_x is not None
     return best_x
 
 
 def polish(x0: FloatArray, bas: FloatArray, w: FloatArray, y: FloatArray) -> FloatArray:
     """Alternate from ``x0`` on the full fold, then least_squares; the better of the two."""
-    from scipy.optimize import least_squares  # noqa: PLC0415 - 0.4 s to import: only here
+    from scipy.optimize import least_squares
 
     best_x, best_cost = alternate(x0, bas, w, y)
 

@@ -153,7 +153,7 @@ class AngleFold:
         Raises:
             TeInputError: ``n_bins`` is not an integer >= 8.
         """
-        if isinstance(n_bins, bool) or not isinstance(n_bins, int | np.integer) or n_bins < 8:  # noqa: PLR2004
+        if isinstance(n_bins, bool) or not isinstance(n_bins, int | np.integer) or n_bins < 8:
             msg = f'n_bins must be an integer >= 8, got {n_bins!r}'
             raise TeInputError(msg)
         self.n_bins = int(n_bins)
@@ -218,7 +218,7 @@ class AngleFold:
         self.add(*output_phase_and_te(theta_in_rad, theta_out_rad, gear_ratio=gear_ratio))
 
     def _noise(self, phi: FloatArray, te: FloatArray) -> None:
-        if te.size < 3 or len(self._d2) >= _NOISE_STRETCHES:  # noqa: PLR2004
+        if te.size < 3 or len(self._d2) >= _NOISE_STRETCHES:
             return
         y = te[:_NOISE_SAMPLES]
         d2 = np.abs(y[2:] - 2.0 * y[1:-1] + y[:-2])

@@ -69,13 +69,13 @@ _MAX_TEXT = 4096        # longest free text (notes, metadata values) [characters
 _MAX_METADATA = 100     # most free metadata keys
 
 
-def _fail(where: str, key: str, rule: str, value: Any = None) -> None:  # noqa: ANN401
+def _fail(where: str, key: str, rule: str, value: Any = None) -> None:
     got = '' if value is None else f', got {brief(value)}'
     msg = f'{where}: {key} {rule}{got}'
     raise BenchDescriptionError(msg)
 
 
-def _number(v: Any) -> bool:  # noqa: ANN401
+def _number(v: Any) -> bool:
     return not isinstance(v, bool) and isinstance(v, int | float) and math.isfinite(v)
 
 
@@ -141,7 +141,7 @@ class UnitUnderTest:
     def __post_init__(self) -> None:
         """Validate (temperature finite, in -100..300 degC)."""
         t = self.temperature_c
-        if t is not None and (not _number(t) or not -100.0 <= t <= 300.0):  # noqa: PLR2004
+        if t is not None and (not _number(t) or not -100.0 <= t <= 300.0):
             _fail('UnitUnderTest', 'temperature_c', 'must be a number in [-100, 300]', t)
 
 
@@ -191,7 +191,7 @@ class BenchDescription:
     metadata: Mapping[str, str] = field(default_factory=dict, hash=False)
     origin: str = field(default='<bench description>', compare=False)
 
-    def __post_init__(self) -> None:  # noqa: C901 - one check per field
+    def __post_init__(self) -> None:
         """Validate every field; NaN ``crank_rel_per_output`` becomes crank + 1.
 
         Raises:
@@ -227,7 +227,7 @@ class BenchDescription:
                   list(labels))
         object.__setattr__(self, 'mesh_labels', labels)
         bs = self.block_size
-        if isinstance(bs, bool) or not isinstance(bs, int) or not 1 <= bs <= 1_000_000:  # noqa: PLR2004
+        if isinstance(bs, bool) or not isinstance(bs, int) or not 1 <= bs <= 1_000_000:
             _fail(w, 'block_size', 'must be an integer in [1, 1000000]', bs)
         for name, cls in (('encoder_in', EncoderInfo), ('encoder_out', EncoderInfo),
                           ('torque_sensor', TorqueSensor), ('unit_under_test', UnitUnderTest)):
@@ -257,12 +257,12 @@ class BenchDescription:
         return -self.crank_rel_per_output / self.gear_ratio
 
     def _kinematics(self) -> ReducerKinematics:
-        from sim.kinematics import kinematics_from_preset  # noqa: PLC0415
+        from sim.kinematics import kinematics_from_preset
 
         return kinematics_from_preset(self._preset())
 
     def _preset(self) -> Preset:
-        from sim.presets import load_preset  # noqa: PLC0415
+        from sim.presets import load_preset
 
         return load_preset(str(self.preset), list(self.preset_overrides))
 
@@ -298,7 +298,7 @@ class BenchDescription:
         so :func:`rv_te_bench.io.bench_record.overrides_from_parameters_yaml` rebuilds the
         exact preset).
         """
-        from sim.bench import BenchInfoData  # noqa: PLC0415
+        from sim.bench import BenchInfoData
 
         record: dict[str, Any] = {'bench': self.to_plain()}
         if self.preset is not None:
@@ -343,14 +343,14 @@ def _encoder_plain(e: EncoderInfo) -> dict[str, Any]:
 class _Keys:
     """Pops and checks the keys of one mapping; one line naming where, key, rule, value."""
 
-    def __init__(self, data: Any, where: str, key: str = '') -> None:  # noqa: ANN401
+    def __init__(self, data: Any, where: str, key: str = '') -> None:
         self.where = where
         self.prefix = f'{key}.' if key else ''
         if not isinstance(data, dict):
             _fail(where, key or 'document', 'must be a mapping', data)
         self.data = dict(data)
 
-    def fail(self, key: str, rule: str, value: Any = None) -> None:  # noqa: ANN401
+    def fail(self, key: str, rule: str, value: Any = None) -> None:
         _fail(self.where, f'{self.prefix}{key}', rule, value)
 
     def num(self, key: str, *, required: bool = False, positive: bool = True,
@@ -388,7 +388,7 @@ class _Keys:
 
 
 def _encoder(k: _Keys) -> EncoderInfo:
-    from sim.encoders import ENCODER_PRESETS  # noqa: PLC0415
+    from sim.encoders import ENCODER_PRESETS
 
     model = k.text('model', 'unknown') or 'unknown'
     known = ENCODER_PRESETS.get(model)
@@ -416,9 +416,9 @@ def _kinematic_fields(top: _Keys, preset: str | None, overrides: tuple[str, ...]
         if 'reducer' in top.data:
             top.fail('reducer', 'is not allowed with a preset (the preset gives the '
                      'kinematics; change teeth with preset_overrides)')
-        from sim.errors import PresetError  # noqa: PLC0415
-        from sim.kinematics import kinematics_from_preset  # noqa: PLC0415
-        from sim.presets import load_preset  # noqa: PLC0415
+        from sim.errors import PresetError
+        from sim.kinematics import kinematics_from_preset
+        from sim.presets import load_preset
 
         try:
             kin = kinematics_from_preset(load_preset(preset, list(overrides)))
@@ -440,7 +440,7 @@ def _kinematic_fields(top: _Keys, preset: str | None, overrides: tuple[str, ...]
         'crank_per_output': r.num('crank_per_output', required=True),
         'crank_rel_per_output': r.num('crank_rel_per_output', default=math.nan)}
     orders = r.data.pop('mesh_orders', [])
-    if not isinstance(orders, list) or len(orders) > 20 or any(  # noqa: PLR2004
+    if not isinstance(orders, list) or len(orders) > 20 or any(
             not _number(o) or o <= 0 for o in orders):
         r.fail('mesh_orders', 'must be a list of at most 20 finite numbers > 0', orders)
     labels = r.data.pop('mesh_labels', [f'mesh {j + 1}' for j in range(len(orders))])
@@ -454,7 +454,7 @@ def _kinematic_fields(top: _Keys, preset: str | None, overrides: tuple[str, ...]
     return out
 
 
-def parse_bench_description(data: Any, origin: str = '<bench description>',  # noqa: ANN401
+def parse_bench_description(data: Any, origin: str = '<bench description>',
                             ) -> BenchDescription:
     """Validate a bench description mapping (parsed YAML).
 
@@ -472,7 +472,7 @@ def parse_bench_description(data: Any, origin: str = '<bench description>',  # n
     kin = _kinematic_fields(top, preset, tuple(ov))
     rate = top.num('sample_rate_hz', required=True)
     bs = top.data.pop('block_size', 1000)
-    if isinstance(bs, bool) or not isinstance(bs, int) or not 1 <= bs <= 1_000_000:  # noqa: PLR2004
+    if isinstance(bs, bool) or not isinstance(bs, int) or not 1 <= bs <= 1_000_000:
         top.fail('block_size', 'must be an integer in [1, 1000000]', bs)
     enc = top.sub('encoders')
     enc_in = _encoder(enc.sub('input'))
@@ -491,7 +491,7 @@ def parse_bench_description(data: Any, origin: str = '<bench description>',  # n
     ts.done()
     u = top.sub('unit_under_test')
     temp = u.num('temperature_c', positive=False)
-    if temp is not None and not -100.0 <= temp <= 300.0:  # noqa: PLR2004
+    if temp is not None and not -100.0 <= temp <= 300.0:
         u.fail('temperature_c', 'must be in [-100, 300] degC', temp)
     uut = UnitUnderTest(serial=u.text('serial', '') or '', operator=u.text('operator', '') or '',
                         temperature_c=temp, notes=u.text('notes', '', allow_empty=True) or '')

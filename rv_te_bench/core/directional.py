@@ -90,10 +90,10 @@ def direction_te(theta_in_rad: npt.ArrayLike, theta_out_rad: npt.ArrayLike, *,
     phi, te = output_phase_and_te(np.asarray(theta_in_rad, dtype=np.float64).ravel(),
                                   np.asarray(theta_out_rad, dtype=np.float64).ravel(),
                                   gear_ratio=gear_ratio)
-    if phi.size < 2:  # noqa: PLR2004
+    if phi.size < 2:
         msg = f'a TE record needs at least 2 samples, got {phi.size}'
         raise TeInputError(msg)
-    if isinstance(bins, bool) or not isinstance(bins, int) or bins < 8:  # noqa: PLR2004
+    if isinstance(bins, bool) or not isinstance(bins, int) or bins < 8:
         msg = f'bins must be an integer >= 8, got {bins!r}'
         raise TeInputError(msg)
     step = np.diff(phi)

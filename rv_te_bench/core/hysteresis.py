@@ -120,7 +120,7 @@ class HysteresisConfig:
             msg = f'rated_torque_nm must be finite and > 0, got {t!r}'
             raise TeConfigError(msg)
         f = self.lost_motion_fraction
-        if isinstance(f, bool) or not isinstance(f, int | float) or not (0 < f <= 0.5):  # noqa: PLR2004
+        if isinstance(f, bool) or not isinstance(f, int | float) or not (0 < f <= 0.5):
             msg = f'lost_motion_fraction must lie in (0, 0.5], got {f!r}'
             raise TeConfigError(msg)
         regions = tuple(self.rigidity_regions)
@@ -257,7 +257,7 @@ def branch_value(torque_nm: np.ndarray, angle_rad: np.ndarray, t0_nm: float, *,
 
 def _loop_area(t_loop: np.ndarray, a_loop: np.ndarray) -> float:
     """Area of the closed polygon (angle, torque) [N m rad]."""
-    if t_loop.size < 3:  # noqa: PLR2004
+    if t_loop.size < 3:
         return math.nan
     x, y = a_loop, t_loop
     return float(0.5 * abs(np.dot(x, np.roll(y, -1)) - np.dot(y, np.roll(x, -1))))
@@ -294,7 +294,7 @@ def hysteresis_metrics(torque_nm: npt.ArrayLike, angle_rad: npt.ArrayLike,
         (0.001, 100000)
     """
     t, a = _as_pair(torque_nm, angle_rad)
-    if t.size < 5:  # noqa: PLR2004
+    if t.size < 5:
         msg = f'a hysteresis record needs at least 5 points, got {t.size}'
         raise TeInputError(msg)
     i_max, i_min = int(np.argmax(t)), int(np.argmin(t))

@@ -275,9 +275,9 @@ class Identification:
         if self.fit is not None and not self.fit.acceptable:
             out.append(f'poor fit: {self.fit.describe()} (advice needs '
                        f'{100 * self.fit.min_explained_fraction:g} %)')
-        if self.output_revolutions < 0.99:  # noqa: PLR2004 - n samples span (n-1)/n rev
+        if self.output_revolutions < 0.99:
             out.append('less than one output revolution: e_ot is poorly determined')
-        if min(self.contact_fraction) < 0.02:  # noqa: PLR2004
+        if min(self.contact_fraction) < 0.02:
             out.append(f'one pair carried only {100 * min(self.contact_fraction):.1f} % of the '
                        'record: its sum is poorly determined')
         if self.split_resolved:
@@ -454,7 +454,7 @@ def identify_folded(folded: FoldedTe, params: GeometrySource, *,
     return _finish(geom, folded, x, q1, q2, ee, frac1, fit, sig, cov_q, split=split)
 
 
-def _finish(geom: EccentricGeometry, folded: FoldedTe, x: FloatArray,  # noqa: PLR0913
+def _finish(geom: EccentricGeometry, folded: FoldedTe, x: FloatArray,
             q1: complex, q2: complex, ee: complex, frac1: float, fit: FitQuality,
             sig: dict[str, float], cov_q: FloatArray, *, split: bool) -> Identification:
     """Labels, split and the result object."""
@@ -539,7 +539,7 @@ def check_fit(identification: Identification) -> None:
         raise PoorFitError(msg, identification)
 
 
-def identified_advice(phase_out_rad: npt.ArrayLike | FoldedTe, te_rad: npt.ArrayLike | None,  # noqa: PLR0913
+def identified_advice(phase_out_rad: npt.ArrayLike | FoldedTe, te_rad: npt.ArrayLike | None,
                       params: GeometrySource, *, preset_name: str, step_deg: float = 10.0,
                       refine: bool = False,
                       progress: ProgressCallback | None = None) -> Advice:
@@ -566,7 +566,7 @@ def identified_advice(phase_out_rad: npt.ArrayLike | FoldedTe, te_rad: npt.Array
     result = recommend_reassembly(ident, params, step_deg=step_deg, refine=refine,
                                   progress=progress)
     advice = result.to_advice(preset_name, method='identified-assembly-phases')
-    assert ident.fit is not None  # noqa: S101 - identify_folded always sets it
+    assert ident.fit is not None
     details = dict(advice.details)
     details['identification'] = ident.to_json_dict()
     details['fit'] = ident.fit.to_json_dict()

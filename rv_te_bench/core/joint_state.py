@@ -58,8 +58,14 @@ if TYPE_CHECKING:
 
     from rv_te_bench.core.stream import EncoderBlockData
 
-__all__ = ['GapReason', 'JointStateAssembler', 'JointStateBlock', 'JointStateConfig',
-           'JointStateGap', 'STAMP_JUMP_PERIODS']
+__all__ = [
+    'STAMP_JUMP_PERIODS',
+    'GapReason',
+    'JointStateAssembler',
+    'JointStateBlock',
+    'JointStateConfig',
+    'JointStateGap',
+]
 
 PositionUnit = Literal['rad', 'counts']
 GapReason = Literal['stamp_jump', 'stamp_backwards', 'missing_joint', 'non_finite']
@@ -115,7 +121,7 @@ class JointStateConfig:
     pairing_tolerance_s: float = 0.0
     max_unpaired: int = 64
 
-    def __post_init__(self) -> None:  # noqa: C901 - one check per field
+    def __post_init__(self) -> None:
         """Check every field; the message names the field and the value."""
         for name in ('input_joint', 'output_joint'):
             value = getattr(self, name)
@@ -204,7 +210,7 @@ class JointStateBlock:
 
     def to_encoder_block_data(self) -> EncoderBlockData:
         """The TE core's block (what a TE node makes of the published EncoderBlock)."""
-        from rv_te_bench.core.stream import EncoderBlockData  # noqa: PLC0415
+        from rv_te_bench.core.stream import EncoderBlockData
 
         return EncoderBlockData(self.seq, self.stamp_s, self.sample_rate_hz,
                                 self.time_offset_s, self.theta_in_rad, self.theta_out_rad,
@@ -435,7 +441,7 @@ class JointStateAssembler:
     def _close_gap(self, t_after: int | None,
                    out: list[JointStateBlock | JointStateGap]) -> None:
         gap, self._gap = self._gap, None
-        assert gap is not None  # noqa: S101 - callers check
+        assert gap is not None
         before = gap.stamp_before_ns
         if before is not None and t_after is not None:
             self._next_seq += 1   # the skipped seq: every consumer sees the break

@@ -91,7 +91,7 @@ _N_PROBE = 64                    # most promising combinations that set the firs
 _TWO_PI = 2.0 * math.pi
 
 
-def _finite(name: str, value: Any, *, positive: bool = False, nonneg: bool = False,  # noqa: ANN401
+def _finite(name: str, value: Any, *, positive: bool = False, nonneg: bool = False,
             ) -> float:
     """Return ``value`` as float or raise CompensationError naming ``name``."""
     rule = '>0' if positive else '>=0' if nonneg else ''
@@ -131,7 +131,7 @@ class EccentricGeometry:
             CompensationError: A value is non-finite, negative where it must not be, or the
                 crank order is not a non-zero integer.
         """
-        if len(self.e_m) != 4 or len(self.phases_rad) != 4:  # noqa: PLR2004
+        if len(self.e_m) != 4 or len(self.phases_rad) != 4:
             msg = f'e_m and phases_rad need 4 values, got {self.e_m!r}, {self.phases_rad!r}'
             raise CompensationError(msg)
         e = tuple(_finite(f'e_m[{n}]', v, nonneg=True) for n, v in zip(
@@ -377,7 +377,7 @@ def grid_search_phases(geom: EccentricGeometry, axes_rad: Sequence[npt.ArrayLike
     Raises:
         CompensationError: Not four non-empty finite axes.
     """
-    if len(axes_rad) != 4:  # noqa: PLR2004
+    if len(axes_rad) != 4:
         msg = f'axes_rad needs 4 axes, got {len(axes_rad)}'
         raise CompensationError(msg)
     ax = [np.asarray(a, dtype=np.float64).ravel() for a in axes_rad]
@@ -395,7 +395,7 @@ def grid_search_phases(geom: EccentricGeometry, axes_rad: Sequence[npt.ArrayLike
         out = []
         for f, a in enumerate(ax):
             x = a - geom.alpha_rad
-            rows = (bas[0 if f < 3 else 2], bas[1 if f < 3 else 3])  # noqa: PLR2004
+            rows = (bas[0 if f < 3 else 2], bas[1 if f < 3 else 3])
             t = geom.e_m[f] * (np.sin(x)[:, None] * rows[0] + np.cos(x)[:, None] * rows[1])
             out.append(t.astype(dtype))
         return out
@@ -599,7 +599,7 @@ def optimise_phases(geom_or_params: GeometrySource, *, step_deg: float = 10.0,
     geom = (geom_or_params if isinstance(geom_or_params, EccentricGeometry)
             else EccentricGeometry.from_params(geom_or_params))
     step = _finite('step_deg', step_deg, positive=True)
-    if step > 180.0:  # noqa: PLR2004
+    if step > 180.0:
         msg = f'step_deg must be <= 180, got {step_deg!r}'
         raise CompensationError(msg)
     tol = _finite('refine_tol_deg', refine_tol_deg, positive=True)

@@ -76,7 +76,7 @@ def _range_moments(n: int) -> tuple[float, float]:
     x = np.linspace(-9.0, 9.0, 3601)
     w = np.linspace(0.0, 14.0, 2801)
     phi = np.exp(-0.5 * x * x) / math.sqrt(2.0 * math.pi)
-    from scipy.special import ndtr  # noqa: PLC0415 (scipy is heavy; only here)
+    from scipy.special import ndtr
     cdf = ndtr(x)
     xw = x[None, :] + w[:, None]
     inner = phi[None, :] * np.exp(-0.5 * xw * xw) / math.sqrt(2.0 * math.pi) \
@@ -86,7 +86,7 @@ def _range_moments(n: int) -> tuple[float, float]:
 
 
 def _check_n(n: int) -> int:
-    if not (isinstance(n, (int, np.integer)) and 2 <= n <= _MAX_SUBGROUP):  # noqa: PLR2004
+    if not (isinstance(n, (int, np.integer)) and 2 <= n <= _MAX_SUBGROUP):
         msg = f'subgroup size must be an integer in [2, {_MAX_SUBGROUP}], got {n!r}'
         raise SpcError(msg)
     return int(n)
@@ -267,7 +267,7 @@ def xbar_r_chart(values: npt.ArrayLike, lots: Sequence[object], *,
     keys = list(dict.fromkeys(lots))
     groups = [x[[i for i, lot in enumerate(lots) if lot == k]] for k in keys]
     for k, g in zip(keys, groups, strict=True):
-        if not 2 <= g.size <= _MAX_SUBGROUP:  # noqa: PLR2004
+        if not 2 <= g.size <= _MAX_SUBGROUP:
             msg = f'lot {k!r} has {g.size} unit(s): X-bar/R needs 2-{_MAX_SUBGROUP} per lot'
             raise SpcError(msg)
     n = np.array([g.size for g in groups])
@@ -319,8 +319,8 @@ def run_rules(z: npt.ArrayLike, *, rules: RuleSet = 'nelson') -> list[RuleHit]:
     up, dn = z > 0, z < 0
     d = np.diff(z)
     hits: dict[str, np.ndarray] = {}
-    beyond3 = np.flatnonzero(np.abs(z) > 3.0)  # noqa: PLR2004
-    two_of_3 = np.union1d(_k_of_m(z > 2.0, 2, 3), _k_of_m(z < -2.0, 2, 3))  # noqa: PLR2004
+    beyond3 = np.flatnonzero(np.abs(z) > 3.0)
+    two_of_3 = np.union1d(_k_of_m(z > 2.0, 2, 3), _k_of_m(z < -2.0, 2, 3))
     four_of_5 = np.union1d(_k_of_m(z > 1.0, 4, 5), _k_of_m(z < -1.0, 4, 5))
     if rules == 'nelson':
         hits['N1'] = beyond3
@@ -398,7 +398,7 @@ def capability(values: npt.ArrayLike, *, sigma_within: float, lsl: float | None 
     if not (math.isfinite(sigma_within) and sigma_within > 0):
         msg = f'sigma_within must be finite and > 0, got {sigma_within!r}'
         raise SpcError(msg)
-    if x.size < 2:  # noqa: PLR2004
+    if x.size < 2:
         msg = f'capability needs at least 2 values, got {x.size}'
         raise SpcError(msg)
     mu = float(x.mean())

@@ -174,7 +174,7 @@ class OrderSpectrum:
 
     def lines_only(self) -> OrderSpectrum:
         """A copy without the per-bin arrays (a few hundred bytes instead of ~2 MB for a
-        one-revolution window at 10 kHz): what a long offline analysis keeps per window."""  # noqa: D205, D209
+        one-revolution window at 10 kHz): what a long offline analysis keeps per window."""
         return replace(self, orders=_EMPTY_F, amplitude_rad=_EMPTY_F, bins=_EMPTY_C)
 
     def line(self, label: str) -> SpectrumLine:
@@ -271,7 +271,7 @@ def _lagrange4_uniform(x: np.ndarray, y: np.ndarray, spacing: float, n_grid: int
     the same operations in the same order, so the same values bit for bit (the kernel is
     about 3x faster and runs without the GIL). Arguments and result as there.
     """
-    if _KERNEL is None or x.size < 4:  # noqa: PLR2004 - four nodes make a cubic
+    if _KERNEL is None or x.size < 4:
         return _lagrange4_numpy(x, y, spacing, n_grid, dx=dx, work=work)
     out = work.array('grid', n_grid) if work is not None else np.empty(n_grid)
     _KERNEL.lagrange4_uniform(np.ascontiguousarray(x), np.ascontiguousarray(y),
@@ -299,7 +299,7 @@ def _lagrange4_numpy(x: np.ndarray, y: np.ndarray, spacing: float, n_grid: int, 
     next call with the same workspace); the values are the same either way.
     """
     n = x.size
-    if n < 4:  # noqa: PLR2004 - four nodes make a cubic
+    if n < 4:
         return np.interp(np.arange(n_grid) * spacing, x, y)
     ws = work if work is not None else SpectrumWorkspace()
     # count[m] = number of nodes with x <= m * spacing: a node in ((m-1) s, m s] goes to
@@ -405,7 +405,7 @@ def resample_to_output_angle(
     if phi.ndim != 1 or phi.shape != te.shape:
         msg = f'phase_out_rad and te_rad must be 1-D of equal length: {phi.shape=}, {te.shape=}'
         raise TeInputError(msg)
-    if phi.size < 2:  # noqa: PLR2004
+    if phi.size < 2:
         msg = f'need at least 2 samples, got {phi.size}'
         raise TeInputError(msg)
     # a NaN or inf makes the sum non-finite (one pass, no temporary)
@@ -440,7 +440,7 @@ def resample_to_output_angle(
         spr = _next_fast_len(max(4, math.ceil(density - 1e-6)))
     else:
         if isinstance(samples_per_rev, bool) or int(samples_per_rev) != samples_per_rev \
-                or samples_per_rev < 2:  # noqa: PLR2004
+                or samples_per_rev < 2:
             msg = f'samples_per_rev must be an int >= 2, got {samples_per_rev!r}'
             raise TeInputError(msg)
         spr = int(samples_per_rev)

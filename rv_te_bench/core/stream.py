@@ -109,8 +109,8 @@ class EncoderBlockData:
 
     @classmethod
     def checked(cls, *, seq: int, stamp_s: float, sample_rate_hz: float,
-                time_offset_s: Any, theta_in_rad: Any, theta_out_rad: Any,  # noqa: ANN401
-                torque_out_nm: Any = ()) -> EncoderBlockData:  # noqa: ANN401
+                time_offset_s: Any, theta_in_rad: Any, theta_out_rad: Any,
+                torque_out_nm: Any = ()) -> EncoderBlockData:
         """Build a block with float64 arrays and validate it.
 
         Raises:
@@ -260,7 +260,7 @@ class EncoderBatch:
                    theta_out_rad=cat('theta_out_rad'))
 
 
-def _normalize(block: Any) -> _Clean | _Problem:  # noqa: ANN401, C901, PLR0911, PLR0912
+def _normalize(block: Any) -> _Clean | _Problem:
     """Check one block without raising; return clean float64 arrays or the problem."""
     seq = getattr(block, 'seq', None)
     if isinstance(seq, bool) or not isinstance(seq, int | np.integer):
@@ -298,7 +298,7 @@ def _normalize(block: Any) -> _Clean | _Problem:  # noqa: ANN401, C901, PLR0911,
     # and sum without overflow (n < 1e8): the increase test (needed anyway) covers them.
     # count_nonzero of the comparison: no .all() wrapper (a NaN compares False: not increasing)
     increasing = n == 1 or int(np.count_nonzero(offs[1:] > offs[:-1])) == n - 1
-    offs_ok = increasing and n < _OFFS_SUM_SAFE_N and -_OFFS_BOUND <= float(offs[0]) \
+    offs_ok = increasing and n < _OFFS_SUM_SAFE_N and float(offs[0]) >= -_OFFS_BOUND \
         and float(offs[-1]) <= _OFFS_BOUND
     add = np.add.reduce
     if offs_ok:
@@ -497,7 +497,7 @@ class _WindowBuffer:
         self.last_seq = -1
         self._scratch = _EMPTY
 
-    def append(self, phi: np.ndarray, te: np.ndarray, t_first: float, t_last: float,  # noqa: PLR0913
+    def append(self, phi: np.ndarray, te: np.ndarray, t_first: float, t_last: float,
                seq_first: int, seq_last: int) -> None:
         m = phi.size
         if m == 0:
@@ -516,7 +516,7 @@ class _WindowBuffer:
         self.last_seq = seq_last
         self.n = need
 
-    def take(self, m: int, t_first: float, t_last: float, seq_first: int,  # noqa: PLR0913
+    def take(self, m: int, t_first: float, t_last: float, seq_first: int,
              seq_last: int) -> None:
         """Take in the ``m`` samples already written past the end (at ``[n, n + m)``)."""
         if self.n == 0:
@@ -667,7 +667,7 @@ class StreamingTeAnalyzer:
     def counters(self) -> dict[str, int]:
         """Counts: blocks, samples (clean), gaps (events), malformed, non_finite, seq_jumps,
         time_backwards, leading_loss (1 when the first block's seq is above 0), dropped_blocks (malformed + non_finite), windows, complete_windows,
-        spectrum_failures (complete windows whose angle grid could not be resampled)."""  # noqa: D205, D209
+        spectrum_failures (complete windows whose angle grid could not be resampled)."""
         return dict(self._counters)
 
     def reconfigure(self, config: TeAnalysisConfig, *, reset_cumulative: bool | None = None) -> None:
@@ -1041,7 +1041,7 @@ class _SpectraThread:
     def __init__(self, analyzer: StreamingTeAnalyzer,
                  keep: Callable[[list[WindowResult]], object],
                  shared: Executor | None = None) -> None:
-        from concurrent.futures import ThreadPoolExecutor  # noqa: PLC0415
+        from concurrent.futures import ThreadPoolExecutor
 
         self._analyzer = analyzer
         self._keep = keep
@@ -1053,17 +1053,17 @@ class _SpectraThread:
         self._on_thread: Future[OrderSpectrum] | None = None   # the thread's latest job
         self._thread_arrays: tuple[np.ndarray, np.ndarray] | None = None   # ... its arrays
         self._queue: deque[WindowResult] = deque()
-        analyzer._spectrum_hook = self._submit  # noqa: SLF001 - the hook is for this class
+        analyzer._spectrum_hook = self._submit
 
     def __enter__(self) -> _SpectraThread:
         return self
 
     def __exit__(self, *exc: object) -> None:
-        self._analyzer._spectrum_hook = None  # noqa: SLF001
+        self._analyzer._spectrum_hook = None
         if self._own:
             self._pool.shutdown(wait=True, cancel_futures=True)
             return
-        from concurrent.futures import wait  # noqa: PLC0415
+        from concurrent.futures import wait
 
         wait([job for job in self._jobs.values() if not job.cancel()])
 
@@ -1075,8 +1075,8 @@ class _SpectraThread:
         if self._on_thread is not None and not self._on_thread.done():
             job: Future[OrderSpectrum] = Future()
             try:   # with the caller's own workspace
-                job.set_result(ana._window_spectrum(  # noqa: SLF001
-                    buf.phi[:n], buf.te[:n], duration_s, ana._spectrum_work))  # noqa: SLF001
+                job.set_result(ana._window_spectrum(
+                    buf.phi[:n], buf.te[:n], duration_s, ana._spectrum_work))
             except TeInputError as exc:
                 job.set_exception(exc)
             self._jobs[index] = job
@@ -1088,7 +1088,7 @@ class _SpectraThread:
                            else (np.empty_like(phi), np.empty_like(te)))
         self._thread_arrays = (phi, te)
         self._on_thread = self._jobs[index] = self._pool.submit(
-            ana._window_spectrum, phi[:n], te[:n], duration_s, self._work)  # noqa: SLF001
+            ana._window_spectrum, phi[:n], te[:n], duration_s, self._work)
 
     def closed(self, windows: Iterable[WindowResult]) -> None:
         """Queue closed windows; hand on those at the head whose spectrum is done."""
@@ -1115,6 +1115,6 @@ class _SpectraThread:
         try:
             spectrum = job.result()
         except TeInputError:
-            self._analyzer._counters['spectrum_failures'] += 1  # noqa: SLF001
+            self._analyzer._counters['spectrum_failures'] += 1
             return window
         return replace(window, spectrum=spectrum)

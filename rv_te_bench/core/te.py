@@ -322,7 +322,7 @@ class RunningStats:
 
     def add_moments(self, moments: TeMoments) -> None:
         """Fold in a record summarised by its :class:`TeMoments` (as :meth:`update` would,
-        to rounding: the record's own pass is reused instead of a second one)."""  # noqa: D205, D209
+        to rounding: the record's own pass is reused instead of a second one)."""
         self._combine(moments.n_samples, moments.mean_rad, moments.m2_rad2, moments.min_rad,
                       moments.max_rad)
 
@@ -331,7 +331,7 @@ class RunningStats:
         ``add_moments(moments_of_finite(te_rad, scratch=scratch))``: min and max exact, mean
         and M2 to rounding) in fewer passes and without the intermediate object: the
         streaming analysis folds each new block in when its cumulative statistics are read,
-        after every block on the TE node."""  # noqa: D205, D209
+        after every block on the TE node."""
         n = te_rad.size
         lo = float(np.minimum.reduce(te_rad))
         hi = float(np.maximum.reduce(te_rad))
@@ -350,9 +350,9 @@ class RunningStats:
 
     def merge(self, other: RunningStats) -> None:
         """Fold in another accumulator (as if its samples had been added here)."""
-        if other._n == 0:  # noqa: SLF001 - same class
+        if other._n == 0:
             return
-        self._combine(other._n, other._mean, other._m2, other._min, other._max)  # noqa: SLF001
+        self._combine(other._n, other._mean, other._m2, other._min, other._max)
 
     def copy(self) -> RunningStats:
         """An independent copy."""

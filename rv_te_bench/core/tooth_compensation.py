@@ -56,8 +56,8 @@ if TYPE_CHECKING:
     from sim.presets import Preset
 
 __all__ = [
-    'NEGATIVE_FACTORS',
     'LOAD_CASES',
+    'NEGATIVE_FACTORS',
     'PAPER_TABLE6',
     'compensate_preset',
     'eq27_errors_m',

@@ -86,10 +86,10 @@ def _one_line(exc: BaseException) -> str:
 
 def analyse_one(path: str, options: FleetOptions) -> UnitRecord:
     """Analyse one bag into its record (run on a worker; never raises for a bad bag)."""
-    from rv_te_bench.allocator import tune_for_batch_work  # noqa: PLC0415
-    from rv_te_bench.report.analysis import analyze_bag  # noqa: PLC0415
-    from rv_te_bench.report.html import report_json  # noqa: PLC0415
-    from sim.errors import SimError  # noqa: PLC0415
+    from rv_te_bench.allocator import tune_for_batch_work
+    from rv_te_bench.report.analysis import analyze_bag
+    from rv_te_bench.report.html import report_json
+    from sim.errors import SimError
 
     tune_for_batch_work()
     bag = Path(path)
@@ -160,7 +160,7 @@ def _todo(bags: Sequence[Path], store: ResultStore, force: bool,
 
 def _client(workers: int, scheduler: str | None) -> tuple[Any, Any]:
     try:
-        from distributed import Client, LocalCluster  # noqa: PLC0415
+        from distributed import Client, LocalCluster
     except ModuleNotFoundError:
         msg = "rv-te fleet needs Dask distributed: pip install 'rv-te-bench[fleet]'"
         raise RvTeError(msg) from None
@@ -181,7 +181,7 @@ def _client(workers: int, scheduler: str | None) -> tuple[Any, Any]:
     return Client(cluster), cluster
 
 
-def run_fleet(bags: Sequence[Path], store: ResultStore, *, options: FleetOptions,  # noqa: PLR0913
+def run_fleet(bags: Sequence[Path], store: ResultStore, *, options: FleetOptions,
               workers: int = 2, scheduler: str | None = None, force: bool = False,
               progress: Callable[[int, int, int], None] | None = None,
               on_client: Callable[[Any], None] | None = None) -> FleetSummary:
@@ -198,8 +198,8 @@ def run_fleet(bags: Sequence[Path], store: ResultStore, *, options: FleetOptions
         progress: Called as ``progress(done, total, failed)`` after each bag.
         on_client: Called with the Dask client once it is up (tests, diagnostics).
     """
-    from distributed import as_completed  # noqa: PLC0415
-    from distributed.scheduler import KilledWorker  # noqa: PLC0415
+    from distributed import as_completed
+    from distributed.scheduler import KilledWorker
 
     t0 = time.monotonic()
     summary = FleetSummary()

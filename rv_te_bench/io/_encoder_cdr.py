@@ -48,7 +48,7 @@ def encoder_block_seq(data: bytes | memoryview) -> int:
 @dataclass(frozen=True, slots=True)
 class _Layout:
     """Where the fields of one serialised EncoderBlock lie (byte offsets from its start,
-    the 4-byte encapsulation included)."""  # noqa: D205, D209
+    the 4-byte encapsulation included)."""
 
     order: str                          # struct byte order: '<' or '>'
     seq_at: int                         # seq (uint64), then sample_rate_hz (float64)
@@ -105,7 +105,7 @@ def decode_encoder_block(data: bytes | memoryview) -> EncoderBlockData:
     Raises:
         BagError: The bytes do not hold a well-formed EncoderBlock.
     """
-    from rv_te_bench.core.stream import EncoderBlockData  # noqa: PLC0415
+    from rv_te_bench.core.stream import EncoderBlockData
 
     buf = bytes(data)
     lay = _layout(buf)
@@ -150,7 +150,7 @@ def _parse_same_layout(u8: np.ndarray, starts: np.ndarray,
                        ends: np.ndarray) -> _ParsedBlocks | None:
     """Fast path of :func:`_parse_encoder_blocks`: every message laid out like the first
     (same frame_id length and array lengths, the usual case), checked with one gather of
-    the bytes that decide the layout. None when they differ."""  # noqa: D205, D209
+    the bytes that decide the layout. None when they differ."""
     try:
         first = _layout(u8[int(starts[0]):int(ends[0])].data)
     except BagError:
@@ -192,7 +192,7 @@ def _parse_encoder_blocks(u8: np.ndarray, starts: np.ndarray, ends: np.ndarray) 
     if same is not None:
         return same
     size = ends - starts
-    ok = size >= 4 + 12 + 4  # noqa: PLR2004 - encapsulation, stamp, frame_id length
+    ok = size >= 4 + 12 + 4
 
     def at(pos: np.ndarray, dtype: str) -> np.ndarray:
         nonlocal ok
@@ -239,7 +239,7 @@ def _concat_f64(u8: np.ndarray, pos: np.ndarray, counts: np.ndarray) -> np.ndarr
 def _encoder_items(buf: memoryview, starts: np.ndarray,
                    ends: np.ndarray) -> Iterator[EncoderBatch | int]:
     """Runs of well-formed messages as EncoderBatch, other messages by their index."""
-    from rv_te_bench.core.stream import EncoderBatch  # noqa: PLC0415
+    from rv_te_bench.core.stream import EncoderBatch
 
     u8 = np.frombuffer(buf, np.uint8)
     parsed = _parse_encoder_blocks(u8, starts, ends)
@@ -269,7 +269,7 @@ def decode_encoder_block_rosbags(data: bytes | memoryview) -> EncoderBlockData:
     Raises:
         BagError: The bytes do not deserialise as EncoderBlock.
     """
-    from rv_te_bench.core.stream import EncoderBlockData  # noqa: PLC0415
+    from rv_te_bench.core.stream import EncoderBlockData
 
     try:
         msg = rv_te_typestore().deserialize_cdr(bytes(data), ENCODER_BLOCK)

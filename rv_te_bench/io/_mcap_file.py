@@ -75,12 +75,12 @@ def compressor(compression: Compression) -> tuple[str, Callable[[bytes], bytes]]
         ValueError: Unknown compression.
     """
     if compression == 'zstd':
-        import zstandard  # noqa: PLC0415 - optional at import time
+        import zstandard
 
         ctx = zstandard.ZstdCompressor(level=1)
         return 'zstd', ctx.compress
     if compression == 'lz4':
-        import lz4.frame  # noqa: PLC0415
+        import lz4.frame
 
         return 'lz4', lz4.frame.compress
     if compression == 'none':

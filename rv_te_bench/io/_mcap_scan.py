@@ -113,11 +113,11 @@ def _decompress(compression: str, data: memoryview, size: int) -> bytes:
         return bytes(data)
     try:
         if compression == 'zstd':
-            import zstandard  # noqa: PLC0415
+            import zstandard
 
             return zstandard.ZstdDecompressor().decompress(data, max_output_size=size)
         if compression == 'lz4':
-            import lz4.frame  # noqa: PLC0415
+            import lz4.frame
 
             return lz4.frame.decompress(bytes(data))
     except MemoryError:
@@ -225,7 +225,7 @@ def _walk_chunk(inner: memoryview, state: _ScanState,
         pos = end
 
 
-def _scan_units(  # noqa: C901, PLR0912, PLR0915
+def _scan_units(
     file: Path,
     state: _ScanState,
     report: Callable[[str], None],
@@ -255,7 +255,7 @@ def _scan_units(  # noqa: C901, PLR0912, PLR0915
     reader_thread = threading.get_ident()
     pool: Executor | None = None
     if prefetch and messages and _read_ahead_on():
-        from concurrent.futures import ThreadPoolExecutor  # noqa: PLC0415
+        from concurrent.futures import ThreadPoolExecutor
 
         pool = executor if executor is not None else ThreadPoolExecutor(
             max_workers=1, thread_name_prefix='mcap-read')
@@ -332,7 +332,7 @@ def _scan_units(  # noqa: C901, PLR0912, PLR0915
             if pool is not executor:
                 pool.shutdown(wait=True)
             elif threading.get_ident() == reader_thread:
-                from concurrent.futures import wait  # noqa: PLC0415
+                from concurrent.futures import wait
 
                 wait(running)
             # (an abandoned reader closed by the garbage collector on another thread, maybe

@@ -16,7 +16,7 @@ __all__ = ['bag_info', 'dump_yaml', 'qos_profile_dict']
 _YamlDumper = getattr(yaml, 'CSafeDumper', yaml.SafeDumper)  # libyaml: ~20x faster
 
 
-def dump_yaml(data: Any) -> str:  # noqa: ANN401
+def dump_yaml(data: Any) -> str:
     """YAML text of plain data, keys in insertion order."""
     return yaml.dump(data, Dumper=_YamlDumper, sort_keys=False)
 

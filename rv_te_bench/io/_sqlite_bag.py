@@ -39,7 +39,7 @@ def sqlite_bag(path: Path, info: dict[str, Any], topics: dict[str, str],
     Raises:
         BagError: No or missing files, or a file that is not an SQLite database.
     """
-    from rv_te_bench.io.bag_reader import Bag  # noqa: PLC0415
+    from rv_te_bench.io.bag_reader import Bag
 
     if not listed:
         msg = f'Bag {path} has no .db3 files.'
@@ -67,7 +67,7 @@ def sqlite_units(bag: Bag, report: Callable[[str], None], topics: Collection[str
     Unreadable parts are reported through ``report(line)`` (naming the bag) and end the
     read (the messages before were handed over).
     """
-    from rosbags.rosbag2 import Reader  # noqa: PLC0415
+    from rosbags.rosbag2 import Reader
 
     try:
         reader = Reader(bag.path)

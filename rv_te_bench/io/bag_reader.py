@@ -26,7 +26,7 @@ from typing import TYPE_CHECKING, Any, Generic, TypeVar
 
 import numpy as np
 
-from rv_te_bench.errors import BagError, BenchInfoError, YamlInputError
+from rv_te_bench.errors import BagError, YamlInputError
 from rv_te_bench.io import _sqlite_bag as _sqlite
 from rv_te_bench.io._bag_folder import entry_problem, layout_notes, listed_files
 from rv_te_bench.io._encoder_cdr import (
@@ -93,7 +93,7 @@ def summarize_problems(problems: list[str] | tuple[str, ...]) -> str:
         'a; b'
         >>> summarize_problems([f'chunk {i} bad' for i in range(10)])
         'chunk 0 bad; chunk 1 bad; chunk 2 bad; ... and 7 more problems'
-    """  # noqa: D205
+    """
     shown = '; '.join(problems[:PROBLEMS_SHOWN])
     if len(problems) > PROBLEMS_SHOWN:
         shown += f'; ... and {len(problems) - PROBLEMS_SHOWN} more problems'

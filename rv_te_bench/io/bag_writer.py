@@ -99,7 +99,7 @@ class BagWriter:
             started (no space for its first file and reserve).
     """
 
-    def __init__(  # noqa: PLR0913
+    def __init__(
         self,
         path: str | os.PathLike[str],
         *,
@@ -723,7 +723,7 @@ class BagWriter:
 
 def _library_id() -> str:
     try:
-        from importlib.metadata import version  # noqa: PLC0415
+        from importlib.metadata import version
 
         return f'rv_te_bench {version("rv-te-bench")} (BagWriter)'
     except Exception:  # noqa: BLE001 - metadata absent in a source checkout

@@ -40,7 +40,7 @@ _PLAIN: dict[str, Callable[[Any], Any]] = {
 
 @functools.cache
 def _bench_info_fields() -> tuple[tuple[str, Callable[[Any], Any]], ...]:
-    from sim.bench import BenchInfoData  # noqa: PLC0415 - keeps sim.bench out of io's import
+    from sim.bench import BenchInfoData
 
     return tuple((f.name, _PLAIN[str(f.type)]) for f in dataclasses.fields(BenchInfoData))
 
@@ -50,7 +50,7 @@ def bench_info_field_names() -> tuple[str, ...]:
     return tuple(name for name, _ in _bench_info_fields())
 
 
-def bench_info_values(info: Any) -> dict[str, Any]:  # noqa: ANN401 - message or dataclass
+def bench_info_values(info: Any) -> dict[str, Any]:
     """A BenchInfo's fields as plain values: ``str``, ``float``, ``int``, arrays as lists.
 
     Args:
@@ -93,7 +93,7 @@ def preset_from_bench_info(preset: str, parameters_yaml: str,
     Raises:
         PresetError: Unknown preset or a bad override (``sim.errors``).
     """
-    from sim.presets import load_preset  # noqa: PLC0415
+    from sim.presets import load_preset
 
     return load_preset(preset, [*overrides_from_parameters_yaml(parameters_yaml),
                                 *extra_overrides])
@@ -112,12 +112,12 @@ def read_bench_info(path: str | Path, topic: str | None = None) -> dict[str, Any
         BagError: Bad layout, or not a readable MCAP bag (no topic, or neither BenchInfo
             nor encoder data readable).
     """
-    from rv_te_bench.io import bag_reader as br  # noqa: PLC0415 - bag_reader re-exports this
-    from rv_te_bench.io._mcap_scan import _indexed_messages  # noqa: PLC0415
-    from rv_te_bench.io.msgdefs import BENCH_INFO, ENCODER_BLOCK, rv_te_typestore  # noqa: PLC0415
+    from rv_te_bench.io import bag_reader as br
+    from rv_te_bench.io._mcap_scan import _indexed_messages
+    from rv_te_bench.io.msgdefs import BENCH_INFO, ENCODER_BLOCK, rv_te_typestore
 
     bag = br.open_bag(path)
-    types = bag.topic_types or br._scan_topic_types(bag)  # noqa: SLF001
+    types = bag.topic_types or br._scan_topic_types(bag)
     if not types:
         text = (f'{bag.path} is not a readable MCAP bag: no topic in it (not a bag, or '
                 'truncated before its first message)')
@@ -133,7 +133,7 @@ def read_bench_info(path: str | Path, topic: str | None = None) -> dict[str, Any
         indexed = None if _sqlite.is_sqlite(bag) else _indexed_messages(file, names)
         if indexed is None:
             one = br.Bag(path=bag.path, files=(file,), info=bag.info, topic_types=bag.topic_types)
-            messages = br._messages(one, stream, names)  # noqa: SLF001
+            messages = br._messages(one, stream, names)
             indexed = [(msgtype, bytes(data)) for _, msgtype, _, data in messages]
         for msgtype, data in indexed:
             if msgtype == BENCH_INFO:
@@ -141,7 +141,7 @@ def read_bench_info(path: str | Path, topic: str | None = None) -> dict[str, Any
     if last is None:
         if stream.partial:   # the BenchInfo may be in the part that cannot be read
             damage = br.summarize_problems(stream.problems).rstrip('.')
-            if ENCODER_BLOCK not in br._scan_topic_types(bag).values():  # noqa: SLF001
+            if ENCODER_BLOCK not in br._scan_topic_types(bag).values():
                 # nothing the command line could replace BenchInfo for (issue #21)
                 text = (f'{bag.path} is not a readable MCAP bag: neither BenchInfo nor '
                         f'encoder data can be read: {damage}')

@@ -74,11 +74,11 @@ def folder_name_problem(name: str) -> str | None:
 
     Refused: empty, ``.``, ``..``, a path separator, NUL, more than 255 bytes.
     """
-    shown = repr(name) if len(name) <= 60 else f'{name[:50]!r}... ({len(name)} characters)'  # noqa: PLR2004
+    shown = repr(name) if len(name) <= 60 else f'{name[:50]!r}... ({len(name)} characters)'
     if name in {'', '.', '..'} or '/' in name or '\0' in name or (os.sep != '/' and os.sep in name):
         return (f'must be a plain folder name inside the output folder (no "/", not "." '
                 f'or ".."), got {shown}')
-    if len(name.encode('utf-8', 'surrogateescape')) > 255:  # noqa: PLR2004 - NAME_MAX
+    if len(name.encode('utf-8', 'surrogateescape')) > 255:
         return f'must be at most 255 bytes long, got {shown}'
     return None
 

@@ -163,7 +163,7 @@ def learn_type(msgtype: str) -> None:
         if name in store.fielddefs or name in found:
             continue
         parts = name.split('/')
-        text = _msg_file_text(name) if len(parts) == 3 else None  # noqa: PLR2004
+        text = _msg_file_text(name) if len(parts) == 3 else None
         if text is None:
             where = ', '.join(str(d) for d in _share_dirs())
             msg = (f'Unknown message type {name!r}'

@@ -48,7 +48,7 @@ def read_recorded_test(bag: str | Path, *, serial: str | None = None) -> Recorde
     Raises:
         BagError: Not a readable bag, or no ended test (of that serial) in it.
     """
-    from rosbags.highlevel import AnyReader  # noqa: PLC0415
+    from rosbags.highlevel import AnyReader
 
     path = Path(bag)
     reports: list[dict[str, Any]] = []

@@ -68,7 +68,7 @@ def check_namespace(ns: str) -> str:
         msg = (f'namespace {brief(ns)} is not a valid ROS namespace (letters, digits, _ and '
                '/ only)')
         raise ParameterFileError(msg)
-    from rclpy.validate_namespace import validate_namespace  # noqa: PLC0415
+    from rclpy.validate_namespace import validate_namespace
 
     try:
         validate_namespace(absolute)
@@ -84,8 +84,8 @@ def check_topic_name(topic: str, *, node: str, namespace: str, what: str = 'topi
     Raises:
         ParameterFileError: Not a valid ROS topic name, or too long once expanded.
     """
-    from rclpy.expand_topic_name import expand_topic_name  # noqa: PLC0415
-    from rclpy.validate_full_topic_name import validate_full_topic_name  # noqa: PLC0415
+    from rclpy.expand_topic_name import expand_topic_name
+    from rclpy.validate_full_topic_name import validate_full_topic_name
 
     if not topic.isascii() or not topic.isprintable():
         msg = f'{what} {brief(topic)} is not a valid ROS topic name (ASCII letters, digits, _, /)'
@@ -124,9 +124,9 @@ def check_ros_arguments(args: Sequence[str], *, node: str) -> None:
     Raises:
         ParameterFileError: rcl refuses an argument (the rule named).
     """
-    import rclpy  # noqa: PLC0415
-    from rclpy.context import Context  # noqa: PLC0415
-    from rclpy.signals import SignalHandlerOptions  # noqa: PLC0415
+    import rclpy
+    from rclpy.context import Context
+    from rclpy.signals import SignalHandlerOptions
 
     ctx = Context()
     try:
@@ -197,30 +197,30 @@ def check_node_config(node: str, values: dict[str, Any], *, namespace: str) -> N
             node and the rule).
     """
 
-    from rv_te_bench.launch.session import node_specs  # noqa: PLC0415
+    from rv_te_bench.launch.session import node_specs
 
     p = {s.name: list(s.default) if isinstance(s.default, tuple) else s.default
          for s in node_specs(node)}
     p.update(values)
     try:
         if node == 'bench':
-            from rv_te_bench.nodes.bench_node import build_simulator  # noqa: PLC0415
+            from rv_te_bench.nodes.bench_node import build_simulator
 
             build_simulator(p)
         elif node == 'te_node':
-            from rv_te_bench.nodes.te_node import initial_orders  # noqa: PLC0415
+            from rv_te_bench.nodes.te_node import initial_orders
 
             initial_orders(p)
         elif node == 'compensation':
-            from rv_te_bench.nodes.compensation_node import check_config  # noqa: PLC0415
+            from rv_te_bench.nodes.compensation_node import check_config
 
             check_config(p)
         elif node == 'recorder':
-            from rv_te_bench.nodes.recorder import check_config as check_rec  # noqa: PLC0415
+            from rv_te_bench.nodes.recorder import check_config as check_rec
 
             check_rec(p)
         elif node == 'joint_state_adapter':
-            from rv_te_bench.nodes.joint_state_adapter import (  # noqa: PLC0415
+            from rv_te_bench.nodes.joint_state_adapter import (
                 check_config as check_adapter,
             )
 

@@ -122,7 +122,7 @@ def _error(path: Path, where: str, what: str) -> ParameterFileError:
     return ParameterFileError(f'launch file {path}: {where}: {what}')
 
 
-def _read(path: Path) -> Any:  # noqa: ANN401 - parsed YAML
+def _read(path: Path) -> Any:
     return read_yaml_file(path, what='launch file', limits=DOCUMENT_LIMITS)
 
 
@@ -187,7 +187,7 @@ class _Context:
                     raise _error(self.path, where, f'$(var {args[0]}): no such launch argument')
                 return self.values[args[0]]
             if name == 'env' and len(args) in {1, 2}:
-                value = os.environ.get(args[0], args[1] if len(args) == 2 else None)  # noqa: PLR2004
+                value = os.environ.get(args[0], args[1] if len(args) == 2 else None)
                 if value is None:
                     raise _error(self.path, where, f'$(env {args[0]}): not set')
                 return value
@@ -208,7 +208,7 @@ class _Context:
             raise _error(self.path, where, f'unterminated substitution in {text!r}')
         return out
 
-    def value(self, raw: Any, where: str) -> Any:  # noqa: ANN401 - a parameter value
+    def value(self, raw: Any, where: str) -> Any:
         """A ``param`` value: strings substituted, then read as YAML (launch_ros's rule)."""
         if isinstance(raw, str):
             text = self.substitute(raw, where)
@@ -224,7 +224,7 @@ class _Context:
         return raw
 
 
-def _attrs(path: Path, tag: str, body: Any, where: str) -> dict[str, Any]:  # noqa: ANN401
+def _attrs(path: Path, tag: str, body: Any, where: str) -> dict[str, Any]:
     if not isinstance(body, dict):
         raise _error(path, where, f'{tag!r} must be a mapping of attributes')
     unknown = sorted(set(body) - SUBSET[tag])

@@ -270,11 +270,11 @@ def recorder_uses_sim_time(spec: SessionSpec) -> bool:
     return 'bench' in spec.nodes and bench.get('time_mode', 'realtime') == 'fast'
 
 
-def typed_parameter(name: str, value: Any, specs: tuple[ParamSpec, ...]) -> Any:  # noqa: ANN401
+def typed_parameter(name: str, value: Any, specs: tuple[ParamSpec, ...]) -> Any:
     """An rclpy Parameter with the declared type (an empty list would infer BYTE_ARRAY)."""
-    from rclpy.parameter import Parameter  # noqa: PLC0415
+    from rclpy.parameter import Parameter
 
-    from rv_te_bench.nodes.common import PARAMETER_TYPES  # noqa: PLC0415
+    from rv_te_bench.nodes.common import PARAMETER_TYPES
 
     spec = next((s for s in specs if s.name == name), None)
     if spec is None:
@@ -533,11 +533,11 @@ def run_single_process(spec: SessionSpec, *, until: Callable[[], bool] | None = 
     stop; the nodes are then destroyed in data-flow order with the executor spinning in
     between, so the TE node's final window reaches the recorder before the bag closes.
     """
-    import rclpy  # noqa: PLC0415
-    from rclpy.exceptions import ParameterException  # noqa: PLC0415
-    from rclpy.signals import SignalHandlerOptions  # noqa: PLC0415
+    import rclpy
+    from rclpy.exceptions import ParameterException
+    from rclpy.signals import SignalHandlerOptions
 
-    from rv_te_bench.nodes.common import make_executor  # noqa: PLC0415
+    from rv_te_bench.nodes.common import make_executor
 
     args = ['--ros-args']
     if spec.namespace:
@@ -588,7 +588,7 @@ def run_single_process(spec: SessionSpec, *, until: Callable[[], bool] | None = 
         for n in sorted(nodes, key=lambda n: STOP_ORDER.index(n.get_name())
                         if n.get_name() in STOP_ORDER else 99):
             if getattr(n, 'busy', False):   # the compensation node's search: let it end
-                from rv_te_bench.nodes.common import FINISH_MAX_S  # noqa: PLC0415
+                from rv_te_bench.nodes.common import FINISH_MAX_S
 
                 end = time.monotonic() + FINISH_MAX_S
                 while getattr(n, 'busy', False) and time.monotonic() < end:

@@ -27,9 +27,8 @@ import time
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
-
-from diagnostic_msgs.msg import DiagnosticArray
 from builtin_interfaces.msg import Time
+from diagnostic_msgs.msg import DiagnosticArray
 from rclpy.node import Node
 from rosgraph_msgs.msg import Clock
 from rv_te_msgs.msg import BenchInfo, EncoderBlock
@@ -158,10 +157,10 @@ def bench_config_from_params(p: dict[str, Any]) -> BenchConfig:
     Raises:
         sim.errors.SimError: An invalid combination, named by the sim validation.
     """
-    from sim.bench import BenchConfig  # noqa: PLC0415
-    from sim.drive import drive_from_spec, load_from_spec  # noqa: PLC0415
-    from sim.kinematics import kinematics_from_preset  # noqa: PLC0415
-    from sim.presets import load_preset  # noqa: PLC0415
+    from sim.bench import BenchConfig
+    from sim.drive import drive_from_spec, load_from_spec
+    from sim.kinematics import kinematics_from_preset
+    from sim.presets import load_preset
 
     kind = p['drive_profile']
     if kind == 'constant':
@@ -216,7 +215,7 @@ def build_simulator(p: dict[str, Any]) -> tuple[BenchSimulator, float]:
             output revolutions without a speed.
         sim.errors.SimError: An invalid preset, model mode, override, encoder or profile.
     """
-    from sim.bench import BenchSimulator  # noqa: PLC0415
+    from sim.bench import BenchSimulator
 
     block_rate_hz = p['sample_rate_hz'] / p['block_size']
     if block_rate_hz > MAX_BLOCK_RATE_HZ:
@@ -242,7 +241,7 @@ def build_simulator(p: dict[str, Any]) -> tuple[BenchSimulator, float]:
 class BenchNode(Node):
     """Simulated bench publishing encoder blocks from :class:`sim.bench.BenchSimulator`."""
 
-    def __init__(self, **kwargs: Any) -> None:  # noqa: ANN401 - to rclpy Node
+    def __init__(self, **kwargs: Any) -> None:
         """Declare parameters, build the simulator; ``kwargs`` go to ``Node``.
 
         Raises:
@@ -264,7 +263,7 @@ class BenchNode(Node):
         self.sim_time_s = 0.0
         self.joint_state = self.p['output'] == 'joint_state'
         if self.joint_state:
-            from sensor_msgs.msg import JointState  # noqa: PLC0415
+            from sensor_msgs.msg import JointState
 
             self._joint_state_type = JointState
             self.pub_data = self.create_publisher(JointState, 'joint_states',
@@ -318,7 +317,7 @@ class BenchNode(Node):
                 f'realtime_priority {want} ignored in fast time mode (a real-time thread '
                 'that computes as fast as it can would take a core from everything else)')
             return 'normal (fast time mode)'
-        from rv_te_bench.nodes.scheduling import realtime_scheduling  # noqa: PLC0415
+        from rv_te_bench.nodes.scheduling import realtime_scheduling
 
         got = realtime_scheduling(want)
         if got.startswith('normal') or 'not permitted' in got:
@@ -329,10 +328,10 @@ class BenchNode(Node):
 
     # -- commanded mode (bench programs from the test_sequencer) --------------------------
     def _start_commanded(self) -> None:
-        from std_srvs.srv import Trigger  # noqa: PLC0415
+        from rv_te_msgs.srv import RunBenchProgram
+        from std_srvs.srv import Trigger
 
-        from rv_te_msgs.srv import RunBenchProgram  # noqa: PLC0415
-        from sim.program import ProgramSimulator  # noqa: PLC0415
+        from sim.program import ProgramSimulator
 
         cfg = self.sim.config
         self.program = ProgramSimulator(
@@ -345,8 +344,8 @@ class BenchNode(Node):
 
     def _on_run_program(self, request: RunBenchProgram.Request,
                         response: RunBenchProgram.Response) -> RunBenchProgram.Response:
-        from sim.errors import SimError  # noqa: PLC0415
-        from sim.program import program_from_plain  # noqa: PLC0415
+        from sim.errors import SimError
+        from sim.program import program_from_plain
 
         if self.program.running:
             response.accepted = False
@@ -568,7 +567,7 @@ class BenchNode(Node):
         self.finished = True
         self.timer.cancel()
         # the node process ends next: its info and last blocks must have reached the readers
-        from rclpy.duration import Duration  # noqa: PLC0415
+        from rclpy.duration import Duration
 
         for pub in ((self.pub_data,) if self.joint_state else (self.pub_info, self.pub_blocks)):
             if not pub.wait_for_all_acked(Duration(seconds=FINISH_ACK_S)):

@@ -70,7 +70,7 @@ def declare_from_specs(node: Node, specs: Sequence[ParamSpec]) -> dict[str, Any]
     Raises:
         rclpy.exceptions.InvalidParameterValueException: A value breaks its rule.
     """
-    from rclpy.exceptions import InvalidParameterValueException  # noqa: PLC0415
+    from rclpy.exceptions import InvalidParameterValueException
 
     values: dict[str, Any] = {}
     for spec in specs:
@@ -183,7 +183,7 @@ def mark_session(node: Node) -> None:
     """Give ``node`` a publisher on its session's marker topic (nothing is ever sent)."""
     topic = session_topic()
     if topic is not None:
-        from std_msgs.msg import Empty  # noqa: PLC0415
+        from std_msgs.msg import Empty
 
         node.create_publisher(Empty, topic, 1)
 
@@ -250,12 +250,12 @@ def run_node(factory: Callable[[Context], Node], args: Sequence[str] | None = No
         0 ok, 1 error (printed as one ``ERROR: ...`` line on stderr), or the node's
         ``exit_code``.
     """
-    from rclpy.context import Context  # noqa: PLC0415
-    from rclpy.exceptions import ParameterException  # noqa: PLC0415
-    from rclpy.signals import SignalHandlerOptions  # noqa: PLC0415
+    from rclpy.context import Context
+    from rclpy.exceptions import ParameterException
+    from rclpy.signals import SignalHandlerOptions
 
-    from rv_te_bench.errors import RvTeError  # noqa: PLC0415
-    from rv_te_bench.safe_yaml import one_line  # noqa: PLC0415
+    from rv_te_bench.errors import RvTeError
+    from rv_te_bench.safe_yaml import one_line
 
     if not die_with_launcher():
         print('ERROR: the launcher that started this node is gone; not starting',
@@ -349,9 +349,9 @@ def _exit_without_waiting_for_workers(code: int) -> None:
 def make_executor(kind: str = 'events', context: Context | None = None) -> Executor:
     """EventsExecutor on data paths (fastest measured here); single-threaded otherwise."""
     if kind == 'events':
-        import io  # noqa: PLC0415
+        import io
 
-        from rclpy.experimental import EventsExecutor  # noqa: PLC0415
+        from rclpy.experimental import EventsExecutor
 
         try:
             return EventsExecutor(context=context)
@@ -360,9 +360,9 @@ def make_executor(kind: str = 'events', context: Context | None = None) -> Execu
             # captured stderr, e.g. in tests): the single-threaded executor is the fallback
             kind = 'single'
     if kind == 'multi':
-        from rclpy.executors import MultiThreadedExecutor  # noqa: PLC0415
+        from rclpy.executors import MultiThreadedExecutor
 
         return MultiThreadedExecutor(context=context)
-    from rclpy.executors import SingleThreadedExecutor  # noqa: PLC0415
+    from rclpy.executors import SingleThreadedExecutor
 
     return SingleThreadedExecutor(context=context)

@@ -79,7 +79,7 @@ def check_config(p: dict[str, Any]) -> None:
             override is invalid.
     """
     if p['preset']:
-        from sim.presets import load_preset  # noqa: PLC0415
+        from sim.presets import load_preset
 
         load_preset(p['preset'], list(p['overrides']))
 
@@ -91,7 +91,7 @@ class _Cancelled(Exception):  # noqa: N818 - a control-flow signal, not an error
 class CompensationNode(Node):
     """Advice from the measured TE; searches on a worker thread."""
 
-    def __init__(self, **kwargs: Any) -> None:  # noqa: ANN401 - to rclpy Node
+    def __init__(self, **kwargs: Any) -> None:
         """Declare parameters and topics; ``kwargs`` go to ``Node``."""
         super().__init__('compensation', **kwargs)
         self.p = declare_from_specs(self, PARAMS)
@@ -130,7 +130,7 @@ class CompensationNode(Node):
         self.create_timer(0.2, self._collect)
         self.create_timer(self.p['diagnostics_period_s'], self._publish_diagnostics)
         if self.p['preset']:   # a bad preset parameter stops the node at start-up
-            from sim.presets import load_preset  # noqa: PLC0415
+            from sim.presets import load_preset
 
             self._set_preset(self.p['preset'],
                              lambda: load_preset(self.p['preset'], list(self.p['overrides'])),
@@ -176,7 +176,7 @@ class CompensationNode(Node):
     def _on_info(self, msg: BenchInfo) -> None:
         self.bench_id = msg.bench_id
         if not self.p['preset']:
-            from rv_te_bench.io.bench_record import preset_from_bench_info  # noqa: PLC0415
+            from rv_te_bench.io.bench_record import preset_from_bench_info
 
             self._set_preset(msg.preset,
                              lambda: preset_from_bench_info(msg.preset, msg.parameters_yaml))
@@ -237,8 +237,8 @@ class CompensationNode(Node):
         self.jobs.append((name, self.pool.submit(fn)))
 
     def _job_phases(self) -> Advice:
-        from rv_te_bench.core.phases import optimise_phases  # noqa: PLC0415
-        from sim.wang2020 import Wang2kvParams  # noqa: PLC0415
+        from rv_te_bench.core.phases import optimise_phases
+        from sim.wang2020 import Wang2kvParams
 
         params = Wang2kvParams.from_preset(self.preset)
         result = optimise_phases(
@@ -247,8 +247,8 @@ class CompensationNode(Node):
         return result.to_advice(self.preset.name)
 
     def _job_identify(self, phase_out_rad: np.ndarray, te_rad: np.ndarray) -> Advice:
-        from rv_te_bench.core.identify import identified_advice  # noqa: PLC0415
-        from sim.wang2020 import Wang2kvParams  # noqa: PLC0415
+        from rv_te_bench.core.identify import identified_advice
+        from sim.wang2020 import Wang2kvParams
 
         params = Wang2kvParams.from_preset(self.preset)
         # the same search as the preset's optimum: the two then differ only in the unit
@@ -257,7 +257,7 @@ class CompensationNode(Node):
                                  progress=self._progress('identified-assembly-phases'))
 
     def _job_tooth(self, measured_rad: float) -> Advice:
-        from rv_te_bench.core.tooth_compensation import tooth_profile_advice  # noqa: PLC0415
+        from rv_te_bench.core.tooth_compensation import tooth_profile_advice
 
         return tooth_profile_advice(self.preset, measured_rad, te_metric=self.p['te_metric'])
 
@@ -309,7 +309,7 @@ class CompensationNode(Node):
         # set by run_node when the launcher died: the search is cut off, not waited for
         reason = getattr(self, 'stop_reason', '')
         if running:
-            why = (f'stopped before the search finished'
+            why = ('stopped before the search finished'
                    + (f' (search cut off: {reason})' if reason else '')
                    + f': no advice from {", ".join(running)}')
             self.get_logger().error(why)

@@ -63,7 +63,7 @@ def float64_field(values: npt.ArrayLike) -> array.array[float]:
 
 def encoder_block_to_data(msg: EncoderBlock) -> EncoderBlockData:
     """EncoderBlock message -> core EncoderBlockData (validation is the core's job)."""
-    from rv_te_bench.core.stream import EncoderBlockData  # noqa: PLC0415
+    from rv_te_bench.core.stream import EncoderBlockData
 
     return EncoderBlockData(
         seq=int(msg.seq), stamp_s=stamp_to_s(msg.header.stamp),

@@ -111,7 +111,7 @@ PARAMS = (
 _MAX_HELD_BLOCKS = 10000
 
 
-def build_config(p: dict[str, Any]) -> tuple[JointStateConfig, Any]:  # noqa: C901
+def build_config(p: dict[str, Any]) -> tuple[JointStateConfig, Any]:
     """The adapter's start-up: assembler config and BenchInfo fields from its parameters.
 
     Run by the node and by ``rv-te launch --check`` (the same checks).
@@ -127,7 +127,7 @@ def build_config(p: dict[str, Any]) -> tuple[JointStateConfig, Any]:  # noqa: C9
     """
     desc = None
     if p['bench_description']:
-        from rv_te_bench.core.bench_description import load_bench_description  # noqa: PLC0415
+        from rv_te_bench.core.bench_description import load_bench_description
 
         desc = load_bench_description(p['bench_description'])
     rate = p['sample_rate_hz'] or (desc.sample_rate_hz if desc is not None else 0.0)
@@ -181,7 +181,7 @@ def check_config(p: dict[str, Any]) -> None:
 class JointStateAdapterNode(Node):
     """JointState (ros2_control) in, EncoderBlock + BenchInfo out; logic in the core."""
 
-    def __init__(self, **kwargs: Any) -> None:  # noqa: ANN401 - to rclpy Node
+    def __init__(self, **kwargs: Any) -> None:
         """Declare parameters, read the bench description; ``kwargs`` go to ``Node``.
 
         Raises:

@@ -18,7 +18,7 @@ from rv_te_bench.nodes import qos
 class SessionMonitor(Node):
     """Latest TE statistics, spectrum lines and advice of a running session."""
 
-    def __init__(self, **kwargs: Any) -> None:  # noqa: ANN401 - to rclpy Node
+    def __init__(self, **kwargs: Any) -> None:
         """Create the subscriptions; ``kwargs`` go to ``Node``."""
         super().__init__('session_monitor', **kwargs)
         self.cumulative_pp_rad = math.nan

@@ -96,7 +96,7 @@ _THROTTLE_S = 5.0
 MAX_HELD_MESSAGES = 10_000
 
 
-def _msg_class(msgtype: str) -> Any:  # noqa: ANN401 - a generated message class
+def _msg_class(msgtype: str) -> Any:
     pkg, _, name = msgtype.split('/')
     return getattr(importlib.import_module(f'{pkg}.msg'), name)
 
@@ -191,7 +191,7 @@ class RecorderNode(Node):
     """
 
     def __init__(self, node_name: str = 'recorder',
-                 **kwargs: Any) -> None:  # noqa: ANN401 - to rclpy Node
+                 **kwargs: Any) -> None:
         super().__init__(node_name, **kwargs)
         p = self._declare_parameters()
         self.finished = False

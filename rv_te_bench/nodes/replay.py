@@ -41,7 +41,7 @@ START_OFFSET_RANGE_S = (0.0, 1e7)
 WAIT_RANGE_S = (0.0, 3600.0)
 
 
-def _recorded_qos(offered: Any) -> QoSProfile:  # noqa: ANN401 - YAML from metadata.yaml
+def _recorded_qos(offered: Any) -> QoSProfile:
     """Publisher QoS from a topic's recorded offered profiles (rosbag2 v8 string or v9 list)."""
     try:   # bounded: the string comes from a file we did not write
         profiles = load_yaml(offered, origin='offered_qos_profiles',
@@ -77,7 +77,7 @@ class ReplayNode(Node):
     """
 
     def __init__(self, node_name: str = 'replay',
-                 **kwargs: Any) -> None:  # noqa: ANN401 - to rclpy Node
+                 **kwargs: Any) -> None:
         super().__init__(node_name, **kwargs)
         p = self._declare_parameters()
         self.bag = open_bag(p['bag'])
@@ -128,7 +128,7 @@ class ReplayNode(Node):
                                f'{sorted(self._replay_pubs)}')
 
     def _declare_parameters(self) -> dict[str, Any]:
-        def d(text: str, **extra: Any) -> ParameterDescriptor:  # noqa: ANN401 - descriptor fields
+        def d(text: str, **extra: Any) -> ParameterDescriptor:
             return ParameterDescriptor(description=text, read_only=True, **extra)
 
         def f_range(lo: float, hi: float) -> list[FloatingPointRange]:

@@ -95,7 +95,7 @@ def initial_orders(p: dict[str, Any]) -> OrderSet | None:
 class TeNode(Node):
     """Online TE analysis on top of :class:`StreamingTeAnalyzer`."""
 
-    def __init__(self, **kwargs: Any) -> None:  # noqa: ANN401 - to rclpy Node
+    def __init__(self, **kwargs: Any) -> None:
         """Declare parameters, create topics; ``kwargs`` go to ``Node`` (context, overrides)."""
         super().__init__('te_node', **kwargs)
         self.p = declare_from_specs(self, PARAMS)

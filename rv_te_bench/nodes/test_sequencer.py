@@ -78,7 +78,7 @@ class TestSequencerNode(Node):
 
     __test__ = False
 
-    def __init__(self, **kwargs: Any) -> None:  # noqa: ANN401 - to rclpy Node
+    def __init__(self, **kwargs: Any) -> None:
         """Declare parameters, the action server, clients, topics; ``kwargs`` go to Node."""
         super().__init__('test_sequencer', **kwargs)
         self.p = declare_from_specs(self, PARAMS)
@@ -361,7 +361,7 @@ def _metric_msg(m: dict[str, Any]) -> MetricVerdict:
 
 
 def _iso(t: float) -> str:
-    import datetime as dt  # noqa: PLC0415
+    import datetime as dt
 
     return dt.datetime.fromtimestamp(t, dt.UTC).isoformat(timespec='seconds')
 

@@ -55,7 +55,7 @@ class _GuardedBlocks:
         return self
 
     def __next__(self) -> EncoderBlockData | EncoderBatch:
-        from rv_te_bench.core.stream import EncoderBatch  # noqa: PLC0415
+        from rv_te_bench.core.stream import EncoderBatch
 
         try:
             item = next(self._it)
@@ -94,10 +94,10 @@ class _GuardedBlocks:
             self._keep_run(int(seq[k0]), int(seq[k1 - 1]), batch.theta_in_rad[a:b],
                            batch.theta_out_rad[a:b], g0 + a)
 
-    def _keep_run(self, seq_first: int, seq_last: int, th_in: FloatArray,  # noqa: PLR0913
+    def _keep_run(self, seq_first: int, seq_last: int, th_in: FloatArray,
                   th_out: FloatArray, g0: int) -> None:
         """Samples of consecutive blocks seq_first..seq_last, the first at global index g0."""
-        from rv_te_bench.core.te import transmission_error_rad  # noqa: PLC0415
+        from rv_te_bench.core.te import transmission_error_rad
 
         if self._last_seq is not None and seq_first != self._last_seq + 1:
             self._parts.append((np.array([-1]), np.array([np.nan]), np.array([np.nan])))

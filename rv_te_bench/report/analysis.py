@@ -67,10 +67,10 @@ __all__ = [
     'BenchDescription',
     'DominantHarmonic',
     'Recommendation',
+    'SessionInfo',
     'SpectrumAverager',
     'SpectrumSummary',
     'TeTrace',
-    'SessionInfo',
     'analyze_bag',
     'compare_results',
     'describe_identification',
@@ -92,7 +92,7 @@ _ORDER_RTOL = 1e-6
 
 def session_info(path: str | Path) -> SessionInfo:
     """The session of a bag from its metadata (never raises: falls back to the path)."""
-    from rv_te_bench.io.bag_reader import open_bag  # noqa: PLC0415
+    from rv_te_bench.io.bag_reader import open_bag
 
     p = Path(path)
     folder = p.parent.name if p.name in {'bag', 'bag_0'} and p.parent.name else p.name
@@ -111,7 +111,7 @@ def session_info(path: str | Path) -> SessionInfo:
                        imported_from=str(custom.get('imported_from') or ''))
 
 
-def analyze_bag(  # noqa: PLR0913 - keyword-only analysis options
+def analyze_bag(
     path: str | Path,
     *,
     topic: str | None = None,
@@ -147,10 +147,10 @@ def analyze_bag(  # noqa: PLR0913 - keyword-only analysis options
         BagError: The bag cannot be opened, has no encoder topic, or no block could be read.
         TeConfigError: Ratio/crank order missing (no BenchInfo and no flags) or invalid.
     """
-    from concurrent.futures import ThreadPoolExecutor  # noqa: PLC0415
+    from concurrent.futures import ThreadPoolExecutor
 
-    from rv_te_bench.core.stream import TeAnalysisConfig, analyze_blocks  # noqa: PLC0415
-    from rv_te_bench.io.bag_reader import (  # noqa: PLC0415
+    from rv_te_bench.core.stream import TeAnalysisConfig, analyze_blocks
+    from rv_te_bench.io.bag_reader import (
         helper_threads_allowed,
         open_bag,
         read_encoder_batches,
@@ -232,7 +232,7 @@ def _read_bench_info(path: Path, gear_ratio: float | None, crank_per_output: flo
                      ) -> tuple[dict[str, Any] | None, str | None]:
     """(BenchInfo, problem): a damaged chunk holding BenchInfo does not block a bag whose
     ratio and crank order are given (--ratio, --crank-per-output); the result is partial."""
-    from rv_te_bench.io.bag_reader import read_bench_info  # noqa: PLC0415
+    from rv_te_bench.io.bag_reader import read_bench_info
 
     try:
         return read_bench_info(path), None
@@ -256,7 +256,7 @@ def _bench_description(path: Path, info: dict[str, Any] | None, gear_ratio: floa
             msg = (f'{path}: the bag has no BenchInfo message (bench/info), so the gear ratio '
                    f'and crank order are unknown; pass {" and ".join(missing)}')
             raise TeConfigError(msg)
-        assert gear_ratio is not None and crank_per_output is not None  # noqa: S101 - for mypy
+        assert gear_ratio is not None and crank_per_output is not None
         return BenchDescription(source='cli', gear_ratio=float(gear_ratio),
                                 crank_per_output=float(crank_per_output))
     try:
@@ -282,9 +282,9 @@ def _bench_description(path: Path, info: dict[str, Any] | None, gear_ratio: floa
         parameters_yaml=str(info.get('parameters_yaml', '')))
 
 
-def _order_set(bench: BenchDescription, n_crank_harmonics: int) -> Any:  # noqa: ANN401
+def _order_set(bench: BenchDescription, n_crank_harmonics: int) -> Any:
     """The core OrderSet for the bench (signs do not matter for frequencies)."""
-    from rv_te_bench.core.orders import OrderSet  # noqa: PLC0415
+    from rv_te_bench.core.orders import OrderSet
 
     return OrderSet(gear_ratio=bench.gear_ratio, crank_per_output=bench.crank_per_output,
                     mesh_orders_out=bench.mesh_orders_out, mesh_labels=bench.mesh_labels,
@@ -332,7 +332,7 @@ def likely_source(output_order: float, bench: BenchDescription) -> str:
         return ('crank eccentricity modulated by output-wheel eccentricity or pin-circle error '
                 '(f_w +/- f_out sideband)')
     ratio = o / cpo
-    if ratio > 1.5 and near(ratio, round(ratio)):  # noqa: PLR2004 - 2 f_w and above
+    if ratio > 1.5 and near(ratio, round(ratio)):
         return (f'{round(ratio)}x per crank revolution: phase mismatch between the crank '
                 'eccentrics, eccentric form error or crank bearing waviness')
     if near(o, round(o)):
@@ -356,8 +356,8 @@ def _recommend(bench: BenchDescription, cumulative: TeStats, folded: FoldedTe | 
     if not bench.preset:
         return Recommendation(available=False, reason='no recommendation available: the bag '
                               'has no BenchInfo preset, so there is no reducer model')
-    from rv_te_bench.io.bench_record import preset_from_bench_info  # noqa: PLC0415
-    from sim.errors import SimError  # noqa: PLC0415
+    from rv_te_bench.io.bench_record import preset_from_bench_info
+    from sim.errors import SimError
 
     try:
         preset = preset_from_bench_info(bench.preset, bench.parameters_yaml)
@@ -369,7 +369,7 @@ def _recommend(bench: BenchDescription, cumulative: TeStats, folded: FoldedTe | 
         if kind == 'assembly-phases':
             return _advice_2kv(preset, folded, search)
         if kind == 'tooth-profile':
-            from rv_te_bench.core.tooth_compensation import (  # noqa: PLC0415
+            from rv_te_bench.core.tooth_compensation import (
                 tooth_profile_advice,
             )
 
@@ -386,13 +386,13 @@ def _recommend(bench: BenchDescription, cumulative: TeStats, folded: FoldedTe | 
         'no compensation model'))
 
 
-def _advice_2kv(preset: Any, folded: FoldedTe | None,  # noqa: ANN401
+def _advice_2kv(preset: Any, folded: FoldedTe | None,
                 search: tuple[float, bool]) -> Recommendation:
     """Identified assembly phases when possible, else the model-based Wang 2020 Eq. 21
     optimum; ``search`` = (grid step [deg], refine) for both."""
-    from rv_te_bench.core.identify import PoorFitError, identified_advice  # noqa: PLC0415
-    from rv_te_bench.core.phases import optimise_phases  # noqa: PLC0415
-    from sim.wang2020 import Wang2kvParams  # noqa: PLC0415
+    from rv_te_bench.core.identify import PoorFitError, identified_advice
+    from rv_te_bench.core.phases import optimise_phases
+    from sim.wang2020 import Wang2kvParams
 
     params = Wang2kvParams.from_preset(preset)
     if folded is not None and folded.n_samples > 0:

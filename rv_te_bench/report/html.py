@@ -85,7 +85,7 @@ def write_report(results: Sequence[AnalysisResult], directory: Path, *,
         msg = f'Report path {directory} exists and is not a directory.'
         raise ReportExistsError(msg)
     # matplotlib (0.4 s to import) only when a report is written, not for --json or a table
-    from rv_te_bench.report.plots import (  # noqa: PLC0415
+    from rv_te_bench.report.plots import (
         comparison_figure,
         png_bytes,
         spectrum_figure,
@@ -130,7 +130,7 @@ padding:.5em}.muted{color:#666}code{background:#f5f5f5;padding:0 .2em}
 """
 
 
-def _e(x: Any) -> str:  # noqa: ANN401
+def _e(x: Any) -> str:
     return html.escape(printable(x))   # undecodable bytes of a path: U+FFFD, not a crash
 
 
@@ -159,7 +159,7 @@ def _img(images: dict[str, bytes], name: str, alt: str) -> str:
     return f'<p><img alt="{_e(alt)}" src="data:image/png;base64,{b64}"></p>'
 
 
-def _bag_section(res: AnalysisResult) -> str:  # noqa: C901 - one report section per item
+def _bag_section(res: AnalysisResult) -> str:
     out = [f'<h2>{_e(report_title(res))}</h2>', f'<p class="muted">bag {_e(res.path)}</p>']
     if res.partial or res.problems:
         kind = 'PARTIAL result' if res.partial else 'Note'

@@ -46,7 +46,7 @@ def _name(res: AnalysisResult) -> str:
 
 def _short(label: str) -> str:
     """A label short enough for a tick: 'stage-2 mesh (52 f_w, ...)' -> 'stage-2 mesh'."""
-    return label.split(' (')[0] if len(label) > 16 else label  # noqa: PLR2004
+    return label.split(' (')[0] if len(label) > 16 else label
 
 
 def _new_figure(width_in: float, height_in: float, **adjust: float) -> Figure:

@@ -295,7 +295,7 @@ def stats_json(stats: TeStats) -> dict[str, Any]:
 # analysis
 
 
-def _jsonable(v: Any) -> Any:  # noqa: ANN401
+def _jsonable(v: Any) -> Any:
     if isinstance(v, np.generic):
         return v.item()
     if isinstance(v, dict):

@@ -50,8 +50,8 @@ def _labels(series: Series, chart: ControlChart) -> list[str]:
 def spc_figure(chart: ControlChart, series: Series, *, title: str,
                capability: Capability | None = None) -> Figure:
     """The two-panel control chart (values above, moving range / range below)."""
-    from matplotlib.backends.backend_agg import FigureCanvasAgg  # noqa: PLC0415
-    from matplotlib.figure import Figure  # noqa: PLC0415
+    from matplotlib.backends.backend_agg import FigureCanvasAgg
+    from matplotlib.figure import Figure
 
     scale, unit = display_unit(series.metric)
     fig = Figure(figsize=(10.0, 6.0), dpi=110)

@@ -145,12 +145,12 @@ def _hysteresis_figure(h: dict[str, Any]) -> Figure:
         ax.plot(am(h['descending_angle_rad']), h['descending_torque_nm'], '.-', ms=3, lw=0.9,
                 color='tab:orange', label='loading downwards (+T_R -> -T_R)')
         z = [x for x in h['zero_width_rad'] if x is not None]
-        if len(z) == 2:  # noqa: PLR2004
+        if len(z) == 2:
             ax.annotate('', xy=(am(z[1]), 0), xytext=(am(z[0]), 0),
                         arrowprops={'arrowstyle': '<->', 'color': 'tab:red', 'lw': 1.5})
             ax.plot([], [], color='tab:red', label='backlash: width at zero torque')
         mids = [x for x in h['lost_motion_mid_rad'] if x is not None]
-        if len(mids) == 2:  # noqa: PLR2004
+        if len(mids) == 2:
             ax.plot(am(mids), [-t, t], 's--', color='tab:green', ms=6,
                     label=f'lost motion: mid-points at +-{t:.4g} N m')
         for name, sides in h['rigidity_points'].items():
@@ -234,7 +234,7 @@ img{max-width:100%;border:1px solid #ddd}.muted{color:#666}
 """
 
 
-def _e(x: Any) -> str:  # noqa: ANN401
+def _e(x: Any) -> str:
     return html.escape(str(x))
 
 
@@ -275,7 +275,7 @@ def _conditions(report: dict[str, Any]) -> list[tuple[str, str]]:
 
 
 def _advice(report: dict[str, Any]) -> list[str]:
-    from rv_te_bench.report import BenchDescription, likely_source  # noqa: PLC0415
+    from rv_te_bench.report import BenchDescription, likely_source
 
     b = report['bench']
     bench = BenchDescription(source='bench_info', gear_ratio=b['gear_ratio'],

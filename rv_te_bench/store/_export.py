@@ -71,8 +71,8 @@ def export_records(rows: list[StoredResult], path: Path) -> int:
                 w.writerows(table)
         elif suffix == '.parquet':
             try:
-                import pyarrow as pa  # noqa: PLC0415
-                import pyarrow.parquet as pq  # noqa: PLC0415
+                import pyarrow as pa
+                import pyarrow.parquet as pq
             except ModuleNotFoundError:
                 msg = "Parquet export needs pyarrow: pip install 'rv-te-bench[parquet]'"
                 raise StoreError(msg) from None

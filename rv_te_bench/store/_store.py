@@ -150,10 +150,10 @@ def _at_head(engine: Engine) -> bool:
 def _migrate(engine: Engine, shown: str) -> None:
     if _at_head(engine):
         return   # the usual case, without alembic's import and script parsing (~0.15 s)
-    from alembic import command  # noqa: PLC0415 (alembic only when a store is migrated)
-    from alembic.config import Config  # noqa: PLC0415
-    from alembic.runtime.migration import MigrationContext  # noqa: PLC0415
-    from alembic.script import ScriptDirectory  # noqa: PLC0415
+    from alembic import command
+    from alembic.config import Config
+    from alembic.runtime.migration import MigrationContext
+    from alembic.script import ScriptDirectory
     cfg = Config()
     cfg.set_main_option('script_location', os.fspath(_MIGRATIONS))
     head = ScriptDirectory.from_config(cfg).get_current_head()

@@ -50,7 +50,7 @@ class MetricValue:
     verdict: Verdict | None = None
 
     def __post_init__(self) -> None:
-        if not self.name or len(self.name) > 64:  # noqa: PLR2004
+        if not self.name or len(self.name) > 64:
             msg = f'metric name must be 1-64 characters, got {self.name[:80]!r}'
             raise StoreError(msg)
         if self.direction not in DIRECTIONS:
@@ -76,7 +76,7 @@ class LineValue:
     phase_rad: float | None = None
 
     def __post_init__(self) -> None:
-        if not self.label or len(self.label) > 64:  # noqa: PLR2004
+        if not self.label or len(self.label) > 64:
             msg = (f'line label must be 1-64 characters, got {len(self.label)}: '
                    f'{self.label[:40]!r}')
             raise StoreError(msg)
@@ -138,14 +138,14 @@ class UnitRecord:
         for name, limit in FIELD_MAX_CHARS.items():
             value = getattr(self, name)
             if isinstance(value, str) and len(value) > limit:
-                shown = value[:40] + '...' if len(value) > 40 else value  # noqa: PLR2004
+                shown = value[:40] + '...' if len(value) > 40 else value
                 msg = (f'{name} is {len(value)} characters, the results store keeps at most '
                        f'{limit}: {shown!r}')
                 raise StoreError(msg)
         if self.test not in ('te-analysis', 'test-plan'):
             msg = f"test must be 'te-analysis' or 'test-plan', got {self.test!r}"
             raise StoreError(msg)
-        if len(self.bag_sha256) != 64 or any(c not in '0123456789abcdef' for c in self.bag_sha256):  # noqa: PLR2004
+        if len(self.bag_sha256) != 64 or any(c not in '0123456789abcdef' for c in self.bag_sha256):
             msg = f'bag_sha256 must be 64 lower-case hex digits, got {self.bag_sha256[:80]!r}'
             raise StoreError(msg)
         if self.tested_at.tzinfo is None:
@@ -209,7 +209,7 @@ def bag_stat(bag: Path) -> tuple[int, int]:
     return sum(s.st_size for s in stats), max((s.st_mtime_ns for s in stats), default=0)
 
 
-def _f(x: Any) -> float | None:  # noqa: ANN401
+def _f(x: Any) -> float | None:
     try:
         v = float(x)
     except (TypeError, ValueError):

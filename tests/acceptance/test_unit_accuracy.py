@@ -127,7 +127,7 @@ def test_hu_rv_units(clearance_arcmin: float, face_width_m: float) -> None:
 def test_2kv_backlash_at_several_output_positions() -> None:
     """The paper's 2K-V: backlash changes with the position (Eq. 9); each of four positions
     is measured against Eq. 18 at that locked angle, and the unit's value is the largest."""
-    from sim import wang2020  # noqa: PLC0415
+    from sim import wang2020
 
     plan = hysteresis_plan(300.0)
     plan['steps'][0]['positions'] = 4
@@ -172,7 +172,7 @@ def test_limits_decide_pass_and_fail() -> None:
                                               ('hu2020-rv-modified', 'rv-80e')])
 def test_shipped_plan_whole_unit(preset: str, plan: str) -> None:
     """A whole shipped plan: TE both directions, hysteresis, sweep, one verdict."""
-    from rv_te_bench.acceptance import load_plan  # noqa: PLC0415
+    from rv_te_bench.acceptance import load_plan
 
     p, _ = load_plan(plan)
     sim = ProgramSimulator(preset=preset, te_mode=MODES[preset],

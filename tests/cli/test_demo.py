@@ -30,18 +30,18 @@ def params() -> Wang2kvParams:
 
 
 @pytest.fixture(scope='module')
-def nominal(params: Wang2kvParams):  # noqa: ANN201
+def nominal(params: Wang2kvParams):
     return optimise_phases(params, step_deg=STEP_DEG).to_advice('wang2020-2kv')
 
 
-def _identified(unit: ref.Unit, params: Wang2kvParams):  # noqa: ANN202
+def _identified(unit: ref.Unit, params: Wang2kvParams):
     th_in, th_out = ref.encoder_record(unit, np.random.default_rng(8), n_samples=20_000)
     advice = identified_advice(th_in / ref.RATIO, th_out - th_in / ref.RATIO, params,
                                preset_name='wang2020-2kv', step_deg=STEP_DEG)
     return Recommendation(available=True, reason='identified', advice=advice)
 
 
-def test_this_unit_first_nominal_beside_it_and_why(params, nominal) -> None:  # noqa: ANN001
+def test_this_unit_first_nominal_beside_it_and_why(params, nominal) -> None:
     """A unit assembled at other phases than the preset's (same part magnitudes)."""
     t2 = ref.table2_unit()
     unit = ref.Unit(t2.e_p1, t2.e_p2, t2.e_g, t2.e_ot, 0.3, -2.0, 1.1, 2.5)
@@ -64,7 +64,7 @@ def test_this_unit_first_nominal_beside_it_and_why(params, nominal) -> None:  # 
                            for m in nominal.modifications) + '] deg' in text
 
 
-def test_the_preset_unit_itself(params, nominal) -> None:  # noqa: ANN001
+def test_the_preset_unit_itself(params, nominal) -> None:
     """The preset's own unit measured: target and current phases agree, the text says so."""
     text = '\n'.join(recommendation_lines(_identified(ref.table2_unit(), params),
                                           {'assembly-phases': nominal}))
@@ -72,7 +72,7 @@ def test_the_preset_unit_itself(params, nominal) -> None:  # noqa: ANN001
     assert 'here within 0.' in text and 'of the nominal ones' in text
 
 
-def test_withheld_advice_keeps_the_nominal_optimum_apart(nominal) -> None:  # noqa: ANN001
+def test_withheld_advice_keeps_the_nominal_optimum_apart(nominal) -> None:
     rec = Recommendation(available=False, reason='re-assembly advice withheld: poor fit')
     text = '\n'.join(recommendation_lines(rec, {'assembly-phases': nominal}))
     assert 'recommendation for this unit: none (re-assembly advice withheld: poor fit)' in text

@@ -31,8 +31,8 @@ SAMPLE = ROOT / 'bags' / 'sample'
 def help_texts() -> list[str]:
     parser = build_parser()
     texts = [parser.format_help()]
-    sub = next(a for a in parser._actions  # noqa: SLF001
-               if isinstance(a, argparse._SubParsersAction))  # noqa: SLF001
+    sub = next(a for a in parser._actions
+               if isinstance(a, argparse._SubParsersAction))
     texts += [p.format_help() for p in dict.fromkeys(sub.choices.values())]
     return texts
 
@@ -86,7 +86,7 @@ def example_dir(tmp_path_factory: pytest.TempPathFactory) -> Path:
     shutil.copy(acceptance / 'tolerances' / 'rv-80e-101.yaml', d / 'my_limits.yaml')
     launch = ROOT / 'rv_te_bench' / 'launch'
     shutil.copy(launch / 'session.launch.yaml', d / 'session.launch.yaml')
-    from tests.io import daq_files  # noqa: PLC0415
+    from tests.io import daq_files
 
     daq_files.example_inputs(d)   # rv-te import: bench.yaml, run.csv, run.tdms, run.mf4
     return d
@@ -98,7 +98,7 @@ def unit_test_bags(example_dir: Path) -> Path:
     simulated Li 2023 unit run for real by ``rv-te test`` (bench, sequencer and recorder over
     the middleware), under the example's serial, and its bag again under the name a standing
     test session would give it."""
-    import yaml  # noqa: PLC0415
+    import yaml
 
     plan = example_dir / 'quick_plan.yaml'
     plan.write_text(yaml.safe_dump({'plan': 'quick', 'steps': [
@@ -122,10 +122,10 @@ def unit_store(tmp_path_factory: pytest.TempPathFactory) -> Path:
     """A results store with what ``rv-te results`` / ``rv-te spc`` examples read: six units
     (rosbags-written bags of random units, two lots, serial SN1042 among them, one bag
     running forward then reverse for per-direction metrics), filled by ``rv-te analyze``."""
-    import numpy as np  # noqa: PLC0415
+    import numpy as np
 
-    from tests import unit_bags  # noqa: PLC0415
-    from tests import wang2020_reference as ref  # noqa: PLC0415
+    from tests import unit_bags
+    from tests import wang2020_reference as ref
 
     d = tmp_path_factory.mktemp('store')
     db = d / 'units.sqlite'
@@ -144,30 +144,30 @@ class _Started(Exception):  # noqa: N818 - control flow: the command got to its 
 
 def _stop_at_start(mp: pytest.MonkeyPatch, command: str) -> None:
     """Let a node-starting command run every check, then stop where the nodes would start."""
-    from rv_te_bench.launch import session  # noqa: PLC0415
-    from rv_te_bench.nodes import common  # noqa: PLC0415
+    from rv_te_bench.launch import session
+    from rv_te_bench.nodes import common
 
-    def started(*_: Any, **__: Any) -> Any:  # noqa: ANN401
+    def started(*_: Any, **__: Any) -> Any:
         raise _Started
 
     if command == 'bench':
         mp.setattr(session, 'run_single_process', started)
     elif command == 'test':   # after the plan, tolerance and session checks
-        from rv_te_bench.cli import test  # noqa: PLC0415
+        from rv_te_bench.cli import test
 
         mp.setattr(session.Session, 'start', started)
         mp.setattr(test, '_run_goal', started)
     elif command == 'demo':   # the demo starts its own session right after building it
         real_build = session.build_session
 
-        def build_then_stop(*args: Any, **kwargs: Any) -> Any:  # noqa: ANN401
+        def build_then_stop(*args: Any, **kwargs: Any) -> Any:
             real_build(*args, **kwargs)
             raise _Started
 
         mp.setattr(session, 'build_session', build_then_stop)
     elif command in {'record', 'replay'}:
-        def build_node(factory: Any, *_: Any, **__: Any) -> int:  # noqa: ANN401
-            import rclpy  # noqa: PLC0415
+        def build_node(factory: Any, *_: Any, **__: Any) -> int:
+            import rclpy
 
             ctx = rclpy.context.Context()
             rclpy.init(context=ctx)

@@ -54,7 +54,7 @@ def bags(tmp_path_factory: pytest.TempPathFactory) -> list[tuple[ref.Unit, Path,
     return out
 
 
-def test_random_units_identified(bags, capsys: pytest.CaptureFixture[str]) -> None:  # noqa: ANN001
+def test_random_units_identified(bags, capsys: pytest.CaptureFixture[str]) -> None:
     """Every unit: Q1, Q2, E within 1 % of the largest; the part phases within 1 deg where
     the split is well posed (true labelling); the residual at the noise level (3 %), the
     noise estimate within 10 %; the output says what the record identifies and what needs
@@ -69,7 +69,7 @@ def test_random_units_identified(bags, capsys: pytest.CaptureFixture[str]) -> No
         fit = idf['fit']
         assert fit['residual_rms_arcsec'] == pytest.approx(SIGMA_ARCSEC, rel=0.03)
         assert fit['noise_rms_arcsec'] == pytest.approx(SIGMA_ARCSEC, rel=0.10)
-        assert fit['explained_fraction'] > 0.999  # noqa: PLR2004
+        assert fit['explained_fraction'] > 0.999
         assert idf['output_revolutions'] == pytest.approx(20.5 * 5 / ref.RATIO, rel=1e-3)
         assert data['part_magnitudes_source'] == 'given with --set'
         assert data['partial'] is False
@@ -82,10 +82,10 @@ def test_random_units_identified(bags, capsys: pytest.CaptureFixture[str]) -> No
             truth = (u.theta_p1, u.theta_p2, u.theta_g, u.theta_ot)
             for name, t in zip(PHASE_NAMES, truth, strict=True):
                 assert ref.dphase_deg(idf['phases_rad'][name], t) < 1.0, (bag.name, name)
-    assert posed >= 3  # noqa: PLR2004
+    assert posed >= 3
 
 
-def test_text_says_what_needs_part_magnitudes(bags, capsys: pytest.CaptureFixture[str]) -> None:  # noqa: ANN001
+def test_text_says_what_needs_part_magnitudes(bags, capsys: pytest.CaptureFixture[str]) -> None:
     """Without --set the magnitudes are the preset's: the text says so, names the pair sums
     and the quantities that need measured magnitudes, and gives the fit quality."""
     _, bag, _ = bags[0]
@@ -124,7 +124,7 @@ def test_poor_fit_withholds_advice(tmp_path: Path, capsys: pytest.CaptureFixture
     data, _ = _json(capsys, [str(bag)])
     fit = data['identification']['fit']
     assert fit['acceptable'] is False
-    assert fit['explained_fraction'] < 0.99  # noqa: PLR2004
+    assert fit['explained_fraction'] < 0.99
     assert 'advice' not in data and 'reassembly' not in data
     assert 'withheld' in data['advice_withheld']
     assert main(['identify', str(bag), '--quiet']) == 0
@@ -137,7 +137,7 @@ def test_poor_fit_withholds_advice(tmp_path: Path, capsys: pytest.CaptureFixture
     assert data['advice_withheld'] is None and 'advice' in data
 
 
-def test_truncated_bag_is_partial(bags, tmp_path: Path,  # noqa: ANN001
+def test_truncated_bag_is_partial(bags, tmp_path: Path,
                                   capsys: pytest.CaptureFixture[str]) -> None:
     """A bag cut at 75 % (recorder killed): identified from what is readable, marked
     PARTIAL (as rv-te analyze does), still within 1 %."""
@@ -151,10 +151,10 @@ def test_truncated_bag_is_partial(bags, tmp_path: Path,  # noqa: ANN001
     assert data['problems']
     assert 'PARTIAL' in err
     assert ref.vector_error(u, ref.identified_phasors(data['identification']))[0] <= 0.01
-    assert 0.5 < data['identification']['output_revolutions'] < 1.2  # noqa: PLR2004
+    assert 0.5 < data['identification']['output_revolutions'] < 1.2
 
 
-def test_damaged_bench_info(bags, tmp_path: Path,  # noqa: ANN001
+def test_damaged_bench_info(bags, tmp_path: Path,
                             capsys: pytest.CaptureFixture[str]) -> None:
     """The chunk holding BenchInfo is damaged: without --preset one error line says what to
     give; with --preset (and --ratio) the rest of the bag is identified, marked partial."""

@@ -227,8 +227,8 @@ def test_bag_without_jointstate(tmp_path: Path, capsys: pytest.CaptureFixture[st
     assert str(sample) in line and 'no topic of type sensor_msgs/msg/JointState' in line
 
 
-def _wait_for(cond, timeout_s: float) -> bool:  # noqa: ANN001
-    import time  # noqa: PLC0415
+def _wait_for(cond, timeout_s: float) -> bool:
+    import time
 
     end = time.monotonic() + timeout_s
     while time.monotonic() < end:
@@ -243,9 +243,9 @@ def test_import_killed_mid_write_is_cleaned_up_by_the_next(
     """``rv-te import`` killed with SIGKILL while writing (no Python clean-up runs) leaves its
     hidden work folder beside the bag. The next import to the same bag removes it, says so
     in one note, and writes the bag; a work folder whose process is alive is left alone."""
-    import os  # noqa: PLC0415
-    import signal  # noqa: PLC0415
-    import subprocess  # noqa: PLC0415
+    import os
+    import signal
+    import subprocess
 
     n = 600_000   # ~0.5 s of import: long enough to be killed while it writes
     t = np.arange(n) / daq_files.RATE_HZ

@@ -15,9 +15,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from rv_te_bench.cli import identify, optimize_phases
-
 import rv_te_bench.io.bag_reader  # noqa: F401 - in the tree: an import error must fail
+from rv_te_bench.cli import identify, optimize_phases
 from rv_te_bench.io import bag_writer, msgdefs
 from sim import presets
 from sim import wang2020 as wang
@@ -27,7 +26,7 @@ RATE_HZ = 400.0
 T0_NS = 1_700_000_000_000_000_000
 
 
-def _run(module, name: str, argv: list[str]) -> int:  # noqa: ANN001
+def _run(module, name: str, argv: list[str]) -> int:
     parser = argparse.ArgumentParser(prog='rv-te')
     module.register(parser.add_subparsers())
     args = parser.parse_args([name, *argv])
@@ -107,7 +106,7 @@ def _write_bag(path: Path, theta_in: np.ndarray, theta_out: np.ndarray, *,
     header = store.types['std_msgs/msg/Header']
     stamp = store.types['builtin_interfaces/msg/Time']
 
-    def hdr(t_ns: int):  # noqa: ANN202
+    def hdr(t_ns: int):
         return header(stamp=stamp(sec=t_ns // 10**9, nanosec=t_ns % 10**9), frame_id='b0')
 
     with bag_writer.BagWriter(path) as writer:

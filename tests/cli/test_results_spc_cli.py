@@ -56,7 +56,7 @@ def test_results_filters_and_export(store_with_step: Path, tmp_path: Path) -> No
     out = tmp_path / 'all.csv'
     _run('results', '--db', str(store_with_step), '--export', str(out))
     with out.open(newline='') as fh:
-        assert len(list(csv.DictReader(fh))) == 60  # noqa: PLR2004
+        assert len(list(csv.DictReader(fh))) == 60
     p = _run('results', '--db', str(tmp_path / 'none.sqlite'), ok=1)
     assert p.stderr.startswith('ERROR: no results store at') and p.stderr.count('\n') == 1
     p = _run('results', '--db', str(store_with_step), '--since', 'yesterday', ok=2)
@@ -79,7 +79,7 @@ def test_spc_step_change_fires_at_or_just_after_the_step(store_with_step: Path,
     assert doc['chart']['centre'] == pytest.approx(0.60, abs=0.02)
     cap = doc['capability']
     assert cap['usl'] == pytest.approx(1.0)
-    assert cap['cp'] is None and cap['cpk'] > 2.0  # noqa: PLR2004 - (1 - 0.6) / (3 * 0.03)
+    assert cap['cp'] is None and cap['cpk'] > 2.0
     assert (rep / 'spc.png').read_bytes()[:8] == b'\x89PNG\r\n\x1a\n'
     assert 'rule violation' in (rep / 'spc.html').read_text()
     assert json.loads((rep / 'spc.json').read_text())['chart']['hits'] == hits

@@ -149,7 +149,7 @@ def test_shipped_plans_and_profiles_are_valid() -> None:
     for name in shipped_plans():
         p, _ = load_plan(name)
         assert p.steps
-    from sim.presets import available_presets  # noqa: PLC0415
+    from sim.presets import available_presets
 
     assert set(available_presets()) <= set(shipped_tolerances())
     for name in shipped_tolerances():
@@ -186,7 +186,7 @@ def test_whole_unit_exit_codes(tmp_path: Path, capsys: pytest.CaptureFixture[str
     assert backlash['verdict'] == ('pass' if code == 0 else 'fail')
     assert (run / 'bag' / 'metadata.yaml').exists()
     # the results store next to the sessions has the test, its verdict and metrics
-    from rv_te_bench.store import ResultFilter, open_store  # noqa: PLC0415
+    from rv_te_bench.store import ResultFilter, open_store
 
     with open_store(tmp_path / 'out' / 'rv-te-results.sqlite') as store:
         (rec,) = store.query(ResultFilter(test='test-plan'))
@@ -211,16 +211,16 @@ def test_ctrl_c_cancels_the_test_stops_the_bench_and_keeps_the_bag(
     ``rv-te test --launch``: the test is cancelled, the bench and the other nodes stop, the
     exit code is 1 with one ERROR line, the report says 'cancelled', and the bag of what was
     measured is complete and readable by rosbags."""
-    import os  # noqa: PLC0415
-    import signal  # noqa: PLC0415
-    import subprocess  # noqa: PLC0415
-    import sys  # noqa: PLC0415
-    import threading  # noqa: PLC0415
-    import time  # noqa: PLC0415
+    import os
+    import signal
+    import subprocess
+    import sys
+    import threading
+    import time
 
-    from rosbags.highlevel import AnyReader  # noqa: PLC0415
+    from rosbags.highlevel import AnyReader
 
-    from rv_te_bench.io.msgdefs import rv_te_typestore  # noqa: PLC0415
+    from rv_te_bench.io.msgdefs import rv_te_typestore
 
     env = {**os.environ, 'ROS_DOMAIN_ID': str(ros_domain_id),
            'PYTHONPATH': str(Path(__file__).resolve().parents[2])}

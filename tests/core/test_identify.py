@@ -20,28 +20,27 @@ from rv_te_bench.core.identify import (
 )
 from rv_te_bench.core.phases import PHASE_NAMES, EccentricGeometry, phase_objective_rad
 from rv_te_bench.errors import CompensationError
-from sim.units import arcsec_to_rad
-
 from sim import encoders, presets
 from sim import wang2020 as wang
+from sim.units import arcsec_to_rad
 
 RATIO = 79.0
 N_SAMPLES = 6000          # one output revolution (15.8 s at 300 rpm: ~380 Hz)
 
 
 @pytest.fixture(scope='module')
-def base():  # noqa: ANN201
+def base():
     return wang.Wang2kvParams.from_preset(presets.load_preset('wang2020-2kv'))
 
 
-def _unit(base, e: np.ndarray, ph: np.ndarray):  # noqa: ANN001, ANN202
+def _unit(base, e: np.ndarray, ph: np.ndarray):
     return dataclasses.replace(
         base, e_p1_m=float(e[0]), e_p2_m=float(e[1]), e_g_m=float(e[2]), e_ot_m=float(e[3]),
         theta_p1_0_rad=float(ph[0]), theta_p2_0_rad=float(ph[1]), theta_g_0_rad=float(ph[2]),
         theta_ot_0_rad=float(ph[3]))
 
 
-def _measure(unit, rng: np.random.Generator) -> tuple[np.ndarray, np.ndarray]:  # noqa: ANN001
+def _measure(unit, rng: np.random.Generator) -> tuple[np.ndarray, np.ndarray]:
     """One output revolution through two RON 886 encoders; (theta_in / i, Eq. 22 TE)."""
     spec = encoders.encoder_spec_with(encoders.encoder_preset('heidenhain-ron886'),
                                       noise_sigma_rad=float(arcsec_to_rad(0.3)))
@@ -65,7 +64,7 @@ def _pair_phasors(e: np.ndarray, ph: np.ndarray) -> tuple[complex, complex, comp
 # ---------------------------------------------------------------- observability facts
 
 
-def test_planet_revolution_split_is_unobservable(base) -> None:  # noqa: ANN001
+def test_planet_revolution_split_is_unobservable(base) -> None:
     """Two units with the same pair phasors Q1 = p1 + g, Q2 = p2 - g and E but a different
     split (g moved by z, planets compensating) give the same NLTE: the split cannot be
     identified from TE (closed form: the planets and e_g turn at the same crank rate)."""
@@ -80,7 +79,7 @@ def test_planet_revolution_split_is_unobservable(base) -> None:  # noqa: ANN001
                                rtol=0, atol=1e-15)
 
 
-def test_label_swap_is_exact(base) -> None:  # noqa: ANN001
+def test_label_swap_is_exact(base) -> None:
     """(Q1, Q2, E) -> (Q2, Q1, -E): swap the planets, turn e_g and e_ot by pi: same NLTE."""
     e = np.array([1.3e-5, 0.6e-5, 0.9e-5, 1.7e-5])
     ph = np.array([0.3, -2.0, 1.1, 2.5])
@@ -93,7 +92,7 @@ def test_label_swap_is_exact(base) -> None:  # noqa: ANN001
 # ---------------------------------------------------------------- noise-free recovery
 
 
-def test_noise_free_record_recovered_exactly(base) -> None:  # noqa: ANN001
+def test_noise_free_record_recovered_exactly(base) -> None:
     """Exact model data with an offset: the fit returns Q1, Q2, E, the offset and (with
     the true part magnitudes) the four phases to numerical precision."""
     e = np.array([1e-5, 2e-5, 1e-5, 1e-5])
@@ -117,7 +116,7 @@ def test_noise_free_record_recovered_exactly(base) -> None:  # noqa: ANN001
 
 
 @pytest.fixture(scope='module')
-def random_units(base) -> list[tuple[np.ndarray, np.ndarray, Identification]]:  # noqa: ANN001
+def random_units(base) -> list[tuple[np.ndarray, np.ndarray, Identification]]:
     """12 units, eccentricities 5-25 um (Table 2: 10-20 um), phases uniform, seeded."""
     rng = np.random.default_rng(20201104)
     out = []
@@ -133,7 +132,7 @@ def random_units(base) -> list[tuple[np.ndarray, np.ndarray, Identification]]:  
     return out
 
 
-def test_observable_quantities_identified(random_units) -> None:  # noqa: ANN001
+def test_observable_quantities_identified(random_units) -> None:
     """e_ot, |Q1|, |Q2| within 10 %, their phases within 10 deg, up to the exact label
     swap (Q1, Q2, E) -> (Q2, Q1, -E) that TE alone cannot tell."""
     for e, ph, idf in random_units:
@@ -151,7 +150,7 @@ def test_observable_quantities_identified(random_units) -> None:  # noqa: ANN001
         assert idf.residual_rms_rad < float(arcsec_to_rad(1.5))
 
 
-def test_part_phases_identified_given_magnitudes(random_units) -> None:  # noqa: ANN001
+def test_part_phases_identified_given_magnitudes(random_units) -> None:
     """With the part magnitudes known, theta_p1, theta_p2, theta_g, theta_ot within 10 deg
     wherever the magnitudes tell the pairs apart (label_ratio >= 2, judged from the data:
     here 11 of 12 units; the other has planets of 9.1 and 10.5 um). A pair that carries
@@ -166,7 +165,7 @@ def test_part_phases_identified_given_magnitudes(random_units) -> None:  # noqa:
             assert _dphase_deg(idf.phases_rad[name], ph[k]) < tol[k], name
 
 
-def test_reassembly_reduces_amplitude(random_units, base) -> None:  # noqa: ANN001
+def test_reassembly_reduces_amplitude(random_units, base) -> None:
     """Turning each part by (recommended - identified) phase on the *true* unit cuts its
     max |NLTE| by >= 40 % for each of the first 10 units of this seeded set, and within 3 points of what
     perfect knowledge of the unit achieves on the same 20 deg grid where the labels are
@@ -201,18 +200,18 @@ def test_reassembly_reduces_amplitude(random_units, base) -> None:  # noqa: ANN0
     (np.linspace(0, 0.1, 500), np.zeros(500), 'crank revolutions'),
     (np.zeros((10, 10)), np.zeros((10, 10)), '1-D'),
 ])
-def test_bad_records_rejected(base, phi, te, match: str) -> None:  # noqa: ANN001
+def test_bad_records_rejected(base, phi, te, match: str) -> None:
     with pytest.raises(CompensationError, match=match):
         identify_eccentricities(phi, te, base)
 
 
-def test_bad_n_starts(base) -> None:  # noqa: ANN001
+def test_bad_n_starts(base) -> None:
     phi = np.linspace(0, 2 * math.pi, 200)
     with pytest.raises(CompensationError, match='n_starts'):
         identify_eccentricities(phi, np.zeros(200), base, n_starts=-1)
 
 
-def test_reassembly_needs_split(base) -> None:  # noqa: ANN001
+def test_reassembly_needs_split(base) -> None:
     phi = np.linspace(0, 2 * math.pi, 2000, endpoint=False)
     idf = identify_eccentricities(phi, wang.nlte_rad(phi, base), base, split=False)
     assert not idf.split_resolved
@@ -227,9 +226,9 @@ def test_reassembly_needs_split(base) -> None:  # noqa: ANN001
 def test_identified_advice_recovers_the_preset_unit() -> None:
     """The one-call advice on a noiseless NLTE record of the Table 2 unit: the identified
     (current) phases are the Table 2 phases and the recommendation is the paper's optimum."""
-    from rv_te_bench.core.identify import identified_advice  # noqa: PLC0415
-    from sim.presets import load_preset  # noqa: PLC0415
-    from sim.wang2020 import Wang2kvParams, nlte_rad  # noqa: PLC0415
+    from rv_te_bench.core.identify import identified_advice
+    from sim.presets import load_preset
+    from sim.wang2020 import Wang2kvParams, nlte_rad
 
     params = Wang2kvParams.from_preset(load_preset('wang2020-2kv'))
     phi = np.linspace(0.0, 2 * np.pi, 20_000, endpoint=False)

@@ -61,13 +61,13 @@ def units() -> list[tuple[ref.Unit, Identification, bool]]:
     return out
 
 
-def test_vectors_within_one_percent(units) -> None:  # noqa: ANN001
+def test_vectors_within_one_percent(units) -> None:
     """Q1, Q2, E within 1 % of the largest on every unit (measured: <= 0.03 %)."""
     errors = [ref.vector_error(u, idf.pair_phasors_m)[0] for u, idf, _ in units]
     assert max(errors) <= 0.01, errors
 
 
-def test_split_phases_within_one_degree_where_well_posed(units) -> None:  # noqa: ANN001
+def test_split_phases_within_one_degree_where_well_posed(units) -> None:
     """Where the split is well posed (judged above from the true unit, here 20+ of 24),
     theta_p1, theta_p2, theta_g, theta_ot within 1 deg, in the true labelling."""
     posed = [(u, idf) for u, idf, ok in units if ok]
@@ -79,7 +79,7 @@ def test_split_phases_within_one_degree_where_well_posed(units) -> None:  # noqa
         assert max(errs) < 1.0, (errs, idf.split_deg_per_pct)
 
 
-def test_residual_at_the_noise_level(units) -> None:  # noqa: ANN001
+def test_residual_at_the_noise_level(units) -> None:
     """The sample-level residual equals the TE noise, sqrt(s_out^2 + (s_in / i)^2), within
     3 %; the model-free noise estimate within 10 %; the model explains > 99.9 %."""
     sigma = NOISE_ARCSEC * ref.ARCSEC_RAD * math.sqrt(1 + 1 / ref.RATIO**2)
@@ -88,11 +88,11 @@ def test_residual_at_the_noise_level(units) -> None:  # noqa: ANN001
         assert fit is not None
         assert fit.residual_rms_rad == pytest.approx(sigma, rel=0.03)
         assert fit.noise_rms_rad == pytest.approx(sigma, rel=0.10)
-        assert fit.explained_fraction > 0.999  # noqa: PLR2004
+        assert fit.explained_fraction > 0.999
         assert fit.acceptable
 
 
-def test_reported_sigma_covers_the_error(units) -> None:  # noqa: ANN001
+def test_reported_sigma_covers_the_error(units) -> None:
     """The 1-sigma vector errors the fit reports are the right size: the actual errors of
     all units, in units of their sigma, have an rms between 0.5 and 2 (noise only)."""
     z = []

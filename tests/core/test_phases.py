@@ -34,22 +34,22 @@ R_P = 0.06108
 
 
 @pytest.fixture(scope='module')
-def params():  # noqa: ANN201
+def params():
     return wang.Wang2kvParams.from_preset(presets.load_preset('wang2020-2kv'))
 
 
 @pytest.fixture(scope='module')
-def geom(params) -> EccentricGeometry:  # noqa: ANN001
+def geom(params) -> EccentricGeometry:
     return EccentricGeometry.from_params(params)
 
 
 @pytest.fixture(scope='module')
-def paper_result(params) -> PhaseOptimisation:  # noqa: ANN001
+def paper_result(params) -> PhaseOptimisation:
     """The full 37^4 grid of Eq. 21 (~2-4 s here), run once for the module."""
     return optimise_phases(params)
 
 
-def _ref_objective(params, phases_rad: np.ndarray, n: int = 2**15) -> np.ndarray:  # noqa: ANN001
+def _ref_objective(params, phases_rad: np.ndarray, n: int = 2**15) -> np.ndarray:
     """Independent S = max|NLTE| with sim.wang2020.nlte_rad, phase sets (m, 4)."""
     phi = np.arange(n) * (2 * math.pi / n)
     ph = tuple(np.asarray(phases_rad)[:, k, None] for k in range(4))
@@ -59,7 +59,7 @@ def _ref_objective(params, phases_rad: np.ndarray, n: int = 2**15) -> np.ndarray
 # ---------------------------------------------------------------- model vs sim.wang2020
 
 
-def test_fast_nlte_matches_sim_wang2020(params, geom) -> None:  # noqa: ANN001
+def test_fast_nlte_matches_sim_wang2020(params, geom) -> None:
     """The basis form equals Eqs 1-8 as sim.wang2020 implements them (to 1e-12 rad)."""
     rng = np.random.default_rng(20200221)
     phi = np.linspace(-1.0, 2 * math.pi + 1.0, 4001)
@@ -72,13 +72,13 @@ def test_fast_nlte_matches_sim_wang2020(params, geom) -> None:  # noqa: ANN001
 
 
 @pytest.mark.parametrize('load_nm', [0.0, 30.0, 100.0, 300.0])
-def test_static_te_matches_sim_wang2020(params, geom, load_nm: float) -> None:  # noqa: ANN001
+def test_static_te_matches_sim_wang2020(params, geom, load_nm: float) -> None:
     phi = np.linspace(0, 2 * math.pi, 5001)
     np.testing.assert_allclose(static_te_from_phases_rad(phi, load_nm, geom),
                                wang.static_te_rad(phi, load_nm, params), rtol=0, atol=1e-12)
 
 
-def test_zero_load_ste_is_nlte(geom) -> None:  # noqa: ANN001
+def test_zero_load_ste_is_nlte(geom) -> None:
     """Eq. 18 with T = 0: |D1 - D2| >= 0 always, so STE = max(D1, D2)/r_p = NLTE."""
     phi = np.linspace(0, 2 * math.pi, 3001)
     np.testing.assert_array_equal(static_te_from_phases_rad(phi, 0.0, geom),
@@ -136,7 +136,7 @@ def test_output_wheel_only_refined_reaches_alpha() -> None:
     assert res.objective_after_rad >= e_ot / R_P * (1 - 1e-9)
 
 
-def test_grid_search_equals_brute_force(params, geom) -> None:  # noqa: ANN001
+def test_grid_search_equals_brute_force(params, geom) -> None:
     """120 deg grid (4^4 = 256 sets): the winner's S equals the brute-force minimum of the
     independent sim.wang2020 evaluation (2^15 samples per revolution; a sampled maximum
     is low by at most L h / 2 = 0.2 % of S here, so rel. 2e-3)."""
@@ -160,7 +160,7 @@ def test_grid_search_equals_brute_force(params, geom) -> None:  # noqa: ANN001
     (14.0, 14.0, 14.0, 14.0),     # equal magnitudes (label symmetry)
     (7.5, 22.0, 16.0, 0.0),       # no output-wheel eccentricity
 ])
-def test_grid_search_equals_brute_force_on_other_units(params, e_um) -> None:  # noqa: ANN001
+def test_grid_search_equals_brute_force_on_other_units(params, e_um) -> None:
     """The grid search prunes most combinations by bounds before evaluating them; on
     units unlike the preset (ties, one dominant part) its winner still equals the
     brute-force minimum of the independent sim.wang2020 evaluation over every one of the
@@ -195,7 +195,7 @@ def test_paper_optimum_phases(paper_result: PhaseOptimisation) -> None:
 
 
 @pytest.mark.slow
-def test_paper_optimised_amplitude(paper_result: PhaseOptimisation, params) -> None:  # noqa: ANN001
+def test_paper_optimised_amplitude(paper_result: PhaseOptimisation, params) -> None:
     """Table 4: NLTE amplitude after optimisation 0.604' (+-3 %); before 1.231' (Fig. 5a:
     1.22') within 6 % (the paper's own two values differ by 1 %)."""
     after = float(rad_to_arcmin(paper_result.objective_after_rad))
@@ -249,7 +249,7 @@ def test_paper_ste_means(paper_result: PhaseOptimisation) -> None:
 
 
 @pytest.mark.slow
-def test_refinement_improves_and_is_consistent(params) -> None:  # noqa: ANN001
+def test_refinement_improves_and_is_consistent(params) -> None:
     """Refining a 30 deg grid never worsens S, and the reported S is S at the reported
     phases (independent evaluation, 2^17 samples: rel. 1e-4)."""
     plain = optimise_phases(params, step_deg=30.0)

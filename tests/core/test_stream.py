@@ -349,7 +349,7 @@ _SPLIT_SAMPLES = _samples(9 * BLOCK)
 
 def test_benchmark_script_quick_run(capsys: pytest.CaptureFixture[str]) -> None:
     # smoke test of benchmarks/bench_te_core.py (numbers not checked: shared machine)
-    from tests.benchmark_loader import load_benchmark  # noqa: PLC0415
+    from tests.benchmark_loader import load_benchmark
 
     assert load_benchmark('bench_te_core').main(['--quick']) == 0
     rows = [r for r in capsys.readouterr().out.splitlines() if r.startswith('|')]

@@ -40,7 +40,7 @@ def test_doctests(module: object) -> None:
 
 
 def test_wang_ratio_matches_the_kinematics() -> None:
-    from sim.kinematics import kinematics_2kv  # noqa: PLC0415
+    from sim.kinematics import kinematics_2kv
 
     assert kinematics_2kv(12, 36, 50, 52).gear_ratio == WANG_RATIO == 79.0
 

@@ -32,7 +32,7 @@ def params() -> HuRvParams:
     return HuRvParams.from_preset(load_preset('hu2020-rv'))
 
 
-def _changes(advice) -> tuple[float, float, float]:  # noqa: ANN001
+def _changes(advice) -> tuple[float, float, float]:
     d = [m.recommended_value - m.current_value for m in advice.modifications]
     # Table 6 moves the shifting modification against the Eq. 27 error sign: flip it back
     return d[0], -d[1], d[2]

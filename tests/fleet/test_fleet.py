@@ -111,7 +111,7 @@ def test_killed_worker_loses_no_result(fleet_dir: Path, tmp_path: Path) -> None:
     bags = [b for b in discover_bags([str(fleet_dir)]) if b.name.startswith('unit')]
     killed: list[int] = []
 
-    def killer(client) -> None:  # noqa: ANN001
+    def killer(client) -> None:
         def go() -> None:
             deadline = time.monotonic() + 60
             while time.monotonic() < deadline and not killed:
@@ -139,10 +139,10 @@ def test_killed_worker_loses_no_result(fleet_dir: Path, tmp_path: Path) -> None:
 def test_a_busy_dashboard_port_prints_nothing(tmp_path: Path) -> None:
     """Another Dask cluster holding port 8787 made `rv-te fleet analyze` print a UserWarning
     (its scheduler's HTTP server) before its one result line."""
-    import socket  # noqa: PLC0415
-    import warnings  # noqa: PLC0415
+    import socket
+    import warnings
 
-    from rv_te_bench.fleet._run import _client  # noqa: PLC0415
+    from rv_te_bench.fleet._run import _client
 
     with socket.socket() as s:
         try:
@@ -161,9 +161,9 @@ def test_a_busy_dashboard_port_prints_nothing(tmp_path: Path) -> None:
 def test_workers_read_without_the_read_ahead_thread_when_they_fill_the_cores() -> None:
     """With a worker per core, parallel bags use the cores; each analysis's read-ahead
     thread (~0.16 of a core more) would oversubscribe them (benchmarks/README, fleet row)."""
-    import os  # noqa: PLC0415
+    import os
 
-    from rv_te_bench.fleet._run import _client  # noqa: PLC0415
+    from rv_te_bench.fleet._run import _client
 
     client, cluster = _client(2, None)
     try:
@@ -171,7 +171,7 @@ def test_workers_read_without_the_read_ahead_thread_when_they_fill_the_cores() -
     finally:
         client.close()
         cluster.close()
-    assert got == ({'0'} if 2 >= (os.cpu_count() or 1) else {None})
+    assert got == ({'0'} if (os.cpu_count() or 1) <= 2 else {None})
 
 
 def test_a_bag_at_two_paths_is_one_record_and_reruns_skip_both(fleet_dir: Path,
@@ -202,7 +202,7 @@ def test_a_bag_at_two_paths_is_one_record_and_reruns_skip_both(fleet_dir: Path,
         runs.append((s['ok'], s['skipped'], s.get('duplicate_paths'), s.get('duplicates')))
         with open_store(db) as st:
             rows = st.query()
-        assert len(rows) == 2                                   # noqa: PLR2004
+        assert len(rows) == 2
         assert sorted(r.bag_path for r in rows) == [first_path, str(root / 'a' / 'unit1')]
     assert runs == [(2, 0, 1, [pair]), (0, 2, 1, [pair]), (0, 2, 1, [pair])]
     text = subprocess.run(cmd, capture_output=True, text=True, timeout=300, env=_env())

@@ -15,7 +15,6 @@ import numpy as np
 from rv_te_bench.io.bag_writer import BagWriter, qos_profile_dict
 from rv_te_bench.io.msgdefs import BENCH_INFO, ENCODER_BLOCK, rv_te_typestore
 
-
 ENCODER_TOPIC = '/bench/encoders'
 INFO_TOPIC = '/bench/info'
 T0_NS = 1_700_000_000_000_000_000

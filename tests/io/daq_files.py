@@ -42,8 +42,8 @@ class Session:
 
 def simulate(duration_s: float = 33.0) -> Session:
     """2K-V of Wang 2020 at 300 rpm (15.8 s per output revolution), RON 886 encoders."""
-    from sim.bench import BenchConfig, BenchSimulator  # noqa: PLC0415
-    from sim.drive import ConstantLoad, ConstantSpeed  # noqa: PLC0415
+    from sim.bench import BenchConfig, BenchSimulator
+    from sim.drive import ConstantLoad, ConstantSpeed
 
     n_blocks = math.ceil(duration_s * RATE_HZ / 1000)
     sim = BenchSimulator(BenchConfig(preset='wang2020-2kv', drive=ConstantSpeed(300.0),
@@ -58,7 +58,7 @@ def simulate(duration_s: float = 33.0) -> Session:
 
 def original_bag(path: Path, s: Session) -> Path:
     """The session as recorded live would be: a rosbags-written bag (tests.unit_bags)."""
-    from tests.unit_bags import write_unit_bag  # noqa: PLC0415
+    from tests.unit_bags import write_unit_bag
 
     return write_unit_bag(path, s.theta_in_rad, s.theta_out_rad, rate_hz=RATE_HZ, block=1000,
                           preset='wang2020-2kv', bench_id='daq-bench')
@@ -85,7 +85,7 @@ def write_csv(path: Path, s: Session, *, unit: str = 'rad', fmt: str = '%.17g',
 
 def write_tdms(path: Path, s: Session, *, unit: str = 'rad') -> Path:
     """TDMS: group 'encoders', waveform channels theta_in / theta_out / torque (float64)."""
-    from nptdms import ChannelObject, GroupObject, TdmsWriter  # noqa: PLC0415
+    from nptdms import ChannelObject, GroupObject, TdmsWriter
 
     props = {'wf_increment': 1.0 / RATE_HZ, 'wf_start_offset': 0.0,
              'wf_start_time': np.datetime64(START.replace(tzinfo=None), 'us')}
@@ -104,7 +104,7 @@ def write_tdms(path: Path, s: Session, *, unit: str = 'rad') -> Path:
 
 def write_mdf(path: Path, s: Session) -> Path:
     """MDF 4.10: one channel group, master time [s], theta_in / theta_out [rad], torque."""
-    from asammdf import MDF, Signal  # noqa: PLC0415
+    from asammdf import MDF, Signal
 
     mdf = MDF(version='4.10')
     mdf.header.start_time = START
@@ -123,8 +123,8 @@ def write_jointstate_bag(path: Path, s: Session, *, separate: bool = False,
     sample (``separate``: one per joint and sample), written by rosbags; ``skip`` leaves
     out the output joint's message of those samples (separate only), ``stamp_ns`` replaces
     the stamps of some samples."""
-    from rosbags.rosbag2 import StoragePlugin, Writer  # noqa: PLC0415
-    from rosbags.typesys import Stores, get_typestore  # noqa: PLC0415
+    from rosbags.rosbag2 import StoragePlugin, Writer
+    from rosbags.typesys import Stores, get_typestore
 
     store = get_typestore(Stores.ROS2_JAZZY)
     js = store.types['sensor_msgs/msg/JointState']

@@ -146,11 +146,10 @@ def test_analysis_states_what_the_recorder_could_not_write(
         tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
     """A bag whose disk was full for a while: `rv-te analyze` says how many messages are
     missing and when, from metadata.yaml, besides the sequence gap it finds."""
-    import time  # noqa: PLC0415
+    import time
 
-    from tests.io.faults import SmallDisk  # noqa: PLC0415
-    from tests.io.conftest import (  # noqa: PLC0415
-        FLUSH_S, block, log_ns, start_bag, write_until_stalled)
+    from tests.io.conftest import FLUSH_S, block, log_ns, start_bag, write_until_stalled
+    from tests.io.faults import SmallDisk
 
     disk = SmallDisk(1_000_000)
     bag = tmp_path / 'bag'

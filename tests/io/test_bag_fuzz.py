@@ -20,6 +20,7 @@ from rv_te_bench.io.bag_reader import (
 )
 from tests.io.bag_fixtures import encoder_cdr, write_sample_bag
 
+
 @pytest.fixture(scope='module')
 def templates(tmp_path_factory: pytest.TempPathFactory) -> dict[str, tuple[Path, bytes]]:
     """A small real bag per compression (6 blocks of 20 samples, 1 KiB chunks)."""

@@ -259,7 +259,7 @@ def test_definition_change_is_refused(sample_bag: Path, tmp_path: Path) -> None:
 
 def test_reads_a_bag_folder_written_by_rosbags(tmp_path: Path) -> None:
     """rosbags' own rosbag2 writer (metadata.yaml + <name>.mcap) is an independent layout."""
-    from rosbags.rosbag2 import StoragePlugin, Writer  # noqa: PLC0415
+    from rosbags.rosbag2 import StoragePlugin, Writer
 
     bag = tmp_path / 'rb'
     store = rv_te_typestore()
@@ -279,12 +279,12 @@ def test_reads_a_bag_folder_written_by_rosbags(tmp_path: Path) -> None:
     assert summary['finalized'] is None  # not written by BagWriter: state unknown
 
 
-def test_empty_unlisted_split_file_does_not_hide_the_bag(tmp_path) -> None:  # noqa: ANN001
+def test_empty_unlisted_split_file_does_not_hide_the_bag(tmp_path) -> None:
     """A recorder killed right after creating the next split file leaves it empty."""
-    import shutil  # noqa: PLC0415
-    from pathlib import Path  # noqa: PLC0415
+    import shutil
+    from pathlib import Path
 
-    from rv_te_bench.io.bag_reader import read_encoder_blocks  # noqa: PLC0415
+    from rv_te_bench.io.bag_reader import read_encoder_blocks
 
     sample = Path(__file__).resolve().parents[2] / 'bags' / 'sample'
     bag = tmp_path / 'bag'

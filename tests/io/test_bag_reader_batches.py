@@ -90,7 +90,7 @@ def _mixed_bag(path: Path) -> None:
 @pytest.mark.parametrize('read_ahead', ['own thread', 'shared executor', 'none'])
 def test_batches_equal_blocks_on_a_mixed_bag(tmp_path: Path, read_ahead: str,
                                              monkeypatch: pytest.MonkeyPatch) -> None:
-    monkeypatch.setitem(_mcap_scan._scan_units.__kwdefaults__, 'prefetch',  # noqa: SLF001
+    monkeypatch.setitem(_mcap_scan._scan_units.__kwdefaults__, 'prefetch',
                         read_ahead != 'none')
     bag = tmp_path / 'mixed'
     _mixed_bag(bag)
@@ -130,7 +130,7 @@ def test_abandoned_read_leaves_no_worker_thread(tmp_path: Path) -> None:
     before = {t.name for t in threading.enumerate()}
     stream = read_encoder_batches(bag)
     next(stream)
-    stream._it.close()  # noqa: SLF001 - what garbage collection does to a dropped reader
+    stream._it.close()
     assert not {t.name for t in threading.enumerate()
                 if t.name.startswith('mcap-read')} - before
 
@@ -142,7 +142,7 @@ def test_abandoned_read_leaves_a_shared_executor_running_and_idle(
     map is closed after it), and the executor is not shut down."""
     bag = tmp_path / 'bag'
     write_sample_bag(bag, n_blocks=40, compression='zstd', chunk_size_bytes=2048)
-    real = _mcap_scan._chunk_records  # noqa: SLF001
+    real = _mcap_scan._chunk_records
     decompressed: list[str] = []
 
     def counted(body: memoryview) -> memoryview:
@@ -154,12 +154,12 @@ def test_abandoned_read_leaves_a_shared_executor_running_and_idle(
     with ThreadPoolExecutor(max_workers=1, thread_name_prefix='shared') as helper:
         stream = read_encoder_batches(bag, executor=helper)
         next(stream)
-        stream._it.close()  # noqa: SLF001 - what garbage collection does to a dropped reader
+        stream._it.close()
         at_close = len(decompressed)
         assert helper.submit(lambda: 42).result() == 42   # still running; runs after them
         assert len(decompressed) == at_close               # nothing queued was left to run
     assert set(decompressed) == {'shared_0'}
-    assert at_close < 20   # noqa: PLR2004 - of the ~40 chunks: the read did stop early
+    assert at_close < 20
 
 
 def test_a_reader_closed_on_the_shared_executors_thread_does_not_wait_for_itself(
@@ -169,16 +169,16 @@ def test_a_reader_closed_on_the_shared_executors_thread_does_not_wait_for_itself
     the job it runs in), or the executor's only thread would wait for itself forever."""
     bag = tmp_path / 'bag'
     write_sample_bag(bag, n_blocks=40, compression='zstd', chunk_size_bytes=2048)
-    real = _mcap_scan._chunk_records  # noqa: SLF001
+    real = _mcap_scan._chunk_records
     calls: list[int] = []
     caller_out, closed = threading.Event(), threading.Event()
     box: dict[str, object] = {}
 
     def closing_in_the_second_job(body: memoryview) -> memoryview:
         calls.append(1)
-        if len(calls) == 2:   # noqa: PLR2004 - as a collection inside a job would
+        if len(calls) == 2:
             assert caller_out.wait(5.0)
-            box['stream']._it.close()  # noqa: SLF001
+            box['stream']._it.close()
             closed.set()
         return real(body)
 
@@ -198,14 +198,14 @@ def test_bench_info_from_the_summary_equals_a_scan(tmp_path: Path) -> None:
     bag = tmp_path / 'bag'
     write_sample_bag(bag, n_blocks=30, compression='zstd', chunk_size_bytes=4096)
     (file,) = open_bag(bag).files
-    indexed = _mcap_scan._indexed_messages(file, [INFO_TOPIC])  # noqa: SLF001
+    indexed = _mcap_scan._indexed_messages(file, [INFO_TOPIC])
     assert indexed == [(BENCH_INFO, bench_info_cdr())]
     fast = read_bench_info(bag)
     # a damaged summary (CRC mismatch) is not trusted: the reader scans the file instead
     data = bytearray(file.read_bytes())
     data[-8 - 37 + 9 + 16] ^= 0xFF   # the footer's summary CRC
     file.write_bytes(bytes(data))
-    assert _mcap_scan._indexed_messages(file, [INFO_TOPIC]) is None  # noqa: SLF001
+    assert _mcap_scan._indexed_messages(file, [INFO_TOPIC]) is None
     assert read_bench_info(bag) == fast
     assert fast is not None
     assert fast['preset'] == 'wang2020-2kv'
@@ -217,7 +217,7 @@ def test_bench_info_of_a_killed_recording(tmp_path: Path) -> None:
     writer = write_sample_bag(bag, n_blocks=10, close=False, chunk_size_bytes=2048)
     writer.flush()
     (file,) = open_bag(bag).files
-    assert _mcap_scan._indexed_messages(file, [INFO_TOPIC]) is None  # noqa: SLF001
+    assert _mcap_scan._indexed_messages(file, [INFO_TOPIC]) is None
     info = read_bench_info(bag)
     assert info is not None
     assert info['gear_ratio'] == 79.0
@@ -257,9 +257,9 @@ def test_bench_info_in_the_first_of_split_files(tmp_path: Path) -> None:
                      split_size_bytes=20_000)
     files = open_bag(bag).files
     assert len(files) > 1
-    assert _mcap_scan._indexed_messages(files[0], [INFO_TOPIC]) == [  # noqa: SLF001
+    assert _mcap_scan._indexed_messages(files[0], [INFO_TOPIC]) == [
         (BENCH_INFO, bench_info_cdr())]
-    assert _mcap_scan._indexed_messages(files[-1], [INFO_TOPIC]) == []  # noqa: SLF001
+    assert _mcap_scan._indexed_messages(files[-1], [INFO_TOPIC]) == []
     info = read_bench_info(bag)
     assert info is not None
     assert info['preset'] == 'wang2020-2kv'
@@ -268,9 +268,9 @@ def test_bench_info_in_the_first_of_split_files(tmp_path: Path) -> None:
 def test_bag_topics_of_a_folder_and_of_its_lone_file(tmp_path: Path) -> None:
     """A lone .mcap file answers with the types and offered QoS its channels carry, the
     same as metadata.yaml; from the summary, and by a scan when there is none."""
-    import yaml  # noqa: PLC0415
+    import yaml
 
-    from rv_te_bench.io.bag_reader import bag_topics  # noqa: PLC0415
+    from rv_te_bench.io.bag_reader import bag_topics
 
     def parsed(topics: dict) -> dict:
         return {t: (v['type'], yaml.safe_load(v['offered_qos_profiles'])
@@ -288,7 +288,7 @@ def test_bag_topics_of_a_folder_and_of_its_lone_file(tmp_path: Path) -> None:
     writer = write_sample_bag(killed, n_blocks=5, close=False, chunk_size_bytes=2048)
     writer.flush()
     (kfile,) = open_bag(killed).files
-    assert _mcap_scan._summary(kfile) is None  # noqa: SLF001
+    assert _mcap_scan._summary(kfile) is None
     assert parsed(bag_topics(kfile)) == folder
     writer.close()
 
@@ -296,7 +296,7 @@ def test_bag_topics_of_a_folder_and_of_its_lone_file(tmp_path: Path) -> None:
 def test_a_bag_damaged_all_through_gives_one_readable_line(tmp_path: Path) -> None:
     """Every chunk corrupt: the error names the first problems and counts the rest; the
     analysis keeps the full list for the JSON."""
-    from rv_te_bench.report.analysis import analyze_bag  # noqa: PLC0415
+    from rv_te_bench.report.analysis import analyze_bag
 
     bag = tmp_path / 'bag'
     write_sample_bag(bag, n_blocks=40, compression='none', chunk_size_bytes=2048)
@@ -318,7 +318,7 @@ def test_a_bag_damaged_all_through_gives_one_readable_line(tmp_path: Path) -> No
 
 
 def test_partial_analysis_keeps_every_read_problem(tmp_path: Path) -> None:
-    from rv_te_bench.report.analysis import analyze_bag  # noqa: PLC0415
+    from rv_te_bench.report.analysis import analyze_bag
 
     bag = tmp_path / 'bag'
     write_sample_bag(bag, n_blocks=40, compression='none', chunk_size_bytes=2048)

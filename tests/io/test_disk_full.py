@@ -13,6 +13,7 @@ import contextlib
 import os
 import time
 from pathlib import Path
+
 import numpy as np
 import pytest
 import yaml

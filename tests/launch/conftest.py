@@ -10,8 +10,8 @@ if TYPE_CHECKING:
 
 def read_decoded(bag: Path, topics: list[str]) -> list[tuple[str, int, object]]:
     """(topic, log time [ns], decoded message) of ``topics``, read with mcap + mcap_ros2."""
-    from mcap.reader import make_reader  # noqa: PLC0415
-    from mcap_ros2.decoder import DecoderFactory  # noqa: PLC0415
+    from mcap.reader import make_reader
+    from mcap_ros2.decoder import DecoderFactory
 
     out = []
     files = sorted(bag.glob('*.mcap'))

@@ -16,16 +16,16 @@ pytestmark = pytest.mark.ros
 pytest.importorskip('rclpy')
 
 
-def test_demo_session_bag_statistics_and_advice_are_consistent(  # noqa: PLR0915
+def test_demo_session_bag_statistics_and_advice_are_consistent(
         tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
-    from rosbags.highlevel import AnyReader  # noqa: PLC0415
+    from rosbags.highlevel import AnyReader
 
-    from rv_te_bench.cli.main import main  # noqa: PLC0415
-    from rv_te_bench.core.phases import optimise_phases  # noqa: PLC0415
-    from rv_te_bench.io.bag_reader import read_encoder_blocks  # noqa: PLC0415
-    from rv_te_bench.io.msgdefs import rv_te_typestore  # noqa: PLC0415
-    from sim.presets import load_preset  # noqa: PLC0415
-    from sim.wang2020 import Wang2kvParams, nlte_rad  # noqa: PLC0415
+    from rv_te_bench.cli.main import main
+    from rv_te_bench.core.phases import optimise_phases
+    from rv_te_bench.io.bag_reader import read_encoder_blocks
+    from rv_te_bench.io.msgdefs import rv_te_typestore
+    from sim.presets import load_preset
+    from sim.wang2020 import Wang2kvParams, nlte_rad
 
     code = main(['demo', '--out-dir', str(tmp_path), '--session', 's1', '--revolutions', '2',
                  '--param', 'bench.speed_rpm=3000.0', '--param', 'bench.speed_factor=4.0'])
@@ -102,8 +102,8 @@ def test_demo_session_bag_statistics_and_advice_are_consistent(  # noqa: PLR0915
 
 def test_which_live_advice_a_session_can_give() -> None:
     """The identified advice needs a complete TE window: too few revolutions, none (said)."""
-    from rv_te_bench.cli.demo import expected_advice  # noqa: PLC0415
-    from rv_te_bench.launch.session import build_session  # noqa: PLC0415
+    from rv_te_bench.cli.demo import expected_advice
+    from rv_te_bench.launch.session import build_session
 
     spec = build_session([])
     both = {'assembly-phases', 'identified-assembly-phases'}
@@ -122,9 +122,9 @@ def test_a_demo_too_short_for_a_window_ends_promptly(
     """Issue #15: `rv-te demo --revolutions 0.01` waited the whole --advice-timeout-s (90 s)
     for an identified advice that cannot come (no complete window). It ends once the
     preset's advice is in, saying why the other cannot come."""
-    import time  # noqa: PLC0415
+    import time
 
-    from rv_te_bench.cli.main import main  # noqa: PLC0415
+    from rv_te_bench.cli.main import main
 
     t0 = time.monotonic()
     code = main(['demo', '--out-dir', str(tmp_path), '--session', 's', '--revolutions', '0.01',
@@ -135,4 +135,4 @@ def test_a_demo_too_short_for_a_window_ends_promptly(
     assert code == 0, captured.err[-3000:]
     assert 'no complete TE window' in captured.err
     assert 'received in time' not in captured.err
-    assert took < 50.0   # noqa: PLR2004 - 90 s of waiting before
+    assert took < 50.0

@@ -36,7 +36,7 @@ def write(tmp_path: Path, body: str, name: str = 'x.launch.yaml') -> Path:
     return f
 
 
-def spec_of(path: Path, **kw: object):  # noqa: ANN202
+def spec_of(path: Path, **kw: object):
     args = kw.pop('args', {})
     return session_from_launch(load_launch_file(path, args), **kw)  # type: ignore[arg-type]
 
@@ -208,7 +208,7 @@ def test_nodes_subset_drops_them_from_the_bench_wait() -> None:
 
 def test_exec_names_are_the_installed_executables() -> None:
     """EXEC_TO_NODE agrees with the ament setup.py's executables and the session's modules."""
-    from tests.package.conftest import setup_py_value  # noqa: PLC0415
+    from tests.package.conftest import setup_py_value
 
     exes = setup_py_value('EXECUTABLES')
     for exe, node in EXEC_TO_NODE.items():

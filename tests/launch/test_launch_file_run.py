@@ -15,9 +15,9 @@ pytest.importorskip('rclpy')
 
 def test_rv_te_launch_runs_the_shipped_launch_file(tmp_path: Path,
                                                     capsys: pytest.CaptureFixture[str]) -> None:
-    from rv_te_bench.cli.launch import default_launch_file  # noqa: PLC0415
-    from rv_te_bench.cli.main import main  # noqa: PLC0415
-    from tests.launch.conftest import read_decoded  # noqa: PLC0415
+    from rv_te_bench.cli.launch import default_launch_file
+    from rv_te_bench.cli.main import main
+    from tests.launch.conftest import read_decoded
 
     code = main(['launch', default_launch_file(), 'namespace:=rig',
                  '--param', 'bench.duration_output_revs=1.0',

@@ -40,7 +40,7 @@ SUBSTITUTIONS = {'var', 'env', 'optenv', 'dirname', 'filename', 'anon', 'eval', 
 NODE_NAME = re.compile(r'[A-Za-z_][A-Za-z0-9_]*')
 
 
-def strings(value: Any) -> list[str]:  # noqa: ANN401
+def strings(value: Any) -> list[str]:
     if isinstance(value, str):
         return [value]
     if isinstance(value, list):
@@ -62,7 +62,7 @@ def setup_py_executables() -> set[str]:
     raise AssertionError
 
 
-def test_shipped_launch_file_follows_the_ros2_yaml_launch_format() -> None:  # noqa: C901, PLR0912
+def test_shipped_launch_file_follows_the_ros2_yaml_launch_format() -> None:
     doc = yaml.safe_load(LAUNCH_FILE.read_text(encoding='utf-8'))
     assert isinstance(doc, dict) and list(doc) == ['launch']
     assert isinstance(doc['launch'], list) and doc['launch']

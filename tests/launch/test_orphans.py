@@ -26,9 +26,9 @@ pytestmark = [pytest.mark.ros, pytest.mark.skipif(not sys.platform.startswith('l
 
 @pytest.mark.timeout(120)
 def test_nodes_die_with_a_sigkilled_launcher(tmp_path: Path, ros_domain_id: int) -> None:
-    from rosbags.highlevel import AnyReader  # noqa: PLC0415
+    import subprocess
 
-    import subprocess  # noqa: PLC0415
+    from rosbags.highlevel import AnyReader
 
     env = dict(os.environ, ROS_DOMAIN_ID=str(ros_domain_id))
     env.pop('_ROS_WHEELS_BOOTSTRAP_COMPLETE', None)
@@ -43,13 +43,13 @@ def test_nodes_die_with_a_sigkilled_launcher(tmp_path: Path, ros_domain_id: int)
         deadline = time.monotonic() + 60.0
         while time.monotonic() < deadline and proc.poll() is None:
             nodes = children(proc.pid)
-            if len(nodes) == 4 and (tmp_path / 'orphan' / 'metadata.yaml').exists():  # noqa: PLR2004
+            if len(nodes) == 4 and (tmp_path / 'orphan' / 'metadata.yaml').exists():
                 break
             time.sleep(0.2)
-        assert len(nodes) == 4, (nodes, proc.poll())  # noqa: PLR2004
+        assert len(nodes) == 4, (nodes, proc.poll())
         deadline = time.monotonic() + 40.0   # the session runs: blocks reach the bag
         while time.monotonic() < deadline and sum(
-                f.stat().st_size for f in (tmp_path / 'orphan').glob('*.mcap')) < 100_000:  # noqa: PLR2004
+                f.stat().st_size for f in (tmp_path / 'orphan').glob('*.mcap')) < 100_000:
             time.sleep(0.2)
         proc.send_signal(signal.SIGKILL)
         proc.wait(timeout=10)
@@ -85,7 +85,7 @@ def _launch(tmp_path: Path, ros_domain_id: int, *args: str, log: Path | None = N
         **popen)  # type: ignore[call-overload]
 
 
-def _wait_for(cond, timeout_s: float, step_s: float = 0.05) -> bool:  # noqa: ANN001
+def _wait_for(cond, timeout_s: float, step_s: float = 0.05) -> bool:
     deadline = time.monotonic() + timeout_s
     while time.monotonic() < deadline:
         if cond():
@@ -112,7 +112,7 @@ def test_a_busy_compensation_node_dies_with_a_sigkilled_launcher(
         assert _wait_for(lambda: proc.poll() is not None or 'preset wang2020-2kv (model'
                          in log.read_text(errors='replace'), 90.0, 0.2), log.read_text()
         nodes = children(proc.pid)
-        assert len(nodes) == 4, (nodes, proc.poll(), log.read_text())  # noqa: PLR2004
+        assert len(nodes) == 4, (nodes, proc.poll(), log.read_text())
         time.sleep(0.5)   # the search runs (its first chunk alone takes seconds)
         proc.send_signal(signal.SIGKILL)
         proc.wait(timeout=10)
@@ -141,7 +141,7 @@ def test_double_ctrl_c_keeps_the_recorder_summary(tmp_path: Path, ros_domain_id:
     second Ctrl-C now hurries the other nodes (the compensation search here would otherwise
     be waited for up to 8 s) but the launcher still waits for the recorder's summary and
     reports it."""
-    from rosbags.highlevel import AnyReader  # noqa: PLC0415
+    from rosbags.highlevel import AnyReader
 
     log = tmp_path / 'launch.log'
     proc = _launch(tmp_path, ros_domain_id, '--param', 'recorder.bag_name=twice',
@@ -174,7 +174,7 @@ def test_double_ctrl_c_keeps_the_recorder_summary(tmp_path: Path, ros_domain_id:
     assert 'Traceback' not in text, text[-3000:]
     assert f'[launch] bag {tmp_path / "twice"}: ' in text and 'messages on disk' in text, \
         text[-3000:]
-    assert took < 15.0   # noqa: PLR2004 - the recorder's close, not the search's 8 s
+    assert took < 15.0
     with AnyReader([tmp_path / 'twice']) as reader:
         n = sum(1 for c in reader.connections if c.topic == '/bench/encoders'
                 for _ in reader.messages(connections=[c]))
@@ -184,7 +184,7 @@ def test_double_ctrl_c_keeps_the_recorder_summary(tmp_path: Path, ros_domain_id:
 def test_a_node_whose_launcher_is_gone_does_not_start() -> None:
     """The launcher may die between the fork and the node's request: it must not run on.
     (In a child process: the request would otherwise bind this test process.)"""
-    import subprocess  # noqa: PLC0415
+    import subprocess
 
     code = ('import os, sys\n'
             'from rv_te_bench.nodes.common import LAUNCHER_PID_ENV, die_with_launcher\n'
@@ -211,9 +211,9 @@ def test_a_crashed_te_node_is_contained(tmp_path: Path, ros_domain_id: int) -> N
     """Issue #16 item 4: SIGKILL of te_node stopped the bench and the recorder (139 of 317
     blocks). The bench and the recorder go on, the bag is complete, the launcher names the
     crashed node and exits non-zero at the end."""
-    import subprocess  # noqa: PLC0415
+    import subprocess
 
-    from rosbags.highlevel import AnyReader  # noqa: PLC0415
+    from rosbags.highlevel import AnyReader
 
     env = dict(os.environ, ROS_DOMAIN_ID=str(ros_domain_id))
     env.pop('_ROS_WHEELS_BOOTSTRAP_COMPLETE', None)
@@ -232,7 +232,7 @@ def test_a_crashed_te_node_is_contained(tmp_path: Path, ros_domain_id: int) -> N
             te = next((p for p in children(proc.pid)
                        if 'rv_te_bench.nodes.te_node' in _cmdline(p)), None)
             if te is not None and sum(f.stat().st_size for f in
-                                      (tmp_path / 'crash').glob('*.mcap')) > 100_000:  # noqa: PLR2004
+                                      (tmp_path / 'crash').glob('*.mcap')) > 100_000:
                 break
             time.sleep(0.2)
         assert te is not None, proc.poll()
@@ -248,7 +248,7 @@ def test_a_crashed_te_node_is_contained(tmp_path: Path, ros_domain_id: int) -> N
         conns = [c for c in reader.connections if c.topic == '/bench/encoders']
         seqs = [reader.deserialize(raw, c.msgtype).seq
                 for c, _, raw in reader.messages(connections=conns)]
-    assert seqs == list(range(len(seqs))) and len(seqs) >= 316, (len(seqs), seqs[-3:])  # noqa: PLR2004
+    assert seqs == list(range(len(seqs))) and len(seqs) >= 316, (len(seqs), seqs[-3:])
 
 
 def _started_by(launcher: int) -> list[int]:
@@ -280,7 +280,7 @@ def test_ctrl_c_while_the_session_starts(tmp_path: Path, ros_domain_id: int,
     The node processes are watched all along (the launcher's children, listed every 20 ms
     until it exits) and looked up again afterwards by the launcher's pid in their
     environment: a list taken at the Ctrl-C missed the nodes not started yet."""
-    import threading  # noqa: PLC0415
+    import threading
 
     proc = _launch(tmp_path, ros_domain_id)
     seen: set[int] = set()

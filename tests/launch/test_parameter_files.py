@@ -111,7 +111,7 @@ def test_bad_remap_and_unknown_node() -> None:
 
 
 def test_packaged_default_session_is_valid() -> None:
-    from rv_te_bench.cli.launch import default_session_file  # noqa: PLC0415
+    from rv_te_bench.cli.launch import default_session_file
 
     spec = build_session([default_session_file()])
     assert spec.parameters['bench']['preset'] == 'wang2020-2kv'

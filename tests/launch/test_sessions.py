@@ -18,7 +18,7 @@ from rv_te_bench.nodes import qos  # noqa: E402
 from tests.nodes.rosutil import spin_until  # noqa: E402
 
 
-def _spec(ns: str, bench_id: str, rpm: float, revs: float):  # noqa: ANN202
+def _spec(ns: str, bench_id: str, rpm: float, revs: float):
     # each bench starts its clock once its TE node and the test's probe in its namespace
     # subscribe (a bench that starts up fast must not finish before the probe matched it)
     return build_session([], namespace=ns, nodes=['bench', 'te_node'], overrides=[
@@ -27,7 +27,7 @@ def _spec(ns: str, bench_id: str, rpm: float, revs: float):  # noqa: ANN202
         f'bench.duration_output_revs={revs}', 'bench.wait_for_nodes=[te_node, probe]'])
 
 
-def test_two_namespaced_sessions_do_not_cross(ros_context) -> None:  # noqa: ANN001
+def test_two_namespaced_sessions_do_not_cross(ros_context) -> None:
     ctx = ros_context
     got: dict[str, list[EncoderBlock]] = {'a': [], 'b': []}
     spectra: dict[str, list[TeSpectrum]] = {'a': [], 'b': []}
@@ -70,7 +70,7 @@ def test_two_namespaced_sessions_do_not_cross(ros_context) -> None:  # noqa: ANN
     assert not sa.failures and not sb.failures
 
 
-def test_crashing_node_is_reported(ros_context) -> None:  # noqa: ANN001
+def test_crashing_node_is_reported(ros_context) -> None:
     # an unknown preset makes the bench exit 1 at start-up: the session reports it
     # (build_session refuses it, as --check does: set it after the checks, as a crash)
     spec = build_session([], nodes=['bench', 'te_node'])
@@ -87,11 +87,11 @@ def test_crashing_node_is_reported(ros_context) -> None:  # noqa: ANN001
     assert any("'bench'" in f and 'code 1' in f for f in s.failures), s.failures
 
 
-def _bag_times(bag) -> tuple[dict[str, list[int]], list[int], list[int]]:  # noqa: ANN001
+def _bag_times(bag) -> tuple[dict[str, list[int]], list[int], list[int]]:
     """(clock values by clock topic [ns], encoder log times [ns], encoder header stamps [ns]),
     read with the mcap library (not our reader)."""
-    from mcap.reader import make_reader  # noqa: PLC0415
-    from mcap_ros2.decoder import DecoderFactory  # noqa: PLC0415
+    from mcap.reader import make_reader
+    from mcap_ros2.decoder import DecoderFactory
 
     clocks: dict[str, list[int]] = {}
     log_ns: list[int] = []
@@ -111,7 +111,7 @@ def _bag_times(bag) -> tuple[dict[str, list[int]], list[int], list[int]]:  # noq
 
 
 @pytest.mark.timeout(180)
-def test_two_namespaced_fast_sessions_keep_their_own_clock(tmp_path) -> None:  # noqa: ANN001
+def test_two_namespaced_fast_sessions_keep_their_own_clock(tmp_path) -> None:
     """Issue #22: two fast (sim-time) sessions in namespaces a and b shared /clock; each
     recorder kept the largest /clock it saw, so a bag logged its blocks at the other
     session's clock. A namespaced sim-time session now runs on <ns>/clock: every encoder
@@ -153,11 +153,11 @@ def test_two_namespaced_fast_sessions_keep_their_own_clock(tmp_path) -> None:  #
         assert min(stamp_ns) <= min(own) and max(own) <= max(stamp_ns) + block_ns + 1000
 
 
-def test_node_processes_get_one_blas_thread_unless_set(monkeypatch) -> None:  # noqa: ANN001
+def test_node_processes_get_one_blas_thread_unless_set(monkeypatch) -> None:
     """Issue #23 item 1: every node process has one BLAS / OpenMP thread by default (16 node
     processes of four benches on 2 cores: OpenBLAS's spinning pool doubled the compensation
     node's CPU); a value the user set is kept."""
-    from rv_te_bench.launch.session import NODE_THREAD_ENV, child_env  # noqa: PLC0415
+    from rv_te_bench.launch.session import NODE_THREAD_ENV, child_env
 
     for var in NODE_THREAD_ENV:
         monkeypatch.delenv(var, raising=False)

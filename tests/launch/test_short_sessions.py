@@ -24,10 +24,10 @@ RUNS = 4
 
 @pytest.mark.timeout(240)
 def test_every_short_session_bag_has_its_bench_info(tmp_path: Path) -> None:
-    from rosbags.highlevel import AnyReader  # noqa: PLC0415
+    from rosbags.highlevel import AnyReader
 
-    from rv_te_bench.cli.launch import default_session_file  # noqa: PLC0415
-    from rv_te_bench.launch.session import build_session, run_session  # noqa: PLC0415
+    from rv_te_bench.cli.launch import default_session_file
+    from rv_te_bench.launch.session import build_session, run_session
 
     found: dict[str, tuple[int, int]] = {}
     for k in range(RUNS):
@@ -50,4 +50,4 @@ def test_every_short_session_bag_has_its_bench_info(tmp_path: Path) -> None:
                      for c in reader.connections}
         found[name] = (count.get('/bench/info', 0), count.get('/bench/encoders', 0))
         print(f'{name}: {found[name]} (BenchInfo, blocks) in {time.monotonic() - t0:.1f} s')
-    assert all(info == 1 and blocks == 2 for info, blocks in found.values()), found  # noqa: PLR2004
+    assert all(info == 1 and blocks == 2 for info, blocks in found.values()), found

@@ -29,8 +29,8 @@ BLOCK_S = 100 / 1000.0               # blocks of 100 samples at 1 kHz
 @pytest.fixture(scope='module')
 def fast_session(tmp_path_factory: pytest.TempPathFactory) -> tuple[Path, float]:
     """One output revolution of the default session (fast, speed_factor 20): (bag, wall s)."""
-    from rv_te_bench.cli.launch import default_session_file  # noqa: PLC0415
-    from rv_te_bench.launch.session import build_session, run_session  # noqa: PLC0415
+    from rv_te_bench.cli.launch import default_session_file
+    from rv_te_bench.launch.session import build_session, run_session
 
     out = tmp_path_factory.mktemp('fast')
     spec = build_session([default_session_file()], nodes=['bench', 'te_node', 'recorder'],
@@ -69,7 +69,7 @@ def test_fast_session_bag_spans_the_simulated_duration(
 
 
 def test_realtime_session_states_system_log_time() -> None:
-    from rv_te_bench.launch.session import build_session, node_parameters  # noqa: PLC0415
+    from rv_te_bench.launch.session import build_session, node_parameters
 
     fast = build_session([], overrides=['bench.time_mode=fast'])
     real = build_session([], overrides=['bench.time_mode=realtime'])
@@ -85,7 +85,7 @@ def test_te_plot_scalars_match_the_statistics_and_spectrum(
     """te/plot: no array anywhere in its schema (a plot panel takes every field), one message
     per encoder block at the default 20 Hz > 10 blocks/s, values equal to te/statistics and
     te/spectrum converted here (1 rad = 10800/pi arcmin)."""
-    from mcap.reader import make_reader  # noqa: PLC0415
+    from mcap.reader import make_reader
 
     bag, _ = fast_session
     with next(bag.glob('*.mcap')).open('rb') as stream:
@@ -128,7 +128,7 @@ def test_foxglove_layout_paths_have_data_in_the_recording(
     """Every te/* path of docs/foxglove_te_session.json yields finite numbers from the
     recorded session (compensation/advice and /diagnostics are checked by definition only,
     tests/package/test_foxglove_layout.py; this session has no compensation node)."""
-    from tests.package.conftest import layout_paths  # noqa: PLC0415
+    from tests.package.conftest import layout_paths
 
     bag, _ = fast_session
     paths = sorted({p for _, p in layout_paths() if p.startswith('/te/')})

@@ -67,7 +67,7 @@ def failing_python(tmp_path: Path) -> str:
 
 def venv_prefix() -> Path:
     """Where this test's interpreter has the ros-jazzy wheels (independent of the cmake code)."""
-    import sysconfig  # noqa: PLC0415
+    import sysconfig
 
     purelib = Path(sysconfig.get_paths()['purelib']).resolve()   # <prefix>/lib/python3.X/site-packages
     assert (purelib / 'rosidl_adapter').is_dir(), 'the venv has no ros-jazzy wheels'
@@ -149,7 +149,7 @@ def test_configure_with_a_sourced_prefix_takes_the_no_op_path(tmp_path: Path) ->
     """The real CMakeLists configured the way a sourced ROS 2 install presents itself:
     AMENT_PREFIX_PATH names an ament prefix (here the venv's, laid out as /opt/ros/jazzy is)
     and its bin/ is on PATH. The detection leaves it alone and rosidl finds everything."""
-    import sysconfig  # noqa: PLC0415
+    import sysconfig
 
     prefix = venv_prefix()
     env = _env(str(prefix))

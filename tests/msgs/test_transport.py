@@ -34,11 +34,16 @@ def child_env() -> dict[str, str]:
 
 
 def test_generated_types_import() -> None:
-    from rv_te_msgs.msg import (  # noqa: PLC0415
-        BenchInfo, CompensationAdvice, Modification, SpectrumLine, TeSpectrum, TeStatistics,
+    from rclpy.serialization import deserialize_message, serialize_message
+    from rv_te_msgs.msg import (
+        BenchInfo,
+        CompensationAdvice,
+        Modification,
+        SpectrumLine,
+        TeSpectrum,
+        TeStatistics,
         TransmissionError,
     )
-    from rclpy.serialization import deserialize_message, serialize_message  # noqa: PLC0415
 
     msg = EncoderBlock()
     msg.theta_in_rad = np.array([1.0, 2.0])

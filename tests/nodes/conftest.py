@@ -27,15 +27,15 @@ ROOT = Path(__file__).resolve().parents[2]
 
 
 @pytest.fixture
-def graph(ros_context):  # noqa: ANN001, ANN201
+def graph(ros_context):
     """(context, single-threaded executor, add): nodes given to ``add`` spin on the executor
     and are destroyed at the end, the last added first."""
-    from rclpy.executors import SingleThreadedExecutor  # noqa: PLC0415
+    from rclpy.executors import SingleThreadedExecutor
 
     nodes = []
     ex = SingleThreadedExecutor(context=ros_context)
 
-    def add(node):  # noqa: ANN001, ANN202
+    def add(node):
         nodes.append(node)
         ex.add_node(node)
         return node
@@ -48,7 +48,7 @@ def graph(ros_context):  # noqa: ANN001, ANN201
 
 def make_block(seq: int, n: int = 100) -> EncoderBlock:
     """EncoderBlock ``seq`` of ``n`` samples with the contents of ``block_arrays``."""
-    from rv_te_msgs.msg import EncoderBlock  # noqa: PLC0415
+    from rv_te_msgs.msg import EncoderBlock
 
     msg = EncoderBlock()
     msg.header.frame_id = 'bench0'
@@ -65,9 +65,9 @@ def make_block(seq: int, n: int = 100) -> EncoderBlock:
 
 def read_back(bag: Path, topic: str) -> tuple[list[int], list[int], dict[str, int]]:
     """Encoder seqs by rosbags and by mcap_ros2 (content checked), and metadata.yaml counts."""
-    from mcap.reader import NonSeekingReader  # noqa: PLC0415
-    from mcap_ros2.decoder import DecoderFactory  # noqa: PLC0415
-    from rosbags.highlevel import AnyReader  # noqa: PLC0415
+    from mcap.reader import NonSeekingReader
+    from mcap_ros2.decoder import DecoderFactory
+    from rosbags.highlevel import AnyReader
 
     with AnyReader([bag]) as reader:
         rb = []

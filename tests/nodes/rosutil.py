@@ -9,7 +9,7 @@ if TYPE_CHECKING:
     from collections.abc import Callable
 
 
-def spin_until(executor: Any, cond: Callable[[], bool], timeout_s: float) -> bool:  # noqa: ANN401
+def spin_until(executor: Any, cond: Callable[[], bool], timeout_s: float) -> bool:
     """Spin ``executor`` until ``cond()`` is true or the timeout passes; return cond()."""
     end = time.monotonic() + timeout_s
     while time.monotonic() < end:
@@ -19,7 +19,7 @@ def spin_until(executor: Any, cond: Callable[[], bool], timeout_s: float) -> boo
     return cond()
 
 
-def spin_for(executor: Any, seconds: float) -> None:  # noqa: ANN401
+def spin_for(executor: Any, seconds: float) -> None:
     """Spin ``executor`` for a fixed time."""
     end = time.monotonic() + seconds
     while time.monotonic() < end:

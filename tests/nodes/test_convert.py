@@ -10,11 +10,11 @@ import pytest
 pytest.importorskip('rclpy')
 pytest.importorskip('rv_te_msgs')
 
-from rv_te_bench.core.te import TeStats  # noqa: E402
-from rv_te_bench.io.bench_record import bench_info_field_names, bench_info_values  # noqa: E402
-from rv_te_bench.nodes import convert  # noqa: E402
-from sim.bench import BenchConfig, BenchSimulator  # noqa: E402
-from sim.drive import drive_from_spec  # noqa: E402
+from rv_te_bench.core.te import TeStats
+from rv_te_bench.io.bench_record import bench_info_field_names, bench_info_values
+from rv_te_bench.nodes import convert
+from sim.bench import BenchConfig, BenchSimulator
+from sim.drive import drive_from_spec
 
 
 def test_stamps_round_trip_to_the_nanosecond_and_clamp_negative() -> None:
@@ -58,9 +58,9 @@ def test_te_statistics_keep_nan_and_zero_unknown_revolutions() -> None:
 def test_float64_field_is_an_exact_array_copy() -> None:
     """Issue #23 item 1: float64[] fields get an array.array('d') by one memory copy, equal
     bit for bit to what the message's own setter stores, from any array-like."""
-    import array  # noqa: PLC0415
+    import array
 
-    from rv_te_msgs.msg import EncoderBlock  # noqa: PLC0415
+    from rv_te_msgs.msg import EncoderBlock
 
     x = np.linspace(-1e6, 1e6, 201) + 1e-9
     for values in (x, x[::2], x.astype(np.float32), list(x[:5]), np.empty(0)):

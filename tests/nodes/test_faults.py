@@ -6,7 +6,6 @@ import os
 import signal
 import subprocess
 import sys
-import time
 from pathlib import Path
 
 import numpy as np
@@ -30,7 +29,7 @@ from tests.nodes.rosutil import spin_for, spin_until  # noqa: E402
 ROOT = Path(__file__).resolve().parents[2]
 
 
-def test_relay_dropping_one_percent_every_gap_reported(ros_context) -> None:  # noqa: ANN001
+def test_relay_dropping_one_percent_every_gap_reported(ros_context) -> None:
     """A relay drops ~1 % of the encoder blocks at random: each loss is one reported gap and
     the complete windows never span a loss (their statistics equal an offline computation on
     the clean blocks they cover)."""
@@ -102,7 +101,7 @@ def _env() -> dict[str, str]:
     return env
 
 
-def test_te_node_killed_and_restarted_resumes_and_reports_the_gap(ros_context) -> None:  # noqa: ANN001
+def test_te_node_killed_and_restarted_resumes_and_reports_the_gap(ros_context) -> None:
     ctx = ros_context
     ex = SingleThreadedExecutor(context=ctx)
     samples: list[TransmissionError] = []

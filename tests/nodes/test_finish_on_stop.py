@@ -18,9 +18,9 @@ pytest.importorskip('rclpy')
 
 @pytest.mark.timeout(60)
 def test_a_busy_node_finishes_before_it_is_destroyed() -> None:
-    from rclpy.node import Node  # noqa: PLC0415
+    from rclpy.node import Node
 
-    from rv_te_bench.nodes.common import run_node  # noqa: PLC0415
+    from rv_te_bench.nodes.common import run_node
 
     events: dict[str, float] = {}
 
@@ -53,9 +53,9 @@ def test_a_busy_node_finishes_before_it_is_destroyed() -> None:
 
 
 def test_compensation_node_is_busy_while_a_job_is_unpublished() -> None:
-    from concurrent.futures import Future  # noqa: PLC0415
+    from concurrent.futures import Future
 
-    from rv_te_bench.nodes.compensation_node import CompensationNode  # noqa: PLC0415
+    from rv_te_bench.nodes.compensation_node import CompensationNode
 
     node = object.__new__(CompensationNode)   # the property alone, no ROS node needed
     node.jobs = []
@@ -69,31 +69,31 @@ def test_compensation_node_is_busy_while_a_job_is_unpublished() -> None:
 
 
 @pytest.mark.timeout(90)
-def test_a_request_during_a_search_runs_after_it_on_all_data(ros_context) -> None:  # noqa: ANN001
+def test_a_request_during_a_search_runs_after_it_on_all_data(ros_context) -> None:
     """Issue #15: CompensationNode dropped a request of a kind whose search still ran (in
     `launch --default`: 2 complete windows, 1 identified advice). Windows that close during a
     search are coalesced into one more search when it ends, on every sample received by
     then. Over the middleware: a probe publishes te/samples and te/statistics."""
-    import rclpy  # noqa: PLC0415
-    from rclpy.executors import SingleThreadedExecutor  # noqa: PLC0415
-    from rclpy.parameter import Parameter  # noqa: PLC0415
-    from rv_te_msgs.msg import TransmissionError  # noqa: PLC0415
+    import rclpy
+    from rclpy.executors import SingleThreadedExecutor
+    from rclpy.parameter import Parameter
+    from rv_te_msgs.msg import TransmissionError
 
-    from rv_te_bench.nodes import qos  # noqa: PLC0415
-    from rv_te_bench.nodes.compensation_node import CompensationNode  # noqa: PLC0415
-    from tests.nodes.rosutil import spin_until  # noqa: PLC0415
+    from rv_te_bench.nodes import qos
+    from rv_te_bench.nodes.compensation_node import CompensationNode
+    from tests.nodes.rosutil import spin_until
 
     node = CompensationNode(context=ros_context, parameter_overrides=[
         Parameter('preset', value='wang2020-2kv'), Parameter('optimize_phases', value=False)])
     calls: list[int] = []
     release = threading.Event()
 
-    def spy(phase_out_rad, te_rad):  # noqa: ANN001, ANN202 - stands in for the search
+    def spy(phase_out_rad, te_rad):
         calls.append(len(te_rad))
         release.wait(20.0)   # the first search runs until the test lets it end
         raise RuntimeError('spy search')
 
-    node._job_identify = spy  # noqa: SLF001
+    node._job_identify = spy
     probe = rclpy.create_node('probe', context=ros_context)
     pub_samples = probe.create_publisher(TransmissionError, 'te/samples', qos.ENCODER_QOS)
     pub_windows = probe.create_publisher(TransmissionError, 'te/statistics', qos.LATCHED_QOS)
@@ -110,8 +110,8 @@ def test_a_request_during_a_search_runs_after_it_on_all_data(ros_context) -> Non
             pub_samples.publish(TransmissionError(seq=seq, te_rad=[1e-5] * n,
                                                   theta_out_rad=[0.01 * i for i in range(n)]))
             seq += 1
-            before = node._n_buffered  # noqa: SLF001
-            assert spin_until(ex, lambda: node._n_buffered >= before + n, 10.0)  # noqa: SLF001
+            before = node._n_buffered
+            assert spin_until(ex, lambda: node._n_buffered >= before + n, 10.0)
             pub_windows.publish(TransmissionError(seq=seq, window_complete=True))
 
         send(100)
@@ -122,7 +122,7 @@ def test_a_request_during_a_search_runs_after_it_on_all_data(ros_context) -> Non
         spin_until(ex, lambda: getattr(node, 'coalesced', None), 10.0)
         assert node.busy
         release.set()
-        assert spin_until(ex, lambda: len(calls) == 2 and not node.busy, 20.0), calls  # noqa: PLR2004
+        assert spin_until(ex, lambda: len(calls) == 2 and not node.busy, 20.0), calls
     finally:
         release.set()
         ex.shutdown()

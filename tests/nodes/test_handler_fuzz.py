@@ -23,7 +23,7 @@ arrays = hnp.arrays(np.float64, st.integers(0, 40), elements=floats)
 
 
 @pytest.fixture(scope='module')
-def nodes():  # noqa: ANN201
+def nodes():
     ctx = rclpy.context.Context()
     rclpy.init(context=ctx)
     te = TeNode(context=ctx, parameter_overrides=[
@@ -41,7 +41,7 @@ def nodes():  # noqa: ANN201
 @given(seq=st.integers(0, 2**64 - 1), sec=st.integers(0, 2**31 - 1),
        nsec=st.integers(0, 999_999_999), rate=floats, t=arrays, a=arrays, b=arrays,
        torque=arrays)
-def test_te_node_handles_any_encoder_block(nodes, seq: int, sec: int, nsec: int, rate: float,  # noqa: ANN001, PLR0913
+def test_te_node_handles_any_encoder_block(nodes, seq: int, sec: int, nsec: int, rate: float,
                                            t: np.ndarray, a: np.ndarray, b: np.ndarray,
                                            torque: np.ndarray) -> None:
     te, _ = nodes
@@ -55,9 +55,9 @@ def test_te_node_handles_any_encoder_block(nodes, seq: int, sec: int, nsec: int,
     msg.theta_out_rad = b
     msg.torque_out_nm = torque
     assert te.analyzer is not None   # configured by its parameters: no block waits
-    blocks, drops = te._blocks, te.drops.total  # noqa: SLF001
-    te._on_block(msg)  # must not raise  # noqa: SLF001
-    pushed, dropped = te._blocks - blocks, te.drops.total - drops  # noqa: SLF001
+    blocks, drops = te._blocks, te.drops.total
+    te._on_block(msg)  # must not raise
+    pushed, dropped = te._blocks - blocks, te.drops.total - drops
     # every block is accounted for: handed to the core (a malformed one also counted as a
     # drop) or refused at conversion and counted as a drop; none vanishes silently
     assert (pushed, dropped) in {(1, 0), (1, 1), (0, 1)}
@@ -65,7 +65,7 @@ def test_te_node_handles_any_encoder_block(nodes, seq: int, sec: int, nsec: int,
 
 @settings(max_examples=60, deadline=None)
 @given(te_rad=arrays, th=arrays, complete=st.booleans(), pp=floats)
-def test_compensation_node_handles_any_te_message(nodes, te_rad: np.ndarray, th: np.ndarray,  # noqa: ANN001
+def test_compensation_node_handles_any_te_message(nodes, te_rad: np.ndarray, th: np.ndarray,
                                                   complete: bool, pp: float) -> None:
     _, comp = nodes
     msg = TransmissionError()

@@ -62,11 +62,10 @@ def bench_values(**extra: object) -> dict[str, object]:
 
 
 
-def reference_windows(values: dict[str, object]) -> list:  # noqa: ANN001
+def reference_windows(values: dict[str, object]) -> list:
     """The EncoderBlock path, offline: the same simulated unit's blocks -> windows."""
-    from sim.bench import BenchSimulator  # noqa: PLC0415
-
-    from rv_te_bench.nodes.bench_node import PARAMS  # noqa: PLC0415
+    from rv_te_bench.nodes.bench_node import PARAMS
+    from sim.bench import BenchSimulator
 
     p = {s.name: list(s.default) if isinstance(s.default, tuple) else s.default for s in PARAMS}
     p.update(values)
@@ -81,8 +80,8 @@ def reference_windows(values: dict[str, object]) -> list:  # noqa: ANN001
             if w.complete]
 
 
-def _as_data(b):  # noqa: ANN001, ANN202
-    from rv_te_bench.core.stream import EncoderBlockData  # noqa: PLC0415
+def _as_data(b):
+    from rv_te_bench.core.stream import EncoderBlockData
 
     return EncoderBlockData(b.seq, b.t0_s, RATE_HZ, b.time_offset_s, b.theta_in_rad,
                             b.theta_out_rad, b.torque_out_nm)
@@ -91,7 +90,7 @@ def _as_data(b):  # noqa: ANN001, ANN202
 @pytest.mark.timeout(120)
 @pytest.mark.parametrize(('layout', 'wrap'), [('one_message', False), ('separate', False),
                                               ('one_message', True)])
-def test_joint_state_path_equals_encoder_block_path(graph, tmp_path, layout: str,  # noqa: ANN001
+def test_joint_state_path_equals_encoder_block_path(graph, tmp_path, layout: str,
                                                     wrap: bool) -> None:
     ctx, ex, add = graph
     desc = tmp_path / 'bench.yaml'
@@ -130,7 +129,7 @@ def test_joint_state_path_equals_encoder_block_path(graph, tmp_path, layout: str
     assert adapter.drops.total == 0
     assert [b.seq for b in blocks] == list(range(len(blocks)))
     assert te.drops.total == 0
-    assert te._gaps_total == 0  # noqa: SLF001
+    assert te._gaps_total == 0
     assert len(infos) == 1
     assert infos[0].gear_ratio == pytest.approx(79.0, rel=1e-12)
     # effort -> output torque (the bench's 30 N m load)
@@ -171,7 +170,7 @@ def _js(t_ns: int, names: list[str], pos: list[float]) -> JointState:
 
 
 @pytest.mark.timeout(60)
-def test_injected_faults_are_reported_gaps_and_nothing_crashes(graph) -> None:  # noqa: ANN001
+def test_injected_faults_are_reported_gaps_and_nothing_crashes(graph) -> None:
     ctx, ex, add = graph
     probe = add(rclpy.create_node('fault_source', context=ctx))
     pub = probe.create_publisher(JointState, 'joint_states', qos.JOINT_STATE_QOS)
@@ -183,7 +182,7 @@ def test_injected_faults_are_reported_gaps_and_nothing_crashes(graph) -> None:  
         Parameter('sample_rate_hz', value=RATE_HZ), Parameter('block_size', value=BLOCK),
         Parameter('wrap', value='input'), Parameter('idle_flush_s', value=0.2),
         Parameter('diagnostics_period_s', value=0.2)]))
-    from diagnostic_msgs.msg import DiagnosticArray  # noqa: PLC0415
+    from diagnostic_msgs.msg import DiagnosticArray
 
     diags: list[dict[str, str]] = []
     probe.create_subscription(
@@ -221,7 +220,7 @@ def test_injected_faults_are_reported_gaps_and_nothing_crashes(graph) -> None:  
         if i % 100 == 99:
             ex.spin_once(timeout_sec=0.0)
     assert spin_until(ex, lambda: sum(len(b.theta_in_rad) for b in blocks) == len(kept)
-                      and te._blocks == len(blocks), 20.0), adapter.assembler.counters  # noqa: SLF001
+                      and te._blocks == len(blocks), 20.0), adapter.assembler.counters
 
     got = [(g.reason, g.stamp_before_ns, g.stamp_after_ns) for g in adapter.recent_gaps]
     assert got == expected
@@ -258,9 +257,9 @@ def test_injected_faults_are_reported_gaps_and_nothing_crashes(graph) -> None:  
     ('block_size', -1, 'block_size'),
     ('position_unit', 'deg', 'position_unit'),
 ])
-def test_bad_adapter_parameter_stops_start_up(ros_context, name: str, value: object,  # noqa: ANN001
+def test_bad_adapter_parameter_stops_start_up(ros_context, name: str, value: object,
                                               needle: str) -> None:
-    from rclpy.exceptions import InvalidParameterValueException  # noqa: PLC0415
+    from rclpy.exceptions import InvalidParameterValueException
 
     with pytest.raises(InvalidParameterValueException, match=needle):
         JointStateAdapterNode(context=ros_context, parameter_overrides=[
@@ -275,9 +274,9 @@ def test_bad_adapter_parameter_stops_start_up(ros_context, name: str, value: obj
     ({'sample_rate_hz': RATE_HZ, 'pairing_tolerance_s': 0.001}, 'pairing_tolerance_s'),
     ({'bench_description': '/nonexistent/bench.yaml'}, '/nonexistent/bench.yaml'),
 ])
-def test_bad_adapter_combination_is_one_clear_error(ros_context, overrides: dict[str, object],  # noqa: ANN001
+def test_bad_adapter_combination_is_one_clear_error(ros_context, overrides: dict[str, object],
                                                     needle: str) -> None:
-    from rv_te_bench.errors import RvTeError  # noqa: PLC0415
+    from rv_te_bench.errors import RvTeError
 
     with pytest.raises(RvTeError) as info:
         JointStateAdapterNode(context=ros_context, parameter_overrides=[
@@ -287,11 +286,11 @@ def test_bad_adapter_combination_is_one_clear_error(ros_context, overrides: dict
 
 
 @pytest.mark.timeout(90)
-def test_joint_states_to_recorded_bag_analysed_with_the_gap(graph, tmp_path) -> None:  # noqa: ANN001
+def test_joint_states_to_recorded_bag_analysed_with_the_gap(graph, tmp_path) -> None:
     """JointState -> adapter -> TE node + recorder -> bag -> rv-te analyze's core: the
     injected stamp jump is a seq_jump in the bag's analysis, not a splice."""
-    from rv_te_bench.nodes.recorder import RecorderNode  # noqa: PLC0415
-    from rv_te_bench.report.analysis import analyze_bag  # noqa: PLC0415
+    from rv_te_bench.nodes.recorder import RecorderNode
+    from rv_te_bench.report.analysis import analyze_bag
 
     ctx, ex, add = graph
     desc = tmp_path / 'bench.yaml'
@@ -323,7 +322,7 @@ def test_joint_states_to_recorded_bag_analysed_with_the_gap(graph, tmp_path) -> 
             if i % 50 == 49:
                 ex.spin_once(timeout_sec=0.0)
         assert spin_until(ex, lambda: adapter.assembler.counters['samples'] == n - len(skip)
-                          and te._blocks == adapter.blocks_published, 20.0)  # noqa: SLF001
+                          and te._blocks == adapter.blocks_published, 20.0)
         spin_for(ex, 1.5)   # the recorder flushes
     finally:
         ex.remove_node(recorder)
@@ -337,7 +336,7 @@ def test_joint_states_to_recorded_bag_analysed_with_the_gap(graph, tmp_path) -> 
 
 
 @pytest.mark.timeout(60)
-def test_first_blocks_held_until_the_session_subscribers_are_up(graph) -> None:  # noqa: ANN001
+def test_first_blocks_held_until_the_session_subscribers_are_up(graph) -> None:
     ctx, ex, add = graph
     src = add(rclpy.create_node('js_source', context=ctx))
     pub = src.create_publisher(JointState, 'joint_states', qos.JOINT_STATE_QOS)
@@ -364,9 +363,9 @@ def test_first_blocks_held_until_the_session_subscribers_are_up(graph) -> None: 
     ('joint_state_names', ['input_joint', 'input_joint'], 'two different non-empty joint names'),
     ('joint_state_layout', 'split', 'joint_state_layout'),
 ])
-def test_bad_bench_joint_state_parameter_stops_start_up(ros_context, name: str,  # noqa: ANN001
+def test_bad_bench_joint_state_parameter_stops_start_up(ros_context, name: str,
                                                         value: object, needle: str) -> None:
-    from rclpy.exceptions import InvalidParameterValueException  # noqa: PLC0415
+    from rclpy.exceptions import InvalidParameterValueException
 
     with pytest.raises(InvalidParameterValueException, match=needle):
         BenchNode(context=ros_context, parameter_overrides=[Parameter(name, value=value)])

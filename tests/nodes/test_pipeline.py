@@ -41,7 +41,7 @@ def bench_params(**extra: object) -> list[Parameter]:
 
 
 
-def test_bench_to_te_node_live_equals_offline(graph) -> None:  # noqa: ANN001
+def test_bench_to_te_node_live_equals_offline(graph) -> None:
     ctx, ex, add = graph
     probe = add(rclpy.create_node('probe', context=ctx))
     blocks: list[EncoderBlock] = []
@@ -78,8 +78,8 @@ def test_bench_to_te_node_live_equals_offline(graph) -> None:  # noqa: ANN001
     data = [encoder_block_to_data(b) for b in blocks]
     th_in = np.concatenate([d.theta_in_rad for d in data])
     th_out = np.concatenate([d.theta_out_rad for d in data])
-    from sim.presets import load_preset  # noqa: PLC0415
-    from sim.wang2020 import Wang2kvParams, nlte_rad  # noqa: PLC0415
+    from sim.presets import load_preset
+    from sim.wang2020 import Wang2kvParams, nlte_rad
     params = Wang2kvParams.from_preset(load_preset('wang2020-2kv'))
     te_model = nlte_rad(th_in / 79.0, params)
     np.testing.assert_allclose(th_out - th_in / 79.0, te_model, rtol=0, atol=1e-9)
@@ -117,14 +117,14 @@ def test_bench_to_te_node_live_equals_offline(graph) -> None:  # noqa: ANN001
 ])
 def test_bad_bench_parameter_stops_start_up(ros_context, name: str, value: object,
                                             needle: str) -> None:
-    from rclpy.exceptions import InvalidParameterValueException  # noqa: PLC0415
+    from rclpy.exceptions import InvalidParameterValueException
 
     with pytest.raises(InvalidParameterValueException, match=needle):
         BenchNode(context=ros_context, parameter_overrides=[Parameter(name, value=value)])
 
 
-def test_unknown_preset_and_nonsense_drive_stop_start_up(ros_context) -> None:  # noqa: ANN001
-    from sim.errors import SimError  # noqa: PLC0415
+def test_unknown_preset_and_nonsense_drive_stop_start_up(ros_context) -> None:
+    from sim.errors import SimError
 
     with pytest.raises(SimError, match='unknown preset'):
         BenchNode(context=ros_context,
@@ -133,7 +133,7 @@ def test_unknown_preset_and_nonsense_drive_stop_start_up(ros_context) -> None:  
         BenchNode(context=ros_context, parameter_overrides=[Parameter('speed_rpm', value=0.0)])
 
 
-def test_invalid_runtime_change_is_rejected(ros_context) -> None:  # noqa: ANN001
+def test_invalid_runtime_change_is_rejected(ros_context) -> None:
     te = TeNode(context=ros_context)
     try:
         res = te.set_parameters([Parameter('decimated_rate_hz', value=-3.0)])[0]
@@ -147,7 +147,7 @@ def test_invalid_runtime_change_is_rejected(ros_context) -> None:  # noqa: ANN00
         te.destroy_node()
 
 
-def test_te_node_crank_per_output_and_deprecated_alias(graph, capfd) -> None:  # noqa: ANN001
+def test_te_node_crank_per_output_and_deprecated_alias(graph, capfd) -> None:
     """crank_per_output (as rv-te analyze --crank-per-output) sets the crank order; the old
     crank_per_input still works, converted with the ratio, and warns (issue #15)."""
     ctx, _, add = graph
@@ -166,7 +166,7 @@ def test_te_node_crank_per_output_and_deprecated_alias(graph, capfd) -> None:  #
         capfd.readouterr().err
 
 
-def test_te_node_survives_malformed_blocks(graph) -> None:  # noqa: ANN001
+def test_te_node_survives_malformed_blocks(graph) -> None:
     ctx, ex, add = graph
     te = add(TeNode(context=ctx, parameter_overrides=[
         Parameter('gear_ratio', value=79.0), Parameter('crank_per_output', value=25.0)]))
@@ -233,7 +233,7 @@ def test_te_node_survives_malformed_blocks(graph) -> None:  # noqa: ANN001
     assert w.std_rad == pytest.approx(amp / math.sqrt(2), rel=1e-3)
 
 
-def test_blocks_before_bench_info_are_kept_and_analysed(graph) -> None:  # noqa: ANN001
+def test_blocks_before_bench_info_are_kept_and_analysed(graph) -> None:
     """bench/info may land after the first blocks: they wait, nothing is dropped."""
     ctx, ex, add = graph
     te = add(TeNode(context=ctx))
@@ -267,19 +267,19 @@ def test_blocks_before_bench_info_are_kept_and_analysed(graph) -> None:  # noqa:
     assert te._gaps_total == 0
 
 
-def test_compensation_node_bad_preset_stops_start_up(ros_context) -> None:  # noqa: ANN001
-    from rv_te_bench.nodes.compensation_node import CompensationNode  # noqa: PLC0415
-    from sim.errors import PresetError  # noqa: PLC0415
+def test_compensation_node_bad_preset_stops_start_up(ros_context) -> None:
+    from rv_te_bench.nodes.compensation_node import CompensationNode
+    from sim.errors import PresetError
 
     with pytest.raises(PresetError, match="unknown preset 'nope'"):
         CompensationNode(context=ros_context, parameter_overrides=[
             Parameter('preset', value='nope')])
 
 
-def test_compensation_node_aborts_a_running_search_on_shutdown(ros_context) -> None:  # noqa: ANN001
-    import time  # noqa: PLC0415
+def test_compensation_node_aborts_a_running_search_on_shutdown(ros_context) -> None:
+    import time
 
-    from rv_te_bench.nodes.compensation_node import CompensationNode  # noqa: PLC0415
+    from rv_te_bench.nodes.compensation_node import CompensationNode
 
     node = CompensationNode(context=ros_context, parameter_overrides=[
         Parameter('preset', value='wang2020-2kv'), Parameter('step_deg', value=5.0)])
@@ -294,13 +294,13 @@ def test_compensation_node_aborts_a_running_search_on_shutdown(ros_context) -> N
 
 
 @pytest.mark.skipif(not sys.platform.startswith('linux'), reason='per-thread nice is Linux')
-def test_compensation_search_thread_runs_niced(ros_context) -> None:  # noqa: ANN001
+def test_compensation_search_thread_runs_niced(ros_context) -> None:
     """The searches yield the cores to the benches' data path (issue #23 item 1): the worker
     thread runs at the node's niceness + search_nice; the node's own thread is unchanged."""
-    import os  # noqa: PLC0415
-    import threading  # noqa: PLC0415
+    import os
+    import threading
 
-    from rv_te_bench.nodes.compensation_node import CompensationNode  # noqa: PLC0415
+    from rv_te_bench.nodes.compensation_node import CompensationNode
 
     base = os.getpriority(os.PRIO_PROCESS, threading.get_native_id())
     node = CompensationNode(context=ros_context, parameter_overrides=[
@@ -323,15 +323,15 @@ def test_compensation_search_thread_runs_niced(ros_context) -> None:  # noqa: AN
         off.destroy_node()
 
 
-def test_realtime_bench_reports_a_late_tick_as_lag(graph) -> None:  # noqa: ANN001
+def test_realtime_bench_reports_a_late_tick_as_lag(graph) -> None:
     """A bench whose process stalls (here: the executor does not spin for 0.3 s) publishes
     the blocks that fell due in one catch-up tick; the first of them leaves ~0.3 s after the
     end of its samples, and that is the lag the diagnostics report (the largest lag since
     the previous diagnostics message too). Before, the lag was taken after the catch-up
     only, so a stall of any length under 100 blocks showed as no lag at all."""
-    import time  # noqa: PLC0415
+    import time
 
-    from diagnostic_msgs.msg import DiagnosticArray  # noqa: PLC0415
+    from diagnostic_msgs.msg import DiagnosticArray
 
     ctx, ex, add = graph
     diags: list[dict[str, str]] = []

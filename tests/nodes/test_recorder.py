@@ -26,10 +26,13 @@ from rclpy.parameter import Parameter  # noqa: E402
 from rosbags.highlevel import AnyReader  # noqa: E402
 from rv_te_msgs.msg import BenchInfo, EncoderBlock  # noqa: E402
 
-from rv_te_bench.io.bag_reader import bag_summary, read_encoder_blocks  # noqa: E402
+from rv_te_bench.io.bag_reader import (  # noqa: E402
+    bag_summary,
+    encoder_block_seq,
+    read_encoder_blocks,
+)
 from rv_te_bench.io.msgdefs import ENCODER_BLOCK, type_hash  # noqa: E402
 from rv_te_bench.nodes import qos  # noqa: E402
-from rv_te_bench.io.bag_reader import encoder_block_seq  # noqa: E402
 from rv_te_bench.nodes.recorder import RecorderNode  # noqa: E402
 from tests.io.bag_fixtures import encoder_cdr  # noqa: E402
 from tests.nodes.conftest import ROOT, cli_process, make_block, read_back  # noqa: E402
@@ -132,7 +135,7 @@ def test_malformed_encoder_block_is_recorded_and_counted(ros_context: Any,
         pub.publish(b'\x00\x01\x00\x00\x05')  # raw bytes, cut after the encapsulation
         pub.publish(encoder_cdr(0, 10))
         assert spin_until(executor, lambda: recorder.counts.get(topic) == 2, 10.0)
-        assert recorder._topics[topic].malformed == 1  # noqa: SLF001
+        assert recorder._topics[topic].malformed == 1
     finally:
         recorder.destroy_node()
         pub_node.destroy_node()
@@ -155,7 +158,7 @@ def _recorder_process(tmp_path: Path, ns: str, domain: int) -> subprocess.Popen[
         cwd=ROOT, env=env, text=True, stderr=subprocess.PIPE)
 
 
-def _publish_while(executor: Any, pub: Any, rate_hz: float, stop: Any) -> int:  # noqa: ANN401
+def _publish_while(executor: Any, pub: Any, rate_hz: float, stop: Any) -> int:
     seq = 0
     t0 = time.monotonic()
     while not stop(seq):
@@ -217,7 +220,7 @@ N_10KHZ_BLOCKS = 1000  # 10 s at 100 blocks/s of 100 samples: a 10 kHz session
 
 def test_10khz_session_recorded_without_loss(ros_context: Any, ros_domain_id: int,
                                              tmp_path: Path) -> None:
-    from tests.msgs.block_publisher import block_arrays as pub_arrays  # noqa: PLC0415
+    from tests.msgs.block_publisher import block_arrays as pub_arrays
 
     topic = f'/khz_{os.getpid()}/bench/encoders'
     recorder = RecorderNode(context=ros_context, parameter_overrides=[
@@ -251,9 +254,9 @@ def test_10khz_session_recorded_without_loss(ros_context: Any, ros_domain_id: in
 
 
 def test_cli_record_refuses_existing_bag(tmp_path: Path, capsys: Any) -> None:
-    import argparse  # noqa: PLC0415
+    import argparse
 
-    from rv_te_bench.cli import record  # noqa: PLC0415
+    from rv_te_bench.cli import record
 
     (tmp_path / 'taken').mkdir()
     parser = argparse.ArgumentParser()
@@ -309,7 +312,7 @@ def test_sim_time_messages_before_the_first_clock_get_its_time(ros_context: Any,
                                                               tmp_path: Path) -> None:
     """use_sim_time: the latched BenchInfo arrives before any /clock; it is written at the
     first clock time (not at 0), ahead of the blocks that follow, and nothing is lost."""
-    from rosgraph_msgs.msg import Clock  # noqa: PLC0415
+    from rosgraph_msgs.msg import Clock
 
     ns = f'/simrec_{os.getpid()}'
     pub_node = rclpy.create_node('test_pub', namespace=ns, context=ros_context)
@@ -329,7 +332,7 @@ def test_sim_time_messages_before_the_first_clock_get_its_time(ros_context: Any,
     first_clock_ns = 123_456_000_000
     try:
         # the info is received (held: no clock yet), the block subscription is up
-        assert spin_until(executor, lambda: len(recorder._held) == 1  # noqa: SLF001
+        assert spin_until(executor, lambda: len(recorder._held) == 1
                           and enc_pub.get_subscription_count() >= 1, 15.0)
         assert recorder.counts.get(info_topic, 0) == 0
         clock = Clock()
@@ -344,7 +347,7 @@ def test_sim_time_messages_before_the_first_clock_get_its_time(ros_context: Any,
         recorder.destroy_node()
         pub_node.destroy_node()
         executor.shutdown()
-    from rv_te_bench.io.bag_reader import iter_messages  # noqa: PLC0415
+    from rv_te_bench.io.bag_reader import iter_messages
 
     logged = [(topic, t_ns) for topic, _, t_ns, _ in iter_messages(tmp_path / 'bag')]
     assert logged[0] == (info_topic, first_clock_ns)
@@ -381,9 +384,9 @@ def test_a_foreign_publisher_is_reported(ros_context: Any, tmp_path: Path) -> No
     session's encoder topic gave the live bag two sources and the launch exited 0. The
     recorder sees the second publisher, says so (log, /diagnostics, closing summary) and
     ends with exit code 1."""
-    from diagnostic_msgs.msg import DiagnosticArray  # noqa: PLC0415
+    from diagnostic_msgs.msg import DiagnosticArray
 
-    from rv_te_bench.launch.session import recording_report  # noqa: PLC0415
+    from rv_te_bench.launch.session import recording_report
 
     topic = f'/foreign_{os.getpid()}/bench/encoders'
     nodes = [rclpy.create_node(f'bench_{k}', context=ros_context) for k in range(2)]

@@ -29,8 +29,8 @@ from rv_te_msgs.msg import EncoderBlock  # noqa: E402
 from rv_te_bench.io.msgdefs import rv_te_typestore  # noqa: E402
 from rv_te_bench.nodes import qos  # noqa: E402
 from tests.io.faults import tmpfs  # noqa: E402
-from tests.nodes.rosutil import spin_until  # noqa: E402
 from tests.nodes.conftest import ROOT, cli_process, make_block, read_back  # noqa: E402
+from tests.nodes.rosutil import spin_until  # noqa: E402
 
 
 def _metadata(bag: Path) -> dict[str, Any]:
@@ -141,7 +141,7 @@ def test_launch_disk_full_exits_1_with_the_loss(tmp_path: Path, ros_domain_id: i
 
 def test_single_process_launch_disk_full_exits_1(tmp_path: Path,
                                                  capsys: pytest.CaptureFixture[str]) -> None:
-    from rv_te_bench.cli.main import main  # noqa: PLC0415
+    from rv_te_bench.cli.main import main
 
     with tmpfs(tmp_path / 'mnt', 300 << 10) as mnt:
         code = main(['launch', '--default', '--single-process', '--nodes', 'bench,recorder',

@@ -48,7 +48,7 @@ def bag_and_topics(tmp_path: Path) -> tuple[Path, str, str]:
     return bag, enc, info
 
 
-def _replay(ctx: Any, bag: Path, **params: Any) -> ReplayNode:  # noqa: ANN401
+def _replay(ctx: Any, bag: Path, **params: Any) -> ReplayNode:
     overrides = [Parameter('bag', value=str(bag)),
                  Parameter('wait_for_subscribers_s', value=10.0)]
     overrides += [Parameter(k, value=v) for k, v in params.items()]
@@ -142,7 +142,7 @@ def test_replay_refuses_unknown_topic_and_missing_bag(ros_context: Any, bag_and_
 
 
 def test_cli_replay_process(ros_context: Any, ros_domain_id: int, bag_and_topics: Any) -> None:
-    from tests.nodes.conftest import cli_process  # noqa: PLC0415
+    from tests.nodes.conftest import cli_process
 
     bag, enc, _ = bag_and_topics
     sub_node = rclpy.create_node('cli_replay_sub', context=ros_context)

@@ -24,8 +24,8 @@ from tests.nodes.rosutil import spin_for, spin_until  # noqa: E402
 SAMPLE = Path(__file__).resolve().parents[2] / 'bags' / 'sample'
 
 
-def test_replay_then_live_analysis_equals_offline_analysis(ros_context) -> None:  # noqa: ANN001
-    from rv_te_bench.report.analysis import analyze_bag  # noqa: PLC0415
+def test_replay_then_live_analysis_equals_offline_analysis(ros_context) -> None:
+    from rv_te_bench.report.analysis import analyze_bag
 
     offline = analyze_bag(SAMPLE, with_advice=False)
     off_windows = [w for w in offline.windows if w.complete]
@@ -67,7 +67,7 @@ def test_replay_then_live_analysis_equals_offline_analysis(ros_context) -> None:
     ('rv-80e-101', 'geometric', 101.0),
     ('li2023-rv', 'dte', 121.0),                    # Li 2023: 1 + 3 * 40
 ])
-def test_bench_node_runs_rv_presets(ros_context, preset: str, mode: str,  # noqa: ANN001
+def test_bench_node_runs_rv_presets(ros_context, preset: str, mode: str,
                                     ratio: float) -> None:
     ctx = ros_context
     ex = SingleThreadedExecutor(context=ctx)
@@ -95,7 +95,7 @@ def test_bench_node_runs_rv_presets(ros_context, preset: str, mode: str,  # noqa
     assert len(blocks) >= 5
 
 
-def test_replay_with_start_offset_still_gives_the_latched_bench_info(ros_context) -> None:  # noqa: ANN001
+def test_replay_with_start_offset_still_gives_the_latched_bench_info(ros_context) -> None:
     ctx = ros_context
     ex = SingleThreadedExecutor(context=ctx)
     probe = rclpy.create_node('probe', context=ctx)

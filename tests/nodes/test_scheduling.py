@@ -42,7 +42,7 @@ def task_sched(pid: int) -> dict[int, tuple[int, int, int]]:
 def may_set_fifo(priority: int) -> bool:
     """Whether this user may set SCHED_FIFO ``priority``: CAP_SYS_NICE in the effective set
     (bit 23 of CapEff) or an RLIMIT_RTPRIO at least that high."""
-    import resource  # noqa: PLC0415
+    import resource
 
     caps = next(int(line.split()[1], 16) for line in
                 Path('/proc/self/status').read_text().splitlines()
@@ -187,12 +187,12 @@ def test_bench_node_process_runs_its_pacing_thread_on_fifo(ros_domain_id: int) -
             p.wait()
 
 
-def test_fast_mode_bench_keeps_normal_scheduling(graph) -> None:  # noqa: ANN001
+def test_fast_mode_bench_keeps_normal_scheduling(graph) -> None:
     """In fast time mode the bench computes as fast as it can: realtime_priority is ignored
     (with a warning), and the thread that built the node stays as it was."""
-    from rclpy.parameter import Parameter  # noqa: PLC0415
+    from rclpy.parameter import Parameter
 
-    from rv_te_bench.nodes.bench_node import BenchNode  # noqa: PLC0415
+    from rv_te_bench.nodes.bench_node import BenchNode
 
     ctx, _ex, add = graph
     before = (os.sched_getscheduler(0), os.getpriority(os.PRIO_PROCESS, 0))
@@ -209,9 +209,9 @@ def test_fifo_permitted_but_nice_not_says_so(monkeypatch: pytest.MonkeyPatch) ->
     thread gets SCHED_FIFO, the middleware threads keep nice 0, and the line says how many
     were refused. (The kernel calls and the thread list are replaced here: the test
     runner's own threads are not to be changed.)"""
-    import threading  # noqa: PLC0415
+    import threading
 
-    from rv_te_bench.nodes import scheduling  # noqa: PLC0415
+    from rv_te_bench.nodes import scheduling
 
     fifo: list[tuple[int, int, int]] = []
     tried: list[int] = []

@@ -87,7 +87,7 @@ def test_a_node_of_no_session_still_counts(ros_context: object,
 
 
 def test_the_protocol_written_out_is_the_code_s() -> None:
-    from rv_te_bench.nodes import common  # noqa: PLC0415
+    from rv_te_bench.nodes import common
 
     assert (common.SESSION_ENV, common.SESSION_TOPIC_PREFIX) == (SESSION_ENV,
                                                                  SESSION_TOPIC_PREFIX)

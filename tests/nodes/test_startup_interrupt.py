@@ -27,7 +27,7 @@ pytestmark = pytest.mark.ros
 def test_sigint_while_the_node_is_built_stops_at_once(ros_domain_id: int,
                                                       capsys: pytest.CaptureFixture[str],
                                                       ) -> None:
-    from rv_te_bench.nodes.common import run_node  # noqa: PLC0415
+    from rv_te_bench.nodes.common import run_node
 
     deadline = time.monotonic() + 20.0
 

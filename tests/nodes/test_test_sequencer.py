@@ -38,7 +38,7 @@ PLAN = {'plan': 'cancel-me', 'steps': [
 
 
 @pytest.fixture
-def session(tmp_path: Path) -> Any:  # noqa: ANN401
+def session(tmp_path: Path) -> Any:
     spec = SessionSpec(
         nodes=('recorder', 'bench', 'test_sequencer'),
         parameters={'bench': {'preset': 'li2023-rv', 'te_mode': 'dte', 'time_mode': 'fast',
@@ -57,7 +57,7 @@ def session(tmp_path: Path) -> Any:  # noqa: ANN401
 
 
 @pytest.mark.timeout(240)
-def test_feedback_rejection_cancel_and_bag(session: Any, ros_context: Any) -> None:  # noqa: ANN401
+def test_feedback_rejection_cancel_and_bag(session: Any, ros_context: Any) -> None:
     sess, bag = session
     node = rclpy.create_node('sequencer_test_client', context=ros_context)
     ex = SingleThreadedExecutor(context=ros_context)
@@ -143,21 +143,21 @@ def test_feedback_rejection_cancel_and_bag(session: Any, ros_context: Any) -> No
                 topics.add(channel.topic)
     assert topics == {'/test/step', '/test/report'}
     # rv-te unit-report: the cancelled test, recomputed from the bag, is no verdict (exit 1)
-    from rv_te_bench.cli.main import main  # noqa: PLC0415
+    from rv_te_bench.cli.main import main
 
     assert main(['unit-report', str(bag), '--report', str(bag.parent / 'again')]) == 1
     assert (bag.parent / 'again' / 'report.html').exists()
 
 
 @pytest.mark.timeout(180)
-def test_client_notices_a_dead_sequencer(session: Any, tmp_path: Path) -> None:  # noqa: ANN401
+def test_client_notices_a_dead_sequencer(session: Any, tmp_path: Path) -> None:
     """SIGKILL of the test_sequencer mid-plan: rv-te test ends with one line, exit 1."""
-    import os  # noqa: PLC0415
-    import signal  # noqa: PLC0415
-    import subprocess  # noqa: PLC0415
-    import sys  # noqa: PLC0415
+    import os
+    import signal
+    import subprocess
+    import sys
 
-    from rv_te_bench.launch.session import child_env  # noqa: PLC0415
+    from rv_te_bench.launch.session import child_env
 
     sess, _bag = session
     plan = tmp_path / 'plan.yaml'

@@ -54,7 +54,7 @@ def workspace(tmp_path_factory: pytest.TempPathFactory) -> Path:
     if log.exists():
         detail += '\n--- rv_te_msgs log ---\n' + log.read_text(errors='replace')[-4000:]
     assert proc.returncode == 0, detail
-    print(f'colcon build: {build_s:.1f} s')   # noqa: T201 - shown with -s, for the record
+    print(f'colcon build: {build_s:.1f} s')
     return ws
 
 
@@ -122,8 +122,8 @@ def test_installed_nodes_talk_over_the_middleware(workspace: Path, tmp_path: Pat
     wang2020-2kv (23.7 s simulated, ~1.2 s at speed_factor 20) and exits; the bag then holds
     the bench's blocks and the TE node's window statistics computed from them.
     """
-    from mcap.reader import make_reader  # noqa: PLC0415
-    from mcap_ros2.decoder import DecoderFactory  # noqa: PLC0415
+    from mcap.reader import make_reader
+    from mcap_ros2.decoder import DecoderFactory
 
     lib = workspace / 'install' / 'rv_te_bench' / 'lib' / 'rv_te_bench'
     env = user_env()

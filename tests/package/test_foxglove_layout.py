@@ -14,13 +14,11 @@ recorded session is checked in tests/launch/test_viewer_recording.py.
 from __future__ import annotations
 
 import re
-from pathlib import Path
 from typing import Any
 
 import pytest
 
 from tests.package.conftest import REPO, layout_paths, load_layout
-
 
 # panels/index.ts (builtin), the panel types this layout may use
 BUILTIN_PANEL_TYPES = {
@@ -50,8 +48,8 @@ TOPIC_TYPES = {
 }
 
 
-def typestore():  # noqa: ANN201 - rosbags Typestore
-    from rosbags.typesys import Stores, get_types_from_msg, get_typestore  # noqa: PLC0415
+def typestore():
+    from rosbags.typesys import Stores, get_types_from_msg, get_typestore
 
     ts = get_typestore(Stores.ROS2_JAZZY)
     for p in sorted((REPO / 'rv_te_msgs_py' / 'msg').glob('*.msg')):
@@ -61,7 +59,7 @@ def typestore():  # noqa: ANN201 - rosbags Typestore
 
 def resolve(path: str) -> tuple[str, bool]:
     """A Foxglove message path -> (leaf type, went through an array with [:])."""
-    from rosbags.typesys.base import Nodetype  # noqa: PLC0415
+    from rosbags.typesys.base import Nodetype
 
     topic, _, rest = path.partition('.')
     msgtype = TOPIC_TYPES[topic]
@@ -86,7 +84,7 @@ def resolve(path: str) -> tuple[str, bool]:
     return str(leaf), sliced
 
 
-def mosaic_leaves(node: Any) -> list[str]:  # noqa: ANN401
+def mosaic_leaves(node: Any) -> list[str]:
     if isinstance(node, str):
         return [node]
     assert set(node) <= {'direction', 'first', 'second', 'splitPercentage'}, node
@@ -110,7 +108,7 @@ def test_panel_configs_follow_their_types() -> None:
     for panel_id, cfg in load_layout()['configById'].items():
         kind = panel_id.split('!')[0]
         if kind == 'Plot':
-            assert set(cfg) <= PLOT_KEYS and PLOT_REQUIRED <= set(cfg), panel_id
+            assert set(cfg) <= PLOT_KEYS and set(cfg) >= PLOT_REQUIRED, panel_id
             assert cfg['xAxisVal'] in {'timestamp', 'index', 'custom', 'currentCustom'}
             for p in cfg['paths']:
                 assert set(p) <= PLOT_PATH_KEYS and {'value', 'enabled', 'timestampMethod'} <= set(p)

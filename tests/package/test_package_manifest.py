@@ -18,8 +18,8 @@ import pytest
 from tests.package.conftest import PKG_DIR, REPO, setup_py_value
 
 
-def manifest():  # noqa: ANN201 - catkin_pkg.package.Package
-    from catkin_pkg.package import parse_package  # noqa: PLC0415
+def manifest():
+    from catkin_pkg.package import parse_package
 
     return parse_package(str(PKG_DIR / 'package.xml'))
 
@@ -76,7 +76,7 @@ def test_every_executable_has_its_entry_point(exe: str) -> None:
 
 
 def test_setup_cfg_installs_executables_where_ros2_run_looks() -> None:
-    import configparser  # noqa: PLC0415
+    import configparser
 
     cfg = configparser.ConfigParser()
     cfg.read(PKG_DIR / 'setup.cfg')

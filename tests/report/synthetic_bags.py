@@ -70,7 +70,7 @@ def varying_speed(output_hz: float, depth: float,
     return lambda t: w0 * (t + depth * (1.0 - np.cos(wm * t)) / wm)
 
 
-def write_bag(  # noqa: PLR0913 - a test builder with many knobs
+def write_bag(
     path: Path,
     *,
     harmonics: Iterable[Harmonic],

@@ -98,7 +98,7 @@ def test_spectrum_lines_constant_speed(constant_bag: tuple) -> None:
     assert 'eccentricity' in res.dominant.likely_source
 
 
-def test_spectrum_lines_varying_speed(tmp_path) -> None:  # noqa: ANN001
+def test_spectrum_lines_varying_speed(tmp_path) -> None:
     path = tmp_path / 'bag'
     synth = write_bag(path, harmonics=HARMONICS, mean_rad=MEAN, duration_s=6.5,
                       theta_in_fn=varying_speed(0.5, 0.3, 0.7))
@@ -115,7 +115,7 @@ def test_spectrum_lines_varying_speed(tmp_path) -> None:  # noqa: ANN001
     assert _line(res, '3 f_w').amplitude_rad < 5e-3 * HARMONICS[0].amplitude_rad
 
 
-def test_gap_is_reported_and_breaks_the_trace(tmp_path) -> None:  # noqa: ANN001
+def test_gap_is_reported_and_breaks_the_trace(tmp_path) -> None:
     path = tmp_path / 'bag'
     synth = write_bag(path, harmonics=HARMONICS, mean_rad=MEAN, duration_s=6.5,
                       drop_seqs=[30])
@@ -129,7 +129,7 @@ def test_gap_is_reported_and_breaks_the_trace(tmp_path) -> None:  # noqa: ANN001
                                                              rel=1e-6)
 
 
-def test_trace_thinning_keeps_every_stride_th_sample(tmp_path, monkeypatch) -> None:  # noqa: ANN001
+def test_trace_thinning_keeps_every_stride_th_sample(tmp_path, monkeypatch) -> None:
     path = tmp_path / 'bag'
     synth = write_bag(path, harmonics=HARMONICS, duration_s=3.0)
     monkeypatch.setattr(analysis, 'MAX_TRACE_POINTS', 700)
@@ -141,7 +141,7 @@ def test_trace_thinning_keeps_every_stride_th_sample(tmp_path, monkeypatch) -> N
     assert_allclose(tr.theta_out_rad, synth.theta_out_rad[::tr.stride], rtol=0, atol=0)
 
 
-def test_no_bench_info_needs_ratio_and_crank_order(tmp_path) -> None:  # noqa: ANN001
+def test_no_bench_info_needs_ratio_and_crank_order(tmp_path) -> None:
     path = tmp_path / 'bag'
     write_bag(path, harmonics=HARMONICS, duration_s=4.5, with_info=False)
     with pytest.raises(TeConfigError, match=r'no BenchInfo.*--ratio and --crank-per-output'):
@@ -155,7 +155,7 @@ def test_no_bench_info_needs_ratio_and_crank_order(tmp_path) -> None:  # noqa: A
     assert 'no BenchInfo preset' in res.recommendation.reason
 
 
-def test_missing_bag_and_empty_encoder_topic(tmp_path) -> None:  # noqa: ANN001
+def test_missing_bag_and_empty_encoder_topic(tmp_path) -> None:
     with pytest.raises(BagError, match='no such bag'):
         analyze_bag(tmp_path / 'nope')
     path = tmp_path / 'info_only'
@@ -168,7 +168,7 @@ def test_missing_bag_and_empty_encoder_topic(tmp_path) -> None:  # noqa: ANN001
     ('li2023-rv', 'has no compensation model'),
     ('no-such-preset', 'cannot be loaded'),
 ])
-def test_no_recommendation_says_why(tmp_path, preset: str, reason: str) -> None:  # noqa: ANN001
+def test_no_recommendation_says_why(tmp_path, preset: str, reason: str) -> None:
     path = tmp_path / 'bag'
     write_bag(path, harmonics=HARMONICS, duration_s=2.5, preset=preset, reducer_type='rv')
     res = analyze_bag(path)
@@ -196,7 +196,7 @@ def test_likely_source(order: float, words: str) -> None:
     assert words in likely_source(order, _BENCH)
 
 
-def test_rv_recommendation_wiring(tmp_path, monkeypatch) -> None:  # noqa: ANN001
+def test_rv_recommendation_wiring(tmp_path, monkeypatch) -> None:
     """The RV path hands the preset and the measured p-p to the compensation code.
 
     The compensation module is replaced by a recorder, so this checks the wiring only
@@ -209,7 +209,7 @@ def test_rv_recommendation_wiring(tmp_path, monkeypatch) -> None:  # noqa: ANN00
 
     seen = {}
 
-    def tooth_profile_advice(preset, measured_rad, *, te_metric):  # noqa: ANN001, ANN202
+    def tooth_profile_advice(preset, measured_rad, *, te_metric):
         seen['preset'], seen['measured_rad'] = preset.name, measured_rad
         seen['te_metric'] = te_metric
         return Advice(method='tooth-profile', preset=preset.name, summary='fake',
@@ -234,7 +234,7 @@ def test_rv_recommendation_wiring(tmp_path, monkeypatch) -> None:  # noqa: ANN00
         0.5 * doc['advice']['te_before_arcmin'])
 
 
-def test_rv_recommendation_from_the_real_compensation_code(tmp_path) -> None:  # noqa: ANN001
+def test_rv_recommendation_from_the_real_compensation_code(tmp_path) -> None:
     path = tmp_path / 'bag'
     synth = write_bag(path, harmonics=HARMONICS, duration_s=2.5, preset='hu2020-rv',
                       reducer_type='rv')
@@ -248,7 +248,7 @@ def test_rv_recommendation_from_the_real_compensation_code(tmp_path) -> None:  #
     assert len(rec.advice.modifications) == 3
 
 
-def test_2kv_advice_withheld_when_the_model_does_not_fit(tmp_path) -> None:  # noqa: ANN001
+def test_2kv_advice_withheld_when_the_model_does_not_fit(tmp_path) -> None:
     """A 2K-V bag whose TE is a sum of arbitrary harmonics, not eccentricity TE: the
     identification explains ~94 % of the TE variance (residual ~6.7" against a TE std of
     27"), so no re-assembly advice is given, and the reason says so with the numbers
@@ -264,8 +264,8 @@ def test_2kv_advice_withheld_when_the_model_does_not_fit(tmp_path) -> None:  # n
 
 def _retained_bytes(path: object) -> tuple[int, analysis.AnalysisResult]:
     """Bytes still allocated (tracemalloc: Python and numpy) while the result is alive."""
-    import gc  # noqa: PLC0415
-    import tracemalloc  # noqa: PLC0415
+    import gc
+    import tracemalloc
 
     analyze_bag(path, with_advice=False)  # imports and caches are not what is measured
     gc.collect()
@@ -279,7 +279,7 @@ def _retained_bytes(path: object) -> tuple[int, analysis.AnalysisResult]:
         tracemalloc.stop()
 
 
-def test_memory_does_not_grow_with_the_number_of_windows(tmp_path) -> None:  # noqa: ANN001
+def test_memory_does_not_grow_with_the_number_of_windows(tmp_path) -> None:
     """Each window's per-bin spectrum (here ~20k bins, ~0.6 MB) is folded into the average
     and dropped: 16 windows retain about what 4 do (the old code kept ~7.7 MB more)."""
     sizes = {}
@@ -296,13 +296,13 @@ def test_memory_does_not_grow_with_the_number_of_windows(tmp_path) -> None:  # n
 
 def test_running_average_equals_the_mean_of_the_window_spectra(constant_bag: tuple) -> None:
     """The incremental average against numpy's mean over every window's full spectrum."""
-    from rv_te_bench.core.stream import TeAnalysisConfig, analyze_blocks  # noqa: PLC0415
-    from rv_te_bench.io.bag_reader import read_encoder_blocks  # noqa: PLC0415
+    from rv_te_bench.core.stream import TeAnalysisConfig, analyze_blocks
+    from rv_te_bench.io.bag_reader import read_encoder_blocks
 
     path, _ = constant_bag
     res = analyze_bag(path, with_advice=False)
     full = analyze_blocks(read_encoder_blocks(path), TeAnalysisConfig(
-        orders=analysis._order_set(res.bench, 10)))  # noqa: SLF001
+        orders=analysis._order_set(res.bench, 10)))
     spectra = [w.spectrum for w in full.windows if w.complete and w.spectrum is not None]
     assert res.spectrum is not None
     assert len(spectra) == res.spectrum.n_windows == 3

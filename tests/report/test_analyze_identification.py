@@ -45,7 +45,7 @@ def units(tmp_path_factory: pytest.TempPathFactory) -> list[tuple[ref.Unit, Path
     return out
 
 
-def test_advice_rests_on_the_right_angle(units, capsys: pytest.CaptureFixture[str]) -> None:  # noqa: ANN001
+def test_advice_rests_on_the_right_angle(units, capsys: pytest.CaptureFixture[str]) -> None:
     """The identification behind analyze's advice: Q1, Q2, E within 1 % of the largest, the
     current phases (the part phases: here the part magnitudes are the preset's, so the split
     is the true one) within 1 deg, the residual at the 0.2" noise (3 %), and the fit quality
@@ -59,14 +59,14 @@ def test_advice_rests_on_the_right_angle(units, capsys: pytest.CaptureFixture[st
         assert ref.vector_error(u, ref.identified_phasors(ident))[0] <= 0.01
         fit = ident['fit']
         assert fit['residual_rms_arcsec'] == pytest.approx(0.2, rel=0.03)
-        assert fit['explained_fraction'] > 0.999  # noqa: PLR2004
+        assert fit['explained_fraction'] > 0.999
         current = [m['current_value'] for m in rec['advice']['modifications']]
         truth = (u.theta_p1, u.theta_p2, u.theta_g, u.theta_ot)
         assert max(ref.dphase_deg(c, t) for c, t in zip(current, truth, strict=True)) < 1.0
         assert 'of the TE variance' in rec['advice']['summary']
 
 
-def test_text_says_what_rests_on_part_magnitudes(units, capsys: pytest.CaptureFixture[str]) -> None:  # noqa: ANN001
+def test_text_says_what_rests_on_part_magnitudes(units, capsys: pytest.CaptureFixture[str]) -> None:
     _, bag = units[0]
     assert main(['analyze', str(bag), '--quiet']) == 0
     out = capsys.readouterr().out
@@ -75,7 +75,7 @@ def test_text_says_what_rests_on_part_magnitudes(units, capsys: pytest.CaptureFi
     assert 'cannot separate planet and revolution eccentricity' in out
 
 
-def test_damaged_bench_info_with_flags(units, tmp_path: Path,  # noqa: ANN001
+def test_damaged_bench_info_with_flags(units, tmp_path: Path,
                                        capsys: pytest.CaptureFixture[str]) -> None:
     """The chunk holding BenchInfo is damaged: analyze names the flags to give; with
     --ratio and --crank-per-output the rest of the bag is analysed, marked PARTIAL."""
@@ -92,7 +92,7 @@ def test_damaged_bench_info_with_flags(units, tmp_path: Path,  # noqa: ANN001
     assert doc['read_problems'][0].startswith('no readable BenchInfo (damaged)')
     assert doc['bench']['source'] == 'cli'
     # the first 1 MiB chunk (~420 blocks of 100) is lost, the rest of the 102,500 is read
-    assert 0.5 < doc['cumulative']['n_samples'] / 102_500 < 0.7  # noqa: PLR2004
+    assert 0.5 < doc['cumulative']['n_samples'] / 102_500 < 0.7
     assert 'PARTIAL' in err2
 
 
@@ -113,7 +113,7 @@ def test_title_says_what_the_bag_is(tmp_path: Path, capsys: pytest.CaptureFixtur
     assert '<title>TE report: bag</title>' not in page
 
 
-def test_json_phases_rounded(units, capsys: pytest.CaptureFixture[str]) -> None:  # noqa: ANN001
+def test_json_phases_rounded(units, capsys: pytest.CaptureFixture[str]) -> None:
     """Degrees in the report JSON carry at most 6 decimals (no 120.00000000000001)."""
     _, bag = units[0]
     doc, _ = _analyze(capsys, [str(bag), '--no-advice'])

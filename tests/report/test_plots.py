@@ -20,7 +20,7 @@ HARMONICS = (Harmonic(25.0, float(arcmin_to_rad(0.6)), 0.3),
 
 
 @pytest.mark.parametrize(('duration_s', 'folded'), [(3.0, False), (12.0, True)])
-def test_te_figure_axes_and_folding(tmp_path, duration_s: float, folded: bool) -> None:  # noqa: ANN001
+def test_te_figure_axes_and_folding(tmp_path, duration_s: float, folded: bool) -> None:
     path = tmp_path / 'bag'
     synth = write_bag(path, harmonics=HARMONICS, duration_s=duration_s)  # 0.5 rev/s
     res = analyze_bag(path, with_advice=False)
@@ -42,7 +42,7 @@ def test_te_figure_axes_and_folding(tmp_path, duration_s: float, folded: bool) -
     assert png_bytes(fig).startswith(b'\x89PNG')
 
 
-def test_spectrum_figure_labels_lines(tmp_path) -> None:  # noqa: ANN001
+def test_spectrum_figure_labels_lines(tmp_path) -> None:
     path = tmp_path / 'bag'
     write_bag(path, harmonics=HARMONICS, duration_s=4.5, sample_rate_hz=4000.0)
     res = analyze_bag(path, with_advice=False)

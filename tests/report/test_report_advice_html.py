@@ -9,8 +9,8 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from rv_te_bench.cli.main import main
-from tests import wang2020_reference as ref
 from sim.units import arcmin_to_rad
+from tests import wang2020_reference as ref
 from tests.report.synthetic_bags import Harmonic, write_bag
 from tests.unit_bags import unit_bag
 

@@ -51,9 +51,9 @@ def test_sample_matches_its_model() -> None:
 
 def test_sample_bench_info_agrees_with_the_kinematics() -> None:
     """The recorded BenchInfo (orders and their labels) is what sim.kinematics says now."""
-    from rv_te_bench.io.bag_reader import read_bench_info  # noqa: PLC0415
-    from sim.kinematics import kinematics_from_preset  # noqa: PLC0415
-    from sim.presets import load_preset  # noqa: PLC0415
+    from rv_te_bench.io.bag_reader import read_bench_info
+    from sim.kinematics import kinematics_from_preset
+    from sim.presets import load_preset
 
     info = read_bench_info(Path(__file__).resolve().parents[2] / 'bags' / 'sample')
     kin = kinematics_from_preset(load_preset(info['preset']))
@@ -69,7 +69,7 @@ def test_sample_identified_phases_are_the_papers() -> None:
     move them by ~0.3 deg; the magnitudes are Table 2's, so the split is exact), and the
     re-assembly recommended is the paper's Eq. 21 optimum (-70, 120, 110, 40) deg, a node of
     the 10 deg search grid."""
-    from tests.wang2020_reference import TABLE2_PHASES_DEG  # noqa: PLC0415
+    from tests.wang2020_reference import TABLE2_PHASES_DEG
 
     res = analyze_bag(SAMPLE, with_advice=True)
     advice = res.recommendation.advice

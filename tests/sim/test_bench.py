@@ -52,12 +52,12 @@ class FakeTeModel:
     calls: list = field(default_factory=list)
     resets: int = 0
 
-    def te_rad(self, t_s, theta_in_rad, omega_in_rad_s, load_nm):  # noqa: ANN001, ANN201
+    def te_rad(self, t_s, theta_in_rad, omega_in_rad_s, load_nm):
         self.calls.append((t_s.copy(), omega_in_rad_s.copy(), load_nm.copy()))
         del self.calls[:-1]  # keep only the last call (flat memory)
         return self.expected(theta_in_rad, load_nm)
 
-    def expected(self, theta_in_rad, load_nm):  # noqa: ANN001, ANN201
+    def expected(self, theta_in_rad, load_nm):
         i = self.kinematics.gear_ratio
         return (self.amplitude_rad * np.sin(self.order_out * theta_in_rad / i + self.phase_rad)
                 + self.compliance_rad_per_nm * load_nm)
@@ -70,7 +70,7 @@ def fake_preset() -> Preset:
     return preset_from_text(FAKE_TOML, 'fake')
 
 
-def make_sim(**cfg) -> tuple[BenchSimulator, FakeTeModel]:  # noqa: ANN003
+def make_sim(**cfg) -> tuple[BenchSimulator, FakeTeModel]:
     preset = fake_preset().with_overrides(list(cfg.get('overrides', ())))
     model = FakeTeModel(kinematics_from_preset(preset), preset['te.amplitude_rad'],
                         preset['te.order_out'])
@@ -95,7 +95,7 @@ def run(sim: BenchSimulator, n_blocks: int) -> dict[str, np.ndarray]:
     ConstantSpeed(300.0),
     SinusoidalSpeed(amplitude_rpm=100.0, angular_freq_rad_s=7.0, mean_rpm=300.0),
 ])
-def test_ideal_encoders_give_the_model_te(start_time_s: float, drive) -> None:  # noqa: ANN001
+def test_ideal_encoders_give_the_model_te(start_time_s: float, drive) -> None:
     """TE from the readings, theta_out - theta_in / 79, equals the closed-form TE within
     1e-9 rad, also 1e6 s (11.6 days, theta_in ~ 3e7 rad) into a session."""
     sim, model = make_sim(drive=drive, start_time_s=start_time_s,
@@ -310,10 +310,10 @@ ARCMIN_PER_RAD = 10800.0 / math.pi
 @pytest.fixture
 def wang() -> None:
     """The Wang 2020 model (part of the tree: an import error fails the test)."""
-    import sim.wang2020  # noqa: F401, PLC0415 - in the tree: an import error must fail
+    import sim.wang2020  # noqa: F401 - in the tree: an import error must fail
 
 
-def wang_sim(mode: str, **cfg) -> BenchSimulator:  # noqa: ANN003
+def wang_sim(mode: str, **cfg) -> BenchSimulator:
     base = {'preset': 'wang2020-2kv', 'te_mode': mode, 'drive': ConstantSpeed(300.0),
             'encoder_in': 'ideal', 'encoder_out': 'ideal', 'sample_rate_hz': 1000.0,
             'block_size': 1580, 'seed': 0}

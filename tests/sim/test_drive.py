@@ -36,7 +36,7 @@ PROFILES = [
 ]
 
 
-def _integral(profile, t1: float, t2: float) -> float:  # noqa: ANN001
+def _integral(profile, t1: float, t2: float) -> float:
     """Numerical integral of omega over [t1, t2] (adaptive Gauss-Kronrod, breakpoints given)."""
     f = lambda t: float(profile.omega_in_rad_s(np.array([t]))[0])  # noqa: E731
     pts = [p for p in (0.0, 1.0, 1.5, 2.0) if t1 < p < t2]
@@ -45,7 +45,7 @@ def _integral(profile, t1: float, t2: float) -> float:  # noqa: ANN001
 
 
 @pytest.mark.parametrize('profile', PROFILES, ids=lambda p: repr(p))
-def test_theta_is_the_integral_of_omega(profile) -> None:  # noqa: ANN001
+def test_theta_is_the_integral_of_omega(profile) -> None:
     """theta(t2) - theta(t1) = int omega dt (quad to 1e-12), over the interesting range and
     late in a session (t ~ 1e4 s); tolerance 1e-9 rad absolute + 1e-12 relative."""
     for t1, t2 in [(0.0, 0.37), (0.0, 3.0), (0.8, 2.3), (1.0e4, 1.0e4 + 0.61)]:
@@ -56,7 +56,7 @@ def test_theta_is_the_integral_of_omega(profile) -> None:  # noqa: ANN001
 
 
 @pytest.mark.parametrize('profile', PROFILES, ids=lambda p: repr(p))
-def test_omega_is_the_derivative_of_theta(profile) -> None:  # noqa: ANN001
+def test_omega_is_the_derivative_of_theta(profile) -> None:
     """Central difference with h = 1e-5 s: error O(h^2 omega'') + rounding ~1e-9 rad/s."""
     t = np.array([0.05, 0.41, 1.2, 1.77, 2.9, 123.4])
     h = 1e-5

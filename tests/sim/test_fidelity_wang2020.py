@@ -174,7 +174,7 @@ DTE_NOT_REPRODUCED = {('before', 30.0, 2): 0.557, ('before', 100.0, 0): 1.744,
 def test_table4_dte_where_the_suite_matches(table4_runs: dict) -> None:
     """The Table 4 DTE cells the suite reproduces: the paper's value within 5 % (loaded
     start). The 18 cells are these 9 and the 9 of the next test."""
-    assert len(set(DTE_REPRODUCED) | set(DTE_NOT_REPRODUCED)) == 18      # noqa: PLR2004
+    assert len(set(DTE_REPRODUCED) | set(DTE_NOT_REPRODUCED)) == 18
     for when, load, q in DTE_REPRODUCED:
         got = _stats(table4_runs['loaded', when, load])[q]
         assert got == pytest.approx(TABLE4_DTE[when, load][q], rel=0.05), (when, load, q)
@@ -346,7 +346,7 @@ def test_fig14_wave_peaks_and_angle_readings() -> None:
     holds whenever planet and revolution phases turn at one rate. Readings where they turn
     at different rates give peaks but lose the paper's other results: Fig. 5a's p-p
     (2.23'), Table 3 group 1's amplitude (4.49') and the optimum itself."""
-    from scipy.signal import find_peaks  # noqa: PLC0415
+    from scipy.signal import find_peaks
 
     phi = np.linspace(0.0, 2.0 * math.pi, 15_800, endpoint=False)   # 1 kHz over 15.8 s
     first3s = phi < 2.0 * math.pi * 3.0 / 15.8

@@ -174,7 +174,7 @@ def test_tca_bad_torque(initial: HuRvParams) -> None:
 # ----------------------------------------------------------------- geometric TE model
 
 
-def _one_rev_spectrum(model, n: int = 8192) -> np.ndarray:  # noqa: ANN001
+def _one_rev_spectrum(model, n: int = 8192) -> np.ndarray:
     """Single-sided amplitude spectrum over exactly one output revolution (bin = order)."""
     i = model.kinematics.gear_ratio
     theta_in = np.arange(n) / n * 2 * np.pi * i
@@ -260,7 +260,7 @@ def test_bad_mode_and_bad_block() -> None:
 
 
 def test_hu2020_tca_at_a_torque_too_small_to_close_any_clearance() -> None:
-    from sim.hu2020 import HuRvParams, tooth_contact_analysis  # noqa: PLC0415
+    from sim.hu2020 import HuRvParams, tooth_contact_analysis
 
     params = HuRvParams.from_preset(load_preset('hu2020-rv'))
     with pytest.raises(ModelInputError, match='no pin closes'):

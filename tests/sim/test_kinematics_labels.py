@@ -11,7 +11,7 @@ from sim.kinematics import kinematics_2kv, kinematics_rv
 
 @pytest.mark.parametrize('kin', [kinematics_2kv(12, 36, 50, 52), kinematics_rv(22, 60, 39, 40),
                                  kinematics_rv(10, 30, 39, 40)])
-def test_label_orders_match_mesh_orders(kin) -> None:  # noqa: ANN001
+def test_label_orders_match_mesh_orders(kin) -> None:
     for order, label in zip(kin.mesh_orders_out, kin.mesh_labels, strict=True):
         stated = float(re.search(r'([\d.]+) f_out', label).group(1))
         assert stated == pytest.approx(order, rel=1e-9), label

@@ -36,16 +36,16 @@ PAPER_DTE_PP_ERR_ARCSEC = 17.25
 
 
 @pytest.fixture(scope='module')
-def preset():  # noqa: ANN201
+def preset():
     return load_preset('li2023-rv')
 
 
 @pytest.fixture(scope='module')
-def params(preset):  # noqa: ANN001, ANN201
+def params(preset):
     return params_from_preset(preset)
 
 
-def _model(preset, **overrides: str) -> Li2023DteModel:  # noqa: ANN001
+def _model(preset, **overrides: str) -> Li2023DteModel:
     return build_te_model(preset.with_overrides(overrides), 'dte')
 
 
@@ -58,7 +58,7 @@ def _drive(n: int, fs_hz: float = 1000.0, rpm: float = 1500.0, load_nm: float = 
 
 # ---------------------------------------------------------------------------- preset
 
-def test_preset_values_have_unit_and_source(preset) -> None:  # noqa: ANN001
+def test_preset_values_have_unit_and_source(preset) -> None:
     assert preset.model == 'li2023-rv'
     for row in preset.describe_rows():
         if row['key'] == 'errors.enabled' or row['key'] == 'kinematics.kind':
@@ -69,13 +69,13 @@ def test_preset_values_have_unit_and_source(preset) -> None:  # noqa: ANN001
             assert row['note'], f'{row["key"]}: assumptions must say why'
 
 
-def test_ratio_is_table1_value(preset) -> None:  # noqa: ANN001
+def test_ratio_is_table1_value(preset) -> None:
     kin = kinematics_from_preset(preset)
     assert kin.gear_ratio == pytest.approx(121.0, abs=1e-12)      # Table 1: i = 121
     assert _model(preset).kinematics.gear_ratio == pytest.approx(121.0, abs=1e-12)
 
 
-def test_contact_ratio_matches_involute_geometry(preset, params) -> None:  # noqa: ANN001
+def test_contact_ratio_matches_involute_geometry(preset, params) -> None:
     # standard contact ratio of an external involute pair, computed from Table 1 here
     m, a = params.module_m, math.radians(params.pressure_angle_deg)
     r1, r2 = m * params.z_sun / 2, m * params.z_planet / 2
@@ -92,30 +92,30 @@ def test_contact_ratio_matches_involute_geometry(preset, params) -> None:  # noq
     ('material.poisson', '1.5'), ('layout.n_cranks', '0'), ('kinematics.z_ring', '41'),
     ('stiffness.sun_planet_contact_ratio', '2.5'), ('errors.cam_ecc_m', '-1e-6'),
 ])
-def test_bad_preset_value_names_key(preset, key: str, value: str) -> None:  # noqa: ANN001
+def test_bad_preset_value_names_key(preset, key: str, value: str) -> None:
     with pytest.raises(PresetError, match=key.split('.')[-1]):
         params_from_preset(preset.with_overrides({key: value}))
 
 
-def test_unknown_mode_is_named(preset) -> None:  # noqa: ANN001
+def test_unknown_mode_is_named(preset) -> None:
     with pytest.raises(ModelInputError, match='nlte'):
         build_te_model(preset, 'nlte')
 
 
-def test_registry_builds_the_model(preset) -> None:  # noqa: ANN001
+def test_registry_builds_the_model(preset) -> None:
     model = registry_build(preset, 'dte')
     assert isinstance(model, Li2023DteModel)
     assert model.ndof == 6 * 3 + 3 * 2 + 6
 
 
-def test_dof_count_follows_layout(preset) -> None:  # noqa: ANN001
+def test_dof_count_follows_layout(preset) -> None:
     model = _model(preset, **{'layout.n_cranks': '2', 'layout.n_discs': '1'})
     assert model.ndof == 6 * 2 + 3 * 1 + 6
 
 
 # ---------------------------------------------------------------------------- LTCA
 
-def test_cycloid_curvature_matches_closed_form(params) -> None:  # noqa: ANN001
+def test_cycloid_curvature_matches_closed_form(params) -> None:
     # theoretical-profile radius rho0 = r_p S^3 / (K1 (1 + z_p) cos th - (1 + z_p K1^2)),
     # S = sqrt(1 + K1^2 - 2 K1 cos th) (cycloid-drive textbooks; > 0: concave tooth)
     p = params
@@ -129,7 +129,7 @@ def test_cycloid_curvature_matches_closed_form(params) -> None:  # noqa: ANN001
     np.testing.assert_allclose(rho_c, expected, rtol=1e-9)
 
 
-def test_hertz_stiffness_equals_eq2_by_hand(params) -> None:  # noqa: ANN001
+def test_hertz_stiffness_equals_eq2_by_hand(params) -> None:
     p = params
     force, rho_c = 500.0, 0.02
     c = (1 - 0.3**2) / 206e9
@@ -142,7 +142,7 @@ def test_hertz_stiffness_equals_eq2_by_hand(params) -> None:  # noqa: ANN001
     assert 1e8 < got < 1e9                       # order of a steel pin contact
 
 
-def test_equivalent_pressure_angle_near_paper(params) -> None:  # noqa: ANN001
+def test_equivalent_pressure_angle_near_paper(params) -> None:
     res = ltca(params)
     beta_deg = np.degrees(res.pressure_angle_rad)
     # paper: 31.5..32.1 deg, mean 31.9; tolerance 1.5 deg (Eq. 2 contact-width convention
@@ -153,7 +153,7 @@ def test_equivalent_pressure_angle_near_paper(params) -> None:  # noqa: ANN001
     assert set(np.unique(res.contacts)) <= {params.z_pin // 2 - 1, params.z_pin // 2}
 
 
-def test_ltca_moment_equilibrium_and_rigid_limit(params) -> None:  # noqa: ANN001
+def test_ltca_moment_equilibrium_and_rigid_limit(params) -> None:
     # Rigid-profile limit (constant pin stiffness): beta from Eq. 5 with F_i ~ l_i, computed
     # here independently; the Hertz LTCA must stay within 1 deg of it.
     p = params
@@ -171,7 +171,7 @@ def test_ltca_moment_equilibrium_and_rigid_limit(params) -> None:  # noqa: ANN00
     assert 1.0 < k_hi / k_lo < 1.1
 
 
-def test_ltca_rejects_bad_torque(params) -> None:  # noqa: ANN001
+def test_ltca_rejects_bad_torque(params) -> None:
     with pytest.raises(ModelInputError, match='torque_nm'):
         ltca(params, torque_nm=-1.0)
 
@@ -201,7 +201,7 @@ def _kinematic_motion(model: Li2023DteModel, theta_in: float, d_in: float) -> np
     return q
 
 
-def test_kinematic_motion_deflects_only_the_input_shaft(preset) -> None:  # noqa: ANN001
+def test_kinematic_motion_deflects_only_the_input_shaft(preset) -> None:
     model = _model(preset)
     thetas = np.array([0.0, 0.37, 2.9, 17.3, 101.0])
     stiff = model.stiffness_matrix(thetas)
@@ -213,7 +213,7 @@ def test_kinematic_motion_deflects_only_the_input_shaft(preset) -> None:  # noqa
         np.testing.assert_allclose(force, expected, atol=1e-6 * abs(expected[2]))
 
 
-def test_stiffness_symmetric_positive_definite(preset) -> None:  # noqa: ANN001
+def test_stiffness_symmetric_positive_definite(preset) -> None:
     stiff = _model(preset).stiffness_matrix(np.linspace(0.0, 40.0, 7))
     np.testing.assert_allclose(stiff, np.swapaxes(stiff, 1, 2), rtol=0, atol=1e-3)
     assert np.all(np.linalg.eigvalsh(stiff) > 0)
@@ -226,7 +226,7 @@ _STIFF_KEYS = ('stiffness.sun_torsional_nm_rad', 'stiffness.sun_radial_n_m',
                'stiffness.pin_mesh_n_m')
 
 
-def _all_rigid_but(preset, keep: str) -> dict[str, str]:  # noqa: ANN001
+def _all_rigid_but(preset, keep: str) -> dict[str, str]:
     """Overrides that make every spring 1e6 x stiffer except ``keep`` (no harmonics)."""
     ov = {k: str(preset[k] * 1e6) for k in _STIFF_KEYS if k != keep}
     ov.update({'stiffness.sun_planet_harmonics': '0', 'stiffness.pin_mesh_harmonics': '0',
@@ -234,7 +234,7 @@ def _all_rigid_but(preset, keep: str) -> dict[str, str]:  # noqa: ANN001
     return ov
 
 
-def test_static_te_input_shaft_only(preset) -> None:  # noqa: ANN001
+def test_static_te_input_shaft_only(preset) -> None:
     # only k_st flexible: output torque T reaches the input as T / i, twists the shaft by
     # T / (i k_st), the output follows at 1 / i: TE = -T / (i^2 k_st)
     model = _model(preset, **_all_rigid_but(preset, 'stiffness.sun_torsional_nm_rad'))
@@ -245,7 +245,7 @@ def test_static_te_input_shaft_only(preset) -> None:  # noqa: ANN001
     assert te == pytest.approx(-load / (i**2 * k_st), rel=1e-3)
 
 
-def test_static_te_pin_mesh_only(preset) -> None:  # noqa: ANN001
+def test_static_te_pin_mesh_only(preset) -> None:
     # only the pin mesh flexible, sun held: carrier rotation phi turns the cranks by
     # phi (1 + z_s / z_p) relative to the sun and the disc by phi; the pin-mesh deflection
     # is e cos(beta) phi (1 + z_s / z_p + z_c) per disc, so
@@ -260,7 +260,7 @@ def test_static_te_pin_mesh_only(preset) -> None:  # noqa: ANN001
 
 # ------------------------------------------------------------------------ integration
 
-def test_newmark_matches_modal_step_response(preset) -> None:  # noqa: ANN001
+def test_newmark_matches_modal_step_response(preset) -> None:
     # Input at rest -> K constant; no damping. A load step on the output has the exact
     # modal solution sum_k phi_k phi_k^T F (1 - cos w_k t) / w_k^2 (eigh of K, M here).
     model = _model(preset, **{'errors.enabled': 'false', 'damping.zeta': '0.0',
@@ -282,7 +282,7 @@ def test_newmark_matches_modal_step_response(preset) -> None:  # noqa: ANN001
     assert gain.sum() == pytest.approx(static, rel=1e-9)
 
 
-def test_block_by_block_equals_one_shot(preset) -> None:  # noqa: ANN001
+def test_block_by_block_equals_one_shot(preset) -> None:
     t, th, om, ld = _drive(700)
     one = _model(preset).te_rad(t, th, om, ld)
     model = _model(preset)
@@ -293,7 +293,7 @@ def test_block_by_block_equals_one_shot(preset) -> None:  # noqa: ANN001
     np.testing.assert_allclose(model.te_rad(t, th, om, ld), one, rtol=0, atol=1e-15)
 
 
-def test_state_size_stays_flat(preset) -> None:  # noqa: ANN001
+def test_state_size_stays_flat(preset) -> None:
     model = _model(preset)
     for k in range(5):
         t, th, om, ld = _drive(100, t0_s=0.1 * k)
@@ -302,7 +302,7 @@ def test_state_size_stays_flat(preset) -> None:  # noqa: ANN001
     assert len(model._ops_cache) <= 65
 
 
-def test_te_rad_input_checks(preset) -> None:  # noqa: ANN001
+def test_te_rad_input_checks(preset) -> None:
     model = _model(preset)
     t, th, om, ld = _drive(10)
     with pytest.raises(ModelInputError, match='1-D'):
@@ -316,7 +316,7 @@ def test_te_rad_input_checks(preset) -> None:  # noqa: ANN001
         model.te_rad(t, th, om, ld)                          # time went back
 
 
-def test_sun_eccentricity_excites_no_torsion(preset) -> None:  # noqa: ANN001
+def test_sun_eccentricity_excites_no_torsion(preset) -> None:
     # Three equally spaced planets meshing in phase (z_s psi_i = 0 mod 2 pi): a sun
     # eccentricity is a pure translational excitation, decoupled from the TE.
     off = {k: '0.0' for k in preset.keys() if k.startswith('errors.') and k.endswith('_m')}
@@ -331,7 +331,7 @@ def test_sun_eccentricity_excites_no_torsion(preset) -> None:  # noqa: ANN001
 # --------------------------------------------------------------- acceptance (paper)
 
 @pytest.fixture(scope='module')
-def one_revolution(preset):  # noqa: ANN001, ANN201
+def one_revolution(preset):
     """DTE [arcsec] over one output revolution at 1500 rpm, 450 N m, 1 kHz, both cases."""
     fs, warm = 1000.0, 500
     nrev = round(fs * 121 / 25.0)                       # 4840 samples = 1 output rev
@@ -343,20 +343,20 @@ def one_revolution(preset):  # noqa: ANN001, ANN201
     return out
 
 
-def test_dte_without_errors_below_one_arcsec(one_revolution) -> None:  # noqa: ANN001
+def test_dte_without_errors_below_one_arcsec(one_revolution) -> None:
     dte = one_revolution['false']
     assert np.ptp(dte) < 1.0                                 # paper 0.78"
     assert np.ptp(dte) > 0.1 * PAPER_DTE_PP_NO_ERR_ARCSEC    # mesh excitation is there
 
 
-def test_dte_with_errors_ten_times_larger(one_revolution) -> None:  # noqa: ANN001
+def test_dte_with_errors_ten_times_larger(one_revolution) -> None:
     pp_ideal = np.ptp(one_revolution['false'])
     pp_err = np.ptp(one_revolution['true'])
     assert pp_err >= 10.0 * pp_ideal
     assert 0.5 * PAPER_DTE_PP_ERR_ARCSEC < pp_err < 2.0 * PAPER_DTE_PP_ERR_ARCSEC
 
 
-def test_error_spectrum_has_more_orders(one_revolution) -> None:  # noqa: ANN001
+def test_error_spectrum_has_more_orders(one_revolution) -> None:
     # one output revolution -> FFT bin k is output order k; single-sided peak amplitude
     def lines(x: np.ndarray, threshold_arcsec: float = 0.05) -> set[int]:
         amp = 2.0 * np.abs(np.fft.rfft(x - x.mean())) / x.size
@@ -369,7 +369,7 @@ def test_error_spectrum_has_more_orders(one_revolution) -> None:  # noqa: ANN001
     assert 1 in err                                          # once per output revolution
 
 
-def test_response_records_states_consistently(preset) -> None:  # noqa: ANN001
+def test_response_records_states_consistently(preset) -> None:
     t, th, om, ld = _drive(120)
     te = _model(preset).te_rad(t, th, om, ld)
     model = _model(preset)
@@ -387,7 +387,7 @@ def test_response_records_states_consistently(preset) -> None:  # noqa: ANN001
         model.response(t + 1.0, th, om, ld, [3 * model.ndof])
 
 
-def test_dte_without_errors_below_one_arcsec_at_10khz(preset) -> None:  # noqa: ANN001
+def test_dte_without_errors_below_one_arcsec_at_10khz(preset) -> None:
     # the continuous waveform (10 kHz samples, 1e-4 s steps) peaks a little higher than
     # its 1 kHz samples; still below 1" (paper 0.78")
     t, th, om, ld = _drive(4000, fs_hz=10_000.0)
@@ -395,7 +395,7 @@ def test_dte_without_errors_below_one_arcsec_at_10khz(preset) -> None:  # noqa: 
     assert np.ptp(dte[1500:]) < 1.0
 
 
-def test_mesh_stiffness_waves(preset) -> None:  # noqa: ANN001
+def test_mesh_stiffness_waves(preset) -> None:
     # Eq. 9: rectangular wave k1 / 2 k1 with the double-pair zone (eps - 1) of the period;
     # Eq. 11: the pin-mesh curve scaled to the preset mean (paper 1.24e9 N/m)
     model = _model(preset, **{'stiffness.sun_planet_harmonics': '60'})
@@ -429,14 +429,14 @@ def test_any_block_split_equals_one_shot(cuts: list[int]) -> None:
 
 @pytest.mark.parametrize('nu', ['0.7', '1.0', '0.5'])
 def test_li2023_rejects_impossible_poisson_ratio(nu: str) -> None:
-    from sim.li2023 import build_te_model  # noqa: PLC0415
+    from sim.li2023 import build_te_model
 
     with pytest.raises(PresetError, match='material.poisson'):
         build_te_model(load_preset('li2023-rv', [f'material.poisson={nu}']), 'dte')
 
 
 @pytest.mark.parametrize('errors', ['false', 'true'])
-def test_te_path_equals_full_state_stepping(preset, errors: str) -> None:  # noqa: ANN001
+def test_te_path_equals_full_state_stepping(preset, errors: str) -> None:
     """The TE path (z = [p; a2 M w], watched displacements only) and the stepping on the
     whole state x = [q, v, a] (taken when a velocity is watched as well) are two codings
     of one Newmark scheme: equal to rounding over 0.2 s at 10 kHz, blocks of 100, with a
@@ -459,11 +459,11 @@ def test_te_path_equals_full_state_stepping(preset, errors: str) -> None:  # noq
     assert rad_to_arcsec(np.ptp(te_a)) > 0.1
 
 
-def test_without_the_direct_lapack_call_the_te_is_the_same(preset, monkeypatch) -> None:  # noqa: ANN001
+def test_without_the_direct_lapack_call_the_te_is_the_same(preset, monkeypatch) -> None:
     """Where SciPy's Cython LAPACK table cannot be reached (``_DPOSV`` is None), the TE path
     falls back to the whole-state stepping through SciPy's dposv wrapper: the same TE to
     rounding as the direct call, over 0.1 s at 10 kHz with the Table 3 errors."""
-    import sim.li2023 as li  # noqa: PLC0415
+    import sim.li2023 as li
 
     assert li._DPOSV is not None, 'the direct LAPACK call is not available here'
     direct = _model(preset, **{'errors.enabled': 'true'})

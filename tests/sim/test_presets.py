@@ -143,7 +143,7 @@ def test_load_by_path_and_unknown_name(tmp_path: Path) -> None:
 
 
 def test_wang_preset_overrides_reach_the_model() -> None:
-    from sim.wang2020 import Wang2kvParams  # noqa: PLC0415
+    from sim.wang2020 import Wang2kvParams
 
     p = Wang2kvParams.from_preset(load_preset('wang2020-2kv', ['stage2.r_p_m=0.05307']))
     assert p.r_p_m == 0.05307

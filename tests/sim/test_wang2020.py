@@ -269,7 +269,7 @@ def test_dte_block_by_block_equals_one_shot(params_ripple: Wang2kvParams) -> Non
     assert np.ptp(rad_to_arcmin(one)) > 1.0              # it did cross the backlash
 
 
-def _rk4_reference(params: Wang2kvParams, t_end: float, h: float, load_fn) -> tuple:  # noqa: ANN001
+def _rk4_reference(params: Wang2kvParams, t_end: float, h: float, load_fn) -> tuple:
     """Independent fixed-step RK4 of m x'' = sum k(u-x) + c(u'-x') - T/r_p over flanks."""
     n = round(t_end / h)
     tf = np.arange(2 * n + 1) * (h / 2)                 # half steps for RK4 stages
@@ -316,7 +316,7 @@ def test_dte_matches_independent_rk4_through_impacts(params_ripple: Wang2kvParam
     # the first impact happens near 7 ms.
     fm = params.kinematics.frequencies(5.0)['mesh_stage2_hz']
 
-    def load_fn(t):  # noqa: ANN001, ANN202
+    def load_fn(t):
         return 30.0 * np.sin(2 * math.pi * fm * np.asarray(t))
 
     t_ref, x_ref = _rk4_reference(params, 0.015, 1e-6, load_fn)
@@ -415,7 +415,7 @@ def test_params_validation_names_key() -> None:
 def test_wang2020_dte_far_from_t0_equals_dte_near_t0() -> None:
     """Float64 timestamps jitter far from t = 0; the DTE must not depend on that (the
     integrator used to split such blocks into hundreds of runs)."""
-    from sim.wang2020 import build_te_model  # noqa: PLC0415
+    from sim.wang2020 import build_te_model
 
     preset = load_preset('wang2020-2kv')
     n, fs = 5000, 10_000.0

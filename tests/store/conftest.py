@@ -37,7 +37,7 @@ def _free_port() -> int:
 
 
 @pytest.fixture(scope='session')
-def postgres_url():  # noqa: ANN201
+def postgres_url():
     """URL of a fresh PostgreSQL server of this test session (stopped afterwards)."""
     initdb, pg_ctl = _pg_bin('initdb'), _pg_bin('pg_ctl')
     if initdb is None or pg_ctl is None:
@@ -76,7 +76,7 @@ def postgres_url():  # noqa: ANN201
 
 
 @pytest.fixture
-def fresh_pg_db(postgres_url: str):  # noqa: ANN201
+def fresh_pg_db(postgres_url: str):
     """A new empty database on the session's server, dropped afterwards."""
     import psycopg
     name = f'rvte_{os.getpid()}_{os.urandom(4).hex()}'

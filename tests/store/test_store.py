@@ -29,7 +29,7 @@ from tests.store.conftest import make_record
 ROOT = Path(__file__).resolve().parents[2]
 
 
-def _comparable(rows: list) -> list[tuple]:  # noqa: ANN001
+def _comparable(rows: list) -> list[tuple]:
     """What a query returns, minus the database-assigned id and write time."""
     return [(r.serial, r.preset, r.verdict, r.tested_at, r.status, r.bag_sha256,
              sorted(r.metrics.items()), sorted(r.lines.items()), r.advice) for r in rows]
@@ -69,7 +69,7 @@ def test_same_bag_twice_updates_not_duplicates(tmp_path: Path) -> None:
     # another test of the same bag is another record
     with open_store(db) as st:
         st.upsert(replace(first, test='test-plan', plan='acceptance'))
-        assert len(st.query()) == 2  # noqa: PLR2004
+        assert len(st.query()) == 2
 
 
 def test_filters(tmp_path: Path) -> None:
@@ -80,19 +80,19 @@ def test_filters(tmp_path: Path) -> None:
         t0 = datetime(2026, 11, 1, tzinfo=UTC)
         assert [r.serial for r in st.query(ResultFilter(serial='SN00007'))] == ['SN00007']
         assert [r.serial for r in st.query(ResultFilter(verdict='fail'))] == ['SN00004']
-        assert len(st.query(ResultFilter(preset='hu2020-rv'))) == 4  # noqa: PLR2004
+        assert len(st.query(ResultFilter(preset='hu2020-rv'))) == 4
         got = st.query(ResultFilter(since=t0 + timedelta(hours=2),
                                     until=t0 + timedelta(hours=5)))
         assert [r.serial for r in got] == ['SN00002', 'SN00003', 'SN00004']
         s = st.series('te_pp_rad', direction='ccw', flt=ResultFilter(preset='wang2020-2kv'))
-        assert len(s.values) == 6  # noqa: PLR2004
+        assert len(s.values) == 6
         assert s.tested_at == sorted(s.tested_at)
         assert st.series('line:1 f_w').values[0] == pytest.approx(2e-4)
 
 
 def test_naive_filter_dates_rejected() -> None:
     with pytest.raises(StoreError, match='timezone-aware'):
-        ResultFilter(since=datetime(2026, 1, 1))  # noqa: DTZ001
+        ResultFilter(since=datetime(2026, 1, 1))
 
 
 def _kill_a_writer_mid_write(db: str) -> None:
@@ -150,7 +150,7 @@ def test_postgresql_crash_mid_write_leaves_a_consistent_store(fresh_pg_db: str) 
     """The same on a real PostgreSQL server: after the SIGKILL the server has rolled the
     killed connection's transaction back (no session of it is left, no lock held), every
     stored record has all its metrics and lines, and the store takes writes at once."""
-    import psycopg  # noqa: PLC0415
+    import psycopg
 
     open_store(fresh_pg_db).close()
     _kill_a_writer_mid_write(fresh_pg_db)
@@ -216,14 +216,14 @@ def test_export_csv_and_parquet(tmp_path: Path) -> None:
         for i in range(4):
             st.upsert(make_record(i))
         rows = st.query()
-    assert export_records(rows, tmp_path / 'r.csv') == 4  # noqa: PLR2004
+    assert export_records(rows, tmp_path / 'r.csv') == 4
     with (tmp_path / 'r.csv').open(newline='') as fh:
         table = list(csv.DictReader(fh))
     assert [t['serial'] for t in table] == ['SN00000', 'SN00001', 'SN00002', 'SN00003']
     assert float(table[2]['te_pp_rad_cw']) == pytest.approx((5e-4 + 2e-6) * 1.1)
     assert float(table[1]['line_1_f_w_amplitude_rad']) == pytest.approx(2e-4 + 1e-7)
     import pyarrow.parquet as pq
-    assert export_records(rows, tmp_path / 'r.parquet') == 4  # noqa: PLR2004
+    assert export_records(rows, tmp_path / 'r.parquet') == 4
     pt = pq.read_table(tmp_path / 'r.parquet').to_pydict()
     assert pt['serial'] == [t['serial'] for t in table]
     assert pt['te_pp_rad_ccw'] == pytest.approx([float(t['te_pp_rad_ccw']) for t in table])
@@ -250,7 +250,7 @@ def test_postgresql_and_sqlite_give_the_same_results(tmp_path: Path, fresh_pg_db
             ser = st.series('te_pp_rad', direction='cw')
             out.append((res, ser.values, ser.serials))
     assert out[0] == out[1]
-    assert len(out[0][0][0]) == 12  # noqa: PLR2004
+    assert len(out[0][0][0]) == 12
 
 
 def test_postgresql_concurrent_upsert_of_one_key(fresh_pg_db: str) -> None:
@@ -291,7 +291,7 @@ def test_long_text_same_on_sqlite_and_postgresql(tmp_path: Path, fresh_pg_db: st
     assert rows == [('S' * 128, 'te-analysis', ''), ('SN00002', 'test-plan', 'P' * 128)]
     assert message.startswith('serial is 129 characters, the results store keeps at most 128')
     assert '\n' not in message
-    assert len(message) < 200  # noqa: PLR2004 - the value is truncated in the message
+    assert len(message) < 200
 
 
 @pytest.mark.parametrize('field', ['serial', 'lot', 'operator', 'bench_id', 'preset', 'plan'])

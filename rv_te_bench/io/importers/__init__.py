@@ -66,7 +66,7 @@ def open_reader(path: Path, fmt: str, options: ImportOptions, *, header: bool = 
     """
     path = Path(path)
     if fmt == 'bag':
-        from rv_te_bench.io.importers.jointstate_bag import JointStateBagReader  # noqa: PLC0415
+        from rv_te_bench.io.importers.jointstate_bag import JointStateBagReader
 
         if not path.exists():
             msg = f'{path} does not exist'
@@ -77,22 +77,22 @@ def open_reader(path: Path, fmt: str, options: ImportOptions, *, header: bool = 
         msg = f'{path} {what}'
         raise DataImportError(msg)
     if fmt == 'csv':
-        from rv_te_bench.io.importers.csv_file import CsvReader  # noqa: PLC0415
+        from rv_te_bench.io.importers.csv_file import CsvReader
 
         return CsvReader(path, options, header=header)
     if fmt == 'tdms':
-        from rv_te_bench.io.importers.tdms_file import TdmsReader  # noqa: PLC0415
+        from rv_te_bench.io.importers.tdms_file import TdmsReader
 
         return TdmsReader(path, options)
     if fmt == 'mdf':
-        from rv_te_bench.io.importers.mdf_file import MdfReader  # noqa: PLC0415
+        from rv_te_bench.io.importers.mdf_file import MdfReader
 
         return MdfReader(path, options)
     msg = f'unknown format {fmt!r} (known: {", ".join(FORMATS)})'
     raise DataImportError(msg)
 
 
-def import_file(path: str | Path, desc: BenchDescription, out: str | Path, *,  # noqa: PLR0913
+def import_file(path: str | Path, desc: BenchDescription, out: str | Path, *,
                 options: ImportOptions, fmt: str | None = None, header: bool = True,
                 on_note: Callable[[str], None] | None = None) -> ImportSummary:
     """Import one measurement file into the bag ``out`` (whole or nothing).

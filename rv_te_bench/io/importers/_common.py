@@ -154,7 +154,7 @@ class ImportOptions:
             if c is not None and (isinstance(c, bool) or not isinstance(c, int) or c < 1):
                 msg = f'{name} must be an integer >= 1, got {c!r}'
                 raise DataImportError(msg)
-        if not 1 <= self.chunk_samples <= 100_000_000:  # noqa: PLR2004
+        if not 1 <= self.chunk_samples <= 100_000_000:
             msg = f'chunk_samples must be in [1, 1e8], got {self.chunk_samples!r}'
             raise DataImportError(msg)
 
@@ -269,7 +269,7 @@ class ChunkConverter:
         unwrap: Unwrap angles (module docstring).
     """
 
-    def __init__(self, *, origin: str, labels: dict[str, str],  # noqa: PLR0913
+    def __init__(self, *, origin: str, labels: dict[str, str],
                  locate: Callable[[int], str], unit_in: str, unit_out: str,
                  counts_per_rev_in: int | None, counts_per_rev_out: int | None,
                  time_scale_s: float | None, rate_hz: float | None,
@@ -328,10 +328,10 @@ class ChunkConverter:
             if self.t0 is None:
                 self.t0 = float(t[0])
             self.t_last = float(t[-1])
-            assert self.time_scale_s is not None  # noqa: S101 - set with a time column
+            assert self.time_scale_s is not None
             t_s = (t - self.t0) * self.time_scale_s
         else:
-            assert self.rate_hz is not None  # noqa: S101 - set without a time column
+            assert self.rate_hz is not None
             t_s = np.arange(raw.first, raw.first + n, dtype=np.float64) / self.rate_hz
         th_in = np.asarray(raw.theta_in, dtype=np.float64) * self.k_in
         th_out = np.asarray(raw.theta_out, dtype=np.float64) * self.k_out

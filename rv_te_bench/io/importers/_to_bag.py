@@ -144,12 +144,12 @@ class _Blocks:
 
 
 def _estimate_rate_hz(chunk: SiChunk) -> float | None:
-    if chunk.t_s.size < 2:  # noqa: PLR2004
+    if chunk.t_s.size < 2:
         return None
     return 1.0 / float(np.median(np.diff(chunk.t_s)))
 
 
-def write_bag(reader: ImportReader, desc: BenchDescription, options: ImportOptions,  # noqa: C901, PLR0912, PLR0915
+def write_bag(reader: ImportReader, desc: BenchDescription, options: ImportOptions,
               out: Path, *, fmt: str, on_note: Callable[[str], None] | None = None,
               ) -> ImportSummary:
     """Convert everything ``reader`` yields and write the bag ``out`` (see the module doc).

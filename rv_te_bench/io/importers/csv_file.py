@@ -107,7 +107,7 @@ class CsvReader:
         if spec.isdigit() and int(spec) < len(self.columns):
             return int(spec)
         shown = ', '.join(repr(c) for c in self.columns[:20])
-        more = f' and {len(self.columns) - 20} more' if len(self.columns) > 20 else ''  # noqa: PLR2004
+        more = f' and {len(self.columns) - 20} more' if len(self.columns) > 20 else ''
         msg = f'{self.origin}: column {spec!r} not found (columns: {shown}{more})'
         raise DataImportError(msg)
 

@@ -57,8 +57,8 @@ class JointStateBagReader:
 
     def __init__(self, path: Path, options: ImportOptions,
                  joints: tuple[str | None, str | None] = (None, None)) -> None:
-        from rosbags.highlevel import AnyReader  # noqa: PLC0415
-        from rosbags.typesys import Stores, get_typestore  # noqa: PLC0415
+        from rosbags.highlevel import AnyReader
+        from rosbags.typesys import Stores, get_typestore
 
         self.path = Path(path)
         self.origin = str(path)

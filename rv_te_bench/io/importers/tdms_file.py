@@ -39,7 +39,7 @@ def _short(exc: BaseException) -> str:
     return ' '.join(str(exc).split())[:200] or type(exc).__name__
 
 
-def _datetime64_ns(value: Any) -> int | None:  # noqa: ANN401 - a TDMS property
+def _datetime64_ns(value: Any) -> int | None:
     try:
         return int(np.datetime64(value, 'ns').astype(np.int64))
     except (TypeError, ValueError, OverflowError):
@@ -49,7 +49,7 @@ def _datetime64_ns(value: Any) -> int | None:  # noqa: ANN401 - a TDMS property
 @contextlib.contextmanager
 def _nptdms_warnings() -> Iterator[list[str]]:
     """Collect what nptdms logs (it prints warnings to stderr itself) instead of printing."""
-    from nptdms.log import log_manager  # noqa: PLC0415
+    from nptdms.log import log_manager
 
     seen: list[str] = []
 
