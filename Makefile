@@ -6,7 +6,7 @@ PY     := $(VENV)/bin/python
 # A venv Python started from another ros-wheel Python must not inherit the bootstrap marker.
 unexport _ROS_WHEELS_BOOTSTRAP_COMPLETE
 
-.PHONY: demo test venv clean-venv system-deps
+.PHONY: demo test lint venv clean-venv system-deps
 
 venv: $(VENV)/.stamp
 
@@ -22,6 +22,12 @@ demo: venv
 
 test: venv
 	$(PY) -m pytest -q
+
+# The house rules checked by tools: ruff's rule set ([tool.ruff.lint] in pyproject.toml) and
+# the layering contracts ([tool.importlinter]).
+lint: venv
+	$(VENV)/bin/ruff check .
+	$(VENV)/bin/lint-imports
 
 clean-venv:
 	rm -rf $(VENV)

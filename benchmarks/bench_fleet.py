@@ -98,7 +98,8 @@ def main(argv: list[str] | None = None) -> int:
     lines += [f'| {name} | {sec:.1f} | {len(bags) / sec:.2f} |' for name, sec in rows]
     lines += ['', f'speed-up 2 workers vs 1: **{one / two:.2f}x** (with the read-ahead thread '
               f'in the 2 workers: {one / rows[3][1]:.2f}x); engine overhead per bag '
-              f'(1 worker vs the loop, start-up included): {(one - rows[0][1]) / len(bags) * 1e3:.0f} ms']
+              f'(1 worker vs the loop, start-up included): '
+              f'{(one - rows[0][1]) / len(bags) * 1e3:.0f} ms']
     text = '\n'.join(lines)
     print(text)
     if args.out is not None:

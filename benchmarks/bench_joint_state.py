@@ -171,7 +171,8 @@ def main() -> int:
         role_recv(a.role, a.rate, a.n, a.timeout)
         return 0
     print(f'# {platform.node()} {platform.machine()} {os.cpu_count()} cores, '
-          f'Python {platform.python_version()}, {time.strftime("%Y-%m-%d %H:%M UTC", time.gmtime())}'
+          f'Python {platform.python_version()}, '
+          f'{time.strftime("%Y-%m-%d %H:%M UTC", time.gmtime())}'
           f', load {os.getloadavg()[0]:.2f}')
     print('| rate [msg/s] | receiver | sent rate [msg/s] | received / sent | lossless | '
           'CPU per message [us] | CPU share |')

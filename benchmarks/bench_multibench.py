@@ -254,7 +254,7 @@ def run_benches(n_benches: int, rate_hz: float, block: int, duration_s: float,
     if interrupted:
         raise KeyboardInterrupt
     cpu = meter.pct()
-    expected = int(round(duration_s * rate_hz / block))
+    expected = round(duration_s * rate_hz / block)
     benches = []
     for ns in names:
         topics = bag_summary(out_dir / ns).get('topics', {})
@@ -427,7 +427,8 @@ def print_benches(res: dict[str, Any], args: argparse.Namespace) -> bool:
         print(f"| {b['ns']} | {b['expected']} / {' / '.join(str(x) for x in counts)} | "
               f"{b['te_gaps']} | {b['crashed']} | "
               f"{' / '.join(_f(c[n], '{:.0f}') + ' %' for n in NODES)} | "
-              f"{_f(steady_ms)} ms ({_f(lag_ms)} ms) | {_f(b['probe_lag_max_ms'])} / {_f(b['probe_lag_p99_ms'])} "
+              f"{_f(steady_ms)} ms ({_f(lag_ms)} ms) | "
+              f"{_f(b['probe_lag_max_ms'])} / {_f(b['probe_lag_p99_ms'])} "
               f"ms ({b['probe_lag_worst_at_s']:.0f} s) | "
               f"{b['probe_late']} of {b['probe_n']} | "
               f"{_f(b['lat_median_ms'], '{:.2f}')} / "
@@ -437,7 +438,8 @@ def print_benches(res: dict[str, Any], args: argparse.Namespace) -> bool:
     fl = res.get('rt_floor')
     if fl:
         print(f"machine floor over the same time (a bare paced thread scheduled as the "
-              f"benches: {fl['scheduling']}; no messages): woke up to {fl['max_ms']:.1f} ms late (p99 "
+              f"benches: {fl['scheduling']}; no messages): woke up to {fl['max_ms']:.1f} ms "
+              f"late (p99 "
               f"{fl['p99_ms']:.2f} ms), {fl['over_period']} of {fl['n']} periods more than "
               f"one block period late; kernel {platform.release()} {platform.version()}")
     cpu = res['cpu']
@@ -476,7 +478,7 @@ def floor_publisher(ns: str, rate_hz: float, block: int, duration_s: float) -> i
     node = rclpy.create_node('floor_pub', namespace=ns, context=ctx)
     pub = node.create_publisher(EncoderBlock, 'bench/encoders', qos.ENCODER_QOS)
     period = block / rate_hz
-    total = int(round(duration_s / period))
+    total = round(duration_s / period)
     t = np.arange(block) / rate_hz
     state = {'sent': 0, 'start': None, 'lag_max': 0.0}
     give_up = time.monotonic() + 60.0   # no subscriber by then: publish anyway (gaps show)
@@ -559,7 +561,7 @@ def run_floor(n: int, rate_hz: float, block: int, duration_s: float,
     """N publisher / subscriber process pairs; counts, gaps and CPU per message."""
     from rv_te_bench.launch.session import child_env
 
-    expected = int(round(duration_s * rate_hz / block))
+    expected = round(duration_s * rate_hz / block)
     me = [sys.executable, str(Path(__file__).resolve())]
     common = ['--rate-hz', str(rate_hz), '--block-size', str(block),
               '--duration-s', str(duration_s)]

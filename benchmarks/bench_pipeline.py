@@ -114,7 +114,7 @@ def run_one(rate_hz: float, block: int, duration_s: float, out_dir: Path) -> dic
     for n, (c1, w1) in cpu_end.items():
         c0, w0 = cpu0.get(n, (0.0, t0))
         cpu_pct[n] = 100.0 * (c1 - c0) / max(w1 - w0, 1e-9)
-    expected = int(round(duration_s * rate_hz / block))
+    expected = round(duration_s * rate_hz / block)
     summary = bag_summary(bag)
     topics = summary.get('topics', {})
     enc_count = next((t.get('count', t.get('message_count')) for name, t in topics.items()

@@ -214,7 +214,8 @@ def main(argv: list[str] | None = None) -> int:
     lat_blocks = {100: 400 if args.quick else 4000, 1000: 60 if args.quick else 600}
     lats = {bs: latency(bs, nb, rng) for bs, nb in lat_blocks.items()}
     print(f'machine: {platform.machine()}, {os.cpu_count()} cores, python '
-          f'{platform.python_version()}, numpy {np.__version__}, {time.strftime("%Y-%m-%d %H:%M")}; '
+          f'{platform.python_version()}, numpy {np.__version__}, '
+          f'{time.strftime("%Y-%m-%d %H:%M")}; '
           f'load average {load0:.2f} -> {os.getloadavg()[0]:.2f}; median of {tp["repeats"]} '
           'interleaved repeats\n')
     n = tp['samples']

@@ -1,1 +1,4 @@
-"""Reducer physics for the simulated bench: kinematics, Wang 2020, Hu 2020, Li 2023, encoders. No ROS imports."""
+"""Reducer physics for the simulated bench: kinematics, Wang 2020, Hu 2020, Li 2023, encoders.
+
+No ROS imports.
+"""

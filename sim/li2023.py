@@ -97,6 +97,7 @@ from __future__ import annotations
 
 import ctypes
 import functools
+import itertools
 import math
 from dataclasses import dataclass, fields
 from typing import TYPE_CHECKING, Any
@@ -815,7 +816,7 @@ class Li2023DteModel:
         ``_error_basis(...) @ _err_map`` fitted from this at construction (exact to
         ~4e-15 of the largest force: they are linear in the basis functions).
         """
-        p, lay = self.params, self._lay
+        p = self.params
         rad = math.radians
         out, crank = ang['out'], ang['crank_rel']
         s = out.size
@@ -1174,7 +1175,7 @@ class Li2023DteModel:
         x = self._state
         mdiag = np.diag(self.mass_matrix)
         c = self.damping_matrix
-        for s0, s1 in zip(cuts[:-1], cuts[1:], strict=True):
+        for s0, s1 in itertools.pairwise(cuts):
             hs = float(h[s0])
             a0, a1, a2 = 4.0 / hs**2, 2.0 / hs, 4.0 / hs
             _, _, pmat, wmat, keff0 = self._ops(hs)

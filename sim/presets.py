@@ -1,4 +1,4 @@
-"""Reducer presets: TOML data files shipped in ``sim/preset_data/``, with a unit and a source per value.
+"""Reducer presets: TOML data files shipped in ``sim/preset_data/``, a unit and a source per value.
 
 File format (one file per preset, ``sim/preset_data/<name>.toml``)::
 

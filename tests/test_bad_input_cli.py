@@ -27,7 +27,8 @@ def digest(folder: Path) -> str:
 @pytest.fixture
 def work(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> Path:
     monkeypatch.chdir(tmp_path)
-    (tmp_path / 'bad_range.yaml').write_text('bench:\n  ros__parameters:\n    sample_rate_hz: -1.0\n')
+    (tmp_path / 'bad_range.yaml').write_text(
+        'bench:\n  ros__parameters:\n    sample_rate_hz: -1.0\n')
     (tmp_path / 'bad_key.yaml').write_text('te_node:\n  ros__parameters:\n    windows: 2\n')
     (tmp_path / 'bad_type.yaml').write_text('bench:\n  ros__parameters:\n    block_size: many\n')
     (tmp_path / 'bad_node.yaml').write_text('viewer:\n  ros__parameters:\n    a: 1\n')

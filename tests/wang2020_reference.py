@@ -32,7 +32,7 @@ R_P_M = 0.065 * math.cos(math.radians(20.0))
 RATIO = 1.0 + (36.0 / 12.0) * 52.0 / (52.0 - 50.0)          # 79
 CRANK_ORDER = 1.0 - 52.0 / (52.0 - 50.0)   # -25: absolute crank turns per output turn (-26 + 1)
 TABLE2_E_M = (1e-5, 2e-5, 1e-5, 1e-5)                          # e_p1, e_p2, e_g, e_ot
-TABLE2_PHASES_DEG = (90.0, 180.0, -135.0, 90.0)               # theta_p1, theta_p2, theta_g, theta_ot
+TABLE2_PHASES_DEG = (90.0, 180.0, -135.0, 90.0)    # theta_p1, theta_p2, theta_g, theta_ot
 ARCSEC_RAD = math.pi / (180.0 * 3600.0)
 
 

@@ -239,7 +239,7 @@ class StepRunner:
         measured: list[Measured] = []
         rows = []
         for seg in self.segments:
-            th_in, th_out, torque = self._cat(seg)
+            th_in, th_out, _torque = self._cat(seg)
             settle = round(seg.label['settle_s'] * self.ctx.sample_rate_hz)
             row: dict[str, Any] = {**seg.label, 'samples': int(th_in.size)}
             try:

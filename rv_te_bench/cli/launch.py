@@ -20,7 +20,8 @@ examples:
   rv-te launch --default                        the packaged session.launch.yaml (wang2020-2kv)
   rv-te launch --write-default session.yaml     write the default parameter file to start from
   rv-te launch session.yaml --namespace bench1  a session under /bench1 (parameter file)
-  rv-te launch session.launch.yaml namespace:=bench1 use_sim_time:=false --param bench.time_mode=realtime
+  rv-te launch session.launch.yaml namespace:=bench1 use_sim_time:=false \\
+      --param bench.time_mode=realtime
   rv-te launch session.yaml --param bench.speed_rpm=600 --param recorder.output_dir=out/b
   rv-te launch session.yaml --nodes bench,te_node --single-process
   rv-te launch --nodes bench,te_node            two nodes of the packaged session

@@ -23,7 +23,8 @@ if TYPE_CHECKING:
 
 # Order of appearance in --help.
 SUBCOMMAND_MODULES = (
-    'demo', 'launch', 'bench', 'record', 'replay', 'import_', 'analyze', 'test', 'unit_report', 'model',
+    'demo', 'launch', 'bench', 'record', 'replay', 'import_', 'analyze', 'test', 'unit_report',
+    'model',
     'optimize_phases', 'compensate', 'identify', 'presets', 'results', 'spc', 'fleet',
 )
 

@@ -106,7 +106,8 @@ def run(args: argparse.Namespace) -> int:
     if args.by_lot:
         missing = sum(1 for lot in series.lots if lot is None)
         if missing:
-            msg = f'{missing} of {len(series.lots)} records have no lot: X-bar/R needs a lot per unit'
+            msg = (f'{missing} of {len(series.lots)} records have no lot: X-bar/R needs a lot '
+                   'per unit')
             raise SpcError(msg)
         n_points = len(dict.fromkeys(series.lots))
     else:

@@ -106,7 +106,7 @@ def direction_te(theta_in_rad: npt.ArrayLike, theta_out_rad: npt.ArrayLike, *,
     travel = direction * (phi - phi[0])
     # a periodic record covers its span plus one sample step
     mean_step = float(travel[-1]) / (travel.size - 1)
-    revs = int(math.floor((float(travel[-1]) + mean_step) / _TWO_PI + 1e-9))
+    revs = math.floor((float(travel[-1]) + mean_step) / _TWO_PI + 1e-9)
     if revs < 1:
         msg = (f'the record covers {float(travel[-1]) / _TWO_PI:.3f} output revolutions; '
                'one whole revolution is needed')

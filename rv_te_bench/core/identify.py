@@ -344,7 +344,8 @@ def _fold_record(phase_out_rad: npt.ArrayLike, te_rad: npt.ArrayLike,
     phi = np.asarray(phase_out_rad, dtype=np.float64)
     te = np.asarray(te_rad, dtype=np.float64)
     if phi.ndim != 1 or phi.shape != te.shape:
-        msg = f'phase_out_rad and te_rad must be 1-D of equal length, got {phi.shape} and {te.shape}'
+        msg = (f'phase_out_rad and te_rad must be 1-D of equal length, got {phi.shape} and '
+               f'{te.shape}')
         raise CompensationError(msg)
     for name, arr in (('phase_out_rad', phi), ('te_rad', te)):
         bad = np.flatnonzero(~np.isfinite(arr))
@@ -489,7 +490,8 @@ def _finish(geom: EccentricGeometry, folded: FoldedTe, x: FloatArray,
         offset_rad=float(x[6]) / geom.r_p_m, contact_fraction=(frac1, 1.0 - frac1),
         output_revolutions=folded.output_revolutions, n_samples=folded.n_samples,
         assumed_e_m=assumed, split_residual_m=split_res, labels_swapped=swapped,
-        label_ratio=ratio, label_misfit_m=other, geometry=geom, fit=fit, sigma_m=sig, sigma_rad=sig_ph,
+        label_ratio=ratio, label_misfit_m=other, geometry=geom, fit=fit, sigma_m=sig,
+        sigma_rad=sig_ph,
         split_deg_per_pct=per_pct, split_deg_per_um=per_um)
 
 

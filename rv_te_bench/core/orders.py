@@ -114,7 +114,8 @@ class OrderSet:
         cand: list[tuple[float, str]] = [(1.0, 'f_out')]
         cand += [(k * c, f'{k} f_w') for k in range(1, self.n_crank_harmonics + 1)]
         cand += [(c - 1.0, 'f_w - f_out'), (c + 1.0, 'f_w + f_out')]
-        labels = self.mesh_labels or tuple(f'mesh {j + 1}' for j in range(len(self.mesh_orders_out)))
+        labels = self.mesh_labels or tuple(f'mesh {j + 1}'
+                                           for j in range(len(self.mesh_orders_out)))
         cand += list(zip(self.mesh_orders_out, labels, strict=True))
         out: list[tuple[float, str]] = []
         for order, label in cand:

@@ -560,7 +560,7 @@ class PhaseOptimisation:
 
 def _grid_axis(step_rad: float) -> FloatArray:
     """The paper's axis [-180:step:180] deg in radians (both ends kept, as in Wang 2020 Eq. 21)."""
-    n = int(math.floor(_TWO_PI / step_rad + 1e-9))
+    n = math.floor(_TWO_PI / step_rad + 1e-9)
     return -math.pi + step_rad * np.arange(n + 1, dtype=np.float64)
 
 

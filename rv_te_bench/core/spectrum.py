@@ -36,6 +36,7 @@ revolutions of a periodic TE needs no window.
 from __future__ import annotations
 
 import functools
+import importlib
 import math
 from dataclasses import dataclass, field, replace
 from typing import TYPE_CHECKING, Any
@@ -219,7 +220,7 @@ class AngleResampled:
 _CHUNK = 16384  # grid points per pass: keeps the temporaries in cache and off mmap
 
 try:   # the compiled resampler (setup.py; optional: without a C compiler numpy does it)
-    from rv_te_bench.core import _lagrange as _KERNEL
+    _KERNEL: Any = importlib.import_module('rv_te_bench.core._lagrange')
 except ImportError:   # pragma: no cover - depends on how the package was installed
     _KERNEL = None
 #: Which resampler :func:`order_spectrum` uses: ``'compiled'`` or ``'numpy'`` (same values).

@@ -666,11 +666,13 @@ class StreamingTeAnalyzer:
     @property
     def counters(self) -> dict[str, int]:
         """Counts: blocks, samples (clean), gaps (events), malformed, non_finite, seq_jumps,
-        time_backwards, leading_loss (1 when the first block's seq is above 0), dropped_blocks (malformed + non_finite), windows, complete_windows,
+        time_backwards, leading_loss (1 when the first block's seq is above 0), dropped_blocks
+        (malformed + non_finite), windows, complete_windows,
         spectrum_failures (complete windows whose angle grid could not be resampled)."""
         return dict(self._counters)
 
-    def reconfigure(self, config: TeAnalysisConfig, *, reset_cumulative: bool | None = None) -> None:
+    def reconfigure(self, config: TeAnalysisConfig, *,
+                    reset_cumulative: bool | None = None) -> None:
         """Switch to a new configuration; the open window is closed (partial).
 
         The closed window is returned by the next :meth:`push` (or :meth:`flush`).

@@ -216,8 +216,7 @@ def run_fleet(bags: Sequence[Path], store: ResultStore, *, options: FleetOptions
         futures = client.map(analyse_one, [str(b) for b in todo], options=options,
                              pure=False)
         path_of = {f.key: b for f, b in zip(futures, todo, strict=True)}
-        done = 0
-        for fut in as_completed(futures):
+        for done, fut in enumerate(as_completed(futures), start=1):
             bag = path_of[fut.key]
             try:
                 rec = fut.result()
@@ -229,7 +228,6 @@ def run_fleet(bags: Sequence[Path], store: ResultStore, *, options: FleetOptions
                 rec = failed_record(bag, f'{type(exc).__name__}: {_one_line(exc)}',
                                     command='fleet', software_version=__version__)
             store.upsert(rec)
-            done += 1
             if rec.status == 'failed':
                 summary.failed += 1
                 summary.failures.append((str(bag), rec.failure or ''))

@@ -473,4 +473,4 @@ def _map_u16_u64(buf: memoryview, pos: int) -> tuple[dict[int, int], int]:
     end = pos + 4 + n
     if end > len(buf) or n % 10:
         raise _CorruptError('chunk index map runs past its record')
-    return {cid: off for cid, off in struct.iter_unpack('<HQ', buf[pos + 4:end])}, end
+    return dict(struct.iter_unpack('<HQ', buf[pos + 4:end])), end

@@ -322,7 +322,8 @@ class CompensationNode(Node):
 
 def main(args: list[str] | None = None) -> int:
     """Run the compensation node in its own process."""
-    return run_node(lambda ctx: CompensationNode(context=ctx), list(sys.argv if args is None else args))
+    return run_node(lambda ctx: CompensationNode(context=ctx),
+                    list(sys.argv if args is None else args))
 
 
 if __name__ == '__main__':

@@ -16,7 +16,7 @@ from __future__ import annotations
 import sys
 import threading
 import time
-from collections.abc import Callable, Sequence
+from collections.abc import Sequence
 from typing import Any
 
 from rcl_interfaces.msg import FloatingPointRange, ParameterDescriptor, ParameterType
@@ -159,12 +159,15 @@ class ReplayNode(Node):
         return out
 
     # ------------------------------------------------------------------ playback
-    def _sleep_until(self, due: float, bag_time_at: Callable[[float], float]) -> bool:
-        """Sleep until monotonic ``due``, publishing /clock; False when stopped."""
+    def _sleep_until(self, due: float, base_ns: int, wall0: float) -> bool:
+        """Sleep until monotonic ``due``, publishing /clock; False when stopped.
+
+        The bag time published at monotonic ``now`` is ``base_ns + (now - wall0) * rate``.
+        """
         while True:
             now = time.monotonic()
             if self._clock_pub is not None:
-                self._publish_clock(bag_time_at(now))
+                self._publish_clock(base_ns + (now - wall0) * self.rate * 1e9)
             remaining = due - now
             if remaining <= 0:
                 return not self._stop.is_set()
@@ -172,7 +175,7 @@ class ReplayNode(Node):
             if self._stop.wait(step):
                 return False
 
-    def _publish_clock(self, stamp_ns: int) -> None:
+    def _publish_clock(self, stamp_ns: float) -> None:
         msg = Clock()
         msg.clock.sec, msg.clock.nanosec = divmod(int(stamp_ns), 1_000_000_000)
         self._clock_pub.publish(msg)  # type: ignore[union-attr]
@@ -232,8 +235,7 @@ class ReplayNode(Node):
                 # already, published at once rather than dropped
                 self.out_of_order += 1
             due = wall0 + (stamp_ns - base_ns) * 1e-9 / self.rate
-            if not self._sleep_until(
-                    due, lambda now: base_ns + (now - wall0) * self.rate * 1e9):
+            if not self._sleep_until(due, base_ns, wall0):
                 return
             self._replay_pubs[topic].publish(bytes(data))
             self.published[topic] += 1

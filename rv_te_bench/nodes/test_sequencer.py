@@ -69,7 +69,7 @@ PARAMS = (
 )
 
 
-class _Cancelled(Exception):
+class _Cancelled(Exception):  # noqa: N818 - a control-flow signal, not an error
     pass
 
 

@@ -449,7 +449,8 @@ def compare_results(results: list[AnalysisResult]) -> list[dict[str, Any]]:
                                   if k.endswith('_arcmin') or k in ('revolutions', 'n_samples')}}
         if res.dominant is not None:
             row['dominant_label'] = res.dominant.line.label
-            row['dominant_amplitude_arcmin'] = json_float(rad_to_arcmin(res.dominant.line.amplitude_rad))
+            row['dominant_amplitude_arcmin'] = json_float(
+                rad_to_arcmin(res.dominant.line.amplitude_rad))
         else:
             row['dominant_label'] = None
             row['dominant_amplitude_arcmin'] = None

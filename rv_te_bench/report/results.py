@@ -264,7 +264,8 @@ class AnalysisResult:
             'cumulative': stats_json(self.cumulative),
             'windows': [{
                 'index': int(w.index), 'complete': bool(w.complete),
-                'start_stamp_s': json_float(w.start_stamp_s), 'end_stamp_s': json_float(w.end_stamp_s),
+                'start_stamp_s': json_float(w.start_stamp_s),
+                'end_stamp_s': json_float(w.end_stamp_s),
                 'first_seq': int(w.first_seq), 'last_seq': int(w.last_seq),
                 **stats_json(w.stats)} for w in self.windows],
             'spectrum': None if self.spectrum is None else self.spectrum.to_json_dict(),

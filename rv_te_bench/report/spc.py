@@ -151,8 +151,12 @@ def _html(doc: dict[str, Any], png_b64: str) -> str:
     e = html.escape
     unit = doc['unit']
     ch = doc['chart']
+
+    def serial(h: dict[str, Any]) -> str:
+        return str(doc['units'][h['index']]['serial']) if ch['kind'] == 'individuals' else ''
+
     rows = ''.join(
-        f'<tr><td>{h["index"]}</td><td class="l">{e(str(doc["units"][h["index"]]["serial"]) if ch["kind"] == "individuals" else "")}'
+        f'<tr><td>{h["index"]}</td><td class="l">{e(serial(h))}'
         f'</td><td class="l">{e(h["rule"])}</td><td class="l">{e(h["description"])}</td></tr>'
         for h in ch['hits'])
     cap = doc['capability']

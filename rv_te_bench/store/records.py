@@ -54,7 +54,8 @@ class MetricValue:
             msg = f'metric name must be 1-64 characters, got {self.name[:80]!r}'
             raise StoreError(msg)
         if self.direction not in DIRECTIONS:
-            msg = f'metric {self.name}: direction must be one of {DIRECTIONS}, got {self.direction!r}'
+            msg = (f'metric {self.name}: direction must be one of {DIRECTIONS}, '
+                   f'got {self.direction!r}')
             raise StoreError(msg)
         if not math.isfinite(self.value):
             msg = f'metric {self.name}: value must be finite, got {self.value!r}'

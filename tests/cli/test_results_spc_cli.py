@@ -25,7 +25,8 @@ def _run(*args: str, ok: int = 0) -> subprocess.CompletedProcess[str]:
     env = dict(os.environ)
     env.pop('_ROS_WHEELS_BOOTSTRAP_COMPLETE', None)
     env.pop('RV_TE_DB', None)
-    p = subprocess.run([*RV_TE, *args], capture_output=True, text=True, timeout=120, env=env)
+    p = subprocess.run([*RV_TE, *args], capture_output=True, text=True, timeout=120, env=env,
+                       check=False)
     assert p.returncode == ok, (p.returncode, p.stdout, p.stderr)
     return p
 

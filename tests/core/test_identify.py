@@ -167,8 +167,8 @@ def test_part_phases_identified_given_magnitudes(random_units) -> None:
 
 def test_reassembly_reduces_amplitude(random_units, base) -> None:
     """Turning each part by (recommended - identified) phase on the *true* unit cuts its
-    max |NLTE| by >= 40 % for each of the first 10 units of this seeded set, and within 3 points of what
-    perfect knowledge of the unit achieves on the same 20 deg grid where the labels are
+    max |NLTE| by >= 40 % for each of the first 10 units of this seeded set, and within 3 points
+    of what perfect knowledge of the unit achieves on the same 20 deg grid where the labels are
     resolved (within 8 points where they are not). (A unit assembled near its optimum by
     chance could not gain 40 %; none of these is.)"""
     for e, ph, idf in random_units[:10]:

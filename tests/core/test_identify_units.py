@@ -73,9 +73,11 @@ def test_split_phases_within_one_degree_where_well_posed(units) -> None:
     posed = [(u, idf) for u, idf, ok in units if ok]
     assert len(posed) >= 18, len(posed)
     for u, idf in posed:
-        assert not ref.vector_error(u, idf.pair_phasors_m)[1], 'labels swapped although the magnitudes differ'
+        assert not ref.vector_error(u, idf.pair_phasors_m)[1], \
+            'labels swapped although the magnitudes differ'
         truth = (u.theta_p1, u.theta_p2, u.theta_g, u.theta_ot)
-        errs = [ref.dphase_deg(idf.phases_rad[n], t) for n, t in zip(PHASE_NAMES, truth, strict=True)]
+        errs = [ref.dphase_deg(idf.phases_rad[n], t)
+                for n, t in zip(PHASE_NAMES, truth, strict=True)]
         assert max(errs) < 1.0, (errs, idf.split_deg_per_pct)
 
 

@@ -135,7 +135,8 @@ def test_stamp_jump_closes_the_block_and_skips_one_seq() -> None:
 
 def test_one_missing_sample_is_a_gap_but_jitter_is_not() -> None:
     stamps, th_in, th_out = ramp(300)
-    jitter = stamps + np.where(np.arange(300) % 2 == 0, 200_000, -200_000)  # +-0.2 period: steps 0.6-1.4
+    # +-0.2 period: steps 0.6-1.4
+    jitter = stamps + np.where(np.arange(300) % 2 == 0, 200_000, -200_000)
     jitter[0] = stamps[0]
     items = feed(JointStateAssembler(cfg()), jitter, th_in, th_out)
     assert not gaps_of(items)
@@ -211,8 +212,8 @@ def test_wrapped_absolute_encoder_is_unwrapped(w: float, centred: bool) -> None:
     shift = math.pi if centred else 0.0
     wrapped_in = np.mod(th_in + shift, 2 * math.pi) - shift
     wrapped_out = np.mod(th_out + shift, 2 * math.pi) - shift
-    items = feed(JointStateAssembler(cfg(wrap_in=True, wrap_out=True)), stamps, wrapped_in, wrapped_out,
-                 skip={777, 1500})
+    items = feed(JointStateAssembler(cfg(wrap_in=True, wrap_out=True)), stamps, wrapped_in,
+                 wrapped_out, skip={777, 1500})
     assert [g.reason for g in gaps_of(items)] == ['stamp_jump', 'stamp_jump']
     kept = np.setdiff1d(np.arange(3000), [777, 1500])
     assert_allclose(cat(blocks_of(items), 'theta_in_rad'), th_in[kept], rtol=0, atol=1e-12)

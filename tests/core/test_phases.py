@@ -7,6 +7,7 @@ code under test.
 
 from __future__ import annotations
 
+import itertools
 import math
 
 import numpy as np
@@ -284,7 +285,7 @@ def test_progress_is_monotone_and_complete() -> None:
     seen: list[float] = []
     optimise_phases(g, step_deg=30.0, refine=True, refine_tol_deg=7.0, progress=seen.append)
     assert seen
-    assert all(b >= a for a, b in zip(seen, seen[1:], strict=False))
+    assert all(b >= a for a, b in itertools.pairwise(seen))
     assert seen[-1] == 1.0
     assert all(0.0 <= f <= 1.0 for f in seen)
 

@@ -137,7 +137,7 @@ def test_parseval_for_peak_amplitude_scaling(te: np.ndarray, revolutions: int,
     spec = order_spectrum(phi, te, OrderSet(RATIO, 25.0), samples_per_rev=spr)
     a = spec.amplitude_rad
     nyquist = a[-1] ** 2 if n % 2 == 0 else a[-1] ** 2 / 2
-    inner = a[1:-1] if n % 2 == 0 else a[1:-1]
+    inner = a[1:-1]   # every bin but the mean and the last (the last is in nyquist above)
     parseval = a[0] ** 2 + np.sum(inner**2) / 2 + nyquist
     assert_allclose(parseval, np.mean(res.te_rad**2), rtol=1e-9, atol=1e-24)
     assert_allclose(abs(spec.mean_rad), a[0], rtol=1e-12)

@@ -134,5 +134,5 @@ def test_kernel_names_bad_arguments(args: tuple, error: type, match: str) -> Non
 def test_kernel_refuses_a_read_only_output() -> None:
     out = np.empty(4)
     out.setflags(write=False)
-    with pytest.raises((BufferError, ValueError), match='(?i)read.only|not writ'):
+    with pytest.raises((BufferError, ValueError), match=r'(?i)read.only|not writ'):
         spectrum._KERNEL.lagrange4_uniform(np.arange(8.0), np.zeros(8), None, 0.5, out)

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import dataclasses
+import itertools
 import math
 from types import SimpleNamespace
 from typing import Any
@@ -59,7 +60,7 @@ def _blocks(s: dict[str, np.ndarray], sizes: list[int] | None = None) -> list[En
         sizes = [BLOCK] * (n // BLOCK)
     edges = np.concatenate([[0], np.cumsum(sizes)])
     out = []
-    for seq, (a, b) in enumerate(zip(edges[:-1], edges[1:], strict=True)):
+    for seq, (a, b) in enumerate(itertools.pairwise(edges)):
         stamp = float(s['t'][a])
         out.append(EncoderBlockData(seq=seq, stamp_s=stamp, sample_rate_hz=FS_HZ,
                                     time_offset_s=s['t'][a:b] - stamp,

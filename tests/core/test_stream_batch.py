@@ -10,6 +10,7 @@ single blocks, and so does this test).
 from __future__ import annotations
 
 import dataclasses
+import itertools
 import math
 
 import numpy as np
@@ -47,7 +48,7 @@ def _stream(sizes: list[int], faults: list[str], direction: float) -> list[Encod
     edges = np.concatenate([[0], np.cumsum(sizes)])
     out: list[EncoderBlockData] = []
     seq_shift = 0
-    for k, (a, b) in enumerate(zip(edges[:-1], edges[1:], strict=True)):
+    for k, (a, b) in enumerate(itertools.pairwise(edges)):
         stamp = float(t[a])
         block = EncoderBlockData(seq=k + seq_shift, stamp_s=stamp, sample_rate_hz=FS_HZ,
                                  time_offset_s=t[a:b] - stamp, theta_in_rad=theta_in[a:b],

@@ -68,7 +68,8 @@ def test_eq27_closed_form(params: HuRvParams) -> None:
     assert [got['pin_radius'], got['shifting_mod_error'], got['cumulative_pitch']] == (
         pytest.approx(expected, rel=1e-9))
     # the pin-radius change for the paper's TE is 0.0081 mm (Eq. 27) vs 0.0279 mm (Table 6)
-    assert adv.details['table6_over_eq27'] == pytest.approx(0.0279 * MM / abs(expected[0]), rel=1e-9)
+    assert adv.details['table6_over_eq27'] == pytest.approx(0.0279 * MM / abs(expected[0]),
+                                                            rel=1e-9)
     # linear model (Eq. 23) with Eqs 8, 6, 12: the Eq. 27 errors produce exactly the TE
     az = 1.5 * MM * 39
     produced = (-2 / az * got['pin_radius'] - 2 * S / az * got['shifting_mod_error']

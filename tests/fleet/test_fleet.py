@@ -71,7 +71,8 @@ def test_fleet_command_records_every_bag_like_analyze(fleet_dir: Path, tmp_path:
     db = tmp_path / 'r.sqlite'
     cmd = [*RV_TE, 'fleet', 'analyze', str(fleet_dir), '--workers', '2', '--db', str(db),
            '--json', '--quiet']
-    p = subprocess.run(cmd, capture_output=True, text=True, timeout=300, env=_env())
+    p = subprocess.run(cmd, capture_output=True, text=True, timeout=300, env=_env(),
+                       check=False)
     assert p.returncode == 1, p.stderr
     assert p.stderr.count('\n') == 1 and p.stderr.startswith('ERROR: 2 of 8 bag(s) failed')
     summary = json.loads(p.stdout)
@@ -89,7 +90,8 @@ def test_fleet_command_records_every_bag_like_analyze(fleet_dir: Path, tmp_path:
     assert len(good) == N_GOOD
     for r in good:
         alone = subprocess.run([*RV_TE, 'analyze', r.bag_path, '--json', '--no-db'],
-                               capture_output=True, text=True, timeout=120, env=_env())
+                               capture_output=True, text=True, timeout=120, env=_env(),
+                               check=False)
         assert alone.returncode == 0, alone.stderr
         (rec,) = records_from_analysis_json(json.loads(alone.stdout),
                                             bag_paths=[Path(r.bag_path)], command='analyze',
@@ -98,7 +100,8 @@ def test_fleet_command_records_every_bag_like_analyze(fleet_dir: Path, tmp_path:
         assert r.metrics == {(m.name, m.direction): m.value for m in rec.metrics}
         assert r.lines == {ln.label: (ln.amplitude_rad, ln.phase_rad) for ln in rec.lines}
         assert r.advice == rec.advice
-    p2 = subprocess.run(cmd, capture_output=True, text=True, timeout=300, env=_env())
+    p2 = subprocess.run(cmd, capture_output=True, text=True, timeout=300, env=_env(),
+                        check=False)
     again = json.loads(p2.stdout)
     assert (again['skipped'], again['failed'], again['ok']) == (N_GOOD, 2, 0)
     with open_store(db) as st:
@@ -196,7 +199,7 @@ def test_a_bag_at_two_paths_is_one_record_and_reruns_skip_both(fleet_dir: Path,
         if touch:
             os.utime(root / 'b' / 'unit0-copy' / 'metadata.yaml', (1e9, 1e9))
         p = subprocess.run([*cmd, '--json'], capture_output=True, text=True, timeout=300,
-                           env=_env())
+                           env=_env(), check=False)
         assert p.returncode == 0, p.stderr
         s = json.loads(p.stdout)
         runs.append((s['ok'], s['skipped'], s.get('duplicate_paths'), s.get('duplicates')))
@@ -205,7 +208,8 @@ def test_a_bag_at_two_paths_is_one_record_and_reruns_skip_both(fleet_dir: Path,
         assert len(rows) == 2
         assert sorted(r.bag_path for r in rows) == [first_path, str(root / 'a' / 'unit1')]
     assert runs == [(2, 0, 1, [pair]), (0, 2, 1, [pair]), (0, 2, 1, [pair])]
-    text = subprocess.run(cmd, capture_output=True, text=True, timeout=300, env=_env())
+    text = subprocess.run(cmd, capture_output=True, text=True, timeout=300, env=_env(),
+                          check=False)
     assert text.returncode == 0, text.stderr
     assert '0 analysed' in text.stdout and '2 skipped' in text.stdout
     assert f'2 paths hold the same bag (one record, {first_path}): {", ".join(pair)}' \

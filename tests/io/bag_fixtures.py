@@ -1,4 +1,6 @@
-"""Bag fixtures for the io tests (and benchmarks): build bags from independently serialised messages (no rclpy).
+"""Bag fixtures for the io tests (and benchmarks): bags of independently serialised messages.
+
+No rclpy.
 
 Messages are serialised with the rosbags typestore (an implementation independent of both
 our writer and our numpy decoder), so a round trip compares what rosbags put in with what

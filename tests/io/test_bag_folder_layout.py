@@ -89,7 +89,7 @@ def _replace_listed_file(bag: Path, kind: str) -> Path:
 def test_listed_entry_that_is_not_a_regular_file(
         bag: Path, kind: str, what: str, capsys: pytest.CaptureFixture[str]) -> None:
     _replace_listed_file(bag, kind)
-    with pytest.raises(BagError, match='bag_0.mcap') as info:
+    with pytest.raises(BagError, match=r'bag_0\.mcap') as info:
         open_bag(bag)
     assert what in str(info.value)
     if kind != 'missing':

@@ -80,7 +80,7 @@ def test_damaged_bag_raises_only_bag_error(templates: dict, scratch: Path, compr
 
 @given(data=st.binary(max_size=300), flips=st.lists(st.integers(0, 10_000), max_size=6))
 def test_decode_of_damaged_cdr_raises_only_bag_error(data: bytes, flips: list[int]) -> None:
-    raw = bytearray(encoder_cdr(1, 5) if not data else data)
+    raw = bytearray(data or encoder_cdr(1, 5))
     for f in flips:
         raw[f % len(raw)] ^= 1 << (f % 8)
     try:

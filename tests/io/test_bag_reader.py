@@ -141,7 +141,7 @@ def test_missing_and_not_a_bag(tmp_path: Path) -> None:
     with pytest.raises(BagError, match='does not exist'):
         open_bag(tmp_path / 'nope')
     (tmp_path / 'dir').mkdir()
-    with pytest.raises(BagError, match='no metadata.yaml'):
+    with pytest.raises(BagError, match=r'no metadata\.yaml'):
         open_bag(tmp_path / 'dir')
     (tmp_path / 'x.mcap').write_bytes(b'')
     with pytest.raises(BagError, match=r'x\.mcap is empty'):
@@ -208,7 +208,7 @@ def test_malformed_message_is_skipped_and_reported(tmp_path: Path) -> None:
     assert [b.seq for b in stream] == [0, 2]
     assert stream.partial
     assert 'message 1' in stream.problems[0]
-    with pytest.raises(BagError, match='bag: /bench/encoders message 1 .*partial'):
+    with pytest.raises(BagError, match=r'bag: /bench/encoders message 1 .*partial'):
         list(read_encoder_blocks(bag))
 
 

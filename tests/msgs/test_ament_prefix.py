@@ -69,7 +69,8 @@ def venv_prefix() -> Path:
     """Where this test's interpreter has the ros-jazzy wheels (independent of the cmake code)."""
     import sysconfig
 
-    purelib = Path(sysconfig.get_paths()['purelib']).resolve()   # <prefix>/lib/python3.X/site-packages
+    # <prefix>/lib/python3.X/site-packages
+    purelib = Path(sysconfig.get_paths()['purelib']).resolve()
     assert (purelib / 'rosidl_adapter').is_dir(), 'the venv has no ros-jazzy wheels'
     return purelib.parents[2]
 

@@ -1,4 +1,4 @@
-"""Foundation acceptance: the generated rv_te_msgs types cross processes over the real middleware."""
+"""Foundation acceptance: the generated rv_te_msgs types cross processes over the middleware."""
 
 from __future__ import annotations
 
@@ -97,7 +97,7 @@ def test_blocks_cross_processes_without_loss(ros_context, ros_domain_id: int) ->
         node.destroy_node()
     assert len(received) == N_MSGS, f'lost {N_MSGS - len(received)} of {N_MSGS} blocks'
     assert [m.seq for m in received] == list(range(N_MSGS))
-    for m in received[:: max(1, N_MSGS // 50)] + [received[-1]]:
+    for m in [*received[:: max(1, N_MSGS // 50)], received[-1]]:
         t, th_in, th_out = block_arrays(m.seq, BLOCK)
         np.testing.assert_array_equal(m.time_offset_s, t)
         np.testing.assert_array_equal(m.theta_in_rad, th_in)

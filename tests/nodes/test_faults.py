@@ -89,7 +89,7 @@ def test_relay_dropping_one_percent_every_gap_reported(ros_context) -> None:
     ref = analyze_blocks([by_seq[s] for s in range(w.first_seq, w.last_seq + 1)],
                          TeAnalysisConfig(orders=cfg.orders,
                                           window_revolutions=cfg.window_revolutions))
-    ref_w = [x for x in ref.windows if x.complete][0]
+    ref_w = next(x for x in ref.windows if x.complete)
     assert w.stats.pp_rad == pytest.approx(ref_w.stats.pp_rad, rel=1e-9)
     assert w.stats.mean_rad == pytest.approx(ref_w.stats.mean_rad, rel=1e-9)
 

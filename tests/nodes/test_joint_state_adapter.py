@@ -15,6 +15,7 @@ the unwrap's float error, ~1e-13 rad over the session's turns.
 
 from __future__ import annotations
 
+import itertools
 import math
 
 import numpy as np
@@ -226,7 +227,7 @@ def test_injected_faults_are_reported_gaps_and_nothing_crashes(graph) -> None:
     assert got == expected
     seqs = [b.seq for b in blocks]
     assert seqs[0] == 0
-    assert sum(b - a - 1 for a, b in zip(seqs, seqs[1:])) == len(expected)  # one skip per gap
+    assert sum(b - a - 1 for a, b in itertools.pairwise(seqs)) == len(expected)  # one skip per gap
     # the TE node saw every one of them as a seq jump (the stepped-back clock also as time
     # going backwards), and dropped nothing as malformed
     counters = te.analyzer.counters

@@ -188,7 +188,7 @@ def test_te_node_survives_malformed_blocks(graph) -> None:
         msg.sample_rate_hz = rate
         s = int(t0)
         msg.header.stamp.sec = s
-        msg.header.stamp.nanosec = int(round((t0 - s) * 1e9))
+        msg.header.stamp.nanosec = round((t0 - s) * 1e9)
         off = np.arange(n) / rate
         th_in = omega_in * (t0 + off)
         msg.time_offset_s = off

@@ -301,6 +301,7 @@ def test_cli_record_for_a_duration(ros_context: Any, ros_domain_id: int,
     rb, mc, counts = read_back(bag, topic)
     assert rb == mc == list(range(len(rb)))
     assert 0 < len(rb) <= sent
+    assert counts[topic] == len(rb)   # a clean stop: metadata.yaml counts every message
     assert f'bag: {bag}' in out
     assert f'{topic}: {len(rb)} messages' in out
     summary = bag_summary(bag)

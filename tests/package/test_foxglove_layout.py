@@ -111,7 +111,8 @@ def test_panel_configs_follow_their_types() -> None:
             assert set(cfg) <= PLOT_KEYS and set(cfg) >= PLOT_REQUIRED, panel_id
             assert cfg['xAxisVal'] in {'timestamp', 'index', 'custom', 'currentCustom'}
             for p in cfg['paths']:
-                assert set(p) <= PLOT_PATH_KEYS and {'value', 'enabled', 'timestampMethod'} <= set(p)
+                assert set(p) <= PLOT_PATH_KEYS
+                assert {'value', 'enabled', 'timestampMethod'} <= set(p)
                 assert p['timestampMethod'] in {'receiveTime', 'headerStamp'}
             if cfg['xAxisVal'] in {'custom', 'currentCustom'}:
                 assert set(cfg['xAxisPath']) == {'value', 'enabled'}

@@ -75,7 +75,7 @@ def write_bag(
     *,
     harmonics: Iterable[Harmonic],
     mean_rad: float = 0.0,
-    theta_in_fn: Callable[[np.ndarray], np.ndarray] = constant_speed(0.5),
+    theta_in_fn: Callable[[np.ndarray], np.ndarray] | None = None,
     duration_s: float = 6.0,
     sample_rate_hz: float = 1000.0,
     block_size: int = 100,
@@ -93,7 +93,8 @@ def write_bag(
         path: Bag folder to create.
         harmonics: TE components (orders of the output angle phi = theta_in / i).
         mean_rad: Constant TE offset [rad].
-        theta_in_fn: Input angle as a function of time [rad].
+        theta_in_fn: Input angle as a function of time [rad] (default: a constant speed of
+            0.5 output revolutions per second).
         duration_s: Length of the recording [s].
         sample_rate_hz: DAQ rate [Hz].
         block_size: Samples per EncoderBlock.
@@ -113,7 +114,7 @@ def write_bag(
     types = store.types
     n = round(duration_s * sample_rate_hz)
     t = np.arange(n, dtype=np.float64) / sample_rate_hz
-    theta_in = theta_in_fn(t)
+    theta_in = (theta_in_fn or constant_speed(0.5))(t)
     te = te_of(theta_in / RATIO, mean_rad, harmonics)
     theta_out = theta_in / RATIO + te
     drop = set(drop_seqs)

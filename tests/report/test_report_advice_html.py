@@ -42,7 +42,8 @@ def test_assembly_phase_advice_has_no_nan_column(tmp_path: Path,
 def test_tooth_profile_advice_shows_the_sensitivity(tmp_path: Path,
                                                     capsys: pytest.CaptureFixture[str]) -> None:
     path = tmp_path / 'rv'
-    write_bag(path, harmonics=[Harmonic(25.0, float(arcmin_to_rad(0.6)), 0.3)], duration_s=2.5, preset='hu2020-rv', reducer_type='rv')
+    write_bag(path, harmonics=[Harmonic(25.0, float(arcmin_to_rad(0.6)), 0.3)], duration_s=2.5,
+              preset='hu2020-rv', reducer_type='rv')
     doc, page = _report(path, tmp_path / 'rep', capsys)
     mods = doc['recommendation']['advice']['modifications']
     table = page[page.index('<h3>Recommendation</h3>'):]

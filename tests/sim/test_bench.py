@@ -21,7 +21,7 @@ from sim.errors import ModelInputError, PresetError
 from sim.kinematics import ReducerKinematics, kinematics_from_preset
 from sim.presets import Preset, preset_from_text
 
-I = 79.0  # 1 + (36/12) * 52/(52-50), DESIGN.md s.4
+GEAR_RATIO = 79.0  # 1 + (36/12) * 52/(52-50), DESIGN.md s.4
 ARCMIN = math.pi / 10800.0
 
 FAKE_TOML = """
@@ -107,12 +107,14 @@ def test_ideal_encoders_give_the_model_te(start_time_s: float, drive) -> None:
     np.testing.assert_allclose(d['torque_out_nm'], load, rtol=0, atol=1e-12)
     te_expected = model.expected(theta_in_true, load)
     np.testing.assert_allclose(d['te_true_rad'], te_expected, rtol=0, atol=1e-12)
-    te_measured = d['theta_out_rad'] - d['theta_in_rad'] / I
+    te_measured = d['theta_out_rad'] - d['theta_in_rad'] / GEAR_RATIO
     np.testing.assert_allclose(te_measured, te_expected, rtol=0, atol=1e-9)
     np.testing.assert_array_equal(d['theta_in_rad'], d['theta_in_true_rad'])
     # the model saw the drive's speed and the load on the same clock
     t_last, omega_last, load_last = model.calls[-1]
     np.testing.assert_allclose(omega_last, drive.omega_in_rad_s(t_last), rtol=1e-15)
+    np.testing.assert_allclose(load_last, 30.0 + 10.0 * np.sin(2 * math.pi * 1.5 * t_last),
+                               rtol=0, atol=1e-12)
     np.testing.assert_allclose(t_last, d['t_s'][-1000:], rtol=0, atol=0)
 
 
@@ -126,9 +128,10 @@ def test_quantisation_only_te_error_statistics() -> None:
     sim, _ = make_sim(drive=ConstantSpeed(2371.3), encoder_in=spec, encoder_out=spec)
     d = run(sim, 20)
     q = 2 * math.pi / 36e6
-    diff = (d['theta_out_rad'] - d['theta_in_rad'] / I) - d['te_true_rad']
-    assert diff.std() == pytest.approx(math.sqrt(q * q / 12 + q * q / (12 * I * I)), rel=0.03)
-    assert diff.mean() == pytest.approx(-q / 2 + q / (2 * I), abs=0.02 * q)
+    diff = (d['theta_out_rad'] - d['theta_in_rad'] / GEAR_RATIO) - d['te_true_rad']
+    assert diff.std() == pytest.approx(math.sqrt(q * q / 12 + q * q / (12 * GEAR_RATIO**2)),
+                                       rel=0.03)
+    assert diff.mean() == pytest.approx(-q / 2 + q / (2 * GEAR_RATIO), abs=0.02 * q)
 
 
 def test_ron886_te_error_rms() -> None:
@@ -144,8 +147,8 @@ def test_ron886_te_error_rms() -> None:
     q = 2 * math.pi / 36e6
     per_shaft = (q * q / 12 + sum(a * a for a in spec.graduation_amplitudes_rad) / 2
                  + spec.eccentricity_amplitude_rad ** 2 / 2 + spec.noise_sigma_rad ** 2)
-    expected_std = math.sqrt(per_shaft * (1 + 1 / I ** 2))
-    diff = (d['theta_out_rad'] - d['theta_in_rad'] / I) - d['te_true_rad']
+    expected_std = math.sqrt(per_shaft * (1 + 1 / GEAR_RATIO ** 2))
+    diff = (d['theta_out_rad'] - d['theta_in_rad'] / GEAR_RATIO) - d['te_true_rad']
     assert diff.std() == pytest.approx(expected_std, rel=0.03)
     # ~0.36 arcsec: an arcsecond-class encoder against an arcminute-class TE
     assert 0.3 * math.pi / 648000 < diff.std() < 0.4 * math.pi / 648000
@@ -285,7 +288,7 @@ def test_nonsense_drive_and_unknown_preset() -> None:
     with pytest.raises(PresetError, match="unknown model 'fake'"):
         BenchSimulator(BenchConfig(preset='fake-2kv', drive=ConstantSpeed(300.0)),
                        preset=fake_preset())
-    with pytest.raises(PresetError, match="has no key 'te.amplitude'"):
+    with pytest.raises(PresetError, match=r"has no key 'te\.amplitude'"):
         make_sim(overrides=('te.amplitude=1',))
 
 

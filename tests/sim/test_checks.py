@@ -42,7 +42,7 @@ def test_coerce_takes_text_and_raises_the_callers_error() -> None:
     assert real_number('step_deg', '10', '>0', coerce=True) == 10.0
     with pytest.raises(KeyError, match="step_deg must be a real number, got 'ten'"):
         real_number('step_deg', 'ten', '>0', error=KeyError, coerce=True)
-    with pytest.raises(ValueError, match="^must be finite and > 0, got '-1'$"):
+    with pytest.raises(ValueError, match=r"^must be finite and > 0, got '-1'$"):
         real_number('', '-1', '>0', error=ValueError, coerce=True)
 
 

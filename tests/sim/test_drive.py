@@ -44,7 +44,7 @@ def _integral(profile, t1: float, t2: float) -> float:
     return val
 
 
-@pytest.mark.parametrize('profile', PROFILES, ids=lambda p: repr(p))
+@pytest.mark.parametrize('profile', PROFILES, ids=repr)
 def test_theta_is_the_integral_of_omega(profile) -> None:
     """theta(t2) - theta(t1) = int omega dt (quad to 1e-12), over the interesting range and
     late in a session (t ~ 1e4 s); tolerance 1e-9 rad absolute + 1e-12 relative."""
@@ -55,7 +55,7 @@ def test_theta_is_the_integral_of_omega(profile) -> None:
     assert profile.theta_in_rad(np.array([0.0]))[0] == 0.0
 
 
-@pytest.mark.parametrize('profile', PROFILES, ids=lambda p: repr(p))
+@pytest.mark.parametrize('profile', PROFILES, ids=repr)
 def test_omega_is_the_derivative_of_theta(profile) -> None:
     """Central difference with h = 1e-5 s: error O(h^2 omega'') + rounding ~1e-9 rad/s."""
     t = np.array([0.05, 0.41, 1.2, 1.77, 2.9, 123.4])
@@ -164,7 +164,8 @@ def test_factories_build_the_profiles() -> None:
     ('constant', {'speed_rpm': '300'}, 'speed_rpm must be a real number'),
     ('constant', {'speed': 300}, r"unknown parameter\(s\) \['speed'\]"),
     ('ramp', {'start_rpm': 0, 'end_rpm': 300}, r"missing parameter\(s\) \['duration_s'\]"),
-    ('ramp', {'start_rpm': 0, 'end_rpm': 300, 'duration_s': -1}, 'duration_s must be finite and > 0'),
+    ('ramp', {'start_rpm': 0, 'end_rpm': 300, 'duration_s': -1},
+     'duration_s must be finite and > 0'),
     ('ramp', {'start_rpm': 0, 'end_rpm': 0, 'duration_s': 1}, 'zero speed everywhere'),
     ('ramp', {'start_rpm': 10, 'end_rpm': -10, 'duration_s': 1}, 'allow_reversal=True'),
     ('sinusoidal', {'amplitude_rpm': 400, 'angular_freq_rad_s': 3, 'mean_rpm': 300},
@@ -177,7 +178,8 @@ def test_factories_build_the_profiles() -> None:
      'amplitude_rpm must be finite and >= 0'),
     ('forward_reverse', {'speed_rpm': 30, 'reverse_at_s': -1, 'ramp_s': 1},
      'reverse_at_s must be finite and >= 0'),
-    ('forward_reverse', {'speed_rpm': 30, 'reverse_at_s': 1, 'ramp_s': 0}, 'ramp_s must be finite and > 0'),
+    ('forward_reverse', {'speed_rpm': 30, 'reverse_at_s': 1, 'ramp_s': 0},
+     'ramp_s must be finite and > 0'),
 ])
 def test_nonsense_drives_raise_naming_the_parameter(kind: str, params: dict,
                                                     pattern: str) -> None:

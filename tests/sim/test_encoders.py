@@ -151,7 +151,8 @@ def test_unknown_encoder_lists_the_known_ones() -> None:
     ({'eccentricity_amplitude_rad': float('inf')}, 'eccentricity_amplitude_rad must be finite'),
     ({'graduation_orders': (2, 3)}, 'must have the same length'),
     ({'graduation_orders': (0, 3, 4, 5)}, 'graduation_orders must be integers >= 1'),
-    ({'graduation_amplitudes_rad': (-1.0, 0.0, 0.0, 0.0)}, 'graduation_amplitudes_rad must be finite and >= 0'),
+    ({'graduation_amplitudes_rad': (-1.0, 0.0, 0.0, 0.0)},
+     'graduation_amplitudes_rad must be finite and >= 0'),
     ({'name': ''}, 'name must be a non-empty string'),
     ({'wobble_rad': 1.0}, r"no field\(s\) \['wobble_rad'\]"),
 ])
@@ -174,5 +175,5 @@ def test_measure_rejects_bad_input() -> None:
         enc.measure(np.zeros((2, 3)))
     with pytest.raises(ModelInputError, match='finite'):
         enc.measure(np.array([0.0, np.nan]))
-    with pytest.raises(ModelInputError, match='numpy.random.Generator'):
+    with pytest.raises(ModelInputError, match=r'numpy\.random\.Generator'):
         SimulatedEncoder(encoder_preset('ideal'), 42)  # type: ignore[arg-type]

@@ -233,7 +233,7 @@ def test_registry_blocks_and_default_errors() -> None:
 
 
 def test_k1_prime_not_below_one_raises() -> None:
-    with pytest.raises(PresetError, match="K1'.*must be < 1"):
+    with pytest.raises(PresetError, match=r"K1'.*must be < 1"):
         HuRvParams.from_preset(load_preset('hu2020-rv', ['geometry.a_m=0.002']))
 
 

@@ -8,6 +8,7 @@ exact properties (kinematic motion is deflection-free, block-by-block = one-shot
 
 from __future__ import annotations
 
+import itertools
 import math
 
 import numpy as np
@@ -319,7 +320,8 @@ def test_te_rad_input_checks(preset) -> None:
 def test_sun_eccentricity_excites_no_torsion(preset) -> None:
     # Three equally spaced planets meshing in phase (z_s psi_i = 0 mod 2 pi): a sun
     # eccentricity is a pure translational excitation, decoupled from the TE.
-    off = {k: '0.0' for k in preset.keys() if k.startswith('errors.') and k.endswith('_m')}
+    off = {k: '0.0' for k in preset.keys()  # noqa: SIM118 - a Preset is no dict: no __iter__
+           if k.startswith('errors.') and k.endswith('_m')}
     t, th, om, ld = _drive(150)
     ideal = _model(preset, **{'errors.enabled': 'false'}).te_rad(t, th, om, ld)
     ecc = _model(preset, **{**off, 'errors.sun_ecc_m': '5e-6'}).te_rad(t, th, om, ld)
@@ -423,7 +425,7 @@ def test_any_block_split_equals_one_shot(cuts: list[int]) -> None:
     model = _model(preset)
     edges = [0, *sorted(cuts), 240]
     parts = [model.te_rad(t[a:b], th[a:b], om[a:b], ld[a:b])
-             for a, b in zip(edges[:-1], edges[1:], strict=True)]
+             for a, b in itertools.pairwise(edges)]
     np.testing.assert_allclose(np.concatenate(parts), one, rtol=0, atol=1e-15)
 
 
@@ -431,7 +433,7 @@ def test_any_block_split_equals_one_shot(cuts: list[int]) -> None:
 def test_li2023_rejects_impossible_poisson_ratio(nu: str) -> None:
     from sim.li2023 import build_te_model
 
-    with pytest.raises(PresetError, match='material.poisson'):
+    with pytest.raises(PresetError, match=r'material\.poisson'):
         build_te_model(load_preset('li2023-rv', [f'material.poisson={nu}']), 'dte')
 
 

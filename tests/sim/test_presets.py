@@ -138,7 +138,7 @@ def test_load_by_path_and_unknown_name(tmp_path: Path) -> None:
     path.write_text(TEXT, encoding='utf-8')
     p = load_preset(path, ['gear.z_sun=11'])
     assert p.name == 'demo' and p['gear.z_sun'] == 11
-    with pytest.raises(PresetError, match="unknown preset 'nope'.*wang2020-2kv"):
+    with pytest.raises(PresetError, match=r"unknown preset 'nope'.*wang2020-2kv"):
         load_preset('nope')
 
 

@@ -227,7 +227,7 @@ def test_export_csv_and_parquet(tmp_path: Path) -> None:
     pt = pq.read_table(tmp_path / 'r.parquet').to_pydict()
     assert pt['serial'] == [t['serial'] for t in table]
     assert pt['te_pp_rad_ccw'] == pytest.approx([float(t['te_pp_rad_ccw']) for t in table])
-    with pytest.raises(StoreError, match='use a .csv or .parquet'):
+    with pytest.raises(StoreError, match=r'use a \.csv or \.parquet'):
         export_records(rows, tmp_path / 'r.xlsx')
 
 

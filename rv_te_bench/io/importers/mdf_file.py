@@ -1,9 +1,10 @@
 """ASAM MDF (MDF4, also MDF3) measurement files through ``asammdf`` (optional extra ``daq``).
 
 Channels are read a data fragment of about ``chunk_samples`` records at a time
-(``MDF.iter_get`` with ``read_fragment_size``), so memory stays flat. The angle (and torque) channels must be in one
-channel group (one DAQ clock); time is that group's master channel [s] unless ``--time``
-names another channel of the group; the absolute start is the file header's start time.
+(``MDF.iter_get`` with ``read_fragment_size``), so memory stays flat. The angle (and torque)
+channels must be in one channel group (one DAQ clock); time is that group's master channel [s]
+unless ``--time`` names another channel of the group; the absolute start is the file header's
+start time.
 Units: each channel's unit unless an option gives one.
 """
 
@@ -46,7 +47,7 @@ class MdfReader:
     """
 
     def __init__(self, path: Path, options: ImportOptions) -> None:
-        MDF = require_reader('asammdf', 'MDF').MDF  # type: ignore[attr-defined]
+        asammdf = require_reader('asammdf', 'MDF')
         self.path = Path(path)
         self.origin = str(path)
         self.options = options
@@ -57,7 +58,7 @@ class MdfReader:
         try:
             with warnings.catch_warnings():
                 warnings.simplefilter('ignore')
-                self._mdf = MDF(self.path)
+                self._mdf = asammdf.MDF(self.path)  # type: ignore[attr-defined]
         except Exception as exc:  # noqa: BLE001 - asammdf raises many types on bad files
             problem = _short(exc)
         finally:

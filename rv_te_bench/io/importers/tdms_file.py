@@ -74,14 +74,14 @@ class TdmsReader:
     """
 
     def __init__(self, path: Path, options: ImportOptions) -> None:
-        TdmsFile = require_reader('nptdms', 'TDMS').TdmsFile  # type: ignore[attr-defined]
+        nptdms = require_reader('nptdms', 'TDMS')
         self.path = Path(path)
         self.origin = str(path)
         self.options = options
         refuse_empty(self.path)
         with _nptdms_warnings() as warned:
             try:
-                self._file = TdmsFile.open(self.path)
+                self._file = nptdms.TdmsFile.open(self.path)  # type: ignore[attr-defined]
             except Exception as exc:  # noqa: BLE001 - nptdms raises many types on bad files
                 msg = f'{path}: not a readable TDMS file, truncated or damaged ({_short(exc)})'
                 raise DataImportError(msg) from None
