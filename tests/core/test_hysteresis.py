@@ -62,6 +62,46 @@ def test_linear_unit_with_friction(k: float, b: float, tf: float) -> None:
     assert m.max_torque_nm == TR and m.min_torque_nm == -TR
 
 
+def asymmetric_loop(kp: float, kn: float, b: float, tf: float,
+                    fractions: list[float]) -> tuple[np.ndarray, np.ndarray]:
+    """A unit whose positive flank has stiffness kp and negative flank kn (free play b,
+    Coulomb friction tf), under the torque steps of :func:`step_loop`.
+
+    Closed form: on the positive flank phi = b/2 + (T -+ tf)/kp (loading / unloading), on the
+    negative one phi = -b/2 + (T +- tf)/kn; inside |T| <= tf the output sticks.
+    """
+    up = fractions
+    t = np.array([f * TR for f in up] + [f * TR for f in up[-2::-1]]
+                 + [-f * TR for f in up[1:]] + [-f * TR for f in up[-2::-1]])
+    i_max, i_min = int(np.argmax(t)), int(np.argmin(t))
+    phi = np.empty_like(t)
+    for i, x in enumerate(t):
+        if i <= i_max:                      # first loading, from the middle of the play
+            phi[i] = b / 2 + (x - tf) / kp if x > tf else 0.0
+        elif i <= i_min:                    # +T_R -> -T_R
+            phi[i] = (b / 2 + (x + tf) / kp if x + tf > 0 else
+                      -b / 2 + (x + tf) / kn if x < -tf else b / 2)
+        else:                               # -T_R -> 0
+            phi[i] = -b / 2 + (x - tf) / kn if x - tf < 0 else -b / 2
+    return t, phi
+
+
+@pytest.mark.parametrize(('kp', 'kn'), [(1e5, 4e4), (4e4, 1e5)])
+@pytest.mark.parametrize('tf', [0.0, 1.5])
+def test_asymmetric_unit_minimum_rigidity_is_the_softer_side(kp: float, kn: float,
+                                                             tf: float) -> None:
+    """A unit soft on one side (either one) has that side's rigidity as its minimum: the
+    catalogue limit is a minimum, and the softer side is what a user's axis feels."""
+    b = 2.9e-4
+    t, phi = asymmetric_loop(kp, kn, b, tf, FRACTIONS)
+    m = hysteresis_metrics(t, phi, HysteresisConfig(rated_torque_nm=TR))
+    assert_allclose(m.rigidity_nm_per_rad['K'], (kp, kn), rtol=1e-9)
+    assert m.rigidity_min_nm_per_rad('K') == pytest.approx(min(kp, kn), rel=1e-9)
+    assert_allclose(m.backlash_rad, b + tf / kp + tf / kn, rtol=1e-12)
+    assert_allclose(m.lost_motion_rad, b + 3.0 / kp + 3.0 / kn, rtol=1e-12)
+    assert_allclose(m.lost_motion_mid_rad, (-b / 2 - 3.0 / kn, b / 2 + 3.0 / kp), rtol=1e-12)
+
+
 def test_continuous_loop_area_and_nonlinear_secant() -> None:
     """Constant-speed loading of a hardening unit g(d) = c d^2 (d past the flank).
 
@@ -150,6 +190,7 @@ def test_unreached_points_are_nan() -> None:
     t, phi = step_loop(1e5, 0.0, 0.0, [0.0, 0.03, 0.1, 0.3])   # stops at 30 % of T_R
     m = hysteresis_metrics(t, phi, HysteresisConfig(rated_torque_nm=TR))
     assert math.isnan(m.rigidity_nm_per_rad['K'][0])
+    assert math.isnan(m.rigidity_min_nm_per_rad('K'))   # one side missing: no minimum
     assert math.isfinite(m.lost_motion_rad)
 
 
