@@ -11,7 +11,8 @@ EncoderBlock and 0 gaps), the receiver's CPU per message [us] and its CPU share.
 
     .venv/bin/python benchmarks/bench_joint_state.py --rates 1000 2000 5000 10000 --duration-s 5
 
-Prints a markdown table (append it to benchmarks/README.md with the machine and date).
+Prints a markdown table (it replaces the script's table in benchmarks/README.md, with the
+machine and date; the old one moves to benchmarks/HISTORY.md).
 """
 
 from __future__ import annotations

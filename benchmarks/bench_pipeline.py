@@ -7,7 +7,8 @@ from a block's arrival to the TE samples computed from it (both measured at one 
 
     .venv/bin/python benchmarks/bench_pipeline.py --rates 1000 10000 --duration-s 600
 
-Prints a markdown table (append it to benchmarks/README.md with the machine and date).
+Prints a markdown table (it replaces the script's table in benchmarks/README.md, with the
+machine and date; the old one moves to benchmarks/HISTORY.md).
 """
 
 from __future__ import annotations
