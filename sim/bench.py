@@ -35,7 +35,16 @@ if TYPE_CHECKING:
     from sim.drive import DriveProfile, LoadProfile
     from sim.models import TeModel
 
-__all__ = ['BenchBlock', 'BenchConfig', 'BenchInfoData', 'BenchSimulator']
+__all__ = ['BenchBlock', 'BenchConfig', 'BenchInfoData', 'BenchSimulator', 'skewed_reading']
+
+
+def skewed_reading(theta_out_rad: np.ndarray, omega_ref_rad_s: np.ndarray | float,
+                   te_rad: np.ndarray, t_s: np.ndarray, skew_s: float) -> np.ndarray:
+    """The output angle a channel latched ``skew_s`` late reads: theta_out(t + skew),
+    to first order theta_out + (omega_in / i + dTE/dt) skew (dTE/dt by finite differences
+    over the block)."""
+    dte = np.gradient(te_rad, t_s) if te_rad.size > 1 else np.zeros_like(te_rad)
+    return theta_out_rad + (omega_ref_rad_s + dte) * skew_s
 
 
 def _readonly(a: np.ndarray) -> np.ndarray:
@@ -60,6 +69,9 @@ class BenchConfig:
         seed: Seed of the noise generators (int >= 0).
         bench_id: Bench identifier (EncoderBlock frame_id), non-empty.
         start_time_s: Time of sample 0 [s], finite (a large value tests long sessions).
+        daq_skew_s: The output channel is latched this much later than the input channel
+            [s] (DAQ timing skew; 0: one clock for both). The output reading is then that
+            of theta_out(t + skew) ~ theta_out(t) + omega_out(t) skew.
     """
 
     preset: str
@@ -74,6 +86,7 @@ class BenchConfig:
     seed: int = 0
     bench_id: str = 'bench'
     start_time_s: float = 0.0
+    daq_skew_s: float = 0.0
 
     def __post_init__(self) -> None:
         """Validate every field.
@@ -130,6 +143,12 @@ class BenchConfig:
             msg = f'BenchConfig.start_time_s must be finite, got {st!r}'
             raise ModelInputError(msg)
         object.__setattr__(self, 'start_time_s', float(st))
+        sk = self.daq_skew_s
+        if isinstance(sk, bool) or not isinstance(sk, int | float | np.integer | np.floating) \
+                or not math.isfinite(sk) or abs(sk) > 1e-3:
+            msg = f'BenchConfig.daq_skew_s must be finite and within +-1 ms, got {sk!r}'
+            raise ModelInputError(msg)
+        object.__setattr__(self, 'daq_skew_s', float(sk))
 
     def encoder_spec(self, which: str) -> EncoderSpec:
         """The spec of ``'in'`` or ``'out'`` (a preset looked up by name)."""
@@ -151,6 +170,7 @@ class BenchConfig:
             'block_size': self.block_size,
             'seed': self.seed,
             'start_time_s': self.start_time_s,
+            'daq_skew_s': self.daq_skew_s,
         }
 
 
@@ -269,12 +289,14 @@ class BenchSimulator:
             msg = f'TE model returned shape {te.shape} for a block of shape {t.shape}'
             raise ModelInputError(msg)
         theta_out = theta_in / self._gear_ratio + te
+        theta_out_read = theta_out if not cfg.daq_skew_s else skewed_reading(
+            theta_out, omega_in / self._gear_ratio, te, t, cfg.daq_skew_s)
         block = BenchBlock(
             seq=self._seq,
             t0_s=float(t0),
             time_offset_s=self._offsets,
             theta_in_rad=_readonly(self._enc_in.measure(theta_in)),
-            theta_out_rad=_readonly(self._enc_out.measure(theta_out)),
+            theta_out_rad=_readonly(self._enc_out.measure(theta_out_read)),
             torque_out_nm=_readonly(load),
             te_true_rad=_readonly(te),
             theta_in_true_rad=_readonly(theta_in),

@@ -44,6 +44,7 @@ __all__ = [
     'SimulatedEncoder',
     'encoder_preset',
     'encoder_spec_with',
+    'remounted',
 ]
 
 _TWO_PI = 2.0 * math.pi
@@ -197,6 +198,27 @@ def encoder_spec_with(spec: EncoderSpec, **changes: Any) -> EncoderSpec:
         msg = f'EncoderSpec has no field(s) {unknown}; fields: {", ".join(sorted(known))}'
         raise ModelInputError(msg)
     return dataclasses.replace(spec, **changes)
+
+
+def remounted(spec: EncoderSpec, rng: np.random.Generator, *,
+              eccentricity_rad: float | None = None) -> EncoderSpec:
+    """The same encoder model as another unit or mounting: every graduation harmonic and
+    the eccentricity at a new phase drawn uniformly from [0, 2 pi) (a unit's phases are not
+    known, only the data sheet's amplitudes), the eccentricity amplitude replaced when given
+    (a new mounting).
+
+    Args:
+        spec: The encoder.
+        rng: Generator of the phases.
+        eccentricity_rad: New mounting eccentricity amplitude 2 e / D [rad] (>= 0).
+    """
+    n = len(spec.graduation_orders)
+    phases = tuple(float(p) for p in rng.uniform(0.0, _TWO_PI, n))
+    changes: dict[str, Any] = {'graduation_phases_rad': phases,
+                               'eccentricity_phase_rad': float(rng.uniform(0.0, _TWO_PI))}
+    if eccentricity_rad is not None:
+        changes['eccentricity_amplitude_rad'] = eccentricity_rad
+    return encoder_spec_with(spec, **changes)
 
 
 def _as(x_arcsec: float) -> float:

@@ -186,6 +186,11 @@ class ProgramSimulator:
         block_size: Samples per block, >= 1.
         seed: Encoder noise seed, >= 0.
         preset_obj: Use this preset instead of loading ``preset`` (overrides still applied).
+        daq_skew_s: Output channel latched this much after the input channel [s].
+        torque_zero_nm: Zero error of the torque sensor [N m]: it reads the true torque
+            plus this (a torque step holds the *reading* at the commanded value).
+        torque_gain_error: Relative sensitivity error of the torque sensor (reading =
+            true x (1 + error) + zero).
 
     Raises:
         PresetError, ModelInputError: Bad preset, mode or settings.
@@ -195,7 +200,8 @@ class ProgramSimulator:
                  encoder_in: str | EncoderSpec = 'heidenhain-ron886',
                  encoder_out: str | EncoderSpec = 'heidenhain-ron886',
                  sample_rate_hz: float = 1000.0, block_size: int = 100, seed: int = 0,
-                 preset_obj: Preset | None = None) -> None:
+                 preset_obj: Preset | None = None, daq_skew_s: float = 0.0,
+                 torque_zero_nm: float = 0.0, torque_gain_error: float = 0.0) -> None:
         """Build the model, the torsion characteristic's source and the encoders."""
         self.preset = (load_preset(preset, list(overrides)) if preset_obj is None
                        else preset_obj.with_overrides(list(overrides)))
@@ -207,6 +213,12 @@ class ProgramSimulator:
             msg = f'block_size must be an integer >= 1, got {block_size!r}'
             raise ModelInputError(msg)
         self.block_size = block_size
+        self.daq_skew_s = _num('bench', 'daq_skew_s', daq_skew_s)
+        self.torque_zero_nm = _num('bench', 'torque_zero_nm', torque_zero_nm)
+        self.torque_gain_error = _num('bench', 'torque_gain_error', torque_gain_error)
+        if abs(self.torque_gain_error) >= 0.5:
+            msg = f'torque_gain_error must lie within +-0.5, got {torque_gain_error!r}'
+            raise ModelInputError(msg)
         specs = [e if isinstance(e, EncoderSpec) else encoder_preset(e)
                  for e in (encoder_in, encoder_out)]
         rng_in, rng_out = np.random.default_rng(seed).spawn(2)
@@ -251,7 +263,8 @@ class ProgramSimulator:
                 phi = self._rest_angle(curve, phi)
                 if isinstance(seg, TorqueSegment):
                     duration = seg.duration_s
-                    phi = float(curve.angle_under_torque([seg.torque_nm], phi)[0])
+                    phi = float(curve.angle_under_torque([self._true_torque(seg.torque_nm)],
+                                                         phi)[0])
                 else:
                     direction = 1 if seg.speed_rad_s > 0 else -1
                     start_t = float(curve.torque_under_motion([phi], direction)[0])
@@ -260,7 +273,8 @@ class ProgramSimulator:
                                f'N m is not ahead of the present {start_t:.6g} N m when '
                                f'turning {"forwards" if direction > 0 else "backwards"}')
                         raise ModelInputError(msg)
-                    target = curve.angle_at_torque(seg.target_torque_nm, direction)
+                    target = curve.angle_at_torque(self._true_torque(seg.target_torque_nm),
+                                                   direction)
                     duration = abs(target - phi) / abs(seg.speed_rad_s) + seg.hold_s
                     phi = target
             n = self._blocks(duration)
@@ -329,11 +343,18 @@ class ProgramSimulator:
         else:
             theta_in, te, torque = self._locked(seg, t)
         theta_out = theta_in / self.gear_ratio + te
+        if self.daq_skew_s and isinstance(seg, DriveSegment):
+            from sim.bench import skewed_reading
+
+            theta_out_read = skewed_reading(theta_out, seg.speed_rpm * RAD_S_PER_RPM
+                                            / self.gear_ratio, te, t, self.daq_skew_s)
+        else:
+            theta_out_read = theta_out
         ro = self._readonly
         block = BenchBlock(
             seq=self.seq, t0_s=float(t[0]), time_offset_s=self._offsets,
             theta_in_rad=ro(self._enc_in.measure(theta_in)),
-            theta_out_rad=ro(self._enc_out.measure(theta_out)),
+            theta_out_rad=ro(self._enc_out.measure(theta_out_read)),
             torque_out_nm=ro(torque), te_true_rad=ro(te), theta_in_true_rad=ro(theta_in),
             theta_out_true_rad=ro(theta_out))
         self.seq += 1
@@ -376,17 +397,24 @@ class ProgramSimulator:
         curve = self.curve(theta)
         phi0 = self._rest_angle(curve, self._seg_phi0)
         if isinstance(seg, TorqueSegment):
-            applied = np.full_like(t, seg.torque_nm)
-            phi = curve.angle_under_torque(applied, phi0)
+            true = np.full_like(t, self._true_torque(seg.torque_nm))
+            phi = curve.angle_under_torque(true, phi0)
         else:
             direction = 1 if seg.speed_rad_s > 0 else -1
-            target = curve.angle_at_torque(seg.target_torque_nm, direction)
+            target = curve.angle_at_torque(self._true_torque(seg.target_torque_nm), direction)
             phi = phi0 + seg.speed_rad_s * (t - self._seg_t0)
             phi = np.minimum(phi, target) if direction > 0 else np.maximum(phi, target)
-            applied = curve.torque_under_motion(phi, direction)
+            true = curve.torque_under_motion(phi, direction)
         self.torsion_rad = float(phi[-1])
         self.theta_in_rad = theta
-        return np.full_like(t, theta), phi, -applied
+        reading = true * (1.0 + self.torque_gain_error) + self.torque_zero_nm
+        if isinstance(seg, TorqueSegment):
+            reading = np.full_like(t, seg.torque_nm)   # the loader holds the reading
+        return np.full_like(t, theta), phi, -reading
+
+    def _true_torque(self, reading_nm: float) -> float:
+        """The torque applied when the sensor reads ``reading_nm``."""
+        return (reading_nm - self.torque_zero_nm) / (1.0 + self.torque_gain_error)
 
     def __repr__(self) -> str:
         """Short description."""

@@ -1,0 +1,297 @@
+"""Validation of the uncertainty budgets (issue 35): Monte Carlo vs GUM, and coverage.
+
+1. **GUM vs Monte Carlo (Supplement 1).** One simulated measurement of the default bench
+   (wang2020-2kv, RON 886 on both shafts, errors as the data sheet states them) and one
+   hysteresis test (rv-80e-101): every budget's U = k u_c beside the half-width of the
+   95.45 % interval of a Monte Carlo propagation through the measurement model itself
+   (``rv_te_bench.core.uncertainty_mc``). Target: within 5 % of U on every metric.
+2. **Coverage.** ``--units`` simulated units and benches, each with its own reducer
+   (assembly phases / free play drawn), encoder errors drawn from the stated distributions
+   (a new phase for every graduation and interpolation harmonic, sim.encoders.remounted),
+   a DAQ skew drawn in +-100 ns (sim.bench daq_skew_s), a torque sensor zero and gain error
+   drawn in their bounds (sim.program torque_zero_nm / torque_gain_error). The true value
+   comes from the same procedure on the simulator's true angles (te_true, exact torque);
+   a unit is covered when the true value lies in the budget's interval
+   [y - U - b, y + U]. Target: >= 94 % per metric.
+
+Run: ``.venv/bin/python benchmarks/bench_uncertainty.py --units 1000 --draws 20000``
+(about 10 minutes on 2 cores); ``--units 50 --draws 2000`` for a quick look. Prints one
+markdown table per part (benchmarks/README.md keeps the last run).
+"""
+
+from __future__ import annotations
+
+import argparse
+import math
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+
+sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
+
+from rv_te_bench.core.bench_uncertainty import BenchUncertainty
+from rv_te_bench.core.directional import direction_te
+from rv_te_bench.core.hysteresis import HysteresisConfig, dwell_points, hysteresis_metrics
+from rv_te_bench.core.orders import OrderSet
+from rv_te_bench.core.te_uncertainty import (
+    hysteresis_budgets,
+    line_budgets,
+    te_pp_budget,
+)
+from rv_te_bench.core.uncertainty_mc import mc_hysteresis, mc_line, mc_te_pp
+from sim.bench import BenchConfig, BenchSimulator
+from sim.drive import ConstantSpeed
+from sim.encoders import EncoderSpec, remounted
+from sim.program import ProgramSimulator, TorqueSegment
+
+TE_PRESET = 'wang2020-2kv'
+HYST_PRESET = 'rv-80e-101'
+RATE_HZ = 10_000.0
+SPEED_RPM = 3000.0
+RATED_NM = 784.0
+ENCODER = 'heidenhain-ron886'
+
+
+def sim_spec(bench: BenchUncertainty, which: str, rng: np.random.Generator) -> EncoderSpec:
+    """The simulator's encoder carrying the budget's error model, phases drawn."""
+    m = bench.encoder_out if which == 'out' else bench.encoder_in
+    orders = [k for k, _ in m.graduation]
+    amps = [g for _, g in m.graduation]
+    if m.signal_periods and m.interpolation_rad:
+        orders.append(m.signal_periods)
+        amps.append(m.interpolation_rad)
+    ecc = abs(rng.normal(m.eccentricity_rad, m.eccentricity_u_rad)) if (
+        m.eccentricity_rad or m.eccentricity_u_rad) else 0.0
+    spec = EncoderSpec(name=m.model, counts_per_rev=round(2 * math.pi / m.resolution_rad),
+                       graduation_orders=tuple(orders), graduation_amplitudes_rad=tuple(amps),
+                       graduation_phases_rad=tuple(0.0 for _ in orders),
+                       noise_sigma_rad=m.noise_sigma_rad, source=m.source)
+    return remounted(spec, rng, eccentricity_rad=ecc)
+
+
+# --------------------------------------------------------------------------------------
+# TE: one measurement
+
+
+def te_run(rng: np.random.Generator, bench: BenchUncertainty, *, unit_phases: bool,
+           revolutions: int = 2) -> dict:
+    overrides = ()
+    if unit_phases:
+        overrides = tuple(f'{k}={v:.3f}' for k, v in zip(
+            ('eccentricity.theta_p1_0_deg', 'eccentricity.theta_p2_0_deg',
+             'eccentricity.theta_g_0_deg', 'eccentricity.theta_ot_0_deg'),
+            rng.uniform(-180.0, 180.0, 4), strict=True))
+    skew = float(rng.uniform(-bench.daq_skew_s, bench.daq_skew_s))
+    cfg = BenchConfig(preset=TE_PRESET, overrides=overrides, drive=ConstantSpeed(SPEED_RPM),
+                      sample_rate_hz=RATE_HZ, block_size=1000,
+                      encoder_in=sim_spec(bench, 'in', rng),
+                      encoder_out=sim_spec(bench, 'out', rng),
+                      seed=int(rng.integers(2**31)), daq_skew_s=skew)
+    sim = BenchSimulator(cfg)
+    kin = sim.kinematics
+    n = int((revolutions + 0.02) * kin.gear_ratio * 60.0 / SPEED_RPM * RATE_HZ) + 2
+    blocks = [sim.next_block() for _ in range(n // 1000 + 1)]
+    cat = {f: np.concatenate([getattr(b, f) for b in blocks])[:n] for f in (
+        'theta_in_rad', 'theta_out_rad', 'theta_in_true_rad', 'theta_out_true_rad')}
+    orders = OrderSet.from_bench_info(kin.gear_ratio, kin.crank_per_input, kin.mesh_orders_out,
+                                      kin.mesh_labels)
+    dur = (n - 1) / RATE_HZ
+    meas = direction_te(cat['theta_in_rad'], cat['theta_out_rad'], gear_ratio=kin.gear_ratio,
+                        orders=orders, duration_s=dur)
+    true = direction_te(cat['theta_in_true_rad'], cat['theta_out_true_rad'],
+                        gear_ratio=kin.gear_ratio, orders=orders, duration_s=dur)
+    phi = cat['theta_in_rad'] / kin.gear_ratio
+    te = cat['theta_out_rad'] - phi
+    travel = phi - phi[0]
+    j = int(np.argmax(meas.pp_per_rev_rad))
+    m = (travel >= j * 2 * np.pi) & (travel < (j + 1) * 2 * np.pi)
+    ph, tt = phi[m], te[m]
+    dom = max(meas.spectrum.lines, key=lambda ln: ln.amplitude_rad)
+    pp = te_pp_budget('te_pp_rad', meas.te_pp_rad, phi_max_rad=float(ph[np.argmax(tt)]),
+                      phi_min_rad=float(ph[np.argmin(tt)]), gear_ratio=kin.gear_ratio,
+                      bench=bench, per_revolution_rad=meas.pp_per_rev_rad,
+                      samples_per_rev=float(ph.size),
+                      dominant=(dom.amplitude_rad, dom.output_order))
+    lines = {}
+    for ln in meas.spectrum.lines:
+        if ln.label not in ('f_out', dom.label):
+            continue
+        name = 'f_out' if ln.label == 'f_out' else 'dominant'
+        a, p = line_budgets(ln.label, ln.amplitude_rad, ln.phase_rad, ln.output_order,
+                            gear_ratio=kin.gear_ratio, bench=bench,
+                            output_hz=ln.frequency_hz / ln.output_order,
+                            samples_per_rev=meas.spectrum.samples_per_rev, n_samples=phi.size)
+        lines[name] = (ln, a, p, true.spectrum.line(ln.label))
+    keep = travel < meas.revolutions * 2 * np.pi
+    return {'pp': pp, 'pp_true': true.te_pp_rad, 'lines': lines, 'phi': phi[keep] - phi[0],
+            'te': te[keep], 'offset': float(phi[0]), 'ratio': kin.gear_ratio}
+
+
+# --------------------------------------------------------------------------------------
+# hysteresis: one measurement
+
+
+def _torque_program(cfg: HysteresisConfig, step_fraction: float = 0.1, dwell_s: float = 0.2,
+                    ) -> list[TorqueSegment]:
+    tr = cfg.rated_torque_nm
+    n = round(1.0 / step_fraction)
+    fr = sorted({round(k / n, 12) for k in range(n + 1)}
+                | {round(abs(p) / tr, 12) for p in cfg.torque_points_nm()})
+    up = [f * tr for f in fr]
+    pre = [-0.5 * tr, -tr, -0.5 * tr, 0.0]
+    seq = up + up[-2::-1] + [-t for t in up[1:]] + [-t for t in up[-2::-1]]
+    return [TorqueSegment(torque_nm=t, duration_s=dwell_s) for t in pre + seq], len(pre)
+
+
+def _hyst_measure(sim: ProgramSimulator, cfg: HysteresisConfig) -> tuple:
+    prog, n_pre = _torque_program(cfg)
+    sim.load(tuple(prog))
+    seg_blocks = sim.segment_blocks
+    first_cycle_block = sum(seg_blocks[:n_pre])
+    blocks = []
+    while sim.running:
+        b, _ = sim.next_block()
+        blocks.append(b)
+    blocks = blocks[first_cycle_block:]
+    th_in = np.concatenate([b.theta_in_rad for b in blocks])
+    th_out = np.concatenate([b.theta_out_rad for b in blocks])
+    applied = -np.concatenate([b.torque_out_nm for b in blocks])
+    angle = th_out - th_in / sim.gear_ratio
+    t, a, counts = dwell_points(applied, angle)
+    starts = np.r_[0, np.cumsum(counts)[:-1]]
+    idx = np.repeat(np.arange(counts.size), counts)
+    resid = angle - a[idx]
+    dof = int(np.sum(counts - 1))
+    s = float(np.sqrt(np.sum(resid ** 2) / dof)) if dof > 0 else 0.0
+    del starts
+    return t, a, counts, (s, dof), float(np.mean(th_out))
+
+
+def hyst_run(rng: np.random.Generator, bench: BenchUncertainty) -> dict:
+    cfg = HysteresisConfig(rated_torque_nm=RATED_NM)
+    clearance = float(rng.uniform(0.0, 4e-4))
+    over = (f'torsion.clearance_rad={clearance:.6g}',)
+    zero = bench.torque_zero_for(RATED_NM)
+    kw = {'preset': HYST_PRESET, 'overrides': over, 'sample_rate_hz': 1000.0, 'block_size': 100,
+          'te_mode': 'geometric'}
+    sim = ProgramSimulator(**kw, encoder_in=sim_spec(bench, 'in', rng),
+                           encoder_out=sim_spec(bench, 'out', rng),
+                           seed=int(rng.integers(2**31)),
+                           torque_zero_nm=float(rng.uniform(-zero, zero)),
+                           torque_gain_error=float(rng.uniform(-bench.torque_gain_rel,
+                                                               bench.torque_gain_rel)))
+    # the output position: turn the output to a random angle first
+    from sim.program import DriveSegment
+
+    pos_s = float(rng.uniform(0.05, 1.0)) * sim.gear_ratio * 60.0 / 300.0
+    for s in (sim,):
+        s.load((DriveSegment(speed_rpm=300.0, duration_s=pos_s),))
+        while s.running:
+            s.next_block()
+    t, a, counts, dwell, theta_out = _hyst_measure(sim, cfg)
+    ideal = ProgramSimulator(**kw, encoder_in='ideal', encoder_out='ideal')
+    ideal.load((DriveSegment(speed_rpm=300.0, duration_s=pos_s),))
+    while ideal.running:
+        ideal.next_block()
+    tt, at, _, _, _ = _hyst_measure(ideal, cfg)
+    m_true = hysteresis_metrics(tt, at, cfg)
+    true = {'lost_motion_rad': m_true.lost_motion_rad, 'backlash_rad': m_true.backlash_rad,
+            'hysteresis_loss_j': m_true.hysteresis_loss_j,
+            'torsional_rigidity_K_nm_per_rad': m_true.rigidity_min_nm_per_rad('K')}
+    budgets = hysteresis_budgets(t, a, cfg, bench=bench, theta_out_rad=theta_out, counts=counts,
+                                 dwell_sigma_rad=dwell)
+    return {'budgets': budgets, 'true': true, 't': t, 'a': a, 'counts': counts,
+            'theta_out': theta_out, 'cfg': cfg}
+
+
+def _covered(b, true: float, *, phase: bool = False) -> bool:
+    if phase:
+        return abs(math.remainder(true - b.value, 2 * math.pi)) <= b.u95
+    lo, hi = b.interval
+    return lo <= true <= hi
+
+
+def main(argv: list[str] | None = None) -> int:
+    ap = argparse.ArgumentParser(description=__doc__.split('\n')[0])
+    ap.add_argument('--units', type=int, default=1000, help='simulated units for coverage')
+    ap.add_argument('--draws', type=int, default=20000, help='Monte Carlo draws per budget')
+    ap.add_argument('--seed', type=int, default=35)
+    args = ap.parse_args(argv)
+    rng = np.random.default_rng(args.seed)
+    bench = BenchUncertainty.defaults(ENCODER, ENCODER)
+    t0 = time.monotonic()
+
+    # ---- 1. GUM vs Monte Carlo on one measurement of each kind
+    rows = []
+    r = te_run(rng, bench, unit_phases=False)
+    mc = mc_te_pp(r['pp'], r['phi'], r['te'], gear_ratio=r['ratio'], bench=bench,
+                  draws=args.draws, rng=rng, theta_out_offset_rad=r['offset'])
+    rows.append(('TE p-p [arcsec]', mc, 206264.8))
+    for name, (ln, a, p, _) in r['lines'].items():
+        ma, mp = mc_line(a, p, r['phi'], r['te'], ln.output_order, gear_ratio=r['ratio'],
+                         bench=bench, draws=args.draws, rng=rng,
+                         theta_out_offset_rad=r['offset'])
+        rows.append((f'line {ln.label} ({name}) amplitude [arcsec]', ma, 206264.8))
+        rows.append((f'line {ln.label} ({name}) phase [deg]', mp, 180 / math.pi))
+    h = hyst_run(rng, bench)
+    mh = mc_hysteresis(h['budgets'], h['t'], h['a'], h['cfg'], bench=bench,
+                       theta_out_rad=h['theta_out'], draws=max(args.draws // 10, 500), rng=rng,
+                       counts=h['counts'])
+    scale = {'lost_motion_rad': ('lost motion [arcsec]', 206264.8),
+             'backlash_rad': ('backlash [arcsec]', 206264.8),
+             'hysteresis_loss_j': ('hysteresis loss [J]', 1.0),
+             'torsional_rigidity_K_nm_per_rad': ('torsional rigidity K [N m/arcmin]',
+                                                 1 / 3437.75)}
+    for n, res in mh.items():
+        rows.append((scale[n][0], res, scale[n][1]))
+    print('## GUM law of propagation vs Monte Carlo (GUM Supplement 1)\n')
+    print('| result | value | u_c | k | U (GUM) | U (MC) | MC - GUM | draws |')
+    print('|---|---:|---:|---:|---:|---:|---:|---:|')
+    budgets = {'TE p-p [arcsec]': r['pp']}
+    for name, (ln, a, p, _) in r['lines'].items():
+        budgets[f'line {ln.label} ({name}) amplitude [arcsec]'] = a
+        budgets[f'line {ln.label} ({name}) phase [deg]'] = p
+    for n, b in h['budgets'].items():
+        budgets[scale[n][0]] = b
+    worst = 0.0
+    for label, res, sc in rows:
+        b = budgets[label]
+        worst = max(worst, abs(res.difference))
+        print(f'| {label} | {b.value * sc:.4g} | {b.u_c * sc:.3g} | {b.k:.3f} | '
+              f'{res.u_gum * sc:.3g} | {res.u_mc * sc:.3g} | {100 * res.difference:+.2f} % | '
+              f'{res.draws} |')
+    print(f'\nlargest |U_MC - U_GUM| / U_GUM: {100 * worst:.2f} %\n')
+
+    # ---- 2. coverage
+    hits: dict[str, list[bool]] = {}
+    ratio: dict[str, list[float]] = {}
+    for u in range(args.units):
+        r = te_run(rng, bench, unit_phases=True)
+        checks = [('TE p-p', r['pp'], r['pp_true'], False)]
+        for name, (_ln, a, p, tl) in r['lines'].items():
+            checks.append((f'line {name} amplitude', a, tl.amplitude_rad, False))
+            checks.append((f'line {name} phase', p, tl.phase_rad, True))
+        h = hyst_run(rng, bench)
+        for n, b in h['budgets'].items():
+            checks.append((n, b, h['true'][n], False))
+        for name, b, true, phase in checks:
+            hits.setdefault(name, []).append(_covered(b, true, phase=phase))
+            err = abs(math.remainder(true - b.value, 2 * math.pi)) if phase else abs(true - b.value)
+            ratio.setdefault(name, []).append(err / b.u95 if b.u95 > 0 else math.inf)
+        if (u + 1) % 100 == 0:
+            print(f'  {u + 1} units, {time.monotonic() - t0:.0f} s', file=sys.stderr)
+    print(f'## Coverage over {args.units} simulated units and benches\n')
+    print('| result | covered | |y - true| / U: median | 95th percentile |')
+    print('|---|---:|---:|---:|')
+    for name, hs in hits.items():
+        rr = np.array(ratio[name])
+        print(f'| {name} | {100 * np.mean(hs):.1f} % | {np.median(rr):.2f} | '
+              f'{np.quantile(rr, 0.95):.2f} |')
+    print(f'\n{time.monotonic() - t0:.0f} s')
+    return 0
+
+
+if __name__ == '__main__':
+    raise SystemExit(main())

@@ -1,0 +1,290 @@
+"""GUM budgets: the engine against GUM's own numbers, each input against its closed form.
+
+Reference values: GUM (JCGM 100:2008) G.2.3 (k = 1.65 for a rectangular at 95 %), Table G.2
+(t_p(nu) at p = 95.45 %: nu = 4 -> 2.87, nu = 10 -> 2.28), G.4.1 (Welch-Satterthwaite); the
+triangular and arcsine quantiles from their closed-form CDFs written here.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+from numpy.testing import assert_allclose
+
+from rv_te_bench.core.bench_uncertainty import (
+    BenchUncertainty,
+    EncoderErrorModel,
+    bench_uncertainty_from_plain,
+    default_encoder_errors,
+)
+from rv_te_bench.core.hysteresis import HysteresisConfig
+from rv_te_bench.core.te_uncertainty import (
+    hysteresis_budgets,
+    line_budgets,
+    te_pp_budget,
+)
+from rv_te_bench.core.uncertainty import (
+    combine,
+    coverage_factor,
+    t_quantile,
+    type_a,
+    type_b,
+    welch_satterthwaite,
+)
+from rv_te_bench.core.units import arcsec_to_rad
+from rv_te_bench.errors import TeConfigError, TeInputError
+
+AS = float(arcsec_to_rad(1.0))
+
+
+# --------------------------------------------------------------------------------------
+# the engine
+
+
+@pytest.mark.parametrize(('shape', 'p', 'k_ref'), [
+    ('rectangular', 0.95, 0.95 * math.sqrt(3.0)),                       # GUM G.2.3: 1.65
+    ('triangular', 0.9545, math.sqrt(6.0) * (1.0 - math.sqrt(1.0 - 0.9545))),
+    ('arcsine', 0.9545, math.sqrt(2.0) * math.sin(math.pi / 2 * 0.9545)),
+    ('normal', 0.9545, 2.0),
+])
+def test_coverage_factor_of_one_input_is_its_quantile(shape: str, p: float, k_ref: float) -> None:
+    x = type_b('x', sensitivity=3.0, distribution=shape, u=0.7) if shape == 'normal' else \
+        type_b('x', sensitivity=3.0, distribution=shape, half_width=0.7)
+    k, _ = coverage_factor([x], p)
+    assert k == pytest.approx(k_ref, abs=2e-3)
+
+
+@pytest.mark.parametrize(('dof', 't_ref'), [(4, 2.87), (10, 2.28), (2, 4.53)])
+def test_t_factor_matches_gum_table_g2(dof: int, t_ref: float) -> None:
+    assert t_quantile(0.9545, float(dof)) == pytest.approx(t_ref, abs=0.01)
+    obs = np.arange(dof + 1, dtype=float) ** 1.3
+    k, basis = coverage_factor([type_a('a', obs)])
+    assert basis.startswith('t') and k == pytest.approx(t_ref, abs=0.01)
+
+
+def test_two_equal_rectangulars_give_the_triangular_factor() -> None:
+    x = type_b('x', sensitivity=1.0, distribution='rectangular', half_width=1.0)
+    k, basis = coverage_factor([x, x])
+    assert basis == 'distribution'
+    assert k == pytest.approx(math.sqrt(6.0) * (1.0 - math.sqrt(1.0 - 0.9545)), abs=3e-3)
+
+
+def test_welch_satterthwaite_and_budget_arithmetic() -> None:
+    # G.4.1 with u1 = 1 (nu 4) and u2 = 2 (nu inf): nu_eff = 25 / (1 / 4) = 100
+    assert welch_satterthwaite([1.0, 2.0], [4.0, math.inf]) == pytest.approx(100.0)
+    a = type_b('a', sensitivity=2.0, distribution='normal', u=1.5)      # 3
+    b = type_b('b', sensitivity=-1.0, distribution='normal', u=4.0)     # 4
+    bud = combine('y', 1.0, [a, b, None])
+    assert bud.u_c == pytest.approx(5.0)
+    assert [x.name for x in bud.inputs] == ['b', 'a']
+    assert_allclose(bud.shares, [16 / 25, 9 / 25])
+    assert bud.expanded == pytest.approx(2.0 * 5.0, rel=1e-9)   # k = 2 at p = 95.45 %
+    assert bud.u95 == bud.expanded
+    assert_allclose(bud.interval, (1.0 - 10.0, 11.0), rtol=1e-9)
+
+
+def test_bad_inputs_are_named() -> None:
+    with pytest.raises(TeInputError, match="input 'q': u must be"):
+        type_b('q', sensitivity=1.0, distribution='normal', u=-1.0)
+    with pytest.raises(TeInputError, match='distribution must be one of'):
+        type_b('q', sensitivity=1.0, distribution='gamma', u=1.0)  # type: ignore[arg-type]
+    assert type_a('one', [1.0]) is None
+
+
+# --------------------------------------------------------------------------------------
+# bench description and defaults
+
+
+def test_ron886_defaults_spread_the_data_sheet_band_as_a_rectangular() -> None:
+    m = default_encoder_errors('heidenhain-ron886')
+    band = 0.6 * AS                      # +-1" system accuracy less +-0.4" per signal period
+    assert sum(g * g / 2 for _, g in m.graduation) == pytest.approx(band ** 2 / 3, rel=1e-12)
+    assert m.interpolation_rad == pytest.approx(0.4 * AS)
+    assert m.signal_periods == 36_000
+    assert not default_encoder_errors('acme-9000').known
+
+
+def test_bench_description_section_sets_eccentricity_and_rejects_typos() -> None:
+    base = BenchUncertainty.defaults('renishaw-resolute', 'renishaw-resolute')
+    b = bench_uncertainty_from_plain({
+        'encoders': {'output': {'eccentricity_um': 5.0, 'eccentricity_u_um': 1.0,
+                                'scale_diameter_mm': 100.0}},
+        'daq_skew_ns': 25, 'torque_sensor': {'accuracy_class_pct': 0.05, 'nominal_nm': 500},
+        'temperature': {'spread_k': 0.5}}, base)
+    # DESIGN.md s.7: 5 um on a 100 mm scale = +-20.6"
+    assert b.encoder_out.eccentricity_rad / AS == pytest.approx(20.6, abs=0.05)
+    assert b.daq_skew_s == pytest.approx(25e-9)
+    assert b.torque_zero_nm == pytest.approx(0.25)
+    assert b.temperature_spread_k == 0.5
+    with pytest.raises(TeConfigError, match=r"unknown key\(s\) \['daq_skew'\]"):
+        bench_uncertainty_from_plain({'daq_skew': 1}, base)
+    with pytest.raises(TeConfigError, match='needs scale_diameter_mm'):
+        bench_uncertainty_from_plain({'encoders': {'input': {'eccentricity_um': 1}}}, base)
+
+
+# --------------------------------------------------------------------------------------
+# TE p-p: each input against its closed form
+
+
+def _bench(**kw: object) -> BenchUncertainty:
+    enc = EncoderErrorModel(model='test', graduation=((2, 0.5 * AS),), signal_periods=1000,
+                            interpolation_rad=0.1 * AS, noise_sigma_rad=0.01 * AS,
+                            resolution_rad=0.05 * AS, cte_mismatch_per_k=2e-6)
+    return BenchUncertainty(encoder_in=EncoderErrorModel(model='ideal'), encoder_out=enc, **kw)
+
+
+def _pp(bench: BenchUncertainty, **kw: object):
+    args = {'phi_max_rad': 0.3, 'phi_min_rad': 1.9, 'gear_ratio': 79.0, 'bench': bench,
+            'per_revolution_rad': [1e-3, 1.0004e-3, 0.9997e-3]}
+    args.update(kw)
+    return te_pp_budget('te_pp_rad', 1e-3, **args)
+
+
+def test_pp_graduation_harmonic_is_an_arcsine_of_2_sin_k_delta_over_2() -> None:
+    b = _pp(_bench()).input('output encoder: graduation, order 2')
+    delta = 1.9 - 0.3
+    assert b.distribution == 'arcsine'
+    assert b.contribution == pytest.approx(0.5 * AS / math.sqrt(2) * 2 * abs(math.sin(delta)))
+    # doubling the amplitude doubles the contribution
+    b2 = _pp(_bench(), ).input('output encoder: graduation, order 2')
+    assert b2.contribution == pytest.approx(b.contribution)
+
+
+def test_pp_input_encoder_harmonic_turns_i_times_and_is_divided_by_i() -> None:
+    enc = EncoderErrorModel(model='in', graduation=((3, 1.0 * AS),))
+    bench = BenchUncertainty(encoder_in=enc, encoder_out=EncoderErrorModel(model='ideal'))
+    x = _pp(bench).input('input encoder: graduation, order 3')
+    delta_in = 79.0 * (1.9 - 0.3)
+    assert x.contribution == pytest.approx(AS / math.sqrt(2) * 2 * abs(math.sin(3 * delta_in / 2))
+                                           / 79.0)
+
+
+def test_pp_quantisation_skew_temperature_and_repeatability() -> None:
+    bud = _pp(_bench(daq_skew_s=1e-6, temperature_spread_k=2.0), speed_spread_rad_s=0.05)
+    q = 0.05 * AS
+    assert bud.input('output encoder: quantisation at the two extremes').contribution == \
+        pytest.approx(math.sqrt(2) * q / 2 / math.sqrt(3))
+    assert bud.input('DAQ timing skew between the channels').contribution == \
+        pytest.approx(0.05 * 1e-6 / math.sqrt(3))
+    assert bud.input('output encoder: temperature (scale/mount expansion mismatch)'
+                     ).contribution == pytest.approx(2e-6 * 1.6 * 1.0 / math.sqrt(3))
+    rep = bud.input('repeatability: p-p of one revolution over the run')
+    assert rep.kind == 'A' and rep.dof == 2
+    assert rep.u == pytest.approx(np.std([1e-3, 1.0004e-3, 0.9997e-3], ddof=1))
+    # the fast errors (interpolation 0.1", noise) bound a one-sided bias, not a variance
+    z = math.sqrt(2 * math.log(1e4))
+    assert bud.bias_bound == pytest.approx(2 * (0.1 * AS + z * 0.01 * AS))
+    assert bud.u95 == pytest.approx(bud.expanded + bud.bias_bound)
+
+
+def test_pp_without_repeats_uses_the_data_sheet_noise() -> None:
+    bud = _pp(_bench(), per_revolution_rad=[1e-3])
+    x = bud.input('output encoder: read-head noise at the two extremes')
+    assert x.contribution == pytest.approx(math.sqrt(2) * 0.01 * AS)
+    assert any('no type A' in n for n in bud.notes)
+
+
+def test_pp_sampling_resolution() -> None:
+    bud = _pp(_bench(), samples_per_rev=1000.0, dominant=(1e-3, 25.0))
+    half = 1e-3 * (25 * 2 * math.pi / 1000) ** 2 / 8
+    assert bud.input('sampling: extremes between samples').contribution == pytest.approx(
+        math.sqrt(2) * half / math.sqrt(3))
+
+
+# --------------------------------------------------------------------------------------
+# lines
+
+
+def test_line_of_the_harmonics_order_gets_the_arcsine_others_do_not() -> None:
+    bench = _bench(daq_skew_s=1e-6)
+    a, p = line_budgets('2 f_out', 2e-4, 0.4, 2.0, gear_ratio=79.0, bench=bench,
+                        output_hz=0.5, samples_per_rev=4096, n_samples=4096)
+    g = a.input('output encoder: graduation, order 2')
+    assert g.contribution == pytest.approx(0.5 * AS / math.sqrt(2))
+    assert p.input('output encoder: graduation, order 2').contribution == pytest.approx(
+        0.5 * AS / math.sqrt(2) / 2e-4)
+    assert p.input('DAQ timing skew between the channels').contribution == pytest.approx(
+        2.0 * 2 * math.pi * 0.5 * 1e-6 / math.sqrt(3))
+    s = 4096 / 2.0
+    assert a.input('resampling to the angle grid (cubic)').contribution == pytest.approx(
+        2e-4 * 0.015 * (2 * math.pi / s) ** 4 / math.sqrt(3))
+    a3, _ = line_budgets('3 f_out', 2e-4, 0.4, 3.0, gear_ratio=79.0, bench=bench,
+                         output_hz=0.5)
+    assert not any('graduation' in x.name for x in a3.inputs)
+
+
+def test_line_repeatability_over_windows() -> None:
+    amps = [2.0e-4, 2.1e-4, 1.9e-4, 2.05e-4]
+    phases = [0.40, 0.42, 0.38, 0.41]
+    a, p = line_budgets('1 f_w', float(np.mean(amps)), 0.4025, 25.0, gear_ratio=79.0,
+                        bench=_bench(), output_hz=0.06, window_amplitudes_rad=amps,
+                        window_phases_rad=phases)
+    x = a.input('repeatability over the windows')
+    assert x.u == pytest.approx(np.std(amps, ddof=1) / 2) and x.dof == 3
+    y = p.input('repeatability over the windows')
+    assert y.u == pytest.approx(np.std(np.array(phases) - 0.4025, ddof=1) / 2)
+
+
+# --------------------------------------------------------------------------------------
+# hysteresis: a linear unit with free play, written here
+
+
+def _linear_cycle(k: float, play: float, tr: float) -> tuple[np.ndarray, np.ndarray]:
+    fr = [0.0, 0.03, 0.1, 0.5, 1.0]
+    up = [f * tr for f in fr]
+    seq = up + up[-2::-1] + [-t for t in up[1:]] + [-t for t in up[-2::-1]]
+    t = np.array(seq)
+    a = np.empty_like(t)
+    side = 1.0
+    for j, tj in enumerate(t):
+        if tj > 0:
+            side = 1.0
+        elif tj < 0:
+            side = -1.0
+        a[j] = side * play / 2 + tj / k
+    return t, a
+
+
+def test_hysteresis_gain_error_moves_rigidity_by_k_times_epsilon() -> None:
+    k, tr = 2e5, 100.0
+    t, a = _linear_cycle(k, 1e-4, tr)
+    enc = EncoderErrorModel(model='ideal')
+    bench = BenchUncertainty(encoder_in=enc, encoder_out=enc, torque_gain_rel=2e-3,
+                             torque_zero_nm=0.1)
+    buds = hysteresis_budgets(t, a, HysteresisConfig(rated_torque_nm=tr), bench=bench,
+                              theta_out_rad=0.0)
+    rig = buds['torsional_rigidity_K_nm_per_rad']
+    assert rig.value == pytest.approx(k)
+    # a sensor reading t (1 + e) holds the unit at t / (1 + e): the measured K is
+    # k (1 + e), so the gain's sensitivity on K is k
+    gain = rig.input('torque sensor: sensitivity (gain)')
+    assert abs(gain.sensitivity) == pytest.approx(k, rel=1e-4)
+    # a zero error shifts both points along the flank: K unchanged; lost motion too
+    assert rig.input('torque sensor: zero and linearity').contribution <= 1e-7 * k
+    lm = buds['lost_motion_rad']
+    assert lm.value == pytest.approx(1e-4 + 2 * 0.03 * tr / k)
+    # lost motion's gain sensitivity: the +-t points move by e t / k each: 2 t / k per unit
+    assert abs(lm.input('torque sensor: sensitivity (gain)').sensitivity) == pytest.approx(
+        2 * 0.03 * tr / k, rel=1e-6)
+
+
+def test_hysteresis_encoder_harmonic_on_lost_motion_is_the_closed_form() -> None:
+    k, tr = 2e5, 100.0
+    t, a = _linear_cycle(k, 1e-4, tr)
+    n = 500
+    enc = EncoderErrorModel(model='e', signal_periods=n, interpolation_rad=0.2 * AS)
+    bench = BenchUncertainty(encoder_in=EncoderErrorModel(model='ideal'), encoder_out=enc)
+    theta0 = 0.7
+    buds = hysteresis_budgets(t, a, HysteresisConfig(rated_torque_nm=tr), bench=bench,
+                              theta_out_rad=theta0)
+    x = buds['lost_motion_rad'].input(f'output encoder: interpolation (order {n})')
+    # lost motion = (a_asc(+t) + a_desc(+t) - a_asc(-t) - a_desc(-t)) / 2 at the four points
+    lt = 0.03 * tr
+    idx = [int(np.flatnonzero(np.isclose(t, v))[j]) for v, j in ((lt, 0), (lt, 1), (-lt, 0),
+                                                                 (-lt, 1))]
+    th = theta0 + a[idx] - a[0]
+    c = np.array([0.5, 0.5, -0.5, -0.5])
+    ref = abs(np.sum(c * np.exp(1j * n * th)))
+    assert x.sensitivity == pytest.approx(ref, rel=1e-5)

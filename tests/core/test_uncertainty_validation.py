@@ -1,0 +1,81 @@
+"""The budgets validated two ways, small N (benchmarks/bench_uncertainty.py runs the full N):
+
+* Monte Carlo propagation through the measurement model itself (GUM Supplement 1) agrees
+  with the law of propagation's U within 5 % on every metric;
+* over simulated units and benches whose encoder, DAQ and torque-sensor errors are drawn
+  from the stated distributions (sim.encoders.remounted, BenchConfig.daq_skew_s,
+  ProgramSimulator torque errors), the simulator's true value lies inside the interval.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+from rv_te_bench.core.bench_uncertainty import BenchUncertainty
+from rv_te_bench.core.uncertainty_mc import mc_hysteresis, mc_line, mc_te_pp
+from tests.benchmark_loader import load_benchmark
+
+BENCH = load_benchmark('bench_uncertainty')
+
+
+@pytest.fixture(scope='module')
+def bench() -> BenchUncertainty:
+    return BenchUncertainty.defaults('heidenhain-ron886', 'heidenhain-ron886')
+
+
+def test_monte_carlo_agrees_with_the_law_of_propagation(bench: BenchUncertainty) -> None:
+    rng = np.random.default_rng(7)
+    r = BENCH.te_run(rng, bench, unit_phases=False)
+    res = [mc_te_pp(r['pp'], r['phi'], r['te'], gear_ratio=r['ratio'], bench=bench,
+                    draws=2000, rng=rng, theta_out_offset_rad=r['offset'])]
+    for ln, a, p, _ in r['lines'].values():
+        res += mc_line(a, p, r['phi'], r['te'], ln.output_order, gear_ratio=r['ratio'],
+                       bench=bench, draws=4000, rng=rng, theta_out_offset_rad=r['offset'])
+    h = BENCH.hyst_run(rng, bench)
+    res += mc_hysteresis(h['budgets'], h['t'], h['a'], h['cfg'], bench=bench,
+                         theta_out_rad=h['theta_out'], draws=1000, rng=rng,
+                         counts=h['counts']).values()
+    assert len(res) == 9
+    for m in res:
+        assert abs(m.difference) < 0.05, (m.measurand, m.u_gum, m.u_mc)
+
+
+def test_a_planted_error_in_a_sensitivity_is_caught(bench: BenchUncertainty) -> None:
+    """The check can fail: halve the p-p budget's graduation sensitivities -> MC differs."""
+    from dataclasses import replace
+
+    rng = np.random.default_rng(8)
+    r = BENCH.te_run(rng, bench, unit_phases=False)
+    bad = r['pp']
+    halved = [replace(x, sensitivity=x.sensitivity / 2) if 'graduation' in x.name else x
+              for x in bad.inputs]
+    from rv_te_bench.core.uncertainty import combine
+
+    wrong = combine(bad.measurand, bad.value, halved, bias_bound=bad.bias_bound)
+    m = mc_te_pp(wrong, r['phi'], r['te'], gear_ratio=r['ratio'], bench=bench, draws=3000,
+                 rng=rng, theta_out_offset_rad=r['offset'])
+    assert m.difference > 0.3
+
+
+@pytest.mark.slow
+def test_coverage_over_simulated_units(bench: BenchUncertainty) -> None:
+    rng = np.random.default_rng(35)
+    n = 40
+    hits: dict[str, int] = {}
+    for _ in range(n):
+        r = BENCH.te_run(rng, bench, unit_phases=True)
+        checks = [('te_pp', r['pp'], r['pp_true'], False)]
+        for name, (_, a, p, tl) in r['lines'].items():
+            checks += [(f'{name} amplitude', a, tl.amplitude_rad, False),
+                       (f'{name} phase', p, tl.phase_rad, True)]
+        h = BENCH.hyst_run(rng, bench)
+        checks += [(k, b, h['true'][k], False) for k, b in h['budgets'].items()]
+        for name, b, true, phase in checks:
+            hits[name] = hits.get(name, 0) + int(BENCH._covered(b, true, phase=phase))
+    # 95 % nominal; 40 units: >= 34 covered keeps a false alarm below ~3 %
+    low = {k: v for k, v in hits.items() if v < 34}
+    assert not low, (hits, n)
+    assert math.isfinite(sum(hits.values()))
