@@ -227,6 +227,20 @@ def line_budgets(label: str, amplitude_rad: float, phase_rad: float, output_orde
                 p_in.append(type_b(f'{who}: {name}', sensitivity=sc / amp if amp > 0 else 0.0,
                                    distribution='arcsine', half_width=g, source=enc.source,
                                    note='closed form: 1 / A'))
+    for enc, who, per_out, sc in ((bench.encoder_out, 'output encoder', 1.0, 1.0),
+                                  (bench.encoder_in, 'input encoder', i, 1.0 / i)):
+        n_per = enc.signal_periods * per_out
+        if (enc.interpolation_rad > 0 and n_per > 0 and n_samples > 0
+                and math.isfinite(samples_per_rev) and n_per > samples_per_rev / 2):
+            u_alias = sc * enc.interpolation_rad / math.sqrt(n_samples)
+            a_in.append(type_b(f'{who}: interpolation error aliased by the sampling',
+                               sensitivity=1.0, distribution='normal', u=u_alias,
+                               source=enc.source,
+                               note='undersampled: spread like noise, a / sqrt(N)'))
+            p_in.append(type_b(f'{who}: interpolation error aliased by the sampling',
+                               sensitivity=1.0 / amp if amp > 0 else 0.0,
+                               distribution='normal', u=u_alias, source=enc.source,
+                               note='undersampled: spread like noise, a / sqrt(N) / A'))
     omega = _TWO_PI * output_hz if math.isfinite(output_hz) else 0.0
     p_in.append(type_b('DAQ timing skew between the channels',
                        sensitivity=output_order * omega, distribution='rectangular',
