@@ -33,9 +33,18 @@ clean-venv:
 	rm -rf $(VENV)
 
 # System packages the full test suite uses beyond Python: a PostgreSQL server for the results
-# store tests (they start their own server; without it those tests are skipped with the
-# reason). Needs root (or sudo); .ci/run calls it on the fresh CI machine.
+# store tests (they start their own server), Debian's chromium + chromium-driver for the live
+# page's browser tests (without them those tests are skipped with the reason, except in CI).
+# Needs root (or sudo); .ci/run calls it on the fresh CI machine.
+APT_INSTALL = DEBIAN_FRONTEND=noninteractive apt-get install -y -qq --no-install-recommends
 system-deps:
+	@if command -v chromium >/dev/null 2>&1 && command -v chromedriver >/dev/null 2>&1; then \
+	  echo "chromium: present"; \
+	elif [ "$$(id -u)" = 0 ]; then apt-get update -qq && $(APT_INSTALL) chromium chromium-driver \
+	  >/dev/null && echo "chromium: installed"; \
+	elif command -v sudo >/dev/null; then sudo apt-get update -qq && sudo $(APT_INSTALL) \
+	  chromium chromium-driver >/dev/null && echo "chromium: installed"; \
+	else echo "chromium: missing and cannot install (not root, no sudo)"; fi
 	@if ls /usr/lib/postgresql/*/bin/initdb >/dev/null 2>&1; then echo "postgresql: present"; \
 	elif [ "$$(id -u)" = 0 ]; then apt-get update -qq && DEBIAN_FRONTEND=noninteractive \
 	  apt-get install -y -qq --no-install-recommends postgresql >/dev/null && echo "postgresql: installed"; \

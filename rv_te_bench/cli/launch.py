@@ -9,6 +9,7 @@ from importlib import resources
 from pathlib import Path
 from typing import TYPE_CHECKING
 
+from rv_te_bench.cli.dashboard import add_dashboard_arguments
 from rv_te_bench.errors import ParameterFileError
 
 if TYPE_CHECKING:
@@ -84,6 +85,7 @@ def register(subparsers: Subparsers) -> None:
     p.add_argument('--write-default', metavar='FILE', default=None,
                    help='write the packaged default session file to FILE (to edit) and exit')
     add_session_arguments(p)
+    add_dashboard_arguments(p, flag=True)
     p.set_defaults(func=run)
 
 
@@ -150,9 +152,28 @@ def run(args: argparse.Namespace) -> int:
         if values:
             print('launch arguments: ' + ', '.join(f'{k}:={v}' for k, v in values.items()))
         return 0
-    if spec.single_process:
-        return run_single_process(spec)
-    return run_session(spec)
+    if not getattr(args, 'dashboard', False):
+        if spec.single_process:
+            return run_single_process(spec)
+        return run_session(spec)
+    from rv_te_bench.cli.dashboard import (
+        EXIT_PORT_IN_USE,
+        start_dashboard,
+        wait_for_dashboard,
+        watch_session,
+    )
+
+    wait_for_dashboard(spec)
+    dash = start_dashboard(args, namespace=spec.namespace or '/', source='rv-te launch')
+    if dash is None:
+        return EXIT_PORT_IN_USE
+    try:
+        if spec.single_process:
+            return run_single_process(spec)
+        return run_session(spec, on_tick=watch_session(dash))
+    finally:
+        dash.model.set_state('finished (the session ended)')
+        dash.stop()
 
 
 def _write_default(target: str) -> int:

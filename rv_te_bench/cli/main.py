@@ -23,8 +23,8 @@ if TYPE_CHECKING:
 
 # Order of appearance in --help.
 SUBCOMMAND_MODULES = (
-    'demo', 'launch', 'bench', 'record', 'replay', 'import_', 'analyze', 'test', 'unit_report',
-    'model',
+    'demo', 'launch', 'dashboard', 'bench', 'record', 'replay', 'import_', 'analyze', 'test',
+    'unit_report', 'model',
     'optimize_phases', 'compensate', 'identify', 'presets', 'results', 'spc', 'fleet',
 )
 
@@ -37,6 +37,7 @@ examples:
   rv-te optimize-phases wang2020-2kv --json    Wang 2020 Eq. 21 assembly-phase optimisation
   rv-te compensate hu2020-rv --te-arcmin 1.2   tooth-profile compensation (Hu 2020)
   rv-te launch --default                       bench + TE + compensation + recorder
+  rv-te launch --default --dashboard           ... with its live page in the browser
   rv-te analyze bags/sample --report out/rep   offline report from a recorded bag
   rv-te replay bags/sample --rate 10           publish a bag with its recorded timing
   rv-te fleet analyze bags/ --workers 2        many bags on Dask into the results store

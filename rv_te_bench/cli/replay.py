@@ -13,6 +13,7 @@ import sys
 from typing import TYPE_CHECKING, Any
 
 from rv_te_bench.cli.argtypes import float_between
+from rv_te_bench.cli.dashboard import add_dashboard_arguments
 
 if TYPE_CHECKING:
     from rclpy.context import Context
@@ -49,6 +50,7 @@ def register(subparsers: Subparsers) -> None:
                         default=0.0, metavar='S',
                         help='wait up to S seconds (0..{1:g}) for a subscriber on every '
                              'topic'.format(*WAIT_RANGE_S))
+    add_dashboard_arguments(parser, flag=True)
     parser.set_defaults(func=run)
 
 
@@ -79,7 +81,22 @@ def run(args: argparse.Namespace) -> int:
         made.append(node)
         return node
 
-    code = run_node(factory, ['rv-te-replay'], linger_s=0.5)
+    dash = None
+    if getattr(args, 'dashboard', False):
+        from rv_te_bench.cli.dashboard import EXIT_PORT_IN_USE, start_dashboard
+
+        dash = start_dashboard(args, namespace='/', source=f'rv-te replay {args.bag}')
+        if dash is None:
+            return EXIT_PORT_IN_USE
+        import time
+
+        time.sleep(2.0)   # discovery: the page's bridge is there before the first message
+    try:
+        code = run_node(factory, ['rv-te-replay'], linger_s=0.5)
+    finally:
+        if dash is not None:
+            dash.model.set_state('finished (the replay ended)')
+            dash.stop()
     if made:
         for topic, count in sorted(made[0].published.items()):
             print(f'{topic}: {count} messages published')

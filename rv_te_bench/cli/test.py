@@ -74,6 +74,9 @@ def register(subparsers: Subparsers) -> None:
     p.add_argument('--json', action='store_true', help='print the result as JSON on stdout')
 
     add_db_argument(p, mode='also')
+    from rv_te_bench.cli.dashboard import add_dashboard_arguments
+
+    add_dashboard_arguments(p, flag=True)
     g = p.add_argument_group('simulated session (--launch)')
     g.add_argument('--launch', default=None, metavar='PRESET',
                    help='start a simulated bench of this preset, a test_sequencer and a '
@@ -124,8 +127,11 @@ def _session(args: argparse.Namespace, out_dir: Path) -> Session:
     ProgramSimulator(preset=args.launch, overrides=tuple(args.set), te_mode=mode,
                      encoder_in=args.encoder, encoder_out=args.encoder,
                      sample_rate_hz=args.sample_rate_hz)   # the model builds: mode is valid
+    # with the live page, a TE node too: the page shows its windows and spectra
+    nodes = ('recorder', 'bench', 'test_sequencer') + (
+        ('te_node',) if getattr(args, 'dashboard', False) else ())
     spec = SessionSpec(
-        nodes=('recorder', 'bench', 'test_sequencer'), namespace=args.namespace_norm,
+        nodes=nodes, namespace=args.namespace_norm,
         parameters={
             'bench': {'preset': args.launch, 'overrides': list(args.set), 'te_mode': mode,
                       'encoder_in': args.encoder, 'encoder_out': args.encoder,
@@ -134,6 +140,10 @@ def _session(args: argparse.Namespace, out_dir: Path) -> Session:
                       'speed_factor': float(args.speed_factor), 'commanded': True},
             'recorder': {'output_dir': str(out_dir), 'bag_name': 'bag'},
             'test_sequencer': {}})
+    if getattr(args, 'dashboard', False):
+        from rv_te_bench.cli.dashboard import wait_for_dashboard
+
+        wait_for_dashboard(spec)
     out_dir.mkdir(parents=True, exist_ok=True)
     log = (out_dir / 'session.log').open('wb')
     session = Session(spec, stdout=log)
@@ -161,7 +171,14 @@ def run(args: argparse.Namespace) -> int:
     safe_serial = ''.join(c if c.isalnum() or c in '-_.' else '_' for c in args.serial)
     out_dir = Path(args.out_dir) / f'{safe_serial}_{stamp}'
     report_dir = Path(args.report) if args.report else out_dir / 'report'
-    session = log = None
+    session = log = dash = None
+    if getattr(args, 'dashboard', False):
+        from rv_te_bench.cli.dashboard import EXIT_PORT_IN_USE, start_dashboard
+
+        dash = start_dashboard(args, namespace=args.namespace_norm or '/',
+                               source=f'rv-te test {args.serial}')
+        if dash is None:
+            return EXIT_PORT_IN_USE
     if args.launch:
         session, log = _session(args, out_dir)
         print(f'session: bench {args.launch} (simulated), test_sequencer, recorder -> '
@@ -173,6 +190,10 @@ def run(args: argparse.Namespace) -> int:
         if session is not None:
             session.stop()
             log.close()
+        if dash is not None:
+            dash.model.set_state('finished (the test ended)')
+            _linger(dash, args)
+            dash.stop()
     if result is None:
         return 1
     verdict, reason, report_json = result
@@ -184,6 +205,13 @@ def run(args: argparse.Namespace) -> int:
         if args.launch:
             _record(args, report, out_dir / 'bag')
     return verdict_exit(verdict, args.serial, reason, report)
+
+
+def _linger(dash: Any, args: argparse.Namespace) -> None:
+    """Keep serving a moment so that open tabs get the verdict (they keep it after)."""
+    end = time.monotonic() + float(getattr(args, 'dashboard_linger_s', 1.0))
+    while time.monotonic() < end:
+        time.sleep(0.05)
 
 
 def show_report(report: dict[str, Any], directory: Path, *, as_json: bool) -> None:
