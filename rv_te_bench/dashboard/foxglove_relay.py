@@ -14,7 +14,7 @@ import threading
 import time
 from typing import Any
 
-__all__ = ['FoxgloveRelay', 'FoxglovePortError']
+__all__ = ['FoxglovePortError', 'FoxgloveRelay']
 
 
 class FoxglovePortError(OSError):

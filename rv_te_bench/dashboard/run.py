@@ -127,7 +127,7 @@ class Dashboard:
         """The page's address(es), with the token where one is needed."""
         q = f'?token={self.token}' if self.token else ''
         host = self.options.host
-        if host in {'0.0.0.0', '::'}:   # noqa: S104 - the user asked for every address
+        if host in {'0.0.0.0', '::'}:
             return [f'http://{socket.gethostname()}:{self.port}/{q}',
                     f'http://127.0.0.1:{self.port}/{q}']
         shown = f'[{host}]' if ':' in host else host
