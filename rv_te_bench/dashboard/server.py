@@ -262,8 +262,8 @@ class HttpServer:
         import uvicorn
 
         self.sock = sock
-        config = uvicorn.Config(app, log_level='warning', ws='websockets', lifespan='on',
-                                access_log=False, ws_max_queue=4)
+        config = uvicorn.Config(app, log_level='warning', ws='websockets-sansio',
+                                lifespan='on', access_log=False)
         self.server = uvicorn.Server(config)
         self.thread = threading.Thread(target=self._run, name='dashboard-http', daemon=True)
 

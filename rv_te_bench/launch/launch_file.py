@@ -425,7 +425,9 @@ def session_from_launch(desc: LaunchDescription, *, overrides: Sequence[str] = (
         params[node].update(coerce_parameters(node_specs(node), {key: value}))
     bench = params.get('bench')
     if bench is not None and 'wait_for_nodes' in bench:   # a node left out is not waited for
-        bench['wait_for_nodes'] = [w for w in bench['wait_for_nodes'] if w in params]
+        # (the live page's bridge, rv-te dashboard, is no node of the file but may be waited for)
+        bench['wait_for_nodes'] = [w for w in bench['wait_for_nodes']
+                                   if w in params or w == 'dashboard']
     recorder = params.get('recorder', {})
     if recorder.get('use_sim_time') and bench is not None and bench.get(
             'time_mode', 'realtime') != 'fast':

@@ -41,6 +41,7 @@
     }
     S.status = u.status || S.status;
     if (u.info) S.info = u.info;
+    if (u.revs && u.revs.length) for (const e of Object.values(S.revs)) e.role = null;   // roles move on
     for (const r of (u.revs || [])) applyRev(r);
     for (const name of ['recent', 'overview']) if (u[name]) applyView(name, u[name]);
     for (const w of (u.windows || [])) S.windows.set(w.index, w);
@@ -195,7 +196,7 @@
       if (hi[c] === null || z > hi[c]) hi[c] = z;
     }
     const keep = x.map((t, i) => t !== null ? i : -1).filter((i) => i >= 0);
-    return { ncols, x: keep.map((i) => x[i]), lo: keep.map((i) => lo[i]), hi: keep.map((i) => hi[i]) };
+    return { ncols, nbins: n, colLo: lo, colHi: hi, x: keep.map((i) => x[i]), lo: keep.map((i) => lo[i]), hi: keep.map((i) => hi[i]) };
   }
   function speeds(v, u) {
     const n = v.cols.t_first ? v.cols.t_first.length : 0, ncols = Math.min(plotCols(u), Math.max(n, 1));
@@ -224,7 +225,8 @@
     if (o) {
       const c = viewColumns(o, plots.overview, ['te_min', 'te_max', ARCMIN]);
       plots.overview.setData([c.x, c.hi, c.lo]);
-      dash.drawn.overview = { ncols: c.ncols, first_bin: o.first, level: o.level, min: c.lo, max: c.hi };
+      dash.drawn.overview = { ncols: c.ncols, nbins: c.nbins, first_bin: o.first, level: o.level,
+        samples_per_bin: 8 << o.level, min: c.colLo, max: c.colHi };
     }
   }
   function drawSpectrum(s) {

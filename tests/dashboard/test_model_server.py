@@ -1,0 +1,193 @@
+"""The page's model and web server without ROS or a browser: late clients, slow clients,
+the token, the port, the JSON (a real uvicorn on a loopback port, a real WebSocket client)."""
+
+from __future__ import annotations
+
+import json
+import math
+import socket
+import subprocess
+import sys
+import time
+import urllib.error
+import urllib.request
+
+import numpy as np
+import pytest
+
+from rv_te_bench.dashboard.model import DashboardModel, EncoderSamples
+from rv_te_bench.dashboard.server import HttpServer, PortInUseError, bind_socket, create_app
+
+websockets_sync = pytest.importorskip('websockets.sync.client')
+
+RATIO = 79.0
+FS = 10_000.0
+
+
+def _block(seq: int, n: int = 1000) -> EncoderSamples:
+    t = (seq * n + np.arange(n)) / FS
+    th_out = 2 * math.pi * 0.5 * t
+    th_in = RATIO * (th_out - 1e-4 * np.sin(25 * th_out))
+    return EncoderSamples(seq=seq, stamp_s=seq * n / FS, time_offset_s=np.arange(n) / FS,
+                          theta_in_rad=th_in, theta_out_rad=th_out,
+                          torque_out_nm=np.cos(th_out))
+
+
+class _Page:
+    """A client applying updates the way the page does (independent of the model's code)."""
+
+    def __init__(self) -> None:
+        self.revs: dict[int, tuple[list, list]] = {}
+        self.views: dict[str, dict] = {}
+        self.windows: dict[int, dict] = {}
+
+    def apply(self, u: dict) -> None:
+        if u['type'] == 'full':
+            self.__init__()
+        for r in u.get('revs', []):
+            lo, hi = self.revs.setdefault(r['rev'], ([None] * 2048, [None] * 2048))
+            lo[r['from_bin']:r['from_bin'] + len(r['min'])] = r['min']
+            hi[r['from_bin']:r['from_bin'] + len(r['max'])] = r['max']
+        for name in ('recent', 'overview'):
+            v = u.get(name)
+            if v is None:
+                continue
+            cur = self.views.get(name)
+            if v['replace'] or cur is None:
+                cur = {'first': v['first_bin'], 'te_min': []}
+            off = v['from_bin'] - cur['first']
+            col = cur['te_min'][:off] + list(v['cols'].get('te_min', []))
+            cur['te_min'] = col[:v['last_bin'] - v['first_bin'] + 1]
+            self.views[name] = cur
+        for w in u.get('windows', []):
+            self.windows[w['index']] = w
+
+
+def test_open_tab_late_tab_and_stalled_tab_agree():
+    m = DashboardModel()
+    m.on_bench_info({'gear_ratio': RATIO, 'preset': 'x'})
+    live, stalled = _Page(), _Page()
+    c_live = c_stalled = None
+    u, c_stalled = m.update(None)
+    stalled.apply(u)
+    for seq in range(40):
+        m.on_encoders(_block(seq))
+        if seq % 3 == 0:
+            m.fold()
+            u, c_live = m.update(c_live)
+            live.apply(json.loads(json.dumps(u)))
+        if seq % 10 == 9:
+            m.on_window({'index': seq // 10, 'complete': True, 'pp_rad': 1e-4 * seq,
+                         'mean_rad': 0.0, 'std_rad': 1e-5, 'amplitude_rad': 1e-4,
+                         'revolutions': 1.0, 'n_samples': 10, 'cumulative_pp_rad': 2e-4})
+    m.fold()
+    u, c_live = m.update(c_live)
+    live.apply(u)
+    u, c_stalled = m.update(c_stalled)     # one update after 40 blocks: current state, no backlog
+    stalled.apply(u)
+    late = _Page()
+    late.apply(m.update(None)[0])
+    for other in (stalled, late):
+        assert other.revs == live.revs
+        assert other.views == live.views
+        assert other.windows.keys() == live.windows.keys() == {0, 1, 2, 3}
+    assert len(live.revs) == 2                          # current and previous revolution
+    assert m.samples == 40_000
+
+
+def test_seq_gap_and_leading_loss_are_events_and_a_new_session_resets():
+    m = DashboardModel()
+    m.on_encoders(_block(5))
+    m.on_encoders(_block(6))
+    m.on_encoders(_block(9))
+    kinds = [e['kind'] for e in m.events]
+    assert kinds == ['leading loss', 'seq gap']
+    assert '2 missing' in m.events[1]['text']
+    sid = m.session_id
+    m.on_encoders(_block(0))                             # a new session (seq back to 0)
+    assert m.session_id == sid + 1 and m.events == []
+
+
+@pytest.fixture
+def server():
+    m = DashboardModel()
+    sock = bind_socket('127.0.0.1', 0)
+    app, hub = create_app(m, token='s3cret-token')
+    http = HttpServer(app, sock)
+    http.start()
+    try:
+        yield m, hub, sock.getsockname()[1]
+    finally:
+        http.stop()
+
+
+def test_token_is_enforced_on_page_api_static_and_websocket(server):
+    _, _, port = server
+    base = f'http://127.0.0.1:{port}'
+    for path in ('/', '/api/state', '/static/app.js', '/?token=wrong'):
+        with pytest.raises(urllib.error.HTTPError) as err:
+            urllib.request.urlopen(base + path, timeout=5)
+        assert err.value.code == 403, path
+    with urllib.request.urlopen(base + '/?token=s3cret-token', timeout=5) as r:
+        assert r.status == 200
+        assert 'HttpOnly' in r.headers['set-cookie']
+        assert "script-src 'self'" in r.headers['content-security-policy']
+        assert b'rv-te live' in r.read()
+    req = urllib.request.Request(base + '/static/uPlot.iife.min.js',
+                                 headers={'Cookie': 'rv_te_dashboard_token=s3cret-token'})
+    with urllib.request.urlopen(req, timeout=5) as r:
+        assert r.status == 200
+    with pytest.raises(Exception) as err:   # websockets' InvalidStatus: HTTP 403
+        websockets_sync.connect(f'ws://127.0.0.1:{port}/ws', open_timeout=5)
+    assert '403' in str(err.value)
+    with websockets_sync.connect(f'ws://127.0.0.1:{port}/ws?token=s3cret-token',
+                                 open_timeout=5) as ws:
+        assert json.loads(ws.recv(timeout=5))['type'] == 'full'
+
+
+def test_a_stalled_client_never_holds_more_than_one_update_and_others_keep_going(server):
+    m, hub, port = server
+    m.on_bench_info({'gear_ratio': RATIO})
+    url = f'ws://127.0.0.1:{port}/ws?token=s3cret-token'
+    # a client whose socket buffers are tiny and who never reads
+    slow = socket.create_connection(('127.0.0.1', port))
+    slow.setsockopt(socket.SOL_SOCKET, socket.SO_RCVBUF, 4096)
+    slow.sendall(b'GET /ws?token=s3cret-token HTTP/1.1\r\nHost: x\r\nUpgrade: websocket\r\n'
+                 b'Connection: Upgrade\r\nSec-WebSocket-Key: dGhlIHNhbXBsZSBub25jZQ==\r\n'
+                 b'Sec-WebSocket-Version: 13\r\n\r\n')
+    received = 0
+    with websockets_sync.connect(url, open_timeout=5, max_size=None) as ws:
+        end = time.monotonic() + 6.0
+        seq = 0
+        while time.monotonic() < end:
+            m.on_encoders(_block(seq))
+            seq += 1
+            try:
+                ws.recv(timeout=0.01)
+                received += 1
+            except TimeoutError:
+                pass
+        clients = list(hub.clients)
+    slow.close()
+    assert received >= 6.0 * 10            # the reading tab got its updates (>= 10 per s)
+    assert len(clients) == 2
+    assert all(c.queue.qsize() <= 1 for c in clients)
+    stalled = max(clients, key=lambda c: c.skipped)
+    assert stalled.skipped > 50             # skipped while its socket was full, not queued
+
+
+def test_port_in_use_is_one_line_and_exit_2():
+    busy = bind_socket('127.0.0.1', 0)
+    port = busy.getsockname()[1]
+    try:
+        with pytest.raises(PortInUseError, match=f'port {port}'):
+            bind_socket('127.0.0.1', port)
+        r = subprocess.run([sys.executable, '-m', 'rv_te_bench.cli.main', 'dashboard',
+                            '--port', str(port), '--no-foxglove', '--duration', '1'],
+                           capture_output=True, text=True, timeout=60, check=False)
+    finally:
+        busy.close()
+    assert r.returncode == 2
+    lines = r.stderr.strip().splitlines()
+    assert len(lines) == 1 and lines[0].startswith('ERROR: dashboard: port') and 'in use' in \
+        lines[0], r.stderr
