@@ -95,8 +95,7 @@ def te_run(rng: np.random.Generator, bench: BenchUncertainty, *, unit_phases: bo
     blocks = [sim.next_block() for _ in range(n // 1000 + 1)]
     cat = {f: np.concatenate([getattr(b, f) for b in blocks])[:n] for f in (
         'theta_in_rad', 'theta_out_rad', 'theta_in_true_rad', 'theta_out_true_rad')}
-    orders = OrderSet.from_bench_info(kin.gear_ratio, kin.crank_per_input, kin.mesh_orders_out,
-                                      kin.mesh_labels)
+    orders = OrderSet.from_bench_info(sim.info)
     dur = (n - 1) / RATE_HZ
     meas = direction_te(cat['theta_in_rad'], cat['theta_out_rad'], gear_ratio=kin.gear_ratio,
                         orders=orders, duration_s=dur)

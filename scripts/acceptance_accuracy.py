@@ -12,7 +12,7 @@ import math
 
 import numpy as np
 
-from rv_te_bench.acceptance import BenchContext, load_tolerance, parse_plan, run_plan_offline
+from rv_te_bench.acceptance import load_tolerance, parse_plan, run_plan_offline
 from sim import hu2020, li2023
 from sim.presets import load_preset
 from sim.program import ProgramSimulator
@@ -24,11 +24,9 @@ NO_ECC = ['eccentricity.e_p1_m=0', 'eccentricity.e_p2_m=0', 'eccentricity.e_g_m=
 
 def measure(preset: str, mode: str, over: list[str], rated: float) -> dict[str, float]:
     sim = ProgramSimulator(preset=preset, overrides=tuple(over), te_mode=mode, seed=1)
-    ctx = BenchContext(gear_ratio=sim.gear_ratio)
     plan = parse_plan({'plan': 'h', 'steps': [{'kind': 'hysteresis', 'rated_torque_nm': rated,
                                                'dwell_s': 0.2}]})
-    r = run_plan_offline(plan, load_tolerance(preset)[0], serial='s', operator='o', sim=sim,
-                         ctx=ctx)
+    r = run_plan_offline(plan, load_tolerance(preset)[0], serial='s', operator='o', sim=sim)
     return {m['name']: m['value'] for m in r['metrics']}
 
 

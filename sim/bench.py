@@ -25,6 +25,7 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 import yaml
 
+from sim.bench_info import DEFAULT_SAMPLE_RATE_HZ, BenchInfoData
 from sim.drive import ConstantLoad, profile_to_plain
 from sim.encoders import EncoderSpec, SimulatedEncoder, encoder_preset
 from sim.errors import ModelInputError
@@ -33,9 +34,11 @@ from sim.presets import Preset, load_preset, parse_override_items
 
 if TYPE_CHECKING:
     from sim.drive import DriveProfile, LoadProfile
+    from sim.kinematics import ReducerKinematics
     from sim.models import TeModel
 
-__all__ = ['BenchBlock', 'BenchConfig', 'BenchInfoData', 'BenchSimulator', 'skewed_reading']
+__all__ = ['DEFAULT_SAMPLE_RATE_HZ', 'BenchBlock', 'BenchConfig', 'BenchInfoData', 'BenchSimulator',
+           'bench_info_of', 'skewed_reading']
 
 
 def skewed_reading(theta_out_rad: np.ndarray, omega_ref_rad_s: np.ndarray | float,
@@ -81,7 +84,7 @@ class BenchConfig:
     load: LoadProfile = field(default_factory=lambda: ConstantLoad(0.0))
     encoder_in: str | EncoderSpec = 'heidenhain-ron886'
     encoder_out: str | EncoderSpec = 'heidenhain-ron886'
-    sample_rate_hz: float = 10_000.0
+    sample_rate_hz: float = DEFAULT_SAMPLE_RATE_HZ
     block_size: int = 1000
     seed: int = 0
     bench_id: str = 'bench'
@@ -201,25 +204,34 @@ class BenchBlock:
     theta_out_true_rad: np.ndarray
 
 
-@dataclass(frozen=True)
-class BenchInfoData:
-    """The fields of ``rv_te_msgs/BenchInfo`` (without the header)."""
+def bench_info_of(*, bench_id: str, preset: Preset, kinematics: ReducerKinematics,
+                  encoder_in: EncoderSpec, encoder_out: EncoderSpec, sample_rate_hz: float,
+                  block_size: int, settings: dict[str, Any]) -> BenchInfoData:
+    """The record of a simulated bench: the preset's kinematics, the encoders, the DAQ.
 
-    bench_id: str
-    preset: str
-    reducer_type: str
-    gear_ratio: float
-    crank_per_input: float
-    crank_rel_per_input: float
-    mesh_orders: tuple[float, ...]
-    mesh_labels: tuple[str, ...]
-    encoder_in_model: str
-    encoder_out_model: str
-    encoder_in_resolution_rad: float
-    encoder_out_resolution_rad: float
-    sample_rate_hz: float
-    block_size: int
-    parameters_yaml: str
+    ``parameters_yaml`` holds ``{'bench': settings, 'preset': {name, model, values}}``
+    (``settings['overrides']`` are the preset overrides, which
+    :func:`rv_te_bench.io.bench_record.overrides_from_parameters_yaml` reads back).
+    """
+    record = {'bench': settings,
+              'preset': {'name': preset.name, 'model': preset.model, 'values': preset.to_plain()}}
+    return BenchInfoData(
+        bench_id=bench_id,
+        preset=preset.name,
+        reducer_type=str(kinematics.kind),
+        gear_ratio=float(kinematics.gear_ratio),
+        crank_per_input=float(kinematics.crank_per_input),
+        crank_rel_per_input=float(kinematics.crank_rel_per_input),
+        mesh_orders=tuple(float(o) for o in kinematics.mesh_orders_out),
+        mesh_labels=tuple(str(s) for s in kinematics.mesh_labels),
+        encoder_in_model=encoder_in.name,
+        encoder_out_model=encoder_out.name,
+        encoder_in_resolution_rad=encoder_in.resolution_rad,
+        encoder_out_resolution_rad=encoder_out.resolution_rad,
+        sample_rate_hz=float(sample_rate_hz),
+        block_size=int(block_size),
+        parameters_yaml=yaml.safe_dump(record, sort_keys=True),
+    )
 
 
 class BenchSimulator:
@@ -309,28 +321,10 @@ class BenchSimulator:
     def info(self) -> BenchInfoData:
         """What ``bench/info`` publishes (computed once)."""
         if self._info is None:
-            kin = self.kinematics
             cfg = self.config
-            record = {
-                'bench': cfg.to_plain(),
-                'preset': {'name': self.preset.name, 'model': self.preset.model,
-                           'values': self.preset.to_plain()},
-            }
-            self._info = BenchInfoData(
-                bench_id=cfg.bench_id,
-                preset=self.preset.name,
-                reducer_type=str(kin.kind),
-                gear_ratio=self._gear_ratio,
-                crank_per_input=float(kin.crank_per_input),
-                crank_rel_per_input=float(kin.crank_rel_per_input),
-                mesh_orders=tuple(float(o) for o in kin.mesh_orders_out),
-                mesh_labels=tuple(str(s) for s in kin.mesh_labels),
-                encoder_in_model=self._spec_in.name,
-                encoder_out_model=self._spec_out.name,
-                encoder_in_resolution_rad=self._spec_in.resolution_rad,
-                encoder_out_resolution_rad=self._spec_out.resolution_rad,
-                sample_rate_hz=cfg.sample_rate_hz,
-                block_size=cfg.block_size,
-                parameters_yaml=yaml.safe_dump(record, sort_keys=True),
-            )
+            self._info = bench_info_of(
+                bench_id=cfg.bench_id, preset=self.preset, kinematics=self.kinematics,
+                encoder_in=self._spec_in, encoder_out=self._spec_out,
+                sample_rate_hz=cfg.sample_rate_hz, block_size=cfg.block_size,
+                settings=cfg.to_plain())
         return self._info

@@ -30,7 +30,8 @@ from typing import TYPE_CHECKING, Any, ClassVar
 import numpy as np
 
 from sim._checks import Rule, real_number
-from sim.bench import BenchBlock
+from sim.bench import BenchBlock, bench_info_of
+from sim.bench_info import DEFAULT_SAMPLE_RATE_HZ
 from sim.encoders import EncoderSpec, SimulatedEncoder, encoder_preset
 from sim.errors import ModelInputError
 from sim.models import build_te_model
@@ -39,6 +40,7 @@ from sim.torsion import torsion_curve
 from sim.units import RAD_S_PER_RPM
 
 if TYPE_CHECKING:
+    from sim.bench_info import BenchInfoData
     from sim.presets import Preset
     from sim.torsion import TorsionCurve
 
@@ -191,6 +193,7 @@ class ProgramSimulator:
             plus this (a torque step holds the *reading* at the commanded value).
         torque_gain_error: Relative sensitivity error of the torque sensor (reading =
             true x (1 + error) + zero).
+        bench_id: Bench identifier of :attr:`info`.
 
     Raises:
         PresetError, ModelInputError: Bad preset, mode or settings.
@@ -199,9 +202,10 @@ class ProgramSimulator:
     def __init__(self, *, preset: str, overrides: tuple[str, ...] = (), te_mode: str = 'nlte',
                  encoder_in: str | EncoderSpec = 'heidenhain-ron886',
                  encoder_out: str | EncoderSpec = 'heidenhain-ron886',
-                 sample_rate_hz: float = 1000.0, block_size: int = 100, seed: int = 0,
-                 preset_obj: Preset | None = None, daq_skew_s: float = 0.0,
-                 torque_zero_nm: float = 0.0, torque_gain_error: float = 0.0) -> None:
+                 sample_rate_hz: float = DEFAULT_SAMPLE_RATE_HZ, block_size: int = 100,
+                 seed: int = 0, preset_obj: Preset | None = None, daq_skew_s: float = 0.0,
+                 torque_zero_nm: float = 0.0, torque_gain_error: float = 0.0,
+                 bench_id: str = 'bench') -> None:
         """Build the model, the torsion characteristic's source and the encoders."""
         self.preset = (load_preset(preset, list(overrides)) if preset_obj is None
                        else preset_obj.with_overrides(list(overrides)))
@@ -221,6 +225,13 @@ class ProgramSimulator:
             raise ModelInputError(msg)
         specs = [e if isinstance(e, EncoderSpec) else encoder_preset(e)
                  for e in (encoder_in, encoder_out)]
+        self._settings = {'bench_id': bench_id, 'preset': preset, 'overrides': list(overrides),
+                          'te_mode': te_mode, 'encoder_in': specs[0].to_plain(),
+                          'encoder_out': specs[1].to_plain(),
+                          'sample_rate_hz': self.sample_rate_hz, 'block_size': block_size,
+                          'seed': seed}
+        self._specs = (specs[0], specs[1])
+        self._info: BenchInfoData | None = None
         rng_in, rng_out = np.random.default_rng(seed).spawn(2)
         self._enc_in = SimulatedEncoder(specs[0], rng_in)
         self._enc_out = SimulatedEncoder(specs[1], rng_out)
@@ -233,6 +244,17 @@ class ProgramSimulator:
         self._plan: list[_Planned] = []
         self._block_in_program = 0
         self._seg_index = -1
+
+    @property
+    def info(self) -> BenchInfoData:
+        """What this bench's ``bench/info`` says (the acceptance runner's bench record)."""
+        if self._info is None:
+            self._info = bench_info_of(
+                bench_id=str(self._settings['bench_id']), preset=self.preset,
+                kinematics=self.model.kinematics, encoder_in=self._specs[0],
+                encoder_out=self._specs[1], sample_rate_hz=self.sample_rate_hz,
+                block_size=self.block_size, settings=self._settings)
+        return self._info
 
     # -- planning ---------------------------------------------------------------------------
     def curve(self, theta_in_rad: float) -> TorsionCurve:

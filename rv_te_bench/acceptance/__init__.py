@@ -16,7 +16,7 @@ from rv_te_bench.acceptance.plan import (
     parse_plan,
     shipped_plans,
 )
-from rv_te_bench.acceptance.runner import BenchContext, StepRunner, build_report, run_plan_offline
+from rv_te_bench.acceptance.runner import StepRunner, build_report, run_plan_offline
 from rv_te_bench.acceptance.tolerance import (
     Measured,
     MetricVerdict,
@@ -29,7 +29,6 @@ from rv_te_bench.acceptance.tolerance import (
 
 __all__ = [
     'DIRECTIONS',
-    'BenchContext',
     'HysteresisStep',
     'Measured',
     'MetricVerdict',

@@ -41,38 +41,21 @@ if TYPE_CHECKING:
 
     from rv_te_bench.acceptance.plan import Step, TestPlan
     from rv_te_bench.acceptance.tolerance import ToleranceProfile
+    from sim.bench_info import BenchInfoData
     from sim.program import ProgramSimulator
 
-__all__ = ['BenchContext', 'StepRunner', 'build_report', 'reanalyse', 'run_plan_offline']
+__all__ = ['StepRunner', 'build_report', 'reanalyse', 'run_plan_offline']
 
 _MAX_CURVE_POINTS = 4000
 #: Spectrum bins kept for the report (the labelled lines are kept whatever their order).
 _SPECTRUM_BINS = 400
 
 
-@dataclass(frozen=True)
-class BenchContext:
-    """What the runner needs to know about the bench (from ``BenchInfo``)."""
-
-    gear_ratio: float
-    crank_per_input: float = 0.0
-    mesh_orders: tuple[float, ...] = ()
-    mesh_labels: tuple[str, ...] = ()
-    sample_rate_hz: float = 1000.0
-    block_size: int = 100
-    bench_id: str = 'bench'
-    preset: str = ''
-    encoder_in_model: str = ''
-    encoder_out_model: str = ''
-    encoder_out_resolution_rad: float = 0.0
-    reducer_type: str = ''
-
-    def orders(self) -> OrderSet | None:
-        """Spectral lines of the reducer (None without a crank rate)."""
-        if not self.crank_per_input:
-            return None
-        return OrderSet.from_bench_info(self.gear_ratio, self.crank_per_input,
-                                        self.mesh_orders, self.mesh_labels)
+def _orders(info: BenchInfoData) -> OrderSet | None:
+    """Spectral lines of the reducer (None without a crank rate)."""
+    if not info.crank_per_input:
+        return None
+    return OrderSet.from_bench_info(info)
 
 
 def _decimate(*arrays: np.ndarray, limit: int = _MAX_CURVE_POINTS) -> list[list[float]]:
@@ -101,13 +84,13 @@ class StepRunner:
 
     Args:
         step: The plan step.
-        ctx: The bench.
+        info: The bench's record (its ``BenchInfo``).
     """
 
-    def __init__(self, step: Step, ctx: BenchContext) -> None:
+    def __init__(self, step: Step, info: BenchInfoData) -> None:
         """Build the step's program."""
         self.step = step
-        self.ctx = ctx
+        self.info = info
         self.segments: list[_Segment] = []
         self.live_name = 'te_pp_rad'
         self._live = (math.inf, -math.inf)
@@ -129,8 +112,8 @@ class StepRunner:
     # -- programs -----------------------------------------------------------------------------
     def _drive(self, speed_rpm: float, load_nm: float, sign: int, revs: int, settle_s: float,
                role: str, label: dict[str, Any]) -> None:
-        rev_s = self.ctx.gear_ratio * 60.0 / speed_rpm
-        duration = settle_s + revs * rev_s * 1.02 + 2.0 / self.ctx.sample_rate_hz
+        rev_s = self.info.gear_ratio * 60.0 / speed_rpm
+        duration = settle_s + revs * rev_s * 1.02 + 2.0 / self.info.sample_rate_hz
         self.segments.append(_Segment(
             {'kind': 'drive', 'speed_rpm': sign * speed_rpm, 'duration_s': duration,
              'load_nm': sign * load_nm}, role, {**label, 'settle_s': settle_s}))
@@ -139,8 +122,8 @@ class StepRunner:
         for pos in range(step.positions):
             if pos > 0:   # turn the output on by 1/positions of a revolution, then lock
                 # in whole blocks (the bench's unit of time): the speed is lowered a little
-                block_s = self.ctx.block_size / self.ctx.sample_rate_hz
-                move_s = self.ctx.gear_ratio * 60.0 / step.reposition_speed_rpm / step.positions
+                block_s = self.info.block_size / self.info.sample_rate_hz
+                move_s = self.info.gear_ratio * 60.0 / step.reposition_speed_rpm / step.positions
                 duration = math.ceil(move_s / block_s - 1e-9) * block_s
                 self.segments.append(_Segment(
                     {'kind': 'drive', 'speed_rpm': step.reposition_speed_rpm * move_s / duration,
@@ -209,11 +192,11 @@ class StepRunner:
         seg.blocks += 1
         if self.live_name == 'torque_nm':
             return float(-arrays[2][-1]) if arrays[2].size else math.nan
-        settle = round(seg.label.get('settle_s', 0.0) * self.ctx.sample_rate_hz)
+        settle = round(seg.label.get('settle_s', 0.0) * self.info.sample_rate_hz)
         skip = max(0, settle - (seg.samples - arrays[0].size))
         if skip < arrays[0].size:
             _, te = output_phase_and_te(arrays[0][skip:], arrays[1][skip:],
-                                        gear_ratio=self.ctx.gear_ratio, check=False)
+                                        gear_ratio=self.info.gear_ratio, check=False)
             lo, hi = self._live
             self._live = (min(lo, float(te.min())), max(hi, float(te.max())))
         lo, hi = self._live
@@ -240,15 +223,15 @@ class StepRunner:
         rows = []
         for seg in self.segments:
             th_in, th_out, _torque = self._cat(seg)
-            settle = round(seg.label['settle_s'] * self.ctx.sample_rate_hz)
+            settle = round(seg.label['settle_s'] * self.info.sample_rate_hz)
             row: dict[str, Any] = {**seg.label, 'samples': int(th_in.size)}
             try:
                 if hole := self._incomplete([seg]):
                     raise TeInputError(hole)
-                d = direction_te(th_in[settle:], th_out[settle:], gear_ratio=self.ctx.gear_ratio,
-                                 orders=self.ctx.orders(),
+                d = direction_te(th_in[settle:], th_out[settle:], gear_ratio=self.info.gear_ratio,
+                                 orders=_orders(self.info),
                                  duration_s=max(th_in[settle:].size - 1, 1)
-                                 / self.ctx.sample_rate_hz)
+                                 / self.info.sample_rate_hz)
             except TeInputError as exc:
                 row['error'] = str(exc)
                 value = math.nan
@@ -310,9 +293,9 @@ class StepRunner:
         th_in = np.concatenate([p[0] for p in parts])
         th_out = np.concatenate([p[1] for p in parts])
         applied = -np.concatenate([p[2] for p in parts])
-        _, angle = output_phase_and_te(th_in, th_out, gear_ratio=self.ctx.gear_ratio,
+        _, angle = output_phase_and_te(th_in, th_out, gear_ratio=self.info.gear_ratio,
                                        check=False)
-        position_deg = float(np.degrees(np.mod(np.mean(th_in) / self.ctx.gear_ratio,
+        position_deg = float(np.degrees(np.mod(np.mean(th_in) / self.info.gear_ratio,
                                                2 * math.pi))) if th_in.size else math.nan
         if step.method == 'torque_steps':
             t, a, _ = dwell_points(applied, angle)
@@ -351,7 +334,7 @@ def _unit(name: str) -> str:
     return 'N m/rad' if name.endswith('_nm_per_rad') else ('J' if name.endswith('_j') else 'rad')
 
 
-def build_report(*, plan: TestPlan, profile: ToleranceProfile, ctx: BenchContext,
+def build_report(*, plan: TestPlan, profile: ToleranceProfile, info: BenchInfoData,
                  serial: str, operator: str, results: list[tuple[list[Measured], dict[str, Any]]],
                  conditions: dict[str, Any] | None = None, started_utc: str = '',
                  status: str = 'completed') -> dict[str, Any]:
@@ -371,12 +354,12 @@ def build_report(*, plan: TestPlan, profile: ToleranceProfile, ctx: BenchContext
     return {
         'unit': {'serial': serial, 'operator': operator,
                  'date_utc': started_utc or dt.datetime.now(dt.UTC).isoformat(timespec='seconds')},
-        'bench': {'bench_id': ctx.bench_id, 'preset': ctx.preset, 'gear_ratio': ctx.gear_ratio,
-                  'sample_rate_hz': ctx.sample_rate_hz, 'encoder_in': ctx.encoder_in_model,
-                  'encoder_out': ctx.encoder_out_model,
-                  'encoder_out_resolution_rad': ctx.encoder_out_resolution_rad,
-                  'reducer_type': ctx.reducer_type, 'crank_per_input': ctx.crank_per_input,
-                  'mesh_orders': list(ctx.mesh_orders), 'mesh_labels': list(ctx.mesh_labels)},
+        'bench': {'bench_id': info.bench_id, 'preset': info.preset, 'gear_ratio': info.gear_ratio,
+                  'sample_rate_hz': info.sample_rate_hz, 'encoder_in': info.encoder_in_model,
+                  'encoder_out': info.encoder_out_model,
+                  'encoder_out_resolution_rad': info.encoder_out_resolution_rad,
+                  'reducer_type': info.reducer_type, 'crank_per_input': info.crank_per_input,
+                  'mesh_orders': list(info.mesh_orders), 'mesh_labels': list(info.mesh_labels)},
         'conditions': dict(conditions or {}),
         'plan': plan.to_plain(), 'tolerance': profile.to_plain(),
         'verdict': verdict, 'reason': reason,
@@ -386,7 +369,7 @@ def build_report(*, plan: TestPlan, profile: ToleranceProfile, ctx: BenchContext
 
 
 def run_plan_offline(plan: TestPlan, profile: ToleranceProfile, *, serial: str, operator: str,
-                     sim: ProgramSimulator, ctx: BenchContext,
+                     sim: ProgramSimulator, info: BenchInfoData | None = None,
                      conditions: dict[str, Any] | None = None,
                      on_feedback: Callable[[int, str, float, str, float], None] | None = None,
                      ) -> dict[str, Any]:
@@ -396,7 +379,7 @@ def run_plan_offline(plan: TestPlan, profile: ToleranceProfile, *, serial: str, 
         plan, profile: The validated plan and tolerance profile.
         serial, operator: Unit identity.
         sim: The simulated bench.
-        ctx: Its description (ratio, rate, lines).
+        info: Its record (ratio, rate, lines); None: ``sim.info``.
         conditions: Extra test conditions for the record.
         on_feedback: Called per block with (step index, step name, step progress, live
             metric name, live value).
@@ -405,9 +388,10 @@ def run_plan_offline(plan: TestPlan, profile: ToleranceProfile, *, serial: str, 
         AcceptanceError: A step's program is refused by the bench.
     """
     started = dt.datetime.now(dt.UTC).isoformat(timespec='seconds')
+    info = sim.info if info is None else info
     results = []
     for j, step in enumerate(plan.steps):
-        runner = StepRunner(step, ctx)
+        runner = StepRunner(step, info)
         try:
             total = sim.load(program_from_plain(runner.program()))
         except ModelInputError as exc:
@@ -425,11 +409,11 @@ def run_plan_offline(plan: TestPlan, profile: ToleranceProfile, *, serial: str, 
             if on_feedback is not None:
                 on_feedback(j, step.name, done / total, runner.live_name, live)
         results.append(runner.result())
-    return build_report(plan=plan, profile=profile, ctx=ctx, serial=serial, operator=operator,
+    return build_report(plan=plan, profile=profile, info=info, serial=serial, operator=operator,
                         results=results, conditions=conditions, started_utc=started)
 
 
-def reanalyse(*, plan: TestPlan, profile: ToleranceProfile, ctx: BenchContext,
+def reanalyse(*, plan: TestPlan, profile: ToleranceProfile, info: BenchInfoData,
               steps: list[dict[str, Any]],
               blocks: dict[int, tuple[np.ndarray, np.ndarray, np.ndarray]],
               serial: str, operator: str, conditions: dict[str, Any] | None = None,
@@ -437,7 +421,7 @@ def reanalyse(*, plan: TestPlan, profile: ToleranceProfile, ctx: BenchContext,
     """The unit record computed again from recorded blocks (a session bag).
 
     Args:
-        plan, profile, ctx: As in the live run.
+        plan, profile, info: As in the live run.
         steps: The recorded steps (``step_index``, ``state``, ``first_seq``,
             ``segment_blocks``); only finished ones are analysed, in plan order.
         blocks: seq -> (theta_in_rad, theta_out_rad, torque_out_nm).
@@ -458,7 +442,7 @@ def reanalyse(*, plan: TestPlan, profile: ToleranceProfile, ctx: BenchContext,
             msg = (f'recorded step {n} has no segment block counts (recorded before they were '
                    'recorded): it cannot be analysed again')
             raise AcceptanceError(msg)
-        runner = StepRunner(plan.steps[n], ctx)
+        runner = StepRunner(plan.steps[n], info)
         runner.expect(s['segment_blocks'])
         ends = np.cumsum(s['segment_blocks'])
         last = -1
@@ -472,6 +456,6 @@ def reanalyse(*, plan: TestPlan, profile: ToleranceProfile, ctx: BenchContext,
                 last = seg
             runner.feed(seg, *block)
         results.append(runner.result())
-    return build_report(plan=plan, profile=profile, ctx=ctx, serial=serial, operator=operator,
+    return build_report(plan=plan, profile=profile, info=info, serial=serial, operator=operator,
                         results=results, conditions=conditions, started_utc=started_utc,
                         status=status)

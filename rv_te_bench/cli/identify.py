@@ -45,6 +45,7 @@ if TYPE_CHECKING:
     from rv_te_bench.core.angle_fold import FoldedTe
     from rv_te_bench.core.identify import Identification
     from rv_te_bench.core.phases import EccentricGeometry
+    from sim.bench_info import BenchInfoData
     from sim.presets import Preset
 
 EXAMPLES = """\
@@ -160,7 +161,7 @@ def fold_bag(path: str, topic: str | None, gear_ratio: float, *,
                      skipped_samples=fold.skipped + malformed)
 
 
-def _bench_info(args: argparse.Namespace) -> tuple[dict[str, Any] | None, str | None]:
+def _bench_info(args: argparse.Namespace) -> tuple[BenchInfoData | None, str | None]:
     """(BenchInfo, problem): a damaged BenchInfo is a problem only without the flags."""
     from rv_te_bench.io.bag_reader import read_bench_info
 
@@ -176,7 +177,7 @@ def _bench_info(args: argparse.Namespace) -> tuple[dict[str, Any] | None, str | 
                       f'{"--ratio" if args.ratio else "its ratio"} used instead')
 
 
-def _setup(args: argparse.Namespace, info: dict[str, Any] | None,
+def _setup(args: argparse.Namespace, info: BenchInfoData | None,
            ) -> tuple[Preset, EccentricGeometry, float, str]:
     """(preset, params, gear ratio, source of the part magnitudes)."""
     from rv_te_bench.core.phases import EccentricGeometry
@@ -188,10 +189,10 @@ def _setup(args: argparse.Namespace, info: dict[str, Any] | None,
         raise TeInputError(msg)
     # the bench's own overrides (recorded in BenchInfo) first, then --set
     recorded = ([] if args.preset or info is None else
-                overrides_from_parameters_yaml(str(info.get('parameters_yaml', ''))))
-    name = args.preset if args.preset else str((info or {}).get('preset', ''))
+                overrides_from_parameters_yaml(info.parameters_yaml))
+    name = args.preset if args.preset else ('' if info is None else info.preset)
     preset, wang = load_wang_params(name, [*recorded, *args.overrides])
-    ratio = args.ratio or (float(info['gear_ratio']) if info and info.get('gear_ratio')
+    ratio = args.ratio or (info.gear_ratio if info is not None and info.gear_ratio
                            else float(wang.kinematics.gear_ratio))
     params = EccentricGeometry.from_params(wang)
     if args.crank_per_output is not None:

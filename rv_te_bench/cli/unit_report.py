@@ -65,7 +65,7 @@ def _differences(new: dict[str, Any], old: dict[str, Any]) -> list[str]:
 
 def run(args: argparse.Namespace) -> int:
     """Recompute, compare, report; 0 pass, 3 fail, 1 error."""
-    from rv_te_bench.acceptance import BenchContext, load_tolerance, parse_plan
+    from rv_te_bench.acceptance import load_tolerance, parse_plan
     from rv_te_bench.acceptance._files import parse_yaml_text
     from rv_te_bench.acceptance.runner import reanalyse
     from rv_te_bench.acceptance.tolerance import parse_tolerance
@@ -81,18 +81,10 @@ def run(args: argparse.Namespace) -> int:
         profile = parse_tolerance(parse_yaml_text(r['tolerance_yaml'], 'recorded tolerance',
                                                   AcceptanceError), 'recorded tolerance')
     else:
-        profile, _ = load_tolerance(plan.tolerance or info['preset'])
+        profile, _ = load_tolerance(plan.tolerance or info.preset)
     old = json.loads(r['report_json']) if r['report_json'] else {}
-    ctx = BenchContext(
-        gear_ratio=info['gear_ratio'], crank_per_input=info['crank_per_input'],
-        mesh_orders=tuple(info['mesh_orders']), mesh_labels=tuple(info['mesh_labels']),
-        sample_rate_hz=info['sample_rate_hz'], block_size=int(info['block_size']),
-        bench_id=info['bench_id'], preset=info['preset'],
-        encoder_in_model=info['encoder_in_model'], encoder_out_model=info['encoder_out_model'],
-        encoder_out_resolution_rad=info['encoder_out_resolution_rad'],
-        reducer_type=info['reducer_type'])
     status = 'completed' if r['verdict'] in {'pass', 'fail'} else r['verdict']
-    new = reanalyse(plan=plan, profile=profile, ctx=ctx, steps=rec.steps, blocks=rec.blocks,
+    new = reanalyse(plan=plan, profile=profile, info=info, steps=rec.steps, blocks=rec.blocks,
                     serial=r['serial'], operator=r['operator_name'],
                     conditions=old.get('conditions'),
                     started_utc=old.get('unit', {}).get('date_utc', ''), status=status)

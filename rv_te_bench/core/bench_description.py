@@ -43,13 +43,14 @@ from typing import TYPE_CHECKING, Any
 
 import yaml
 
+from rv_te_bench.core.orders import OrderSet
 from rv_te_bench.errors import BenchDescriptionError, YamlInputError
 from rv_te_bench.safe_yaml import DOCUMENT_LIMITS, brief, read_yaml_file
+from sim.bench_info import BenchInfoData
 
 if TYPE_CHECKING:
     from collections.abc import Mapping
 
-    from sim.bench import BenchInfoData
     from sim.kinematics import ReducerKinematics
     from sim.presets import Preset
 
@@ -247,14 +248,15 @@ class BenchDescription:
         """Signed absolute crank revolutions per input revolution (BenchInfo field)."""
         if self.preset is not None:
             return float(self._kinematics().crank_per_input)
-        return -self.crank_per_output / self.gear_ratio
+        return OrderSet(gear_ratio=self.gear_ratio,
+                        crank_per_output=self.crank_per_output).crank_per_input()
 
     @property
     def crank_rel_per_input(self) -> float:
         """Signed crank revolutions relative to the carrier per input revolution."""
         if self.preset is not None:
             return float(self._kinematics().crank_rel_per_input)
-        return -self.crank_rel_per_output / self.gear_ratio
+        return -self.crank_rel_per_output / self.gear_ratio   # against the input, as above
 
     def _kinematics(self) -> ReducerKinematics:
         from sim.kinematics import kinematics_from_preset
@@ -298,8 +300,6 @@ class BenchDescription:
         so :func:`rv_te_bench.io.bench_record.overrides_from_parameters_yaml` rebuilds the
         exact preset).
         """
-        from sim.bench import BenchInfoData
-
         record: dict[str, Any] = {'bench': self.to_plain()}
         if self.preset is not None:
             preset = self._preset()

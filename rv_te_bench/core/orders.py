@@ -9,10 +9,15 @@ harmonics k f_w sit at output orders 25 k; the 2nd-stage mesh is at 52 f_w = ord
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
+from typing import TYPE_CHECKING
 
 from rv_te_bench.core._checks import finite_positive
 from rv_te_bench.errors import TeConfigError
+
+if TYPE_CHECKING:
+    from sim.bench_info import BenchInfoData
 
 __all__ = ['OrderSet']
 
@@ -72,31 +77,62 @@ class OrderSet:
             raise TeConfigError(msg)
 
     @classmethod
-    def from_bench_info(
-        cls,
-        gear_ratio: float,
-        crank_per_input: float,
-        mesh_orders_out: tuple[float, ...] | list[float] = (),
-        mesh_labels: tuple[str, ...] | list[str] = (),
-        n_crank_harmonics: int = 10,
-    ) -> OrderSet:
-        """Build from what ``BenchInfo`` / ``ReducerKinematics`` publish.
+    def from_bench_info(cls, info: BenchInfoData, n_crank_harmonics: int = 10, *,
+                        gear_ratio: float | None = None,
+                        crank_per_output: float | None = None) -> OrderSet:
+        """The lines of the bench that ``info`` describes (``BenchInfo``'s record).
+
+        The one place where the crank order of the wire (``crank_per_input``, absolute crank
+        revolutions per input revolution, signed) becomes the order of the output rotation:
+        ``crank_per_output = |crank_per_input| x gear_ratio`` (:meth:`crank_per_output_of`,
+        with the record's own ratio).
 
         Args:
-            gear_ratio: Overall ratio i (> 0).
-            crank_per_input: Absolute crank revolutions per input revolution (signed).
-            mesh_orders_out: Mesh frequencies as output orders.
-            mesh_labels: Their labels.
+            info: The bench's record (:class:`sim.bench_info.BenchInfoData`).
             n_crank_harmonics: K.
+            gear_ratio: The ratio to use instead of the record's (a command-line override).
+            crank_per_output: The crank order to use instead of the record's, likewise.
+
+        Raises:
+            TeConfigError: A ratio or crank order that is not finite and > 0, or mesh
+                orders / labels that do not match.
 
         Examples:
-            >>> OrderSet.from_bench_info(79.0, -25.0 / 79.0).crank_per_output
+            >>> from sim.bench import BenchSimulator, BenchConfig
+            >>> from sim.drive import ConstantSpeed
+            >>> info = BenchSimulator(BenchConfig(preset='wang2020-2kv',
+            ...                                   drive=ConstantSpeed(300.0))).info
+            >>> OrderSet.from_bench_info(info).crank_per_output
             25.0
         """
-        ratio = _positive('gear_ratio', gear_ratio)
-        return cls(gear_ratio=ratio, crank_per_output=abs(float(crank_per_input)) * ratio,
-                   mesh_orders_out=tuple(mesh_orders_out), mesh_labels=tuple(mesh_labels),
-                   n_crank_harmonics=n_crank_harmonics)
+        if crank_per_output is None:
+            crank_per_output = cls.crank_per_output_of(info.crank_per_input, info.gear_ratio)
+        return cls(gear_ratio=info.gear_ratio if gear_ratio is None else gear_ratio,
+                   crank_per_output=crank_per_output, mesh_orders_out=info.mesh_orders,
+                   mesh_labels=info.mesh_labels, n_crank_harmonics=n_crank_harmonics)
+
+    @staticmethod
+    def crank_per_output_of(crank_per_input: float, gear_ratio: float) -> float:
+        """|Absolute crank revolutions per output revolution| from the wire's crank order.
+
+        Examples:
+            >>> OrderSet.crank_per_output_of(-25.0 / 79.0, 79.0)
+            25.0
+        """
+        return abs(float(crank_per_input)) * float(gear_ratio)
+
+    def crank_per_input(self, sign: float = -1.0) -> float:
+        """The wire's crank order (``BenchInfo.crank_per_input``) of these lines.
+
+        Args:
+            sign: Which way the cranks turn relative to the input: -1 (against it, as in
+                both shipped reducer kinds) or +1.
+
+        Examples:
+            >>> OrderSet(gear_ratio=79.0, crank_per_output=25.0).crank_per_input()
+            -0.31645569620253167
+        """
+        return math.copysign(self.crank_per_output / self.gear_ratio, sign)
 
     def crank_order(self, output_order: float) -> float:
         """Output order expressed as a multiple of the crank frequency f_w."""

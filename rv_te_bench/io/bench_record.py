@@ -1,10 +1,7 @@
 """What a bench recorded about itself: the BenchInfo record, one shape, read back bounded.
 
 * :func:`read_bench_info`: the last BenchInfo of a bag (through the summary's chunk index
-  when the file has one), as :func:`bench_info_values` plus its stamp and frame;
-
-* :func:`bench_info_values`: the fields of :class:`sim.bench.BenchInfoData` (the one list of
-  them) as plain Python values, from a ``BenchInfo`` message or a ``BenchInfoData``;
+  when the file has one), as the one in-memory record of it, :class:`sim.bench_info.BenchInfoData`;
 * :func:`overrides_from_parameters_yaml` and :func:`preset_from_bench_info`: the preset a
   bench ran with, rebuilt from its ``parameters_yaml``. The text comes from a bag or from
   the network: it is parsed by the suite's bounded loader (:mod:`rv_te_bench.safe_yaml`),
@@ -13,51 +10,21 @@
 
 from __future__ import annotations
 
-import dataclasses
-import functools
 from typing import TYPE_CHECKING, Any
 
 from rv_te_bench.errors import BagError, BenchInfoError, YamlInputError
 from rv_te_bench.io import _sqlite_bag as _sqlite
 from rv_te_bench.safe_yaml import DOCUMENT_LIMITS, load_yaml
+from sim.bench_info import BenchInfoData
 
 if TYPE_CHECKING:
-    from collections.abc import Callable, Sequence
+    from collections.abc import Sequence
     from pathlib import Path
 
     from sim.presets import Preset
 
-__all__ = ['PARAMETERS_YAML_LIMITS', 'bench_info_field_names', 'bench_info_values',
-           'overrides_from_parameters_yaml', 'preset_from_bench_info', 'read_bench_info']
-
-#: BenchInfoData annotation -> conversion to the plain value (arrays as lists)
-_PLAIN: dict[str, Callable[[Any], Any]] = {
-    'str': str, 'float': float, 'int': int,
-    'tuple[float, ...]': lambda v: [float(x) for x in v],
-    'tuple[str, ...]': lambda v: [str(x) for x in v],
-}
-
-
-@functools.cache
-def _bench_info_fields() -> tuple[tuple[str, Callable[[Any], Any]], ...]:
-    from sim.bench import BenchInfoData
-
-    return tuple((f.name, _PLAIN[str(f.type)]) for f in dataclasses.fields(BenchInfoData))
-
-
-def bench_info_field_names() -> tuple[str, ...]:
-    """The fields of ``rv_te_msgs/BenchInfo`` without the header, in message order."""
-    return tuple(name for name, _ in _bench_info_fields())
-
-
-def bench_info_values(info: Any) -> dict[str, Any]:
-    """A BenchInfo's fields as plain values: ``str``, ``float``, ``int``, arrays as lists.
-
-    Args:
-        info: Anything with the attributes of :class:`sim.bench.BenchInfoData`: a
-            ``BenchInfo`` message (rclpy or rosbags) or the dataclass itself.
-    """
-    return {name: plain(getattr(info, name)) for name, plain in _bench_info_fields()}
+__all__ = ['PARAMETERS_YAML_LIMITS', 'overrides_from_parameters_yaml', 'preset_from_bench_info',
+           'read_bench_info']
 
 #: A BenchInfo record holds the preset's values and the bench settings: a few kB.
 PARAMETERS_YAML_LIMITS = DOCUMENT_LIMITS
@@ -86,21 +53,20 @@ def overrides_from_parameters_yaml(text: str) -> list[str]:
     return [str(o) for o in overrides]
 
 
-def preset_from_bench_info(preset: str, parameters_yaml: str,
-                           extra_overrides: Sequence[str] = ()) -> Preset:
-    """The preset a bench ran with: ``preset`` with the overrides it recorded, then ``extra``.
+def preset_from_bench_info(info: BenchInfoData, extra_overrides: Sequence[str] = ()) -> Preset:
+    """The preset a bench ran with: its preset with the overrides it recorded, then ``extra``.
 
     Raises:
         PresetError: Unknown preset or a bad override (``sim.errors``).
     """
     from sim.presets import load_preset
 
-    return load_preset(preset, [*overrides_from_parameters_yaml(parameters_yaml),
-                                *extra_overrides])
+    return load_preset(info.preset, [*overrides_from_parameters_yaml(info.parameters_yaml),
+                                     *extra_overrides])
 
 
-def read_bench_info(path: str | Path, topic: str | None = None) -> dict[str, Any] | None:
-    """The last BenchInfo message of a bag as a dict of its fields, or None if there is none.
+def read_bench_info(path: str | Path, topic: str | None = None) -> BenchInfoData | None:
+    """The last BenchInfo message of a bag as its record, or None if there is none.
 
     Args:
         path: Bag folder or ``.mcap`` file.
@@ -150,10 +116,7 @@ def read_bench_info(path: str | Path, topic: str | None = None) -> dict[str, Any
             raise BenchInfoError(text)
         return None
     try:
-        msg = rv_te_typestore().deserialize_cdr(last, BENCH_INFO)
+        return BenchInfoData.from_message(rv_te_typestore().deserialize_cdr(last, BENCH_INFO))
     except Exception as exc:  # noqa: BLE001
         text = f'Bag {bag.path}: BenchInfo does not deserialise: {str(exc).rstrip(".")}'
         raise BenchInfoError(text) from None
-    stamp = msg.header.stamp
-    return {'stamp_s': stamp.sec + stamp.nanosec * 1e-9, 'frame_id': msg.header.frame_id,
-            **bench_info_values(msg)}

@@ -13,7 +13,7 @@ from typing import Any
 import numpy as np
 
 from rv_te_bench.errors import BagError
-from rv_te_bench.io.bench_record import bench_info_values
+from sim.bench_info import BenchInfoData
 
 __all__ = ['RecordedTest', 'read_recorded_test']
 
@@ -31,14 +31,13 @@ class RecordedTest:
         report: The final TestReport's fields (``report_json`` as text).
         steps: The finished or ended TestStep records of that test, in order (dicts, with
             ``segment_blocks`` as a list).
-        bench_info: BenchInfo's fields (:func:`~rv_te_bench.io.bench_record.bench_info_values`:
-            plain values, ``mesh_orders`` and ``mesh_labels`` as lists).
+        bench_info: The bench's record (its first ``bench/info``).
         blocks: EncoderBlock seq -> (theta_in_rad, theta_out_rad, torque_out_nm) of the steps.
     """
 
     report: dict[str, Any]
     steps: list[dict[str, Any]]
-    bench_info: dict[str, Any]
+    bench_info: BenchInfoData
     blocks: dict[int, tuple[np.ndarray, np.ndarray, np.ndarray]] = field(repr=False)
 
 
@@ -53,7 +52,7 @@ def read_recorded_test(bag: str | Path, *, serial: str | None = None) -> Recorde
     path = Path(bag)
     reports: list[dict[str, Any]] = []
     steps: list[dict[str, Any]] = []
-    info: dict[str, Any] = {}
+    info: BenchInfoData | None = None
     try:
         with AnyReader([path]) as reader:
             wanted = [c for c in reader.connections
@@ -66,8 +65,8 @@ def read_recorded_test(bag: str | Path, *, serial: str | None = None) -> Recorde
                     d = {k: getattr(msg, k) for k in _FIELDS_STEP}
                     d['segment_blocks'] = [int(n) for n in getattr(msg, 'segment_blocks', [])]
                     steps.append(d)
-                elif not info:
-                    info = bench_info_values(msg)
+                elif info is None:
+                    info = BenchInfoData.from_message(msg)
             ended = [r for r in reports if r['verdict'] != 'running'
                      and (serial is None or r['serial'] == serial)]
             if not ended:
@@ -95,7 +94,7 @@ def read_recorded_test(bag: str | Path, *, serial: str | None = None) -> Recorde
     except Exception as exc:  # noqa: BLE001 - rosbags raises several types for a bad bag
         msg = f'{path}: cannot read the bag ({type(exc).__name__}: {exc})'
         raise BagError(msg) from None
-    if not info:
+    if info is None:
         msg = f'{path}: no bench/info in the bag'
         raise BagError(msg)
     return RecordedTest(report=report, steps=mine, bench_info=info, blocks=blocks)

@@ -47,6 +47,7 @@ from rv_te_bench.nodes.common import (
 )
 from rv_te_bench.params import ParamSpec
 from rv_te_bench.safe_yaml import DOCUMENT_LIMITS, load_yaml
+from sim.bench_info import DEFAULT_SAMPLE_RATE_HZ
 
 if TYPE_CHECKING:  # annotations only: the sim and the services load when the node starts
     from rv_te_msgs.srv import RunBenchProgram
@@ -98,7 +99,8 @@ PARAMS = (
               min_value=1e-6, max_value=1e4),
     ParamSpec('encoder_in', 'string', 'heidenhain-ron886', 'Input-shaft encoder preset [-]'),
     ParamSpec('encoder_out', 'string', 'heidenhain-ron886', 'Output-shaft encoder preset [-]'),
-    ParamSpec('sample_rate_hz', 'double', 1000.0, 'DAQ sample rate [Hz]', min_value=1.0,
+    ParamSpec('sample_rate_hz', 'double', DEFAULT_SAMPLE_RATE_HZ, 'DAQ sample rate [Hz]',
+              min_value=1.0,
               max_value=1e6),
     ParamSpec('block_size', 'int', 100,
               'Samples per EncoderBlock [1]; sample_rate_hz / block_size <= 1000 blocks/s',

@@ -39,6 +39,7 @@ from rv_te_bench.nodes.common import (
     run_node,
 )
 from rv_te_bench.params import ParamSpec
+from sim.bench_info import BenchInfoData
 
 if TYPE_CHECKING:
     from collections.abc import Callable
@@ -178,8 +179,8 @@ class CompensationNode(Node):
         if not self.p['preset']:
             from rv_te_bench.io.bench_record import preset_from_bench_info
 
-            self._set_preset(msg.preset,
-                             lambda: preset_from_bench_info(msg.preset, msg.parameters_yaml))
+            info = BenchInfoData.from_message(msg)
+            self._set_preset(info.preset, lambda: preset_from_bench_info(info))
 
     def _on_samples(self, msg: TransmissionError) -> None:
         te = np.asarray(msg.te_rad, dtype=np.float64)

@@ -20,7 +20,6 @@ from rv_te_msgs.msg import (
 )
 
 from rv_te_bench.core.units import rad_to_arcmin, rad_to_deg
-from rv_te_bench.io.bench_record import bench_info_values
 
 if TYPE_CHECKING:
     import numpy.typing as npt
@@ -29,7 +28,7 @@ if TYPE_CHECKING:
     from rv_te_bench.core.spectrum import OrderSpectrum
     from rv_te_bench.core.stream import EncoderBlockData, WindowResult
     from rv_te_bench.core.te import TeStats
-    from sim.bench import BenchInfoData
+    from sim.bench_info import BenchInfoData
 
 
 def stamp_to_s(stamp: Time) -> float:
@@ -91,11 +90,11 @@ def make_encoder_block(*, bench_id: str, seq: int, stamp_s: float, sample_rate_h
 
 
 def make_bench_info(info: BenchInfoData, stamp: Time) -> BenchInfo:
-    """sim.bench.BenchInfoData -> BenchInfo message (field names are the same)."""
+    """sim.bench_info.BenchInfoData -> BenchInfo message (field names are the same)."""
     msg = BenchInfo()
     msg.header.stamp = stamp
     msg.header.frame_id = info.bench_id
-    for field, value in bench_info_values(info).items():
+    for field, value in info.message_values().items():
         setattr(msg, field, value)
     return msg
 

@@ -37,6 +37,7 @@ from rv_te_bench.nodes.common import (
     run_node,
 )
 from rv_te_bench.params import ParamSpec
+from sim.bench_info import BenchInfoData
 
 _MAX_PENDING_BLOCKS = 1000   # blocks kept while waiting for bench/info
 
@@ -82,7 +83,7 @@ def initial_orders(p: dict[str, Any]) -> OrderSet | None:
         return None
     cpo = float(p['crank_per_output'])
     if cpo == 0.0 and float(p['crank_per_input']) != 0.0:
-        cpo = abs(float(p['crank_per_input'])) * p['gear_ratio']
+        cpo = OrderSet.crank_per_output_of(p['crank_per_input'], p['gear_ratio'])
     orders = OrderSet(gear_ratio=p['gear_ratio'], crank_per_output=cpo,
                       mesh_orders_out=tuple(p['mesh_orders']),
                       mesh_labels=tuple(f'mesh {o:g} f_out' for o in p['mesh_orders']),
@@ -142,7 +143,7 @@ class TeNode(Node):
         cpo = float(self.p['crank_per_output'])
         old = float(self.p['crank_per_input'])
         if old != 0.0:
-            derived = abs(old) * self.p['gear_ratio']
+            derived = OrderSet.crank_per_output_of(old, self.p['gear_ratio'])
             use = cpo if cpo > 0.0 else derived
             self.get_logger().warning(
                 f"parameter 'crank_per_input' is deprecated: use crank_per_output "
@@ -179,11 +180,9 @@ class TeNode(Node):
         if self.p['gear_ratio'] > 0:
             return  # parameters win (real bench)
         try:
-            orders = OrderSet.from_bench_info(
-                gear_ratio=float(msg.gear_ratio), crank_per_input=float(msg.crank_per_input),
-                mesh_orders_out=tuple(msg.mesh_orders), mesh_labels=tuple(msg.mesh_labels),
-                n_crank_harmonics=self.p['n_crank_harmonics'])
-        except ValueError as exc:
+            orders = OrderSet.from_bench_info(BenchInfoData.from_message(msg),
+                                              self.p['n_crank_harmonics'])
+        except (ValueError, TypeError) as exc:
             self.drops.drop('bad_bench_info', str(exc))
             return
         if self.analyzer is not None and self.analyzer.config.orders == orders:

@@ -38,13 +38,14 @@ from rv_te_msgs.msg import BenchInfo, EncoderBlock, MetricVerdict, TestReport, T
 from rv_te_msgs.srv import RunBenchProgram
 from std_srvs.srv import Trigger
 
-from rv_te_bench.acceptance import BenchContext, StepRunner, build_report, parse_plan
+from rv_te_bench.acceptance import StepRunner, build_report, parse_plan
 from rv_te_bench.acceptance._files import parse_yaml_text
 from rv_te_bench.acceptance.tolerance import load_tolerance, parse_tolerance
 from rv_te_bench.errors import AcceptanceError
 from rv_te_bench.nodes import qos
 from rv_te_bench.nodes.common import DropCounter, declare_from_specs, run_node
 from rv_te_bench.params import ParamSpec
+from sim.bench_info import BenchInfoData
 
 if TYPE_CHECKING:
     from rclpy.action.server import ServerGoalHandle
@@ -83,7 +84,7 @@ class TestSequencerNode(Node):
         super().__init__('test_sequencer', **kwargs)
         self.p = declare_from_specs(self, PARAMS)
         self.drops = DropCounter(self)
-        self.ctx: BenchContext | None = None
+        self.bench_info: BenchInfoData | None = None
         self.busy: dict[str, Any] | None = None
         self._runner: StepRunner | None = None
         self._prog: dict[str, Any] = {}
@@ -106,14 +107,7 @@ class TestSequencerNode(Node):
 
     # -- callbacks ------------------------------------------------------------------------------
     def _on_info(self, msg: BenchInfo) -> None:
-        self.ctx = BenchContext(
-            gear_ratio=msg.gear_ratio, crank_per_input=msg.crank_per_input,
-            mesh_orders=tuple(msg.mesh_orders), mesh_labels=tuple(msg.mesh_labels),
-            sample_rate_hz=msg.sample_rate_hz, block_size=msg.block_size,
-            bench_id=msg.bench_id, preset=msg.preset, encoder_in_model=msg.encoder_in_model,
-            encoder_out_model=msg.encoder_out_model,
-            encoder_out_resolution_rad=msg.encoder_out_resolution_rad,
-            reducer_type=msg.reducer_type)
+        self.bench_info = BenchInfoData.from_message(msg)
 
     def _on_goal(self, goal: RunTestPlan.Goal) -> GoalResponse:
         if self.busy is not None:
@@ -182,27 +176,27 @@ class TestSequencerNode(Node):
             if not isinstance(conditions, dict):
                 msg = 'conditions_yaml must be a mapping'
                 raise AcceptanceError(msg)
-            ctx = await self._bench()
+            info = await self._bench()
             if req.tolerance_yaml.strip():
                 profile = parse_tolerance(parse_yaml_text(
                     req.tolerance_yaml, 'tolerance (goal)', AcceptanceError), 'tolerance (goal)')
             else:
-                profile, _ = load_tolerance(plan.tolerance or ctx.preset)
+                profile, _ = load_tolerance(plan.tolerance or info.preset)
             self.busy = {'plan': plan.name, 'serial': req.serial, 'step': 0,
                          'steps': len(plan.steps)}
             self._publish_report(req, plan.name, 'running', 'started', [], '')
             for j, step in enumerate(plan.steps):
                 self.busy['step'] = j
-                results.append(await self._run_step(goal_handle, req, j, step, ctx,
+                results.append(await self._run_step(goal_handle, req, j, step, info,
                                                     len(plan.steps)))
-            report = build_report(plan=plan, profile=profile, ctx=ctx, serial=req.serial,
+            report = build_report(plan=plan, profile=profile, info=info, serial=req.serial,
                                   operator=req.operator_name, results=results,
                                   conditions=conditions, started_utc=_iso(started))
             self._finish(result, req, plan.name, report)
             goal_handle.succeed()
         except _Cancelled:
-            report = build_report(plan=plan, profile=profile, ctx=self.ctx, serial=req.serial,
-                                  operator=req.operator_name, results=results,
+            report = build_report(plan=plan, profile=profile, info=self.bench_info,
+                                  serial=req.serial, operator=req.operator_name, results=results,
                                   started_utc=_iso(started), status='cancelled')
             self._finish(result, req, plan.name, report)
             goal_handle.canceled()
@@ -218,11 +212,11 @@ class TestSequencerNode(Node):
             self._runner, self._prog, self.busy = None, {}, None
         return result
 
-    async def _bench(self) -> BenchContext:
+    async def _bench(self) -> BenchInfoData:
         deadline = time.monotonic() + self.p['bench_timeout_s']
-        while self.ctx is None or not self.cli_program.service_is_ready():
+        while self.bench_info is None or not self.cli_program.service_is_ready():
             if time.monotonic() > deadline:
-                what = 'bench/info' if self.ctx is None else 'the bench/run_program service'
+                what = 'bench/info' if self.bench_info is None else 'the bench/run_program service'
                 msg = (f'no bench: {what} not seen in {self.p["bench_timeout_s"]:g} s (is the '
                        'bench running with commanded: true?)')
                 raise AcceptanceError(msg)
@@ -241,12 +235,12 @@ class TestSequencerNode(Node):
                     'are not recorded by them')
                 break
             await self._sleep()
-        return self.ctx
+        return self.bench_info
 
     async def _run_step(self, goal_handle: ServerGoalHandle, req: RunTestPlan.Goal, j: int,
-                        step: Step, ctx: BenchContext,
+                        step: Step, info: BenchInfoData,
                         n_steps: int) -> tuple[list[Measured], dict[str, Any]]:
-        runner = StepRunner(step, ctx)
+        runner = StepRunner(step, info)
         call = RunBenchProgram.Request(program_yaml=yaml.safe_dump(runner.program()))
         future = self.cli_program.call_async(call)
         while not future.done():
@@ -322,7 +316,7 @@ class TestSequencerNode(Node):
                        segment_blocks=[int(n) for n in self._prog.get('segment_blocks', ())],
                        parameters_yaml=params, result_yaml=result)
         msg.header.stamp = self.get_clock().now().to_msg()
-        msg.header.frame_id = self.ctx.bench_id if self.ctx else ''
+        msg.header.frame_id = self.bench_info.bench_id if self.bench_info else ''
         self.pub_step.publish(msg)
 
     def _publish_report(self, req: RunTestPlan.Goal, plan_name: str, verdict: str, reason: str,

@@ -6,8 +6,8 @@ No rclpy: everything here runs on a laptop without ROS.
 from __future__ import annotations
 
 from rv_te_bench.report.analysis import (
+    AnalysisBench,
     AnalysisResult,
-    BenchDescription,
     DominantHarmonic,
     Recommendation,
     SpectrumSummary,
@@ -18,8 +18,8 @@ from rv_te_bench.report.analysis import (
 )
 
 __all__ = [
+    'AnalysisBench',
     'AnalysisResult',
-    'BenchDescription',
     'DominantHarmonic',
     'Recommendation',
     'SpectrumSummary',

@@ -37,13 +37,14 @@ import numpy as np
 
 from rv_te_bench.core.advice import advice_kind
 from rv_te_bench.core.angle_fold import AngleFold
+from rv_te_bench.core.orders import OrderSet
 from rv_te_bench.core.spectrum import SpectrumAverager, SpectrumSummary
 from rv_te_bench.core.units import json_float
 from rv_te_bench.errors import BagError, BenchInfoError, RvTeError, TeConfigError
 from rv_te_bench.report._guarded import _GuardedBlocks
 from rv_te_bench.report.results import (
+    AnalysisBench,
     AnalysisResult,
-    BenchDescription,
     DominantHarmonic,
     Recommendation,
     SessionInfo,
@@ -59,12 +60,13 @@ if TYPE_CHECKING:
     from rv_te_bench.core.angle_fold import FoldedTe
     from rv_te_bench.core.stream import WindowResult
     from rv_te_bench.core.te import TeStats
+    from sim.bench_info import BenchInfoData
 
     ProgressFn = Callable[[int, int, float], None]
 
 __all__ = [
+    'AnalysisBench',
     'AnalysisResult',
-    'BenchDescription',
     'DominantHarmonic',
     'Recommendation',
     'SessionInfo',
@@ -163,9 +165,8 @@ def analyze_bag(
         msg = f'{path}: no such bag'
         raise BagError(msg)
     info, info_problem = _read_bench_info(path, gear_ratio, crank_per_output)
-    bench = _bench_description(path, info, gear_ratio, crank_per_output)
-    config = TeAnalysisConfig(orders=_order_set(bench, n_crank_harmonics),
-                              window_revolutions=window_revolutions)
+    bench = _analysis_bench(path, info, gear_ratio, crank_per_output, n_crank_harmonics)
+    config = TeAnalysisConfig(orders=bench.orders, window_revolutions=window_revolutions)
 
     # one helper thread reads the bag ahead and computes window spectra: with the caller,
     # two runnable threads on two cores (a third preempts the caller: issue 23)
@@ -229,7 +230,7 @@ def analyze_bag(
 
 
 def _read_bench_info(path: Path, gear_ratio: float | None, crank_per_output: float | None,
-                     ) -> tuple[dict[str, Any] | None, str | None]:
+                     ) -> tuple[BenchInfoData | None, str | None]:
     """(BenchInfo, problem): a damaged chunk holding BenchInfo does not block a bag whose
     ratio and crank order are given (--ratio, --crank-per-output); the result is partial."""
     from rv_te_bench.io.bag_reader import read_bench_info
@@ -246,9 +247,9 @@ def _read_bench_info(path: Path, gear_ratio: float | None, crank_per_output: flo
         return None, 'no readable BenchInfo (damaged): --ratio and --crank-per-output used'
 
 
-def _bench_description(path: Path, info: dict[str, Any] | None, gear_ratio: float | None,
-                       crank_per_output: float | None) -> BenchDescription:
-    """Merge BenchInfo from the bag with the command-line overrides."""
+def _analysis_bench(path: Path, info: BenchInfoData | None, gear_ratio: float | None,
+                    crank_per_output: float | None, n_crank_harmonics: int) -> AnalysisBench:
+    """The bag's BenchInfo with the command-line overrides over it."""
     if info is None:
         missing = [flag for flag, v in (('--ratio', gear_ratio),
                                         ('--crank-per-output', crank_per_output)) if v is None]
@@ -257,71 +258,57 @@ def _bench_description(path: Path, info: dict[str, Any] | None, gear_ratio: floa
                    f'and crank order are unknown; pass {" and ".join(missing)}')
             raise TeConfigError(msg)
         assert gear_ratio is not None and crank_per_output is not None
-        return BenchDescription(source='cli', gear_ratio=float(gear_ratio),
-                                crank_per_output=float(crank_per_output))
+        source = 'cli'
+    else:
+        given = gear_ratio is not None or crank_per_output is not None
+        source = 'bench_info+cli' if given else 'bench_info'
     try:
-        ratio = float(info['gear_ratio'])
-        cpo = abs(float(info['crank_per_input']) * ratio)
-    except (KeyError, TypeError, ValueError) as exc:
-        msg = f'{path}: BenchInfo lacks a usable gear_ratio/crank_per_input ({exc!r})'
+        if info is None:
+            orders = OrderSet(gear_ratio=float(gear_ratio),
+                              crank_per_output=float(crank_per_output),
+                              n_crank_harmonics=n_crank_harmonics)
+        else:
+            orders = OrderSet.from_bench_info(info, n_crank_harmonics, gear_ratio=gear_ratio,
+                                              crank_per_output=crank_per_output)
+    except TeConfigError as exc:
+        msg = f'{str(exc).rstrip(".")} (source: {source})'
         raise TeConfigError(msg) from None
-    source = 'bench_info'
-    if gear_ratio is not None or crank_per_output is not None:
-        source = 'bench_info+cli'
-        ratio = float(gear_ratio) if gear_ratio is not None else ratio
-        cpo = float(crank_per_output) if crank_per_output is not None else cpo
-    return BenchDescription(
-        source=source, gear_ratio=ratio, crank_per_output=cpo,
-        bench_id=str(info.get('bench_id', '')), preset=str(info.get('preset', '')),
-        reducer_type=str(info.get('reducer_type', '')),
-        mesh_orders_out=tuple(float(o) for o in info.get('mesh_orders', ()) or ()),
-        mesh_labels=tuple(str(s) for s in info.get('mesh_labels', ()) or ()),
-        sample_rate_hz=float(info.get('sample_rate_hz', math.nan) or math.nan),
-        encoder_in_model=str(info.get('encoder_in_model', '')),
-        encoder_out_model=str(info.get('encoder_out_model', '')),
-        parameters_yaml=str(info.get('parameters_yaml', '')))
-
-
-def _order_set(bench: BenchDescription, n_crank_harmonics: int) -> Any:
-    """The core OrderSet for the bench (signs do not matter for frequencies)."""
-    from rv_te_bench.core.orders import OrderSet
-
-    return OrderSet(gear_ratio=bench.gear_ratio, crank_per_output=bench.crank_per_output,
-                    mesh_orders_out=bench.mesh_orders_out, mesh_labels=bench.mesh_labels,
-                    n_crank_harmonics=n_crank_harmonics)
+    return AnalysisBench(source=source, orders=orders, info=info)
 
 
 def dominant_harmonic(spectrum: SpectrumSummary,
-                      bench: BenchDescription) -> DominantHarmonic | None:
+                      bench: AnalysisBench) -> DominantHarmonic | None:
     """The labelled line with the largest averaged amplitude and its likely source."""
     if not spectrum.lines:
         return None
     k = int(np.argmax([ln.amplitude_rad for ln in spectrum.lines]))
     line = spectrum.lines[k]
-    return DominantHarmonic(line=line, likely_source=likely_source(line.output_order, bench))
+    return DominantHarmonic(line=line, likely_source=likely_source(
+        line.output_order, bench.orders, bench.reducer_type))
 
 
-def likely_source(output_order: float, bench: BenchDescription) -> str:
+def likely_source(output_order: float, orders: OrderSet, reducer_type: str = '') -> str:
     """Name the likely physical source of a TE harmonic.
 
     Args:
         output_order: Cycles per output revolution of the harmonic.
-        bench: Crank order, mesh orders and reducer type.
+        orders: Crank order and mesh orders of the reducer.
+        reducer_type: ``'2kv'``, ``'rv'``, ``'other'`` or '' (unknown).
 
     Returns:
         One sentence for people.
     """
     o = abs(float(output_order))
-    cpo = bench.crank_per_output
+    cpo = orders.crank_per_output
 
     def near(a: float, b: float) -> bool:
         return abs(a - b) <= _ORDER_RTOL * max(1.0, abs(b))
 
-    for mo, label in zip(bench.mesh_orders_out, bench.mesh_labels, strict=False):
+    for mo, label in zip(orders.mesh_orders_out, orders.mesh_labels, strict=False):
         if near(o, mo):
             return f'tooth profile / pitch error of the {label or "gear mesh"} (mesh order)'
     crank = 'crankshaft (eccentric) eccentricity or crank bearing clearance'
-    if bench.reducer_type == '2kv' or not bench.reducer_type:
+    if reducer_type == '2kv' or not reducer_type:
         crank = 'crank / 2nd-stage planet eccentricity (eccentric error, crank bearing clearance)'
     if near(o, cpo):
         return f'{crank} (once per crank revolution, 1 f_w)'
@@ -340,7 +327,7 @@ def likely_source(output_order: float, bench: BenchDescription) -> str:
     return 'not assigned to a known order'
 
 
-def _recommend(bench: BenchDescription, cumulative: TeStats, folded: FoldedTe | None,
+def _recommend(bench: AnalysisBench, cumulative: TeStats, folded: FoldedTe | None,
                search: tuple[float, bool] = (10.0, False)) -> Recommendation:
     """Ask the compensation code for advice on the bench's preset (lazy imports).
 
@@ -353,14 +340,14 @@ def _recommend(bench: BenchDescription, cumulative: TeStats, folded: FoldedTe | 
       over all clean samples (``core.tooth_compensation``);
     * any other preset: no compensation model.
     """
-    if not bench.preset:
+    if bench.info is None or not bench.info.preset:
         return Recommendation(available=False, reason='no recommendation available: the bag '
                               'has no BenchInfo preset, so there is no reducer model')
     from rv_te_bench.io.bench_record import preset_from_bench_info
     from sim.errors import SimError
 
     try:
-        preset = preset_from_bench_info(bench.preset, bench.parameters_yaml)
+        preset = preset_from_bench_info(bench.info)
     except SimError as exc:
         return Recommendation(available=False, reason=(
             f'no recommendation available: preset {bench.preset!r} cannot be loaded ({exc})'))

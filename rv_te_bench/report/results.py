@@ -16,22 +16,23 @@ import numpy as np
 
 from rv_te_bench.core.spectrum import SpectrumSummary, spectrum_line_json
 from rv_te_bench.core.units import json_float
-from rv_te_bench.errors import TeConfigError
 from sim.units import rad_to_arcmin
 
 if TYPE_CHECKING:
     import numpy.typing as npt
 
     from rv_te_bench.core.advice import Advice
+    from rv_te_bench.core.orders import OrderSet
     from rv_te_bench.core.spectrum import SpectrumLine
     from rv_te_bench.core.stream import GapEvent, WindowResult
     from rv_te_bench.core.te import TeStats
+    from sim.bench_info import BenchInfoData
 
     FloatArray = npt.NDArray[np.float64]
 
 __all__ = [
+    'AnalysisBench',
     'AnalysisResult',
-    'BenchDescription',
     'DominantHarmonic',
     'Recommendation',
     'SessionInfo',
@@ -43,49 +44,73 @@ __all__ = [
 
 
 @dataclass(frozen=True)
-class BenchDescription:
-    """What the analysis knows about the bench that recorded a bag.
+class AnalysisBench:
+    """The bench as the analysis of one bag uses it: the bag's record and the lines.
 
     Attributes:
         source: ``'bench_info'`` (from the bag), ``'cli'`` (from --ratio/--crank-per-output)
             or ``'bench_info+cli'`` (bag values overridden by flags).
-        bench_id: Bench id ('' when unknown).
-        preset: Reducer preset name ('' when unknown).
-        reducer_type: ``'2kv'``, ``'rv'`` or ''.
-        gear_ratio: Overall ratio i, input revolutions per output revolution.
-        crank_per_output: |Absolute crank revolutions per output revolution|.
-        mesh_orders_out: Mesh frequencies as orders of the output rotation.
-        mesh_labels: One label per mesh order.
-        sample_rate_hz: Nominal DAQ rate from BenchInfo (NaN when unknown).
-        encoder_in_model: Input encoder model ('' when unknown).
-        encoder_out_model: Output encoder model ('' when unknown).
-        parameters_yaml: Effective preset values as YAML ('' when unknown).
+        orders: Ratio, crank order and mesh lines the analysis reports (the bag's
+            :meth:`OrderSet.from_bench_info <rv_te_bench.core.orders.OrderSet.from_bench_info>`,
+            with the flags over it).
+        info: The bag's ``BenchInfo`` record, None when the bag has none (or it is damaged).
+
+    The record's fields read through the properties ('' / NaN / empty when unknown).
     """
 
     source: str
-    gear_ratio: float
-    crank_per_output: float
-    bench_id: str = ''
-    preset: str = ''
-    reducer_type: str = ''
-    mesh_orders_out: tuple[float, ...] = ()
-    mesh_labels: tuple[str, ...] = ()
-    sample_rate_hz: float = math.nan
-    encoder_in_model: str = ''
-    encoder_out_model: str = ''
-    parameters_yaml: str = field(default='', repr=False)
+    orders: OrderSet
+    info: BenchInfoData | None = None
 
-    def __post_init__(self) -> None:
-        """Validate ratio and crank order.
+    @property
+    def gear_ratio(self) -> float:
+        """Overall ratio i, input revolutions per output revolution."""
+        return self.orders.gear_ratio
 
-        Raises:
-            TeConfigError: A non-finite or non-positive ratio / crank order.
-        """
-        for name in ('gear_ratio', 'crank_per_output'):
-            value = getattr(self, name)
-            if not (math.isfinite(value) and value > 0):
-                msg = f'{name} must be finite and > 0, got {value!r} (source: {self.source})'
-                raise TeConfigError(msg)
+    @property
+    def crank_per_output(self) -> float:
+        """|Absolute crank revolutions per output revolution|."""
+        return self.orders.crank_per_output
+
+    @property
+    def mesh_orders_out(self) -> tuple[float, ...]:
+        """Mesh frequencies as orders of the output rotation."""
+        return self.orders.mesh_orders_out
+
+    @property
+    def mesh_labels(self) -> tuple[str, ...]:
+        """One label per mesh order."""
+        return self.orders.mesh_labels
+
+    @property
+    def bench_id(self) -> str:
+        """Bench id ('' when unknown)."""
+        return '' if self.info is None else self.info.bench_id
+
+    @property
+    def preset(self) -> str:
+        """Reducer preset name ('' when unknown)."""
+        return '' if self.info is None else self.info.preset
+
+    @property
+    def reducer_type(self) -> str:
+        """``'2kv'``, ``'rv'``, ``'other'`` or ''."""
+        return '' if self.info is None else self.info.reducer_type
+
+    @property
+    def sample_rate_hz(self) -> float:
+        """Nominal DAQ rate from BenchInfo (NaN when unknown or recorded as 0)."""
+        return math.nan if self.info is None else (self.info.sample_rate_hz or math.nan)
+
+    @property
+    def encoder_in_model(self) -> str:
+        """Input encoder model ('' when unknown)."""
+        return '' if self.info is None else self.info.encoder_in_model
+
+    @property
+    def encoder_out_model(self) -> str:
+        """Output encoder model ('' when unknown)."""
+        return '' if self.info is None else self.info.encoder_out_model
 
     def to_json_dict(self) -> dict[str, Any]:
         """JSON-friendly dict (unit-suffixed keys)."""
@@ -228,7 +253,7 @@ class AnalysisResult:
 
     path: Path
     topic: str | None
-    bench: BenchDescription
+    bench: AnalysisBench
     windows: tuple[WindowResult, ...]
     cumulative: TeStats
     spectrum: SpectrumSummary | None

@@ -275,15 +275,16 @@ def _conditions(report: dict[str, Any]) -> list[tuple[str, str]]:
 
 
 def _advice(report: dict[str, Any]) -> list[str]:
-    from rv_te_bench.report import BenchDescription, likely_source
+    from rv_te_bench.core.orders import OrderSet
+    from rv_te_bench.report import likely_source
 
     b = report['bench']
-    bench = BenchDescription(source='bench_info', gear_ratio=b['gear_ratio'],
-                             crank_per_output=abs(b.get('crank_per_input') or 0.0)
-                             * b['gear_ratio'] or 1.0,
-                             reducer_type=b.get('reducer_type', ''),
-                             mesh_orders_out=tuple(b.get('mesh_orders', ())),
-                             mesh_labels=tuple(b.get('mesh_labels', ())))
+    orders = OrderSet(gear_ratio=b['gear_ratio'],
+                      crank_per_output=OrderSet.crank_per_output_of(
+                          b.get('crank_per_input') or 0.0, b['gear_ratio']) or 1.0,
+                      mesh_orders_out=tuple(b.get('mesh_orders', ())),
+                      mesh_labels=tuple(b.get('mesh_labels', ())))
+    reducer_type = b.get('reducer_type', '')
     out = []
     failed = {m['name'] for m in report['metrics'] if m['verdict'] == 'fail'}
     for s in report['steps']:
@@ -292,7 +293,7 @@ def _advice(report: dict[str, Any]) -> list[str]:
                 top = max(r['spectrum'], key=lambda ln: ln['amplitude_rad'])
                 out.append(f"{r['direction']}: the strongest line is {top['label']} "
                            f"({top['amplitude_rad'] * ARCSEC_PER_RAD:.1f} arcsec): "
-                           f"{likely_source(top['output_order'], bench)}.")
+                           f"{likely_source(top['output_order'], orders, reducer_type)}.")
     if {'te_pp_ccw_rad', 'te_pp_cw_rad'} & failed:
         out.append('TE out of limit: see the strongest line above; for a 2K-V, rv-te identify '
                    'and the Wang 2020 Eq. 21 re-assembly phases; for an RV, the Hu 2020 '

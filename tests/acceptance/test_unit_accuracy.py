@@ -9,12 +9,12 @@ quantisation, graduation error and noise), offline (no middleware).
 from __future__ import annotations
 
 import math
+from dataclasses import replace
 
 import numpy as np
 import pytest
 
 from rv_te_bench.acceptance import (
-    BenchContext,
     load_tolerance,
     parse_plan,
     run_plan_offline,
@@ -42,13 +42,9 @@ def run_unit(preset: str, overrides: list[str], plan: dict, *, tolerance: str | 
              seed: int = 1) -> dict:
     sim = ProgramSimulator(preset=preset, overrides=tuple(overrides), te_mode=MODES[preset],
                            sample_rate_hz=1000.0, block_size=100, seed=seed)
-    k = sim.model.kinematics
-    ctx = BenchContext(gear_ratio=k.gear_ratio, crank_per_input=k.crank_per_input,
-                       mesh_orders=tuple(k.mesh_orders_out), mesh_labels=tuple(k.mesh_labels),
-                       sample_rate_hz=1000.0, block_size=100, preset=preset)
     profile, _ = load_tolerance(tolerance or preset)
-    return run_plan_offline(parse_plan(plan), profile, serial='SN', operator='t', sim=sim,
-                            ctx=ctx)
+    # the bench's record: ratio, crank order, mesh lines from its kinematics (sim.info)
+    return run_plan_offline(parse_plan(plan), profile, serial='SN', operator='t', sim=sim)
 
 
 def metric(report: dict, name: str) -> float:
@@ -177,11 +173,9 @@ def test_shipped_plan_whole_unit(preset: str, plan: str) -> None:
     p, _ = load_plan(plan)
     sim = ProgramSimulator(preset=preset, te_mode=MODES[preset],
                            sample_rate_hz=1000.0, block_size=100)
-    k = sim.model.kinematics
-    ctx = BenchContext(gear_ratio=k.gear_ratio, crank_per_input=k.crank_per_input,
-                       sample_rate_hz=1000.0, block_size=100, preset=preset)
+    info = replace(sim.info, mesh_orders=(), mesh_labels=())   # crank lines only
     r = run_plan_offline(p, load_tolerance(preset)[0], serial='SN', operator='t', sim=sim,
-                         ctx=ctx)
+                         info=info)
     names = {m['name'] for m in r['metrics']}
     assert {'te_pp_ccw_rad', 'te_pp_cw_rad', 'lost_motion_rad', 'backlash_rad',
             'torsional_rigidity_K_nm_per_rad'} <= names

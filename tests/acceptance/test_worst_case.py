@@ -17,7 +17,6 @@ import numpy as np
 import pytest
 
 from rv_te_bench.acceptance import (
-    BenchContext,
     HysteresisStep,
     StepRunner,
     TeStep,
@@ -25,6 +24,7 @@ from rv_te_bench.acceptance import (
     parse_plan,
     parse_tolerance,
 )
+from sim.bench_info import BenchInfoData
 
 RATIO = 79.0
 FS_HZ = 1000.0
@@ -62,7 +62,8 @@ def run_hysteresis(positions: int = 4) -> tuple[StepRunner, HysteresisStep]:
         'step_fraction': 0.1, 'dwell_s': 0.01, 'positions': positions}]})
     step = plan.steps[0]
     assert isinstance(step, HysteresisStep)
-    runner = StepRunner(step, BenchContext(gear_ratio=RATIO, sample_rate_hz=FS_HZ))
+    runner = StepRunner(step, BenchInfoData(gear_ratio=RATIO, sample_rate_hz=FS_HZ,
+                                            block_size=100))
     for pos in range(positions):
         cycle = [(j, s) for j, s in enumerate(runner.segments)
                  if s.role == 'cycle' and s.label['position'] == pos]
@@ -104,7 +105,7 @@ def test_a_unit_soft_at_one_position_fails_its_minimum_rigidity() -> None:
         'torsional_rigidity_nm_per_arcmin': {'min': limit_nm_per_arcmin, 'region': 'K'}}})
     plan = parse_plan({'plan': 'h', 'steps': [{'kind': 'hysteresis', 'name': 'hysteresis',
                                                'rated_torque_nm': TR, 'positions': 4}]})
-    report = build_report(plan=plan, profile=profile, ctx=runner.ctx, serial='SN',
+    report = build_report(plan=plan, profile=profile, info=runner.info, serial='SN',
                           operator='t', results=[runner.result()])
     (k,) = [m for m in report['metrics'] if m['name'] == 'torsional_rigidity_K_nm_per_rad']
     assert k['verdict'] == 'fail'
@@ -122,8 +123,8 @@ def run_te(amplitudes: dict[str, list[float]], extra_rad: float) -> StepRunner:
     2 % past the third revolution (not a whole revolution: not counted)."""
     step = TeStep(name='te', speed_rpm=300.0, directions=('ccw', 'cw'), revolutions=3,
                   settle_s=0.0)
-    runner = StepRunner(step, BenchContext(gear_ratio=RATIO, sample_rate_hz=FS_HZ,
-                                           block_size=100))
+    runner = StepRunner(step, BenchInfoData(gear_ratio=RATIO, sample_rate_hz=FS_HZ,
+                                            block_size=100))
     per_rev = round(RATIO * 60.0 / 300.0 * FS_HZ)
     assert per_rev == 15_800
     for j, seg in enumerate(runner.segments):
@@ -157,7 +158,7 @@ def test_direction_te_is_the_worst_revolution_and_fails_the_unit() -> None:
         'max': limit_arcmin}}})
     plan = parse_plan({'plan': 't', 'steps': [{'kind': 'te', 'name': 'te', 'speed_rpm': 300,
                                                'revolutions': 3}]})
-    report = build_report(plan=plan, profile=profile, ctx=runner.ctx, serial='SN',
+    report = build_report(plan=plan, profile=profile, info=runner.info, serial='SN',
                           operator='t', results=[(measured, details)])
     verdicts = {m['name']: m['verdict'] for m in report['metrics']}
     assert verdicts == {'te_pp_ccw_rad': 'fail', 'te_pp_cw_rad': 'pass'}

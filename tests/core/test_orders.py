@@ -8,6 +8,7 @@ import pytest
 
 from rv_te_bench.core.orders import OrderSet
 from rv_te_bench.errors import TeConfigError
+from sim.bench_info import BenchInfoData
 
 
 def test_wang2020_lines_in_order_with_labels() -> None:
@@ -25,10 +26,34 @@ def test_duplicates_keep_the_first_label_and_unlabelled_meshes_are_numbered() ->
 
 
 def test_from_bench_info_takes_the_absolute_crank_rate() -> None:
-    s = OrderSet.from_bench_info(79.0, -25.0 / 79.0, [1300.0], ['mesh'])
+    info = BenchInfoData(gear_ratio=79.0, crank_per_input=-25.0 / 79.0, mesh_orders=(1300.0,),
+                         mesh_labels=('mesh',))
+    s = OrderSet.from_bench_info(info)
     assert s.crank_per_output == pytest.approx(25.0)
     assert s.mesh_orders_out == (1300.0,)
     assert s.mesh_labels == ('mesh',)
+
+
+def test_from_bench_info_with_the_command_line_over_the_record() -> None:
+    """--ratio replaces the ratio but the crank order stays the record's (|-25/79| x 79);
+    --crank-per-output replaces the crank order; a bad record ratio is named."""
+    info = BenchInfoData(gear_ratio=79.0, crank_per_input=-25.0 / 79.0)
+    s = OrderSet.from_bench_info(info, 3, gear_ratio=80.0)
+    assert (s.gear_ratio, s.crank_per_output, s.n_crank_harmonics) == (80.0, pytest.approx(25.0), 3)
+    s = OrderSet.from_bench_info(info, crank_per_output=30.0)
+    assert (s.gear_ratio, s.crank_per_output) == (79.0, 30.0)
+    with pytest.raises(TeConfigError, match=r'gear_ratio must be finite and > 0, got 0\.0'):
+        OrderSet.from_bench_info(BenchInfoData(gear_ratio=0.0, crank_per_input=-0.3))
+
+
+@pytest.mark.parametrize(('sign', 'expected'), [(-1.0, -25.0 / 79.0), (1.0, 25.0 / 79.0)])
+def test_crank_per_input_is_the_wire_form_of_the_crank_order(sign: float,
+                                                              expected: float) -> None:
+    orders = OrderSet(gear_ratio=79.0, crank_per_output=25.0)
+    assert orders.crank_per_input(sign) == pytest.approx(expected, rel=1e-15)
+    back = OrderSet.from_bench_info(BenchInfoData(gear_ratio=79.0,
+                                                  crank_per_input=orders.crank_per_input(sign)))
+    assert back.crank_per_output == pytest.approx(25.0, rel=1e-15)
 
 
 @pytest.mark.parametrize(('kwargs', 'needle'), [

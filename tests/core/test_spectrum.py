@@ -16,6 +16,7 @@ from rv_te_bench.core.spectrum import order_spectrum, resample_to_output_angle
 from rv_te_bench.core.te import transmission_error_rad
 from rv_te_bench.core.units import arcmin_to_rad
 from rv_te_bench.errors import TeConfigError, TeInputError
+from sim.bench_info import BenchInfoData
 
 # Wang 2020 2K-V (DESIGN.md s.4): i = 79, f_w = 25 f_out, 2nd-stage mesh at 52 f_w.
 RATIO = 79.0
@@ -184,7 +185,9 @@ def test_order_set_lines_deduplicated() -> None:
 
 
 def test_order_set_from_bench_info_wang() -> None:
-    s = OrderSet.from_bench_info(RATIO, -25.0 / RATIO, (1300.0,), ('52 f_w',), 2)
+    info = BenchInfoData(gear_ratio=RATIO, crank_per_input=-25.0 / RATIO, mesh_orders=(1300.0,),
+                         mesh_labels=('52 f_w',))
+    s = OrderSet.from_bench_info(info, 2)
     assert_allclose(s.crank_per_output, 25.0, rtol=1e-14)
     assert [lbl for _, lbl in s.lines()] == ['f_out', '1 f_w', '2 f_w', 'f_w - f_out',
                                              'f_w + f_out', '52 f_w']

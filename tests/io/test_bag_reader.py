@@ -127,9 +127,9 @@ def test_iter_messages_filters_topics_and_returns_stored_bytes(sample_bag: Path)
 def test_bench_info(sample_bag: Path, tmp_path: Path) -> None:
     info = read_bench_info(sample_bag)
     assert info is not None
-    assert info['preset'] == 'wang2020-2kv'
-    assert info['gear_ratio'] == 79.0
-    assert info['mesh_labels'] == ['stage-2 mesh (52 f_w)']
+    assert info.preset == 'wang2020-2kv'
+    assert info.gear_ratio == 79.0
+    assert info.mesh_labels == ('stage-2 mesh (52 f_w)',)
     bare = tmp_path / 'bare'
     with BagWriter(bare) as writer:
         writer.add_topic(ENCODER_TOPIC, ENCODER_BLOCK)
@@ -273,7 +273,7 @@ def test_reads_a_bag_folder_written_by_rosbags(tmp_path: Path) -> None:
     assert [b.seq for b in blocks] == list(range(8))
     for block in blocks:
         _assert_block(block, block.seq, 30)
-    assert read_bench_info(bag)['preset'] == 'wang2020-2kv'  # type: ignore[index]
+    assert read_bench_info(bag).preset == 'wang2020-2kv'  # type: ignore[union-attr]
     summary = bag_summary(bag)
     assert summary['topics'][ENCODER_TOPIC]['count'] == 8
     assert summary['finalized'] is None  # not written by BagWriter: state unknown

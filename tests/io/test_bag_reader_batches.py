@@ -208,7 +208,7 @@ def test_bench_info_from_the_summary_equals_a_scan(tmp_path: Path) -> None:
     assert _mcap_scan._indexed_messages(file, [INFO_TOPIC]) is None
     assert read_bench_info(bag) == fast
     assert fast is not None
-    assert fast['preset'] == 'wang2020-2kv'
+    assert fast.preset == 'wang2020-2kv'
 
 
 def test_bench_info_of_a_killed_recording(tmp_path: Path) -> None:
@@ -220,7 +220,7 @@ def test_bench_info_of_a_killed_recording(tmp_path: Path) -> None:
     assert _mcap_scan._indexed_messages(file, [INFO_TOPIC]) is None
     info = read_bench_info(bag)
     assert info is not None
-    assert info['gear_ratio'] == 79.0
+    assert info.gear_ratio == 79.0
     writer.close()
 
 
@@ -262,7 +262,7 @@ def test_bench_info_in_the_first_of_split_files(tmp_path: Path) -> None:
     assert _mcap_scan._indexed_messages(files[-1], [INFO_TOPIC]) == []
     info = read_bench_info(bag)
     assert info is not None
-    assert info['preset'] == 'wang2020-2kv'
+    assert info.preset == 'wang2020-2kv'
 
 
 def test_bag_topics_of_a_folder_and_of_its_lone_file(tmp_path: Path) -> None:

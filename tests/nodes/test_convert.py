@@ -11,9 +11,9 @@ pytest.importorskip('rclpy')
 pytest.importorskip('rv_te_msgs')
 
 from rv_te_bench.core.te import TeStats
-from rv_te_bench.io.bench_record import bench_info_field_names, bench_info_values
 from rv_te_bench.nodes import convert
 from sim.bench import BenchConfig, BenchSimulator
+from sim.bench_info import BenchInfoData
 from sim.drive import drive_from_spec
 
 
@@ -42,8 +42,10 @@ def test_bench_info_message_carries_every_bench_info_field() -> None:
     info = BenchSimulator(BenchConfig(preset='wang2020-2kv', drive=drive)).info
     msg = convert.make_bench_info(info, convert.s_to_stamp(1.0))
     assert msg.header.frame_id == info.bench_id
-    assert bench_info_values(msg) == bench_info_values(info)
-    assert set(bench_info_field_names()) == set(msg.get_fields_and_field_types()) - {'header'}
+    assert BenchInfoData.from_message(msg) == info
+    # the record's fields are the message's, in the message's order (no header)
+    assert BenchInfoData.field_names() == tuple(
+        f for f in msg.get_fields_and_field_types() if f != 'header')
 
 
 def test_te_statistics_keep_nan_and_zero_unknown_revolutions() -> None:

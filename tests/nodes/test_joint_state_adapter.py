@@ -73,10 +73,7 @@ def reference_windows(values: dict[str, object]) -> list:
     sim = BenchSimulator(bench_config_from_params(p))
     n_blocks = math.ceil(2.3 * 79.0 / (SPEED_RPM / 60.0) * RATE_HZ / BLOCK) + 1
     data = [_as_data(sim.next_block()) for _ in range(n_blocks)]
-    info = sim.info
-    orders = OrderSet.from_bench_info(
-        gear_ratio=info.gear_ratio, crank_per_input=info.crank_per_input,
-        mesh_orders_out=tuple(info.mesh_orders), mesh_labels=tuple(info.mesh_labels))
+    orders = OrderSet.from_bench_info(sim.info)
     return [w for w in analyze_blocks(data, TeAnalysisConfig(orders=orders)).windows
             if w.complete]
 

@@ -25,6 +25,7 @@ from rv_te_bench.nodes import qos  # noqa: E402
 from rv_te_bench.nodes.bench_node import BenchNode  # noqa: E402
 from rv_te_bench.nodes.convert import encoder_block_to_data  # noqa: E402
 from rv_te_bench.nodes.te_node import TeNode  # noqa: E402
+from sim.bench_info import BenchInfoData  # noqa: E402
 from tests.nodes.rosutil import spin_for, spin_until  # noqa: E402
 
 SPEED_RPM = 3000.0          # one output revolution of wang2020-2kv = 1.58 s simulated
@@ -85,9 +86,7 @@ def test_bench_to_te_node_live_equals_offline(graph) -> None:
     np.testing.assert_allclose(th_out - th_in / 79.0, te_model, rtol=0, atol=1e-9)
 
     # live windows equal the offline computation on the same blocks
-    orders = OrderSet.from_bench_info(
-        gear_ratio=info.gear_ratio, crank_per_input=info.crank_per_input,
-        mesh_orders_out=tuple(info.mesh_orders), mesh_labels=tuple(info.mesh_labels))
+    orders = OrderSet.from_bench_info(BenchInfoData.from_message(info))
     offline = analyze_blocks(data, TeAnalysisConfig(orders=orders))
     live_complete = [w for w in windows if w.window_complete]
     off_complete = [w for w in offline.windows if w.complete]

@@ -21,9 +21,10 @@ import numpy as np
 import pytest
 from numpy.testing import assert_allclose
 
+from rv_te_bench.core.orders import OrderSet
 from rv_te_bench.errors import BagError, TeConfigError
 from rv_te_bench.report import analysis
-from rv_te_bench.report.analysis import BenchDescription, analyze_bag, likely_source
+from rv_te_bench.report.analysis import analyze_bag, likely_source
 from sim.units import arcmin_to_rad
 from tests.report.synthetic_bags import (
     CRANK_PER_OUTPUT,
@@ -177,9 +178,8 @@ def test_no_recommendation_says_why(tmp_path, preset: str, reason: str) -> None:
     assert reason in res.recommendation.reason
 
 
-_BENCH = BenchDescription(source='test', gear_ratio=RATIO, crank_per_output=CRANK_PER_OUTPUT,
-                          reducer_type='2kv', mesh_orders_out=MESH_ORDERS,
-                          mesh_labels=MESH_LABELS)
+_ORDERS = OrderSet(gear_ratio=RATIO, crank_per_output=CRANK_PER_OUTPUT,
+                   mesh_orders_out=MESH_ORDERS, mesh_labels=MESH_LABELS)
 
 
 @pytest.mark.parametrize(('order', 'words'), [
@@ -193,7 +193,7 @@ _BENCH = BenchDescription(source='test', gear_ratio=RATIO, crank_per_output=CRAN
     (12.5, 'not assigned'),
 ])
 def test_likely_source(order: float, words: str) -> None:
-    assert words in likely_source(order, _BENCH)
+    assert words in likely_source(order, _ORDERS, '2kv')
 
 
 def test_rv_recommendation_wiring(tmp_path, monkeypatch) -> None:
@@ -301,8 +301,7 @@ def test_running_average_equals_the_mean_of_the_window_spectra(constant_bag: tup
 
     path, _ = constant_bag
     res = analyze_bag(path, with_advice=False)
-    full = analyze_blocks(read_encoder_blocks(path), TeAnalysisConfig(
-        orders=analysis._order_set(res.bench, 10)))
+    full = analyze_blocks(read_encoder_blocks(path), TeAnalysisConfig(orders=res.bench.orders))
     spectra = [w.spectrum for w in full.windows if w.complete and w.spectrum is not None]
     assert res.spectrum is not None
     assert len(spectra) == res.spectrum.n_windows == 3

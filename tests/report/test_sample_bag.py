@@ -56,10 +56,10 @@ def test_sample_bench_info_agrees_with_the_kinematics() -> None:
     from sim.presets import load_preset
 
     info = read_bench_info(Path(__file__).resolve().parents[2] / 'bags' / 'sample')
-    kin = kinematics_from_preset(load_preset(info['preset']))
-    assert info['mesh_orders'] == pytest.approx(list(kin.mesh_orders_out))
-    assert info['mesh_labels'] == list(kin.mesh_labels)
-    assert info['gear_ratio'] == pytest.approx(kin.gear_ratio)
+    kin = kinematics_from_preset(load_preset(info.preset))
+    assert info.mesh_orders == pytest.approx(tuple(kin.mesh_orders_out))
+    assert info.mesh_labels == tuple(kin.mesh_labels)
+    assert info.gear_ratio == pytest.approx(kin.gear_ratio)
 
 
 def test_sample_identified_phases_are_the_papers() -> None:
