@@ -60,12 +60,18 @@ At zero load nothing holds the flanks together: the DTE follows the drive flank 
 pushes and floats inside the backlash when it pulls away (physically right for Wang 2020 Eq. 19,
 which has no drag). A bench run in 'dte' mode should apply some load.
 
-Start of a run (``solver.dte_start``): ``'loaded'`` starts at the first sample in
-quasi-static equilibrium under that sample's load; ``'unloaded'`` starts in the unloaded
-contact state (TE = NLTE, which is 0 at t0) with the load as a step, so the start-up
-transient is part of the record. Neither reproduces Wang 2020 Table 4's DTE rows within 5 %
-(docs/DESIGN_NOTES.md, 'Paper vs suite': the paper's DTE amplitudes lie below its own STE
-amplitudes, and its 300 N m records hold no unloaded sample).
+Start of a run (``solver.dte_start``, :data:`DTE_STARTS`): ``'loaded'`` starts at the first
+sample in quasi-static equilibrium under that sample's load (the steady DTE); ``'unloaded'``
+starts at the first sample in the unloaded contact state (TE = NLTE, which is 0 at t0) with
+the load as a step, so the start-up transient and the unloaded sample are in the record;
+``'unloaded-step'`` starts in the unloaded contact state one sample interval before the first
+sample, with the load as a step from there, so the record begins after the first step, as a
+Runge-Kutta integration started from x = e at t0 stores its first step. The start-up
+transient (set by m_e and C_g) then enters the peak-to-peak through that first sample.
+:data:`TABLE4_DTE_START` is the reading of Wang 2020 Table 4's DTE rows with this start
+(m_e 5 kg, damping ratio 0.3): it reproduces the 300 N m p-p before and after optimisation
+and the 100 N m p-p after within 1 % and changes no other cell (docs/DESIGN_NOTES.md,
+'Paper vs suite').
 """
 
 from __future__ import annotations
@@ -92,6 +98,8 @@ if TYPE_CHECKING:
     PhasesLike: TypeAlias = Sequence[npt.ArrayLike] | npt.NDArray[np.float64]
 
 __all__ = [
+    'DTE_STARTS',
+    'TABLE4_DTE_START',
     'MeshIncrements',
     'NlteCurves',
     'Wang2kvDynamics',
@@ -136,7 +144,20 @@ _KEYS: dict[str, str] = {
 }
 
 #: How a DTE run starts (``solver.dte_start``): see :class:`Wang2kvParams`.
-DTE_STARTS = ('loaded', 'unloaded')
+DTE_STARTS = ('loaded', 'unloaded', 'unloaded-step')
+
+#: Preset overrides of the reading of Wang 2020 Table 4's DTE rows (issue #40): the run
+#: starts unloaded one 100 us record step before its first sample (``'unloaded-step'``), with
+#: an equivalent mass m_e = 5 kg and a damping ratio of 0.3 at one touching pair
+#: (C_g = 2 x 0.3 x sqrt(k0 m_e) with the preset's k0 = 8.43e7 N/m). m_e and C_g are not
+#: given by the paper; only their combination matters here, as the TE reached after the first
+#: step (-0.23' at 300 N m): m_e 4-5 kg at damping ratios 0.3-1 keep the three p-p cells
+#: within 4 %. ``rv-te model wang2020-2kv --kind dte --dte-start table4``.
+TABLE4_DTE_START: dict[str, str] = {
+    'solver.dte_start': 'unloaded-step',
+    'mesh.equivalent_mass_kg': '5.0',
+    'mesh.damping_n_s_m': '12318.3',
+}
 
 
 def _fail(name: str, value: Any, rule: str) -> None:
@@ -171,6 +192,8 @@ class Wang2kvParams:
             Wang 2020 Eq. 8, no deflection, moving with the touching drive flank) with the load
             acting from the first sample on as a step, as an integration started from x = e or
             a bench loaded from rest; the start-up transient is then part of the record.
+            ``'unloaded-step'``: the same state one sample interval before the first sample
+            (the load a step from there): the record begins after the first step.
     """
 
     kinematics: ReducerKinematics
@@ -894,8 +917,9 @@ class Wang2kvDynamics:
     def _equilibrium(self, theta_in: float, omega_in: float, load: float) -> tuple[float, float]:
         """Initial state at the first sample: quasi-static equilibrium under ``load``
         (stiffness k(t0), contact set of Wang 2020 Eq. 18), or the unloaded contact state when the
-        parameters say ``dte_start='unloaded'`` (the load then acts as a step)."""
-        if self.params.dte_start == 'unloaded':
+        parameters say ``dte_start='unloaded'`` or ``'unloaded-step'`` (the load then acts as a
+        step)."""
+        if self.params.dte_start != 'loaded':
             load = 0.0
         g = self._grid(np.array([theta_in]), np.array([omega_in]), np.array([load]), 1, 1.0)
         th = theta_in / self.kinematics.gear_ratio
@@ -933,7 +957,19 @@ class Wang2kvDynamics:
         if st.started and not t[0] > st.t_s:
             msg = f't_s must continue after the previous block (t_s[0]={t[0]!r} <= {st.t_s!r})'
             raise ModelInputError(msg)
-        if not st.started:
+        if not st.started and self.params.dte_start == 'unloaded-step':
+            if t.size < 2:
+                msg = ("dte_start 'unloaded-step' needs at least two samples in the first "
+                       f'block (the first interval is the first step), got {t.size}')
+                raise ModelInputError(msg)
+            h0 = float(t[1] - t[0])     # the unloaded state one sample interval earlier
+            t_init, th_init = t[0] - h0, th[0] - om[0] * h0
+            st.x_m, st.v_m_s = self._equilibrium(th_init, om[0], ld[0])
+            st.t_s, st.theta_in_rad, st.omega_in_rad_s = t_init, th_init, om[0]
+            st.load_nm = ld[0]          # the load acts as a step over the first interval
+            st.started = True
+            dst = out
+        elif not st.started:
             st.x_m, st.v_m_s = self._equilibrium(th[0], om[0], ld[0])
             st.t_s, st.theta_in_rad, st.omega_in_rad_s, st.load_nm = t[0], th[0], om[0], ld[0]
             st.started = True

@@ -39,6 +39,8 @@ examples:
   rv-te model wang2020-2kv --phases-deg=-70,120,110,40 --json   optimised phases (Wang 2020 Eq. 21)
   rv-te model wang2020-2kv --kind dte --load-nm 300 --dte-start unloaded
                                                        DTE with the start-up transient
+  rv-te model wang2020-2kv --kind dte --load-nm 300 --dte-start table4
+                                                       Wang 2020 Table 4's DTE reading
   rv-te model wang2020-2kv --set mesh.stiffness_n_m=9e7 --kind ste --csv out/ste.csv
   rv-te model hu2020-rv --kind elastic --load-nm 1094 --load-hz 0.5
                                                        geometric + elastic TE (Hu 2020 TCA)
@@ -54,6 +56,8 @@ LOAD_FREE_KINDS = {
 PHASE_KEYS = ('eccentricity.theta_p1_0_deg', 'eccentricity.theta_p2_0_deg',
               'eccentricity.theta_g_0_deg', 'eccentricity.theta_ot_0_deg')
 BLOCK = 100_000
+#: ``--dte-start`` values: the model's starts and 'table4' (Wang 2020 Table 4's DTE reading).
+DTE_START_CHOICES = ('loaded', 'unloaded', 'unloaded-step', 'table4')
 MAX_SAMPLES = 50_000_000
 
 
@@ -103,11 +107,16 @@ def register(subparsers: Subparsers) -> None:
     p.add_argument('--phases-deg', type=_phases, default=None, metavar='P1,P2,G,OT',
                    help='eccentricity phases theta_p1, theta_p2, theta_g, theta_ot [deg] '
                         '(Wang 2020 Table 2 / Wang 2020 Eq. 21)')
-    p.add_argument('--dte-start', choices=('loaded', 'unloaded'), default=None,
-                   help="2K-V DTE: start in equilibrium under the load ('loaded', the preset's "
-                        "default) or from the unloaded contact state with the load as a step "
-                        "('unloaded'; the start-up transient is in the statistics). Sets "
-                        'solver.dte_start')
+    p.add_argument('--dte-start', choices=DTE_START_CHOICES, default=None,
+                   help="2K-V DTE start (sets solver.dte_start): 'loaded' (the preset's "
+                        "default) starts in equilibrium under the load; 'unloaded' from the "
+                        "unloaded contact state at the first sample with the load as a step "
+                        "(the start-up transient and TE = 0 in the statistics); "
+                        "'unloaded-step' the same one sample interval before the first sample "
+                        "(the record begins after the first step); 'table4' is "
+                        "'unloaded-step' with m_e 5 kg and damping ratio 0.3, the reading of "
+                        "Wang 2020 Table 4's DTE rows (docs/DESIGN_NOTES.md 'Paper vs suite'; "
+                        '--set still overrides m_e and C_g)')
     p.add_argument('--revolutions', type=positive_float, default=1.0, metavar='N',
                    help='output revolutions to simulate (default 1; revolutions x output '
                         f'period x sample rate <= {MAX_SAMPLES:.0e} samples)')
@@ -143,12 +152,18 @@ def simulate(args: argparse.Namespace) -> tuple[dict[str, Any], dict[str, np.nda
     from sim.kinematics import kinematics_from_preset
     from sim.models import build_te_model
     from sim.presets import load_preset
+    from sim.wang2020 import TABLE4_DTE_START
 
-    overrides = list(args.overrides)
+    overrides: list[str] = []
+    if args.dte_start == 'table4':      # the reading's m_e and C_g; --set may change them
+        overrides += [f'{k}={v}' for k, v in TABLE4_DTE_START.items()]
+    overrides += list(args.overrides)
     if args.phases_deg is not None:
         overrides += [f'{k}={v!r}' for k, v in zip(PHASE_KEYS, args.phases_deg, strict=True)]
     if args.dte_start is not None:
-        overrides.append(f'solver.dte_start={args.dte_start}')
+        start = TABLE4_DTE_START['solver.dte_start'] if args.dte_start == 'table4' \
+            else args.dte_start
+        overrides.append(f'solver.dte_start={start}')
     preset = load_preset(args.preset, overrides)
     kind = args.kind or DEFAULT_KIND.get(preset.model, 'nlte')
     if args.dte_start is not None and (preset.model, kind) != ('wang2020-2kv', 'dte'):
@@ -218,6 +233,7 @@ def simulate(args: argparse.Namespace) -> tuple[dict[str, Any], dict[str, np.nda
         # a load the model does not use is not shown as if it had been applied
         'load_nm': None if load_free else load_nm, 'load_hz': None if load_free else load_hz,
         'load_applied': not load_free,
+        **_dte_settings(preset, kind),
         'revolutions': args.revolutions, 'duration_s': n / fs,
         'sample_rate_hz': fs, 'n_samples': n,
         'compute_s': elapsed, 'real_time_factor': (n / fs) / elapsed if elapsed > 0 else math.inf,
@@ -227,6 +243,15 @@ def simulate(args: argparse.Namespace) -> tuple[dict[str, Any], dict[str, np.nda
     if load_free:
         del columns['load_nm']
     return stats, columns
+
+
+def _dte_settings(preset: Preset, kind: str) -> dict[str, Any]:
+    """The 2K-V DTE's start and the Wang 2020 Eq. 19 values its transient depends on."""
+    if (preset.model, kind) != ('wang2020-2kv', 'dte'):
+        return {}
+    return {'dte_start': preset.get('solver.dte_start', 'loaded'),
+            'equivalent_mass_kg': float(preset['mesh.equivalent_mass_kg']),
+            'mesh_damping_n_s_m': float(preset['mesh.damping_n_s_m'])}
 
 
 def _check_out(path: Path, force: bool) -> None:
