@@ -69,6 +69,8 @@ __all__ = [
     'elastic_te_rad',
     'error_gains_rad_per_m',
     'factor_orders',
+    'max_contact_force_n',
+    'max_deformation_m',
     'modification_te_rad',
     'sensitivity_table',
     'tooth_contact_analysis',
@@ -560,6 +562,78 @@ def _delta_max_m(params: HuRvParams, f_n: float, rho_abs_m: float) -> float:
         2.0 / 3.0 + math.log(16.0 * r * rho_abs_m / (c * c)))
 
 
+@dataclass(frozen=True)
+class _Pins:
+    """Pins of the loaded side: angle, lever arm (Eq. 36), initial clearance (Eq. 32), and the
+    tooth curvature radius at phi_0 (Eq. 40, signed)."""
+
+    phi: np.ndarray
+    lever: np.ndarray
+    clearance: np.ndarray
+    rho: float
+
+
+def _pins(params: HuRvParams) -> _Pins:
+    k = params.k1
+    s = math.sqrt(1.0 - k * k)
+    rc = params.r_c_m
+    zp = params.z_p
+    phi = 2.0 * np.pi * np.arange(1, (zp + 1) // 2) / zp
+    phi = phi[np.sin(phi) > 1e-12]
+    root = np.sqrt(1.0 + k * k - 2.0 * k * np.cos(phi))
+    lever = rc * np.sin(phi) / root                                              # Hu 2020 Eq. 36
+    clearance = (params.delta_r_rp_m * (1.0 - np.sin(phi) / root)
+                 - params.delta_r_p_m * (1.0 - k * np.cos(phi) - s * np.sin(phi)) / root)  # 32
+    cos0 = k                                                                     # Hu 2020 Eq. 33
+    rho = (params.r_p_m * (1.0 + k * k - 2.0 * k * cos0) ** 1.5
+           / (k * (zp + 1) * cos0 - (1.0 + zp * k * k)) + params.r_rp_m)           # Hu 2020 Eq. 40
+    return _Pins(phi, lever, clearance, float(rho))
+
+
+def max_deformation_m(params: HuRvParams, f_max_n: float) -> float:
+    """Hu 2020 Eqs 38-40: maximum normal deformation delta_max at contact force F_max [m].
+
+    Raises:
+        ModelInputError: Force not finite and > 0.
+    """
+    f = float(f_max_n)
+    if not (math.isfinite(f) and f > 0):
+        msg = f'f_max_n must be finite and > 0, got {f_max_n!r}'
+        raise ModelInputError(msg)
+    return _delta_max_m(params, f, abs(_pins(params).rho))
+
+
+def max_contact_force_n(params: HuRvParams, delta_max_m: float,
+                        torque_nm: float | None = None) -> tuple[float, int]:
+    """Hu 2020 Eq. 44 at a given delta_max: F_max and the number of pins in mesh.
+
+    The pins in mesh are those with ``(l_i / r_c') delta_max > Delta_i`` (Hu 2020 Eqs 32, 37).
+
+    Args:
+        params: Stage parameters.
+        delta_max_m: Maximum normal deformation [m] (> 0).
+        torque_nm: Output torque T [N m] (T_c = load_share T); ``params.torque_nm`` if None.
+
+    Raises:
+        ModelInputError: Values not finite and > 0, or no pin closes its clearance.
+    """
+    t = params.torque_nm if torque_nm is None else float(torque_nm)
+    d = float(delta_max_m)
+    if not (math.isfinite(t) and t > 0 and math.isfinite(d) and d > 0):
+        msg = f'torque_nm and delta_max_m must be finite and > 0, got {t!r}, {delta_max_m!r}'
+        raise ModelInputError(msg)
+    pins = _pins(params)
+    rc = params.r_c_m
+    mesh = pins.lever / rc * d > pins.clearance
+    if not mesh.any():
+        msg = (f'tooth contact analysis: at torque {t!r} N m no pin closes its initial '
+               f'clearance (smallest {float(np.min(pins.clearance)):.3g} m); raise tca.torque_nm')
+        raise ModelInputError(msg)
+    lever, cl = pins.lever[mesh], pins.clearance[mesh]
+    denom = float(np.sum((lever / rc - cl / d) * lever))
+    return params.load_share * t / denom, int(mesh.sum())                         # Eq. 44
+
+
 def tooth_contact_analysis(params: HuRvParams, torque_nm: float | None = None, *,
                            max_iter: int = 200) -> TcaResult:
     """Maximum contact force, pins in mesh and normal deformation (Hu 2020 s.4, Hu 2020 Eqs 28-48).
@@ -585,20 +659,10 @@ def tooth_contact_analysis(params: HuRvParams, torque_nm: float | None = None, *
     if not (math.isfinite(t) and t > 0):
         msg = f'torque_nm must be finite and > 0, got {torque_nm!r}'
         raise ModelInputError(msg)
-    k = params.k1
-    s = math.sqrt(1.0 - k * k)
-    rc = params.r_c_m
-    zp = params.z_p
-    phi = 2.0 * np.pi * np.arange(1, (zp + 1) // 2) / zp
-    phi = phi[np.sin(phi) > 1e-12]
-    root = np.sqrt(1.0 + k * k - 2.0 * k * np.cos(phi))
-    lever = rc * np.sin(phi) / root                                              # Hu 2020 Eq. 36
-    clearance = (params.delta_r_rp_m * (1.0 - np.sin(phi) / root)
-                 - params.delta_r_p_m * (1.0 - k * np.cos(phi) - s * np.sin(phi)) / root)  # 32
-    cos0 = k                                                                     # Hu 2020 Eq. 33
-    rho = (params.r_p_m * (1.0 + k * k - 2.0 * k * cos0) ** 1.5
-           / (k * (zp + 1) * cos0 - (1.0 + zp * k * k)) + params.r_rp_m)           # Hu 2020 Eq. 40
+    pins = _pins(params)
+    phi, lever, clearance, rho = pins.phi, pins.lever, pins.clearance, pins.rho
     rho_abs = abs(rho)
+    rc = params.r_c_m
     t_c = params.load_share * t
 
     def step(f_n: float) -> tuple[float, float, np.ndarray]:

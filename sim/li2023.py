@@ -54,7 +54,8 @@ Documented simplifications (the paper is unclear or silent):
 * beta is the paper's mean 31.9 deg (``tca.pressure_angle_deg``; 0 selects the LTCA mean,
   32.9 deg here: docs/DESIGN_NOTES.md 'Paper vs suite'); k_cr(t) keeps
   the LTCA harmonics (Li 2023 Eq. 11); both are computed at the preset's TCA torque, not the live
-  load. Tooth-profile modification is not modelled (LTCA of the unmodified profile).
+  load. The dynamic model uses the unmodified profile; :func:`ltca` also computes the
+  modified one (``modification_m``).
 * Sun-planet mesh stiffness: rectangular wave between k1 (single pair) and 2 k1 (double
   pair) over the contact ratio, mean from the preset, truncated Fourier series (Li 2023 Eq. 9).
 * Bearing clearances (Li 2023 Eqs 17, 20, 22) are left out: the paper gives no values, and in a
@@ -438,30 +439,44 @@ def _hertz_stiffness(force_n: np.ndarray, rho_c: np.ndarray, p: Li2023Params) ->
 
 
 def ltca(params: Li2023Params, *, torque_nm: float | None = None,
-         crank_angle_rad: npt.ArrayLike | None = None) -> LtcaResult:
-    """Loaded TCA of one cycloid disc (Li 2023 Eqs 2-7), unmodified profile.
+         crank_angle_rad: npt.ArrayLike | None = None,
+         modification_m: tuple[float, float] = (0.0, 0.0)) -> LtcaResult:
+    """Loaded TCA of one cycloid disc (Li 2023 Eqs 2-7), unmodified or modified profile.
 
-    Every pin on the loaded side (relative angle in (pi, 2 pi)) is in contact (Li 2023 Eq. 3 with
-    zero backlash); its normal deflection is ``l_i dphi`` (Li 2023 Eq. 4), its force
-    ``k_n(F) l_i dphi`` with the load-dependent Hertz stiffness of Li 2023 Eq. 2; ``dphi`` is found
-    so that ``sum F_i l_i`` equals the disc torque.
+    Unmodified (the default): every pin on the loaded side (relative angle in (pi, 2 pi)) is
+    in contact (Li 2023 Eq. 3 with zero backlash); its normal deflection is ``l_i dphi``
+    (Li 2023 Eq. 4), its force ``k_n(F) l_i dphi`` with the load-dependent Hertz stiffness of
+    Li 2023 Eq. 2; ``dphi`` is found so that ``sum F_i l_i`` equals the disc torque.
+
+    Modified (``modification_m = (roller position, roller radius)``, Li 2023 s.4.1: -0.05 and
+    -0.01 mm): each pin has the initial normal clearance of the modification, written as
+    Hu 2020 Eq. 32 (shift ``delta_r_p`` = roller position, isometric ``delta_r_rp`` = roller
+    radius; zero at ``cos phi = K1``), i.e. the backlash ``phi_bl,i = Delta_i / l_i`` of
+    Li 2023 Eq. 3: a pin carries load only once ``l_i dphi > Delta_i``, with the deflection
+    ``l_i dphi - Delta_i``. The Hertz stiffness of the unmodified tooth is kept (the
+    modification changes the tooth's curvature by < 0.1 %).
 
     Args:
         params: Model parameters.
         torque_nm: Disc torque [N m]; default ``tca_torque_nm * disc_load_share``.
         crank_angle_rad: Absolute eccentric angles [rad]; default ``tca_grid_points``
             points over one pin-mesh period.
+        modification_m: (roller position, roller radius) modification [m].
 
     Returns:
         The equivalent pressure angle and mesh stiffness at each angle.
 
     Raises:
-        ModelInputError: Torque not finite and > 0.
+        ModelInputError: Torque not finite and > 0, or a modification not finite.
     """
     p = params
     t_disc = p.tca_torque_nm * p.disc_load_share if torque_nm is None else float(torque_nm)
     if not (math.isfinite(t_disc) and t_disc > 0):
         msg = f'torque_nm must be finite and > 0, got {torque_nm!r}'
+        raise ModelInputError(msg)
+    d_rp, d_rrp = (float(v) for v in modification_m)
+    if not (math.isfinite(d_rp) and math.isfinite(d_rrp)):
+        msg = f'modification_m must be two finite lengths [m], got {modification_m!r}'
         raise ModelInputError(msg)
     if crank_angle_rad is None:
         phi = np.arange(p.tca_grid_points) * (2.0 * np.pi / p.z_pin / p.tca_grid_points)
@@ -475,17 +490,22 @@ def ltca(params: Li2023Params, *, torque_nm: float | None = None,
     loaded = lever > 1e-9 * r_c
     lever = np.where(loaded, lever, 0.0)
     rho_c = _cycloid_curvature_radius(th, p)
+    # initial clearance of the modification (Hu 2020 Eq. 32 at the pin's angle -th from the
+    # line of centres on the loaded side); 0 without modification
+    psi = -th
+    clearance = (d_rrp * (1.0 - np.sin(psi) / s)
+                 - d_rp * (1.0 - k1 * np.cos(psi) - math.sqrt(1.0 - k1 * k1) * np.sin(psi)) / s)
 
     def forces(dphi: np.ndarray) -> np.ndarray:
-        delta = lever * dphi[:, None]
+        delta = np.maximum(lever * dphi[:, None] - clearance, 0.0)
         f = 1.0e9 * delta
         for _ in range(12):                         # F = k_n(F) delta; k_n ~ log(F)
             f = _hertz_stiffness(f, rho_c, p) * delta
-        return np.where(loaded, f, 0.0)
+        return np.where(loaded & (delta > 0.0), f, 0.0)
 
     lo = np.full(phi.shape, 1e-9)
-    hi = np.full(phi.shape, 1e-2)
-    for _ in range(48):                             # bisection on log(dphi): 2e-7 rel.
+    hi = np.full(phi.shape, 1e-1)
+    for _ in range(56):                             # bisection on log(dphi): 2e-7 rel.
         mid = np.sqrt(lo * hi)
         torque = np.sum(forces(mid) * lever, axis=1)
         too_big = torque > t_disc
@@ -498,7 +518,7 @@ def ltca(params: Li2023Params, *, torque_nm: float | None = None,
     beta = np.arctan2(f_r, f_t)                                       # Li 2023 Eq. 7
     f_cr = np.hypot(f_t, f_r)                                         # Li 2023 Eq. 6
     k_cr = f_cr * np.cos(beta) / (r_c * dphi)                         # Li 2023 Eq. 7
-    arrays = (phi.copy(), beta, k_cr, dphi, loaded.sum(axis=1), f.max(axis=1))
+    arrays = (phi.copy(), beta, k_cr, dphi, (f > 0.0).sum(axis=1), f.max(axis=1))
     for arr in arrays:
         arr.setflags(write=False)
     return LtcaResult(*arrays)

@@ -64,8 +64,9 @@ def test_dte_without_errors_calibrated_damping_10khz() -> None:
 
 
 def test_dte_with_errors_calibrated_composite_error() -> None:
-    """Paper 17.25" (Fig. 11b). E_cr is not given; 1.78 um gives 17.26" (tolerance 2 %). The
-    p-p is linear in E_cr (9.25"/um), and the Table 3 errors alone add nothing to the p-p:
+    """Paper 17.25" (Fig. 11b). E_cr is not given; 1.78 um gives 17.26" (tolerance 2 %), the
+    2 um assumed before 19.30". The p-p is linear in E_cr (9.25"/um), and the Table 3 errors
+    alone add nothing to the p-p:
     with E_cr = 0 it is the error-free value (three in-phase cranks, opposed discs)."""
     with_err = _pp_arcsec({}, 1000.0)
     assert with_err == pytest.approx(PAPER_PP_ERR_ARCSEC, rel=0.02)
@@ -74,6 +75,9 @@ def test_dte_with_errors_calibrated_composite_error() -> None:
     assert no_ecr == pytest.approx(ideal, rel=0.01)
     half = _pp_arcsec({'errors.pin_composite_m': '0.89e-6'}, 1000.0)
     assert (with_err - half) / 0.89 == pytest.approx(9.25, rel=0.03)
+    # the 2 um the preset assumed before the calibration: 19.30" (+12 %)
+    assert _pp_arcsec({'errors.pin_composite_m': '2e-6'}, 1000.0) == pytest.approx(19.30,
+                                                                                  abs=0.01)
 
 
 def test_equivalent_pressure_angle() -> None:
