@@ -93,14 +93,16 @@ def _ste_reference_arcmin(phases_deg: tuple[float, ...], load_nm: float,
 
 
 def test_fig15_means_after_optimisation(params: Wang2kvParams) -> None:
-    """Fig. 15's mean for 300 N m after optimisation (-1.59659') lies above the maximum that
-    Table 4's row implies (amplitude 2.219', p-p 0.603': max = -2.219 + 0.603 = -1.616'), so
-    the two cannot describe one curve. With the k that gives Fig. 5b's means before
-    optimisation (0.3 %), Eq. 18 after optimisation stays below Table 4's bound and 0.03' to
-    0.33' below Fig. 15's means."""
+    """Fig. 15's mean for 300 N m after optimisation (-1.59659'), read as the STE panel's,
+    lies above the maximum that Table 4's STE row implies (amplitude 2.219', p-p 0.603':
+    max = -2.219 + 0.603 = -1.616'), so the two cannot describe one curve. With the k that
+    gives Fig. 5b's means before optimisation (0.3 %), Eq. 18 after optimisation stays below
+    Table 4's bound and 0.03' to 0.33' below Fig. 15's means; 1.25 k fits 300 N m but not
+    100 and 30 N m."""
     assert -2.219 + 0.603 < -1.59659                         # the paper's own inconsistency
     k = params.mesh_stiffness_n_m
-    for load, mean in ((30.0, -0.44858), (100.0, -1.0321), (300.0, -2.19511)):     # Fig. 5b
+    # Fig. 5b (the 100 N m mean is printed without its minus sign)
+    for load, mean in ((30.0, -0.44858), (100.0, -1.0321), (300.0, -2.19511)):
         got = float(np.mean(_ste_reference_arcmin(ref.TABLE2_PHASES_DEG, load, k)))
         assert got == pytest.approx(mean, rel=0.003)
     p = _with_phases(params, OPT_DEG)
@@ -114,6 +116,11 @@ def test_fig15_means_after_optimisation(params: Wang2kvParams) -> None:
     assert np.max(rad_to_arcmin(static_te_rad(THETA, 300.0, p))) < -1.616
     # the gap grows with the load: 0.027', 0.146', 0.207', 0.332' (0.005')
     assert gaps == pytest.approx([0.027, 0.146, 0.207, 0.332], abs=0.005)
+    # and no single k closes it: 1.25 k fits 300 N m, not 100 and 30 N m
+    means = [float(np.mean(_ste_reference_arcmin(OPT_DEG, t, 1.25 * k))) for t in (300, 100, 30)]
+    assert means == pytest.approx([-1.601, -0.614, -0.118], abs=0.002)
+    assert abs(means[0] / -1.59659 - 1) < 0.01
+    assert abs(means[1] / -0.55823 - 1) > 0.05 and abs(means[2] / -0.03031 - 1) > 0.05
 
 
 # ----------------------------------------------------------------- Table 4: DTE rows
@@ -134,6 +141,10 @@ PHASES = {'before': TABLE2_DEG, 'after': OPT_DEG}
 FS_HZ, OMEGA_IN = 10_000.0, 2.0 * math.pi * 5.0          # 300 rpm, as `rv-te model`
 
 
+TABLE4_START = {'equivalent_mass_kg': 5.0, 'mesh_damping_n_s_m': 12318.3,
+                'dte_start': 'unloaded-step'}           # sim.wang2020.TABLE4_DTE_START
+
+
 def _dte_arcmin(params: Wang2kvParams, load_nm: float) -> np.ndarray:
     """DTE over one output revolution at 10 kHz from the first sample (t0) on."""
     n = THETA.size
@@ -148,11 +159,14 @@ def _stats(te: np.ndarray) -> tuple[float, float, float]:
 
 @pytest.fixture(scope='module')
 def table4_runs(params: Wang2kvParams) -> dict[tuple[str, str, float], np.ndarray]:
-    """The six Table 4 DTE rows with both start options of the preset."""
+    """The six Table 4 DTE rows with the start options 'loaded', 'unloaded' and 'table4'
+    (the 'unloaded-step' start with m_e 5 kg, damping ratio 0.3)."""
     out = {}
-    for start in ('loaded', 'unloaded'):
+    for start in ('loaded', 'unloaded', 'table4'):
         for (when, load) in TABLE4_DTE:
-            p = dataclasses.replace(_with_phases(params, PHASES[when]), dte_start=start)
+            p = _with_phases(params, PHASES[when])
+            p = dataclasses.replace(p, **(TABLE4_START if start == 'table4'
+                                          else {'dte_start': start}))
             out[start, when, load] = _dte_arcmin(p, load)
     return out
 
@@ -182,11 +196,12 @@ def test_table4_dte_where_the_suite_matches(table4_runs: dict) -> None:
 
 def test_table4_dte_cells_not_reproduced_pin_the_suite(table4_runs: dict,
                                                        params: Wang2kvParams) -> None:
-    """The 9 cells marked 'evidence only: not reproduced' (causes (a), (b) of the note): the
-    suite's value is pinned against an independent computation, the quasi-static Eq. 18
-    written out in this file (the mesh mode at ~2 kHz is far above the excitation), within
-    0.5 %, and against the note's number within 0.002'; and each really is more than 5 % from
-    the paper with every start option, so that marking stays true. The unloaded start's p-p
+    """The 9 cells the loaded start does not reproduce: the suite's value is pinned against
+    an independent computation, the quasi-static Eq. 18 written out in this file (the mesh
+    mode at ~2 kHz is far above the excitation), within 0.5 %, and against the number
+    within 0.002'; and each is more than 5 % from the paper with the 'loaded' and 'unloaded'
+    starts (the 'table4' start reproduces three of them: test_table4_dte_start_reading).
+    The unloaded start's p-p
     of the rows where it differs is the independent STE amplitude (the record holds TE = 0
     and the STE minimum: 2.824', 1.125'), or above it by the load step's overshoot at 300 N m
     after optimisation (2.751' >= 2.218'; the overshoot is the suite's own value)."""
@@ -254,13 +269,16 @@ def test_table4_dte_amplitudes_cannot_reach_the_paper(table4_runs: dict,
         assert np.max(np.abs(_dte_arcmin(q, 30.0))) >= floor - 1e-3
 
 
-def test_table4_dte_300nm_peak_to_peak(table4_runs: dict) -> None:
+def test_table4_dte_start_reading(table4_runs: dict, params: Wang2kvParams) -> None:
     """Table 4's 300 N m DTE rows have p-p below the amplitude (2.580' < 2.731',
-    1.968' < 2.126'): the record's maximum is -0.151' / -0.158', so it holds no sample at the
-    unloaded state (TE = 0 at t0), i.e. no start from the unloaded state. The unloaded start
-    gives p-p >= amplitude (2.824', +9.4 %; after optimisation the step's overshoot gives
-    2.751', +39.8 %, and 2.218', +12.7 %, at best without it); the loaded start gives the
-    STE's p-p (1.259', -51 %; 0.580', -71 %). No start option lands within 5 % of both."""
+    1.968' < 2.126'): the record's maximum is -0.151' / -0.158', no sample of the unloaded
+    state (TE = 0 at t0) but one shortly after it. The 'unloaded' start (TE = 0 in the record)
+    gives p-p >= amplitude (2.824', +9.4 %), the 'loaded' start the STE's p-p (1.259', -51 %).
+    The 'table4' start (unloaded one 100 us step before the first sample, m_e 5 kg, damping
+    ratio 0.3) puts the first sample at -0.23' and reproduces the 300 N m p-p before (+0.5 %,
+    the cell m_e is fitted on) and after (+0.9 %) and the 100 N m p-p after (-0.8 %); every
+    other cell equals the loaded start's within 0.002'. Cells within 5 %: loaded 9, unloaded
+    8 (its overshoot costs the 300 N m amplitude after optimisation), table4 12 of 18."""
     for when, (pp, amp, _) in (('before', TABLE4_DTE['before', 300.0]),
                                ('after', TABLE4_DTE['after', 300.0])):
         assert pp < amp and -amp + pp < -0.15                 # max of the paper's record
@@ -269,6 +287,39 @@ def test_table4_dte_300nm_peak_to_peak(table4_runs: dict) -> None:
         assert got_pp / pp - 1 > 0.09
         assert _stats(table4_runs['loaded', when, 300.0])[0] / pp - 1 < -0.5
     assert _stats(table4_runs['unloaded', 'before', 300.0])[0] == pytest.approx(2.824, abs=0.005)
+    moved = {('before', 300.0): 2.594, ('after', 300.0): 1.986, ('after', 100.0): 1.048}
+    for (when, load), want in moved.items():
+        te = table4_runs['table4', when, load]
+        assert _stats(te)[0] == pytest.approx(want, abs=0.002)
+        assert _stats(te)[0] == pytest.approx(TABLE4_DTE[when, load][0], rel=0.01)
+        assert te[0] == pytest.approx(-0.23 if load == 300.0 else -0.078, abs=0.005)
+        # p-p = first sample - STE minimum (independent Eq. 18): the start adds that sample
+        ste = _ste_reference_arcmin(PHASES[when], load, params.mesh_stiffness_n_m)
+        assert _stats(te)[0] == pytest.approx(te[0] - np.min(ste), abs=0.002)
+    for (when, load) in TABLE4_DTE:
+        for q in range(3):
+            if q == 0 and (when, load) in moved:
+                continue
+            assert _stats(table4_runs['table4', when, load])[q] == pytest.approx(
+                _stats(table4_runs['loaded', when, load])[q], abs=0.002), (when, load, q)
+    within = {start: sum(abs(_stats(table4_runs[start, w, t])[q] / TABLE4_DTE[w, t][q] - 1)
+                         <= 0.05 for (w, t) in TABLE4_DTE for q in range(3))
+              for start in ('loaded', 'unloaded', 'table4')}
+    assert within == {'loaded': 9, 'unloaded': 8, 'table4': 12}
+
+
+def test_table4_dte_start_family(params: Wang2kvParams) -> None:
+    """The start reading is not tied to m_e 5 kg, damping ratio 0.3: at m_e 4 and 5 kg with
+    damping ratios 0.3 to 1 the three p-p cells stay within 4 % of Table 4."""
+    cells = {('before', 300.0): 2.580, ('after', 300.0): 1.968, ('after', 100.0): 1.056}
+    for m_e in (4.0, 5.0):
+        for zeta in (0.3, 0.5, 0.7, 1.0):
+            c_g = 2.0 * zeta * math.sqrt(params.mesh_stiffness_n_m * m_e)
+            for (when, load), paper in cells.items():
+                p = dataclasses.replace(_with_phases(params, PHASES[when]), equivalent_mass_kg=m_e,
+                                        mesh_damping_n_s_m=c_g, dte_start='unloaded-step')
+                pp = _stats(_dte_arcmin(p, load))[0]
+                assert abs(pp / paper - 1) < 0.04, (m_e, zeta, when, load, pp)
 
 
 def test_ripple_hurts_the_amplitude(params: Wang2kvParams) -> None:
@@ -277,11 +328,16 @@ def test_ripple_hurts_the_amplitude(params: Wang2kvParams) -> None:
     mesh-frequency oscillation; the preset now has none (mesh.stiffness_harmonic_ratio = 0)."""
     assert params.stiffness_harmonic_ratio == (0.0,)
     ripple = dataclasses.replace(params, stiffness_harmonic_ratio=(0.1,))
-    amp0 = _stats(_dte_arcmin(params, 300.0))[1]
-    amp1 = _stats(_dte_arcmin(ripple, 300.0))[1]
+    te0, te1 = _dte_arcmin(params, 300.0), _dte_arcmin(ripple, 300.0)
+    amp0, amp1 = _stats(te0)[1], _stats(te1)[1]
     assert amp0 == pytest.approx(2.824, abs=0.005)
-    assert amp1 - amp0 == pytest.approx(0.18, abs=0.02)
+    assert amp1 == pytest.approx(3.005, abs=0.005)
     assert abs(amp1 / 2.731 - 1) > abs(amp0 / 2.731 - 1)
+
+    def mesh_line(te: np.ndarray) -> float:      # 52 f_w = order 52 x 25 of the output
+        return float(np.abs(np.fft.rfft(te - te.mean()))[52 * 25] * 2.0 / te.size)
+
+    assert mesh_line(te0) < 0.001 < 0.1 < mesh_line(te1)
 
 
 # ----------------------------------------------------------------- NLTE rows, Fig. 14
@@ -308,30 +364,26 @@ def _nlte_rates_arcmin(phi: np.ndarray, phases_deg: tuple[float, ...],
 def test_table4_nlte_rows(params: Wang2kvParams) -> None:
     """Table 4 NLTE rows. Before optimisation p-p 2.245' (suite 2.274', +1.3 %), amplitude
     1.231' (1.168', -5.1 %), std 0.637' (0.565', -11 %); after: 1.072' (1.177', +9.8 %),
-    0.604' (0.608', +0.7 %), 0.263' (0.316', +20 %). Not a sampling effect: sampled at
-    10 Hz the p-p after optimisation is still 1.149' and the std 0.319'. The std convention
-    is the paper's own: Table 3's stds are reproduced to 2 % (test_table3_groups)."""
+    0.604' (0.608', +0.7 %), 0.263' (0.316', +20 %). Reproduced within 5 %: the p-p before
+    and the amplitude after; the other four are not (unexplained in docs/DESIGN_NOTES.md;
+    the amplitude before is 4.3 % from Fig. 5a's 1.22' but 5.1 % from Table 4's 1.231').
+    Not a sampling effect: sampled at 10 Hz the p-p after optimisation is still 1.149' and
+    the std 0.319'. The std convention is the paper's own: Table 3's stds are reproduced to
+    2 % (test_table3_groups)."""
     paper = {'before': (2.245, 1.231, 0.637), 'after': (1.072, 0.604, 0.263)}
     suite = {'before': (2.274, 1.168, 0.565), 'after': (1.177, 0.608, 0.316)}
+    reproduced = {('before', 0), ('after', 1)}
     for when in ('before', 'after'):
         te = _nlte_arcmin(params, PHASES[when])
         got = _stats(te)
         assert got == pytest.approx(suite[when], abs=0.002)
         unit = ref.Unit(*ref.TABLE2_E_M, *(math.radians(v) for v in PHASES[when]))
         assert _stats(rad_to_arcmin(ref.nlte_rad(THETA, unit))) == pytest.approx(got, abs=1e-3)
-        # the cells the suite matches: p-p before (5 %), amplitude (6 %: Fig. 5a 1.22')
-        assert got[1] == pytest.approx(paper[when][1], rel=0.06)
-        if when == 'before':
-            assert got[0] == pytest.approx(paper[when][0], rel=0.05)
-    # 'evidence only: not reproduced' (DESIGN_NOTES): std before, p-p and std after; their
-    # suite values are pinned above against the independent tests/wang2020_reference.py
-    te_before = _stats(_nlte_arcmin(params, PHASES['before']))
-    te_after = _stats(_nlte_arcmin(params, PHASES['after']))
-    for got, want in ((te_before[2], paper['before'][2]), (te_after[0], paper['after'][0]),
-                      (te_after[2], paper['after'][2])):
-        assert abs(got / want - 1) > 0.05
+        for q in range(3):
+            assert (abs(got[q] / paper[when][q] - 1) <= 0.05) == ((when, q) in reproduced)
     coarse = _stats(_nlte_arcmin(params, PHASES['after'])[::1000])       # 10 Hz
-    assert coarse[0] > 1.14 and coarse[2] > 0.31
+    assert coarse[0] == pytest.approx(1.149, abs=0.001)
+    assert coarse[2] == pytest.approx(0.319, abs=0.001)
 
 
 READINGS = {'suite (-25, -25, 1)': (-25.0, -25.0, 1.0), 'planet -26': (-26.0, -25.0, 1.0),
@@ -370,8 +422,10 @@ def test_fig14_wave_peaks_and_angle_readings() -> None:
         assert peaks >= 5, name                                    # peaks appear ...
         assert abs(pp5a / 2.23 - 1) > 0.2 or abs(amp_g1 / 4.49 - 1) > 0.2, name   # ... but
     # under 'planet -26' the paper's phases are far from optimal: S = 1.53' there against
-    # 0.98' at [-180, 70, 130, 0] deg (the optimum of a full 37^4 grid with that reading)
+    # 0.985' at [80, -170, 140, -100] deg, the optimum of the 10 deg grid with that reading
+    # (scripts/wang2020_readings.py --grid; tests/sim/test_wang2020_readings.py)
     s_paper = results['planet -26'][3]
-    other = np.max(np.abs(np.maximum(*_nlte_rates_arcmin(phi, (-180.0, 70.0, 130.0, 0.0),
+    other = np.max(np.abs(np.maximum(*_nlte_rates_arcmin(phi, (80.0, -170.0, 140.0, -100.0),
                                                          READINGS['planet -26']))))
-    assert s_paper > 1.5 * other
+    assert s_paper == pytest.approx(1.53, abs=0.01)
+    assert other == pytest.approx(0.985, abs=0.002)
