@@ -8,7 +8,11 @@ Sample ``n`` (counted from 0 over the whole session) is taken at
 * the model TE ``te = te_model.te_rad(t, theta_in, omega_in, load)`` (the model carries its
   own state from block to block),
 * the true output angle ``theta_out = theta_in / i + te`` (i = kinematics.gear_ratio),
-* the encoder readings of both shafts (same sample instants: one DAQ clock).
+* the encoder readings of both shafts (same sample instants: one DAQ clock),
+* with ``BenchConfig.losses`` set, the loss channels (:mod:`sim.loss_bench`): the input
+  torque the drive gives, the input and output torque transducer readings and the case
+  temperature (true and measured). Without it these fields are None and the session draws
+  nothing more from its generators: its blocks are those it gave before losses existed.
 
 Nothing grows with the session length: the block is a function of its index, the drive
 and the model state, so memory is flat however long the bench runs. Same config (seed
@@ -29,6 +33,7 @@ from sim.bench_info import DEFAULT_SAMPLE_RATE_HZ, BenchInfoData
 from sim.drive import ConstantLoad, profile_to_plain
 from sim.encoders import EncoderSpec, SimulatedEncoder, encoder_preset
 from sim.errors import ModelInputError
+from sim.loss_bench import LossChannels, LossConfig
 from sim.models import build_te_model
 from sim.presets import Preset, load_preset, parse_override_items
 
@@ -38,7 +43,7 @@ if TYPE_CHECKING:
     from sim.models import TeModel
 
 __all__ = ['DEFAULT_SAMPLE_RATE_HZ', 'BenchBlock', 'BenchConfig', 'BenchInfoData', 'BenchSimulator',
-           'bench_info_of', 'skewed_reading']
+           'bench_info_of', 'loss_fields', 'skewed_reading']
 
 
 def skewed_reading(theta_out_rad: np.ndarray, omega_ref_rad_s: np.ndarray | float,
@@ -75,6 +80,8 @@ class BenchConfig:
         daq_skew_s: The output channel is latched this much later than the input channel
             [s] (DAQ timing skew; 0: one clock for both). The output reading is then that
             of theta_out(t + skew) ~ theta_out(t) + omega_out(t) skew.
+        losses: Simulate the losses, torque transducers and case temperature
+            (:class:`sim.loss_bench.LossConfig`); None (default): TE and angles only.
     """
 
     preset: str
@@ -90,6 +97,7 @@ class BenchConfig:
     bench_id: str = 'bench'
     start_time_s: float = 0.0
     daq_skew_s: float = 0.0
+    losses: LossConfig | None = None
 
     def __post_init__(self) -> None:
         """Validate every field.
@@ -152,6 +160,9 @@ class BenchConfig:
             msg = f'BenchConfig.daq_skew_s must be finite and within +-1 ms, got {sk!r}'
             raise ModelInputError(msg)
         object.__setattr__(self, 'daq_skew_s', float(sk))
+        if self.losses is not None and not isinstance(self.losses, LossConfig):
+            msg = f'BenchConfig.losses must be a LossConfig or None, got {self.losses!r}'
+            raise ModelInputError(msg)
 
     def encoder_spec(self, which: str) -> EncoderSpec:
         """The spec of ``'in'`` or ``'out'`` (a preset looked up by name)."""
@@ -159,8 +170,9 @@ class BenchConfig:
         return enc if isinstance(enc, EncoderSpec) else encoder_preset(enc)
 
     def to_plain(self) -> dict[str, Any]:
-        """YAML-friendly dict of the config (profiles and encoders as dicts)."""
-        return {
+        """YAML-friendly dict of the config (profiles and encoders as dicts; ``losses``
+        only when set, so a session without them records what it always did)."""
+        out = {
             'bench_id': self.bench_id,
             'preset': self.preset,
             'overrides': list(self.overrides),
@@ -175,6 +187,9 @@ class BenchConfig:
             'start_time_s': self.start_time_s,
             'daq_skew_s': self.daq_skew_s,
         }
+        if self.losses is not None:
+            out['losses'] = self.losses.to_plain()
+        return out
 
 
 @dataclass(frozen=True)
@@ -191,6 +206,13 @@ class BenchBlock:
         te_true_rad: Model TE = theta_out_true - theta_in_true / i [rad].
         theta_in_true_rad: True input angle [rad].
         theta_out_true_rad: True output angle [rad].
+        torque_in_nm: Input torque transducer reading [N m] (None without losses).
+        torque_in_true_nm: Input torque the drive gives [N m] (None without losses).
+        torque_out_meas_nm: Output torque transducer reading [N m], bench convention
+            (None without losses; ``torque_out_nm`` stays the true load).
+        temp_case_degc: Case temperature sensor reading [degC] (None without losses).
+        temp_case_true_degc: True case temperature [degC] (None without losses).
+        power_loss_w: Loss power [W] (None without losses).
     """
 
     seq: int
@@ -202,6 +224,23 @@ class BenchBlock:
     te_true_rad: np.ndarray
     theta_in_true_rad: np.ndarray
     theta_out_true_rad: np.ndarray
+    torque_in_nm: np.ndarray | None = None
+    torque_in_true_nm: np.ndarray | None = None
+    torque_out_meas_nm: np.ndarray | None = None
+    temp_case_degc: np.ndarray | None = None
+    temp_case_true_degc: np.ndarray | None = None
+    power_loss_w: np.ndarray | None = None
+
+
+def loss_fields(lb: Any) -> dict[str, np.ndarray]:
+    """The :class:`BenchBlock` loss fields of a :class:`sim.loss_bench.LossBlock`
+    (read-only arrays)."""
+    return {'torque_in_nm': _readonly(lb.torque_in_meas_nm),
+            'torque_in_true_nm': _readonly(lb.torque_in_true_nm),
+            'torque_out_meas_nm': _readonly(lb.torque_out_meas_nm),
+            'temp_case_degc': _readonly(lb.temp_case_meas_degc),
+            'temp_case_true_degc': _readonly(lb.temp_case_degc),
+            'power_loss_w': _readonly(lb.power_loss_w)}
 
 
 def bench_info_of(*, bench_id: str, preset: Preset, kinematics: ReducerKinematics,
@@ -267,13 +306,27 @@ class BenchSimulator:
         self._offsets = _readonly(np.arange(config.block_size, dtype=np.float64)
                                   / config.sample_rate_hz)
         self._info: BenchInfoData | None = None
+        self._losses: LossChannels | None = None
         self._start_rngs()
         self._seq = 0
 
     def _start_rngs(self) -> None:
-        rng_in, rng_out = np.random.default_rng(self.config.seed).spawn(2)
+        rng = np.random.default_rng(self.config.seed)
+        rng_in, rng_out = rng.spawn(2)
         self._enc_in = SimulatedEncoder(self._spec_in, rng_in)
         self._enc_out = SimulatedEncoder(self._spec_out, rng_out)
+        if self.config.losses is not None:   # children 2.. : the encoders' streams unchanged
+            (rng_loss,) = rng.spawn(1)
+            if self._losses is None:
+                self._losses = LossChannels(self.preset, self.config.losses, rng_loss,
+                                            self.config.sample_rate_hz)
+            else:
+                self._losses.restart(rng_loss)
+
+    @property
+    def loss_channels(self) -> LossChannels | None:
+        """The loss model, thermal state and sensors (None without losses)."""
+        return self._losses
 
     @property
     def seq(self) -> int:
@@ -281,7 +334,7 @@ class BenchSimulator:
         return self._seq
 
     def reset(self) -> None:
-        """Back to block 0: sequence, noise generators and model state."""
+        """Back to block 0: sequence, noise generators, model state, case temperature."""
         self._seq = 0
         self._start_rngs()
         self.model.reset()
@@ -303,6 +356,8 @@ class BenchSimulator:
         theta_out = theta_in / self._gear_ratio + te
         theta_out_read = theta_out if not cfg.daq_skew_s else skewed_reading(
             theta_out, omega_in / self._gear_ratio, te, t, cfg.daq_skew_s)
+        extra = ({} if self._losses is None
+                 else loss_fields(self._losses.block(t, omega_in, load)))
         block = BenchBlock(
             seq=self._seq,
             t0_s=float(t0),
@@ -313,6 +368,7 @@ class BenchSimulator:
             te_true_rad=_readonly(te),
             theta_in_true_rad=_readonly(theta_in),
             theta_out_true_rad=_readonly(theta_out),
+            **extra,
         )
         self._seq += 1
         return block

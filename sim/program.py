@@ -19,6 +19,13 @@ run on one sample clock that continues across segments and programs:
 
 Samples carry ``torque_out_nm`` in the bench's load convention (``-applied torque`` in the
 locked segments), like every EncoderBlock.
+
+With ``losses`` set (:class:`sim.loss_bench.LossConfig`) the blocks also carry the loss
+channels (input torque, both transducers, case temperature): a drive segment runs the loss
+model at its speed and load; a locked segment dissipates nothing (the input is held, the
+output moves quasi-statically), so the case cools towards the ambient, the input transducer
+reads the reaction ``torque_out / i`` and the output transducer the segment's own reading.
+The case temperature carries over from segment to segment and program to program.
 """
 
 from __future__ import annotations
@@ -30,10 +37,11 @@ from typing import TYPE_CHECKING, Any, ClassVar
 import numpy as np
 
 from sim._checks import Rule, real_number
-from sim.bench import BenchBlock, bench_info_of
+from sim.bench import BenchBlock, bench_info_of, loss_fields
 from sim.bench_info import DEFAULT_SAMPLE_RATE_HZ
 from sim.encoders import EncoderSpec, SimulatedEncoder, encoder_preset
 from sim.errors import ModelInputError
+from sim.loss_bench import LossChannels, LossConfig
 from sim.models import build_te_model
 from sim.presets import load_preset
 from sim.torsion import torsion_curve
@@ -194,6 +202,8 @@ class ProgramSimulator:
         torque_gain_error: Relative sensitivity error of the torque sensor (reading =
             true x (1 + error) + zero).
         bench_id: Bench identifier of :attr:`info`.
+        losses: Simulate the losses, torque transducers and case temperature; None
+            (default): the blocks carry no loss channels and draw nothing more.
 
     Raises:
         PresetError, ModelInputError: Bad preset, mode or settings.
@@ -205,7 +215,7 @@ class ProgramSimulator:
                  sample_rate_hz: float = DEFAULT_SAMPLE_RATE_HZ, block_size: int = 100,
                  seed: int = 0, preset_obj: Preset | None = None, daq_skew_s: float = 0.0,
                  torque_zero_nm: float = 0.0, torque_gain_error: float = 0.0,
-                 bench_id: str = 'bench') -> None:
+                 bench_id: str = 'bench', losses: LossConfig | None = None) -> None:
         """Build the model, the torsion characteristic's source and the encoders."""
         self.preset = (load_preset(preset, list(overrides)) if preset_obj is None
                        else preset_obj.with_overrides(list(overrides)))
@@ -230,11 +240,19 @@ class ProgramSimulator:
                           'encoder_out': specs[1].to_plain(),
                           'sample_rate_hz': self.sample_rate_hz, 'block_size': block_size,
                           'seed': seed}
+        if losses is not None and not isinstance(losses, LossConfig):
+            msg = f'losses must be a LossConfig or None, got {losses!r}'
+            raise ModelInputError(msg)
+        if losses is not None:
+            self._settings['losses'] = losses.to_plain()
         self._specs = (specs[0], specs[1])
         self._info: BenchInfoData | None = None
-        rng_in, rng_out = np.random.default_rng(seed).spawn(2)
+        rng = np.random.default_rng(seed)
+        rng_in, rng_out = rng.spawn(2)
         self._enc_in = SimulatedEncoder(specs[0], rng_in)
         self._enc_out = SimulatedEncoder(specs[1], rng_out)
+        self.losses: LossChannels | None = None if losses is None else LossChannels(
+            self.preset, losses, rng.spawn(1)[0], self.sample_rate_hz)
         self._offsets = np.arange(block_size, dtype=np.float64) / self.sample_rate_hz
         self._offsets.setflags(write=False)
         self._curves: dict[float, TorsionCurve] = {}
@@ -364,6 +382,15 @@ class ProgramSimulator:
             theta_in, te, torque = self._drive(seg, t)
         else:
             theta_in, te, torque = self._locked(seg, t)
+        extra: dict[str, np.ndarray] = {}
+        if self.losses is not None:
+            if isinstance(seg, DriveSegment):
+                lb = self.losses.block(t, np.full_like(t, seg.speed_rpm * RAD_S_PER_RPM),
+                                       torque)
+            else:
+                lb = self.losses.block(t, np.zeros_like(t), torque,
+                                       torque_out_reading_nm=torque)
+            extra = loss_fields(lb)
         theta_out = theta_in / self.gear_ratio + te
         if self.daq_skew_s and isinstance(seg, DriveSegment):
             from sim.bench import skewed_reading
@@ -378,7 +405,7 @@ class ProgramSimulator:
             theta_in_rad=ro(self._enc_in.measure(theta_in)),
             theta_out_rad=ro(self._enc_out.measure(theta_out_read)),
             torque_out_nm=ro(torque), te_true_rad=ro(te), theta_in_true_rad=ro(theta_in),
-            theta_out_true_rad=ro(theta_out))
+            theta_out_true_rad=ro(theta_out), **extra)
         self.seq += 1
         self._block_in_program += 1
         return block, i
