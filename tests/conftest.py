@@ -15,17 +15,73 @@ settings.register_profile('ci', deadline=None, max_examples=100,
                           suppress_health_check=[HealthCheck.too_slow])
 settings.load_profile('ci' if os.environ.get('CI') else 'dev')
 
-# Every test run gets its own DDS domain derived from the process id, so that two runs on one
-# machine (or a run beside the demo) never see each other's messages; discovery stays on
-# this host. Set before any test imports rclpy.
-os.environ.setdefault('ROS_DOMAIN_ID', str(100 + os.getpid() % 100))
+# ROS isolation. Every test process gets a DDS domain of its own, so that two runs on one
+# machine (or a run beside the demo), and the pytest-xdist workers of one run, never see each
+# other's messages; discovery stays on this host. Set before any test imports rclpy.
+#
+# The run is named by the pid of its first pytest process (the xdist controller, whose
+# environment the workers inherit). Worker k of n (k = 0 without xdist) takes
+#   ROS_DOMAIN_ID given:  that id + k (give a parallel run a block of n free ids);
+#   else:                 100 + (run pid % (100 // n)) * n + k   (a block of n in 100..199).
+_MAX_DOMAIN_ID = 232   # Fast DDS's port arithmetic (7400 + 250 * id + ...) ends there
+
+
+def _ros_domain_id() -> int:
+    worker = os.environ.get('PYTEST_XDIST_WORKER', '')
+    k = int(worker[2:]) if worker.startswith('gw') else 0
+    n = max(1, int(os.environ.get('PYTEST_XDIST_WORKER_COUNT', '1')))
+    given = os.environ.get('RV_TE_TEST_GIVEN_DOMAIN_ID', '')
+    if given:
+        if not given.isdigit():
+            msg = f'ROS_DOMAIN_ID must be a whole number, got {given!r}'
+            raise pytest.UsageError(msg)
+        domain = int(given) + k
+    else:
+        slots = max(1, 100 // n)
+        domain = 100 + int(os.environ['RV_TE_TEST_RUN_PID']) % slots * n + k
+    if domain > _MAX_DOMAIN_ID:
+        raise pytest.UsageError(_too_high(int(given or 0), n))
+    return domain
+
+
+def _too_high(given: int, n: int) -> str:
+    return (f'ROS_DOMAIN_ID={given} with {n} workers needs ROS domains up to {given + n - 1}, '
+            f'above {_MAX_DOMAIN_ID}: give at most {_MAX_DOMAIN_ID - n + 1}, or fewer workers')
+
+
+def pytest_configure(config: pytest.Config) -> None:
+    """The controller refuses a domain block past the last id before starting workers."""
+    n = getattr(config.option, 'numprocesses', None)
+    given = os.environ.get('RV_TE_TEST_GIVEN_DOMAIN_ID', '')
+    if not os.environ.get('PYTEST_XDIST_WORKER') and isinstance(n, int) and n > 1 and \
+            given.isdigit() and int(given) + n - 1 > _MAX_DOMAIN_ID:
+        raise pytest.UsageError(_too_high(int(given), n))
+
+
+if 'RV_TE_TEST_RUN_PID' not in os.environ:        # the run's first pytest process
+    os.environ['RV_TE_TEST_RUN_PID'] = str(os.getpid())
+    os.environ['RV_TE_TEST_GIVEN_DOMAIN_ID'] = os.environ.get('ROS_DOMAIN_ID', '')
+os.environ['ROS_DOMAIN_ID'] = str(_ros_domain_id())
 os.environ['ROS_AUTOMATIC_DISCOVERY_RANGE'] = 'LOCALHOST'
 os.environ.pop('ROS_LOCALHOST_ONLY', None)
+
+#: Fixtures that start ROS (in process or in a child): a test using one is a ``ros`` test.
+ROS_FIXTURES = frozenset({'ros_domain_id', 'ros_context', 'graph'})
+
+
+@pytest.hookimpl(tryfirst=True)
+def pytest_collection_modifyitems(config: pytest.Config, items: list[pytest.Item]) -> None:
+    """Mark every test that uses a ROS fixture ``ros`` (before ``-m`` selects), so that
+    ``-m "not ros"`` (``make test-fast``) cannot pick up a test that starts nodes."""
+    for item in items:
+        if ROS_FIXTURES & set(getattr(item, 'fixturenames', ())) and \
+                item.get_closest_marker('ros') is None:
+            item.add_marker(pytest.mark.ros)
 
 
 @pytest.fixture
 def ros_domain_id() -> int:
-    """The DDS domain id of this test run."""
+    """The DDS domain id of this test process (see above)."""
     return int(os.environ['ROS_DOMAIN_ID'])
 
 
@@ -76,13 +132,17 @@ def repo_litter() -> set[str] | None:
 
 
 def pytest_sessionstart(session: pytest.Session) -> None:
-    session.config.stash[_LITTER_KEY] = repo_litter()
+    # under pytest-xdist the controller checks (a worker would see another's files in flight)
+    if not os.environ.get('PYTEST_XDIST_WORKER'):
+        session.config.stash[_LITTER_KEY] = repo_litter()
 
 
 def pytest_sessionfinish(session: pytest.Session, exitstatus: int) -> None:
     before = session.config.stash.get(_LITTER_KEY, None)
+    if before is None:
+        return
     after = repo_litter()
-    if before is None or after is None:
+    if after is None:
         return
     new = sorted(after - before)
     if new:
