@@ -198,6 +198,8 @@ def bench_config_from_params(p: dict[str, Any]) -> BenchConfig:
 
 #: Longest the bench waits at its end for its readers to acknowledge the info and blocks [s].
 FINISH_ACK_S = 3.0
+#: Blocks one late timer tick may publish to catch up (fewer for JointStates: their queue).
+_MAX_CATCH_UP_BLOCKS = 100
 
 #: Most encoder blocks per second of session time (sample_rate_hz / block_size): rclpy
 #: costs ~1-2 ms per message in each node, so faster block streams never keep up.
@@ -264,6 +266,7 @@ class BenchNode(Node):
         self.blocks_published = 0
         self.sim_time_s = 0.0
         self.joint_state = self.p['output'] == 'joint_state'
+        self._max_catch_up_blocks = _MAX_CATCH_UP_BLOCKS
         if self.joint_state:
             from sensor_msgs.msg import JointState
 
@@ -271,6 +274,11 @@ class BenchNode(Node):
             self.pub_data = self.create_publisher(JointState, 'joint_states',
                                                   qos.JOINT_STATE_QOS)
             self.joint_states_published = 0
+            # one tick's burst of JointStates fits the readers' queue (a larger one loses)
+            per_block = self.p['block_size'] * (
+                2 if self.p['joint_state_layout'] == 'separate' else 1)
+            self._max_catch_up_blocks = max(1, min(
+                _MAX_CATCH_UP_BLOCKS, qos.JOINT_STATE_QUEUE_DEPTH // per_block))
         else:
             self.pub_blocks = self.create_publisher(EncoderBlock, 'bench/encoders',
                                                     qos.ENCODER_QOS)
@@ -410,7 +418,7 @@ class BenchNode(Node):
                 return 10  # as fast as possible: several per tick, still yielding to spin
             elapsed *= factor
         due = int(elapsed / self.block_period_s) + 1 - self.blocks_published
-        return max(0, min(due, 100))
+        return max(0, min(due, self._max_catch_up_blocks))
 
     def _wait_for_subscribers(self) -> bool:
         """True once the named subscriber nodes are there (or the wait timed out)."""

@@ -3,7 +3,7 @@
 | profile         | policy                                  | used for                       |
 |-----------------|-----------------------------------------|--------------------------------|
 | ENCODER_QOS     | reliable, keep last 1000, volatile      | bench/encoders (every sample)  |
-| JOINT_STATE_QOS | reliable, keep last 10000, volatile     | joint_states (one sample each) |
+| JOINT_STATE_QOS | reliable, keep last 5000, volatile      | joint_states (one sample each) |
 | TE_SAMPLES_QOS  | reliable, keep last 1000, transient local | te/samples (decimated TE)    |
 | LATCHED_QOS     | reliable, keep last 1, transient local  | bench/info, te/statistics, ... |
 | PREVIEW_QOS     | sensor data: best effort, keep last 5   | live plots, previews           |
@@ -13,9 +13,16 @@
 The encoder depth (1000 messages = 10 s at 100 blocks/s) covers the largest burst a
 subscriber can fall behind by on a loaded 2-core machine; depth 10 drops bursts (DESIGN.md).
 
-joint_states carries one sample per message (ros2_control's joint_state_broadcaster): the
-largest burst is a simulated bench's catch-up in one timer tick (100 blocks of 100 samples),
-so the depth is 10000 messages (10 s at 1 kHz; a few MB of queue at most).
+joint_states carries one sample per message (ros2_control's joint_state_broadcaster), so its
+queue is deep: 5000 messages (5 s at 1 kHz). Not more: Fast DDS's default resource limits
+(``max_samples`` 5000 per reader and writer) cap the history whatever the depth, and a
+KEEP_LAST depth above that cap loses the *newest* messages of a longer backlog (the reader
+is "full" and refuses them) where one at the cap loses the *oldest* (KEEP_LAST replaces
+them). Measured with rmw_fastrtps_cpp 8.4 (tests/nodes/test_qos.py): 7400 messages queued
+with depth 10000 -> the first 5000 arrive and the last 2400 never do, so a stream's end
+vanishes with no stamp jump to show it; with depth 5000 -> the last 5000 arrive, and the
+adapter reports the missing start as a gap. The simulated bench keeps one tick's burst of
+JointStates within this depth (bench_node's catch-up bound).
 
 te/samples keeps its last 1000 messages for late joiners: the session's recorder may
 discover the TE node's publisher seconds after it started (DDS participants that miss each
@@ -56,7 +63,7 @@ ENCODER_QOS = QoSProfile(
     durability=DurabilityPolicy.VOLATILE,
 )
 
-JOINT_STATE_QUEUE_DEPTH = 10000
+JOINT_STATE_QUEUE_DEPTH = 5000
 
 JOINT_STATE_QOS = QoSProfile(
     history=HistoryPolicy.KEEP_LAST,
