@@ -33,6 +33,7 @@ from rv_te_bench.cli.optimize_phases import (
     format_result,
     load_wang_params,
 )
+from rv_te_bench.core.units import json_float
 from rv_te_bench.errors import BagError, BenchInfoError, CompensationError, RvTeError, TeInputError
 from rv_te_bench.safe_yaml import one_line
 from sim.errors import SimError
@@ -45,6 +46,7 @@ if TYPE_CHECKING:
     from rv_te_bench.core.angle_fold import FoldedTe
     from rv_te_bench.core.identify import Identification
     from rv_te_bench.core.phases import EccentricGeometry
+    from rv_te_bench.core.stream import GapEvent
     from sim.bench_info import BenchInfoData
     from sim.presets import Preset
 
@@ -103,6 +105,8 @@ class BagRecord:
         partial: Part of the bag could not be read.
         problems: Read problems (one line each).
         skipped_samples: Non-finite or malformed samples left out.
+        gaps: Breaks in the block stream (seq jumps with their time and length, time going
+            backwards), as ``rv-te analyze`` reports them.
     """
 
     folded: FoldedTe
@@ -110,6 +114,7 @@ class BagRecord:
     partial: bool = False
     problems: list[str] = field(default_factory=list)
     skipped_samples: int = 0
+    gaps: list[GapEvent] = field(default_factory=list)
 
 
 def fold_bag(path: str, topic: str | None, gear_ratio: float, *,
@@ -123,6 +128,7 @@ def fold_bag(path: str, topic: str | None, gear_ratio: float, *,
         BagError: Not a bag, no encoder topic, or no block readable.
     """
     from rv_te_bench.core.angle_fold import AngleFold
+    from rv_te_bench.core.seq_gaps import SeqGapWatch
     from rv_te_bench.core.stream import EncoderBatch
     from rv_te_bench.io.bag_reader import (
         read_encoder_batches,
@@ -130,6 +136,7 @@ def fold_bag(path: str, topic: str | None, gear_ratio: float, *,
     )
 
     fold = AngleFold()
+    watch = SeqGapWatch()
     stream = read_encoder_batches(path, topic, strict=False)
     blocks = samples = malformed = 0
     extra: list[str] = []
@@ -138,6 +145,11 @@ def fold_bag(path: str, topic: str | None, gear_ratio: float, *,
             if isinstance(item, EncoderBatch):
                 blocks += item.n_blocks
                 th_in, th_out = item.theta_in_rad, item.theta_out_rad
+                starts = np.asarray(item.starts, dtype=np.intp)
+                offs = np.asarray(item.time_offset_s, dtype=np.float64)
+                stamp = np.asarray(item.stamp_s, dtype=np.float64)
+                watch.add(item.seq, stamp + offs[starts[:-1]], stamp + offs[starts[1:] - 1],
+                          np.asarray(item.sample_rate_hz, dtype=np.float64))
             else:
                 blocks += 1
                 th_in = np.asarray(item.theta_in_rad, dtype=np.float64)
@@ -145,6 +157,12 @@ def fold_bag(path: str, topic: str | None, gear_ratio: float, *,
                 if th_in.shape != th_out.shape:
                     malformed += max(th_in.size, th_out.size)
                     continue
+                offs = np.asarray(item.time_offset_s, dtype=np.float64)
+                if offs.size == th_in.size and th_in.size and isinstance(item.seq, int) \
+                        and isinstance(item.stamp_s, int | float):
+                    watch.add(np.array([item.seq]), np.array([item.stamp_s + offs[0]]),
+                              np.array([item.stamp_s + offs[-1]]),
+                              np.array([float(item.sample_rate_hz)]))
             samples += th_in.size
             fold.add_encoders(th_in, th_out, gear_ratio=gear_ratio)
             if progress is not None:
@@ -158,7 +176,7 @@ def fold_bag(path: str, topic: str | None, gear_ratio: float, *,
         raise BagError(msg)
     return BagRecord(folded=fold.result(), blocks=blocks,
                      partial=bool(problems) or stream.partial, problems=problems,
-                     skipped_samples=fold.skipped + malformed)
+                     skipped_samples=fold.skipped + malformed, gaps=watch.gaps)
 
 
 def _bench_info(args: argparse.Namespace) -> tuple[BenchInfoData | None, str | None]:
@@ -330,11 +348,23 @@ def _run(args: argparse.Namespace) -> int:
     if record.skipped_samples:
         print(f'WARNING: {args.bag}: {record.skipped_samples} non-finite or malformed samples '
               'left out', file=sys.stderr)
+    if record.gaps:
+        print(f'WARNING: {args.bag}: {len(record.gaps)} gap(s) in the encoder stream (the TE '
+              'is folded from the data on both sides)', file=sys.stderr)
+        for g in record.gaps[:10]:
+            print(f'  {g.kind} at seq {g.seq}: {g.detail}', file=sys.stderr)
+        if len(record.gaps) > 10:
+            print(f'  ... {len(record.gaps) - 10} more (see --json)', file=sys.stderr)
     if args.json:
         out: dict[str, Any] = {
             'bag': str(args.bag), 'preset': preset.name, 'partial': record.partial,
             'problems': record.problems, 'blocks_read': record.blocks,
-            'skipped_samples': record.skipped_samples, 'gear_ratio': ratio,
+            'skipped_samples': record.skipped_samples,
+            'gaps': [{'kind': g.kind, 'seq': g.seq, 'detail': g.detail,
+                      'at_s': json_float(g.at_s), 'missing_s': json_float(g.missing_s),
+                      't_before_s': json_float(g.t_before_s),
+                      't_after_s': json_float(g.t_after_s)} for g in record.gaps],
+            'gear_ratio': ratio,
             'part_magnitudes_source': source, 'identification': idf.to_json_dict(),
             'advice_withheld': withheld}
         if rec is not None:

@@ -36,8 +36,23 @@ examples:
                         write the example bench description to edit
 
 Then analyse the bag as any session: rv-te analyze bags/run_csv --report out/run_csv.
-Angles are unwrapped where they step by more than half a turn between two samples (a
-single-turn encoder wrapping at a full turn); --no-unwrap keeps them as they are.
+
+Drop-outs: a time step of more than 1.5 sample periods, time going backwards, or a
+non-finite (empty, nan) time or angle ends the block there and skips one block number, as
+a live bench's lost blocks do: analyze, identify, the report and the TE node on replay
+show it as a gap with its time and length, and no window holding it counts as complete.
+Each drop-out is listed (note lines; "gaps" in --json).
+
+Angles: a single-turn encoder (--unwrap-in / --unwrap-out) is unwrapped where it steps by
+more than half a turn between two samples, and across a drop-out by the whole turns the
+speed before and after predict; when that is ambiguous the record is split there and the
+rest goes to OUT_seg2, ... (reported). A multi-turn counter (--no-unwrap-in /
+--no-unwrap-out; --no-unwrap for both) is kept as recorded. Default: single-turn unless
+the channel's readings span more than one turn.
+Time: the unit comes from --time-unit, the format (TDMS timestamps, JointState stamps,
+an MDF master channel), the column name (t_ms, "time [min]") or the channel's unit;
+otherwise the import is refused. Integer epoch nanoseconds are read without rounding and
+give the start time.
 The bag is written beside --out under a hidden name and renamed when complete: a bad file
 leaves nothing behind. TDMS and MDF need the extra: pip install "rv-te-bench[daq]".
 """
@@ -67,8 +82,9 @@ def register(subparsers: Subparsers) -> None:
     p.add_argument('--time', metavar='COL', help='time column / channel (default: the '
                    "file's own time base, else --rate, else the bench's sample_rate_hz); for a "
                    'JointState bag: the topic, when it has several')
-    p.add_argument('--time-unit', choices=('s', 'ms', 'us', 'ns'), default='s',
-                   help='unit of the --time column')
+    p.add_argument('--time-unit', choices=('s', 'ms', 'us', 'ns', 'min', 'h'),
+                   help='unit of the --time column (default: from the format, the column '
+                        "name (t_ms, 'time [s]') or the channel's unit; never assumed)")
     p.add_argument('--rate', type=float, metavar='HZ', help='fixed sample rate [Hz] (no time '
                    'column)')
     units = ('rad', 'deg', 'arcmin', 'arcsec', 'counts', 'rev')
@@ -82,7 +98,14 @@ def register(subparsers: Subparsers) -> None:
     p.add_argument('--no-header', action='store_true', help='CSV: no header line (columns by '
                    'index)')
     p.add_argument('--delimiter', help='CSV delimiter (default: sniffed from the first line)')
-    p.add_argument('--no-unwrap', action='store_true', help='keep angles as recorded')
+    p.add_argument('--no-unwrap', action='store_true', help='keep both angles as recorded '
+                   '(multi-turn counters)')
+    p.add_argument('--unwrap-in', action=argparse.BooleanOptionalAction, default=None,
+                   help='the input angle is single-turn: unwrap it (also across drop-outs, '
+                        'from the speed); --no-unwrap-in: a multi-turn counter, kept as '
+                        'recorded (default: single-turn unless it spans more than a turn)')
+    p.add_argument('--unwrap-out', action=argparse.BooleanOptionalAction, default=None,
+                   help='the output angle is single-turn (likewise)')
     p.add_argument('--start-utc', metavar='ISO', help='absolute time of the first sample, '
                    "e.g. 2026-11-24T09:30:00Z (default: the file's, else its modification "
                    'time)')
@@ -132,11 +155,20 @@ def run(args: argparse.Namespace) -> int:
     from rv_te_bench.io.importers import ImportOptions, import_file
 
     desc = load_bench_description(args.bench)
+    turns = {}
+    for role in ('in', 'out'):
+        flag = getattr(args, f'unwrap_{role}')
+        if args.no_unwrap and flag:
+            msg = f'--no-unwrap and --unwrap-{role} contradict each other: give one'
+            raise DataImportError(msg)
+        turns[role] = ('multi' if args.no_unwrap or flag is False else
+                       'single' if flag else 'auto')
     options = ImportOptions(
         theta_in=args.theta_in, theta_out=args.theta_out, torque=args.torque, time=args.time,
         rate_hz=args.rate, time_unit=args.time_unit, unit_in=args.unit_in,
         unit_out=args.unit_out, counts_per_rev_in=args.counts_per_rev_in,
-        counts_per_rev_out=args.counts_per_rev_out, unwrap=not args.no_unwrap,
+        counts_per_rev_out=args.counts_per_rev_out, turns_in=turns['in'],
+        turns_out=turns['out'],
         start_ns=_start_ns(args.start_utc), chunk_samples=args.chunk_samples,
         delimiter=args.delimiter)
     try:
@@ -154,5 +186,10 @@ def run(args: argparse.Namespace) -> int:
           f'(from {s.start_from})')
     print(f'  angles: input in {s.unit_in}, output in {s.unit_out}; unwrapped turns: input '
           f'{s.wraps_in}, output {s.wraps_out}; torque: {"yes" if s.torque else "no"}')
-    print(f'  next: rv-te analyze {s.bag}')
+    if s.gaps_total:
+        print(f'  drop-outs: {s.gaps_total} ({s.samples_dropped} samples dropped), each a gap '
+              'in the bag (listed above)')
+    if len(s.segments) > 1:
+        print(f'  segments: {len(s.segments)} bags: {", ".join(s.segments)}')
+    print(f'  next: rv-te analyze {" ".join(s.segments) if s.segments else s.bag}')
     return 0

@@ -62,7 +62,7 @@ if TYPE_CHECKING:
 
 __all__ = ['SPECTRA_AHEAD', 'BatchUpdate', 'EncoderBatch', 'EncoderBlockData', 'GapEvent',
            'OfflineResult', 'StreamUpdate', 'StreamingTeAnalyzer', 'TeAnalysisConfig',
-           'WindowResult', 'analyze_blocks']
+           'WindowResult', 'analyze_blocks', 'seq_jump_event']
 
 GapKind = Literal['seq_jump', 'time_backwards', 'non_finite', 'malformed', 'leading_loss']
 CloseReason = Literal['complete', 'gap', 'overflow', 'flush', 'reconfigure']
@@ -388,12 +388,38 @@ class GapEvent:
     Attributes:
         kind: ``'seq_jump'``, ``'time_backwards'``, ``'non_finite'`` or ``'malformed'``.
         seq: Sequence number of the block where it was seen (-1 if unreadable).
-        detail: Human-readable description naming the problem.
+        detail: Human-readable description naming the problem (for a seq jump: where in
+            the record and how long, from the first sample).
+        t_before_s: Time of the last clean sample before it [s, the blocks' clock] (NaN
+            when unknown).
+        t_after_s: Time of the first sample after it [s] (NaN when unknown).
+        missing_s: Time without data, ``t_after - t_before - 1 / sample_rate`` [s] (NaN
+            when unknown; 0 when the blocks' times leave no room for the lost ones).
+        at_s: ``t_before_s`` from the first clean sample of the stream [s] (NaN: unknown).
     """
 
     kind: GapKind
     seq: int
     detail: str
+    t_before_s: float = math.nan
+    t_after_s: float = math.nan
+    missing_s: float = math.nan
+    at_s: float = math.nan
+
+
+def seq_jump_event(expected: int, seq: int, t_before: float | None, t_after: float,
+                   rate_hz: float, t_first: float | None) -> GapEvent:
+    """The :class:`GapEvent` of a block ``seq`` arriving where ``expected`` was due: when and
+    for how long the record has no data (``t_before`` = last sample before, ``t_after`` =
+    first after, ``t_first`` = first sample of the record; the blocks' clock, s)."""
+    detail = f'expected seq {expected}, got {seq}'
+    before = math.nan if t_before is None else float(t_before)
+    missing = round(max(0.0, t_after - before - 1.0 / rate_hz), 6) if rate_hz > 0 \
+        and math.isfinite(before) else math.nan
+    at = math.nan if t_first is None else round(before - t_first, 6)
+    if math.isfinite(at) and t_after > before:
+        detail += f': no data for {missing:.6g} s after {at:.6g} s into the record'
+    return GapEvent('seq_jump', seq, detail, before, float(t_after), missing, at)
 
 
 @dataclass(frozen=True)
@@ -626,6 +652,7 @@ class StreamingTeAnalyzer:
         self._pending: list[WindowResult] = []
         self._last_seq: int | None = None
         self._last_t: float | None = None
+        self._t_first: float | None = None   # first clean sample (gap times in the record)
         self._last_phi: float | None = None
         self._decim_offset = 0
         self._n_windows = 0
@@ -879,6 +906,8 @@ class StreamingTeAnalyzer:
         offs = batch.time_offset_s
         self._last_seq = int(seq[k1 - 1])
         self._last_t = float(t_last[k1 - 1])
+        if self._t_first is None:
+            self._t_first = float(stamp[k0] + offs[a])
         self._counters['samples'] += b - a
 
         def block_of(i: int) -> int:
@@ -916,8 +945,10 @@ class StreamingTeAnalyzer:
             return StreamUpdate(math.nan, _EMPTY, _EMPTY, tuple(windows), tuple(gaps))
         seq, t, theta_in, theta_out, rate = clean
         n_gaps = len(gaps)   # (push_batch passes one list for all its blocks)
+        if self._t_first is None:
+            self._t_first = float(t[0])
         if self._last_seq is not None and seq != self._last_seq + 1:
-            self._gap(gaps, 'seq_jump', seq, f'expected seq {self._last_seq + 1}, got {seq}')
+            self._seq_jump(gaps, seq, float(t[0]), rate)
         elif self._last_seq is None and seq > 0:
             # a bench numbers its blocks from 0: the first ones went by before this stream
             # began (a recorder or TE node started late, a bag cut at the front)
@@ -963,6 +994,15 @@ class StreamingTeAnalyzer:
         # positional: stamp_s, te_rad, phase_out_rad, windows, gaps, time_s, period_s
         return StreamUpdate(float(t_d[0]) if t_d.size else math.nan, te_d, phi_d,
                             tuple(windows), tuple(gaps), t_d, q / rate)
+
+    def _seq_jump(self, gaps: list[GapEvent], seq: int, t_after: float, rate: float) -> None:
+        """A seq jump, with where it is in the record and how long it lasted."""
+        assert self._last_seq is not None
+        gap = seq_jump_event(self._last_seq + 1, seq, self._last_t, t_after, rate,
+                             self._t_first)
+        gaps.append(gap)
+        self._counters['gaps'] += 1
+        self._counters['seq_jumps'] += 1
 
     def _end_stretch(self, windows: list[WindowResult]) -> None:
         """A gap: close the open window as partial and forget continuity."""

@@ -139,6 +139,10 @@ def _am(x_rad: float, digits: int = 4) -> str:
     return f'{v:.{digits}f}' if math.isfinite(v) else '-'
 
 
+def _secs(x: float) -> str:
+    return '-' if not math.isfinite(x) else f'{x:.6g}'
+
+
 def _stats_cells(st: TeStats) -> str:
     revs = f'{st.revolutions:.3f}' if math.isfinite(st.revolutions) else '-'
     return (f'<td>{_am(st.pp_rad)}</td><td>{_am(st.amplitude_rad)}</td>'
@@ -222,8 +226,10 @@ def _bag_section(res: AnalysisResult) -> str:
 
     out.append('<h3>Gaps</h3>')
     if res.gaps:
-        out.append('<table><tr><th class="l">kind</th><th>seq</th><th class="l">detail</th></tr>')
+        out.append('<table><tr><th class="l">kind</th><th>seq</th><th>at [s]</th>'
+                   '<th>no data for [s]</th><th class="l">detail</th></tr>')
         out += [f'<tr><td class="l">{_e(g.kind)}</td><td>{g.seq}</td>'
+                f'<td>{_secs(g.at_s)}</td><td>{_secs(g.missing_s)}</td>'
                 f'<td class="l">{_e(g.detail)}</td></tr>' for g in res.gaps]
         out.append('</table>')
     else:

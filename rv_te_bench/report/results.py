@@ -295,7 +295,10 @@ class AnalysisResult:
                 **stats_json(w.stats)} for w in self.windows],
             'spectrum': None if self.spectrum is None else self.spectrum.to_json_dict(),
             'dominant': None if self.dominant is None else self.dominant.to_json_dict(),
-            'gaps': [{'kind': g.kind, 'seq': int(g.seq), 'detail': g.detail} for g in self.gaps],
+            'gaps': [{'kind': g.kind, 'seq': int(g.seq), 'detail': g.detail,
+                      'at_s': json_float(g.at_s), 'missing_s': json_float(g.missing_s),
+                      't_before_s': json_float(g.t_before_s),
+                      't_after_s': json_float(g.t_after_s)} for g in self.gaps],
             'counters': {k: _jsonable(v) for k, v in self.counters.items()},
             'recommendation': self.recommendation.to_json_dict(),
         }

@@ -2,13 +2,20 @@
 
 The bag holds what a live session records: ``/bench/info`` (``rv_te_msgs/BenchInfo``, offered
 transient-local as the bench publishes it, written first) and ``/bench/encoders``
-(``rv_te_msgs/EncoderBlock``: ``block_size`` samples per message, ``seq`` contiguous from 0,
-header stamp = absolute time of the block's first sample, ``time_offset_s`` per sample; the
-last block may be shorter). Messages are serialised to CDR by the rosbags typestore (no
-rclpy) and written by :class:`rv_te_bench.io.bag_writer.BagWriter`.
+(``rv_te_msgs/EncoderBlock``: ``block_size`` samples per message, ``seq`` from 0, header
+stamp = absolute time of the block's first sample, ``time_offset_s`` per sample). Messages
+are serialised to CDR by the rosbags typestore (no rclpy) and written by
+:class:`rv_te_bench.io.bag_writer.BagWriter`.
 
-Nothing is left half-way: the bag is written in a hidden folder beside ``out`` and renamed
-to ``out`` only once complete; on any error the hidden folder is removed.
+A drop-out in the file (:mod:`._convert`) ends the open block early and the next block's
+``seq`` skips one number, as the live JointState adapter does: the TE node on replay,
+``rv-te analyze``, ``identify`` and the report all see the gap (``seq_jump``, with its time
+and length), and no window holding it counts as complete. A drop-out across which a
+single-turn angle's turns are ambiguous (:mod:`._turns`) splits the record: the data after
+it goes to a new bag, ``OUT_seg2`` (then ``_seg3``, ...) beside ``OUT``, from seq 0.
+
+Nothing is left half-way: the bags are written in a hidden folder beside ``out`` and
+renamed only once complete; on any error the hidden folder is removed.
 """
 
 from __future__ import annotations
@@ -16,6 +23,7 @@ from __future__ import annotations
 import contextlib
 import dataclasses
 import datetime as dt
+import math
 import os
 import shutil
 import time
@@ -27,7 +35,9 @@ import numpy as np
 
 from rv_te_bench.errors import BagExistsError, DataImportError
 from rv_te_bench.io.bag_writer import BagWriter, qos_profile_dict
-from rv_te_bench.io.importers._common import TIME_UNITS, ChunkConverter, SiChunk, angle_unit
+from rv_te_bench.io.importers._common import TIME_UNITS, angle_unit, time_unit
+from rv_te_bench.io.importers._convert import ChunkConverter, to_rad_factor
+from rv_te_bench.io.importers._turns import TurnStitcher
 from rv_te_bench.io.msgdefs import BENCH_INFO, ENCODER_BLOCK, rv_te_typestore
 
 if TYPE_CHECKING:
@@ -35,6 +45,7 @@ if TYPE_CHECKING:
 
     from rv_te_bench.core.bench_description import BenchDescription
     from rv_te_bench.io.importers._common import ImportOptions, ImportReader
+    from rv_te_bench.io.importers._turns import ImportGap, Piece
     from sim.bench import BenchInfoData
 
 __all__ = ['ENCODER_TOPIC', 'INFO_TOPIC', 'ImportSummary', 'write_bag']
@@ -42,6 +53,11 @@ __all__ = ['ENCODER_TOPIC', 'INFO_TOPIC', 'ImportSummary', 'write_bag']
 ENCODER_TOPIC = '/bench/encoders'
 INFO_TOPIC = '/bench/info'
 _NS = 1_000_000_000
+#: Drop-outs named one by one in the notes (all are in the summary, up to MAX_GAPS_LISTED).
+NOTED_GAPS = 10
+MAX_GAPS_LISTED = 10_000
+#: A first time value at least this far from zero [s] is an absolute (epoch) time.
+EPOCH_MIN_S = 1e9
 
 
 @dataclass(frozen=True)
@@ -62,10 +78,18 @@ class ImportSummary:
     wraps_in: int
     wraps_out: int
     torque: bool
+    time_unit: str | None = None
+    samples_dropped: int = 0
+    gaps: tuple[ImportGap, ...] = ()
+    gaps_total: int = 0
+    segments: tuple[str, ...] = ()
 
     def to_json_dict(self) -> dict[str, Any]:
-        """JSON-friendly dict."""
-        return dataclasses.asdict(self)
+        """JSON-friendly dict (the drop-outs as ``gaps``, the bags as ``segments``)."""
+        out = {f.name: getattr(self, f.name) for f in dataclasses.fields(self)}
+        out['gaps'] = [g.to_json_dict() for g in self.gaps]
+        out['segments'] = list(self.segments)
+        return out
 
 
 def _unit(role: str, given: str | None, declared: dict[str, str | None], labels: dict[str, str],
@@ -87,8 +111,30 @@ def _utc(ns: int) -> str:
     return dt.datetime.fromtimestamp(ns / _NS, tz=dt.UTC).isoformat(timespec='milliseconds')
 
 
+def _time_unit(reader: ImportReader, options: ImportOptions) -> str | None:
+    """The time column's unit: the format's, ``--time-unit``, the column name / channel
+    unit; refused in one line naming the column when none says (never assumed)."""
+    if not reader.has_time:
+        return None
+    if reader.time_unit is not None:
+        return reader.time_unit
+    if options.time_unit is not None:
+        return options.time_unit
+    text = reader.declared_units.get('time')
+    unit = time_unit(text)
+    if unit is None:
+        label = reader.labels.get('time', 'time')
+        said = f'its unit {text!r} is not a time unit' if text else \
+            'neither its name nor the file states its unit'
+        msg = (f'{reader.origin}: time column {label!r}: {said}; give --time-unit '
+               f'({", ".join(TIME_UNITS)}) or name it like t_ms / "time [s]"')
+        raise DataImportError(msg)
+    return unit
+
+
 class _Blocks:
-    """Cuts SiChunks into EncoderBlocks and writes them (a Python loop over blocks only)."""
+    """Cuts pieces into EncoderBlocks and writes them to one segment's bag (a Python loop
+    over blocks only)."""
 
     def __init__(self, writer: BagWriter, desc: BenchDescription, rate_hz: float,
                  start_ns: int) -> None:
@@ -102,40 +148,43 @@ class _Blocks:
         self.seq = 0
         self.samples = 0
         self.last_t_s = 0.0
-        self._rest: SiChunk | None = None
+        self._rest: tuple[np.ndarray, ...] | None = None
 
-    def push(self, chunk: SiChunk) -> None:
+    def push(self, piece: Piece) -> None:
+        """Write the piece's whole blocks; a drop-out before it ends the open block and
+        skips one seq (every consumer sees the gap)."""
+        arrays = (piece.t_s, piece.theta_in_rad, piece.theta_out_rad, piece.torque_out_nm)
+        if piece.gap is not None and self.samples + (0 if self._rest is None
+                                                     else self._rest[0].size):
+            self.finish()
+            self.seq += 1
         if self._rest is not None:
-            r = self._rest
-            chunk = SiChunk(*(np.concatenate([a, b]) for a, b in zip(
-                (r.t_s, r.theta_in_rad, r.theta_out_rad, r.torque_out_nm),
-                (chunk.t_s, chunk.theta_in_rad, chunk.theta_out_rad, chunk.torque_out_nm),
-                strict=True)))
-        n = chunk.t_s.size
+            arrays = tuple(np.concatenate([a, b]) for a, b in zip(self._rest, arrays,
+                                                                    strict=True))
+        n = arrays[0].size
         full = n - n % self.bs
         for s in range(0, full, self.bs):
-            self._write(chunk, s, s + self.bs)
-        self._rest = None if full == n else SiChunk(
-            chunk.t_s[full:], chunk.theta_in_rad[full:], chunk.theta_out_rad[full:],
-            chunk.torque_out_nm[full:] if chunk.torque_out_nm.size else chunk.torque_out_nm)
+            self._write(arrays, s, s + self.bs)
+        self._rest = None if full == n else tuple(a[full:] if a.size else a for a in arrays)
 
     def finish(self) -> None:
-        if self._rest is not None and self._rest.t_s.size:
-            self._write(self._rest, 0, self._rest.t_s.size)
+        """Write the open (short) block."""
+        if self._rest is not None and self._rest[0].size:
+            self._write(self._rest, 0, self._rest[0].size)
         self._rest = None
 
-    def _write(self, c: SiChunk, a: int, b: int) -> None:
-        t = c.t_s[a:b]
+    def _write(self, c: tuple[np.ndarray, ...], a: int, b: int) -> None:
+        t = c[0][a:b]
         stamp_ns = self.start_ns + round(float(t[0]) * _NS)
-        torque = c.torque_out_nm[a:b] if c.torque_out_nm.size else np.zeros(0)
+        torque = c[3][a:b] if c[3].size else np.zeros(0)
         msg = self.types[ENCODER_BLOCK](
             header=self.types['std_msgs/msg/Header'](
                 stamp=self.types['builtin_interfaces/msg/Time'](
                     sec=stamp_ns // _NS, nanosec=stamp_ns % _NS),
                 frame_id=self.frame_id),
             seq=self.seq, sample_rate_hz=self.rate_hz, time_offset_s=t - t[0],
-            theta_in_rad=np.ascontiguousarray(c.theta_in_rad[a:b]),
-            theta_out_rad=np.ascontiguousarray(c.theta_out_rad[a:b]),
+            theta_in_rad=np.ascontiguousarray(c[1][a:b]),
+            theta_out_rad=np.ascontiguousarray(c[2][a:b]),
             torque_out_nm=np.ascontiguousarray(torque))
         self.writer.write(ENCODER_TOPIC, stamp_ns, self.store.serialize_cdr(msg, ENCODER_BLOCK))
         self.seq += 1
@@ -143,10 +192,78 @@ class _Blocks:
         self.last_t_s = float(t[-1])
 
 
-def _estimate_rate_hz(chunk: SiChunk) -> float | None:
-    if chunk.t_s.size < 2:
-        return None
-    return 1.0 / float(np.median(np.diff(chunk.t_s)))
+def _segment_path(out: Path, k: int) -> Path:
+    """The bag of segment ``k`` (1: ``out`` itself)."""
+    return out if k == 1 else out.with_name(f'{out.name}_seg{k}')
+
+
+class _Segments:
+    """The bags of one import in a hidden work folder: one per segment of the record."""
+
+    def __init__(self, tmp_dir: Path, out: Path, desc: BenchDescription, info: BenchInfoData,
+                 meta: dict[str, Any], rate_hz: float, start_ns: int) -> None:
+        self.tmp_dir = tmp_dir
+        self.out = out
+        self.desc = desc
+        self.info = info
+        self.meta = meta
+        self.rate_hz = rate_hz
+        self.start_ns = start_ns
+        self.done: list[tuple[Path, _Blocks]] = []
+        self.writer: BagWriter | None = None
+        self.blocks: _Blocks | None = None
+        self._open(None)
+
+    def _open(self, after: ImportGap | None) -> None:
+        k = len(self.done) + 1
+        meta = dict(self.meta)
+        if after is not None:
+            meta.update({'import_segment': str(k), 'import_segment_after': after.describe()})
+        tmp_bag = self.tmp_dir / _segment_path(self.out, k).name
+        self.writer = BagWriter(tmp_bag, session_metadata=meta, flush_interval_s=3600.0)
+        self.writer.add_topic(INFO_TOPIC, BENCH_INFO, offered_qos_profiles=[
+            qos_profile_dict(durability='transient_local', depth=1)])
+        self.writer.add_topic(ENCODER_TOPIC, ENCODER_BLOCK,
+                              offered_qos_profiles=[qos_profile_dict(depth=1000)])
+        self.writer.write(INFO_TOPIC, self.start_ns, _bench_info_cdr(self.info, self.start_ns))
+        self.blocks = _Blocks(self.writer, self.desc, self.rate_hz, self.start_ns)
+        self.done.append((tmp_bag, self.blocks))
+
+    def push(self, piece: Piece) -> None:
+        assert self.blocks is not None
+        if piece.new_segment:
+            self._close()
+            self._open(piece.gap)
+            assert self.blocks is not None
+            piece = dataclasses.replace(piece, gap=None)
+        self.blocks.push(piece)
+
+    def _close(self) -> None:
+        assert self.blocks is not None and self.writer is not None
+        self.blocks.finish()
+        writer, self.writer = self.writer, None
+        writer.close()
+        if writer.lost_messages:
+            msg = f'{self.out}: {writer.lost_messages} messages could not be written (disk full?)'
+            raise DataImportError(msg)
+
+    def finish(self) -> list[Path]:
+        """Close the last bag and move every bag into place (none if one exists already)."""
+        self._close()
+        targets = [_segment_path(self.out, k + 1) for k in range(len(self.done))]
+        there = [t for t in targets if t.exists() or t.is_symlink()]
+        if there:
+            msg = (f'Output {there[0]} exists already, not overwriting (the record is split '
+                   f'into {len(targets)} segments: {", ".join(t.name for t in targets)})')
+            raise BagExistsError(msg)
+        for (tmp_bag, _), target in zip(self.done, targets, strict=True):
+            tmp_bag.rename(target)
+        return targets
+
+    def abort(self) -> None:
+        if self.writer is not None:
+            with contextlib.suppress(Exception):
+                self.writer.close()
 
 
 def write_bag(reader: ImportReader, desc: BenchDescription, options: ImportOptions,
@@ -160,7 +277,8 @@ def write_bag(reader: ImportReader, desc: BenchDescription, options: ImportOptio
         options: The import options.
         out: Bag folder to create; must not exist.
         fmt: Format name for the record (``csv``, ``tdms``, ``mdf``, ...).
-        on_note: Called with one line for each assumption made (rate, start time).
+        on_note: Called with one line for each assumption made (rate, start time) and
+            each drop-out found.
 
     Raises:
         DataImportError: A bad value (file, column, row named); nothing is written.
@@ -176,6 +294,7 @@ def write_bag(reader: ImportReader, desc: BenchDescription, options: ImportOptio
     labels = reader.labels
     unit_in = _unit('in', options.unit_in, reader.declared_units, labels, origin)
     unit_out = _unit('out', options.unit_out, reader.declared_units, labels, origin)
+    t_unit = _time_unit(reader, options)
     if 'torque' in labels and not desc.torque_sensor.present:
         note(f'the bench description has no torque sensor; column {labels["torque"]!r} '
              'imported with its scale anyway')
@@ -188,12 +307,14 @@ def write_bag(reader: ImportReader, desc: BenchDescription, options: ImportOptio
         note(f'no time column and no --rate: samples taken {1.0 / rate_hz:g} s apart '
              f'(sample_rate_hz of {desc.origin})')
     conv = ChunkConverter(
-        origin=origin, labels=labels, locate=reader.locate, unit_in=unit_in, unit_out=unit_out,
-        counts_per_rev_in=options.counts_per_rev_in or desc.encoder_in.counts_per_rev,
-        counts_per_rev_out=options.counts_per_rev_out or desc.encoder_out.counts_per_rev,
-        time_scale_s=TIME_UNITS[reader.time_unit] if reader.has_time else None,
-        rate_hz=None if reader.has_time else rate_hz,
-        torque_scale_nm=desc.torque_sensor.scale_nm_per_unit, unwrap=options.unwrap)
+        origin=origin, labels=labels, locate=reader.locate,
+        k_in=to_rad_factor(unit_in, options.counts_per_rev_in or desc.encoder_in.counts_per_rev,
+                           f'{origin}: column {labels["in"]!r}'),
+        k_out=to_rad_factor(unit_out,
+                            options.counts_per_rev_out or desc.encoder_out.counts_per_rev,
+                            f'{origin}: column {labels["out"]!r}'),
+        time_scale_s=TIME_UNITS[t_unit] if t_unit is not None else None, rate_hz=rate_hz,
+        torque_scale_nm=desc.torque_sensor.scale_nm_per_unit)
     chunks: Iterator[Any] = iter(reader.chunks())
     first_raw = next(chunks, None)
     if first_raw is None:
@@ -201,65 +322,97 @@ def write_bag(reader: ImportReader, desc: BenchDescription, options: ImportOptio
         raise DataImportError(msg)
     first = conv(first_raw)
     if rate_hz is None:
-        rate_hz = _estimate_rate_hz(first) or desc.sample_rate_hz
+        rate_hz = conv.rate_hz or desc.sample_rate_hz
+        conv.rate_hz = rate_hz
         rate_from = 'the time column (median step of the first chunk)'
     if abs(rate_hz - desc.sample_rate_hz) > 0.01 * desc.sample_rate_hz:
         note(f'sample rate {rate_hz:g} Hz (from {rate_from}) differs from the bench '
              f'description\'s {desc.sample_rate_hz:g} Hz; {rate_hz:g} Hz recorded')
-    start_ns, start_from = options.start_ns, '--start-utc'
-    if start_ns is None and reader.start_ns is not None:
-        start_ns, start_from = int(reader.start_ns), 'the file'
-    if start_ns is None:
-        start_ns, start_from = reader.path.stat().st_mtime_ns, 'the file modification time'
-        note(f'the file states no start time: the file modification time {_utc(start_ns)} '
-             'is used (give --start-utc)')
+    start_ns, start_from = _start(options, reader, conv, note)
     info = dataclasses.replace(desc.bench_info(), sample_rate_hz=rate_hz)
     meta = desc.to_metadata()
     session = out.parent.name if out.name in {'bag', 'bag_0'} and out.parent.name else out.name
     meta.update({'session': session, 'started_utc': _utc(start_ns),
                  'imported_from': str(reader.path), 'import_format': fmt,
                  'import_utc': dt.datetime.now(dt.UTC).isoformat(timespec='seconds')})
+    stitcher = TurnStitcher(turns_in=options.turns_in,  # type: ignore[arg-type]
+                            turns_out=options.turns_out,  # type: ignore[arg-type]
+                            rate_hz=rate_hz)
     tmp_dir = out.parent / f'.{out.name}.importing-{os.getpid()}-{time.monotonic_ns()}'
     try:
         tmp_dir.mkdir(parents=True)
     except OSError as exc:
         msg = f'Cannot create {tmp_dir}: {exc.strerror or exc}.'
         raise DataImportError(msg) from None
-    tmp_bag = tmp_dir / out.name
-    writer: BagWriter | None = None
+    segments: _Segments | None = None
     try:
-        writer = BagWriter(tmp_bag, session_metadata=meta, flush_interval_s=3600.0)
-        writer.add_topic(INFO_TOPIC, BENCH_INFO, offered_qos_profiles=[
-            qos_profile_dict(durability='transient_local', depth=1)])
-        writer.add_topic(ENCODER_TOPIC, ENCODER_BLOCK,
-                         offered_qos_profiles=[qos_profile_dict(depth=1000)])
-        writer.write(INFO_TOPIC, start_ns, _bench_info_cdr(info, start_ns))
-        blocks = _Blocks(writer, desc, rate_hz, start_ns)
-        blocks.push(first)
+        segments = _Segments(tmp_dir, out, desc, info, meta, rate_hz, start_ns)
+        for piece in stitcher.push(first):
+            segments.push(piece)
         for raw in chunks:
-            blocks.push(conv(raw))
-        blocks.finish()
-        writer.close()
-        if writer.lost_messages:
-            msg = f'{out}: {writer.lost_messages} messages could not be written (disk full?)'
-            raise DataImportError(msg)
-        tmp_bag.rename(out)
+            for piece in stitcher.push(conv(raw)):
+                segments.push(piece)
+        for piece in stitcher.finish():
+            segments.push(piece)
+        bags = segments.finish()
     except BaseException:
-        if writer is not None:
-            with contextlib.suppress(Exception):
-                writer.close()
+        if segments is not None:
+            segments.abort()
         shutil.rmtree(tmp_dir, ignore_errors=True)
         raise
     shutil.rmtree(tmp_dir, ignore_errors=True)
+    _note_dropouts(stitcher.gaps, conv, bags, note)
     if getattr(reader, 'unpaired', 0):
         note(f'{reader.unpaired} joint positions had no partner at the same stamp: left out '
              '(the sample times in the bag show where)')
+    wraps_in, wraps_out = stitcher.wraps
+    last = segments.done[-1][1]
     return ImportSummary(
-        bag=str(out), source=str(reader.path), samples=blocks.samples, blocks=blocks.seq,
-        duration_s=blocks.last_t_s, sample_rate_hz=rate_hz, rate_from=rate_from,
-        start_utc=_utc(start_ns), start_from=start_from, unit_in=unit_in, unit_out=unit_out,
-        wraps_in=conv.unwrap_in.wraps, wraps_out=conv.unwrap_out.wraps,
-        torque='torque' in labels)
+        bag=str(out), source=str(reader.path), samples=conv.samples,
+        blocks=sum(b.seq for _, b in segments.done), duration_s=last.last_t_s,
+        sample_rate_hz=rate_hz, rate_from=rate_from, start_utc=_utc(start_ns),
+        start_from=start_from, unit_in=unit_in, unit_out=unit_out, wraps_in=wraps_in,
+        wraps_out=wraps_out, torque='torque' in labels, time_unit=t_unit,
+        samples_dropped=conv.dropped, gaps=tuple(stitcher.gaps[:MAX_GAPS_LISTED]),
+        gaps_total=len(stitcher.gaps), segments=tuple(str(b) for b in bags))
+
+
+def _start(options: ImportOptions, reader: ImportReader, conv: ChunkConverter,
+           note: Callable[[str], None]) -> tuple[int, str]:
+    """(absolute time of the first sample [ns], where it came from)."""
+    if options.start_ns is not None:
+        return options.start_ns, '--start-utc'
+    if reader.start_ns is not None:
+        return int(reader.start_ns), 'the file'
+    if isinstance(conv.t0, int) and conv.time_scale_s is not None \
+            and abs(conv.t0_s) >= EPOCH_MIN_S:     # integer epoch stamps: exact
+        return int(conv.t0) * round(conv.time_scale_s * _NS), 'the time column (epoch)'
+    if math.isfinite(conv.t0_s) and abs(conv.t0_s) >= EPOCH_MIN_S:
+        return round(conv.t0_s * _NS), 'the time column (epoch)'
+    start_ns = reader.path.stat().st_mtime_ns
+    note(f'the file states no start time: the file modification time {_utc(start_ns)} '
+         'is used (give --start-utc)')
+    return start_ns, 'the file modification time'
+
+
+def _note_dropouts(gaps: list[ImportGap], conv: ChunkConverter, bags: list[Path],
+                   note: Callable[[str], None]) -> None:
+    """One note per drop-out (the first NOTED_GAPS), and the samples dropped at the ends."""
+    for g in gaps[:NOTED_GAPS]:
+        note(g.describe())
+    if len(gaps) > NOTED_GAPS:
+        note(f'... {len(gaps) - NOTED_GAPS} more drop-outs ({len(gaps)} in all; --json lists '
+             'them)')
+    if conv.leading_dropped:
+        note(f'{conv.leading_dropped} samples before the first good one dropped (non-finite '
+             'or time not increasing)')
+    trailing = conv.finish()
+    if trailing is not None:
+        note(f'{trailing[0]} samples from {trailing[1]} to the end dropped (non-finite or '
+             'time not increasing)')
+    if len(bags) > 1:
+        note(f'the record is split into {len(bags)} segments (turns ambiguous across a '
+             f'drop-out): {", ".join(str(b) for b in bags)}')
 
 
 def _remove_killed_imports(out: Path, note: Callable[[str], None]) -> None:

@@ -3,7 +3,10 @@
 Layout: one header line naming the columns (``--no-header``: none, columns by 0-based index),
 then one sample per line; the delimiter (``,`` ``;`` tab, or blanks) is sniffed from the
 first line unless given; lines starting with ``#`` are comments. A column's unit may be in
-its name (``theta_in_deg``, ``theta_in [deg]``, ``in (arcsec)``); an option overrides it.
+its name (``theta_in_deg``, ``theta_in [deg]``, ``in (arcsec)``, ``t_ms``, ``time [min]``);
+an option overrides it. An empty cell (how pandas writes NaN) is a missing value: the row is
+a drop-out, as a ``nan`` cell is. A time column in nanoseconds is read as 64-bit integers
+(epoch nanoseconds keep every digit).
 """
 
 from __future__ import annotations
@@ -17,7 +20,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from rv_te_bench.errors import DataImportError
-from rv_te_bench.io.importers._common import RawChunk
+from rv_te_bench.io.importers._common import RawChunk, time_unit
 
 if TYPE_CHECKING:
     from collections.abc import Iterator
@@ -28,11 +31,15 @@ __all__ = ['CsvReader']
 
 _UNIT_IN_NAME = re.compile(r'(?:[\[(]\s*([^\])]+?)\s*[\])]\s*$)|(?:_(rad|deg|arcmin|arcsec|counts|'
                            r'rev|s|ms|us|ns)$)')
+_TIME_UNIT_IN_NAME = re.compile(r'(?:[\[(]\s*([^\])]+?)\s*[\])]\s*$)|(?:_(s|sec|ms|us|ns|min|h)$)')
 _MAX_HEADER = 1 << 20
+_EMPTY_CELL = {',': re.compile(r'(?<=,)(?=,|\r?$)|^(?=,)', re.MULTILINE),
+               ';': re.compile(r'(?<=;)(?=;|\r?$)|^(?=;)', re.MULTILINE),
+               '\t': re.compile(r'(?<=\t)(?=\t|\r?$)|^(?=\t)', re.MULTILINE)}
 
 
-def _unit_from_name(name: str) -> str | None:
-    m = _UNIT_IN_NAME.search(name.strip())
+def _unit_from_name(name: str, role: str = 'in') -> str | None:
+    m = (_TIME_UNIT_IN_NAME if role == 'time' else _UNIT_IN_NAME).search(name.strip())
     if not m:
         return None
     return m.group(1) or m.group(2)
@@ -88,12 +95,15 @@ class CsvReader:
             raise DataImportError(msg)
         self.index = {role: self._column(spec) for role, spec in roles.items() if spec is not None}
         self.labels = {role: self.columns[j] for role, j in self.index.items()}
-        self.declared_units = {role: _unit_from_name(self.columns[j])
+        self.declared_units = {role: _unit_from_name(self.columns[j], role)
                                for role, j in self.index.items()}
         self.has_time = 'time' in self.index
-        self.time_unit = options.time_unit
+        self.time_unit: str | None = None     # from the name or --time-unit (write_bag)
         self._roles = list(self.index)
         self._usecols = [self.index[r] for r in self._roles]
+        # nanoseconds (epoch stamps need all 19 digits): the time column as int64
+        unit = options.time_unit or time_unit(self.declared_units.get('time'))
+        self._int_time = self.has_time and unit == 'ns'
 
     @staticmethod
     def _sniff(line: str) -> str | None:
@@ -131,30 +141,52 @@ class CsvReader:
                 raise DataImportError(msg) from None
             if not lines:
                 break
-            data = self._parse(lines, first)
-            if data.shape[0] == 0:
+            cols = self._parse(lines, first)
+            n = cols['in'].size
+            if n == 0:
                 continue
-            cols = dict(zip(self._roles, data.T, strict=True))
             yield RawChunk(first=first, time=cols.get('time'), theta_in=cols['in'],
                            theta_out=cols['out'], torque=cols.get('torque'))
-            first += data.shape[0]
+            first += n
         if first == 0:
             msg = f'{self.origin}: no data rows after the header'
             raise DataImportError(msg)
 
-    def _parse(self, lines: list[str], first: int) -> np.ndarray:
+    def _parse(self, lines: list[str], first: int) -> dict[str, np.ndarray]:
+        """The chunk's columns by role (time as int64 for nanoseconds when it parses)."""
+        text = ''.join(lines)
         try:
-            data = np.loadtxt(io.StringIO(''.join(lines)), delimiter=self.delimiter,
-                              usecols=self._usecols, comments='#', quotechar='"', ndmin=2,
-                              dtype=np.float64)
+            cols = self._load(text)
         except ValueError:
-            self._explain(lines, first)
-            raise   # _explain always raises; kept for the type checker
-        if data.shape[0] != len(lines) and data.shape[0]:
+            # empty cells (pandas' NaN) are missing values; anything else is named
+            pattern = _EMPTY_CELL.get(self.delimiter or '')
+            try:
+                if pattern is None:
+                    raise ValueError
+                cols = self._load(pattern.sub('nan', text))
+            except ValueError:
+                self._explain(lines, first)
+                raise   # _explain always raises; kept for the type checker
+        n = cols['in'].size
+        if n != len(lines) and n:
             # blank or comment lines inside the chunk would shift the line numbers of later
             # messages: only counted here (rare in DAQ exports)
-            self.data_line += len(lines) - data.shape[0]
-        return data
+            self.data_line += len(lines) - n
+        return cols
+
+    def _load(self, text: str) -> dict[str, np.ndarray]:
+        if self._int_time:
+            fields = [(r, np.int64 if r == 'time' else np.float64) for r in self._roles]
+            try:
+                rec = np.loadtxt(io.StringIO(text), delimiter=self.delimiter,
+                                 usecols=self._usecols, comments='#', quotechar='"', ndmin=1,
+                                 dtype=fields)
+                return {r: np.ascontiguousarray(rec[r]) for r in self._roles}
+            except ValueError:
+                pass   # not integers (1.7e18, 12.5, nan): read as float64 below
+        data = np.loadtxt(io.StringIO(text), delimiter=self.delimiter, usecols=self._usecols,
+                          comments='#', quotechar='"', ndmin=2, dtype=np.float64)
+        return {r: np.ascontiguousarray(data[:, k]) for k, r in enumerate(self._roles)}
 
     def _explain(self, lines: list[str], first: int) -> None:
         """Find the first bad cell of a chunk that numpy refused (error path only)."""
@@ -170,6 +202,8 @@ class CsvReader:
                            f'cells)')
                     raise DataImportError(msg)
                 cell = cells[j].strip().strip('"')
+                if not cell:
+                    continue   # an empty cell is a missing value
                 try:
                     float(cell)
                 except ValueError:

@@ -91,7 +91,9 @@ class MdfReader:
                 unit = conv.unit
             self.declared_units[role] = str(unit) or None
         self.has_time = True     # the master channel, or --time
-        self.time_unit = options.time_unit if 'time' in self.where else 's'
+        # a time master channel is in seconds (ASAM MDF4: sync type time); a --time channel
+        # in the unit it states (or --time-unit)
+        self.time_unit: str | None = None if 'time' in self.where else 's'
         self.declared_rate_hz = None
         start = getattr(self._mdf.header, 'start_time', None)
         try:

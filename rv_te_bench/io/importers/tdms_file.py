@@ -3,7 +3,8 @@
 The file is opened with ``TdmsFile.open`` (metadata only) and each channel is read
 ``chunk_samples`` at a time with ``TdmsChannel.read_data(offset, length)``, so memory stays
 flat. Channels are named ``group/channel`` or ``channel`` (when one group has it). Time: a
-time channel (``--time``), else the waveform properties of the input channel
+time channel (``--time``: TDMS timestamps, read exactly to the nanosecond, or numbers in the
+unit its ``unit_string`` states), else the waveform properties of the input channel
 (``wf_increment`` [s], ``wf_start_time``), else a fixed rate. Units: the channel property
 ``unit_string`` unless an option gives one.
 """
@@ -12,6 +13,7 @@ from __future__ import annotations
 
 import contextlib
 import logging
+import math
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
@@ -39,7 +41,26 @@ def _short(exc: BaseException) -> str:
     return ' '.join(str(exc).split())[:200] or type(exc).__name__
 
 
+#: Seconds from the TDMS epoch (1904-01-01 UTC) to the Unix epoch.
+_TDMS_EPOCH_S = 2_082_844_800
+_HALF = 1 << 31
+
+
+def _timestamps_ns(seconds: np.ndarray, fractions: np.ndarray) -> np.ndarray:
+    """TDMS timestamps (seconds since 1904, 2^-64 s fractions) -> int64 ns since 1970,
+    rounded to the nearest ns in integer arithmetic (no float64 on the way)."""
+    f = np.asarray(fractions, dtype=np.uint64)
+    hi, lo = f >> np.uint64(32), f & np.uint64(0xFFFFFFFF)
+    g = np.uint64(1_000_000_000)
+    lo_ns = (lo * g + np.uint64(_HALF)) >> np.uint64(32)
+    frac_ns = ((hi * g + lo_ns + np.uint64(_HALF)) >> np.uint64(32)).astype(np.int64)
+    return (np.asarray(seconds, dtype=np.int64) - _TDMS_EPOCH_S) * 1_000_000_000 + frac_ns
+
+
 def _datetime64_ns(value: Any) -> int | None:
+    if hasattr(value, 'seconds') and hasattr(value, 'second_fractions'):   # TdmsTimestamp
+        return (int(value.seconds) - _TDMS_EPOCH_S) * 1_000_000_000 \
+            + ((int(value.second_fractions) * 1_000_000_000 + (1 << 63)) >> 64)
     try:
         return int(np.datetime64(value, 'ns').astype(np.int64))
     except (TypeError, ValueError, OverflowError):
@@ -81,7 +102,8 @@ class TdmsReader:
         refuse_empty(self.path)
         with _nptdms_warnings() as warned:
             try:
-                self._file = nptdms.TdmsFile.open(self.path)  # type: ignore[attr-defined]
+                self._file = nptdms.TdmsFile.open(  # type: ignore[attr-defined]
+                    self.path, raw_timestamps=True)
             except Exception as exc:  # noqa: BLE001 - nptdms raises many types on bad files
                 msg = f'{path}: not a readable TDMS file, truncated or damaged ({_short(exc)})'
                 raise DataImportError(msg) from None
@@ -102,12 +124,31 @@ class TdmsReader:
             msg = f'{path}: channel {self.labels["in"]!r} has no samples'
             raise DataImportError(msg)
         props = self.channels['in'].properties
-        inc = props.get('wf_increment')
         self.has_time = 'time' in self.channels
-        self.time_unit = options.time_unit
-        self.declared_rate_hz = 1.0 / float(inc) if inc and float(inc) > 0 else None
+        self._stamps = self.has_time and self._is_timestamp(self.channels['time'])
+        self.time_unit: str | None = 'ns' if self._stamps else None   # else unit_string
+        self.declared_rate_hz = self._rate(props.get('wf_increment'))
         self.start_ns = _datetime64_ns(props.get('wf_start_time')) \
-            if props.get('wf_start_time') is not None else None
+            if props.get('wf_start_time') is not None and not self._stamps else None
+
+    @staticmethod
+    def _is_timestamp(ch: TdmsChannel) -> bool:
+        return getattr(ch.data_type, '__name__', '') == 'TimeStamp'
+
+    def _rate(self, inc: Any) -> float | None:
+        """1 / wf_increment, or None without one; refused in one line when not a positive
+        number of seconds."""
+        if inc is None:
+            return None
+        try:
+            value = float(inc)
+        except (TypeError, ValueError):
+            value = math.nan
+        if not (math.isfinite(value) and value > 0):
+            msg = (f'{self.origin}: channel {self.labels["in"]!r}: property wf_increment '
+                   f'{str(inc)[:40]!r} is not a positive number of seconds')
+            raise DataImportError(msg)
+        return 1.0 / value
 
     def _truncated(self) -> None:
         """Name the first channel whose data ends early (a truncated last segment)."""
@@ -153,7 +194,10 @@ class TdmsReader:
             cols = {}
             for role, ch in self.channels.items():
                 try:
-                    data = np.asarray(ch.read_data(first, count), dtype=np.float64)
+                    raw = ch.read_data(first, count)
+                    data = (_timestamps_ns(raw['seconds'], raw['second_fractions'])
+                            if role == 'time' and self._stamps
+                            else np.asarray(raw, dtype=np.float64))
                 except Exception as exc:  # noqa: BLE001 - truncated files raise many types
                     msg = (f'{self.origin}: channel {self.labels[role]!r}, samples {first}..'
                            f'{first + count - 1}: cannot be read, the file is truncated or '

@@ -1,0 +1,307 @@
+"""Unwrapping each angle channel, also across a drop-out, or splitting the record there.
+
+Within continuous data a channel that is not a multi-turn counter is unwrapped as
+``numpy.unwrap`` does: a step of more than half a turn between two samples is a wrap of a
+single-turn encoder (this needs less than half a turn per sample: input speed below
+``30 * sample_rate_hz`` rpm, true of every TE bench).
+
+Across a drop-out (:class:`~._convert.Break`) nothing is guessed:
+
+* a **multi-turn** channel (``multi``, or ``auto`` whose readings span more than one turn)
+  keeps its recorded advance: the counter counted through the drop-out;
+* a **single-turn** channel (``single``, or ``auto`` otherwise) only knows its angle modulo
+  a turn after the drop-out. The advance is predicted from the speed before (a least-squares
+  slope over the last :data:`SPEED_WINDOW_S`) and the speed after (the first
+  :data:`SPEED_WINDOW_S` after it), each widened by three standard errors. The whole number
+  of turns is taken when exactly one candidate advance lies within half a turn of every
+  predicted one. Otherwise the turn count is ambiguous (a long drop-out at a changing
+  speed): the record is **split** there, and what follows is a new segment (a bag of its
+  own) whose angles continue as recorded.
+
+Every drop-out becomes an :class:`ImportGap` (time, length, samples, the advance of each
+channel and how it was found); the pieces of data come out as :class:`Piece` s in order.
+Memory: the data after a drop-out is held until :data:`SPEED_WINDOW_S` of it is read.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from typing import TYPE_CHECKING, Literal
+
+import numpy as np
+
+if TYPE_CHECKING:
+    from rv_te_bench.io.importers._convert import Break, SiChunk
+
+__all__ = ['SPEED_WINDOW_S', 'ImportGap', 'Piece', 'TurnStitcher']
+
+#: Time over which the speed before and after a drop-out is fitted [s].
+SPEED_WINDOW_S = 0.2
+_MAX_SPEED_SAMPLES = 4096
+_TWO_PI = 2.0 * math.pi
+Turns = Literal['auto', 'single', 'multi']
+How = Literal['counter', 'speed', 'ambiguous']
+
+
+@dataclass(frozen=True)
+class ImportGap:
+    """A drop-out of the imported record (SI units).
+
+    Attributes:
+        reason: ``time_step``, ``time_backwards`` or ``non_finite``.
+        t_before_s: Last good sample before it [s since the first sample of the file].
+        t_after_s: First good sample after it [s].
+        missing_s: Time with no data: ``t_after - t_before - 1 / rate`` [s].
+        samples_dropped: Samples in the file that were not used (bad time or angle).
+        samples_missing: Samples the times say are missing (not in the file).
+        where: Where in the file it begins (``line N`` / ``sample N``).
+        advance_in_rev: Input advance across it [rev] (NaN when ambiguous).
+        advance_out_rev: Output advance across it [rev] (NaN when ambiguous).
+        how_in: ``counter`` (multi-turn, as recorded), ``speed`` (single-turn, turns from
+            the speed before and after) or ``ambiguous`` (split).
+        how_out: Likewise for the output.
+        split: The turn count was ambiguous: a new segment starts after it.
+    """
+
+    reason: str
+    t_before_s: float
+    t_after_s: float
+    missing_s: float
+    samples_dropped: int
+    samples_missing: int
+    where: str
+    advance_in_rev: float
+    advance_out_rev: float
+    how_in: How
+    how_out: How
+    split: bool
+
+    def describe(self) -> str:
+        """One line: where, how long, why, and how the turns were found."""
+        why = {'time_step': 'time step', 'time_backwards': 'time going backwards',
+               'non_finite': 'non-finite values'}.get(self.reason, self.reason)
+        turns = []
+        for role, adv, how in (('input', self.advance_in_rev, self.how_in),
+                               ('output', self.advance_out_rev, self.how_out)):
+            if how == 'ambiguous':
+                turns.append(f'{role} turns ambiguous')
+            elif how == 'speed':
+                turns.append(f'{role} {adv:.4g} rev from its speed')
+        tail = f'; {", ".join(turns)}' if turns else ''
+        split = '; the record is split: a new segment starts here' if self.split else ''
+        dropped = f', {self.samples_dropped} dropped' if self.samples_dropped else ''
+        return (f'drop-out at {self.t_before_s:.6g} s ({self.where}): {self.missing_s:.6g} s '
+                f'without data ({why}; {self.samples_missing} samples missing{dropped})'
+                f'{tail}{split}')
+
+    def to_json_dict(self) -> dict[str, object]:
+        """JSON-friendly dict (NaN -> None)."""
+        out: dict[str, object] = {}
+        for k, v in self.__dict__.items():
+            out[k] = None if isinstance(v, float) and not math.isfinite(v) else v
+        return out
+
+
+@dataclass(frozen=True)
+class Piece:
+    """Good samples to write, unwrapped; ``gap`` is the drop-out before them (None: they
+    continue the previous piece); ``new_segment``: they start a new segment."""
+
+    t_s: np.ndarray
+    theta_in_rad: np.ndarray
+    theta_out_rad: np.ndarray
+    torque_out_nm: np.ndarray
+    gap: ImportGap | None = None
+    new_segment: bool = False
+
+
+def _slope(t: np.ndarray, x: np.ndarray) -> tuple[float, float] | None:
+    """Least-squares slope of x(t) and its standard error (None with < 2 samples)."""
+    if t.size < 2:
+        return None
+    tc = t - t.mean()
+    sxx = float(tc @ tc)
+    if not sxx > 0:
+        return None
+    xc = x - x.mean()
+    v = float(tc @ xc) / sxx
+    if t.size < 3:
+        return v, 0.0
+    r = xc - v * tc
+    return v, math.sqrt(float(r @ r) / (t.size - 2) / sxx)
+
+
+def _unwrap_steps(x: np.ndarray, prev: float) -> np.ndarray:
+    """Cumulative turn corrections [rad] of ``x`` after the reading ``prev`` (numpy.unwrap's
+    rule: steps beyond half a turn)."""
+    d = np.diff(x, prepend=prev)
+    dmod = np.mod(d + math.pi, _TWO_PI) - math.pi
+    dmod[(dmod == -math.pi) & (d > 0)] = math.pi
+    corr = dmod - d
+    corr[np.abs(d) < math.pi] = 0.0
+    return np.cumsum(corr)
+
+
+class _Channel:
+    """One angle channel's unwrapping state."""
+
+    def __init__(self, turns: Turns, window: int) -> None:
+        self.turns = turns
+        self.window = window
+        self.prev_raw = math.nan      # last recorded (scaled) value
+        self.offset = 0.0             # unwrapped - recorded, at that sample
+        self.wraps = 0
+        self.lo = math.inf            # recorded range (multi-turn evidence)
+        self.hi = -math.inf
+        self.tail_t = np.empty(0)     # the last samples, unwrapped (speed before a gap)
+        self.tail_x = np.empty(0)
+
+    @property
+    def multi_turn(self) -> bool:
+        return self.turns == 'multi' or (self.turns == 'auto'
+                                         and self.hi - self.lo > _TWO_PI * (1 + 1e-9))
+
+    def local(self, raw: np.ndarray, prev: float) -> np.ndarray:
+        """``raw`` unwrapped within itself after ``prev`` (unchanged for a counter)."""
+        self.lo = min(self.lo, float(raw.min()))
+        self.hi = max(self.hi, float(raw.max()))
+        if self.turns == 'multi':
+            return raw.copy()
+        corr = _unwrap_steps(raw, prev)
+        n = int(np.count_nonzero(np.diff(corr, prepend=0.0)))
+        if n == 0:
+            return raw.copy()
+        self.wraps += n
+        return raw + corr
+
+    def keep(self, t: np.ndarray, raw: np.ndarray, x: np.ndarray) -> None:
+        """Remember the end of a piece written (state for what follows)."""
+        self.prev_raw = float(raw[-1])
+        self.offset = float(x[-1] - raw[-1])
+        if t.size >= self.window:
+            self.tail_t, self.tail_x = t[-self.window:].copy(), x[-self.window:].copy()
+        else:
+            self.tail_t = np.concatenate([self.tail_t, t])[-self.window:]
+            self.tail_x = np.concatenate([self.tail_x, x])[-self.window:]
+
+    def continue_(self, t: np.ndarray, raw: np.ndarray) -> np.ndarray:
+        """Unwrap a piece that continues the last one."""
+        x = self.local(raw, raw[0] if math.isnan(self.prev_raw) else self.prev_raw)
+        x += self.offset
+        self.keep(t, raw, x)
+        return x
+
+    def across(self, t: np.ndarray, raw: np.ndarray) -> tuple[np.ndarray, float, How]:
+        """Unwrap the data after a drop-out: (angles, advance [rad], how)."""
+        u = self.local(raw, raw[0])          # within the new stretch, from its first value
+        d = float(raw[0]) - self.prev_raw    # the recorded advance across the drop-out
+        if self.multi_turn:
+            k, how = 0, 'counter'
+        else:
+            k = self._turns_from_speed(t, u, d)
+            how = 'speed' if k is not None else 'ambiguous'
+        x = u + (self.offset + _TWO_PI * (k or 0))
+        advance = d + _TWO_PI * k if k is not None else math.nan
+        self.keep(t, raw, x)
+        return x, advance, how   # type: ignore[return-value]
+
+    def _turns_from_speed(self, t: np.ndarray, u: np.ndarray, d: float) -> int | None:
+        """The whole turns to add to the recorded advance ``d``, or None if ambiguous."""
+        if self.tail_t.size == 0:
+            return None
+        dt = float(t[0] - self.tail_t[-1])
+        preds: list[float] = []
+        for fit in (_slope(self.tail_t, self.tail_x), _slope(t, u)):
+            if fit is not None:
+                v, se = fit
+                preds += [(v - 3 * se) * dt, (v + 3 * se) * dt]
+        if not preds:
+            return None
+        lo, hi = min(preds), max(preds)
+        # the candidate d + 2 pi k must lie within half a turn of every prediction
+        k = math.floor((hi - math.pi - d) / _TWO_PI) + 1   # the least above hi - pi
+        cand = d + _TWO_PI * k
+        if hi - math.pi < cand < lo + math.pi:
+            return k
+        return None
+
+
+class TurnStitcher:
+    """SiChunks (recorded angles, breaks) -> :class:`Piece` s (unwrapped, gaps described).
+
+    Args:
+        turns_in: How the input turns (``auto``, ``single``, ``multi``; module docstring).
+        turns_out: How the output turns.
+        rate_hz: Sample rate [Hz] (the speed-fit window and the missing time).
+    """
+
+    def __init__(self, *, turns_in: Turns, turns_out: Turns, rate_hz: float) -> None:
+        window = int(min(_MAX_SPEED_SAMPLES, max(2, round(SPEED_WINDOW_S * rate_hz))))
+        self.rate_hz = rate_hz
+        self.window = window
+        self.ch_in = _Channel(turns_in, window)
+        self.ch_out = _Channel(turns_out, window)
+        self.gaps: list[ImportGap] = []
+        self._pending: list[tuple[np.ndarray, ...]] = []
+        self._pending_break: Break | None = None
+
+    @property
+    def wraps(self) -> tuple[int, int]:
+        """Wraps unwrapped within continuous data (input, output)."""
+        return self.ch_in.wraps, self.ch_out.wraps
+
+    def push(self, chunk: SiChunk) -> list[Piece]:
+        """Take one chunk; the pieces that can be written now."""
+        out: list[Piece] = []
+        brk_at = {b.index: b for b in chunk.breaks}
+        bounds = [0, *brk_at, chunk.t_s.size]
+        arrays = (chunk.t_s, chunk.theta_in_rad, chunk.theta_out_rad, chunk.torque_out_nm)
+        for a, b in zip(bounds[:-1], bounds[1:], strict=True):
+            if a == b:
+                continue
+            part = tuple(arr[a:b] if arr.size else arr for arr in arrays)
+            brk = brk_at.get(a)
+            if brk is not None:
+                if self._pending_break is not None:
+                    out.append(self._resolve())
+                self._pending_break = brk
+                self._pending = [part]
+            elif self._pending_break is not None:
+                self._pending.append(part)
+            else:
+                out.append(self._continue(part))
+            if self._pending_break is not None and \
+                    sum(p[0].size for p in self._pending) >= self.window:
+                out.append(self._resolve())
+        return out
+
+    def finish(self) -> list[Piece]:
+        """End of the data: the piece held after the last drop-out, if any."""
+        return [self._resolve()] if self._pending_break is not None else []
+
+    def _continue(self, part: tuple[np.ndarray, ...]) -> Piece:
+        t, th_in, th_out, tq = part
+        return Piece(t, self.ch_in.continue_(t, th_in), self.ch_out.continue_(t, th_out), tq)
+
+    def _resolve(self) -> Piece:
+        brk, parts = self._pending_break, self._pending
+        assert brk is not None
+        self._pending_break, self._pending = None, []
+        t, th_in, th_out, tq = (np.concatenate([p[i] for p in parts]) for i in range(4))
+        x_in, adv_in, how_in = self.ch_in.across(t, th_in)
+        x_out, adv_out, how_out = self.ch_out.across(t, th_out)
+        split = 'ambiguous' in (how_in, how_out)
+        period = 1.0 / self.rate_hz
+        span = brk.t_after_s - brk.t_before_s
+        missing = max(0, round(span * self.rate_hz) - 1 - brk.dropped)
+        gap = ImportGap(brk.reason, brk.t_before_s, brk.t_after_s, max(0.0, span - period),
+                        brk.dropped, missing, brk.where, adv_in / _TWO_PI, adv_out / _TWO_PI,
+                        how_in, how_out, split)
+        self.gaps.append(gap)
+        if split:   # the speeds of the new segment are its own
+            for ch in (self.ch_in, self.ch_out):
+                ch.tail_t, ch.tail_x = ch.tail_t[:0], ch.tail_x[:0]
+            self.ch_in.keep(t, th_in, x_in)
+            self.ch_out.keep(t, th_out, x_out)
+        return Piece(t, x_in, x_out, tq, gap=gap, new_segment=split)
