@@ -33,7 +33,6 @@ from rv_te_bench.cli.optimize_phases import (
     format_result,
     load_wang_params,
 )
-from rv_te_bench.core.units import json_float
 from rv_te_bench.errors import BagError, BenchInfoError, CompensationError, RvTeError, TeInputError
 from rv_te_bench.safe_yaml import one_line
 from sim.errors import SimError
@@ -361,9 +360,8 @@ def _run(args: argparse.Namespace) -> int:
             'problems': record.problems, 'blocks_read': record.blocks,
             'skipped_samples': record.skipped_samples,
             'gaps': [{'kind': g.kind, 'seq': g.seq, 'detail': g.detail,
-                      'at_s': json_float(g.at_s), 'missing_s': json_float(g.missing_s),
-                      't_before_s': json_float(g.t_before_s),
-                      't_after_s': json_float(g.t_after_s)} for g in record.gaps],
+                      'at_s': g.at_s, 'missing_s': g.missing_s, 't_before_s': g.t_before_s,
+                      't_after_s': g.t_after_s} for g in record.gaps],
             'gear_ratio': ratio,
             'part_magnitudes_source': source, 'identification': idf.to_json_dict(),
             'advice_withheld': withheld}

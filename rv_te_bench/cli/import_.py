@@ -159,8 +159,8 @@ def run(args: argparse.Namespace) -> int:
     for role in ('in', 'out'):
         flag = getattr(args, f'unwrap_{role}')
         if args.no_unwrap and flag:
-            msg = f'--no-unwrap and --unwrap-{role} contradict each other: give one'
-            raise DataImportError(msg)
+            args._parser.error(f'--no-unwrap and --unwrap-{role} contradict each other: '
+                               'give one')
         turns[role] = ('multi' if args.no_unwrap or flag is False else
                        'single' if flag else 'auto')
     options = ImportOptions(

@@ -390,21 +390,21 @@ class GapEvent:
         seq: Sequence number of the block where it was seen (-1 if unreadable).
         detail: Human-readable description naming the problem (for a seq jump: where in
             the record and how long, from the first sample).
-        t_before_s: Time of the last clean sample before it [s, the blocks' clock] (NaN
+        t_before_s: Time of the last clean sample before it [s, the blocks' clock] (None
             when unknown).
-        t_after_s: Time of the first sample after it [s] (NaN when unknown).
-        missing_s: Time without data, ``t_after - t_before - 1 / sample_rate`` [s] (NaN
+        t_after_s: Time of the first sample after it [s] (None when unknown).
+        missing_s: Time without data, ``t_after - t_before - 1 / sample_rate`` [s] (None
             when unknown; 0 when the blocks' times leave no room for the lost ones).
-        at_s: ``t_before_s`` from the first clean sample of the stream [s] (NaN: unknown).
+        at_s: ``t_before_s`` from the first clean sample of the stream [s] (None: unknown).
     """
 
     kind: GapKind
     seq: int
     detail: str
-    t_before_s: float = math.nan
-    t_after_s: float = math.nan
-    missing_s: float = math.nan
-    at_s: float = math.nan
+    t_before_s: float | None = None
+    t_after_s: float | None = None
+    missing_s: float | None = None
+    at_s: float | None = None
 
 
 def seq_jump_event(expected: int, seq: int, t_before: float | None, t_after: float,
@@ -413,13 +413,15 @@ def seq_jump_event(expected: int, seq: int, t_before: float | None, t_after: flo
     for how long the record has no data (``t_before`` = last sample before, ``t_after`` =
     first after, ``t_first`` = first sample of the record; the blocks' clock, s)."""
     detail = f'expected seq {expected}, got {seq}'
-    before = math.nan if t_before is None else float(t_before)
-    missing = round(max(0.0, t_after - before - 1.0 / rate_hz), 6) if rate_hz > 0 \
-        and math.isfinite(before) else math.nan
-    at = math.nan if t_first is None else round(before - t_first, 6)
-    if math.isfinite(at) and t_after > before:
+    missing = at = None
+    if t_before is not None and math.isfinite(t_before):
+        if rate_hz > 0:
+            missing = round(max(0.0, t_after - t_before - 1.0 / rate_hz), 6)
+        if t_first is not None:
+            at = round(t_before - t_first, 6)
+    if missing is not None and at is not None and t_after > t_before:   # type: ignore[operator]
         detail += f': no data for {missing:.6g} s after {at:.6g} s into the record'
-    return GapEvent('seq_jump', seq, detail, before, float(t_after), missing, at)
+    return GapEvent('seq_jump', seq, detail, t_before, float(t_after), missing, at)
 
 
 @dataclass(frozen=True)

@@ -107,6 +107,7 @@ class TeNode(Node):
         self.analyzer: StreamingTeAnalyzer | None = None
         self.bench_id = ''
         self._gaps_total = 0
+        self.last_gap = ''   # the latest gap's detail (when and how long), for diagnostics
         self._seq_samples = 0
         self._seq_stats = 0
         self._latency_ms: list[float] = []
@@ -215,6 +216,7 @@ class TeNode(Node):
         self._blocks += 1
         for gap in update.gaps:
             self._gaps_total += 1
+            self.last_gap = f'{gap.kind} at seq {gap.seq}: {gap.detail}'
             if gap.kind == 'malformed':
                 self.drops.drop('malformed', gap.detail)
             else:
@@ -291,7 +293,8 @@ class TeNode(Node):
                   'dropped_total': self.drops.total,
                   **{f'dropped_{k}': v for k, v in self.drops.counts.items()},
                   'latency_median_ms': float(np.median(lat)),
-                  'latency_max_ms': float(np.max(lat))}
+                  'latency_max_ms': float(np.max(lat)),
+                  **({'last_gap': self.last_gap} if self.last_gap else {})}
         level = OK if self.drops.total == 0 and self._gaps_total == 0 else WARN
         message = ('waiting for bench/info' if self.analyzer is None
                    else f'{self._blocks} blocks, {self._gaps_total} gaps')

@@ -139,8 +139,8 @@ def _am(x_rad: float, digits: int = 4) -> str:
     return f'{v:.{digits}f}' if math.isfinite(v) else '-'
 
 
-def _secs(x: float) -> str:
-    return '-' if not math.isfinite(x) else f'{x:.6g}'
+def _secs(x: float | None) -> str:
+    return '-' if x is None else f'{x:.6g}'
 
 
 def _stats_cells(st: TeStats) -> str:

@@ -296,9 +296,8 @@ class AnalysisResult:
             'spectrum': None if self.spectrum is None else self.spectrum.to_json_dict(),
             'dominant': None if self.dominant is None else self.dominant.to_json_dict(),
             'gaps': [{'kind': g.kind, 'seq': int(g.seq), 'detail': g.detail,
-                      'at_s': json_float(g.at_s), 'missing_s': json_float(g.missing_s),
-                      't_before_s': json_float(g.t_before_s),
-                      't_after_s': json_float(g.t_after_s)} for g in self.gaps],
+                      'at_s': g.at_s, 'missing_s': g.missing_s, 't_before_s': g.t_before_s,
+                      't_after_s': g.t_after_s} for g in self.gaps],
             'counters': {k: _jsonable(v) for k, v in self.counters.items()},
             'recommendation': self.recommendation.to_json_dict(),
         }

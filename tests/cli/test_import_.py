@@ -287,3 +287,106 @@ def test_import_killed_mid_write_is_cleaned_up_by_the_next(
     assert len(removed) == 1, err
     assert str(left[0]) in removed[0] and f'process {p.pid} was killed' in removed[0]
     assert sorted(x.name for x in bags.iterdir()) == [alive.name, 'unit7']
+
+
+# -- drop-outs, time units, unwrapping per channel (issue #32 s.1) ---------------------------
+
+def _csv_json(tmp_path: Path, p: Path, capsys: pytest.CaptureFixture[str],
+              *extra: str) -> dict:
+    import json
+
+    bench = daq_files.bench_yaml(tmp_path / 'bench.yaml')
+    code = main(['import', str(p), '--bench', str(bench), '--out', str(tmp_path / 'bag'),
+                 '--chunk-samples', '1000', '--theta-in', 'theta_in_rad', '--theta-out',
+                 'theta_out_rad', '--json', *extra])
+    captured = capsys.readouterr()
+    assert code == 0, captured.err
+    return json.loads(captured.out) | {'_err': captured.err}
+
+
+@pytest.mark.parametrize(('row', 'new', 'reason', 'dropped'), [
+    (5000, '2.5,nan,0.2', 'non_finite', 1),
+    (5000, '2.5,,0.2', 'non_finite', 1),          # pandas writes NaN as an empty cell
+    (2500, '1.0,1.0,0.1', 'time_backwards', 1),
+    (2500, 'nan,1.0,0.1', 'non_finite', 1),
+])
+def test_bad_row_is_a_reported_dropout(tmp_path: Path, session: daq_files.Session,
+                                       capsys: pytest.CaptureFixture[str], row: int, new: str,
+                                       reason: str, dropped: int) -> None:
+    """A NaN, empty or backwards row is a drop-out (a gap in the bag, named in a note and
+    in --json), not silently spliced and not a reason to throw the file away."""
+    p = edit_csv(tmp_path, session, row, new)
+    doc = _csv_json(tmp_path, p, capsys, '--time', 't_s')
+    assert doc['samples'] == N - dropped and doc['samples_dropped'] == dropped
+    (gap,) = doc['gaps']
+    assert (gap['reason'], gap['samples_dropped'], gap['where']) == (reason, dropped,
+                                                                    f'line {row + 2}')
+    assert gap['t_before_s'] == pytest.approx((row - 1) / daq_files.RATE_HZ, abs=1e-9)
+    assert f'drop-out at {(row - 1) / daq_files.RATE_HZ:.6g} s (line {row + 2})' in doc['_err']
+
+
+@pytest.mark.parametrize(('header', 'scale', 'flags'), [
+    ('t_ms', 1e3, ()), ('time [min]', 1 / 60, ()), ('time (s)', 1.0, ()),
+    ('t_us', 1e6, ()), ('time', 1e3, ('--time-unit', 'ms')),
+])
+def test_time_unit_from_the_column_name(tmp_path: Path, session: daq_files.Session,
+                                        capsys: pytest.CaptureFixture[str], header: str,
+                                        scale: float, flags: tuple[str, ...]) -> None:
+    p = tmp_path / 'run.csv'
+    np.savetxt(p, np.c_[session.t_s * scale, session.theta_in_rad, session.theta_out_rad],
+               fmt='%.17g', delimiter=',', comments='',
+               header=f'{header},theta_in_rad,theta_out_rad')
+    doc = _csv_json(tmp_path, p, capsys, '--time', header, *flags)
+    assert doc['sample_rate_hz'] == pytest.approx(daq_files.RATE_HZ, rel=1e-9)
+    assert doc['gaps'] == [] and doc['samples'] == N
+
+
+def test_time_unit_never_assumed(tmp_path: Path, session: daq_files.Session,
+                                 capsys: pytest.CaptureFixture[str]) -> None:
+    """A time column whose unit nothing states is refused in one line naming it (before:
+    taken as seconds: a column in ms gave 2 Hz and TE over 1000x too few revolutions)."""
+    p = tmp_path / 'run.csv'
+    np.savetxt(p, np.c_[session.t_s * 1e3, session.theta_in_rad, session.theta_out_rad],
+               fmt='%.17g', delimiter=',', comments='', header='time,theta_in_rad,theta_out_rad')
+    code, err = run_import(tmp_path, p, capsys, '--time', 'time')
+    assert code == 1
+    line = one_error_line(err)
+    assert "time column 'time'" in line and '--time-unit' in line
+
+
+def test_no_unwrap_contradicts_unwrap_out(tmp_path: Path, session: daq_files.Session,
+                                          capsys: pytest.CaptureFixture[str]) -> None:
+    p = edit_csv(tmp_path, session, 10, csv_lines(session)[11])
+    with pytest.raises(SystemExit) as exc:
+        run_import(tmp_path, p, capsys, '--time', 't_s', '--no-unwrap', '--unwrap-out')
+    assert exc.value.code == 2
+    assert '--no-unwrap and --unwrap-out contradict' in capsys.readouterr().err
+
+
+def test_ambiguous_dropout_splits_into_segment_bags(tmp_path: Path,
+                                                    capsys: pytest.CaptureFixture[str]) -> None:
+    """A 10 s drop-out during which the drive slowed from 1500 to 600 rpm: the single-turn
+    output's turns are ambiguous, so the record is split: OUT and OUT_seg2, each a session
+    bag of its own (seq from 0), the split named; each analyses to TE = 0 here."""
+    import json
+
+    rate, ratio = 2000.0, 79.0
+    w1, w2 = 2 * np.pi * 25.0, 2 * np.pi * 10.0
+    t1, t2 = np.arange(0, 8.0, 1 / rate), np.arange(18.0, 26.0, 1 / rate)
+    th_in = np.concatenate([w1 * t1, w1 * 8.0 + (w1 + w2) / 2 * 10.0 + w2 * (t2 - 18.0)])
+    t = np.concatenate([t1, t2])
+    p = tmp_path / 'run.csv'
+    np.savetxt(p, np.c_[t, th_in, np.mod(th_in / ratio, 2 * np.pi)], fmt='%.17g',
+               delimiter=',', comments='', header='t_s,theta_in_rad,theta_out_rad')
+    doc = _csv_json(tmp_path, p, capsys, '--time', 't_s')
+    bag, seg2 = tmp_path / 'bag', tmp_path / 'bag_seg2'
+    assert doc['segments'] == [str(bag), str(seg2)]
+    (gap,) = doc['gaps']
+    assert gap['split'] and gap['how_out'] == 'ambiguous' and gap['advance_out_rev'] is None
+    assert 'split into 2 segments' in doc['_err']
+    for b in (bag, seg2):
+        assert main(['analyze', str(b), '--no-advice', '--no-db', '--json']) == 0
+        res = json.loads(capsys.readouterr().out)
+        res = res['bags'][0] if 'bags' in res else res
+        assert res['gaps'] == []
+        assert res['cumulative']['te_pp_rad'] < 1e-9

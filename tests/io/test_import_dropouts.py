@@ -97,6 +97,7 @@ def test_dropouts_are_gaps_and_te_is_right(case: str, tmp_path: Path,
                  '--report', str(rep)]) == 0
     doc = json.loads(capsys.readouterr().out)
     doc = doc['bags'][0] if 'bags' in doc else doc
+    assert doc['blocks_read'] == summary['blocks']
     gaps = doc['gaps']
     assert [g['kind'] for g in gaps] == ['seq_jump'] * len(df.DROPOUTS)
     for g, (t0, n) in zip(gaps, df.DROPOUTS, strict=True):
@@ -150,3 +151,50 @@ def test_epoch_nanoseconds_are_exact(tmp_path: Path, capsys: pytest.CaptureFixtu
     stamps = np.array([m.header.stamp.sec * 10**9 + m.header.stamp.nanosec for m in msgs])
     assert stamps[0] == df.START_NS
     assert np.all((stamps - df.START_NS) % 500_000 == 0)   # whole sample periods, exactly
+
+
+@pytest.mark.parametrize(('unit', 'scale', 'error'), [
+    ('ms', 1e3, None), ('s', 1.0, None), ('', 1.0, "time column 'daq/t'"),
+])
+def test_tdms_time_channel_unit(tmp_path: Path, capsys: pytest.CaptureFixture[str],
+                                unit: str, scale: float, error: str | None) -> None:
+    """A TDMS time channel of numbers is read in the unit its unit_string states; without
+    one the import is refused in one line naming the channel (never taken as seconds)."""
+    from nptdms import ChannelObject, GroupObject, TdmsWriter
+
+    r = df.record(dropouts=((1.0, 0.3),), duration_s=3.0)
+    path = tmp_path / 'run.tdms'
+    with TdmsWriter(str(path)) as w:
+        w.write_segment([GroupObject('daq'),
+                         ChannelObject('daq', 't', r.t_s * scale,
+                                       properties={'unit_string': unit} if unit else {}),
+                         ChannelObject('daq', 'a', r.theta_in_rad),
+                         ChannelObject('daq', 'b', r.theta_out_rad)])
+    code = main(['import', str(path), '--bench', str(df.bench_yaml(tmp_path / 'b.yaml')),
+                 '--out', str(tmp_path / 'bag'), '--theta-in', 'daq/a', '--theta-out', 'daq/b',
+                 '--time', 'daq/t', '--json'])
+    captured = capsys.readouterr()
+    if error is not None:
+        assert code == 1 and error in captured.err and not (tmp_path / 'bag').exists()
+        return
+    assert code == 0, captured.err
+    summary = json.loads(captured.out)
+    assert summary['sample_rate_hz'] == pytest.approx(2000.0)
+    assert [round(g['missing_s'], 6) for g in summary['gaps']] == [0.3]
+
+
+def test_tdms_text_wf_increment_is_one_line(tmp_path: Path,
+                                            capsys: pytest.CaptureFixture[str]) -> None:
+    from nptdms import ChannelObject, GroupObject, TdmsWriter
+
+    path = tmp_path / 'run.tdms'
+    with TdmsWriter(str(path)) as w:
+        w.write_segment([GroupObject('daq'),
+                         ChannelObject('daq', 'a', np.arange(10.0),
+                                       properties={'wf_increment': 'fast'}),
+                         ChannelObject('daq', 'b', np.arange(10.0))])
+    code = main(['import', str(path), '--bench', str(df.bench_yaml(tmp_path / 'b.yaml')),
+                 '--out', str(tmp_path / 'bag'), '--theta-in', 'daq/a', '--theta-out', 'daq/b'])
+    err = capsys.readouterr().err.strip().splitlines()
+    assert code == 1 and len(err) == 1
+    assert "wf_increment 'fast' is not a positive number of seconds" in err[0]

@@ -146,6 +146,7 @@ class _Blocks:
         self.store = rv_te_typestore()
         self.types = self.store.types
         self.seq = 0
+        self.written = 0      # blocks written (seq also counts the numbers skipped at gaps)
         self.samples = 0
         self.last_t_s = 0.0
         self._rest: tuple[np.ndarray, ...] | None = None
@@ -188,6 +189,7 @@ class _Blocks:
             torque_out_nm=np.ascontiguousarray(torque))
         self.writer.write(ENCODER_TOPIC, stamp_ns, self.store.serialize_cdr(msg, ENCODER_BLOCK))
         self.seq += 1
+        self.written += 1
         self.samples += b - a
         self.last_t_s = float(t[-1])
 
@@ -369,7 +371,7 @@ def write_bag(reader: ImportReader, desc: BenchDescription, options: ImportOptio
     last = segments.done[-1][1]
     return ImportSummary(
         bag=str(out), source=str(reader.path), samples=conv.samples,
-        blocks=sum(b.seq for _, b in segments.done), duration_s=last.last_t_s,
+        blocks=sum(b.written for _, b in segments.done), duration_s=last.last_t_s,
         sample_rate_hz=rate_hz, rate_from=rate_from, start_utc=_utc(start_ns),
         start_from=start_from, unit_in=unit_in, unit_out=unit_out, wraps_in=wraps_in,
         wraps_out=wraps_out, torque='torque' in labels, time_unit=t_unit,

@@ -25,6 +25,7 @@ Memory: the data after a drop-out is held until :data:`SPEED_WINDOW_S` of it is 
 
 from __future__ import annotations
 
+import itertools
 import math
 from dataclasses import dataclass
 from typing import TYPE_CHECKING, Literal
@@ -257,7 +258,7 @@ class TurnStitcher:
         brk_at = {b.index: b for b in chunk.breaks}
         bounds = [0, *brk_at, chunk.t_s.size]
         arrays = (chunk.t_s, chunk.theta_in_rad, chunk.theta_out_rad, chunk.torque_out_nm)
-        for a, b in zip(bounds[:-1], bounds[1:], strict=True):
+        for a, b in itertools.pairwise(bounds):
             if a == b:
                 continue
             part = tuple(arr[a:b] if arr.size else arr for arr in arrays)
