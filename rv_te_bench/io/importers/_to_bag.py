@@ -364,6 +364,11 @@ def write_bag(reader: ImportReader, desc: BenchDescription, options: ImportOptio
         raise
     shutil.rmtree(tmp_dir, ignore_errors=True)
     _note_dropouts(stitcher.gaps, conv, bags, note)
+    for role, jumps in zip(('in', 'out'), stitcher.jumps, strict=True):
+        if jumps:
+            note(f'column {labels[role]!r}: {jumps} steps of more than half a turn between two '
+                 f'samples, kept as recorded (multi-turn, --no-unwrap-{role}); if it is a '
+                 f'single-turn encoder these are wraps: import with --unwrap-{role}')
     if getattr(reader, 'unpaired', 0):
         note(f'{reader.unpaired} joint positions had no partner at the same stamp: left out '
              '(the sample times in the bag show where)')

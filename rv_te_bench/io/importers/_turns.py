@@ -153,6 +153,7 @@ class _Channel:
         self.prev_raw = math.nan      # last recorded (scaled) value
         self.offset = 0.0             # unwrapped - recorded, at that sample
         self.wraps = 0
+        self.jumps = 0                # steps beyond half a turn left in a counter ('multi')
         self.lo = math.inf            # recorded range (multi-turn evidence)
         self.hi = -math.inf
         self.tail_t = np.empty(0)     # the last samples, unwrapped (speed before a gap)
@@ -168,6 +169,7 @@ class _Channel:
         self.lo = min(self.lo, float(raw.min()))
         self.hi = max(self.hi, float(raw.max()))
         if self.turns == 'multi':
+            self.jumps += int(np.count_nonzero(np.abs(np.diff(raw, prepend=prev)) > math.pi))
             return raw.copy()
         corr = _unwrap_steps(raw, prev)
         n = int(np.count_nonzero(np.diff(corr, prepend=0.0)))
@@ -251,6 +253,12 @@ class TurnStitcher:
     def wraps(self) -> tuple[int, int]:
         """Wraps unwrapped within continuous data (input, output)."""
         return self.ch_in.wraps, self.ch_out.wraps
+
+    @property
+    def jumps(self) -> tuple[int, int]:
+        """Steps beyond half a turn between two samples of a channel kept as recorded
+        (``multi``): a single-turn encoder's wraps when the channel was misdeclared."""
+        return self.ch_in.jumps, self.ch_out.jumps
 
     def push(self, chunk: SiChunk) -> list[Piece]:
         """Take one chunk; the pieces that can be written now."""
