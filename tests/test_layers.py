@@ -2,8 +2,10 @@
 
 The first test runs the contracts on this repository; the second shows that they catch a
 lower layer importing a higher one, and ROS imported into the pure core, on a copy of the
-packages with both violations written in. (tests/test_no_ros_imports.py checks the other
-side: the pure packages really import and run with rclpy absent.)
+packages with both violations written in; the third, that a circle between two modules of
+a folder held by a function-local import (the kind io/ had) is caught.
+(tests/test_no_ros_imports.py checks the other side: the pure packages really import and
+run with rclpy absent.)
 """
 
 from __future__ import annotations
@@ -38,11 +40,15 @@ def test_the_repository_keeps_its_layers() -> None:
     assert '0 broken' in out.stdout
 
 
-def test_an_upward_import_and_rclpy_in_core_are_caught(tmp_path: Path) -> None:
+def _copy(tmp_path: Path) -> None:
     ignore = shutil.ignore_patterns('__pycache__', '*.pyc')
     for pkg in ('rv_te_bench', 'sim'):
         shutil.copytree(ROOT / pkg, tmp_path / pkg, ignore=ignore)
     shutil.copy(ROOT / 'pyproject.toml', tmp_path / 'pyproject.toml')
+
+
+def test_an_upward_import_and_rclpy_in_core_are_caught(tmp_path: Path) -> None:
+    _copy(tmp_path)
     assert _lint(tmp_path).returncode == 0     # the copy alone is clean
 
     te = tmp_path / 'rv_te_bench' / 'core' / 'te.py'
@@ -57,3 +63,21 @@ def test_an_upward_import_and_rclpy_in_core_are_caught(tmp_path: Path) -> None:
     assert 'BROKEN' in text
     assert 'rv_te_bench.core.te -> rclpy' in text
     assert 'rv_te_bench.core.te -> rv_te_bench.report.analysis' in text
+
+
+@pytest.mark.parametrize(('lower', 'upper'), [
+    ('rv_te_bench/io/_bag_types.py', 'rv_te_bench.io.bag_reader'),
+])
+def test_a_circle_inside_a_folder_is_caught(tmp_path: Path, lower: str, upper: str) -> None:
+    """The record types (lowest floor) reaching up to a reader inside a function."""
+    _copy(tmp_path)
+    module = tmp_path / lower
+    module.write_text(module.read_text(encoding='utf-8')
+                      + f'\n\ndef _violation() -> None:\n'
+                        f'    import {upper}  # noqa: F401, PLC0415\n',
+                      encoding='utf-8')
+    out = _lint(tmp_path)
+    text = out.stdout + out.stderr
+    assert out.returncode != 0, text
+    package = upper.rsplit('.', 1)[0]
+    assert f'No cycles are allowed in {package}' in text

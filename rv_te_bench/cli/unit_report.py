@@ -69,7 +69,7 @@ def run(args: argparse.Namespace) -> int:
     from rv_te_bench.acceptance._files import parse_yaml_text
     from rv_te_bench.acceptance.runner import reanalyse
     from rv_te_bench.acceptance.tolerance import parse_tolerance
-    from rv_te_bench.io.test_records import read_recorded_test
+    from rv_te_bench.io.recorded_test import read_recorded_test
 
     bag = Path(args.bag)
     rec = read_recorded_test(bag, serial=args.serial)

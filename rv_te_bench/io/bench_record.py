@@ -13,7 +13,9 @@ from __future__ import annotations
 from typing import TYPE_CHECKING, Any
 
 from rv_te_bench.errors import BagError, BenchInfoError, YamlInputError
-from rv_te_bench.io import _sqlite_bag as _sqlite
+from rv_te_bench.io._bag_open import find_messages, open_bag, scan_topics, topic_types
+from rv_te_bench.io._bag_types import MessageStream, summarize_problems
+from rv_te_bench.io.msgdefs import BENCH_INFO, ENCODER_BLOCK, rv_te_typestore
 from rv_te_bench.safe_yaml import DOCUMENT_LIMITS, load_yaml
 from sim.bench_info import BenchInfoData
 
@@ -78,12 +80,8 @@ def read_bench_info(path: str | Path, topic: str | None = None) -> BenchInfoData
         BagError: Bad layout, or not a readable MCAP bag (no topic, or neither BenchInfo
             nor encoder data readable).
     """
-    from rv_te_bench.io import bag_reader as br
-    from rv_te_bench.io._mcap_scan import _indexed_messages
-    from rv_te_bench.io.msgdefs import BENCH_INFO, ENCODER_BLOCK, rv_te_typestore
-
-    bag = br.open_bag(path)
-    types = bag.topic_types or br._scan_topic_types(bag)
+    bag = open_bag(path)
+    types = topic_types(bag)
     if not types:
         text = (f'{bag.path} is not a readable MCAP bag: no topic in it (not a bag, or '
                 'truncated before its first message)')
@@ -92,22 +90,14 @@ def read_bench_info(path: str | Path, topic: str | None = None) -> BenchInfoData
     if not names:
         return None
     last: bytes | None = None
-    stream: br.MessageStream[Any] = br.MessageStream(lambda s: iter(()), strict=False)
-    for file in bag.files:
-        # the summary's chunk index finds the few chunks that hold the topic; without a
-        # summary (killed recorder) the file is scanned
-        indexed = None if _sqlite.is_sqlite(bag) else _indexed_messages(file, names)
-        if indexed is None:
-            one = br.Bag(path=bag.path, files=(file,), info=bag.info, topic_types=bag.topic_types)
-            messages = br._messages(one, stream, names)
-            indexed = [(msgtype, bytes(data)) for _, msgtype, _, data in messages]
-        for msgtype, data in indexed:
-            if msgtype == BENCH_INFO:
-                last = data
+    stream: MessageStream[Any] = MessageStream(lambda s: iter(()), strict=False)
+    for msgtype, data in find_messages(bag, stream, names):
+        if msgtype == BENCH_INFO:
+            last = data
     if last is None:
         if stream.partial:   # the BenchInfo may be in the part that cannot be read
-            damage = br.summarize_problems(stream.problems).rstrip('.')
-            if ENCODER_BLOCK not in br._scan_topic_types(bag).values():
+            damage = summarize_problems(stream.problems).rstrip('.')
+            if ENCODER_BLOCK not in {t['type'] for t in scan_topics(bag).values()}:
                 # nothing the command line could replace BenchInfo for (issue #21)
                 text = (f'{bag.path} is not a readable MCAP bag: neither BenchInfo nor '
                         f'encoder data can be read: {damage}')

@@ -1,11 +1,12 @@
-"""rosbag2 bags stored as sqlite3 (``.db3``), read through ``rosbags`` (issue #19 s.4).
+"""The sqlite3 storage of rosbag2 (``.db3``), read through ``rosbags`` (issue #19 s.4).
 
 Many existing ROS 2 recordings use rosbag2's sqlite3 storage (the default before Iron).
-:mod:`rv_te_bench.io.bag_reader` reads MCAP itself; for a sqlite3 bag it calls the three
-hooks here: :func:`sqlite_bag` (the layout, from metadata.yaml), :func:`is_sqlite` and
-:func:`sqlite_units`, which hands the messages over in the shape the MCAP path uses (a
-buffer of several concatenated CDR messages and their offsets), so the vectorised
-EncoderBlock decoding, the analysis, identification and replay work unchanged.
+The suite reads MCAP itself (:mod:`._storage_mcap`); for a sqlite3 bag the opener
+(:mod:`._bag_open`) calls :func:`sqlite_bag` (the layout, from metadata.yaml) and
+:func:`sqlite_units`, which hands the messages over in the shape the MCAP storage uses (a
+buffer of several concatenated CDR messages and their offsets, :data:`._bag_types.Unit`),
+so the vectorised EncoderBlock decoding, the analysis, identification and replay work
+unchanged.
 """
 
 from __future__ import annotations
@@ -14,22 +15,18 @@ from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 from rv_te_bench.errors import BagError
+from rv_te_bench.io._bag_types import Bag
 
 if TYPE_CHECKING:
     from collections.abc import Callable, Collection, Iterator
 
-    from rv_te_bench.io.bag_reader import Bag
+    from rv_te_bench.io._bag_types import Unit
 
-__all__ = ['UNIT_BYTES', 'is_sqlite', 'sqlite_bag', 'sqlite_units']
+__all__ = ['STORAGE', 'UNIT_BYTES', 'sqlite_bag', 'sqlite_units']
 
 #: Messages are handed over in buffers of about this many bytes (like an MCAP chunk).
 UNIT_BYTES = 1 << 20
 STORAGE = 'sqlite3'
-
-
-def is_sqlite(bag: Bag) -> bool:
-    """Whether ``bag`` (a ``bag_reader.Bag``) is stored as sqlite3."""
-    return bool(bag.info) and bag.info.get('storage_identifier') == STORAGE
 
 
 def sqlite_bag(path: Path, info: dict[str, Any], topics: dict[str, str],
@@ -39,8 +36,6 @@ def sqlite_bag(path: Path, info: dict[str, Any], topics: dict[str, str],
     Raises:
         BagError: No or missing files, or a file that is not an SQLite database.
     """
-    from rv_te_bench.io.bag_reader import Bag
-
     if not listed:
         msg = f'Bag {path} has no .db3 files.'
         raise BagError(msg)
@@ -57,12 +52,12 @@ def sqlite_bag(path: Path, info: dict[str, Any], topics: dict[str, str],
 
 
 def sqlite_units(bag: Bag, report: Callable[[str], None], topics: Collection[str] | None,
-                 ) -> Iterator[tuple[memoryview, list[tuple[str, str, int, int, int]]]]:
+                 ) -> Iterator[Unit]:
     """Messages of ``topics`` in recording order, in buffers of ~``UNIT_BYTES``.
 
     Yields:
-        ``(buffer, [(topic, msgtype, log_time_ns, start, end), ...])`` as the MCAP path's
-        ``_units`` does.
+        ``(buffer, [(topic, msgtype, log_time_ns, start, end), ...])`` as the MCAP storage's
+        :func:`~._storage_mcap.mcap_units` does.
 
     Unreadable parts are reported through ``report(line)`` (naming the bag) and end the
     read (the messages before were handed over).

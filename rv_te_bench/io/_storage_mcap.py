@@ -1,0 +1,148 @@
+"""The MCAP storage of rosbag2: a bag's ``.mcap`` files as units of messages, and their topics.
+
+The storage the suite writes and reads itself. The record walk (records, chunks, summary,
+read-ahead, chunk CRC) is :mod:`._mcap_scan`; here it is turned into what the opener
+(:mod:`._bag_open`) asks of any storage, in the shapes :mod:`._storage_sqlite3` gives too:
+
+* :func:`check_magic`: a file is MCAP (its first 8 bytes);
+* :func:`mcap_units`: the wanted messages of each chunk as offsets into its buffer
+  (:data:`._bag_types.Unit`), file by file, in recording order;
+* :func:`mcap_topics`: topic -> type and offered QoS from the channels of every file;
+* :func:`indexed_messages`: the few messages of some topics found through a file's
+  summary (its chunk index), None without a sound summary;
+* :func:`mcap_counts`: every record walked, messages counted per topic (``rv-te bag``'s
+  summary).
+"""
+
+from __future__ import annotations
+
+from typing import TYPE_CHECKING, Any
+
+from rv_te_bench.errors import BagError
+from rv_te_bench.io._mcap_file import MAGIC
+from rv_te_bench.io._mcap_scan import (
+    _file_channels,
+    _indexed_messages,
+    _scan_file,
+    _scan_units,
+    _ScanState,
+)
+
+if TYPE_CHECKING:
+    from collections.abc import Callable, Collection, Iterator
+    from concurrent.futures import Executor
+    from pathlib import Path
+
+    from rv_te_bench.io._bag_types import Bag, Unit
+
+__all__ = ['STORAGE', 'check_magic', 'indexed_messages', 'mcap_counts', 'mcap_topics',
+           'mcap_units']
+
+STORAGE = 'mcap'
+
+
+def check_magic(file: Path) -> None:
+    """Raise unless ``file`` starts with the MCAP magic.
+
+    Raises:
+        BagError: The file cannot be opened, is empty or is not MCAP.
+    """
+    try:
+        with file.open('rb') as fh:
+            head = fh.read(8)
+    except OSError as exc:
+        msg = f'Cannot open {file}: {exc}.'
+        raise BagError(msg) from None
+    if not head:
+        msg = f'{file} is empty (0 bytes).'
+        raise BagError(msg)
+    if head != MAGIC:
+        msg = f'{file} is not an MCAP file (bad magic {head[:8]!r}).'
+        raise BagError(msg)
+
+
+def mcap_units(bag: Bag, report: Callable[[str], None], topics: Collection[str] | None,
+               executor: Executor | None = None) -> Iterator[Unit]:
+    """Per chunk: the buffer and its wanted messages (topic, msgtype, log_time, start, end).
+
+    Args:
+        bag: The bag (its ``.mcap`` files).
+        report: Called with one line per problem (the read goes on where it can).
+        topics: Topic names to keep; None keeps all.
+        executor: The thread that reads MCAP chunks ahead (None: one of the scan's own).
+    """
+    wanted = None if topics is None else set(topics)
+    for file in bag.files:
+        state = _ScanState()
+        resolved: dict[int, tuple[str, str] | None] = {}
+        for inner, found in _scan_units(file, state, report, executor=executor):
+            out = []
+            for cid, log_time, start, end in found:
+                target = resolved.get(cid, False)
+                if target is False:
+                    chan = state.channels.get(cid)
+                    if chan is None:
+                        report(f'{file}: message on unknown channel {cid}; skipped')
+                        continue
+                    topic, sid = chan
+                    msgtype = state.schemas.get(sid, ('', ''))[0] or bag.topic_types.get(topic, '')
+                    target = (topic, msgtype) if wanted is None or topic in wanted else None
+                    resolved[cid] = target
+                if target is not None:
+                    out.append((target[0], target[1], log_time, start, end))
+            if out:
+                yield inner, out
+
+
+def mcap_topics(bag: Bag) -> dict[str, dict[str, Any]]:
+    """Topic -> {'type', 'offered_qos_profiles'} from the MCAP channels of every file."""
+    out: dict[str, dict[str, Any]] = {}
+    for file in bag.files:
+        state = _file_channels(file)
+        for cid, (topic, sid) in state.channels.items():
+            meta = state.channel_meta.get(cid, {})
+            out.setdefault(topic, {'type': state.schemas.get(sid, ('', ''))[0],
+                                   'offered_qos_profiles': meta.get('offered_qos_profiles')})
+    return out
+
+
+def indexed_messages(file: Path, topics: Collection[str]) -> list[tuple[str, bytes]] | None:
+    """``(msgtype, cdr)`` of every message of ``topics`` in ``file``, found through its
+    summary's chunk index; None when the file has no sound summary (then scan it)."""
+    return _indexed_messages(file, topics)
+
+
+def mcap_counts(bag: Bag, report: Callable[[str], None], types: dict[str, str],
+                ) -> tuple[dict[str, int], int | None, int | None, dict[str, dict[str, str]]]:
+    """Walk every record of every file: messages per topic, first and last log time.
+
+    Args:
+        bag: The bag.
+        report: Called with one line per problem (the walk goes on where it can).
+        types: Topic -> type, completed in place with the channels' schema names.
+
+    Returns:
+        ``(counts per topic, start_ns, end_ns, metadata records by name)``; the times are
+        None when no message was read.
+    """
+    counts: dict[str, int] = {}
+    meta: dict[str, dict[str, str]] = {}
+    start, stop = None, None
+    for file in bag.files:
+        state = _ScanState()
+        per_cid: dict[int, int] = {}
+        times: list[int] = []
+        for cid, log_time, _ in _scan_file(file, state, report):
+            per_cid[cid] = per_cid.get(cid, 0) + 1
+            times.append(log_time)
+        for cid, n in per_cid.items():
+            topic, _sid = state.channels.get(cid, (f'<unknown channel {cid}>', 0))
+            counts[topic] = counts.get(topic, 0) + n
+        for topic, sid in state.channels.values():
+            types.setdefault(topic, state.schemas.get(sid, ('', ''))[0])
+        meta.update(state.metadata)
+        if times:
+            lo, hi = min(times), max(times)
+            start = lo if start is None else min(start, lo)
+            stop = hi if stop is None else max(stop, hi)
+    return counts, start, stop, meta
