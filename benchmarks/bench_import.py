@@ -68,7 +68,7 @@ m.close()
 
 IMPORT = """
 from pathlib import Path
-from rv_te_bench.core.bench_description import parse_bench_description
+from rv_te_bench.io.bench_description import parse_bench_description
 from rv_te_bench.io.importers import ImportOptions, import_file
 desc = parse_bench_description({'bench_id': 'b', 'preset': 'wang2020-2kv',
                                 'sample_rate_hz': 10000.0, 'block_size': 1000})
@@ -85,7 +85,7 @@ import_file(PATH, desc, OUT, options=ImportOptions(chunk_samples=CHUNK, start_ns
 #: file, so ru_maxrss also counts file pages (the kernel can drop them), the heap does not.
 PRE = """
 import threading, time, numpy, nptdms, asammdf, rv_te_bench.io.importers
-import rv_te_bench.core.bench_description, rv_te_bench.io.importers.csv_file
+import rv_te_bench.io.bench_description, rv_te_bench.io.importers.csv_file
 import rv_te_bench.io.importers.tdms_file, rv_te_bench.io.importers.mdf_file, sim.bench
 _PEAK = [0]
 def _anon():

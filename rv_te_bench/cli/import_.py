@@ -151,7 +151,7 @@ def run(args: argparse.Namespace) -> int:
                               ('--out', args.out)) if v is None]
     if missing:
         args._parser.error(f'{", ".join(missing)} required')
-    from rv_te_bench.core.bench_description import load_bench_description
+    from rv_te_bench.io.bench_description import load_bench_description
     from rv_te_bench.io.importers import ImportOptions, import_file
 
     desc = load_bench_description(args.bench)

@@ -127,7 +127,7 @@ def build_config(p: dict[str, Any]) -> tuple[JointStateConfig, Any]:
     """
     desc = None
     if p['bench_description']:
-        from rv_te_bench.core.bench_description import load_bench_description
+        from rv_te_bench.io.bench_description import load_bench_description
 
         desc = load_bench_description(p['bench_description'])
     rate = p['sample_rate_hz'] or (desc.sample_rate_hz if desc is not None else 0.0)

@@ -17,7 +17,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from rv_te_bench.core.bench_description import load_bench_description
+from rv_te_bench.io.bench_description import load_bench_description
 from rv_te_bench.io.importers import ImportOptions, import_file
 from rv_te_bench.report.analysis import analyze_bag
 from tests.io import daq_files

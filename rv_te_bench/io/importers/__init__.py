@@ -19,7 +19,7 @@ from rv_te_bench.io.importers._to_bag import ENCODER_TOPIC, INFO_TOPIC, ImportSu
 if TYPE_CHECKING:
     from collections.abc import Callable
 
-    from rv_te_bench.core.bench_description import BenchDescription
+    from rv_te_bench.io.bench_description import BenchDescription
     from rv_te_bench.io.importers._common import ImportReader
 
 __all__ = [

@@ -43,7 +43,7 @@ from rv_te_bench.io.msgdefs import BENCH_INFO, ENCODER_BLOCK, rv_te_typestore
 if TYPE_CHECKING:
     from collections.abc import Callable, Iterator
 
-    from rv_te_bench.core.bench_description import BenchDescription
+    from rv_te_bench.io.bench_description import BenchDescription
     from rv_te_bench.io.importers._common import ImportOptions, ImportReader
     from rv_te_bench.io.importers._turns import ImportGap, Piece
     from sim.bench import BenchInfoData

@@ -9,12 +9,12 @@ from typing import TYPE_CHECKING
 import pytest
 import yaml
 
-from rv_te_bench.core.bench_description import (
+from rv_te_bench.errors import BenchDescriptionError, TeConfigError
+from rv_te_bench.io.bench_description import (
     BenchDescription,
     load_bench_description,
     parse_bench_description,
 )
-from rv_te_bench.errors import BenchDescriptionError, TeConfigError
 from rv_te_bench.io.bench_record import overrides_from_parameters_yaml
 
 if TYPE_CHECKING:
