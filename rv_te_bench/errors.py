@@ -70,3 +70,13 @@ class YamlInputError(ParameterFileError):
 
 class YamlLimitError(YamlInputError):
     """YAML input over a limit: too large, too deep, aliases, or too many expanded nodes."""
+
+
+class HeadLayoutError(TeConfigError):
+    """Read heads at angles that cannot be combined as asked (duplicate heads, or no weighting
+    of them cancels the once-per-revolution error); names the angles and the rule."""
+
+
+class EncoderCalibrationError(TeConfigError):
+    """An encoder calibration is invalid, expired or for another scale (names the file, the
+    key or the serial)."""

@@ -7,6 +7,13 @@ An encoder reading of a shaft at the true (unwrapped) angle ``theta`` is modelle
     x          = theta + e(theta) + w,   w ~ N(0, sigma^2)   white read-head noise
     reading    = floor(x / q) * q,       q = 2 pi / counts_per_rev
 
+Several read heads on one scale (``EncoderSpec.heads``, issue 36): head j at ``beta_j``
+reads the same scale error at the scale coordinate ``theta - iota - beta_j`` (``iota``: the
+scale's index on its shaft, ``scale_index_rad``), plus its own interpolation error at the
+line count (``signal_periods``) and its own noise; scale tilt adds an order-2 term. The
+model and its derivation: :mod:`sim.read_heads`. With no heads given the encoder has one
+head at 0 and reads exactly as above (same numbers, same random draws).
+
 The floor models the count an incremental/absolute read head reports: the last increment
 passed, so the quantisation error lies in (-q, 0] with mean -q/2 and standard deviation
 q/sqrt(12). ``counts_per_rev = None`` switches quantisation off (the ``'ideal'`` encoder).
@@ -33,6 +40,7 @@ import numpy as np
 
 from sim._checks import real_number
 from sim.errors import ModelInputError, PresetError
+from sim.read_heads import ReadHead, tilt_amplitude_rad
 from sim.units import arcsec_to_rad
 
 if TYPE_CHECKING:
@@ -41,10 +49,12 @@ if TYPE_CHECKING:
 __all__ = [
     'ENCODER_PRESETS',
     'EncoderSpec',
+    'ReadHead',
     'SimulatedEncoder',
     'encoder_preset',
     'encoder_spec_with',
     'remounted',
+    'with_heads',
 ]
 
 _TWO_PI = 2.0 * math.pi
@@ -75,6 +85,17 @@ class EncoderSpec:
             record only, not used in the simulation.
         source: Where the numbers come from.
         assumptions: What the source does not give and this spec assumes.
+        heads: Read heads on the scale (:class:`~sim.read_heads.ReadHead`); empty: one head
+            at 0 whose noise is ``noise_sigma_rad`` (with heads, each head's own noise).
+        signal_periods: Lines (signal periods) per revolution: the order of each head's
+            interpolation error (0: none).
+        tilt_rad: Tilt of the scale plane against the axis [rad] (order-2 error tau^2 / 4).
+        tilt_phase_rad: Direction of the tilt axis chi in the scale coordinate [rad]
+            (error +(tau^2 / 4) sin 2 (u - chi)).
+        scale_index_rad: The scale turned on its shaft by this [rad] (reversal re-mounting);
+            graduation, eccentricity and tilt turn with it.
+        scale_diameter_m: Graduation diameter [m] (0: not stated; for the record).
+        serial: The scale's serial number ('' : not stated).
     """
 
     name: str
@@ -88,6 +109,13 @@ class EncoderSpec:
     accuracy_class_arcsec: float = 0.0
     source: str = ''
     assumptions: str = field(default='', repr=False)
+    heads: tuple[ReadHead, ...] = ()
+    signal_periods: int = 0
+    tilt_rad: float = 0.0
+    tilt_phase_rad: float = 0.0
+    scale_index_rad: float = 0.0
+    scale_diameter_m: float = 0.0
+    serial: str = ''
 
     def __post_init__(self) -> None:
         """Validate every field; sequences are stored as tuples of float/int.
@@ -130,10 +158,69 @@ class EncoderSpec:
                              ('accuracy_class_arcsec', True)):
             object.__setattr__(self, name, _finite_float(name, getattr(self, name),
                                                          nonneg=nonneg))
-        for name in ('source', 'assumptions'):
+        for name in ('source', 'assumptions', 'serial'):
             if not isinstance(getattr(self, name), str):
                 msg = f'{name} must be a string, got {getattr(self, name)!r}'
                 raise ModelInputError(msg)
+        self._check_heads()
+
+    def _check_heads(self) -> None:
+        heads = tuple(self.heads)
+        if not all(isinstance(h, ReadHead) for h in heads) or len(heads) > 16:
+            msg = f'heads must be at most 16 ReadHead records, got {self.heads!r}'
+            raise ModelInputError(msg)
+        object.__setattr__(self, 'heads', heads)
+        n = self.signal_periods
+        if isinstance(n, bool) or not isinstance(n, int | np.integer) or n < 0:
+            msg = f'signal_periods must be an integer >= 0, got {n!r}'
+            raise ModelInputError(msg)
+        object.__setattr__(self, 'signal_periods', int(n))
+        for name, nonneg in (('tilt_rad', True), ('tilt_phase_rad', False),
+                             ('scale_index_rad', False), ('scale_diameter_m', True)):
+            object.__setattr__(self, name, _finite_float(name, getattr(self, name),
+                                                         nonneg=nonneg))
+
+    @property
+    def n_heads(self) -> int:
+        """Read heads on the scale (1 when ``heads`` is empty)."""
+        return max(1, len(self.heads))
+
+    @property
+    def head_angles_rad(self) -> tuple[float, ...]:
+        """Angle of each head around the scale from head 0 [rad] ((0.0,) for one head)."""
+        return tuple(h.angle_rad for h in self.heads) or (0.0,)
+
+    def scale_error_rad(self, u_rad: npt.ArrayLike) -> np.ndarray:
+        """The scale's own error at scale coordinate ``u`` [rad]: graduation, eccentricity
+        and tilt (what moves with the scale; no head's interpolation error, no noise)."""
+        u = np.asarray(u_rad, dtype=np.float64)
+        err = np.zeros_like(u)
+        for n, a, p in zip(self.graduation_orders, self.graduation_amplitudes_rad,
+                           self.graduation_phases_rad, strict=True):
+            if a:
+                err += a * np.sin(n * u + p)
+        if self.eccentricity_amplitude_rad:
+            err += self.eccentricity_amplitude_rad * np.sin(u + self.eccentricity_phase_rad)
+        if self.tilt_rad:
+            err += tilt_amplitude_rad(self.tilt_rad) * np.sin(2.0 * (u - self.tilt_phase_rad))
+        return err
+
+    def head_errors_rad(self, theta_true_rad: npt.ArrayLike) -> np.ndarray:
+        """Deterministic error of every head at the true shaft angle, shape (n_heads, n)
+        [rad]: the scale error s at ``u = theta - scale_index - beta_j`` plus head j's
+        interpolation error at the lines under it, ``u + s(u)`` (no noise)."""
+        th = np.asarray(theta_true_rad, dtype=np.float64)
+        heads = self.heads or (ReadHead(),)
+        out = np.empty((len(heads), th.size))
+        for j, h in enumerate(heads):
+            u = th - self.scale_index_rad - h.angle_rad
+            out[j] = self.scale_error_rad(u)
+            if h.interpolation_rad and self.signal_periods:
+                # periodic in the lines actually under the head: at u + s(u) (a 5 um
+                # eccentricity moves them by ~1.8 signal periods on 18,000 lines)
+                out[j] += h.interpolation_rad * np.sin(self.signal_periods * (u + out[j])
+                                                       + h.interpolation_phase_rad)
+        return out
 
     @property
     def resolution_rad(self) -> float:
@@ -165,21 +252,22 @@ class EncoderSpec:
         return sum(abs(v) ** 2 for v in c.values()) / 2.0 + self.noise_sigma_rad ** 2
 
     def angle_error_rad(self, theta_true_rad: npt.ArrayLike) -> np.ndarray:
-        """Deterministic error (graduation + eccentricity) at the true angle [rad]."""
+        """Deterministic error (graduation + eccentricity + tilt) of head 0 at the true
+        angle [rad] (without head 0's interpolation error)."""
         th = np.asarray(theta_true_rad, dtype=np.float64)
-        err = np.zeros_like(th)
-        for n, a, p in zip(self.graduation_orders, self.graduation_amplitudes_rad,
-                           self.graduation_phases_rad, strict=True):
-            if a:
-                err += a * np.sin(n * th + p)
-        if self.eccentricity_amplitude_rad:
-            err += self.eccentricity_amplitude_rad * np.sin(th + self.eccentricity_phase_rad)
-        return err
+        return self.scale_error_rad(th - self.scale_index_rad - self.head_angles_rad[0])
 
     def to_plain(self) -> dict[str, Any]:
-        """JSON/YAML-friendly dict of the fields (tuples as lists)."""
+        """JSON/YAML-friendly dict of the fields (tuples as lists, heads as dicts); the
+        head fields only when the spec has heads or a scale (older records unchanged)."""
         out = dataclasses.asdict(self)
-        return {k: list(v) if isinstance(v, tuple) else v for k, v in out.items()}
+        plain = {k: list(v) if isinstance(v, tuple) else v for k, v in out.items()}
+        unset = {'heads': [], 'signal_periods': 0, 'tilt_rad': 0.0, 'tilt_phase_rad': 0.0,
+                 'scale_index_rad': 0.0, 'scale_diameter_m': 0.0, 'serial': ''}
+        if all(plain[k] == v for k, v in unset.items()):
+            for k in unset:
+                del plain[k]
+        return plain
 
 
 def encoder_spec_with(spec: EncoderSpec, **changes: Any) -> EncoderSpec:
@@ -219,6 +307,38 @@ def remounted(spec: EncoderSpec, rng: np.random.Generator, *,
     if eccentricity_rad is not None:
         changes['eccentricity_amplitude_rad'] = eccentricity_rad
     return encoder_spec_with(spec, **changes)
+
+
+def with_heads(spec: EncoderSpec, heads: tuple[ReadHead, ...], *,
+               signal_periods: int | None = None, **changes: Any) -> EncoderSpec:
+    """``spec`` as a scale read by ``heads``: the graduation harmonic at the line count
+    (a one-head preset's interpolation error, e.g. order 36,000 of the RON 886) leaves the
+    scale's error, as each head has its own (:attr:`ReadHead.interpolation_rad`).
+
+    Args:
+        spec: The encoder (its graduation, eccentricity and counts are kept).
+        heads: The read heads (1 .. 16).
+        signal_periods: Lines per revolution (default: the largest graduation order above
+            1000 of ``spec``, else 0).
+        **changes: Further fields to replace (e.g. ``eccentricity_amplitude_rad``).
+
+    Raises:
+        ModelInputError: No head, or a field breaks its rule.
+    """
+    if not heads:
+        msg = 'with_heads needs at least one ReadHead'
+        raise ModelInputError(msg)
+    lines = signal_periods
+    if lines is None:
+        lines = max((n for n in spec.graduation_orders if n > 1000), default=0)
+    keep = [i for i, n in enumerate(spec.graduation_orders) if not (lines and n == lines)]
+    fields: dict[str, Any] = {
+        'heads': tuple(heads), 'signal_periods': lines,
+        'graduation_orders': tuple(spec.graduation_orders[i] for i in keep),
+        'graduation_amplitudes_rad': tuple(spec.graduation_amplitudes_rad[i] for i in keep),
+        'graduation_phases_rad': tuple(spec.graduation_phases_rad[i] for i in keep)}
+    fields.update(changes)
+    return encoder_spec_with(spec, **fields)
 
 
 def _as(x_arcsec: float) -> float:
@@ -319,8 +439,25 @@ class SimulatedEncoder:
         self._counts_per_rad = (0.0 if spec.counts_per_rev is None
                                 else spec.counts_per_rev / _TWO_PI)
 
+    @staticmethod
+    def _checked(theta_true_rad: npt.ArrayLike) -> np.ndarray:
+        th = np.asarray(theta_true_rad, dtype=np.float64)
+        if th.ndim != 1:
+            msg = f'theta_true_rad must be 1-D, got shape {th.shape}'
+            raise ModelInputError(msg)
+        if not np.all(np.isfinite(th)):
+            msg = 'theta_true_rad must be finite (NaN or inf found)'
+            raise ModelInputError(msg)
+        return th
+
+    def _quantised(self, x: np.ndarray) -> np.ndarray:
+        if self.spec.counts_per_rev is not None:
+            return np.floor(x * self._counts_per_rad) * self._q
+        return x
+
     def measure(self, theta_true_rad: npt.ArrayLike) -> np.ndarray:
-        """Encoder readings of the true shaft angles.
+        """Encoder readings of the true shaft angles (head 0 of a scale with several heads:
+        use :meth:`measure_heads` for all of them, which draws the same noise for head 0).
 
         Args:
             theta_true_rad: True unwrapped shaft angle [rad], 1-D float64 array.
@@ -331,16 +468,26 @@ class SimulatedEncoder:
         Raises:
             ModelInputError: Not 1-D or not finite.
         """
-        th = np.asarray(theta_true_rad, dtype=np.float64)
-        if th.ndim != 1:
-            msg = f'theta_true_rad must be 1-D, got shape {th.shape}'
-            raise ModelInputError(msg)
-        if not np.all(np.isfinite(th)):
-            msg = 'theta_true_rad must be finite (NaN or inf found)'
-            raise ModelInputError(msg)
+        if self.spec.heads:
+            return self.measure_heads(theta_true_rad)[0]
+        th = self._checked(theta_true_rad)
         x = th + self.spec.angle_error_rad(th)
         if self.spec.noise_sigma_rad:
             x += self.spec.noise_sigma_rad * self.rng.standard_normal(th.size)
-        if self.spec.counts_per_rev is not None:
-            x = np.floor(x * self._counts_per_rad) * self._q
-        return x
+        return self._quantised(x)
+
+    def measure_heads(self, theta_true_rad: npt.ArrayLike) -> np.ndarray:
+        """Readings of every head of the scale, shape (n_heads, n) [rad], each zeroed to
+        the shaft angle (unwrapped); one row for an encoder without heads (= :meth:`measure`).
+
+        Raises:
+            ModelInputError: Not 1-D or not finite.
+        """
+        if not self.spec.heads:
+            return self.measure(theta_true_rad)[None, :]
+        th = self._checked(theta_true_rad)
+        x = th + self.spec.head_errors_rad(th)
+        sigma = np.array([h.noise_sigma_rad for h in self.spec.heads])
+        if sigma.any():
+            x += sigma[:, None] * self.rng.standard_normal(x.shape)
+        return self._quantised(x)
