@@ -5,8 +5,11 @@ VENV   := .venv
 PY     := $(VENV)/bin/python
 # A venv Python started from another ros-wheel Python must not inherit the bootstrap marker.
 unexport _ROS_WHEELS_BOOTSTRAP_COMPLETE
+# Bytecode caches kept (they are ignored by git): with PYTHONDONTWRITEBYTECODE set, every
+# pytest process compiles the suite and rewrites its asserts anew (twice the collection CPU).
+unexport PYTHONDONTWRITEBYTECODE
 
-.PHONY: demo test lint venv clean-venv system-deps
+.PHONY: demo test test-fast lint mutation venv clean-venv system-deps
 
 venv: $(VENV)/.stamp
 
@@ -20,14 +23,33 @@ $(VENV)/.stamp: pyproject.toml setup.py rv_te_bench/core/_lagrange.c rv_te_msgs_
 demo: venv
 	$(VENV)/bin/rv-te demo
 
+# Tests run in parallel, one pytest-xdist worker per core by default (each with a ROS domain of
+# its own, tests/conftest.py), whole files per worker, the longest files first.
+TEST_WORKERS ?= auto
+PYTEST_PAR   := $(PY) -m pytest -q -n $(TEST_WORKERS) --dist loadfile
+
+# The whole suite (PostgreSQL included, where installed: make system-deps).
 test: venv
-	$(PY) -m pytest -q
+	$(PYTEST_PAR)
+
+# The quick loop: every test that needs no ROS middleware and is not marked slow.
+test-fast: venv
+	$(PYTEST_PAR) -m "not ros and not slow"
 
 # The house rules checked by tools: ruff's rule set ([tool.ruff.lint] in pyproject.toml) and
 # the layering contracts ([tool.importlinter]).
 lint: venv
 	$(VENV)/bin/ruff check .
 	$(VENV)/bin/lint-imports
+
+# Mutation testing of core/, acceptance/, store/ and io/importers/ ([tool.mutmut] in
+# pyproject.toml; docs/TESTING.md has the score and the accepted survivors). Hours on two
+# cores; not in CI. MUTANTS='rv_te_bench.acceptance*' runs a subset.
+MUTANTS ?=
+mutation: venv
+	$(PY) -m pip install --quiet -e '.[mutation]'
+	$(VENV)/bin/mutmut run $(MUTANTS)
+	$(VENV)/bin/mutmut results
 
 clean-venv:
 	rm -rf $(VENV)

@@ -239,8 +239,12 @@ def _whole_commands(bag: Path, repeats: int) -> dict[str, float]:
     for _ in range(repeats):
         for name, cmd in commands.items():
             t0 = time.perf_counter()
-            subprocess.run(cmd, check=True, capture_output=True, cwd=ROOT, timeout=600)
+            proc = subprocess.run(cmd, capture_output=True, text=True, cwd=ROOT, timeout=600,
+                                  check=False)
             times[name].append(time.perf_counter() - t0)
+            if proc.returncode != 0:   # say why (a bare CalledProcessError did not)
+                msg = f'{name} exited {proc.returncode}: {proc.stderr.strip()[-2000:]}'
+                raise RuntimeError(msg)
     return {k: statistics.median(v) for k, v in times.items()}
 
 

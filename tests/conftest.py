@@ -77,6 +77,53 @@ def pytest_collection_modifyitems(config: pytest.Config, items: list[pytest.Item
         if ROS_FIXTURES & set(getattr(item, 'fixturenames', ())) and \
                 item.get_closest_marker('ros') is None:
             item.add_marker(pytest.mark.ros)
+    _heaviest_files_first(config, items)
+
+
+# --------------------------------------------------------------------------------------
+# Order for parallel runs (make test: pytest-xdist, --dist loadfile hands out whole files in
+# collection order): the files that took longest last time start first, so that no long
+# file starts last and runs alone at the end (longest-processing-time-first scheduling).
+# The seconds per file are kept in pytest's cache (.pytest_cache) by the run that measured
+# them; without a cache (a fresh clone) files with slow ROS tests go first, then slow, then
+# ROS tests. Tests keep their order within a file.
+
+_SECONDS_KEY = 'rv_te_bench/seconds_per_file'
+
+
+def _heaviest_files_first(config: pytest.Config, items: list[pytest.Item]) -> None:
+    cache = getattr(config, 'cache', None)
+    seconds: dict[str, float] = (cache.get(_SECONDS_KEY, {}) if cache is not None else {}) or {}
+    weight: dict[str, tuple[float, int]] = {}
+    for item in items:
+        f = item.nodeid.split('::', 1)[0]
+        kind = 2 * bool(item.get_closest_marker('slow')) + bool(item.get_closest_marker('ros'))
+        w, k = weight.get(f, (seconds.get(f, 0.0), 0))
+        weight[f] = (w, max(k, kind))
+    first = {f: i for i, f in reversed(list(enumerate(
+        item.nodeid.split('::', 1)[0] for item in items)))}
+    items.sort(key=lambda it: (-weight[f := it.nodeid.split('::', 1)[0]][0],
+                               -weight[f][1], first[f]))
+
+
+def pytest_runtest_logreport(report: pytest.TestReport) -> None:
+    """Seconds per file of this run (under xdist the controller gets every worker's reports)."""
+    if os.environ.get('PYTEST_XDIST_WORKER'):
+        return
+    f = report.nodeid.split('::', 1)[0]
+    _RUN_SECONDS[f] = _RUN_SECONDS.get(f, 0.0) + report.duration
+
+
+_RUN_SECONDS: dict[str, float] = {}
+
+
+def _store_seconds(session: pytest.Session) -> None:
+    cache = getattr(session.config, 'cache', None)
+    if cache is None or not _RUN_SECONDS:
+        return
+    seconds = dict(cache.get(_SECONDS_KEY, {}) or {})
+    seconds.update({f: round(s, 2) for f, s in _RUN_SECONDS.items()})
+    cache.set(_SECONDS_KEY, seconds)
 
 
 @pytest.fixture
@@ -132,12 +179,14 @@ def repo_litter() -> set[str] | None:
 
 
 def pytest_sessionstart(session: pytest.Session) -> None:
-    # under pytest-xdist the controller checks (a worker would see another's files in flight)
-    if not os.environ.get('PYTEST_XDIST_WORKER'):
+    # under pytest-xdist the controller checks (a worker would see another's files in flight);
+    # a mutation run (mutmut) runs a copy of the tree in mutants/, many sessions a second
+    if not os.environ.get('PYTEST_XDIST_WORKER') and 'MUTANT_UNDER_TEST' not in os.environ:
         session.config.stash[_LITTER_KEY] = repo_litter()
 
 
 def pytest_sessionfinish(session: pytest.Session, exitstatus: int) -> None:
+    _store_seconds(session)
     before = session.config.stash.get(_LITTER_KEY, None)
     if before is None:
         return

@@ -89,20 +89,28 @@ def test_replay_stops_on_ctrl_c_while_reading_the_bag(tmp_path: Path) -> None:
     assert 'file(s) listed in metadata.yaml are missing' in err and 'more' in err, err
     assert startup_s > 1.0, startup_s
 
-    proc = _replay(bag)
-    try:
-        time.sleep(0.6 * startup_s)
-        assert proc.poll() is None
-        first = time.monotonic()
-        proc.send_signal(signal.SIGINT)   # one Ctrl-C, wherever start-up is
-        while proc.poll() is None and time.monotonic() - first < 10.0:
-            time.sleep(0.05)
-        stopped_after_s = time.monotonic() - first
-        _, err = proc.communicate(timeout=20)
-    finally:
-        if proc.poll() is None:
-            proc.kill()
-            proc.wait()
+    # The second start-up can be faster than the first (the load changed): a process that
+    # has ended before the signal tested nothing, so it is tried again, interrupted earlier.
+    for fraction in (0.6, 0.3, 0.15):
+        proc = _replay(bag)
+        try:
+            time.sleep(fraction * startup_s)
+            if proc.poll() is not None:
+                proc.communicate(timeout=20)
+                continue
+            first = time.monotonic()
+            proc.send_signal(signal.SIGINT)   # one Ctrl-C, wherever start-up is
+            while proc.poll() is None and time.monotonic() - first < 10.0:
+                time.sleep(0.05)
+            stopped_after_s = time.monotonic() - first
+            _, err = proc.communicate(timeout=20)
+        finally:
+            if proc.poll() is None:
+                proc.kill()
+                proc.wait()
+        break
+    else:
+        pytest.fail(f'the replay ended its start-up before 0.15 x {startup_s:.1f} s every time')
     assert proc.returncode == 130, err[:2000]
     assert 'Traceback' not in err, err[:2000]
     assert stopped_after_s < 3.0, err[:2000]
