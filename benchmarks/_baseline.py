@@ -31,24 +31,39 @@ def load_at(rev: str, path: str, name: str) -> ModuleType:
     return module
 
 
-# the TE core as one unit: stream imports spectrum and te at import time, so an old stream
-# must see the old spectrum and te (its own revision), not the current ones
+# the TE core as one unit: stream imports spectrum and te (and, since issue 39, its record
+# types) at import time, so an old stream must see the old spectrum and te (its own
+# revision), not the current ones; a file a revision does not have is skipped
 CORE_MODULES = (('rv_te_bench/core/te.py', 'rv_te_bench.core.te'),
                 ('rv_te_bench/core/spectrum.py', 'rv_te_bench.core.spectrum'),
-                ('rv_te_bench/core/stream.py', 'rv_te_bench.core.stream'))
+                ('rv_te_bench/core/stream_records.py', 'rv_te_bench.core.stream_records'),
+                ('rv_te_bench/core/stream.py', 'rv_te_bench.core.stream'),
+                ('rv_te_bench/core/offline.py', 'rv_te_bench.core.offline'))
+
+
+def _exists_at(rev: str, path: str) -> bool:
+    return subprocess.run(['git', '-C', str(ROOT), 'cat-file', '-e', f'{rev}:{path}'],
+                          check=False, capture_output=True).returncode == 0
 
 
 def load_core_at(rev: str) -> dict[str, ModuleType]:
-    """The TE core modules (te, spectrum, stream) as of ``rev``, keyed by module name.
+    """The TE core modules (te, spectrum, stream records, stream, offline) as of ``rev``,
+    keyed by module name.
 
     Each is compiled while the ones loaded before it stand in for their current versions in
     ``sys.modules``, so the old stream uses the old spectrum and te. Use :func:`swapped`
     to run code that imports them by name (e.g. ``analyze_bag``) against the old ones.
+    Before issue 39 split it, ``stream`` held the record types and ``analyze_blocks``: at
+    such a revision it stands in for ``stream_records`` and ``offline`` too.
     """
     loaded: dict[str, ModuleType] = {}
     for path, name in CORE_MODULES:
+        if not _exists_at(rev, path):
+            continue
         with swapped(loaded):
             loaded[name] = load_at(rev, path, name)
+    for name in ('rv_te_bench.core.stream_records', 'rv_te_bench.core.offline'):
+        loaded.setdefault(name, loaded['rv_te_bench.core.stream'])
     return loaded
 
 

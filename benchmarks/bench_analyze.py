@@ -63,7 +63,7 @@ def main(argv: list[str] | None = None) -> int:
     tuned = tune_for_batch_work() if args.allocator == 'tuned' else False
     from make_sample import write_sample
 
-    from rv_te_bench.core.stream import EncoderBatch
+    from rv_te_bench.core.stream_records import EncoderBatch
     from rv_te_bench.io.bag_reader import read_encoder_batches
     from rv_te_bench.report.analysis import analyze_bag
 
@@ -72,6 +72,10 @@ def main(argv: list[str] | None = None) -> int:
         sys.path.insert(0, str(ROOT / 'benchmarks'))
         from _baseline import load_at, load_core_at, swapped
         base_core = load_core_at(args.baseline)
+        with swapped(base_core):
+            # the result types of that revision too (the analysis builds them)
+            base_core['rv_te_bench.report.results'] = load_at(
+                args.baseline, 'rv_te_bench/report/results.py', 'rv_te_bench.report.results')
         with swapped(base_core):
             base_analysis = load_at(args.baseline, 'rv_te_bench/report/analysis.py',
                                     'rv_te_bench.report.analysis')
@@ -167,7 +171,8 @@ class _reader_as_at:  # noqa: N801 - used like a function
     The chunks read ahead (``PREFETCH_CHUNKS``, 2 before issue 23's round 4) and the CRC-32
     (isal's from round 4, zlib's before) are read from ``rev``'s _mcap_scan.py; an old
     ``analyze_blocks`` without ``spectra_thread`` gets the call without it (its spectra
-    then run in line, as they did).
+    then run in line, as they did); an analysis from before the bench record (issue 39)
+    gets ``read_bench_info`` as the dict of fields it read then.
     """
 
     def __init__(self, rev: str, core: dict) -> None:
@@ -180,16 +185,27 @@ class _reader_as_at:  # noqa: N801 - used like a function
         found = re.search(r'^PREFETCH_CHUNKS = (\d+)', text, re.MULTILINE)
         self._prefetch = int(found.group(1)) if found else 2
         self._isal = 'isal' in text
-        self._stream = core['rv_te_bench.core.stream']
+        self._stream = core['rv_te_bench.core.offline']   # where analyze_blocks is
+        self._info_dict = subprocess.run(
+            ['git', '-C', str(ROOT), 'cat-file', '-e', f'{rev}:sim/bench_info.py'],
+            check=False, capture_output=True).returncode != 0
 
     def __enter__(self) -> None:
         import inspect
         import zlib
 
-        from rv_te_bench.io import _mcap_scan
+        from rv_te_bench.io import _mcap_scan, bag_reader
 
         self._saved = (_mcap_scan.PREFETCH_CHUNKS, _mcap_scan._crc32,
-                       self._stream.analyze_blocks)
+                       self._stream.analyze_blocks, bag_reader.read_bench_info)
+        if self._info_dict:
+            record = bag_reader.read_bench_info
+
+            def as_dict(path: str | Path, topic: str | None = None) -> dict | None:
+                info = record(path, topic)
+                return None if info is None else info.message_values()
+
+            bag_reader.read_bench_info = as_dict
         _mcap_scan.PREFETCH_CHUNKS = self._prefetch
         if not self._isal:
             _mcap_scan._crc32 = zlib.crc32
@@ -200,10 +216,10 @@ class _reader_as_at:  # noqa: N801 - used like a function
                 old(blocks, config, on_window=on_window))
 
     def __exit__(self, *exc: object) -> None:
-        from rv_te_bench.io import _mcap_scan
+        from rv_te_bench.io import _mcap_scan, bag_reader
 
-        _mcap_scan.PREFETCH_CHUNKS, _mcap_scan._crc32, self._stream.analyze_blocks = \
-            self._saved
+        (_mcap_scan.PREFETCH_CHUNKS, _mcap_scan._crc32, self._stream.analyze_blocks,
+         bag_reader.read_bench_info) = self._saved
 
 
 def rosbags_read(bag: str | Path) -> int:

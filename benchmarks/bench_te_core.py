@@ -45,11 +45,8 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 
 from rv_te_bench.core.orders import OrderSet
-from rv_te_bench.core.stream import (
-    EncoderBlockData,
-    StreamingTeAnalyzer,
-    TeAnalysisConfig,
-)
+from rv_te_bench.core.stream import StreamingTeAnalyzer
+from rv_te_bench.core.stream_records import EncoderBlockData, TeAnalysisConfig
 from rv_te_bench.core.units import arcmin_to_rad
 
 RATIO = 79.0

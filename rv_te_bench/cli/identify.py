@@ -45,7 +45,7 @@ if TYPE_CHECKING:
     from rv_te_bench.core.angle_fold import FoldedTe
     from rv_te_bench.core.identify import Identification
     from rv_te_bench.core.phases import EccentricGeometry
-    from rv_te_bench.core.stream import GapEvent
+    from rv_te_bench.core.stream_records import GapEvent
     from sim.bench_info import BenchInfoData
     from sim.presets import Preset
 
@@ -128,7 +128,7 @@ def fold_bag(path: str, topic: str | None, gear_ratio: float, *,
     """
     from rv_te_bench.core.angle_fold import AngleFold
     from rv_te_bench.core.seq_gaps import SeqGapWatch
-    from rv_te_bench.core.stream import EncoderBatch
+    from rv_te_bench.core.stream_records import EncoderBatch
     from rv_te_bench.io.bag_reader import (
         read_encoder_batches,
         summarize_problems,

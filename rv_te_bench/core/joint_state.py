@@ -56,7 +56,7 @@ from rv_te_bench.errors import TeConfigError
 if TYPE_CHECKING:
     from collections.abc import Sequence
 
-    from rv_te_bench.core.stream import EncoderBlockData
+    from rv_te_bench.core.stream_records import EncoderBlockData
 
 __all__ = [
     'STAMP_JUMP_PERIODS',
@@ -210,7 +210,7 @@ class JointStateBlock:
 
     def to_encoder_block_data(self) -> EncoderBlockData:
         """The TE core's block (what a TE node makes of the published EncoderBlock)."""
-        from rv_te_bench.core.stream import EncoderBlockData
+        from rv_te_bench.core.stream_records import EncoderBlockData
 
         return EncoderBlockData(self.seq, self.stamp_s, self.sample_rate_hz,
                                 self.time_offset_s, self.theta_in_rad, self.theta_out_rad,

@@ -10,7 +10,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from rv_te_bench.core.stream import GapEvent, seq_jump_event
+from rv_te_bench.core.stream_records import GapEvent, seq_jump_event
 
 __all__ = ['SeqGapWatch']
 

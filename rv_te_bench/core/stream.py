@@ -26,11 +26,11 @@ size before completing is closed as partial (``close_reason='overflow'``).
 
 Offline, :meth:`StreamingTeAnalyzer.push_batch` takes many consecutive blocks at once (an
 :class:`EncoderBatch`, one MCAP chunk) and analyses runs of clean, continuous blocks as one
-array, with the same windows, gaps and counters as block by block; :func:`analyze_blocks`
-can hand each window to a callback instead of keeping them all, and compute the window
-spectra on a second thread while it reads on (``spectra_thread``: the same results; one
-more window's arrays are then held besides the open one). That thread may be one the
-caller shares with other work, e.g. the bag reader's read-ahead (``analyze_bag`` does).
+array, with the same windows, gaps and counters as block by block. The offline runner
+(:func:`rv_te_bench.core.offline.analyze_blocks`: a whole recording, windows to a
+callback, the window spectra on a helper thread) is a module of its own, and so are the
+record types (:mod:`rv_te_bench.core.stream_records`, re-exported here: the analyzer
+takes and returns them).
 
 A bench numbers its blocks from 0, so a first block with a seq above 0 is a gap too
 (``'leading_loss'``: a recorder or TE node that started after the bench lost the blocks before
@@ -43,473 +43,51 @@ re-zeroed counter); both show up in the window statistics.
 
 from __future__ import annotations
 
-import contextlib
 import math
-from collections import deque
-from concurrent.futures import Executor, Future
-from dataclasses import dataclass, field, replace
-from typing import TYPE_CHECKING, Any, Literal
+from dataclasses import replace
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-from rv_te_bench.core.orders import OrderSet
 from rv_te_bench.core.spectrum import OrderSpectrum, SpectrumWorkspace, order_spectrum
+from rv_te_bench.core.stream_records import (
+    BatchUpdate,
+    BlockProblem,
+    CloseReason,
+    EncoderBatch,
+    EncoderBlockData,
+    GapEvent,
+    GapKind,
+    OfflineResult,
+    StreamUpdate,
+    TeAnalysisConfig,
+    WindowResult,
+    check_block,
+    seq_jump_event,
+)
 from rv_te_bench.core.te import RunningStats, TeStats, moments_of_finite, output_phase_and_te
-from rv_te_bench.errors import TeConfigError, TeInputError
+from rv_te_bench.errors import TeInputError
 
 if TYPE_CHECKING:
-    from collections.abc import Callable, Iterable
+    from collections.abc import Callable
 
-__all__ = ['SPECTRA_AHEAD', 'BatchUpdate', 'EncoderBatch', 'EncoderBlockData', 'GapEvent',
-           'OfflineResult', 'StreamUpdate', 'StreamingTeAnalyzer', 'TeAnalysisConfig',
-           'WindowResult', 'analyze_blocks', 'seq_jump_event']
-
-GapKind = Literal['seq_jump', 'time_backwards', 'non_finite', 'malformed', 'leading_loss']
-CloseReason = Literal['complete', 'gap', 'overflow', 'flush', 'reconfigure']
+__all__ = ['BatchUpdate', 'EncoderBatch', 'EncoderBlockData', 'GapEvent', 'OfflineResult',
+           'StreamUpdate', 'StreamingTeAnalyzer', 'TeAnalysisConfig', 'WindowBuffer',
+           'WindowResult', 'seq_jump_event']
 
 _TWO_PI = 2.0 * math.pi
 _EMPTY = np.empty(0, dtype=np.float64)
 _EMPTY.setflags(write=False)
 _INITIAL_CAPACITY = 1 << 16
-_MIN_WINDOW_SAMPLES = 16
 _SCAN_PIECE = 1 << 16  # samples examined at a time when looking for a window's end
-_OFFS_BOUND = 1e300
-_OFFS_SUM_SAFE_N = 10**8
 
 
-def _empty_array() -> np.ndarray:
-    return _EMPTY
+class WindowBuffer:
+    """Growable (up to a cap) buffers of phi and TE of the open window.
 
-
-@dataclass(frozen=True)
-class EncoderBlockData:
-    """One block of encoder samples, as a node hands it over from an ``EncoderBlock``.
-
-    Construction does not check anything (so that :meth:`StreamingTeAnalyzer.push` can
-    count bad blocks instead of failing); use :meth:`checked` or :meth:`validate` at a
-    boundary that should raise.
-
-    Attributes:
-        seq: Block sequence number (consecutive blocks differ by 1).
-        stamp_s: Time of the block's reference instant [s].
-        sample_rate_hz: Nominal sampling rate [Hz] (> 0).
-        time_offset_s: Sample times relative to ``stamp_s`` [s], strictly increasing.
-        theta_in_rad: Unwrapped input-shaft angle per sample [rad].
-        theta_out_rad: Unwrapped output-shaft angle per sample [rad].
-        torque_out_nm: Output torque per sample [N m], or empty.
+    A spectrum hook (:meth:`StreamingTeAnalyzer.set_spectrum_hook`) gets it with a complete
+    window and may take its ``phi`` / ``te`` arrays, giving it others of the same size.
     """
-
-    seq: int
-    stamp_s: float
-    sample_rate_hz: float
-    time_offset_s: np.ndarray
-    theta_in_rad: np.ndarray
-    theta_out_rad: np.ndarray
-    torque_out_nm: np.ndarray = field(default_factory=_empty_array)
-
-    @classmethod
-    def checked(cls, *, seq: int, stamp_s: float, sample_rate_hz: float,
-                time_offset_s: Any, theta_in_rad: Any, theta_out_rad: Any,
-                torque_out_nm: Any = ()) -> EncoderBlockData:
-        """Build a block with float64 arrays and validate it.
-
-        Raises:
-            TeInputError: The block is malformed (see :meth:`validate`).
-
-        Examples:
-            >>> b = EncoderBlockData.checked(seq=0, stamp_s=0.0, sample_rate_hz=1000.0,
-            ...     time_offset_s=[0.0, 0.001], theta_in_rad=[0.0, 0.1],
-            ...     theta_out_rad=[0.0, 0.001])
-            >>> b.theta_in_rad.dtype.name
-            'float64'
-            >>> EncoderBlockData.checked(seq=0, stamp_s=0.0, sample_rate_hz=1000.0,
-            ...     time_offset_s=[0.0], theta_in_rad=[0.0, 0.1], theta_out_rad=[0.0, 0.0])
-            Traceback (most recent call last):
-            ...
-            rv_te_bench.errors.TeInputError: block seq 0: array lengths differ: \
-time_offset_s 1, theta_in_rad 2, theta_out_rad 2
-        """
-        try:
-            arrays = [np.asarray(a, dtype=np.float64)
-                      for a in (time_offset_s, theta_in_rad, theta_out_rad, torque_out_nm)]
-        except (TypeError, ValueError) as exc:
-            msg = f'block seq {seq}: arrays not convertible to float64 ({exc})'
-            raise TeInputError(msg) from None
-        block = cls(seq, stamp_s, sample_rate_hz, *arrays)
-        block.validate()
-        return block
-
-    def validate(self) -> None:
-        """Check the block.
-
-        Raises:
-            TeInputError: Naming the problem: empty block, arrays of different lengths or not
-                1-D, non-finite values, time offsets not strictly increasing, sample rate
-                <= 0, bad stamp or sequence number.
-        """
-        out = _normalize(self)
-        if isinstance(out, _Problem):
-            raise TeInputError(out.detail)
-
-
-@dataclass(frozen=True)
-class _Problem:
-    kind: GapKind
-    detail: str
-
-
-# a clean block from _normalize: (seq, sample times t_s, theta_in_rad, theta_out_rad,
-# sample_rate_hz); a plain tuple, built once per pushed block
-_Clean = tuple[int, np.ndarray, np.ndarray, np.ndarray, float]
-
-
-@dataclass(frozen=True)
-class EncoderBatch:
-    """Consecutive encoder blocks with their samples concatenated (offline reading).
-
-    A bag reader hands over all the blocks of one MCAP chunk at once, so that checks,
-    Wang 2020 Eq. 22 and statistics run over long arrays instead of block by block.
-    :meth:`StreamingTeAnalyzer.push_batch` gives the same windows, gaps, statistics and
-    counters as pushing :meth:`block` 0, 1, ... one by one (it only skips the decimated
-    display TE). Only structure is checked on construction (values are the analyzer's job,
-    as for :class:`EncoderBlockData`); the torque is not carried (TE does not use it).
-
-    Attributes:
-        seq: Sequence number per block, int64, shape (B,).
-        stamp_s: Reference time per block [s], shape (B,).
-        sample_rate_hz: Nominal rate per block [Hz], shape (B,).
-        starts: Sample index where each block starts, plus the total: int64, shape (B + 1,),
-            starts[0] = 0, strictly increasing (no empty block).
-        time_offset_s: Sample times relative to their block's stamp [s], shape (N,).
-        theta_in_rad: Input-shaft angles [rad], shape (N,).
-        theta_out_rad: Output-shaft angles [rad], shape (N,).
-
-    Raises:
-        TeInputError: The arrays do not fit together (names the sizes).
-    """
-
-    seq: np.ndarray
-    stamp_s: np.ndarray
-    sample_rate_hz: np.ndarray
-    starts: np.ndarray
-    time_offset_s: np.ndarray
-    theta_in_rad: np.ndarray
-    theta_out_rad: np.ndarray
-
-    def __post_init__(self) -> None:
-        """Check the structure."""
-        n_blocks = np.size(self.seq)
-        n = np.size(self.theta_in_rad)
-        shapes = {name: np.shape(getattr(self, name)) for name in (
-            'seq', 'stamp_s', 'sample_rate_hz', 'starts', 'time_offset_s', 'theta_in_rad',
-            'theta_out_rad')}
-        want = {'seq': (n_blocks,), 'stamp_s': (n_blocks,), 'sample_rate_hz': (n_blocks,),
-                'starts': (n_blocks + 1,), 'time_offset_s': (n,), 'theta_in_rad': (n,),
-                'theta_out_rad': (n,)}
-        if n_blocks == 0 or shapes != want:
-            msg = f'EncoderBatch arrays do not fit together: shapes {shapes}'
-            raise TeInputError(msg)
-        starts = np.asarray(self.starts)
-        if starts[0] != 0 or starts[-1] != n or not (starts[1:] > starts[:-1]).all():
-            msg = (f'EncoderBatch starts must run from 0 to {n} in strictly increasing steps, '
-                   f'got {starts[:5].tolist()}...{starts[-2:].tolist()}')
-            raise TeInputError(msg)
-
-    @property
-    def n_blocks(self) -> int:
-        """Number of blocks B."""
-        return int(np.size(self.seq))
-
-    @property
-    def n_samples(self) -> int:
-        """Number of samples N."""
-        return int(np.size(self.theta_in_rad))
-
-    def block(self, k: int) -> EncoderBlockData:
-        """Block ``k`` as an :class:`EncoderBlockData` (views, no copy)."""
-        a, b = int(self.starts[k]), int(self.starts[k + 1])
-        return EncoderBlockData(int(self.seq[k]), float(self.stamp_s[k]),
-                                float(self.sample_rate_hz[k]), self.time_offset_s[a:b],
-                                self.theta_in_rad[a:b], self.theta_out_rad[a:b])
-
-    @classmethod
-    def from_blocks(cls, blocks: Iterable[EncoderBlockData]) -> EncoderBatch:
-        """Concatenate blocks (each must have equal-length 1-D arrays, at least one sample).
-
-        Raises:
-            TeInputError: No block, or a block whose arrays do not fit.
-        """
-        blocks = list(blocks)
-        if not blocks:
-            msg = 'EncoderBatch.from_blocks: no block'
-            raise TeInputError(msg)
-        sizes = [np.size(b.theta_in_rad) for b in blocks]
-        for b, n in zip(blocks, sizes, strict=True):
-            if n == 0 or np.size(b.time_offset_s) != n or np.size(b.theta_out_rad) != n:
-                msg = f'EncoderBatch.from_blocks: block seq {b.seq} has arrays of unequal size'
-                raise TeInputError(msg)
-
-        def cat(name: str) -> np.ndarray:
-            return np.concatenate([np.asarray(getattr(b, name), dtype=np.float64).ravel()
-                                   for b in blocks])
-        return cls(seq=np.array([int(b.seq) for b in blocks], dtype=np.int64),
-                   stamp_s=np.array([b.stamp_s for b in blocks], dtype=np.float64),
-                   sample_rate_hz=np.array([b.sample_rate_hz for b in blocks], dtype=np.float64),
-                   starts=np.concatenate([[0], np.cumsum(sizes)]).astype(np.int64),
-                   time_offset_s=cat('time_offset_s'), theta_in_rad=cat('theta_in_rad'),
-                   theta_out_rad=cat('theta_out_rad'))
-
-
-def _normalize(block: Any) -> _Clean | _Problem:
-    """Check one block without raising; return clean float64 arrays or the problem."""
-    seq = getattr(block, 'seq', None)
-    if isinstance(seq, bool) or not isinstance(seq, int | np.integer):
-        return _Problem('malformed', f'block seq {seq!r}: seq must be an integer')
-    where = f'block seq {seq}'
-    try:
-        stamp = float(block.stamp_s)
-        rate = float(block.sample_rate_hz)
-        offs = np.asarray(block.time_offset_s, dtype=np.float64)
-        th_in = np.asarray(block.theta_in_rad, dtype=np.float64)
-        th_out = np.asarray(block.theta_out_rad, dtype=np.float64)
-        torque = np.asarray(block.torque_out_nm, dtype=np.float64)
-    except (AttributeError, TypeError, ValueError, OverflowError) as exc:
-        return _Problem('malformed', f'{where}: fields not convertible ({exc})')
-    if not math.isfinite(stamp):
-        return _Problem('malformed', f'{where}: stamp_s must be finite, got {stamp!r}')
-    if not (math.isfinite(rate) and rate > 0.0):
-        return _Problem('malformed', f'{where}: sample_rate_hz must be finite and > 0, '
-                                     f'got {rate!r}')
-    if offs.ndim != 1 or th_in.ndim != 1 or th_out.ndim != 1 or torque.ndim != 1:
-        return _Problem('malformed', f'{where}: arrays must be 1-D')
-    n = th_in.size
-    if n == 0:
-        return _Problem('malformed', f'{where}: empty block')
-    if offs.size != n or th_out.size != n:
-        return _Problem('malformed', f'{where}: array lengths differ: time_offset_s '
-                                     f'{offs.size}, theta_in_rad {n}, theta_out_rad {th_out.size}')
-    if torque.size not in (0, n):
-        return _Problem('malformed', f'{where}: torque_out_nm has {torque.size} samples, '
-                                     f'expected 0 or {n}')
-    # one pass without a temporary: a NaN or inf makes the sum non-finite (finite values
-    # overflow only beyond 1e304, which no angle or time reaches). The torque is not used
-    # by the TE analysis: a bad torque sample must not cost the block its angles.
-    # Time offsets that increase strictly between finite ends within +-1e300 are all finite
-    # and sum without overflow (n < 1e8): the increase test (needed anyway) covers them.
-    # count_nonzero of the comparison: no .all() wrapper (a NaN compares False: not increasing)
-    increasing = n == 1 or int(np.count_nonzero(offs[1:] > offs[:-1])) == n - 1
-    offs_ok = increasing and n < _OFFS_SUM_SAFE_N and float(offs[0]) >= -_OFFS_BOUND \
-        and float(offs[-1]) <= _OFFS_BOUND
-    add = np.add.reduce
-    if offs_ok:
-        with np.errstate(over='ignore', invalid='ignore'):
-            total_in, total_out = float(add(th_in)), float(add(th_out))
-        if math.isfinite(total_in) and math.isfinite(total_out):   # the clean block
-            return (int(seq), offs + stamp, th_in, th_out, rate)
-        names: tuple[str, ...] = ('theta_in_rad', 'theta_out_rad')
-        arrays: tuple[np.ndarray, ...] = (th_in, th_out)
-        totals = [total_in, total_out]
-    else:
-        names = ('time_offset_s', 'theta_in_rad', 'theta_out_rad')
-        arrays = (offs, th_in, th_out)
-        with np.errstate(over='ignore', invalid='ignore'):
-            totals = [float(add(a)) for a in arrays]
-    for name, arr, total in zip(names, arrays, totals, strict=True):
-        if not math.isfinite(total):
-            bad_idx = np.flatnonzero(~np.isfinite(arr))
-            if bad_idx.size:
-                bad = int(bad_idx[0])
-                return _Problem('non_finite', f'{where}: {name}[{bad}] is {float(arr[bad])!r}')
-            return _Problem('malformed', f'{where}: {name} values out of range (|x| > 1e300)')
-    if not increasing:
-        return _Problem('malformed', f'{where}: time_offset_s not strictly increasing')
-    return (int(seq), offs + stamp, th_in, th_out, rate)
-
-
-def _whole_number(name: str, value: float, minimum: int) -> None:
-    if isinstance(value, bool) or not isinstance(value, int | float | np.integer | np.floating) \
-            or not math.isfinite(value) or value != round(value) or value < minimum:
-        msg = f'{name} must be a whole number >= {minimum}, got {value!r}'
-        raise TeConfigError(msg)
-
-
-@dataclass(frozen=True)
-class TeAnalysisConfig:
-    """Settings of the streaming TE analysis (SI units).
-
-    Attributes:
-        orders: Gear ratio and the spectral lines to report.
-        window_revolutions: W, output revolutions per analysis window (whole number >= 1).
-        decimated_rate_hz: Rate of the TE samples handed back for live display (> 0).
-        max_window_samples: Largest window buffer (>= 16); bounds memory at
-            16 bytes per sample.
-        samples_per_rev: Angle-grid points per output revolution for the spectrum
-            (>= 8), or None for the window's own sample density.
-        compute_spectrum: Whether complete windows get an order spectrum.
-
-    Raises:
-        TeConfigError: A value breaks the rule stated above.
-    """
-
-    orders: OrderSet
-    window_revolutions: float = 1.0
-    decimated_rate_hz: float = 50.0
-    max_window_samples: int = 2_000_000
-    samples_per_rev: int | None = None
-    compute_spectrum: bool = True
-
-    def __post_init__(self) -> None:
-        """Validate."""
-        if not isinstance(self.orders, OrderSet):
-            msg = f'orders must be an OrderSet, got {type(self.orders).__name__}'
-            raise TeConfigError(msg)
-        _whole_number('window_revolutions', self.window_revolutions, 1)
-        object.__setattr__(self, 'window_revolutions', float(self.window_revolutions))
-        rate = self.decimated_rate_hz
-        if not (isinstance(rate, int | float) and math.isfinite(rate) and rate > 0):
-            msg = f'decimated_rate_hz must be finite and > 0, got {rate!r}'
-            raise TeConfigError(msg)
-        _whole_number('max_window_samples', self.max_window_samples, _MIN_WINDOW_SAMPLES)
-        object.__setattr__(self, 'max_window_samples', int(self.max_window_samples))
-        if self.samples_per_rev is not None:
-            _whole_number('samples_per_rev', self.samples_per_rev, 8)
-            object.__setattr__(self, 'samples_per_rev', int(self.samples_per_rev))
-
-    @property
-    def gear_ratio(self) -> float:
-        """Overall ratio i (from ``orders``)."""
-        return self.orders.gear_ratio
-
-
-@dataclass(frozen=True)
-class GapEvent:
-    """Something wrong in the stream.
-
-    Attributes:
-        kind: ``'seq_jump'``, ``'time_backwards'``, ``'non_finite'`` or ``'malformed'``.
-        seq: Sequence number of the block where it was seen (-1 if unreadable).
-        detail: Human-readable description naming the problem (for a seq jump: where in
-            the record and how long, from the first sample).
-        t_before_s: Time of the last clean sample before it [s, the blocks' clock] (None
-            when unknown).
-        t_after_s: Time of the first sample after it [s] (None when unknown).
-        missing_s: Time without data, ``t_after - t_before - 1 / sample_rate`` [s] (None
-            when unknown; 0 when the blocks' times leave no room for the lost ones).
-        at_s: ``t_before_s`` from the first clean sample of the stream [s] (None: unknown).
-    """
-
-    kind: GapKind
-    seq: int
-    detail: str
-    t_before_s: float | None = None
-    t_after_s: float | None = None
-    missing_s: float | None = None
-    at_s: float | None = None
-
-
-def seq_jump_event(expected: int, seq: int, t_before: float | None, t_after: float,
-                   rate_hz: float, t_first: float | None) -> GapEvent:
-    """The :class:`GapEvent` of a block ``seq`` arriving where ``expected`` was due: when and
-    for how long the record has no data (``t_before`` = last sample before, ``t_after`` =
-    first after, ``t_first`` = first sample of the record; the blocks' clock, s)."""
-    detail = f'expected seq {expected}, got {seq}'
-    missing = at = None
-    if t_before is not None and math.isfinite(t_before):
-        if rate_hz > 0:
-            missing = round(max(0.0, t_after - t_before - 1.0 / rate_hz), 6)
-        if t_first is not None:
-            at = round(t_before - t_first, 6)
-    if missing is not None and at is not None and t_after > t_before:   # type: ignore[operator]
-        detail += f': no data for {missing:.6g} s after {at:.6g} s into the record'
-    return GapEvent('seq_jump', seq, detail, t_before, float(t_after), missing, at)
-
-
-@dataclass(frozen=True)
-class WindowResult:
-    """One closed analysis window.
-
-    Attributes:
-        index: 0, 1, 2... in closing order.
-        start_stamp_s: Time of the first sample [s].
-        end_stamp_s: Time of the last sample [s].
-        complete: True when it covers ``window_revolutions`` whole revolutions with no gap.
-        stats: TE statistics of its samples (``revolutions`` = W when complete, else the
-            angle travelled from the first to the last sample).
-        spectrum: Order spectrum over W revolutions (complete windows only; None also when
-            the record is not strictly monotonic in phi, e.g. a reversal).
-        first_seq: Sequence number of the block of the first sample.
-        last_seq: Sequence number of the block of the last sample.
-        close_reason: ``'complete'``, ``'gap'``, ``'overflow'``, ``'flush'`` or
-            ``'reconfigure'``.
-    """
-
-    index: int
-    start_stamp_s: float
-    end_stamp_s: float
-    complete: bool
-    stats: TeStats
-    spectrum: OrderSpectrum | None
-    first_seq: int
-    last_seq: int
-    close_reason: CloseReason = 'complete'
-
-
-@dataclass(frozen=True)
-class StreamUpdate:
-    """What one :meth:`StreamingTeAnalyzer.push` produced.
-
-    Attributes:
-        stamp_s: Time of the first decimated sample [s] (NaN when there is none).
-        te_rad: Decimated TE [rad] (read-only).
-        phase_out_rad: Decimated reference output angle theta_in / i [rad] (read-only).
-        windows: Windows closed by this block (and by a preceding ``reconfigure``).
-        gaps: Problems met in this block.
-        time_s: Time of each decimated sample [s] (read-only).
-        period_s: Nominal spacing of the decimated samples [s] (NaN when unknown).
-    """
-
-    stamp_s: float
-    te_rad: np.ndarray
-    phase_out_rad: np.ndarray
-    windows: tuple[WindowResult, ...]
-    gaps: tuple[GapEvent, ...]
-    time_s: np.ndarray = field(default_factory=_empty_array)
-    period_s: float = math.nan
-
-
-@dataclass(frozen=True)
-class BatchUpdate:
-    """What one :meth:`StreamingTeAnalyzer.push_batch` produced.
-
-    Attributes:
-        windows: Windows closed by the batch (and by a preceding ``reconfigure``).
-        gaps: Problems met in the batch, in block order.
-    """
-
-    windows: tuple[WindowResult, ...]
-    gaps: tuple[GapEvent, ...]
-
-
-@dataclass(frozen=True)
-class OfflineResult:
-    """Result of :func:`analyze_blocks`.
-
-    Attributes:
-        windows: Every window closed, the last one by the final flush (empty when the
-            windows went to an ``on_window`` callback instead).
-        cumulative: Statistics over every clean sample.
-        counters: Final :attr:`StreamingTeAnalyzer.counters`.
-        gaps: Every gap event.
-    """
-
-    windows: tuple[WindowResult, ...]
-    cumulative: TeStats
-    counters: dict[str, int]
-    gaps: tuple[GapEvent, ...]
-
-
-class _WindowBuffer:
-    """Growable (up to a cap) buffers of phi and TE of the open window."""
 
     __slots__ = ('_scratch', 'cap', 'first_seq', 'last_seq', 'n', 'phi', 't_first', 't_last',
                  'te')
@@ -603,7 +181,7 @@ def _batch_flags(batch: EncoderBatch) -> tuple[np.ndarray, np.ndarray, np.ndarra
     with np.errstate(over='ignore', invalid='ignore'):
         bad = ~(np.isfinite(stamp) & np.isfinite(rate) & (rate > 0.0))
         for arr in (offs, batch.theta_in_rad, batch.theta_out_rad):
-            # a NaN or inf makes its block's sum non-finite (as in _normalize)
+            # a NaN or inf makes its block's sum non-finite (as in check_block)
             bad |= ~np.isfinite(np.add.reduceat(np.asarray(arr, dtype=np.float64), starts[:-1]))
     increasing = offs[1:] > offs[:-1]
     increasing[starts[1:-1] - 1] = True   # across block boundaries offsets restart
@@ -645,12 +223,12 @@ class StreamingTeAnalyzer:
         self._cum_folded = 0
         self._cum_rev = 0.0
         self._cum_key: tuple[Any, ...] = (None, 0, 0.0, None)   # the last read, see cumulative
-        self._buf = _WindowBuffer(config.max_window_samples)
+        self._buf = WindowBuffer(config.max_window_samples)
         self._spectrum_work = SpectrumWorkspace()   # the window spectra's work arrays
-        # analyze_blocks(spectra_thread=True): called with (window index, window buffer)
-        # instead of computing a complete window's spectrum here; it may take the buffer's
-        # arrays (and give it others of the same size)
-        self._spectrum_hook: Callable[[int, _WindowBuffer], None] | None = None
+        # set_spectrum_hook: called with (window index, window buffer) instead of computing
+        # a complete window's spectrum here; it may take the buffer's arrays (and give it
+        # others of the same size)
+        self._spectrum_hook: Callable[[int, WindowBuffer], None] | None = None
         self._pending: list[WindowResult] = []
         self._last_seq: int | None = None
         self._last_t: float | None = None
@@ -719,7 +297,7 @@ class StreamingTeAnalyzer:
             self._cum_folded = 0
             self._cum_rev = 0.0
         if config.max_window_samples != self._config.max_window_samples:
-            self._buf = _WindowBuffer(config.max_window_samples)
+            self._buf = WindowBuffer(config.max_window_samples)
         self._config = config
         self._last_phi = None
         self._decim_offset = 0
@@ -732,6 +310,38 @@ class StreamingTeAnalyzer:
         """
         self._config = replace(self._config, decimated_rate_hz=decimated_rate_hz)
         self._decim_offset = 0
+
+    def set_spectrum_hook(self, hook: Callable[[int, WindowBuffer], None] | None) -> None:
+        """Hand each complete window's spectrum to ``hook(window index, window buffer)``
+        instead of computing it here (None: compute it here again).
+
+        The offline runner's helper thread (:func:`rv_te_bench.core.offline.analyze_blocks`)
+        computes it with :meth:`window_spectrum` and puts it into the window it hands on;
+        a hook that fails to compute one calls :meth:`count_spectrum_failure`.
+        """
+        self._spectrum_hook = hook
+
+    @property
+    def spectrum_workspace(self) -> SpectrumWorkspace:
+        """The work arrays of the spectra computed on the analyzer's own thread."""
+        return self._spectrum_work
+
+    def count_spectrum_failure(self) -> None:
+        """Count a complete window whose spectrum could not be computed (``counters``)."""
+        self._counters['spectrum_failures'] += 1
+
+    def window_spectrum(self, phi: np.ndarray, te: np.ndarray, duration_s: float,
+                        workspace: SpectrumWorkspace) -> OrderSpectrum:
+        """The order spectrum of a complete window under the configuration in use.
+
+        Raises:
+            TeInputError: As :func:`~rv_te_bench.core.spectrum.order_spectrum` (a window
+                whose angle grid cannot be resampled).
+        """
+        cfg = self._config
+        return order_spectrum(phi, te, cfg.orders, duration_s=duration_s,
+                              samples_per_rev=cfg.samples_per_rev,
+                              revolutions=round(cfg.window_revolutions), workspace=workspace)
 
     def flush(self) -> tuple[WindowResult, ...]:
         """Close the open window at the end of a recording (partial, ``'flush'``)."""
@@ -772,8 +382,8 @@ class StreamingTeAnalyzer:
                 self._spectrum_hook(self._n_windows, buf)
             elif self._config.compute_spectrum:
                 try:
-                    spectrum = self._window_spectrum(phi, te, buf.t_last - buf.t_first,
-                                                     self._spectrum_work)
+                    spectrum = self.window_spectrum(phi, te, buf.t_last - buf.t_first,
+                                                    self._spectrum_work)
                 except TeInputError:
                     spectrum = None
                     self._counters['spectrum_failures'] += 1
@@ -790,14 +400,6 @@ class StreamingTeAnalyzer:
         if pending:
             self._pending.append(result)
         return result
-
-    def _window_spectrum(self, phi: np.ndarray, te: np.ndarray, duration_s: float,
-                         workspace: SpectrumWorkspace) -> OrderSpectrum:
-        """The order spectrum of a complete window (raises TeInputError as order_spectrum)."""
-        cfg = self._config
-        return order_spectrum(phi, te, cfg.orders, duration_s=duration_s,
-                              samples_per_rev=cfg.samples_per_rev,
-                              revolutions=round(cfg.window_revolutions), workspace=workspace)
 
     def _feed(self, phi: np.ndarray, te: np.ndarray, time_at: Callable[[int], float],
               seq_at: Callable[[int], int], out: list[WindowResult]) -> None:
@@ -934,8 +536,8 @@ class StreamingTeAnalyzer:
     def _push_one(self, block: EncoderBlockData, windows: list[WindowResult],
                   gaps: list[GapEvent]) -> StreamUpdate:
         self._counters['blocks'] += 1
-        clean = _normalize(block)
-        if isinstance(clean, _Problem):
+        clean = check_block(block)
+        if isinstance(clean, BlockProblem):
             seq = getattr(block, 'seq', -1)
             seq_int = int(seq) if isinstance(seq, int | np.integer) \
                 and not isinstance(seq, bool) else -1
@@ -1013,152 +615,3 @@ class StreamingTeAnalyzer:
             windows.append(closed)
         self._last_phi = None
         self._decim_offset = 0
-
-
-def analyze_blocks(blocks: Iterable[EncoderBlockData | EncoderBatch], config: TeAnalysisConfig,
-                   *, on_window: Callable[[WindowResult], None] | None = None,
-                   spectra_thread: bool | Executor = False) -> OfflineResult:
-    """Run a whole recording through a :class:`StreamingTeAnalyzer` (offline analysis).
-
-    Args:
-        blocks: The blocks (or batches of consecutive blocks) in recording order.
-        config: Analysis settings.
-        on_window: Called with each window as it closes; the windows are then not kept
-            (memory stays bounded by one window however long the recording).
-        spectra_thread: Compute the window spectra on a second thread while the next
-            blocks are analysed (the resampler and the FFT run without the GIL), and here
-            while that thread is busy. The windows, their order, the spectra and the
-            counters are the same as without; the thread holds one window's phi and TE
-            arrays besides the open window's, and at most :data:`SPECTRA_AHEAD` closed
-            windows wait behind it. An executor instead of True: its (one) worker thread
-            is that thread, shared with the caller's other jobs (such as reading the bag
-            ahead); it is not shut down here. Two cores run the caller and one helper
-            thread without preempting either (a third runnable thread costs the caller
-            CPU time: issue 23, 6-14 % less wall time with one shared helper).
-
-    Returns:
-        All windows (the last, partial one from the final flush; none with ``on_window``),
-        cumulative statistics, counters and gap events.
-    """
-    analyzer = StreamingTeAnalyzer(config)
-    windows: list[WindowResult] = []
-    gaps: list[GapEvent] = []
-    keep = windows.extend if on_window is None else (lambda ws: [on_window(w) for w in ws])
-    threaded = spectra_thread is not False and config.compute_spectrum
-    shared = spectra_thread if isinstance(spectra_thread, Executor) else None
-    with _SpectraThread(analyzer, keep, shared) if threaded \
-            else contextlib.nullcontext() as spectra:
-        closed = keep if spectra is None else spectra.closed
-        for item in blocks:
-            update = analyzer.push_batch(item) if isinstance(item, EncoderBatch) \
-                else analyzer.push(item)
-            closed(update.windows)
-            gaps.extend(update.gaps)
-        closed(analyzer.flush())
-        if spectra is not None:
-            spectra.drain()
-    return OfflineResult(windows=tuple(windows), cumulative=analyzer.cumulative,
-                         counters=analyzer.counters, gaps=tuple(gaps))
-
-
-#: Closed windows of an offline analysis that may wait (in order) behind the one whose
-#: spectrum is on the spectra thread.
-SPECTRA_AHEAD = 4
-
-
-class _SpectraThread:
-    """The window spectra of :func:`analyze_blocks`, shared by a worker thread and the caller.
-
-    A complete window's spectrum goes to the worker thread when the thread is free, with
-    the window's phi and TE arrays (the window buffer gets the arrays of the thread's
-    previous window, which is done: nothing is copied); while the thread is busy, the
-    calling thread computes the spectrum itself (the same call, the same values), so the
-    cores share the spectra as they are free (3-4 % less wall time than every spectrum on
-    the thread, measured side by side). :meth:`closed` hands the windows on in closing
-    order; at most SPECTRA_AHEAD wait behind the one on the thread. A spectrum that fails
-    counts in ``spectrum_failures`` and leaves the window without one, as the analyzer
-    does itself. The worker is a thread of its own, or the one of an executor the caller
-    shares (left running on exit: only this analysis's pending spectra are cancelled, and
-    the one running is waited for).
-    """
-
-    def __init__(self, analyzer: StreamingTeAnalyzer,
-                 keep: Callable[[list[WindowResult]], object],
-                 shared: Executor | None = None) -> None:
-        from concurrent.futures import ThreadPoolExecutor
-
-        self._analyzer = analyzer
-        self._keep = keep
-        self._own = shared is None
-        self._pool: Executor = shared if shared is not None else ThreadPoolExecutor(
-            max_workers=1, thread_name_prefix='te-spectra')
-        self._work = SpectrumWorkspace()            # used by the worker thread only
-        self._jobs: dict[int, Future[OrderSpectrum]] = {}   # window index -> its spectrum
-        self._on_thread: Future[OrderSpectrum] | None = None   # the thread's latest job
-        self._thread_arrays: tuple[np.ndarray, np.ndarray] | None = None   # ... its arrays
-        self._queue: deque[WindowResult] = deque()
-        analyzer._spectrum_hook = self._submit
-
-    def __enter__(self) -> _SpectraThread:
-        return self
-
-    def __exit__(self, *exc: object) -> None:
-        self._analyzer._spectrum_hook = None
-        if self._own:
-            self._pool.shutdown(wait=True, cancel_futures=True)
-            return
-        from concurrent.futures import wait
-
-        wait([job for job in self._jobs.values() if not job.cancel()])
-
-    def _submit(self, index: int, buf: _WindowBuffer) -> None:
-        """The window's spectrum: to the thread if it is free, else computed here."""
-        ana = self._analyzer
-        n = buf.n
-        duration_s = buf.t_last - buf.t_first
-        if self._on_thread is not None and not self._on_thread.done():
-            job: Future[OrderSpectrum] = Future()
-            try:   # with the caller's own workspace
-                job.set_result(ana._window_spectrum(
-                    buf.phi[:n], buf.te[:n], duration_s, ana._spectrum_work))
-            except TeInputError as exc:
-                job.set_exception(exc)
-            self._jobs[index] = job
-            return
-        # the thread is free: its previous window's arrays are free too
-        phi, te = buf.phi, buf.te
-        spare = self._thread_arrays
-        buf.phi, buf.te = (spare if spare is not None and spare[0].size == phi.size
-                           else (np.empty_like(phi), np.empty_like(te)))
-        self._thread_arrays = (phi, te)
-        self._on_thread = self._jobs[index] = self._pool.submit(
-            ana._window_spectrum, phi[:n], te[:n], duration_s, self._work)
-
-    def closed(self, windows: Iterable[WindowResult]) -> None:
-        """Queue closed windows; hand on those at the head whose spectrum is done."""
-        self._queue.extend(windows)
-        ready = []
-        while self._queue:
-            job = self._jobs.get(self._queue[0].index)
-            if job is not None and not job.done() and len(self._queue) <= SPECTRA_AHEAD:
-                break
-            ready.append(self._finish(self._queue.popleft()))
-        if ready:
-            self._keep(ready)
-
-    def drain(self) -> None:
-        """Wait for every pending spectrum and hand on the rest of the windows."""
-        if self._queue:
-            self._keep([self._finish(w) for w in self._queue])
-            self._queue.clear()
-
-    def _finish(self, window: WindowResult) -> WindowResult:
-        job = self._jobs.pop(window.index, None)
-        if job is None:
-            return window
-        try:
-            spectrum = job.result()
-        except TeInputError:
-            self._analyzer._counters['spectrum_failures'] += 1
-            return window
-        return replace(window, spectrum=spectrum)

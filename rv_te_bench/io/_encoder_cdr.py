@@ -20,7 +20,7 @@ from rv_te_bench.io.msgdefs import ENCODER_BLOCK, rv_te_typestore
 if TYPE_CHECKING:
     from collections.abc import Iterator
 
-    from rv_te_bench.core.stream import EncoderBatch, EncoderBlockData
+    from rv_te_bench.core.stream_records import EncoderBatch, EncoderBlockData
 
 __all__ = ['decode_encoder_block', 'decode_encoder_block_rosbags', 'encoder_block_seq']
 
@@ -105,7 +105,7 @@ def decode_encoder_block(data: bytes | memoryview) -> EncoderBlockData:
     Raises:
         BagError: The bytes do not hold a well-formed EncoderBlock.
     """
-    from rv_te_bench.core.stream import EncoderBlockData
+    from rv_te_bench.core.stream_records import EncoderBlockData
 
     buf = bytes(data)
     lay = _layout(buf)
@@ -239,7 +239,7 @@ def _concat_f64(u8: np.ndarray, pos: np.ndarray, counts: np.ndarray) -> np.ndarr
 def _encoder_items(buf: memoryview, starts: np.ndarray,
                    ends: np.ndarray) -> Iterator[EncoderBatch | int]:
     """Runs of well-formed messages as EncoderBatch, other messages by their index."""
-    from rv_te_bench.core.stream import EncoderBatch
+    from rv_te_bench.core.stream_records import EncoderBatch
 
     u8 = np.frombuffer(buf, np.uint8)
     parsed = _parse_encoder_blocks(u8, starts, ends)
@@ -269,7 +269,7 @@ def decode_encoder_block_rosbags(data: bytes | memoryview) -> EncoderBlockData:
     Raises:
         BagError: The bytes do not deserialise as EncoderBlock.
     """
-    from rv_te_bench.core.stream import EncoderBlockData
+    from rv_te_bench.core.stream_records import EncoderBlockData
 
     try:
         msg = rv_te_typestore().deserialize_cdr(bytes(data), ENCODER_BLOCK)

@@ -52,7 +52,7 @@ if TYPE_CHECKING:
     from concurrent.futures import Executor
     from pathlib import Path
 
-    from rv_te_bench.core.stream import EncoderBatch, EncoderBlockData
+    from rv_te_bench.core.stream_records import EncoderBatch, EncoderBlockData
 
 __all__ = [
     'PREFETCH_CHUNKS',

@@ -26,7 +26,7 @@ if TYPE_CHECKING:
 
     from rv_te_bench.core.advice import Advice
     from rv_te_bench.core.spectrum import OrderSpectrum
-    from rv_te_bench.core.stream import EncoderBlockData, WindowResult
+    from rv_te_bench.core.stream_records import EncoderBlockData, WindowResult
     from rv_te_bench.core.te import TeStats
     from sim.bench_info import BenchInfoData
 
@@ -62,7 +62,7 @@ def float64_field(values: npt.ArrayLike) -> array.array[float]:
 
 def encoder_block_to_data(msg: EncoderBlock) -> EncoderBlockData:
     """EncoderBlock message -> core EncoderBlockData (validation is the core's job)."""
-    from rv_te_bench.core.stream import EncoderBlockData
+    from rv_te_bench.core.stream_records import EncoderBlockData
 
     return EncoderBlockData(
         seq=int(msg.seq), stamp_s=stamp_to_s(msg.header.stamp),

@@ -25,7 +25,8 @@ from rclpy.node import Node
 from rv_te_msgs.msg import BenchInfo, EncoderBlock, TePlot, TeSpectrum, TransmissionError
 
 from rv_te_bench.core.orders import OrderSet
-from rv_te_bench.core.stream import StreamingTeAnalyzer, StreamUpdate, TeAnalysisConfig
+from rv_te_bench.core.stream import StreamingTeAnalyzer
+from rv_te_bench.core.stream_records import StreamUpdate, TeAnalysisConfig
 from rv_te_bench.nodes import convert, qos
 from rv_te_bench.nodes.common import (
     OK,

@@ -17,7 +17,7 @@ if TYPE_CHECKING:
     import numpy.typing as npt
 
     from rv_te_bench.core.angle_fold import AngleFold
-    from rv_te_bench.core.stream import EncoderBatch, EncoderBlockData
+    from rv_te_bench.core.stream_records import EncoderBatch, EncoderBlockData
 
     FloatArray = npt.NDArray[np.float64]
     ProgressFn = Callable[[int, int, float], None]
@@ -55,7 +55,7 @@ class _GuardedBlocks:
         return self
 
     def __next__(self) -> EncoderBlockData | EncoderBatch:
-        from rv_te_bench.core.stream import EncoderBatch
+        from rv_te_bench.core.stream_records import EncoderBatch
 
         try:
             item = next(self._it)

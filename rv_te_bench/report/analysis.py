@@ -58,7 +58,7 @@ if TYPE_CHECKING:
     from collections.abc import Callable
 
     from rv_te_bench.core.angle_fold import FoldedTe
-    from rv_te_bench.core.stream import WindowResult
+    from rv_te_bench.core.stream_records import WindowResult
     from rv_te_bench.core.te import TeStats
     from sim.bench_info import BenchInfoData
 
@@ -151,7 +151,8 @@ def analyze_bag(
     """
     from concurrent.futures import ThreadPoolExecutor
 
-    from rv_te_bench.core.stream import TeAnalysisConfig, analyze_blocks
+    from rv_te_bench.core.offline import analyze_blocks
+    from rv_te_bench.core.stream_records import TeAnalysisConfig
     from rv_te_bench.io.bag_reader import (
         helper_threads_allowed,
         open_bag,

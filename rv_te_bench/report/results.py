@@ -24,7 +24,7 @@ if TYPE_CHECKING:
     from rv_te_bench.core.advice import Advice
     from rv_te_bench.core.orders import OrderSet
     from rv_te_bench.core.spectrum import SpectrumLine
-    from rv_te_bench.core.stream import GapEvent, WindowResult
+    from rv_te_bench.core.stream_records import GapEvent, WindowResult
     from rv_te_bench.core.te import TeStats
     from sim.bench_info import BenchInfoData
 

@@ -17,7 +17,8 @@ from rv_te_bench.core.joint_state import (
     JointStateGap,
 )
 from rv_te_bench.core.orders import OrderSet
-from rv_te_bench.core.stream import StreamingTeAnalyzer, TeAnalysisConfig
+from rv_te_bench.core.stream import StreamingTeAnalyzer
+from rv_te_bench.core.stream_records import TeAnalysisConfig
 from rv_te_bench.errors import TeConfigError
 
 RATE_HZ = 1000.0

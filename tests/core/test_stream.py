@@ -14,15 +14,11 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 from numpy.testing import assert_allclose
 
+from rv_te_bench.core.offline import analyze_blocks
 from rv_te_bench.core.orders import OrderSet
 from rv_te_bench.core.spectrum import order_spectrum
-from rv_te_bench.core.stream import (
-    EncoderBlockData,
-    StreamingTeAnalyzer,
-    TeAnalysisConfig,
-    WindowResult,
-    analyze_blocks,
-)
+from rv_te_bench.core.stream import StreamingTeAnalyzer
+from rv_te_bench.core.stream_records import EncoderBlockData, TeAnalysisConfig, WindowResult
 from rv_te_bench.core.te import te_statistics, transmission_error_rad
 from rv_te_bench.core.units import arcmin_to_rad
 from rv_te_bench.errors import TeConfigError, TeInputError

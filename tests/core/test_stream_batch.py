@@ -19,14 +19,10 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 from numpy.testing import assert_allclose
 
+from rv_te_bench.core.offline import analyze_blocks
 from rv_te_bench.core.orders import OrderSet
-from rv_te_bench.core.stream import (
-    EncoderBatch,
-    EncoderBlockData,
-    StreamingTeAnalyzer,
-    TeAnalysisConfig,
-    analyze_blocks,
-)
+from rv_te_bench.core.stream import StreamingTeAnalyzer
+from rv_te_bench.core.stream_records import EncoderBatch, EncoderBlockData, TeAnalysisConfig
 from rv_te_bench.errors import TeInputError
 
 RATIO = 79.0

@@ -20,14 +20,9 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from rv_te_bench.core import stream
-from rv_te_bench.core.stream import (
-    SPECTRA_AHEAD,
-    EncoderBatch,
-    EncoderBlockData,
-    TeAnalysisConfig,
-    analyze_blocks,
-)
+from rv_te_bench.core import offline, stream
+from rv_te_bench.core.offline import SPECTRA_AHEAD, analyze_blocks
+from rv_te_bench.core.stream_records import EncoderBatch, EncoderBlockData, TeAnalysisConfig
 from tests.core.test_stream_batch import (
     FS_HZ,
     ORDERS,
@@ -113,7 +108,7 @@ def _with_a_slow_thread(monkeypatch: pytest.MonkeyPatch,
     real = stream.order_spectrum
     closed: list[int] = []
     where: list[str] = []
-    real_submit = stream._SpectraThread._submit
+    real_submit = offline._SpectraThread._submit
 
     def slow_on_the_thread(*args: object, **kwargs: object) -> object:
         name = threading.current_thread().name
@@ -127,7 +122,7 @@ def _with_a_slow_thread(monkeypatch: pytest.MonkeyPatch,
         real_submit(self, index, buf)
 
     monkeypatch.setattr(stream, 'order_spectrum', slow_on_the_thread)
-    monkeypatch.setattr(stream._SpectraThread, '_submit', counting_submit)
+    monkeypatch.setattr(offline._SpectraThread, '_submit', counting_submit)
     blocks = _stream([250] * n_blocks, ['ok'] * n_blocks, 1.0)   # a window per 4 blocks
     ahead: list[int] = []
     analyze_blocks(blocks, TeAnalysisConfig(orders=ORDERS),

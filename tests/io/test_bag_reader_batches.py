@@ -12,7 +12,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from rv_te_bench.core.stream import EncoderBatch, EncoderBlockData
+from rv_te_bench.core.stream_records import EncoderBatch, EncoderBlockData
 from rv_te_bench.errors import BagError
 from rv_te_bench.io import _mcap_scan, bag_reader
 from rv_te_bench.io.bag_reader import (

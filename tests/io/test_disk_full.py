@@ -21,8 +21,9 @@ from mcap.reader import NonSeekingReader, make_reader
 from mcap_ros2.decoder import DecoderFactory
 from rosbags.highlevel import AnyReader
 
+from rv_te_bench.core.offline import analyze_blocks
 from rv_te_bench.core.orders import OrderSet
-from rv_te_bench.core.stream import TeAnalysisConfig, analyze_blocks
+from rv_te_bench.core.stream_records import TeAnalysisConfig
 from rv_te_bench.io.bag_reader import bag_summary, read_encoder_blocks
 from rv_te_bench.io.bag_writer import RESERVE_NAME, BagWriter
 from tests.io.bag_fixtures import ENCODER_TOPIC, INFO_TOPIC, block_arrays

@@ -32,8 +32,9 @@ from rclpy.parameter import Parameter  # noqa: E402
 from rv_te_msgs.msg import BenchInfo, EncoderBlock, TeSpectrum, TransmissionError  # noqa: E402
 from sensor_msgs.msg import JointState  # noqa: E402
 
+from rv_te_bench.core.offline import analyze_blocks  # noqa: E402
 from rv_te_bench.core.orders import OrderSet  # noqa: E402
-from rv_te_bench.core.stream import TeAnalysisConfig, analyze_blocks  # noqa: E402
+from rv_te_bench.core.stream_records import TeAnalysisConfig  # noqa: E402
 from rv_te_bench.nodes import qos  # noqa: E402
 from rv_te_bench.nodes.bench_node import BenchNode, bench_config_from_params  # noqa: E402
 from rv_te_bench.nodes.joint_state_adapter import JointStateAdapterNode  # noqa: E402
@@ -81,7 +82,7 @@ def reference_windows(values: dict[str, object]) -> list:
 
 
 def _as_data(b):
-    from rv_te_bench.core.stream import EncoderBlockData
+    from rv_te_bench.core.stream_records import EncoderBlockData
 
     return EncoderBlockData(b.seq, b.t0_s, RATE_HZ, b.time_offset_s, b.theta_in_rad,
                             b.theta_out_rad, b.torque_out_nm)

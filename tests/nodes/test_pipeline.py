@@ -19,8 +19,9 @@ rclpy = pytest.importorskip('rclpy')
 from rclpy.parameter import Parameter  # noqa: E402
 from rv_te_msgs.msg import BenchInfo, EncoderBlock, TeSpectrum, TransmissionError  # noqa: E402
 
+from rv_te_bench.core.offline import analyze_blocks  # noqa: E402
 from rv_te_bench.core.orders import OrderSet  # noqa: E402
-from rv_te_bench.core.stream import TeAnalysisConfig, analyze_blocks  # noqa: E402
+from rv_te_bench.core.stream_records import TeAnalysisConfig  # noqa: E402
 from rv_te_bench.nodes import qos  # noqa: E402
 from rv_te_bench.nodes.bench_node import BenchNode  # noqa: E402
 from rv_te_bench.nodes.convert import encoder_block_to_data  # noqa: E402

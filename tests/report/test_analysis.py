@@ -296,7 +296,8 @@ def test_memory_does_not_grow_with_the_number_of_windows(tmp_path) -> None:
 
 def test_running_average_equals_the_mean_of_the_window_spectra(constant_bag: tuple) -> None:
     """The incremental average against numpy's mean over every window's full spectrum."""
-    from rv_te_bench.core.stream import TeAnalysisConfig, analyze_blocks
+    from rv_te_bench.core.offline import analyze_blocks
+    from rv_te_bench.core.stream_records import TeAnalysisConfig
     from rv_te_bench.io.bag_reader import read_encoder_blocks
 
     path, _ = constant_bag

@@ -17,7 +17,8 @@ import pytest
 
 from rv_te_bench.cli.main import main
 from rv_te_bench.core.orders import OrderSet
-from rv_te_bench.core.stream import EncoderBlockData, StreamingTeAnalyzer, TeAnalysisConfig
+from rv_te_bench.core.stream import StreamingTeAnalyzer
+from rv_te_bench.core.stream_records import EncoderBlockData, TeAnalysisConfig
 from tests import wang2020_reference as ref
 from tests.unit_bags import unit_bag
 
@@ -72,7 +73,7 @@ def _blocks(first: int, n: int) -> list[EncoderBlockData]:
 @pytest.mark.parametrize('first', [0, 1, 7])
 def test_streaming_core_block_by_block_and_batched(first: int) -> None:
     """A TE node that joins late (push) and the offline batches (push_batch) agree."""
-    from rv_te_bench.core.stream import EncoderBatch
+    from rv_te_bench.core.stream_records import EncoderBatch
 
     cfg = TeAnalysisConfig(orders=ORDERS)
     one = StreamingTeAnalyzer(cfg)
