@@ -53,7 +53,7 @@ def db_to_read(args: argparse.Namespace) -> str:
     if '://' not in db and not Path(db).is_file():
         msg = f'no results store at {db}: give --db PATH|URL (or set {DB_ENV})'
         raise StoreError(msg)
-    return db
+    return db   # (open it with create=False: a database that is not a store is not changed)
 
 
 def check_record_text(args: argparse.Namespace, names: Sequence[str] = ('serial', 'lot',

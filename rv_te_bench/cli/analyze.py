@@ -22,7 +22,7 @@ from pathlib import Path
 from typing import TYPE_CHECKING, Any, TextIO
 
 from rv_te_bench import __version__
-from rv_te_bench.cli._db import DB_ENV, add_db_argument, check_record_text, db_for_bags
+from rv_te_bench.cli._db import add_db_argument, check_record_text, db_for_bags
 from rv_te_bench.cli.argtypes import int_between, positive_float
 from rv_te_bench.errors import RvTeError, StoreError
 from rv_te_bench.safe_yaml import one_line
@@ -179,24 +179,26 @@ def _run(args: argparse.Namespace) -> int:
         results.append(res)
 
     doc = report_json(results)
-    recorded_in = _record(args, doc)
     if args.json:
-        print(json.dumps(doc, indent=2))
+        print(json.dumps(doc, indent=2), flush=True)
     else:
         _print_tables(results, sys.stdout)
-        if recorded_in:
-            print(f'recorded in the results store {recorded_in}')
     if args.report is not None:
         files = write_report(results, args.report, force=args.force)
         print(f'report written: {", ".join(str(f) for f in files)}', file=sys.stderr)
+    recorded_in = _record(args, doc)
+    if recorded_in:
+        print(f'recorded in the results store {recorded_in}',
+              file=sys.stderr if args.json else sys.stdout)
     return 0
 
 
 def _record(args: argparse.Namespace, doc: dict[str, Any]) -> str | None:
     """One record per analysed bag in the results store; the store's name, or None.
 
-    A store given with --db (or $RV_TE_DB) that cannot be written is an error; the default
-    store next to the bags only warns (a bag on a read-only share is still analysed).
+    A result that cannot be stored is an error (exit 1 after the analysis is shown), the
+    default store's as much as one given with --db: a record silently missing from the
+    store is worse than a failed command (``--no-db`` analyses without recording).
     """
     from rv_te_bench.store import open_store, records_from_analysis_json
 
@@ -212,10 +214,9 @@ def _record(args: argparse.Namespace, doc: dict[str, Any]) -> str | None:
                 store.upsert(rec)
             return store.url
     except StoreError as exc:
-        if args.db or os.environ.get(DB_ENV):
-            raise
-        print(f'WARNING: not recorded in the results store: {exc}', file=sys.stderr)
-        return None
+        msg = (f'the analysis was not recorded in the results store: {exc} (--db elsewhere, '
+               'or --no-db to analyse without recording)')
+        raise StoreError(msg) from None
 
 
 # --------------------------------------------------------------------------------------

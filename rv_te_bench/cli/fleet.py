@@ -138,8 +138,9 @@ def run(args: argparse.Namespace) -> int:
                            window_revolutions=args.window_revolutions,
                            with_advice=not args.no_advice, serial=args.serial, lot=args.lot)
     with open_store(db) as store:
+        shown = store.url   # the password hidden (a URL from --db or $RV_TE_DB)
         if not args.quiet:
-            print(f'fleet: {len(bags)} bag(s), results in {store.url}', file=sys.stderr)
+            print(f'fleet: {len(bags)} bag(s), results in {shown}', file=sys.stderr)
         progress = None if args.quiet else _Progress(len(bags))
         try:
             summary = run_fleet(bags, store, options=options, workers=args.workers,
@@ -149,12 +150,12 @@ def run(args: argparse.Namespace) -> int:
             if progress is not None:
                 progress.close()
     if args.json:
-        print(json.dumps({**summary.to_json_dict(), 'db': str(db)}, indent=2))
+        print(json.dumps({**summary.to_json_dict(), 'db': shown}, indent=2))
     else:
         print(f'{summary.total} bag(s): {summary.ok} analysed, {summary.partial} partial, '
               f'{summary.failed} failed, {summary.skipped} skipped (already in the store; '
               f'--force to redo), {summary.duplicate_paths} duplicate(s) in '
-              f'{summary.elapsed_s:.1f} s with {summary.workers} worker(s); results in {db}')
+              f'{summary.elapsed_s:.1f} s with {summary.workers} worker(s); results in {shown}')
         for group in summary.duplicates:
             print(f'  {len(group)} paths hold the same bag (one record, {group[0]}): '
                   + ', '.join(group))

@@ -101,7 +101,7 @@ def run(args: argparse.Namespace) -> int:
     """List or export the records; 0 ok."""
     from rv_te_bench.store import export_records, open_store
     flt = filter_from_args(args)
-    with open_store(db_to_read(args)) as st:
+    with open_store(db_to_read(args), create=False) as st:
         rows = st.query(flt)
     if args.export is not None:
         n = export_records(rows, args.export)
@@ -118,7 +118,8 @@ def run(args: argparse.Namespace) -> int:
 
 
 def _json(r: UnitRecord) -> dict[str, Any]:
-    return {'id': r.id, 'serial': r.serial, 'lot': r.lot, 'preset': r.preset,
+    return {'id': r.id, 'serial': r.serial, 'lot': r.lot, 'operator': r.operator,
+            'preset': r.preset,
             'bench_id': r.bench_id, 'test': r.test, 'plan': r.plan,
             'tested_at': r.tested_at.isoformat(), 'analysed_at': r.analysed_at.isoformat(),
             'status': r.status, 'failure': r.failure, 'verdict': r.verdict,

@@ -85,7 +85,7 @@ def run(args: argparse.Namespace) -> int:
     from rv_te_bench.report.spc import display_unit, spc_document
     from rv_te_bench.store import open_store
 
-    with open_store(db_to_read(args)) as st:
+    with open_store(db_to_read(args), create=False) as st:
         if args.list:
             names = [n if d == 'all' else f'{n} --direction {d}' for n, d in st.metric_names()]
             names += [f'line:{lab}' for lab in st.line_labels()]
@@ -139,7 +139,7 @@ def run(args: argparse.Namespace) -> int:
                                  baseline_text=base_text)
         print(f'report written: {", ".join(str(f) for f in files)}', file=sys.stderr)
     if args.json:
-        _print_quietly(json.dumps(doc, indent=2))
+        _print_quietly(json.dumps(doc, indent=2, allow_nan=False))
     else:
         _print_quietly('\n'.join(_summary(doc)))
     return 0

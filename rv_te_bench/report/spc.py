@@ -12,6 +12,7 @@ import base64
 import html
 import io
 import json
+import math
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
@@ -112,9 +113,10 @@ def spc_figure(chart: ControlChart, series: Series, *, title: str,
 
 def spc_document(chart: ControlChart, series: Series, *, title: str,
                  capability: Capability | None, baseline_text: str) -> dict[str, Any]:
-    """The JSON of an SPC run (display units, unit tagged)."""
+    """The JSON of an SPC run (display units, unit tagged; strict JSON: a value that is not
+    finite, such as Cpk of a series without spread, is null)."""
     scale, unit = display_unit(series.metric)
-    return {
+    return _finite({
         'title': title, 'metric': series.metric, 'direction': series.direction,
         'unit': unit, 'baseline': baseline_text, 'n_points': int(chart.values.size),
         'chart': chart.to_json_dict(scale, unit),
@@ -123,7 +125,18 @@ def spc_document(chart: ControlChart, series: Series, *, title: str,
                   for i, s, lot, t, v in zip(series.result_ids, series.serials, series.lots,
                                              series.tested_at, series.values, strict=True)],
         'capability': None if capability is None else capability.to_json_dict(scale, unit),
-    }
+    })
+
+
+def _finite(obj: Any) -> Any:
+    """``obj`` with every non-finite float replaced by None (JSON has no NaN/Infinity)."""
+    if isinstance(obj, dict):
+        return {k: _finite(v) for k, v in obj.items()}
+    if isinstance(obj, list | tuple):
+        return [_finite(v) for v in obj]
+    if isinstance(obj, float | np.floating):
+        return float(obj) if math.isfinite(obj) else None
+    return obj
 
 
 def write_spc_report(directory: Path, chart: ControlChart, series: Series, *, title: str,
@@ -138,7 +151,7 @@ def write_spc_report(directory: Path, chart: ControlChart, series: Series, *, ti
                        baseline_text=baseline_text)
     page = _html(doc, base64.b64encode(png).decode('ascii'))
     write_all({directory / 'spc.png': png,   # all or nothing (no 0-byte PNG on a full disk)
-               directory / 'spc.json': json.dumps(doc, indent=2) + '\n',
+               directory / 'spc.json': json.dumps(doc, indent=2, allow_nan=False) + '\n',
                directory / 'spc.html': page})
     return [directory / n for n in ('spc.png', 'spc.json', 'spc.html')]
 

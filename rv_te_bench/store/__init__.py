@@ -17,6 +17,7 @@ from rv_te_bench.store._store import (
     StoredResult,
     default_db_for,
     open_store,
+    redact_url,
     upsert_all,
 )
 from rv_te_bench.store.records import (
@@ -32,4 +33,4 @@ from rv_te_bench.store.records import (
 __all__ = ['DEFAULT_DB_NAME', 'LineValue', 'MetricValue', 'ResultFilter', 'ResultStore',
            'Series', 'StoredResult', 'UnitRecord', 'bag_fingerprint', 'bag_stat',
            'default_db_for', 'export_records', 'failed_record', 'open_store',
-           'records_from_analysis_json', 'records_table', 'upsert_all']
+           'records_from_analysis_json', 'records_table', 'redact_url', 'upsert_all']

@@ -4,6 +4,11 @@ Columns: the record's identity and conditions, then ``<metric>`` for the whole r
 ``<metric>_cw`` / ``<metric>_ccw`` per direction (SI, the name carries the unit), then
 ``line_<label>_amplitude_rad`` per spectral line (labels made column-safe). Empty cells
 where a record has no such value.
+
+CSV is opened by spreadsheets, which run a cell starting with ``=``, ``+``, ``-``, ``@`` (or
+a tab / carriage return) as a formula: such text cells (a serial, an operator, a failure
+reason, a path) are written with a leading ``'`` (OWASP's CSV-injection rule); numbers are
+written as numbers.
 """
 
 from __future__ import annotations
@@ -25,6 +30,16 @@ __all__ = ['export_records', 'records_table']
 _BASE = ('id', 'serial', 'lot', 'operator', 'bench_id', 'preset', 'reducer_type', 'test',
          'plan', 'tested_at', 'analysed_at', 'status', 'verdict', 'failure', 'command',
          'software_version', 'bag_path', 'bag_sha256')
+
+
+_FORMULA_START = ('=', '+', '-', '@', '\t', '\r')
+
+
+def _csv_safe(v: Any) -> Any:
+    """A text cell that a spreadsheet would run as a formula, quoted with a leading '."""
+    if isinstance(v, str) and v.startswith(_FORMULA_START):
+        return "'" + v
+    return v
 
 
 def _line_column(label: str) -> str:
@@ -67,8 +82,8 @@ def export_records(rows: list[StoredResult], path: Path) -> int:
         if suffix == '.csv':
             with tmp.open('w', newline='', encoding='utf-8') as fh:
                 w = csv.DictWriter(fh, fieldnames=cols, extrasaction='raise')
-                w.writeheader()
-                w.writerows(table)
+                w.writerow({c: _csv_safe(c) for c in cols})   # column names too
+                w.writerows({k: _csv_safe(v) for k, v in row.items()} for row in table)
         elif suffix == '.parquet':
             try:
                 import pyarrow as pa

@@ -6,19 +6,39 @@ upgraded to the newest schema when opened; a store newer than the software is re
 SQLite is the default: a file next to the bags, no server; PostgreSQL is given by URL.
 
 Every write is one transaction: a process killed mid-write leaves either the old record or
-the new one, never a record without its metrics.
+the new one, never a record without its metrics. Creating or upgrading the schema is one
+transaction too, under the database's own lock (SQLite ``BEGIN IMMEDIATE``, a PostgreSQL
+advisory lock): concurrent first writers wait for each other instead of failing.
+
+Reading commands open a store with ``create=False``: a database that is not a store is
+refused untouched (no tables made, not switched to WAL), and a SQLite store is opened
+read-only (also in a folder that cannot be written).
+
+Passwords never leave this module: :func:`redact_url` hides them in every URL shown, also
+in a malformed one, and error messages are scrubbed of them.
 """
 
 from __future__ import annotations
 
 import math
 import os
+import re
 from dataclasses import dataclass
 from datetime import UTC, datetime
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
-from sqlalchemy import Column, MetaData, String, Table, create_engine, event, inspect, select
+from sqlalchemy import (
+    Column,
+    MetaData,
+    String,
+    Table,
+    create_engine,
+    event,
+    inspect,
+    select,
+    text,
+)
 from sqlalchemy.engine import make_url
 from sqlalchemy.exc import ArgumentError, IntegrityError, SQLAlchemyError
 from sqlalchemy.orm import Session, selectinload
@@ -37,7 +57,7 @@ if TYPE_CHECKING:
     from rv_te_bench.store.records import UnitRecord
 
 __all__ = ['DEFAULT_DB_NAME', 'ResultFilter', 'ResultStore', 'Series', 'StoredResult',
-           'open_store']
+           'open_store', 'redact_url']
 
 #: File name of the embedded (SQLite) store next to the bags.
 DEFAULT_DB_NAME = 'rv-te-results.sqlite'
@@ -110,21 +130,64 @@ class Series:
     result_ids: list[int]
 
 
-def _redact(url: str) -> str:
+#: scheme://user:PASSWORD@host... (the password runs to the last '@', as SQLAlchemy reads it)
+_USERINFO = re.compile(r'^(?P<head>[A-Za-z][A-Za-z0-9+.\-]*://[^:/@?#]*):(?P<pw>.*)@(?P<tail>[^@]*)$',
+                       re.DOTALL)
+_QUERY_PW = re.compile(r'(?i)(password=)[^&]*')
+#: the advisory lock key of schema changes on PostgreSQL (any constant shared by all rv-te)
+_PG_LOCK_KEY = 0x72762D7465   # 'rv-te'
+
+
+def _password(url: str) -> str | None:
+    """The password in ``url`` (None without one), read the way SQLAlchemy reads it."""
+    m = _USERINFO.match(url)
+    if m and m.group('pw'):
+        return m.group('pw')
     try:
-        return make_url(url).render_as_string(hide_password=True)
-    except ArgumentError:
-        return url[:200]
+        return make_url(url).password   # type: ignore[return-value]
+    except (ArgumentError, ValueError):
+        return None
 
 
-def _normalise_url(db: str | os.PathLike[str]) -> str:
+def redact_url(url: str) -> str:
+    """``url`` with its password (userinfo or ``password=`` query) shown as ``***``; a path
+    or a URL without one unchanged; a malformed URL never shows it either."""
+    m = _USERINFO.match(url)
+    out = f'{m.group("head")}:***@{m.group("tail")}' if m and m.group('pw') else url
+    return _QUERY_PW.sub(r'\1***', out)[:300]
+
+
+def _scrub(message: str, url: str) -> str:
+    """An error message with the URL's password (if the driver echoed it) replaced."""
+    pw = _password(url)
+    if pw:
+        message = message.replace(pw, '***')
+    return _QUERY_PW.sub(r'\1***', message)
+
+
+def _normalise_url(db: str | os.PathLike[str], *, create: bool) -> str:
     text = os.fspath(db)
     if '://' not in text:
         path = Path(text).expanduser()
         if not path.parent.is_dir():
             msg = f'results store {path}: folder {path.parent} does not exist'
             raise StoreError(msg)
+        if not create and not path.is_file():
+            msg = f'no results store at {path}'
+            raise StoreError(msg)
         return f'sqlite:///{path.resolve()}'
+    try:
+        url = make_url(text)
+    except (ArgumentError, ValueError):
+        msg = f'results store URL {redact_url(text)!r} is not a database URL'
+        raise StoreError(msg) from None
+    if url.get_backend_name() == 'sqlite':
+        name = url.database or ''
+        if name in ('', ':memory:') or 'memory' in str(url.query.get('mode', '')):
+            msg = (f'results store {redact_url(text)}: an in-memory SQLite database keeps '
+                   'nothing; give a file (--db results.sqlite)')
+            raise StoreError(msg)
+        return text
     for prefix in ('postgresql://', 'postgres://'):
         if text.startswith(prefix):  # psycopg 3 is the driver we install
             return 'postgresql+psycopg://' + text[len(prefix):]
@@ -139,15 +202,37 @@ def _sqlite_pragmas(dbapi_conn: DBAPIConnection, _record: ConnectionPoolEntry) -
     cur.close()
 
 
+def _sqlite_readonly(dbapi_conn: DBAPIConnection, _record: ConnectionPoolEntry) -> None:
+    cur = dbapi_conn.cursor()
+    cur.execute('PRAGMA query_only=ON')
+    cur.close()
+
+
+def _revision(conn: Any) -> list[str] | None:
+    """The store's alembic_version rows, None when the table is missing."""
+    if not inspect(conn).has_table(_VERSION_TABLE.name):
+        return None
+    return list(conn.execute(select(_VERSION_TABLE.c.version_num)).scalars().all())
+
+
 def _at_head(engine: Engine) -> bool:
     """True when the store's alembic_version is SCHEMA_HEAD (read without alembic)."""
     with engine.connect() as conn:
-        if not inspect(conn).has_table(_VERSION_TABLE.name):
-            return False
-        return conn.execute(select(_VERSION_TABLE.c.version_num)).scalars().all() == [SCHEMA_HEAD]
+        return _revision(conn) == [SCHEMA_HEAD]
+
+
+def _lock_schema(conn: Any) -> None:
+    """Take the database's lock for a schema change (held to the end of the transaction)."""
+    if conn.dialect.name == 'sqlite':
+        # pysqlite would begin lazily (and run DDL outside a transaction): begin ourselves
+        conn.exec_driver_sql('BEGIN IMMEDIATE')
+    elif conn.dialect.name == 'postgresql':
+        conn.execute(text('SELECT pg_advisory_xact_lock(:k)'), {'k': _PG_LOCK_KEY})
 
 
 def _migrate(engine: Engine, shown: str) -> None:
+    """Bring the store to the newest schema: one transaction under the schema lock, so that
+    concurrent first writers wait and then find it done."""
     if _at_head(engine):
         return   # the usual case, without alembic's import and script parsing (~0.15 s)
     from alembic import command
@@ -156,42 +241,103 @@ def _migrate(engine: Engine, shown: str) -> None:
     from alembic.script import ScriptDirectory
     cfg = Config()
     cfg.set_main_option('script_location', os.fspath(_MIGRATIONS))
-    head = ScriptDirectory.from_config(cfg).get_current_head()
-    with engine.begin() as conn:
-        current = MigrationContext.configure(conn).get_current_revision()
-        if current == head:
-            return
-        known = {s.revision for s in ScriptDirectory.from_config(cfg).walk_revisions()}
-        if current is not None and current not in known:
-            msg = (f'results store {shown} has schema revision {current!r}, newer than this '
-                   f'rv-te knows (head {head!r}): upgrade rv-te-bench')
-            raise StoreError(msg)
-        cfg.attributes['connection'] = conn
-        command.upgrade(cfg, 'head')
+    script = ScriptDirectory.from_config(cfg)
+    head = script.get_current_head()
+    with engine.connect() as conn:
+        if conn.dialect.name == 'sqlite':
+            conn = conn.execution_options(isolation_level='AUTOCOMMIT')   # BEGIN is ours
+            _lock_schema(conn)
+            raw = conn.connection.dbapi_connection
+            try:
+                _upgrade(conn, cfg, script, head, shown, MigrationContext, command)
+            except BaseException:
+                if getattr(raw, 'in_transaction', True):
+                    conn.exec_driver_sql('ROLLBACK')
+                raise
+            if getattr(raw, 'in_transaction', True):   # (alembic may have committed it)
+                conn.exec_driver_sql('COMMIT')
+        else:
+            with conn.begin():
+                _lock_schema(conn)
+                _upgrade(conn, cfg, script, head, shown, MigrationContext, command)
 
 
-def open_store(db: str | os.PathLike[str]) -> ResultStore:
-    """Open (creating or upgrading) the results store at a path (SQLite) or URL.
+def _upgrade(conn: Any, cfg: Any, script: Any, head: str | None, shown: str,
+             migration_context: Any, command: Any) -> None:
+    current = migration_context.configure(conn).get_current_revision()
+    if current == head:
+        return   # another process did it while we waited for the lock
+    known = {s.revision for s in script.walk_revisions()}
+    if current is not None and current not in known:
+        msg = (f'results store {shown} has schema revision {current!r}, newer than this '
+               f'rv-te knows (head {head!r}): upgrade rv-te-bench')
+        raise StoreError(msg)
+    cfg.attributes['connection'] = conn
+    command.upgrade(cfg, 'head')
+
+
+def _readonly_engine(url: str) -> Engine:
+    """A read-only engine on a SQLite store (never created, never switched to WAL); in a
+    folder this process cannot write, SQLite's ``immutable`` mode (no lock files)."""
+    path = url[len('sqlite:///'):]
+    folder = os.path.dirname(path) or '.'
+    flags = 'mode=ro' if os.access(folder, os.W_OK) else 'mode=ro&immutable=1'
+    engine = create_engine(f'sqlite:///file:{path}?{flags}&uri=true',
+                           connect_args={'timeout': 30.0})
+    event.listen(engine, 'connect', _sqlite_readonly)
+    return engine
+
+
+def open_store(db: str | os.PathLike[str], *, create: bool = True) -> ResultStore:
+    """Open the results store at a path (SQLite) or URL.
+
+    Args:
+        db: A SQLite file or a database URL.
+        create: Create the store or upgrade its schema as needed (the writing commands).
+            False (``results``, ``spc``): the database must already be a store; it is not
+            changed, and a SQLite store is opened read-only.
 
     Raises:
-        StoreError: The database cannot be reached or its schema is newer than ours.
+        StoreError: The database cannot be reached, is not a store (``create=False``), is
+            an in-memory SQLite database, or its schema is newer than ours. The message
+            never shows a password.
     """
-    url = _normalise_url(db)
-    shown = url[len('sqlite:///'):] if url.startswith('sqlite:///') else _redact(url)
+    url = _normalise_url(db, create=create)
+    shown = url[len('sqlite:///'):] if url.startswith('sqlite:///') else redact_url(url)
     try:
+        if url.startswith('sqlite') and not create:
+            engine = _readonly_engine(url)
+            with engine.connect() as conn:
+                rev = _revision(conn)
+            if rev is None:
+                engine.dispose()
+                msg = (f'{shown} is not a results store (it has no alembic_version table); '
+                       'nothing was changed')
+                raise StoreError(msg)
+            if rev != [SCHEMA_HEAD]:
+                engine.dispose()   # an older store: upgraded by opening it to write
+                return open_store(db, create=True)
+            return ResultStore(engine, shown)
         if url.startswith('sqlite'):
             engine = create_engine(url, connect_args={'timeout': 30.0})
             event.listen(engine, 'connect', _sqlite_pragmas)
         else:
             engine = create_engine(url, pool_pre_ping=True)
+        if not create:
+            with engine.connect() as conn:
+                if _revision(conn) is None:
+                    engine.dispose()
+                    msg = (f'{shown} is not a results store (it has no alembic_version '
+                           'table); nothing was changed')
+                    raise StoreError(msg)
         _migrate(engine, shown)
     except ModuleNotFoundError as exc:
         msg = (f'results store {shown} needs the Python module {exc.name!r}'
                + (": pip install 'rv-te-bench[postgres]'" if 'psycopg' in str(exc.name) else ''))
         raise StoreError(msg) from None
-    except (SQLAlchemyError, ArgumentError) as exc:
+    except (SQLAlchemyError, ArgumentError, ValueError) as exc:
         detail = str(getattr(exc, 'orig', None) or exc).strip().splitlines()[0][:300]
-        msg = f'cannot open results store {shown}: {detail}'
+        msg = f'cannot open results store {shown}: {_scrub(detail, url)}'
         raise StoreError(msg) from None
     return ResultStore(engine, shown)
 
@@ -207,6 +353,11 @@ def _row_values(rec: UnitRecord, now: datetime) -> dict[str, Any]:
         'bag_sha256': rec.bag_sha256, 'bag_size_bytes': rec.bag_size_bytes,
         'bag_mtime_ns': rec.bag_mtime_ns, 'advice': rec.advice, 'details': rec.details,
     }
+
+
+#: Identity a record keeps when a rewrite of it does not say (None): a bag analysed again
+#: without --serial keeps the serial an earlier --serial gave it.
+_KEPT_WHEN_MISSING = frozenset({'serial', 'lot', 'operator'})
 
 
 def _opt(v: float | None) -> float | None:
@@ -237,9 +388,11 @@ class ResultStore:
         for attempt in range(2):
             try:
                 return self._upsert_once(record)
-            except IntegrityError:
+            except IntegrityError as exc:
                 if attempt:   # a concurrent writer inserted the same key: update it now
-                    raise
+                    detail = str(getattr(exc, 'orig', None) or exc).strip().splitlines()[0]
+                    msg = f'cannot write to results store {self.url}: {detail[:300]}'
+                    raise StoreError(msg) from None
             except SQLAlchemyError as exc:
                 detail = str(getattr(exc, 'orig', None) or exc).strip().splitlines()[0][:300]
                 msg = f'cannot write to results store {self.url}: {detail}'
@@ -257,6 +410,8 @@ class ResultStore:
                 s.add(row)
             else:
                 for k, v in values.items():
+                    if v is None and k in _KEPT_WHEN_MISSING:
+                        continue   # a re-analysis without --serial keeps the serial given
                     setattr(row, k, v)
                 row.metrics.clear()
                 row.lines.clear()

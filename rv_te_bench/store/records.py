@@ -285,7 +285,8 @@ def records_from_analysis_json(doc: dict[str, Any], *, bag_paths: list[Path],
         bag_paths: The bag of each entry, in order (hashed here).
         command: Which command wrote it ('analyze', 'fleet').
         software_version: The suite's version.
-        serial, lot, operator: Override what the bag's BenchInfo says.
+        serial, lot, operator: Override what the bag says (its session metadata:
+            ``unit_serial``, ``operator`` of a bench description or a recorder).
     """
     bags = doc.get('bags') or []
     if len(bags) != len(bag_paths):
@@ -296,15 +297,17 @@ def records_from_analysis_json(doc: dict[str, Any], *, bag_paths: list[Path],
         sha, size, mtime = bag_fingerprint(path)
         bench = entry.get('bench') or {}
         unit = bench.get('unit') or {}
+        session = entry.get('session') or {}   # the bag's metadata: imported and recorded
         rec = entry.get('recommendation') or {}
         advice = rec.get('advice') if rec.get('available') else None
         fallback = datetime.fromtimestamp(mtime / 1e9, tz=UTC)
         out.append(UnitRecord(
             test='te-analysis', bag_path=os.fspath(path.resolve()), bag_sha256=sha,
             tested_at=_tested_at(entry, fallback),
-            serial=serial or unit.get('serial') or bench.get('unit_serial') or None,
-            lot=lot or unit.get('lot') or None,
-            operator=operator or unit.get('operator') or None,
+            serial=(serial or session.get('unit_serial') or unit.get('serial')
+                    or bench.get('unit_serial') or None),
+            lot=lot or session.get('lot') or unit.get('lot') or None,
+            operator=operator or session.get('operator') or unit.get('operator') or None,
             bench_id=bench.get('bench_id') or None, preset=bench.get('preset') or None,
             reducer_type=bench.get('reducer_type') or None,
             status='partial' if entry.get('partial') else 'ok',
