@@ -8,10 +8,13 @@ import yaml
 
 if TYPE_CHECKING:
     from collections.abc import Iterable, Mapping, Sequence
+    from pathlib import Path
 
     from rv_te_bench.io._mcap_file import McapFile, TopicInfo
+    from rv_te_bench.io._storage import Storage
 
-__all__ = ['bag_info', 'dump_yaml', 'qos_profile_dict']
+__all__ = ['bag_info', 'dump_yaml', 'metadata_yaml_bytes', 'qos_profile_dict',
+           'replace_metadata_yaml']
 
 _YamlDumper = getattr(yaml, 'CSafeDumper', yaml.SafeDumper)  # libyaml: ~20x faster
 
@@ -96,3 +99,27 @@ def bag_info(files: Sequence[McapFile], topics: Iterable[TopicInfo],
         'custom_data': dict(custom_data),
         'ros_distro': 'jazzy',
     }
+
+
+def metadata_yaml_bytes(info: Mapping[str, Any]) -> bytes:
+    """The text of metadata.yaml for ``rosbag2_bagfile_information`` ``info``, encoded."""
+    return dump_yaml({'rosbag2_bagfile_information': dict(info)}).encode()
+
+
+def replace_metadata_yaml(storage: Storage, folder: Path, data: bytes) -> None:
+    """Replace ``folder/metadata.yaml`` atomically (temporary file + rename).
+
+    Raises:
+        OSError: It could not be written (the old one stays; the temporary is removed).
+    """
+    target = folder / 'metadata.yaml'
+    tmp = folder / '.metadata.yaml.tmp'
+    try:
+        storage.write_file(tmp, data)
+        storage.replace(tmp, target)
+    except OSError:
+        try:
+            storage.unlink(tmp)
+        except OSError:
+            pass
+        raise

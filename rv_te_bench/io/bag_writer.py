@@ -54,9 +54,17 @@ from rv_te_bench.io._mcap_file import (
     TopicInfo,
     compressor,
 )
-from rv_te_bench.io._metadata_yaml import bag_info, dump_yaml, qos_profile_dict
-from rv_te_bench.io._storage import SPACE_ERRNOS, Storage
+from rv_te_bench.io._metadata_yaml import (
+    bag_info,
+    dump_yaml,
+    metadata_yaml_bytes,
+    qos_profile_dict,
+    replace_metadata_yaml,
+)
+from rv_te_bench.io._reserve import Reserve, reserve_need
+from rv_te_bench.io._storage import Storage
 from rv_te_bench.io._write_loss import WRITE_GAP_RECORD, WriteGap, utc_now
+from rv_te_bench.io._write_stall import WriteStall
 from rv_te_bench.io.msgdefs import full_msgdef, type_hash
 
 if TYPE_CHECKING:
@@ -68,7 +76,6 @@ __all__ = ['RESERVE_NAME', 'SESSION_METADATA_NAME', 'BagWriter', 'Compression', 
 
 SESSION_METADATA_NAME = 'rv_te_session'
 RESERVE_NAME = '.rv_te_reserve'
-_RESERVE_MARGIN = 64 << 10   # bytes beyond the estimated summary + metadata.yaml
 _log = logging.getLogger(__name__)
 
 
@@ -161,15 +168,9 @@ class BagWriter:
         self._files: list[McapFile] = []
         self._file: McapFile | None = None
         self._open = Chunk()           # collecting messages
-        self._held: list[Chunk] = []   # full chunks waiting for space
-        self._held_bytes = 0
-        self._gap: WriteGap | None = None   # the disk is full now
-        self._gap_errno = 0
-        self._gaps: list[WriteGap] = []
-        self._reserve_path = self.path / RESERVE_NAME
-        self._reserve_size = 0
+        self._stall = WriteStall(self.stall_buffer_bytes)   # the disk is full: held, lost
+        self._reserve = Reserve(self._storage, self.path / RESERVE_NAME)
         self._yaml_size = 4096
-        self._next_retry_mono = 0.0
         self._last_flush_mono = time.monotonic()
         self._last_yaml_mono = self._last_flush_mono
         self._yaml_dirty = False
@@ -193,7 +194,7 @@ class BagWriter:
     def pending(self) -> dict[str, int]:
         """Messages per topic accepted but not on disk yet (open chunk, held ones)."""
         out = dict.fromkeys(self._topics, 0)
-        for chunk in (*self._held, self._open):
+        for chunk in (*self._stall.held, self._open):
             for cid, n in chunk.message_counts().items():
                 out[self._by_cid[cid].name] += n
         return out
@@ -211,12 +212,12 @@ class BagWriter:
     @property
     def write_gaps(self) -> list[WriteGap]:
         """Every period in which the bag could not be written, in order."""
-        return list(self._gaps)
+        return list(self._stall.gaps)
 
     @property
     def stalled(self) -> bool:
         """True while the disk is full (messages are held or lost)."""
-        return self._gap is not None
+        return self._stall.gap is not None
 
     @property
     def files(self) -> list[Path]:
@@ -300,8 +301,8 @@ class BagWriter:
             raise BagError(msg) from None
         if self._closed:
             self._check_open()
-        if self._gap is not None and self._drop_while_stalled(info, timestamp_ns,
-                                                              len(cdr_bytes)):
+        if self._stall.gap is not None and self._drop_while_stalled(info, timestamp_ns,
+                                                                    len(cdr_bytes)):
             return
         file = self._file
         if self.split_duration_ns is not None and file is not None and (
@@ -357,15 +358,16 @@ class BagWriter:
         if self._closed:
             return
         try:
-            if self._gap is None and self._open.data:
+            if self._stall.gap is None and self._open.data:
                 self._write_open()
-            if self._gap is not None and self._try_resume() and self._open.data:
+            if self._stall.gap is not None and self._try_resume() and self._open.data:
                 self._write_open()
-            if self._gap is not None:
-                self._lose_pending()
+            if self._stall.gap is not None:
+                self._stall.lose_all(self._open, self._by_cid)
+                self._open = Chunk()
             file = self._file
             if file is not None and not file.closed:
-                self._release_reserve()
+                self._reserve.release()
                 try:
                     self._finish_file(file)
                 except OSError as exc:
@@ -375,7 +377,7 @@ class BagWriter:
                                    '(readers scan it)')
         finally:
             self._closed = True
-            self._release_reserve()
+            self._reserve.release()
         try:
             self._write_metadata_yaml(state='closed')
         except OSError as exc:
@@ -409,15 +411,15 @@ class BagWriter:
         self._check_open()
         now = time.monotonic()
         self._last_flush_mono = now
-        if self._gap is not None:
+        if self._stall.gap is not None:
             if len(self._open.data) >= self.chunk_size_bytes:
-                self._hold(self._open)
+                self._stall.hold(self._open)
                 self._open = Chunk()
-            if now < self._next_retry_mono or not self._try_resume():
+            if now < self._stall.next_retry_mono or not self._try_resume():
                 return
         if self._open.data:
             self._write_open()
-            if self._gap is not None:
+            if self._stall.gap is not None:
                 return
         if self._yaml_dirty and (
                 update_yaml or now - self._last_yaml_mono >= self.flush_interval_s):
@@ -457,7 +459,7 @@ class BagWriter:
     def _split(self) -> None:
         if self._open.data:
             self._write_open()
-            if self._gap is not None:
+            if self._stall.gap is not None:
                 return
         file = self._file
         assert file is not None
@@ -478,31 +480,18 @@ class BagWriter:
     def _start_gap(self, exc: OSError, held: Sequence[Chunk] = ()) -> None:
         """Writing failed: close the file at its last complete chunk, hold or lose."""
         file = self._file
-        gap = WriteGap(error=exc.strerror or str(exc), started_utc=utc_now(),
-                       file_before=file.path.name if file is not None else '')
-        self._gap = gap
-        self._gap_errno = exc.errno or 0
-        self._gaps.append(gap)
-        for chunk in held:   # the oldest messages are held, one contiguous range is lost
-            room = self.stall_buffer_bytes - self._held_bytes
-            if not gap.lost_messages and len(chunk.data) <= room:
-                self._hold(chunk)
-                continue
-            if not gap.lost_messages and room > 0:
-                head, chunk = chunk.split(room)
-                if head.data:
-                    self._hold(head)
-            self._lose(chunk)
-        if gap.lost_messages and self._open.data:   # newer than what was lost
-            self._lose(self._open)
-            self._open = Chunk()
-        self._shrink_reserve()
+        stall = self._stall
+        if stall.begin(exc, file.path.name if file is not None else '', held, self._open,
+                       self._by_cid):
+            self._open = Chunk()   # newer than what was lost: lost too
+        gap = stall.gap
+        assert gap is not None
+        self._reserve.shrink(3 * self._yaml_size + (16 << 10))   # room for metadata.yaml
         if file is not None and not file.closed:
             self._close_after_failure(file, exc)
         self._file = None
-        self._next_retry_mono = time.monotonic() + self.flush_interval_s
-        retry = (f'retrying every {self.flush_interval_s:g} s'
-                 if self._gap_errno in SPACE_ERRNOS else 'not retrying')
+        stall.next_retry_mono = time.monotonic() + self.flush_interval_s
+        retry = f'retrying every {self.flush_interval_s:g} s' if stall.retrying else 'not retrying'
         self._on_event(
             f'bag {self.path}: cannot write ({gap.error}); {gap.file_before or "the bag"} '
             f'closed at its last complete chunk ({sum(self.counts.values())} messages on '
@@ -525,46 +514,20 @@ class BagWriter:
     def _drop_while_stalled(self, info: TopicInfo, t_ns: int, size: int) -> bool:
         """While the disk is full: try to resume when due. True: the message is counted
         lost (do not store it); False: store it (held in memory until space returns)."""
-        if time.monotonic() >= self._next_retry_mono and self._try_resume():
+        if time.monotonic() >= self._stall.next_retry_mono and self._try_resume():
             return False
-        gap = self._gap
-        assert gap is not None
-        # once something is lost, all is until writing resumes: the loss is one range
-        if not gap.lost_messages and (self._held_bytes + len(self._open.data)
-                                      + MSG_HEADER.size + size <= self.stall_buffer_bytes):
-            return False
-        gap.lose(info.name, t_ns)
-        info.lost += 1
-        return True
-
-    def _hold(self, chunk: Chunk) -> None:
-        self._held.append(chunk)
-        self._held_bytes += len(chunk.data)
-
-    def _lose(self, chunk: Chunk) -> None:
-        gap = self._gap
-        assert gap is not None
-        for cid, flat in chunk.index.items():
-            if flat:
-                times = flat[0::2]
-                topic = self._by_cid[cid]
-                topic.lost += len(times)
-                gap.lose(topic.name, min(times), len(times), last_ns=max(times))
-
-    def _lose_pending(self) -> None:
-        for chunk in (*self._held, self._open):
-            self._lose(chunk)
-        self._held, self._held_bytes, self._open = [], 0, Chunk()
+        return not self._stall.admits(info, t_ns, size, len(self._open.data))
 
     def _try_resume(self) -> bool:
         """Resume into a new file if the space has returned; True when writing again."""
-        gap = self._gap
+        stall = self._stall
+        gap = stall.gap
         if gap is None:
             return True
-        self._next_retry_mono = time.monotonic() + self.flush_interval_s
-        if self._gap_errno not in SPACE_ERRNOS:
+        stall.next_retry_mono = time.monotonic() + self.flush_interval_s
+        if not stall.retrying:
             return False
-        pending = self._held_bytes + len(self._open.data)
+        pending = stall.held_bytes + len(self._open.data)
         free = self._storage.free_bytes(self.path)
         if free is not None and free < 2 * self._reserve_need() + pending + self.chunk_size_bytes:
             return False
@@ -572,24 +535,23 @@ class BagWriter:
             self._ensure_reserve()
         except OSError:
             return False
-        held = self._held
         gap.resumed_utc = utc_now()
         gap.file_after = f'{self.path.name}_{len(self._files)}.mcap'
-        gap.held = sum(sum(c.message_counts().values()) for c in (*held, self._open))
+        gap.held = sum(sum(c.message_counts().values()) for c in (*stall.held, self._open))
         try:
             self._open_file(gap)
         except OSError:
             gap.resumed_utc = gap.file_after = None
             gap.held = 0
             return False
-        self._gap = None
+        stall.gap = None
         # metadata.yaml lists the new file before messages go into it (readers ignore
         # unlisted files); no room even for that: still full, a new gap keeps the held ones
         self._write_yaml_or_gap()
-        if self._gap is not None:
+        if stall.gap is not None:
             gap.held = 0
             return False
-        self._held, self._held_bytes = [], 0
+        held = stall.take_held()
         for i, chunk in enumerate(held):
             try:
                 self._write_chunk(chunk)
@@ -602,36 +564,11 @@ class BagWriter:
         return True
 
     def _reserve_need(self) -> int:
-        """Bytes still to be written when the bag closes now: the open file's summary and
-        a metadata.yaml (twice: the temporary copy beside the old one), with a margin."""
-        file = self._file
-        n_chunks = len(file.chunk_indexes) if file is not None else 0
-        per_topic = sum(len(t.msgdef) + 2 * len(t.qos_yaml) + 256 for t in self._topics.values())
-        return (n_chunks * (112 + 10 * len(self._topics)) + 2 * per_topic
-                + 3 * self._yaml_size + _RESERVE_MARGIN)
+        return reserve_need(self._file, self._topics.values(), self._yaml_size)
 
     def _ensure_reserve(self) -> None:
         """Grow the reserve file to twice the need once the need passes it (rarely)."""
-        need = self._reserve_need()
-        if need > self._reserve_size:
-            self._storage.reserve(self._reserve_path, 2 * need)
-            self._reserve_size = 2 * need
-
-    def _shrink_reserve(self) -> None:
-        """Give back the reserve but room for the final metadata.yaml."""
-        keep = min(self._reserve_size, 3 * self._yaml_size + (16 << 10))
-        try:
-            self._storage.reserve(self._reserve_path, keep)
-            self._reserve_size = keep
-        except OSError:
-            self._release_reserve()
-
-    def _release_reserve(self) -> None:
-        try:
-            self._storage.unlink(self._reserve_path)
-        except OSError:
-            return
-        self._reserve_size = 0
+        self._reserve.ensure(self._reserve_need())
 
     # ----------------------------------------------------------------- files
     def _open_file(self, gap: WriteGap | None = None) -> None:
@@ -666,7 +603,7 @@ class BagWriter:
                 self._storage.close(file.fd)
             except OSError:
                 pass
-        for extra in (*self.files, self.path / 'metadata.yaml', self._reserve_path):
+        for extra in (*self.files, self.path / 'metadata.yaml', self._reserve.path):
             try:
                 self._storage.unlink(extra)
             except OSError:
@@ -680,10 +617,10 @@ class BagWriter:
     # ----------------------------------------------------------------- metadata.yaml
     def _bag_info(self, *, state: str) -> dict[str, Any]:
         custom = {**self.session_metadata, 'rv_te_bench.writer_state': state}
-        if self._gaps:
+        if self._stall.gaps:
             custom['rv_te_bench.lost_messages'] = str(self.lost_messages)
             custom['rv_te_bench.write_gaps'] = dump_yaml(
-                [g.as_dict() for g in self._gaps]).strip()
+                [g.as_dict() for g in self._stall.gaps]).strip()
         return bag_info(self._files, self._topics.values(), custom)
 
     def _write_metadata_yaml(self, *, state: str) -> None:
@@ -694,20 +631,12 @@ class BagWriter:
         """
         self._yaml_dirty = False
         self._last_yaml_mono = time.monotonic()
-        text = dump_yaml({'rosbag2_bagfile_information': self._bag_info(state=state)})
-        data = text.encode()
+        data = metadata_yaml_bytes(self._bag_info(state=state))
         self._yaml_size = len(data)
-        target = self.path / 'metadata.yaml'
-        tmp = self.path / '.metadata.yaml.tmp'
         try:
-            self._storage.write_file(tmp, data)
-            self._storage.replace(tmp, target)
+            replace_metadata_yaml(self._storage, self.path, data)
         except OSError:
             self._yaml_dirty = True
-            try:
-                self._storage.unlink(tmp)
-            except OSError:
-                pass
             raise
 
     def _write_yaml_or_gap(self) -> None:
@@ -715,7 +644,7 @@ class BagWriter:
         try:
             self._write_metadata_yaml(state='recording')
         except OSError as exc:
-            if self._gap is None and self._file is not None:
+            if self._stall.gap is None and self._file is not None:
                 self._start_gap(exc)
             else:
                 self._on_event(f'bag {self.path}: metadata.yaml not updated ({exc.strerror})')

@@ -1,7 +1,7 @@
 """Offline analysis of recorded sessions: bag(s) -> :class:`AnalysisResult`.
 
 One bag is read an MCAP chunk at a time (:func:`rv_te_bench.io.bag_reader.read_encoder_batches`),
-fed to the TE core (:func:`rv_te_bench.core.stream.analyze_blocks`, the same windowing the TE
+fed to the TE core (:func:`rv_te_bench.core.offline.analyze_blocks`, the same windowing the TE
 node uses, with the same result as block by block) and summarised in memory that does not
 grow with the recording (each window's spectrum is folded into a running average):
 

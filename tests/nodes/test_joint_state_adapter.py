@@ -4,7 +4,7 @@ Own Context and domain id per test (conftest), every node destroyed, every test 
 
 The reference is the EncoderBlock path computed independently of the adapter: the same
 simulated unit (same parameters and seed) run through :class:`sim.bench.BenchSimulator`
-block by block and analysed by :func:`rv_te_bench.core.stream.analyze_blocks`, which is what
+block by block and analysed by :func:`rv_te_bench.core.offline.analyze_blocks`, which is what
 the TE node computes live on the bench's EncoderBlocks (tests/nodes/test_pipeline.py checks
 live == offline). The JointState path carries the same float64 encoder readings (quantised
 by the simulated RON 886 encoders, resolution 2 pi / 36e6 rad = 1.7e-7 rad), so the window
