@@ -22,6 +22,7 @@ markdown table per part (benchmarks/README.md keeps the last run).
 from __future__ import annotations
 
 import argparse
+import cmath
 import math
 import sys
 import time
@@ -31,20 +32,27 @@ import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
+from rv_te_bench.core.angle_fold import AngleFold
 from rv_te_bench.core.bench_uncertainty import BenchUncertainty
 from rv_te_bench.core.directional import direction_te
 from rv_te_bench.core.hysteresis import HysteresisConfig, dwell_points, hysteresis_metrics
+from rv_te_bench.core.hysteresis_uncertainty import hysteresis_budgets
+from rv_te_bench.core.identify import identify_folded
+from rv_te_bench.core.identify_uncertainty import identification_budgets
 from rv_te_bench.core.orders import OrderSet
-from rv_te_bench.core.te_uncertainty import (
-    hysteresis_budgets,
-    line_budgets,
-    te_pp_budget,
+from rv_te_bench.core.te_uncertainty import line_budgets, te_pp_budget
+from rv_te_bench.core.uncertainty_mc import (
+    mc_hysteresis,
+    mc_identification,
+    mc_line,
+    mc_te_pp,
 )
-from rv_te_bench.core.uncertainty_mc import mc_hysteresis, mc_line, mc_te_pp
 from sim.bench import BenchConfig, BenchSimulator
 from sim.drive import ConstantSpeed
 from sim.encoders import EncoderSpec, remounted
+from sim.presets import load_preset
 from sim.program import ProgramSimulator, TorqueSegment
+from sim.wang2020 import Wang2kvParams
 
 TE_PRESET = 'wang2020-2kv'
 HYST_PRESET = 'rv-80e-101'
@@ -52,6 +60,16 @@ RATE_HZ = 10_000.0
 SPEED_RPM = 3000.0
 RATED_NM = 784.0
 ENCODER = 'heidenhain-ron886'
+AS = 206264.806           # arcsec per rad
+IDENT_LABELS = {'e_ot_m': ('e_ot [um]', 1e6), 'pair1_m': ('|Q1| [um]', 1e6),
+                'pair2_m': ('|Q2| [um]', 1e6), 'theta_ot_rad': ('theta_ot [deg]', 180 / math.pi),
+                'pair1_phase_rad': ('arg Q1 [deg]', 180 / math.pi),
+                'pair2_phase_rad': ('arg Q2 [deg]', 180 / math.pi)}
+HYST_LABELS = {'lost_motion_rad': ('lost motion [arcsec]', AS),
+               'backlash_rad': ('backlash [arcsec]', AS),
+               'hysteresis_loss_j': ('hysteresis loss [J]', 1.0),
+               'torsional_rigidity_K_nm_per_rad': ('torsional rigidity K [N m/arcmin]',
+                                                   1 / 3437.747)}
 
 
 def sim_spec(bench: BenchUncertainty, which: str, rng: np.random.Generator) -> EncoderSpec:
@@ -125,7 +143,33 @@ def te_run(rng: np.random.Generator, bench: BenchUncertainty, *, unit_phases: bo
         lines[name] = (ln, a, p, true.spectrum.line(ln.label))
     keep = travel < meas.revolutions * 2 * np.pi
     return {'pp': pp, 'pp_true': true.te_pp_rad, 'lines': lines, 'phi': phi[keep] - phi[0],
-            'te': te[keep], 'offset': float(phi[0]), 'ratio': kin.gear_ratio}
+            'te': te[keep], 'offset': float(phi[0]), 'ratio': kin.gear_ratio,
+            **ident_budgets(phi, te, overrides, kin.gear_ratio, bench)}
+
+
+def ident_budgets(phi: np.ndarray, te: np.ndarray, overrides: tuple[str, ...],
+                  gear_ratio: float, bench: BenchUncertainty) -> dict:
+    """The identified eccentricities' budgets and their true values (the preset's
+    eccentricities at the drawn phases; labels matched to the identification's)."""
+    fold = AngleFold()
+    fold.add(phi, te)
+    folded = fold.result()
+    params = Wang2kvParams.from_preset(load_preset(TE_PRESET, list(overrides)))
+    ident = identify_folded(folded, params, split=False)
+    buds = identification_budgets(ident, folded, gear_ratio=gear_ratio, bench=bench)
+    e1, e2, eg, eo = params.e_p1_m, params.e_p2_m, params.e_g_m, params.e_ot_m
+    t1, t2, tg, to = (params.theta_p1_0_rad, params.theta_p2_0_rad, params.theta_g_0_rad,
+                      params.theta_ot_0_rad)
+    q1 = e1 * cmath.exp(1j * t1) + eg * cmath.exp(1j * tg)
+    q2 = e2 * cmath.exp(1j * t2) - eg * cmath.exp(1j * tg)
+    ee = eo * cmath.exp(1j * to)
+    if abs(ident.pair_phasors_m[2] + ee) < abs(ident.pair_phasors_m[2] - ee):
+        q1, q2, ee = q2, q1, -ee               # the exact label swap of the model
+    truth = {'e_ot_m': abs(ee), 'pair1_m': abs(q1), 'pair2_m': abs(q2),
+             'theta_ot_rad': cmath.phase(ee), 'pair1_phase_rad': cmath.phase(q1),
+             'pair2_phase_rad': cmath.phase(q2)}
+    return {'ident': {n: (b, truth[n]) for n, b in buds.items()},
+            'ident_fit': (folded, ident)}
 
 
 # --------------------------------------------------------------------------------------
@@ -227,36 +271,43 @@ def main(argv: list[str] | None = None) -> int:
     r = te_run(rng, bench, unit_phases=False)
     mc = mc_te_pp(r['pp'], r['phi'], r['te'], gear_ratio=r['ratio'], bench=bench,
                   draws=args.draws, rng=rng, theta_out_offset_rad=r['offset'])
-    rows.append(('TE p-p [arcsec]', mc, 206264.8))
+    rows.append(('TE p-p [arcsec]', mc, AS, r['pp']))
     for name, (ln, a, p, _) in r['lines'].items():
         ma, mp = mc_line(a, p, r['phi'], r['te'], ln.output_order, gear_ratio=r['ratio'],
                          bench=bench, draws=args.draws, rng=rng,
                          theta_out_offset_rad=r['offset'])
-        rows.append((f'line {ln.label} ({name}) amplitude [arcsec]', ma, 206264.8))
-        rows.append((f'line {ln.label} ({name}) phase [deg]', mp, 180 / math.pi))
+        rows.append((f'line {ln.label} ({name}) amplitude [arcsec]', ma, AS, a))
+        rows.append((f'line {ln.label} ({name}) phase [deg]', mp, 180 / math.pi, p))
+    fit = r['ident_fit']
+    mi = mc_identification({n: b for n, (b, _) in r['ident'].items()}, fit[0], fit[1],
+                           gear_ratio=r['ratio'], bench=bench,
+                           draws=max(args.draws // 10, 300), rng=rng)
+    for n, res in mi.items():
+        label, sc = IDENT_LABELS[n]
+        rows.append((f'identified {label}', res, sc, r['ident'][n][0]))
     h = hyst_run(rng, bench)
     mh = mc_hysteresis(h['budgets'], h['t'], h['a'], h['cfg'], bench=bench,
                        theta_out_rad=h['theta_out'], draws=max(args.draws // 10, 500), rng=rng,
                        counts=h['counts'])
-    scale = {'lost_motion_rad': ('lost motion [arcsec]', 206264.8),
-             'backlash_rad': ('backlash [arcsec]', 206264.8),
-             'hysteresis_loss_j': ('hysteresis loss [J]', 1.0),
-             'torsional_rigidity_K_nm_per_rad': ('torsional rigidity K [N m/arcmin]',
-                                                 1 / 3437.75)}
+    hb = dict(h['budgets'])
+    for b in h['budgets'].values():
+        hb.update({p.measurand: p for p in b.parts})
     for n, res in mh.items():
-        rows.append((scale[n][0], res, scale[n][1]))
+        base, _, side = n.partition(' ')
+        label, sc = HYST_LABELS[base]
+        rows.append((f'{label} {side}'.strip(), res, sc, hb[n]))
     print('## GUM law of propagation vs Monte Carlo (GUM Supplement 1)\n')
     print('| result | value | u_c | k | U (GUM) | U (MC) | MC - GUM | draws |')
     print('|---|---:|---:|---:|---:|---:|---:|---:|')
-    budgets = {'TE p-p [arcsec]': r['pp']}
-    for name, (ln, a, p, _) in r['lines'].items():
-        budgets[f'line {ln.label} ({name}) amplitude [arcsec]'] = a
-        budgets[f'line {ln.label} ({name}) phase [deg]'] = p
-    for n, b in h['budgets'].items():
-        budgets[scale[n][0]] = b
     worst = 0.0
-    for label, res, sc in rows:
-        b = budgets[label]
+    for label, res, sc, b in rows:
+        if b.parts:       # a minimum: its budget's interval must contain the MC interval
+            lo, hi = b.interval
+            print(f'| {label} (the smaller side) | {b.value * sc:.4g} | {b.u_c * sc:.3g} | '
+                  f'{b.k:.3f} | [{lo * sc:.4g}, {hi * sc:.4g}] | [{res.low * sc:.4g}, '
+                  f'{res.high * sc:.4g}] | {"contained" if res.contained else "NOT contained"} '
+                  f'| {res.draws} |')
+            continue
         worst = max(worst, abs(res.difference))
         print(f'| {label} | {b.value * sc:.4g} | {b.u_c * sc:.3g} | {b.k:.3f} | '
               f'{res.u_gum * sc:.3g} | {res.u_mc * sc:.3g} | {100 * res.difference:+.2f} % | '
@@ -272,6 +323,8 @@ def main(argv: list[str] | None = None) -> int:
         for name, (_ln, a, p, tl) in r['lines'].items():
             checks.append((f'line {name} amplitude', a, tl.amplitude_rad, False))
             checks.append((f'line {name} phase', p, tl.phase_rad, True))
+        for name, (b, true) in r['ident'].items():
+            checks.append((f'identified {name}', b, true, name.endswith('_rad')))
         h = hyst_run(rng, bench)
         for n, b in h['budgets'].items():
             checks.append((n, b, h['true'][n], False))

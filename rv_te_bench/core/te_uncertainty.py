@@ -38,12 +38,7 @@ the read-head noise. Every result below is a functional of TE_meas; its inputs:
   Noise and quantisation are in that spread; without a repeat (one window) they are
   entered as type B instead.
 
-Hysteresis metrics (lost motion, backlash, rigidity, loss) are computed by
-:func:`rv_te_bench.core.hysteresis.hysteresis_metrics` from the dwell points; their
-sensitivities to each input are numeric (the metric recomputed with the input's
-perturbation: an error function of the output encoder added to the angles in sine and
-cosine quadrature, the torque shifted or scaled). The input encoder is locked: its error is
-a constant and cancels.
+The hysteresis metrics' budgets are in :mod:`.hysteresis_uncertainty`.
 """
 
 from __future__ import annotations
@@ -56,16 +51,14 @@ import numpy as np
 from rv_te_bench.core.uncertainty import Budget, UncertaintyInput, combine, type_a, type_b
 
 if TYPE_CHECKING:
-    from collections.abc import Callable, Sequence
+    from collections.abc import Sequence
 
     import numpy.typing as npt
 
     from rv_te_bench.core.bench_uncertainty import BenchUncertainty, EncoderErrorModel
-    from rv_te_bench.core.hysteresis import HysteresisConfig
 
 __all__ = [
     'harmonic_inputs',
-    'hysteresis_budgets',
     'line_budgets',
     'te_pp_budget',
 ]
@@ -285,159 +278,3 @@ def _unknown_notes(bench: BenchUncertainty) -> list[str]:
             'are not in the budget (state them in the bench description)'
             for who, e in (('input encoder', bench.encoder_in),
                            ('output encoder', bench.encoder_out)) if not e.known]
-
-
-# --------------------------------------------------------------------------------------
-# hysteresis
-
-
-def hysteresis_budgets(torque_nm: npt.ArrayLike, angle_rad: npt.ArrayLike,
-                       config: HysteresisConfig, *, bench: BenchUncertainty,
-                       theta_out_rad: float, counts: npt.ArrayLike | None = None,
-                       dwell_sigma_rad: tuple[float, int] | None = None,
-                       sample_step_rad: float = 0.0) -> dict[str, Budget]:
-    """Budgets of lost motion, backlash, hysteresis loss and each rigidity region.
-
-    Args:
-        torque_nm, angle_rad: The points the metrics were computed from (dwell means of a
-            torque-step test, or the samples of a constant-speed one).
-        config: As for :func:`~rv_te_bench.core.hysteresis.hysteresis_metrics`.
-        bench: The bench's type B inputs.
-        theta_out_rad: Output encoder angle at the measuring position [rad].
-        counts: Samples averaged in each point (None: one each).
-        dwell_sigma_rad: (pooled within-dwell standard deviation [rad], its dof): type A
-            noise of the points; None: the data sheet's noise.
-        sample_step_rad: Angle between samples of a constant-speed test (test resolution).
-
-    Returns:
-        ``lost_motion_rad``, ``backlash_rad``, ``hysteresis_loss_j`` and
-        ``torsional_rigidity_<region>_nm_per_rad`` (the smaller side, as reported).
-    """
-    from rv_te_bench.core.hysteresis import hysteresis_metrics
-
-    t = np.asarray(torque_nm, dtype=np.float64)
-    a = np.asarray(angle_rad, dtype=np.float64)
-    n_pts = np.ones(t.size) if counts is None else np.asarray(counts, dtype=np.float64)
-
-    def metrics(tt: np.ndarray, aa: np.ndarray) -> dict[str, float]:
-        m = hysteresis_metrics(tt, aa, config)
-        out = {'lost_motion_rad': m.lost_motion_rad, 'backlash_rad': m.backlash_rad,
-               'hysteresis_loss_j': m.hysteresis_loss_j}
-        for r in config.rigidity_regions:
-            pos, neg = m.rigidity_nm_per_rad[r.name]
-            out[f'torsional_rigidity_{r.name}_nm_per_rad'] = min(pos, neg)
-        return out
-
-    base = metrics(t, a)
-    names = list(base)
-    sides = _rigidity_sides(t, a, config)
-    inputs: dict[str, list[UncertaintyInput | None]] = {n: [] for n in names}
-
-    def metrics_sided(tt: np.ndarray, aa: np.ndarray) -> dict[str, float]:
-        m = hysteresis_metrics(tt, aa, config)
-        out = {'lost_motion_rad': m.lost_motion_rad, 'backlash_rad': m.backlash_rad,
-               'hysteresis_loss_j': m.hysteresis_loss_j}
-        for r in config.rigidity_regions:
-            out[f'torsional_rigidity_{r.name}_nm_per_rad'] = \
-                m.rigidity_nm_per_rad[r.name][sides[r.name]]
-        return out
-
-    # output encoder error functions: the metric change per unit amplitude, sin and cos
-    th = theta_out_rad + (a - a[0])
-    enc = bench.encoder_out
-    for cname, order, g in enc.components():
-        ds = _delta(metrics_sided, base, t, a + 1e-9 * np.sin(order * th), 1e-9)
-        dc = _delta(metrics_sided, base, t, a + 1e-9 * np.cos(order * th), 1e-9)
-        for n in names:
-            inputs[n].append(type_b(f'output encoder: {cname}', sensitivity=math.hypot(
-                ds[n], dc[n]), distribution='arcsine', half_width=g, source=enc.source,
-                note='numeric: metric change per unit error, sine and cosine quadrature'))
-    # per-point weights (numeric): the metric change per unit angle change of each point
-    weights = {n: np.zeros(t.size) for n in names}
-    for j in range(t.size):
-        bump = np.zeros(t.size)
-        bump[j] = 1e-9
-        d = _delta(metrics_sided, base, t, a + bump, 1e-9)
-        for n in names:
-            weights[n][j] = d[n]
-    for n in names:
-        cw = weights[n]
-        if dwell_sigma_rad is not None and dwell_sigma_rad[1] >= 1:
-            s, dof = dwell_sigma_rad
-            inputs[n].append(UncertaintyInput(
-                name='output encoder: noise of the dwell means (pooled within-dwell s)',
-                kind='A', u=s, sensitivity=float(np.sqrt(np.sum(cw * cw / n_pts))),
-                distribution='t', dof=float(dof), source='this record',
-                note='numeric weights of the points, / sqrt(n per dwell)'))
-        elif enc.noise_sigma_rad > 0:
-            inputs[n].append(type_b('output encoder: read-head noise', sensitivity=float(
-                np.sqrt(np.sum(cw * cw / n_pts))), distribution='normal',
-                u=enc.noise_sigma_rad, source=enc.source))
-        if enc.resolution_rad > 0:
-            inputs[n].append(type_b('output encoder: quantisation', sensitivity=float(
-                np.sqrt(np.sum(cw * cw))), distribution='rectangular',
-                half_width=enc.resolution_rad / 2.0, source=enc.source,
-                note='+-q/2 per point, not reduced by averaging'))
-        if sample_step_rad > 0:
-            inputs[n].append(type_b('test resolution: angle between samples', sensitivity=float(
-                np.sqrt(np.sum(cw * cw))), distribution='rectangular',
-                half_width=sample_step_rad / 2.0, source='this record'))
-    # torque sensor: a point held at the reading t_j sits at the true torque
-    # (t_j - z) / (1 + e), so the unit's angle at t_j is phi_j + phi'_j (z + e t_j)
-    # (phi'_j the local compliance of its branch): the metric of the corrected points
-    comp = local_compliance(t, a)
-    zero = bench.torque_zero_for(config.rated_torque_nm)
-    for n in names:
-        cw = weights[n]
-        c_zero = float(np.sum(cw * comp))
-        c_gain = float(np.sum(cw * comp * t))
-        inputs[n].append(type_b('torque sensor: zero and linearity', sensitivity=_finite(c_zero),
-                                distribution='rectangular', half_width=zero, unit='N m',
-                                source=bench.source,
-                                note='numeric: sum of point weights x local compliance'))
-        inputs[n].append(type_b('torque sensor: sensitivity (gain)', sensitivity=_finite(c_gain),
-                                distribution='rectangular', half_width=bench.torque_gain_rel,
-                                unit='1', source=bench.source,
-                                note='numeric: sum of point weights x local compliance x torque'))
-    units = {n: ('N m/rad' if n.endswith('_nm_per_rad') else 'J' if n.endswith('_j') else 'rad')
-             for n in names}
-    notes = ['input shaft locked: the input encoder error is constant and cancels',
-             *_unknown_notes(bench)]
-    return {n: combine(n, base[n], inputs[n], unit=units[n], notes=notes) for n in names}
-
-
-def _finite(x: float) -> float:
-    return float(x) if math.isfinite(x) else 0.0
-
-
-def _delta(f: Callable[[np.ndarray, np.ndarray], dict[str, float]], base: dict[str, float],
-           t: np.ndarray, a: np.ndarray, step: float) -> dict[str, float]:
-    new = f(t, a)
-    return {n: _finite((new[n] - base[n]) / step) for n in base}
-
-
-def _rigidity_sides(t: np.ndarray, a: np.ndarray, config: HysteresisConfig) -> dict[str, int]:
-    """Which side (0 positive, 1 negative) of each rigidity region is the smaller."""
-    from rv_te_bench.core.hysteresis import hysteresis_metrics
-
-    m = hysteresis_metrics(t, a, config)
-    out = {}
-    for r in config.rigidity_regions:
-        pos, neg = m.rigidity_nm_per_rad[r.name]
-        out[r.name] = 0 if not (neg < pos) else 1
-    return out
-
-
-def local_compliance(torque_nm: npt.ArrayLike, angle_rad: npt.ArrayLike) -> np.ndarray:
-    """d angle / d torque at each point of a load cycle [rad/(N m)]: of the secants to its
-    two neighbours in time order, the one of smaller magnitude (the flank the point is on;
-    the other may span the jump through the backlash)."""
-    t = np.asarray(torque_nm, dtype=np.float64)
-    a = np.asarray(angle_rad, dtype=np.float64)
-    with np.errstate(divide='ignore', invalid='ignore'):
-        sec = np.diff(a) / np.diff(t)
-    sec = np.where(np.isfinite(sec), sec, np.inf)
-    left = np.r_[np.inf, sec]
-    right = np.r_[sec, np.inf]
-    out = np.where(np.abs(left) <= np.abs(right), left, right)
-    return np.where(np.isfinite(out), out, 0.0)

@@ -74,8 +74,9 @@ __all__ = [
 #: Coverage probability of U, 95.45 % (GUM 6.2.2: k = 2 for a normal distribution).
 COVERAGE_PROBABILITY = math.erf(math.sqrt(2.0))   # 0.95450: k = 2 exactly for a normal
 
-Distribution = Literal['normal', 'rectangular', 'triangular', 'arcsine', 't']
-DISTRIBUTIONS: tuple[str, ...] = ('normal', 'rectangular', 'triangular', 'arcsine', 't')
+Distribution = Literal['normal', 'rectangular', 'triangular', 'arcsine', 't', 'tabulated']
+DISTRIBUTIONS: tuple[str, ...] = ('normal', 'rectangular', 'triangular', 'arcsine', 't',
+                                  'tabulated')
 #: Standard uncertainty per half-width (or amplitude) of the bounded shapes.
 _U_PER_HALF_WIDTH = {'rectangular': 1.0 / math.sqrt(3.0), 'triangular': 1.0 / math.sqrt(6.0),
                      'arcsine': 1.0 / math.sqrt(2.0)}
@@ -101,6 +102,9 @@ class UncertaintyInput:
         unit: Unit of ``u`` (SI: rad, s, N m, K, m, 1).
         source: Where the value comes from (data sheet, bench description, the data).
         note: How the sensitivity was obtained (``'closed form: ...'``, ``'numeric'``).
+        shape: For ``'tabulated'``: equally likely values of the input per unit half-width
+            (max |shape| = 1), e.g. a harmonic's first- and second-order terms on a grid of
+            its one unknown phase; u = half-width x std(shape).
     """
 
     name: str
@@ -112,6 +116,7 @@ class UncertaintyInput:
     unit: str = 'rad'
     source: str = ''
     note: str = field(default='', compare=False)
+    shape: tuple[float, ...] = field(default=(), compare=False, repr=False)
 
     def __post_init__(self) -> None:
         """Validate (TeInputError names the field and the value)."""
@@ -134,6 +139,9 @@ class UncertaintyInput:
         if not dof >= 1:
             msg = f'input {self.name!r}: dof must be >= 1 (inf for exact), got {self.dof!r}'
             raise TeInputError(msg)
+        if (self.distribution == 'tabulated') != bool(self.shape):
+            msg = f'input {self.name!r}: a shape goes with (only) the tabulated distribution'
+            raise TeInputError(msg)
         object.__setattr__(self, 'u', u)
         object.__setattr__(self, 'sensitivity', c)
         object.__setattr__(self, 'dof', dof)
@@ -147,6 +155,8 @@ class UncertaintyInput:
     def half_width(self) -> float:
         """Half-width (rectangular, triangular) or amplitude (arcsine) of the input; NaN for
         the unbounded shapes."""
+        if self.distribution == 'tabulated':
+            return self.u / _shape_std(self.shape)
         f = _U_PER_HALF_WIDTH.get(self.distribution)
         return self.u / f if f else math.nan
 
@@ -159,9 +169,13 @@ class UncertaintyInput:
                 'share': share, 'source': self.source, 'note': self.note}
 
 
+def _shape_std(shape: Sequence[float]) -> float:
+    return float(np.std(np.asarray(shape, dtype=np.float64)))
+
+
 def type_b(name: str, *, sensitivity: float, distribution: Distribution,
            half_width: float | None = None, u: float | None = None, unit: str = 'rad',
-           source: str = '', note: str = '') -> UncertaintyInput:
+           source: str = '', note: str = '', shape: Sequence[float] = ()) -> UncertaintyInput:
     """A type B input from a bound (rectangular/triangular half-width, arcsine amplitude)
     or from a standard uncertainty (normal).
 
@@ -173,6 +187,16 @@ def type_b(name: str, *, sensitivity: float, distribution: Distribution,
     if (half_width is None) == (u is None):
         msg = f'input {name!r}: give one of half_width and u'
         raise TeInputError(msg)
+    if distribution == 'tabulated':
+        tab = np.asarray(shape, dtype=np.float64)
+        if half_width is None or tab.size < 8 or not np.all(np.isfinite(tab)) \
+                or float(np.max(np.abs(tab))) == 0.0:
+            msg = f'input {name!r}: a tabulated input needs half_width and a finite shape'
+            raise TeInputError(msg)
+        tab = tab / float(np.max(np.abs(tab)))
+        return UncertaintyInput(name=name, kind='B', u=half_width * _shape_std(tab),
+                                sensitivity=sensitivity, distribution='tabulated', unit=unit,
+                                source=source, note=note, shape=tuple(tab.tolist()))
     if half_width is not None:
         f = _U_PER_HALF_WIDTH.get(distribution)
         if f is None:
@@ -234,9 +258,14 @@ def welch_satterthwaite(contributions: npt.ArrayLike, dofs: npt.ArrayLike) -> fl
 
 
 def _bin_masses(shape: str, sigma: float, dof: float, edges: np.ndarray,
-                centres: np.ndarray, h: float) -> np.ndarray:
+                centres: np.ndarray, h: float, table: tuple[float, ...] = ()) -> np.ndarray:
     """Probability of each bin for c_i X_i (sigma = |c_i| u_i) on the grid."""
     n = centres.size
+    if shape == 'tabulated':
+        tab = np.asarray(table, dtype=np.float64)
+        vals = tab / float(np.std(tab)) * sigma
+        m, _ = np.histogram(np.clip(vals, edges[0], edges[-1]), bins=edges)
+        return m / float(m.sum())
     if sigma <= 0.25 * h:                       # narrower than a bin: a point mass at 0
         m = np.zeros(n)
         m[int(np.searchsorted(edges, 0.0, side='right')) - 1] = 1.0
@@ -318,10 +347,10 @@ def coverage_factor(inputs: Sequence[UncertaintyInput], p: float = COVERAGE_PROB
         return t_quantile(p, round(nu, 2)), f't (nu_eff = {nu:.3g})'
     big = sig >= 0.01 * uc
     small_var = float(np.sum(sig[~big] ** 2))
-    parts = [(s, float(g), x.dof) for s, g, x, b in zip(shapes, sig, inputs, big, strict=True)
-             if b]
+    parts = [(s, float(g), x.dof, x.shape) for s, g, x, b in zip(shapes, sig, inputs, big,
+                                                                  strict=True) if b]
     if small_var > 0:
-        parts.append(('normal', math.sqrt(small_var), math.inf))
+        parts.append(('normal', math.sqrt(small_var), math.inf, ()))
     span = 6.0 * uc
     for _ in range(6):
         k, ok = _convolved_quantile(parts, span, uc, p)
@@ -331,7 +360,8 @@ def coverage_factor(inputs: Sequence[UncertaintyInput], p: float = COVERAGE_PROB
     return k, 'distribution'
 
 
-def _convolved_quantile(parts: list[tuple[str, float, float]], span: float, uc: float,
+def _convolved_quantile(parts: list[tuple[str, float, float, tuple[float, ...]]], span: float,
+                        uc: float,
                         p: float) -> tuple[float, bool]:
     n = _GRID_BINS
     edges = np.linspace(-span, span, n + 1)
@@ -339,8 +369,8 @@ def _convolved_quantile(parts: list[tuple[str, float, float]], span: float, uc: 
     centres = 0.5 * (edges[:-1] + edges[1:])
     size = 1 << math.ceil(math.log2(len(parts) * (n - 1) + 1))
     acc = np.ones(size // 2 + 1, dtype=np.complex128)
-    for shape, sigma, dof in parts:
-        acc *= np.fft.rfft(_bin_masses(shape, sigma, dof, edges, centres, h), size)
+    for shape, sigma, dof, table in parts:
+        acc *= np.fft.rfft(_bin_masses(shape, sigma, dof, edges, centres, h, table), size)
     total = np.fft.irfft(acc, size)[:len(parts) * (n - 1) + 1]
     total = np.clip(total, 0.0, None)
     # bin j of the sum is centred at sum of the parts' centres: -K S + (j + K/2) h
@@ -415,6 +445,11 @@ class Budget:
         coverage_probability: p of U.
         k_basis: How k was obtained (``'normal'``, ``'distribution'``).
         notes: What the budget leaves out or assumes, one line each.
+        bias_bound: Bound of an uncorrected one-sided bias upwards: the value may read
+            high by up to this (a p-p of samples reads the crest of fast errors).
+        bias_low_bound: Bound of an uncorrected one-sided bias downwards: the value may
+            read low by up to this (the smaller of two uncertain values, E[min] <= min E).
+        parts: The budgets a derived result was taken over (the two sides of a minimum).
     """
 
     measurand: str
@@ -429,17 +464,30 @@ class Budget:
     k_basis: str = 'normal'
     notes: tuple[str, ...] = ()
     bias_bound: float = 0.0
+    bias_low_bound: float = 0.0
+    parts: tuple[Budget, ...] = field(default=(), compare=False)
 
     @property
     def u95(self) -> float:
         """The U reported beside the value: ``expanded`` plus the bound of an uncorrected
-        one-sided bias (GUM F.2.4.5: the value may read high by up to ``bias_bound``)."""
+        one-sided bias (GUM F.2.4.5: the value may read high by up to ``bias_bound`` or
+        low by up to ``bias_low_bound``; the larger of the two)."""
+        return self.expanded + max(self.bias_bound, self.bias_low_bound)
+
+    @property
+    def u_below(self) -> float:
+        """How far below the value the interval reaches: U + the upward bias bound."""
         return self.expanded + self.bias_bound
 
     @property
+    def u_above(self) -> float:
+        """How far above the value the interval reaches: U + the downward bias bound."""
+        return self.expanded + self.bias_low_bound
+
+    @property
     def interval(self) -> tuple[float, float]:
-        """Where the measurand lies with probability p: [y - U - b, y + U]."""
-        return (self.value - self.expanded - self.bias_bound, self.value + self.expanded)
+        """Where the measurand lies with probability p: [y - U - b_high, y + U + b_low]."""
+        return (self.value - self.u_below, self.value + self.u_above)
 
     @property
     def shares(self) -> tuple[float, ...]:
@@ -462,16 +510,21 @@ class Budget:
         return {'measurand': self.measurand, 'unit': self.unit, 'value': fin(self.value),
                 'u_c': fin(self.u_c), 'nu_eff': fin(self.nu_eff), 'k': fin(self.k),
                 'expanded': fin(self.expanded), 'bias_bound': fin(self.bias_bound),
+                'bias_low_bound': fin(self.bias_low_bound),
                 'u95': fin(self.u95), 'interval': [fin(x) for x in self.interval],
                 'coverage_probability': self.coverage_probability, 'k_basis': self.k_basis,
                 'inputs': [x.to_json_dict(s) for x, s in zip(self.inputs, self.shares,
                                                              strict=True)],
-                'notes': list(self.notes)}
+                'notes': list(self.notes),
+                **({'parts': [{'measurand': b.measurand, 'value': fin(b.value),
+                               'u_c': fin(b.u_c), 'k': fin(b.k), 'expanded': fin(b.expanded)}
+                              for b in self.parts]} if self.parts else {})}
 
 
 def combine(measurand: str, value: float, inputs: Sequence[UncertaintyInput | None], *,
             unit: str = 'rad', p: float = COVERAGE_PROBABILITY,
-            notes: Sequence[str] = (), bias_bound: float = 0.0) -> Budget:
+            notes: Sequence[str] = (), bias_bound: float = 0.0,
+            bias_low_bound: float = 0.0, parts: Sequence[Budget] = ()) -> Budget:
     """The budget of ``value`` from its inputs (None entries are skipped).
 
     Examples:
@@ -490,7 +543,8 @@ def combine(measurand: str, value: float, inputs: Sequence[UncertaintyInput | No
     expanded = k * uc if uc > 0 else 0.0
     return Budget(measurand=measurand, unit=unit, value=float(value), inputs=tuple(xs),
                   u_c=uc, nu_eff=nu, k=k, expanded=expanded, coverage_probability=p,
-                  k_basis=basis, notes=tuple(notes), bias_bound=float(bias_bound))
+                  k_basis=basis, notes=tuple(notes), bias_bound=float(bias_bound),
+                  bias_low_bound=float(bias_low_bound), parts=tuple(parts))
 
 
 def numeric_sensitivity(f: Callable[[float], float], x0: float, step: float) -> float:
@@ -517,6 +571,8 @@ def sample_input(x: UncertaintyInput, size: int, rng: np.random.Generator) -> np
     if x.distribution == 't':
         return x.u * rng.standard_t(x.dof, size)
     a = x.half_width
+    if x.distribution == 'tabulated':
+        return a * np.asarray(x.shape)[rng.integers(0, len(x.shape), size)]
     if x.distribution == 'rectangular':
         return rng.uniform(-a, a, size)
     if x.distribution == 'triangular':

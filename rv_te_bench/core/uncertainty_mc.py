@@ -35,11 +35,13 @@ from rv_te_bench.core.uncertainty import COVERAGE_PROBABILITY, monte_carlo_inter
 if TYPE_CHECKING:
     import numpy.typing as npt
 
+    from rv_te_bench.core.angle_fold import FoldedTe
     from rv_te_bench.core.bench_uncertainty import BenchUncertainty
     from rv_te_bench.core.hysteresis import HysteresisConfig
+    from rv_te_bench.core.identify import Identification
     from rv_te_bench.core.uncertainty import Budget
 
-__all__ = ['McResult', 'mc_hysteresis', 'mc_line', 'mc_te_pp']
+__all__ = ['McResult', 'mc_hysteresis', 'mc_identification', 'mc_line', 'mc_te_pp']
 
 _TWO_PI = 2.0 * math.pi
 _BATCH = 64
@@ -57,6 +59,7 @@ class McResult:
         std_mc: Standard deviation of the draws (compare with u_c).
         u_c: u_c of the budget.
         low, high: The Monte Carlo interval.
+        interval_gum: The budget's interval [y - U - b_high, y + U + b_low].
     """
 
     measurand: str
@@ -68,6 +71,14 @@ class McResult:
     low: float
     high: float
 
+    interval_gum: tuple[float, float] = (math.nan, math.nan)
+
+    @property
+    def contained(self) -> bool:
+        """The budget's interval contains the Monte Carlo interval."""
+        lo, hi = self.interval_gum
+        return lo <= self.low and self.high <= hi
+
     @property
     def difference(self) -> float:
         """(U_mc - U_gum) / U_gum."""
@@ -77,7 +88,8 @@ class McResult:
 def _result(budget: Budget, y: np.ndarray) -> McResult:
     u_mc, lo, hi = monte_carlo_interval(y, budget.value, COVERAGE_PROBABILITY)
     return McResult(measurand=budget.measurand, draws=int(y.size), u_gum=budget.expanded,
-                    u_mc=u_mc, std_mc=float(np.std(y, ddof=1)), u_c=budget.u_c, low=lo, high=hi)
+                    u_mc=u_mc, std_mc=float(np.std(y, ddof=1)), u_c=budget.u_c, low=lo, high=hi,
+                    interval_gum=budget.interval)
 
 
 def _scalar_draws(budget: Budget, skip: set[str], n: int, rng: np.random.Generator,
@@ -188,9 +200,20 @@ def mc_hysteresis(budgets: dict[str, Budget], torque_nm: npt.ArrayLike, angle_ra
                   config: HysteresisConfig, *, bench: BenchUncertainty, theta_out_rad: float,
                   draws: int, rng: np.random.Generator,
                   counts: npt.ArrayLike | None = None) -> dict[str, McResult]:
-    """Monte Carlo of the hysteresis budgets (every metric recomputed per draw)."""
+    """Monte Carlo of the hysteresis budgets (every metric recomputed per draw).
+
+    The output encoder's error function e (its harmonics at drawn phases) is removed from
+    the points at their true positions, found from the read ones by the fixed point
+    theta = theta_m - e(theta) (two steps): the second-order term of a fast harmonic is
+    propagated, not assumed. A rigidity is the smaller side of each draw, as reported;
+    each side is propagated too (``'<name> (pos)'``, ``'<name> (neg)'``: the budgets the
+    minimum's budget is taken over, :func:`~.hysteresis_uncertainty.min_budget`). The law
+    of propagation holds for each side; the minimum is not smooth where the sides cross,
+    so its budget is an envelope of the two and is checked by containing the Monte Carlo
+    interval (:attr:`McResult.contained`).
+    """
     from rv_te_bench.core.hysteresis import hysteresis_metrics
-    from rv_te_bench.core.te_uncertainty import local_compliance
+    from rv_te_bench.core.hysteresis_uncertainty import local_compliance
 
     t = np.asarray(torque_nm, dtype=np.float64)
     a = np.asarray(angle_rad, dtype=np.float64)
@@ -204,18 +227,23 @@ def mc_hysteresis(budgets: dict[str, Budget], torque_nm: npt.ArrayLike, angle_ra
     zero = next(x for x in any_b.inputs if x.name == 'torque sensor: zero and linearity')
     gain = next(x for x in any_b.inputs if x.name == 'torque sensor: sensitivity (gain)')
     q = enc.resolution_rad
-    sides = {}
-    m0 = hysteresis_metrics(t, a, config)
-    for r in config.rigidity_regions:
-        pos, neg = m0.rigidity_nm_per_rad[r.name]
-        sides[r.name] = 0 if not (neg < pos) else 1
     comp = local_compliance(t, a)
-    out = {n: np.empty(draws) for n in names}
+    side_budgets = dict(budgets)
+    for n in names:
+        for part in budgets[n].parts:
+            side_budgets[part.measurand] = part
+    out = {n: np.empty(draws) for n in side_budgets}
     for d in range(draws):
-        err = np.zeros(t.size)
-        for _, k, g in comps:
-            err += g * np.sin(k * th + rng.uniform(0.0, _TWO_PI))
-        aa = a - err
+        rho = rng.uniform(0.0, _TWO_PI, len(comps))
+
+        def err(x: np.ndarray, rho: np.ndarray = rho) -> np.ndarray:
+            e = np.zeros(x.size)
+            for (_, k, g), r in zip(comps, rho, strict=True):
+                e += g * np.sin(k * x + r)
+            return e
+
+        th_true = th - err(th - err(th))
+        aa = a - err(th_true)
         if noise is not None and noise.u > 0:
             aa = aa + sample_input(noise, t.size, rng) / np.sqrt(n_pts)
         if q > 0:
@@ -229,8 +257,51 @@ def mc_hysteresis(budgets: dict[str, Budget], torque_nm: npt.ArrayLike, angle_ra
         vals = {'lost_motion_rad': m.lost_motion_rad, 'backlash_rad': m.backlash_rad,
                 'hysteresis_loss_j': m.hysteresis_loss_j}
         for r in config.rigidity_regions:
-            vals[f'torsional_rigidity_{r.name}_nm_per_rad'] = \
-                m.rigidity_nm_per_rad[r.name][sides[r.name]]
-        for n in names:
+            pos, neg = m.rigidity_nm_per_rad[r.name]
+            name = f'torsional_rigidity_{r.name}_nm_per_rad'
+            vals[name] = min(pos, neg)
+            vals[f'{name} (pos)'] = pos
+            vals[f'{name} (neg)'] = neg
+        for n in out:
             out[n][d] = vals[n]
-    return {n: _result(budgets[n], out[n]) for n in names}
+    return {n: _result(side_budgets[n], out[n]) for n in out}
+
+
+def mc_identification(budgets: dict[str, Budget], folded: FoldedTe, ident: Identification, *,
+                      gear_ratio: float, bench: BenchUncertainty, draws: int,
+                      rng: np.random.Generator) -> dict[str, McResult]:
+    """Monte Carlo of the identified eccentricities' budgets: the folded record with the
+    encoders' drawn error functions removed (and the fit residual drawn as white noise per
+    bin) is fitted again by the non-linear least squares itself (from the identified
+    solution: :func:`~rv_te_bench.core._eccentric_fit.polish`, the touching pair free)."""
+    from rv_te_bench.core._eccentric_fit import polish
+    from rv_te_bench.core.identify_uncertainty import IDENTIFIED, long_range_terms, solution
+    from rv_te_bench.core.phases import _basis
+
+    geom = ident.geometry
+    assert geom is not None
+    phi = np.asarray(folded.phi_rad, dtype=np.float64)
+    counts = np.asarray(folded.counts, dtype=np.float64)
+    w = np.sqrt(counts)
+    bas = _basis(phi, geom.crank_order) * w
+    te = np.asarray(folded.te_rad, dtype=np.float64)
+    r_p = geom.r_p_m
+    x0 = solution(ident)
+    terms = long_range_terms(bench, gear_ratio, folded.n_bins)
+    sigma = ident.fit.residual_rms_rad if ident.fit is not None else 0.0
+    out = {n: np.empty(draws) for n, _ in IDENTIFIED}
+    rot = complex(math.cos(geom.alpha_rad), math.sin(geom.alpha_rad))
+    for d in range(draws):
+        err = np.zeros(phi.size)
+        for _, scale, order, g in terms:
+            err += scale * g * np.sin(order * phi + rng.uniform(0.0, _TWO_PI))
+        noise = sigma * rng.standard_normal(phi.size) / w
+        y = (te - err + noise) * r_p * w
+        x = polish(x0, bas, w, y)
+        for name, (ia, ib) in (('pair1', (0, 1)), ('pair2', (2, 3)), ('e_ot', (4, 5))):
+            z = complex(x[ib], x[ia]) * rot
+            key = 'theta_ot' if name == 'e_ot' else f'{name}_phase'
+            out[f'{name}_m'][d] = abs(z)
+            ref = budgets[f'{key}_rad'].value
+            out[f'{key}_rad'][d] = ref + math.remainder(math.atan2(z.imag, z.real) - ref, _TWO_PI)
+    return {n: _result(budgets[n], out[n]) for n, _ in IDENTIFIED}

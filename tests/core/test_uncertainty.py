@@ -20,11 +20,8 @@ from rv_te_bench.core.bench_uncertainty import (
     default_encoder_errors,
 )
 from rv_te_bench.core.hysteresis import HysteresisConfig
-from rv_te_bench.core.te_uncertainty import (
-    hysteresis_budgets,
-    line_budgets,
-    te_pp_budget,
-)
+from rv_te_bench.core.hysteresis_uncertainty import hysteresis_budgets
+from rv_te_bench.core.te_uncertainty import line_budgets, te_pp_budget
 from rv_te_bench.core.uncertainty import (
     combine,
     coverage_factor,
@@ -288,3 +285,18 @@ def test_hysteresis_encoder_harmonic_on_lost_motion_is_the_closed_form() -> None
     c = np.array([0.5, 0.5, -0.5, -0.5])
     ref = abs(np.sum(c * np.exp(1j * n * th)))
     assert x.sensitivity == pytest.approx(ref, rel=1e-5)
+
+
+def test_tabulated_input_of_a_sine_is_the_arcsine() -> None:
+    """A shape tabulated on a uniform phase grid of sin: the same u and k as the arcsine."""
+    ph = np.linspace(0, 2 * np.pi, 3600, endpoint=False)
+    tab = type_b('t', sensitivity=2.0, distribution='tabulated', half_width=0.5,
+                 shape=np.sin(ph))
+    arc = type_b('a', sensitivity=2.0, distribution='arcsine', half_width=0.5)
+    assert tab.u == pytest.approx(arc.u, rel=1e-9)
+    assert tab.half_width == pytest.approx(0.5)
+    k_tab, basis = coverage_factor([tab])
+    assert basis == 'distribution'
+    assert k_tab == pytest.approx(coverage_factor([arc])[0], abs=3e-3)
+    with pytest.raises(TeInputError, match='tabulated'):
+        type_b('t', sensitivity=1.0, distribution='tabulated', half_width=1.0, shape=[0.0] * 9)
