@@ -48,6 +48,10 @@ class SpcError(RvTeError, ValueError):
     """A control chart or capability cannot be computed from the values given."""
 
 
+class MsaError(RvTeError, ValueError):
+    """Bad data for a measurement-system study (names what and why)."""
+
+
 class StoreError(RvTeError):
     """The results store cannot be opened, written or queried."""
 
