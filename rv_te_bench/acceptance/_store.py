@@ -19,7 +19,7 @@ if TYPE_CHECKING:
 
     from rv_te_bench.store import UnitRecord
 
-__all__ = ['store_record']
+__all__ = ['record_of_report', 'store_record']
 
 _VERDICT = {'pass': 'pass', 'fail': 'fail', 'not_measured': 'not-measured', 'info': None}
 
@@ -27,9 +27,21 @@ _VERDICT = {'pass': 'pass', 'fail': 'fail', 'not_measured': 'not-measured', 'inf
 def store_record(report: dict[str, Any], bag: Path, *, software_version: str = '',
                  ) -> UnitRecord:
     """The store record of ``report`` (:func:`rv_te_bench.acceptance.build_report`)."""
-    from rv_te_bench.store import MetricValue, UnitRecord, bag_fingerprint
+    from rv_te_bench.store import bag_fingerprint
 
     sha, size, mtime = bag_fingerprint(bag)
+    return record_of_report(report, bag_path=str(bag), bag_sha256=sha, bag_size_bytes=size,
+                            bag_mtime_ns=mtime, software_version=software_version)
+
+
+def record_of_report(report: dict[str, Any], *, bag_path: str, bag_sha256: str,
+                     bag_size_bytes: int | None = None, bag_mtime_ns: int | None = None,
+                     software_version: str = '', details: dict[str, Any] | None = None,
+                     lot: str | None = None) -> UnitRecord:
+    """The store record of ``report`` with the bag's identity given (a simulated run
+    without a bag names itself in ``bag_path`` and gives a hash of its settings)."""
+    from rv_te_bench.store import MetricValue, UnitRecord
+
     metrics = []
     for m in report['metrics']:
         if m['value'] is None or not math.isfinite(m['value']):
@@ -44,13 +56,15 @@ def store_record(report: dict[str, Any], bag: Path, *, software_version: str = '
     b, u = report['bench'], report['unit']
     verdict = report['verdict'] if report['verdict'] in {'pass', 'fail'} else 'not-judged'
     return UnitRecord(
-        test='test-plan', plan=report['plan']['plan'], bag_path=str(bag), bag_sha256=sha,
-        tested_at=datetime.fromisoformat(u['date_utc']), serial=u['serial'],
+        test='test-plan', plan=report['plan']['plan'], bag_path=bag_path,
+        bag_sha256=bag_sha256,
+        tested_at=datetime.fromisoformat(u['date_utc']), serial=u['serial'], lot=lot,
         bench_id=b.get('bench_id') or None, preset=b.get('preset') or None,
         reducer_type=b.get('reducer_type') or None, operator=u['operator'],
         status='ok' if report['verdict'] in {'pass', 'fail'} else 'failed',
         failure=None if report['verdict'] in {'pass', 'fail'} else report['reason'],
         verdict=verdict, command='test', software_version=software_version,
-        bag_size_bytes=size, bag_mtime_ns=mtime, metrics=tuple(metrics),
+        bag_size_bytes=bag_size_bytes, bag_mtime_ns=bag_mtime_ns, metrics=tuple(metrics),
         details={'tolerance': report['tolerance']['profile'],
-                 'conditions': report.get('conditions', {}), 'reason': report['reason']})
+                 'conditions': report.get('conditions', {}), 'reason': report['reason'],
+                 **(details or {})})

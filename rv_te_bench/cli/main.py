@@ -25,7 +25,7 @@ if TYPE_CHECKING:
 SUBCOMMAND_MODULES = (
     'demo', 'launch', 'dashboard', 'bench', 'record', 'replay', 'import_', 'analyze', 'test',
     'unit_report', 'model',
-    'optimize_phases', 'compensate', 'identify', 'presets', 'results', 'spc', 'fleet',
+    'optimize_phases', 'compensate', 'identify', 'presets', 'results', 'spc', 'msa', 'fleet',
 )
 
 EXAMPLES = """\
@@ -43,6 +43,7 @@ examples:
   rv-te fleet analyze bags/ --workers 2        many bags on Dask into the results store
   rv-te results --verdict fail                 the recorded units, filtered
   rv-te spc te_pp_revolution_max_rad --usl 1   control chart across units
+  rv-te msa demo                               measurement-system study on the simulated bench
   rv-te test rv-80e --serial SN1 --operator kim --launch rv-80e-101
                                                acceptance test of a unit: verdict + report
   rv-te unit-report out/tests/RV80E-0042_*/bag  the same test again from its bag (no ROS)
