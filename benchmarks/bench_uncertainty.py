@@ -1,10 +1,15 @@
 """Validation of the uncertainty budgets (issue 35): Monte Carlo vs GUM, and coverage.
 
 1. **GUM vs Monte Carlo (Supplement 1).** One simulated measurement of the default bench
-   (wang2020-2kv, RON 886 on both shafts, errors as the data sheet states them) and one
-   hysteresis test (rv-80e-101): every budget's U = k u_c beside the half-width of the
-   95.45 % interval of a Monte Carlo propagation through the measurement model itself
-   (``rv_te_bench.core.uncertainty_mc``). Target: within 5 % of U on every metric.
+   (wang2020-2kv, RON 886 on both shafts, errors as the data sheet states them; its
+   identified eccentricities) and one hysteresis test (rv-80e-101): every budget's
+   U = k u_c beside the half-width of the 95.45 % interval of a Monte Carlo propagation
+   through the measurement model itself (``rv_te_bench.core.uncertainty_mc``: the TE
+   record with drawn error functions removed, the identification refitted, the hysteresis
+   metrics recomputed). Target: within 5 % of U on every metric. The torsional rigidity
+   is reported as the smaller of two sides, not a smooth function where they cross: the
+   law of propagation is checked on each side, and the minimum's budget (over both sides,
+   with its low-side bias) must contain the Monte Carlo interval of the minimum.
 2. **Coverage.** ``--units`` simulated units and benches, each with its own reducer
    (assembly phases / free play drawn), encoder errors drawn from the stated distributions
    (a new phase for every graduation and interpolation harmonic, sim.encoders.remounted),
@@ -15,7 +20,7 @@
    [y - U - b, y + U]. Target: >= 94 % per metric.
 
 Run: ``.venv/bin/python benchmarks/bench_uncertainty.py --units 1000 --draws 20000``
-(about 10 minutes on 2 cores); ``--units 50 --draws 2000`` for a quick look. Prints one
+(about 25 minutes on a busy 2-core VM); ``--units 50 --draws 2000`` for a quick look. Prints one
 markdown table per part (benchmarks/README.md keeps the last run).
 """
 
