@@ -15,9 +15,13 @@ Branches. The record (in time order) is split at its torque maximum and minimum:
   has no second loading; the first one starts somewhere inside the backlash unless the unit
   was preloaded, so its point at zero torque is never used).
 
-A value of a branch at torque T0 is read at the branch's first crossing of T0 in time order,
-interpolated linearly between the two samples around it (a run of samples exactly at T0,
-as in an equal-torque-step test, is averaged).
+Points. This module reads curves of *points*: the dwell means of an equal-torque-step test
+or noise-free samples. A value of a branch at torque T0 is the point at T0 (within
+``match_nm``), else interpolated linearly between the two points around the branch's
+crossing of T0 (a run of points exactly at T0 is averaged). A measured record (torque
+noise, dwells whose torque is not exactly constant, several load cycles) is reduced to
+such points, or read by local fits, by :mod:`rv_te_bench.core.hysteresis_measured`; the
+first crossing of a noisy sample record would be biased (the noise crosses T0 early).
 
 Metrics (catalogue definitions, our reading in docs/ACCEPTANCE.md):
 
@@ -42,8 +46,9 @@ Everything is SI: angles in rad, torques in N m, rigidity in N m/rad.
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 from dataclasses import dataclass, field
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, NamedTuple
 
 import numpy as np
 
@@ -54,12 +59,17 @@ if TYPE_CHECKING:
 
 __all__ = [
     'DEFAULT_RIGIDITY_REGIONS',
+    'Branch',
+    'BranchReader',
     'HysteresisConfig',
     'HysteresisMetrics',
     'RigidityRegion',
     'branch_value',
+    'cycle_metrics',
     'dwell_points',
     'hysteresis_metrics',
+    'loop_area',
+    'point_reader',
 ]
 
 #: Part of T_R by which a branch may fall short of a wanted torque and still be read at its
@@ -198,10 +208,11 @@ def _as_pair(torque_nm: npt.ArrayLike, angle_rad: npt.ArrayLike) -> tuple[np.nda
 
 def dwell_points(torque_nm: npt.ArrayLike, angle_rad: npt.ArrayLike,
                  ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """Reduce runs of consecutive samples at one torque to one point (their mean angle).
+    """Reduce runs of consecutive samples at *exactly* one torque to one point (mean angle).
 
-    An equal-torque-step test holds each step for a dwell; averaging the dwell takes out
-    the encoder noise. A continuously loaded record has no runs and comes back unchanged.
+    For records whose held torque reads exactly constant (a simulated loader). A measured
+    torque is never exactly constant: group its dwells by time and stability with
+    :func:`rv_te_bench.core.hysteresis_measured.find_dwells` instead.
 
     Returns:
         (torque_nm, angle_rad, count): one entry per run, in time order.
@@ -221,24 +232,35 @@ def dwell_points(torque_nm: npt.ArrayLike, angle_rad: npt.ArrayLike,
 
 
 def branch_value(torque_nm: np.ndarray, angle_rad: np.ndarray, t0_nm: float, *,
-                 direction: int, end_tolerance_nm: float = 0.0) -> float:
-    """Angle of a branch at its first crossing of ``t0_nm`` in time order [rad].
+                 direction: int, end_tolerance_nm: float = 0.0, match_nm: float = 0.0) -> float:
+    """Angle of a branch of curve *points* at torque ``t0_nm`` [rad].
+
+    The points are dwell means (a torque-step test) or noise-free samples, in time order,
+    loaded monotonically along the branch (steps of it may repeat a torque).
 
     Args:
         torque_nm, angle_rad: The branch, in time order.
         t0_nm: Torque to read at [N m].
-        direction: +1 for a branch loaded upwards (first sample with T >= t0), -1 for one
-            loaded downwards (first sample with T <= t0).
+        direction: +1 for a branch loaded upwards, -1 for one loaded downwards.
         end_tolerance_nm: If the branch never reaches t0 but its extreme lies within this
             of it, the extreme's angle is returned.
+        match_nm: A point whose torque lies within this of ``t0_nm`` is read directly
+            (the nearest such point; a held torque a loader did not hit exactly). 0: only
+            an exact match.
 
     Returns:
-        The interpolated angle; NaN when the branch does not reach ``t0_nm``. A run of
-        samples exactly at ``t0_nm`` gives the mean of its angles.
+        The angle of the matching point, else the angle interpolated linearly between the
+        two points around the branch's crossing of ``t0_nm`` (a run of points exactly at
+        ``t0_nm`` gives the mean of their angles); NaN when the branch does not reach it.
     """
     if torque_nm.size == 0:
         return math.nan
     s = direction * (torque_nm - t0_nm)
+    if match_nm > 0:
+        near = np.abs(s)
+        k = int(np.argmin(near))
+        if near[k] <= match_nm and near[k] > 0:
+            return float(angle_rad[k])
     hit = np.flatnonzero(s >= 0)
     if hit.size == 0:
         k = int(np.argmax(s))
@@ -255,6 +277,32 @@ def branch_value(torque_nm: np.ndarray, angle_rad: np.ndarray, t0_nm: float, *,
     return float(angle_rad[k - 1] + w * (angle_rad[k] - angle_rad[k - 1]))
 
 
+class Branch(NamedTuple):
+    """One branch of a load cycle, in time order (SI).
+
+    Attributes:
+        torque_nm: Applied torque of its points or samples [N m].
+        angle_rad: Output torsion angle [rad].
+        time_s: Sample times [s] (None for dwell points).
+    """
+
+    torque_nm: np.ndarray
+    angle_rad: np.ndarray
+    time_s: np.ndarray | None = None
+
+
+#: Reads a branch at a torque: (branch, t0_nm, direction +1/-1, end tolerance) -> angle.
+BranchReader = Callable[[Branch, float, int, float], float]
+
+
+def point_reader(match_nm: float = 0.0) -> BranchReader:
+    """The reader of curve points (:func:`branch_value`, points within ``match_nm``)."""
+    def read(b: Branch, t0: float, direction: int, end_tol: float) -> float:
+        return branch_value(b.torque_nm, b.angle_rad, t0, direction=direction,
+                            end_tolerance_nm=end_tol, match_nm=match_nm)
+    return read
+
+
 def _loop_area(t_loop: np.ndarray, a_loop: np.ndarray) -> float:
     """Area of the closed polygon (angle, torque) [N m rad]."""
     if t_loop.size < 3:
@@ -264,7 +312,7 @@ def _loop_area(t_loop: np.ndarray, a_loop: np.ndarray) -> float:
 
 
 def hysteresis_metrics(torque_nm: npt.ArrayLike, angle_rad: npt.ArrayLike,
-                       config: HysteresisConfig) -> HysteresisMetrics:
+                       config: HysteresisConfig, *, match_nm: float = 0.0) -> HysteresisMetrics:
     """Lost motion, backlash, torsional rigidity and hysteresis loss of one load cycle.
 
     Args:
@@ -272,6 +320,8 @@ def hysteresis_metrics(torque_nm: npt.ArrayLike, angle_rad: npt.ArrayLike,
             0 -> +T_R -> 0 -> -T_R -> 0 (samples or dwell points, see :func:`dwell_points`).
         angle_rad: Output torsion angle at those samples [rad] (any constant offset).
         config: Rated torque, lost-motion torque, rigidity regions.
+        match_nm: A point within this of a torque the metrics read is read directly
+            (:func:`branch_value`); 0: exact matches only.
 
     Returns:
         The metrics; a point the record does not reach gives NaN for what needs it.
@@ -303,19 +353,57 @@ def hysteresis_metrics(torque_nm: npt.ArrayLike, angle_rad: npt.ArrayLike,
                f'negative one (0 -> +T_R -> 0 -> -T_R -> 0); its maximum {t[i_max]:.6g} N m '
                f'is at point {i_max}, its minimum {t[i_min]:.6g} N m at point {i_min}')
         raise TeInputError(msg)
+    return cycle_metrics(Branch(t[:i_max + 1], a[:i_max + 1]),
+                         Branch(t[i_max:i_min + 1], a[i_max:i_min + 1]),
+                         Branch(t[i_min:], a[i_min:]), config, point_reader(match_nm))
+
+
+def _to_zero(back: Branch, tol: float) -> tuple[np.ndarray, np.ndarray]:
+    """The back branch up to zero torque (a multi-cycle record goes on to the next +T_R)."""
+    above = np.flatnonzero(back.torque_nm > tol)
+    end = int(above[0]) if above.size else back.torque_nm.size
+    return back.torque_nm[:end], back.angle_rad[:end]
+
+
+def _first_positive(up: Branch) -> int:
+    first = np.flatnonzero(up.torque_nm > 0)
+    return int(first[0]) if first.size else up.torque_nm.size
+
+
+def loop_area(up: Branch, down: Branch, back: Branch, config: HysteresisConfig) -> float:
+    """Area of one cycle's loop [J]: the descending branch, then -T_R -> 0, then the
+    loading above zero torque, closed (shoelace formula over their points or samples)."""
+    back_t, back_a = _to_zero(back, _END_TOLERANCE * config.rated_torque_nm)
+    k = _first_positive(up)
+    return _loop_area(np.r_[down.torque_nm, back_t[1:], up.torque_nm[k:-1]],
+                      np.r_[down.angle_rad, back_a[1:], up.angle_rad[k:-1]])
+
+
+def cycle_metrics(up: Branch, down: Branch, back: Branch, config: HysteresisConfig,
+                  read: BranchReader) -> HysteresisMetrics:
+    """The metrics of one load cycle from its three branches.
+
+    Args:
+        up: The loading to +T_R (its part above zero torque is used: the first loading,
+            or the loading from the previous cycle's -T_R).
+        down: +T_R -> -T_R.
+        back: -T_R -> 0 (it may go on to the next cycle's +T_R: only its part up to zero
+            torque is used).
+        config: Rated torque, lost-motion torque, rigidity regions.
+        read: How a branch is read at a torque (:func:`point_reader` for dwell points,
+            :func:`rv_te_bench.core.hysteresis_measured.sample_reader` for noisy samples).
+
+    Returns:
+        The metrics; NaN where a branch does not reach a torque a metric needs.
+    """
     tr = config.rated_torque_nm
     tol = _END_TOLERANCE * tr
-    up_t, up_a = t[:i_max + 1], a[:i_max + 1]           # first loading 0 -> +T_R
-    dn_t, dn_a = t[i_max:i_min + 1], a[i_max:i_min + 1]  # +T_R -> -T_R
-    back_t, back_a = t[i_min:], a[i_min:]               # -T_R -> 0
 
     def asc(t0: float) -> float:
-        if t0 <= 0:
-            return branch_value(back_t, back_a, t0, direction=+1, end_tolerance_nm=tol)
-        return branch_value(up_t, up_a, t0, direction=+1, end_tolerance_nm=tol)
+        return read(back if t0 <= 0 else up, t0, +1, tol)
 
     def desc(t0: float) -> float:
-        return branch_value(dn_t, dn_a, t0, direction=-1, end_tolerance_nm=tol)
+        return read(down, t0, -1, tol)
 
     zero = (asc(0.0), desc(0.0))
     lm_t = config.lost_motion_fraction * tr
@@ -331,24 +419,23 @@ def hysteresis_metrics(torque_nm: npt.ArrayLike, angle_rad: npt.ArrayLike,
         k_neg = (t2 - t1) / (n1 - n2) if n1 != n2 else math.nan
         rigidity[reg.name] = (float(k_pos), float(k_neg))
         points[reg.name] = ((t1, p1, t2, p2), (-t1, n1, -t2, n2))
-    # the loop: descending branch, then -T_R -> 0, then the first loading above zero torque
-    first_pos = np.flatnonzero(up_t > 0)
-    up_from = int(first_pos[0]) if first_pos.size else up_t.size
-    loop_t = np.r_[dn_t, back_t[1:], up_t[up_from:-1]]
-    loop_a = np.r_[dn_a, back_a[1:], up_a[up_from:-1]]
+    up_t, up_a = up.torque_nm, up.angle_rad
+    dn_t, dn_a = down.torque_nm, down.angle_rad
+    back_t, back_a = _to_zero(back, tol)
+    up_from = _first_positive(up)
     asc_t = np.r_[back_t, up_t[up_from:]]
     asc_a = np.r_[back_a, up_a[up_from:]]
-    for arr in (asc_t, asc_a, dn_t, dn_a):
+    for arr in (asc_t, asc_a):
         arr.setflags(write=False)
     return HysteresisMetrics(
         backlash_rad=float(zero[1] - zero[0]),
         lost_motion_rad=float(mid_pos - mid_neg),
         lost_motion_torque_nm=float(lm_t),
         rigidity_nm_per_rad=rigidity,
-        hysteresis_loss_j=_loop_area(loop_t, loop_a),
+        hysteresis_loss_j=loop_area(up, down, back, config),
         rated_torque_nm=float(tr),
-        max_torque_nm=float(t[i_max]),
-        min_torque_nm=float(t[i_min]),
+        max_torque_nm=float(np.max(up_t)) if up_t.size else math.nan,
+        min_torque_nm=float(np.min(dn_t)) if dn_t.size else math.nan,
         zero_width_rad=(float(zero[0]), float(zero[1])),
         lost_motion_mid_rad=(float(mid_neg), float(mid_pos)),
         rigidity_points=points,
