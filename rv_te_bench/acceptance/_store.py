@@ -21,7 +21,8 @@ if TYPE_CHECKING:
 
 __all__ = ['record_of_report', 'store_record']
 
-_VERDICT = {'pass': 'pass', 'fail': 'fail', 'not_measured': 'not-measured', 'info': None}
+_VERDICT = {'pass': 'pass', 'fail': 'fail', 'not_measured': 'not-measured',
+            'not_judged': 'not-judged', 'info': None}
 
 
 def store_record(report: dict[str, Any], bag: Path, *, software_version: str = '',
@@ -61,10 +62,14 @@ def record_of_report(report: dict[str, Any], *, bag_path: str, bag_sha256: str,
         tested_at=datetime.fromisoformat(u['date_utc']), serial=u['serial'], lot=lot,
         bench_id=b.get('bench_id') or None, preset=b.get('preset') or None,
         reducer_type=b.get('reducer_type') or None, operator=u['operator'],
-        status='ok' if report['verdict'] in {'pass', 'fail'} else 'failed',
+        status='ok' if report['verdict'] in {'pass', 'fail'} else (
+            'partial' if report['verdict'] == 'not_judged' else 'failed'),
         failure=None if report['verdict'] in {'pass', 'fail'} else report['reason'],
-        verdict=verdict, command='test', software_version=software_version,
+        verdict=verdict, command='test --from' if 'source' in report else 'test',
+        software_version=software_version,
         bag_size_bytes=bag_size_bytes, bag_mtime_ns=bag_mtime_ns, metrics=tuple(metrics),
         details={'tolerance': report['tolerance']['profile'],
                  'conditions': report.get('conditions', {}), 'reason': report['reason'],
+                 **({'source': {k: v for k, v in report['source'].items() if k != 'steps'}}
+                    if 'source' in report else {}),
                  **(details or {})})

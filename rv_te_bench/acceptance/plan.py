@@ -20,6 +20,13 @@ A plan (docs/ACCEPTANCE.md)::
 over one revolution (the output turned on at ``reposition_speed_rpm`` input between them);
 the unit's lost motion and backlash are the largest, its rigidity the smallest.
 
+``time_ranges_s`` (optional, used only when a recorded or imported record is judged,
+``rv-te test --from``): where in the record each part of the step is, in seconds from the
+record's first sample, instead of finding it from the data: a TE step maps each direction
+to ``[start, end]`` (``{ccw: [12.0, 18.5], cw: [20.0, 26.5]}``), a sweep lists one
+``[start, end]`` per point (speeds x loads, in that order), a hysteresis step one per
+position.
+
 Directions: ``ccw`` turns the output positively (REP-103, counter-clockwise seen from the
 output flange), ``cw`` negatively. Loads resist the motion (magnitudes). Every bad key or
 value raises :class:`PlanError` naming the file, the step and the rule.
@@ -27,6 +34,7 @@ value raises :class:`PlanError` naming the file, the step and the rule.
 
 from __future__ import annotations
 
+import dataclasses
 import math
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
@@ -126,6 +134,24 @@ class _Fields:
             out.append(float(x))
         return tuple(out)
 
+    def span(self, key: str, value: Any) -> tuple[float, float]:
+        """One [start, end] time range [s], 0 <= start < end."""
+        if not isinstance(value, list) or len(value) != 2 or not all(
+                not isinstance(x, bool) and isinstance(x, int | float) and math.isfinite(x)
+                for x in value) or not 0 <= value[0] < value[1]:
+            self.fail(key, 'must be [start, end] in seconds from the record\'s start, '
+                      '0 <= start < end', value)
+        return float(value[0]), float(value[1])
+
+    def spans(self, key: str, count: int, what: str) -> tuple[tuple[float, float], ...]:
+        """``count`` time ranges (one per ``what``), or none."""
+        if key not in self.data:
+            return ()
+        v = self.data.pop(key)
+        if not isinstance(v, list) or len(v) != count:
+            self.fail(key, f'must list {count} [start, end] range(s), one per {what}', v)
+        return tuple(self.span(f'{key}[{j}]', x) for j, x in enumerate(v))
+
     def done(self) -> None:
         if self.data:
             self.fail(f'unknown key(s) {sorted(self.data)}', 'are not allowed here')
@@ -141,6 +167,7 @@ class TeStep:
     directions: tuple[str, ...] = ('ccw', 'cw')
     revolutions: int = 1
     settle_s: float = 0.5
+    time_ranges_s: tuple[tuple[str, float, float], ...] = ()
     kind: str = 'te'
 
 
@@ -159,6 +186,7 @@ class HysteresisStep:
     preload: bool = True
     positions: int = 1
     reposition_speed_rpm: float = 300.0
+    time_ranges_s: tuple[tuple[float, float], ...] = ()
     kind: str = 'hysteresis'
 
     def config(self) -> HysteresisConfig:
@@ -178,6 +206,7 @@ class SweepStep:
     direction: str = 'ccw'
     revolutions: int = 1
     settle_s: float = 0.5
+    time_ranges_s: tuple[tuple[float, float], ...] = ()
     kind: str = 'sweep'
 
 
@@ -210,10 +239,15 @@ def _te_step(f: _Fields, name: str) -> TeStep:
             not all(d in DIRECTIONS for d in dirs):
         f.fail('directions', f'must be a list of distinct directions from {list(DIRECTIONS)}',
                dirs)
+    ranges = f.data.pop('time_ranges_s', {})
+    if not isinstance(ranges, dict) or not set(map(str, ranges)) <= set(dirs):
+        f.fail('time_ranges_s', f'must map directions of the step ({", ".join(dirs)}) to '
+               '[start, end] in seconds', ranges)
+    spans = tuple((str(d), *f.span(f'time_ranges_s.{d}', r)) for d, r in ranges.items())
     return TeStep(name=name, speed_rpm=f.num('speed_rpm', lo=0.0, lo_open=True, hi=1e5),
                   load_nm=f.num('load_nm', 0.0, lo=0.0), directions=tuple(dirs),
                   revolutions=f.integer('revolutions', 1, lo=1),
-                  settle_s=f.num('settle_s', 0.5, lo=0.0))
+                  settle_s=f.num('settle_s', 0.5, lo=0.0), time_ranges_s=spans)
 
 
 def _hysteresis_step(f: _Fields, name: str) -> HysteresisStep:
@@ -238,6 +272,8 @@ def _hysteresis_step(f: _Fields, name: str) -> HysteresisStep:
         positions=f.integer('positions', 1, lo=1),
         reposition_speed_rpm=f.num('reposition_speed_rpm', 300.0, lo=0.0, lo_open=True,
                                    hi=1e5))
+    step = dataclasses.replace(step, time_ranges_s=f.spans('time_ranges_s', step.positions,
+                                                           'position'))
     if step.positions > 36:
         f.fail('positions', 'must be <= 36', step.positions)
     try:
@@ -248,11 +284,14 @@ def _hysteresis_step(f: _Fields, name: str) -> HysteresisStep:
 
 
 def _sweep_step(f: _Fields, name: str) -> SweepStep:
-    return SweepStep(name=name, speeds_rpm=f.numbers('speeds_rpm', lo=0.0, nonzero=True),
+    step = SweepStep(name=name, speeds_rpm=f.numbers('speeds_rpm', lo=0.0, nonzero=True),
                      loads_nm=f.numbers('loads_nm', [0.0], lo=0.0),
                      direction=f.text('direction', 'ccw', choices=tuple(DIRECTIONS)),
                      revolutions=f.integer('revolutions', 1, lo=1),
                      settle_s=f.num('settle_s', 0.5, lo=0.0))
+    n = len(step.speeds_rpm) * len(step.loads_nm)
+    return dataclasses.replace(step, time_ranges_s=f.spans(
+        'time_ranges_s', n, 'sweep point (speeds x loads)'))
 
 
 _KINDS = {'te': _te_step, 'hysteresis': _hysteresis_step, 'sweep': _sweep_step}

@@ -26,13 +26,11 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
+from rv_te_bench.acceptance._results import SegmentData, step_result
 from rv_te_bench.acceptance.plan import DIRECTIONS, HysteresisStep, SweepStep, TeStep
-from rv_te_bench.acceptance.tolerance import Measured, evaluate
-from rv_te_bench.core.directional import direction_te
-from rv_te_bench.core.hysteresis import dwell_points, hysteresis_metrics
-from rv_te_bench.core.orders import OrderSet
+from rv_te_bench.acceptance.tolerance import evaluate
 from rv_te_bench.core.te import output_phase_and_te
-from rv_te_bench.errors import AcceptanceError, TeInputError
+from rv_te_bench.errors import AcceptanceError
 from sim.errors import ModelInputError
 from sim.program import program_from_plain
 
@@ -40,29 +38,12 @@ if TYPE_CHECKING:
     from collections.abc import Callable
 
     from rv_te_bench.acceptance.plan import Step, TestPlan
-    from rv_te_bench.acceptance.tolerance import ToleranceProfile
+    from rv_te_bench.acceptance.tolerance import Measured, ToleranceProfile
+    from sim.bench import BenchBlock
     from sim.bench_info import BenchInfoData
     from sim.program import ProgramSimulator
 
 __all__ = ['StepRunner', 'build_report', 'reanalyse', 'run_plan_offline']
-
-_MAX_CURVE_POINTS = 4000
-#: Spectrum bins kept for the report (the labelled lines are kept whatever their order).
-_SPECTRUM_BINS = 400
-
-
-def _orders(info: BenchInfoData) -> OrderSet | None:
-    """Spectral lines of the reducer (None without a crank rate)."""
-    if not info.crank_per_input:
-        return None
-    return OrderSet.from_bench_info(info)
-
-
-def _decimate(*arrays: np.ndarray, limit: int = _MAX_CURVE_POINTS) -> list[list[float]]:
-    n = arrays[0].size
-    step = max(1, math.ceil(n / limit))
-    return [a[::step].tolist() for a in arrays]
-
 
 def _fin(x: float) -> float | None:
     return float(x) if math.isfinite(x) else None
@@ -212,126 +193,19 @@ class StepRunner:
         return tuple(np.concatenate([c[j] for c in seg.chunks]) for j in range(3))
 
     # -- results ----------------------------------------------------------------------------------
+    def segment_data(self) -> list[SegmentData]:
+        """The data of every segment, with a note where blocks are missing."""
+        out = []
+        for seg in self.segments:
+            th_in, th_out, torque = self._cat(seg)
+            out.append(SegmentData(role=seg.role, label=seg.label, theta_in_rad=th_in,
+                                   theta_out_rad=th_out, torque_out_nm=torque,
+                                   note=self._incomplete([seg])))
+        return out
+
     def result(self) -> tuple[list[Measured], dict[str, Any]]:
         """Metrics (SI) and the details the report shows."""
-        if isinstance(self.step, HysteresisStep):
-            return self._hysteresis_result(self.step)
-        return self._te_result()
-
-    def _te_result(self) -> tuple[list[Measured], dict[str, Any]]:
-        measured: list[Measured] = []
-        rows = []
-        for seg in self.segments:
-            th_in, th_out, _torque = self._cat(seg)
-            settle = round(seg.label['settle_s'] * self.info.sample_rate_hz)
-            row: dict[str, Any] = {**seg.label, 'samples': int(th_in.size)}
-            try:
-                if hole := self._incomplete([seg]):
-                    raise TeInputError(hole)
-                d = direction_te(th_in[settle:], th_out[settle:], gear_ratio=self.info.gear_ratio,
-                                 orders=_orders(self.info),
-                                 duration_s=max(th_in[settle:].size - 1, 1)
-                                 / self.info.sample_rate_hz)
-            except TeInputError as exc:
-                row['error'] = str(exc)
-                value = math.nan
-            else:
-                value = d.te_pp_rad
-                pos, curve = _decimate(d.position_rad, d.te_by_position_rad)
-                row.update({
-                    'revolutions': d.revolutions, 'te_pp_per_rev_rad': list(d.pp_per_rev_rad),
-                    'stats': d.stats.to_json_dict(), 'position_rad': pos,
-                    'te_by_position_rad': [_fin(x) for x in curve],
-                    'spectrum': [ln.to_json_dict() for ln in d.spectrum.lines]
-                    if d.spectrum is not None else [],
-                    'spectrum_orders': d.spectrum.orders[:_SPECTRUM_BINS].tolist()
-                    if d.spectrum is not None else [],
-                    'spectrum_amplitude_rad': d.spectrum.amplitude_rad[:_SPECTRUM_BINS].tolist()
-                    if d.spectrum is not None else []})
-            row['te_pp_rad'] = _fin(value)
-            rows.append(row)
-            if seg.role == 'te':
-                measured.append(Measured(f'te_pp_{seg.label["direction"]}_rad', self.step.name,
-                                         'rad', value))
-            else:
-                name = (f'te_pp_{seg.label["direction"]}_{seg.label["speed_rpm"]:g}rpm_'
-                        f'{seg.label["load_nm"]:g}nm_rad')
-                measured.append(Measured(f'sweep:{name}', self.step.name, 'rad', value))
-        return measured, {'kind': self.step.kind, 'rows': rows}
-
-    def _hysteresis_result(self, step: HysteresisStep) -> tuple[list[Measured], dict[str, Any]]:
-        """Metrics per measurement position; the unit's value is the worst position's."""
-        names = ['lost_motion_rad', 'backlash_rad', 'hysteresis_loss_j',
-                 *(f'torsional_rigidity_{r[0]}_nm_per_rad' for r in step.rigidity)]
-        details: dict[str, Any] = {'kind': 'hysteresis', 'method': step.method,
-                                   'rated_torque_nm': step.rated_torque_nm, 'positions': []}
-        per: list[dict[str, float]] = []
-        for pos in range(step.positions):
-            cycle = [s for s in self.segments
-                     if s.role == 'cycle' and s.label.get('position') == pos]
-            values, curve = self._one_position(step, cycle, names)
-            per.append(values)
-            details['positions'].append(curve)
-        worst = {}
-        for n in names:
-            vals = [v[n] for v in per if math.isfinite(v[n])]
-            pick = min if n.startswith('torsional_rigidity_') else max
-            worst[n] = pick(vals) if len(vals) == len(per) else math.nan
-        # the curve shown: the position with the largest lost motion
-        lm = [v['lost_motion_rad'] for v in per]
-        shown = int(np.nanargmax(lm)) if np.any(np.isfinite(lm)) else 0
-        details.update(details['positions'][shown])
-        details['shown_position'] = shown
-        return [Measured(n, step.name, _unit(n), worst[n]) for n in names], details
-
-    def _one_position(self, step: HysteresisStep, cycle: list[_Segment],
-                      names: list[str]) -> tuple[dict[str, float], dict[str, Any]]:
-        nan = dict.fromkeys(names, math.nan)
-        if hole := self._incomplete(cycle):
-            return nan, {'error': hole}
-        parts = [self._cat(s) for s in cycle]
-        th_in = np.concatenate([p[0] for p in parts])
-        th_out = np.concatenate([p[1] for p in parts])
-        applied = -np.concatenate([p[2] for p in parts])
-        _, angle = output_phase_and_te(th_in, th_out, gear_ratio=self.info.gear_ratio,
-                                       check=False)
-        position_deg = float(np.degrees(np.mod(np.mean(th_in) / self.info.gear_ratio,
-                                               2 * math.pi))) if th_in.size else math.nan
-        if step.method == 'torque_steps':
-            t, a, _ = dwell_points(applied, angle)
-        else:
-            t, a = applied, angle
-        curve: dict[str, Any] = {'samples': int(applied.size),
-                                 'output_position_deg': _fin(position_deg)}
-        try:
-            m = hysteresis_metrics(t, a, step.config())
-        except TeInputError as exc:
-            curve['error'] = str(exc)
-            return nan, curve
-        asc_t, asc_a = _decimate(*m.ascending)
-        dn_t, dn_a = _decimate(*m.descending)
-        curve.update({
-            'centre_rad': _fin(0.5 * (m.zero_width_rad[0] + m.zero_width_rad[1])),
-            'ascending_torque_nm': asc_t, 'ascending_angle_rad': asc_a,
-            'descending_torque_nm': dn_t, 'descending_angle_rad': dn_a,
-            'zero_width_rad': [_fin(x) for x in m.zero_width_rad],
-            'lost_motion_torque_nm': m.lost_motion_torque_nm,
-            'lost_motion_mid_rad': [_fin(x) for x in m.lost_motion_mid_rad],
-            'rigidity_nm_per_rad': {k: [_fin(v[0]), _fin(v[1])]
-                                    for k, v in m.rigidity_nm_per_rad.items()},
-            'rigidity_points': {k: [[_fin(x) for x in side] for side in v]
-                                for k, v in m.rigidity_points.items()},
-            'max_torque_nm': m.max_torque_nm, 'min_torque_nm': m.min_torque_nm,
-            'lost_motion_rad': _fin(m.lost_motion_rad), 'backlash_rad': _fin(m.backlash_rad)})
-        values = {'lost_motion_rad': m.lost_motion_rad, 'backlash_rad': m.backlash_rad,
-                  'hysteresis_loss_j': m.hysteresis_loss_j}
-        for r in step.rigidity:
-            values[f'torsional_rigidity_{r[0]}_nm_per_rad'] = m.rigidity_min_nm_per_rad(r[0])
-        return values, curve
-
-
-def _unit(name: str) -> str:
-    return 'N m/rad' if name.endswith('_nm_per_rad') else ('J' if name.endswith('_j') else 'rad')
+        return step_result(self.step, self.info, self.segment_data())
 
 
 def build_report(*, plan: TestPlan, profile: ToleranceProfile, info: BenchInfoData,
@@ -372,6 +246,7 @@ def run_plan_offline(plan: TestPlan, profile: ToleranceProfile, *, serial: str, 
                      sim: ProgramSimulator, info: BenchInfoData | None = None,
                      conditions: dict[str, Any] | None = None,
                      on_feedback: Callable[[int, str, float, str, float], None] | None = None,
+                     on_block: Callable[[BenchBlock], None] | None = None,
                      ) -> dict[str, Any]:
     """Run every step on a :class:`sim.program.ProgramSimulator` (no ROS) and report.
 
@@ -383,6 +258,7 @@ def run_plan_offline(plan: TestPlan, profile: ToleranceProfile, *, serial: str, 
         conditions: Extra test conditions for the record.
         on_feedback: Called per block with (step index, step name, step progress, live
             metric name, live value).
+        on_block: Called with every block the bench produced (a recording of the run).
 
     Raises:
         AcceptanceError: A step's program is refused by the bench.
@@ -401,6 +277,8 @@ def run_plan_offline(plan: TestPlan, profile: ToleranceProfile, *, serial: str, 
         done, last_seg = 0, 0
         while sim.running:
             block, seg = sim.next_block()
+            if on_block is not None:
+                on_block(block)
             if seg != last_seg:
                 runner.next_segment()
                 last_seg = seg

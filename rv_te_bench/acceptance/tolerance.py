@@ -14,7 +14,10 @@ Each limit applies to the measured metrics of its family: ``te_pp`` to the TE p-
 direction of every ``te`` step, ``torsional_rigidity`` to the named region (the smaller of
 its two sides). A metric gets pass / fail / not_measured with its margin (distance to the
 limit, positive inside); metrics without a limit are ``info``. The unit passes when every
-limited metric passes: a limit whose metric was not measured fails the unit.
+limited metric passes: a limit whose metric the plan did not measure fails the unit. A
+metric the plan measures but whose data could not be judged (a recorded test whose record
+misses what the step needs, a step whose blocks were lost) is ``not_judged`` with the
+reason, never a number; the unit is then ``not_judged`` unless a metric fails.
 """
 
 from __future__ import annotations
@@ -180,12 +183,13 @@ def load_tolerance(name_or_path: str | Path, *, relative_to: Path | None = None,
 
 @dataclass(frozen=True)
 class Measured:
-    """A measured metric (SI)."""
+    """A measured metric (SI); ``note``: why it could not be judged (value NaN)."""
 
     name: str
     step: str
     unit: str
     value: float
+    note: str = ''
 
 
 @dataclass(frozen=True)
@@ -201,15 +205,19 @@ class MetricVerdict:
     margin: float
     verdict: str
     source: str
+    note: str = ''
 
     def to_json_dict(self) -> dict[str, Any]:
         """JSON-friendly (NaN -> None)."""
         def fin(x: float) -> float | None:
             return float(x) if math.isfinite(x) else None
-        return {'name': self.name, 'step': self.step, 'unit': self.unit,
-                'value': fin(self.value), 'limit_min': fin(self.limit_min),
-                'limit_max': fin(self.limit_max), 'margin': fin(self.margin),
-                'verdict': self.verdict, 'source': self.source}
+        out = {'name': self.name, 'step': self.step, 'unit': self.unit,
+               'value': fin(self.value), 'limit_min': fin(self.limit_min),
+               'limit_max': fin(self.limit_max), 'margin': fin(self.margin),
+               'verdict': self.verdict, 'source': self.source}
+        if self.note:
+            out['note'] = self.note
+        return out
 
 
 def _judge(m: Measured, lim: Limit) -> MetricVerdict:
@@ -219,19 +227,22 @@ def _judge(m: Measured, lim: Limit) -> MetricVerdict:
     if math.isfinite(lim.min_si):
         margins.append(m.value - lim.min_si)
     if not math.isfinite(m.value):
-        verdict, margin = 'not_measured', math.nan
+        verdict, margin = ('not_judged' if m.note else 'not_measured'), math.nan
     else:
         margin = min(margins)
         verdict = 'pass' if margin >= 0 else 'fail'
     return MetricVerdict(m.name, m.step, m.unit, m.value, lim.min_si, lim.max_si, margin,
-                         verdict, lim.source)
+                         verdict, lim.source, m.note)
 
 
 def evaluate(measured: list[Measured], profile: ToleranceProfile,
              ) -> tuple[list[MetricVerdict], str, str]:
-    """Judge every measured metric; returns (verdicts, 'pass' | 'fail', reason).
+    """Judge every measured metric; returns (verdicts, 'pass' | 'fail' | 'not_judged',
+    reason).
 
-    Every limit whose family was not measured appears once as ``not_measured``.
+    Every limit whose family was not measured appears once as ``not_measured``. A metric
+    with a note and no value is ``not_judged``; the unit is then 'not_judged' unless a
+    metric fails or a limit is not measured at all.
     """
     out: list[MetricVerdict] = []
     used: set[int] = set()
@@ -239,7 +250,7 @@ def evaluate(measured: list[Measured], profile: ToleranceProfile,
         lim = next((x for x in profile.limits if x.metric_matches(m.name)), None)
         if lim is None:
             out.append(MetricVerdict(m.name, m.step, m.unit, m.value, math.nan, math.nan,
-                                     math.nan, 'info', ''))
+                                     math.nan, 'info', '', m.note))
             continue
         used.add(id(lim))
         out.append(_judge(m, lim))
@@ -249,11 +260,15 @@ def evaluate(measured: list[Measured], profile: ToleranceProfile,
                                      lim.max_si, math.nan, 'not_measured', lim.source))
     failed = [v.name for v in out if v.verdict == 'fail']
     missing = [v.name for v in out if v.verdict == 'not_measured']
-    if not failed and not missing:
+    unjudged = [v for v in out if v.verdict == 'not_judged']
+    if not failed and not missing and not unjudged:
         return out, 'pass', 'every limited metric is within its limit'
     parts = []
     if failed:
         parts.append('out of limit: ' + ', '.join(failed))
     if missing:
         parts.append('not measured: ' + ', '.join(missing))
-    return out, 'fail', '; '.join(parts)
+    if unjudged:
+        steps = dict.fromkeys(f"step '{v.step}': {v.note}" for v in unjudged)
+        parts.append('not judged: ' + '; '.join(steps))
+    return out, 'fail' if failed or missing else 'not_judged', '; '.join(parts)

@@ -3,13 +3,13 @@
 from __future__ import annotations
 
 import argparse
-import datetime as dt
 import json
 import sys
 from importlib import resources
 from pathlib import Path
 from typing import TYPE_CHECKING
 
+from rv_te_bench.cli._import_args import add_file_arguments, import_options
 from rv_te_bench.errors import DataImportError
 
 if TYPE_CHECKING:
@@ -71,63 +71,11 @@ def register(subparsers: Subparsers) -> None:
     p.add_argument('--bench', type=Path, metavar='BENCH.yaml',
                    help='bench description (rv-te import --write-bench-example bench.yaml)')
     p.add_argument('--out', type=Path, metavar='BAG', help='bag folder to create (must not exist)')
-    p.add_argument('--format', choices=('csv', 'tdms', 'mdf', 'bag'),
-                   help='file format (default: from the suffix; a folder, .mcap or .db3 is a '
-                        'rosbag2 bag of sensor_msgs/JointState)')
-    p.add_argument('--theta-in', metavar='COL', help='input-angle column / channel (name, '
-                   'group/channel for TDMS, 0-based CSV index, or the JointState joint name)')
-    p.add_argument('--theta-out', metavar='COL', help='output-angle column / channel')
-    p.add_argument('--torque', metavar='COL', help='output-torque column / channel (x the '
-                   "bench's torque_sensor.scale_nm_per_unit = N m)")
-    p.add_argument('--time', metavar='COL', help='time column / channel (default: the '
-                   "file's own time base, else --rate, else the bench's sample_rate_hz); for a "
-                   'JointState bag: the topic, when it has several')
-    p.add_argument('--time-unit', choices=('s', 'ms', 'us', 'ns', 'min', 'h'),
-                   help='unit of the --time column (default: from the format, the column '
-                        "name (t_ms, 'time [s]') or the channel's unit; never assumed)")
-    p.add_argument('--rate', type=float, metavar='HZ', help='fixed sample rate [Hz] (no time '
-                   'column)')
-    units = ('rad', 'deg', 'arcmin', 'arcsec', 'counts', 'rev')
-    p.add_argument('--unit-in', choices=units, help="input-angle unit (default: the file's "
-                   'unit, else rad)')
-    p.add_argument('--unit-out', choices=units, help='output-angle unit (likewise)')
-    p.add_argument('--counts-per-rev-in', type=int, metavar='N', help='input counts per rev '
-                   "for --unit-in counts (default: the bench's encoders.input.counts_per_rev)")
-    p.add_argument('--counts-per-rev-out', type=int, metavar='N',
-                   help='output counts per rev for --unit-out counts')
-    p.add_argument('--no-header', action='store_true', help='CSV: no header line (columns by '
-                   'index)')
-    p.add_argument('--delimiter', help='CSV delimiter (default: sniffed from the first line)')
-    p.add_argument('--no-unwrap', action='store_true', help='keep both angles as recorded '
-                   '(multi-turn counters)')
-    p.add_argument('--unwrap-in', action=argparse.BooleanOptionalAction, default=None,
-                   help='the input angle is single-turn: unwrap it (also across drop-outs, '
-                        'from the speed); --no-unwrap-in: a multi-turn counter, kept as '
-                        'recorded (default: single-turn unless it spans more than a turn)')
-    p.add_argument('--unwrap-out', action=argparse.BooleanOptionalAction, default=None,
-                   help='the output angle is single-turn (likewise)')
-    p.add_argument('--start-utc', metavar='ISO', help='absolute time of the first sample, '
-                   "e.g. 2026-11-24T09:30:00Z (default: the file's, else its modification "
-                   'time)')
-    p.add_argument('--chunk-samples', type=int, default=100_000, metavar='N',
-                   help='samples read at a time (memory is proportional)')
+    add_file_arguments(p)
     p.add_argument('--json', action='store_true', help='summary as JSON on stdout')
     p.add_argument('--write-bench-example', type=Path, metavar='FILE',
                    help='write the example bench description to FILE and stop')
     p.set_defaults(func=run, _parser=p)
-
-
-def _start_ns(text: str | None) -> int | None:
-    if text is None:
-        return None
-    try:
-        when = dt.datetime.fromisoformat(text.replace('Z', '+00:00'))
-    except ValueError:
-        msg = f'--start-utc {text!r} is not an ISO 8601 time (2026-11-24T09:30:00Z)'
-        raise DataImportError(msg) from None
-    if when.tzinfo is None:
-        when = when.replace(tzinfo=dt.UTC)
-    return round(when.timestamp() * 1e9)
 
 
 def _write_example(path: Path) -> int:
@@ -152,25 +100,10 @@ def run(args: argparse.Namespace) -> int:
     if missing:
         args._parser.error(f'{", ".join(missing)} required')
     from rv_te_bench.io.bench_description import load_bench_description
-    from rv_te_bench.io.importers import ImportOptions, import_file
+    from rv_te_bench.io.importers import import_file
 
     desc = load_bench_description(args.bench)
-    turns = {}
-    for role in ('in', 'out'):
-        flag = getattr(args, f'unwrap_{role}')
-        if args.no_unwrap and flag:
-            args._parser.error(f'--no-unwrap and --unwrap-{role} contradict each other: '
-                               'give one')
-        turns[role] = ('multi' if args.no_unwrap or flag is False else
-                       'single' if flag else 'auto')
-    options = ImportOptions(
-        theta_in=args.theta_in, theta_out=args.theta_out, torque=args.torque, time=args.time,
-        rate_hz=args.rate, time_unit=args.time_unit, unit_in=args.unit_in,
-        unit_out=args.unit_out, counts_per_rev_in=args.counts_per_rev_in,
-        counts_per_rev_out=args.counts_per_rev_out, turns_in=turns['in'],
-        turns_out=turns['out'],
-        start_ns=_start_ns(args.start_utc), chunk_samples=args.chunk_samples,
-        delimiter=args.delimiter)
+    options = import_options(args)
     try:
         summary = import_file(args.file, desc, args.out, options=options, fmt=args.format,
                               header=not args.no_header,

@@ -3,12 +3,14 @@
 The client of the ``test_sequencer``'s ``run_test_plan`` action: it validates the plan and
 the tolerance profile, sends them with the unit's serial and the operator, shows the
 progress, prints the verdict table and writes the unit report (HTML + JSON + PNG).
-Exit code: 0 the unit passes, 3 it fails, 1 error or cancelled (Ctrl-C cancels the test and
-stops the bench).
+Exit code: 0 the unit passes, 3 it fails, 1 error, cancelled (Ctrl-C cancels the test and
+stops the bench) or not judged (recorded data that lacks what a step needs).
 
 Without ``--launch`` it talks to a running session (a bench with ``commanded: true``, a
 ``test_sequencer`` and a recorder); with ``--launch PRESET`` it starts a simulated one
-itself (bench, test_sequencer, recorder; the bag lands in ``--out-dir``).
+itself (bench, test_sequencer, recorder; the bag lands in ``--out-dir``). With ``--from
+BAG|FILE`` nothing runs: the plan is judged from a recorded session, a JointState bag or a
+DAQ file imported with its bench description (``--bench``), the steps found in the data.
 
 Usage examples:
   rv-te test li2023-rv --serial LI-0001 --operator kim --launch li2023-rv
@@ -16,6 +18,9 @@ Usage examples:
   rv-te test my_plan.yaml --serial SN7 --operator kim --tolerance my_limits.yaml
   rv-te test rv-80e --serial SN8 --operator kim --launch hu2020-rv \\
       --set torsion.clearance_rad=4e-4 --condition ambient_temperature_c=23
+  rv-te test li2023-rv --serial LI-0002 --operator kim --from bags/li_session
+  rv-te test li2023-rv --serial LI-0003 --operator kim --from run.csv --bench bench.yaml \\
+      --time t_s --theta-in theta_in_rad --theta-out theta_out_rad --torque torque_nm
 """
 
 from __future__ import annotations
@@ -74,6 +79,7 @@ def register(subparsers: Subparsers) -> None:
     p.add_argument('--json', action='store_true', help='print the result as JSON on stdout')
 
     add_db_argument(p, mode='also')
+    from rv_te_bench.cli._test_from import add_from_arguments
     from rv_te_bench.cli.dashboard import add_dashboard_arguments
 
     add_dashboard_arguments(p, flag=True)
@@ -89,7 +95,8 @@ def register(subparsers: Subparsers) -> None:
     g.add_argument('--speed-factor', type=float, default=20.0,
                    help='times faster than real time; 0 = as fast as possible')
     g.add_argument('--seed', type=int, default=1)
-    p.set_defaults(func=run)
+    add_from_arguments(p)
+    p.set_defaults(func=run, _parser=p)
 
 
 def _conditions(items: list[str]) -> dict[str, Any]:
@@ -166,6 +173,13 @@ def run(args: argparse.Namespace) -> int:
         _, tol_text = load_tolerance(plan.tolerance, relative_to=base)
 
     conditions = _conditions(args.condition)
+    if args.from_path is not None:
+        if args.launch:
+            args._parser.error('--from judges recorded data and --launch runs a simulated '
+                               'bench: give one')
+        from rv_te_bench.cli._test_from import run_from
+
+        return run_from(args, plan, tol_text, conditions)
     args.namespace_norm = normalise_namespace(args.namespace)
     stamp = datetime.now(UTC).strftime('%Y%m%dT%H%M%SZ')
     safe_serial = ''.join(c if c.isalnum() or c in '-_.' else '_' for c in args.serial)
@@ -239,16 +253,21 @@ def verdict_exit(verdict: str, serial: str, reason: str,
     if verdict == 'fail':
         print(f'VERDICT: FAIL  unit {serial}: {reason}')
         return EXIT_FAIL
+    if verdict == 'not_judged':
+        print(f'VERDICT: NOT JUDGED  unit {serial}: {reason}')
+        return 1
     print(f'ERROR: test of unit {serial} {verdict}: {reason}', file=sys.stderr)
     return 1
 
 
-def _record(args: argparse.Namespace, report: dict[str, Any], bag: Path) -> None:
-    """The test's record in the results store (next to the session folders by default)."""
+def _record(args: argparse.Namespace, report: dict[str, Any], bag: Path, *,
+            beside_bag: bool = False) -> None:
+    """The test's record in the results store (next to the session folders by default;
+    ``beside_bag``: next to the bag, as ``rv-te analyze`` does)."""
     from rv_te_bench.acceptance._store import store_record
     from rv_te_bench.store import open_store
 
-    db = db_for_bags(args, [bag.parent])
+    db = db_for_bags(args, [bag if beside_bag else bag.parent])
     if db is None or not (bag / 'metadata.yaml').exists():
         return
     try:

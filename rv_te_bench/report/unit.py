@@ -34,7 +34,8 @@ _LABELS = {
     'hysteresis_loss_j': 'hysteresis loss (loop area)',
 }
 _VERDICT_COLOUR = {'pass': '#1b7f3b', 'fail': '#b00020', 'not_measured': '#9a6700',
-                   'info': '#555', 'cancelled': '#9a6700', 'error': '#b00020'}
+                   'not_judged': '#9a6700', 'info': '#555', 'cancelled': '#9a6700',
+                   'aborted': '#b00020', 'error': '#b00020'}
 
 
 def _display(unit: str, x: float | None) -> tuple[float, str]:
@@ -334,6 +335,19 @@ def render_unit_html(report: dict[str, Any], images: dict[str, bytes]) -> str:
                  f"<td>{_e(r['limit'])}</td><td>{_e(r['margin'])}</td>"
                  f"<td>{_badge(r['verdict'])}</td><td class='l muted'>{_e(r['source'])}</td></tr>")
     p.append('</table>')
+    unjudged = [(st['name'], st['not_judged']) for st in report['steps']
+                if st.get('not_judged')]
+    if unjudged:
+        p.append('<h2>Steps not judged</h2><p>The record lacks what these steps need; their '
+                 'metrics are not judged (no value is read from the wrong data).</p><ul>'
+                 + ''.join(f'<li><b>{_e(n)}</b>: {_e(why)}</li>' for n, why in unjudged)
+                 + '</ul>')
+    src = report.get('source')
+    if src:
+        p.append(f"<p class='muted'>Judged from recorded data: {_e(src.get('from', ''))} "
+                 f"({src.get('samples', 0)} samples, {src.get('duration_s', 0.0):.1f} s, "
+                 f"{src.get('breaks', 0)} break(s); torque: {_e(src.get('torque_from', ''))})"
+                 '; the steps were found in the data (report.json: source.steps).</p>')
 
     def img(name: str, alt: str) -> None:
         if name in images:
@@ -368,6 +382,14 @@ def render_unit_html(report: dict[str, Any], images: dict[str, bytes]) -> str:
                                 for k, v in s['rigidity_nm_per_rad'].items())
                 p.append(f"<p>Torsional rigidity per side: {_e(rig)}; the verdict uses the "
                          "smaller.</p>")
+                if s.get('cycles'):
+                    spread = s.get('spread') or {}
+                    sd = [f'{k.removesuffix("_rad")}: {_fmt(_display("rad", spread.get(k))[0])}'
+                          ' arcmin' for k in ('lost_motion_rad', 'backlash_rad')]
+                    p.append(f"<p>Read from {_e(s.get('reading', ''))}: {s['cycles']} load "
+                             f"cycle(s) averaged (standard deviation over the cycles: "
+                             f"{_e('; '.join(sd))}); torque noise "
+                             f"{_fmt(s.get('torque_noise_nm') or 0.0)} N m.</p>")
             if len(s.get('positions', [])) > 1:
                 p.append('<table><tr><th>position</th><th>output angle [deg]</th>'
                          '<th>lost motion [arcmin]</th><th>backlash [arcmin]</th></tr>')
