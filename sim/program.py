@@ -55,6 +55,7 @@ if TYPE_CHECKING:
 __all__ = [
     'SEGMENT_KINDS',
     'DriveSegment',
+    'OutputPositionSegment',
     'OutputSpeedSegment',
     'ProgramSimulator',
     'Segment',
@@ -132,9 +133,34 @@ class OutputSpeedSegment:
                                                 getattr(self, name), rule))
 
 
-Segment = DriveSegment | TorqueSegment | OutputSpeedSegment
+@dataclass(frozen=True)
+class OutputPositionSegment:
+    """Input locked, the output moved to a position by a position-controlled loader.
+
+    The loader reaches the position by the end of the segment's first block (linearly)
+    and holds it; the torque is the elastic torque plus friction in the direction of the
+    motion, and stays at its last value while the output stands still (stick).
+
+    Attributes:
+        position_rad: The output shaft angle commanded [rad], as the output encoder reads it.
+        duration_s: Length [s], > 0.
+    """
+
+    kind: ClassVar[str] = 'output_position'
+    position_rad: float
+    duration_s: float
+
+    def __post_init__(self) -> None:
+        """Validate (ModelInputError names the field)."""
+        for name, rule in (('position_rad', ''), ('duration_s', '>0')):
+            object.__setattr__(self, name, _num('output_position segment', name,
+                                                getattr(self, name), rule))
+
+
+Segment = DriveSegment | TorqueSegment | OutputSpeedSegment | OutputPositionSegment
 SEGMENT_KINDS: dict[str, type] = {c.kind: c for c in (DriveSegment, TorqueSegment,
-                                                      OutputSpeedSegment)}
+                                                      OutputSpeedSegment,
+                                                      OutputPositionSegment)}
 
 
 def program_from_plain(items: Any) -> tuple[Segment, ...]:
@@ -262,6 +288,8 @@ class ProgramSimulator:
         self._plan: list[_Planned] = []
         self._block_in_program = 0
         self._seg_index = -1
+        self._last_true_torque_nm = 0.0   # a position-held output keeps its torque (stick)
+        self._holding = False             # running commands block by block (hold())
 
     @property
     def info(self) -> BenchInfoData:
@@ -289,6 +317,7 @@ class ProgramSimulator:
 
     def load(self, program: tuple[Segment, ...]) -> int:
         """Queue a program (replacing what is left of one); return its number of blocks."""
+        self._holding = False
         plan: list[_Planned] = []
         first = 0
         theta, phi = self.theta_in_rad, self.torsion_rad
@@ -305,6 +334,9 @@ class ProgramSimulator:
                     duration = seg.duration_s
                     phi = float(curve.angle_under_torque([self._true_torque(seg.torque_nm)],
                                                          phi)[0])
+                elif isinstance(seg, OutputPositionSegment):
+                    duration = seg.duration_s
+                    phi = seg.position_rad - theta / self.gear_ratio
                 else:
                     direction = 1 if seg.speed_rad_s > 0 else -1
                     start_t = float(curve.torque_under_motion([phi], direction)[0])
@@ -348,6 +380,30 @@ class ProgramSimulator:
         """Drop what is left of the program."""
         self._plan = []
         self._block_in_program = 0
+        self._holding = False
+
+    def hold(self, segment: Segment) -> BenchBlock:
+        """One block of ``segment``, continuing it when it is the segment of the last block
+        run this way (a command held: the dynamic model is not restarted), else starting it
+        (a new command). What a bench driven by setpoints does, block by block.
+
+        Raises:
+            ModelInputError: An output-speed segment (position commands move the output here).
+        """
+        if isinstance(segment, OutputSpeedSegment):
+            msg = 'hold() takes drive, torque and output_position segments'
+            raise ModelInputError(msg)
+        last = self._plan[-1] if len(self._plan) == 1 else None
+        if last is not None and self._holding and last.segment == segment \
+                and self._block_in_program == last.blocks:
+            self._plan[-1] = _Planned(segment, 0, last.blocks + 1)
+        else:
+            self._plan = [_Planned(segment, 0, 1)]
+            self._block_in_program = 0
+            self._seg_index = -1
+            self._holding = True
+        block, _ = self.next_block()
+        return block
 
     def segment_of_block(self, k: int) -> int:
         """Index of the segment that block ``k`` of the program belongs to."""
@@ -427,6 +483,7 @@ class ProgramSimulator:
         self.theta_in_rad = float(self._seg_theta0 + omega * (t[-1] + 1.0 / self.sample_rate_hz
                                                             - self._seg_t0))
         self.torsion_rad = None
+        self._last_true_torque_nm = 0.0
         return theta_in, te, load
 
     def _reverse_offset(self, theta_in: np.ndarray) -> np.ndarray | float:
@@ -440,7 +497,7 @@ class ProgramSimulator:
             return wang2020.backlash_rad(theta_in / self.gear_ratio, params)
         return self.curve(0.0).backlash_rad
 
-    def _locked(self, seg: TorqueSegment | OutputSpeedSegment,
+    def _locked(self, seg: TorqueSegment | OutputSpeedSegment | OutputPositionSegment,
                 t: np.ndarray) -> tuple[np.ndarray, ...]:
         theta = self._seg_theta0
         curve = self.curve(theta)
@@ -448,6 +505,18 @@ class ProgramSimulator:
         if isinstance(seg, TorqueSegment):
             true = np.full_like(t, self._true_torque(seg.torque_nm))
             phi = curve.angle_under_torque(true, phi0)
+        elif isinstance(seg, OutputPositionSegment):
+            target = seg.position_rad - theta / self.gear_ratio
+            # where the output was at the start of this block: reached by the end of the
+            # segment's first block, linearly
+            start = phi0
+            first = float(t[0]) <= self._seg_t0 + 0.5 / self.sample_rate_hz
+            frac = (np.arange(1, t.size + 1) / t.size) if first else np.ones(t.size)
+            phi = start + (target - start) * frac if first else np.full_like(t, target)
+            if first and target != start:
+                true = curve.torque_under_motion(phi, 1 if target > start else -1)
+            else:
+                true = np.full_like(t, self._last_true_torque_nm)
         else:
             direction = 1 if seg.speed_rad_s > 0 else -1
             target = curve.angle_at_torque(self._true_torque(seg.target_torque_nm), direction)
@@ -456,6 +525,7 @@ class ProgramSimulator:
             true = curve.torque_under_motion(phi, direction)
         self.torsion_rad = float(phi[-1])
         self.theta_in_rad = theta
+        self._last_true_torque_nm = float(true[-1])
         reading = true * (1.0 + self.torque_gain_error) + self.torque_zero_nm
         if isinstance(seg, TorqueSegment):
             reading = np.full_like(t, seg.torque_nm)   # the loader holds the reading

@@ -15,7 +15,7 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-from rv_te_bench.acceptance.plan import HysteresisStep
+from rv_te_bench.acceptance.plan import HysteresisStep, OperatorStep
 from rv_te_bench.acceptance.tolerance import Measured
 from rv_te_bench.core.directional import direction_te
 from rv_te_bench.core.hysteresis_measured import (
@@ -28,10 +28,12 @@ from rv_te_bench.core.te import output_phase_and_te
 from rv_te_bench.errors import TeInputError
 
 if TYPE_CHECKING:
+    from collections.abc import Callable
+
     from rv_te_bench.acceptance.plan import Step
     from sim.bench_info import BenchInfoData
 
-__all__ = ['SegmentData', 'hysteresis_reading', 'step_result']
+__all__ = ['RESULTS', 'SegmentData', 'hysteresis_reading', 'step_result']
 
 _MAX_CURVE_POINTS = 4000
 #: Spectrum bins kept for the report (the labelled lines are kept whatever their order).
@@ -95,13 +97,12 @@ def step_result(step: Step, info: BenchInfoData, segments: list[SegmentData],
             program; for a hysteresis step those of role 'preload' and 'cycle' are read per
             ``position`` label.
     """
-    if isinstance(step, HysteresisStep):
-        return _hysteresis_result(step, info, segments)
-    return _te_result(step, info, [s for s in segments if s.role in {'te', 'sweep'}])
+    return RESULTS[step.kind](step, info, segments)
 
 
 def _te_result(step: Step, info: BenchInfoData,
                segments: list[SegmentData]) -> tuple[list[Measured], dict[str, Any]]:
+    segments = [s for s in segments if s.role in {'te', 'sweep'}]
     measured: list[Measured] = []
     rows = []
     for seg in segments:
@@ -267,3 +268,16 @@ def _one_position(step: HysteresisStep, info: BenchInfoData, segs: list[SegmentD
     if m.missing:
         curve['error'] = '; '.join(m.missing)
     return {n: m.values[n] for n in names}, curve
+
+
+def _operator_result(step: OperatorStep, _info: BenchInfoData, _segments: list[SegmentData],
+                     ) -> tuple[list[Measured], dict[str, Any]]:
+    return [], {'kind': 'operator', 'instruction': step.instruction}
+
+
+#: Step kind -> its result from the segments' data (see plan._KINDS for a new kind).
+RESULTS: dict[str, Callable[[Any, BenchInfoData, list[SegmentData]],
+                            tuple[list[Measured], dict[str, Any]]]] = {
+    'te': _te_result, 'sweep': _te_result, 'hysteresis': _hysteresis_result,
+    'operator': _operator_result}
+

@@ -20,6 +20,17 @@ A plan (docs/ACCEPTANCE.md)::
 over one revolution (the output turned on at ``reposition_speed_rpm`` input between them);
 the unit's lost motion and backlash are the largest, its rigidity the smallest.
 
+``kind: operator`` steps (``{name: mount, kind: operator, instruction: "mount the unit",
+timeout_s: 600}``) wait for the operator's acknowledgement on a real bench (the action's
+feedback shows the instruction; the ``test/acknowledge`` service or ``rv-te ack`` answers);
+no acknowledgement within ``timeout_s`` aborts the test. They measure nothing.
+
+``safety`` (optional, top level): limits the sequencer checks on every sample read back
+from a real bench, besides the bench description's ``limits``: ``max_input_speed_rpm``,
+``max_output_torque_nm`` (default: 1.25 x the largest speed / torque the plan commands),
+``stale_joint_state_s`` (no joint state for this long aborts the step; default 1),
+``reach_timeout_s`` (a setpoint not reached within this aborts; default 10).
+
 ``time_ranges_s`` (optional, used only when a recorded or imported record is judged,
 ``rv-te test --from``): where in the record each part of the step is, in seconds from the
 record's first sample, instead of finding it from the data: a TE step maps each direction
@@ -46,7 +57,10 @@ from rv_te_bench.errors import PlanError, TeConfigError
 
 __all__ = [
     'DIRECTIONS',
+    'STEP_KINDS',
     'HysteresisStep',
+    'OperatorStep',
+    'PlanSafety',
     'Step',
     'SweepStep',
     'TeStep',
@@ -210,7 +224,27 @@ class SweepStep:
     kind: str = 'sweep'
 
 
-Step = TeStep | HysteresisStep | SweepStep
+@dataclass(frozen=True)
+class OperatorStep:
+    """Wait for the operator (mount the unit, lock the input shaft); measures nothing."""
+
+    name: str
+    instruction: str
+    timeout_s: float = 600.0
+    kind: str = 'operator'
+
+
+Step = TeStep | HysteresisStep | SweepStep | OperatorStep
+
+
+@dataclass(frozen=True)
+class PlanSafety:
+    """The plan's safety limits for a real bench (SI-ish units as named; NaN: not given)."""
+
+    max_input_speed_rpm: float = math.nan
+    max_output_torque_nm: float = math.nan
+    stale_joint_state_s: float = 1.0
+    reach_timeout_s: float = 10.0
 
 
 @dataclass(frozen=True)
@@ -223,12 +257,15 @@ class TestPlan:
     steps: tuple[Step, ...]
     description: str = ''
     tolerance: str = ''
+    safety: PlanSafety = field(default_factory=PlanSafety)
     origin: str = field(default='<plan>', compare=False)
 
     def to_plain(self) -> dict[str, Any]:
         """The plan as validated (SI units), for records."""
         return {'plan': self.name, 'description': self.description,
                 'tolerance': self.tolerance,
+                'safety': {k: (None if isinstance(v, float) and math.isnan(v) else v)
+                           for k, v in asdict(self.safety).items()},
                 'steps': [{k: (list(v) if isinstance(v, tuple) else v)
                            for k, v in asdict(s).items()} for s in self.steps]}
 
@@ -294,7 +331,34 @@ def _sweep_step(f: _Fields, name: str) -> SweepStep:
         'time_ranges_s', n, 'sweep point (speeds x loads)'))
 
 
-_KINDS = {'te': _te_step, 'hysteresis': _hysteresis_step, 'sweep': _sweep_step}
+def _operator_step(f: _Fields, name: str) -> OperatorStep:
+    text = f.text('instruction')
+    if len(text) > 500:
+        f.fail('instruction', 'must be at most 500 characters', text[:40] + '...')
+    return OperatorStep(name=name, instruction=text,
+                        timeout_s=f.num('timeout_s', 600.0, lo=0.0, lo_open=True, hi=86400.0))
+
+
+#: Step kind -> parser. A new kind (issue 38) adds its dataclass and parser here, its
+#: program to runner.PROGRAMS, its result to _results.RESULTS and how recorded data is cut
+#: for it to recorded.FINDERS (tests/acceptance/test_kinds.py checks they agree).
+_KINDS = {'te': _te_step, 'hysteresis': _hysteresis_step, 'sweep': _sweep_step,
+          'operator': _operator_step}
+STEP_KINDS = tuple(_KINDS)
+
+
+def _safety(top: _Fields) -> PlanSafety:
+    raw = top.data.pop('safety', {})
+    f = _Fields(raw if raw is not None else {}, f'{top.where}: safety')
+    out = PlanSafety(
+        max_input_speed_rpm=f.num('max_input_speed_rpm', math.inf, lo=0.0, lo_open=True)
+        if 'max_input_speed_rpm' in f.data else math.nan,
+        max_output_torque_nm=f.num('max_output_torque_nm', math.inf, lo=0.0, lo_open=True)
+        if 'max_output_torque_nm' in f.data else math.nan,
+        stale_joint_state_s=f.num('stale_joint_state_s', 1.0, lo=0.0, lo_open=True, hi=3600.0),
+        reach_timeout_s=f.num('reach_timeout_s', 10.0, lo=0.0, lo_open=True, hi=3600.0))
+    f.done()
+    return out
 
 
 def parse_plan(data: Any, origin: str = '<plan>') -> TestPlan:
@@ -311,6 +375,7 @@ def parse_plan(data: Any, origin: str = '<plan>') -> TestPlan:
                  f"{FIELD_MAX_CHARS['plan']}", name[:40] + '...')
     description = str(top.data.pop('description', '') or '')
     tolerance = top.text('tolerance', '')if 'tolerance' in top.data else ''
+    safety = _safety(top)
     steps_raw = top.data.pop('steps', None)
     top.done()
     if not isinstance(steps_raw, list) or not steps_raw or len(steps_raw) > _MAX_STEPS:
@@ -328,7 +393,7 @@ def parse_plan(data: Any, origin: str = '<plan>') -> TestPlan:
         steps.append(_KINDS[kind](f, sname))
         f.done()
     return TestPlan(name=name, steps=tuple(steps), description=description,
-                    tolerance=tolerance, origin=origin)
+                    tolerance=tolerance, safety=safety, origin=origin)
 
 
 def shipped_plans() -> list[str]:

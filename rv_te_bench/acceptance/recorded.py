@@ -36,11 +36,13 @@ from rv_te_bench.core.segments import RAD_S_PER_RPM, Run, RunSettings, find_runs
 from rv_te_bench.errors import AcceptanceError
 
 if TYPE_CHECKING:
+    from collections.abc import Callable
+
     from rv_te_bench.acceptance.plan import Step, TestPlan
     from rv_te_bench.acceptance.tolerance import Measured, ToleranceProfile
     from rv_te_bench.core.segments import MeasuredRecord
 
-__all__ = ['JudgeSettings', 'judge_record']
+__all__ = ['FINDERS', 'JudgeSettings', 'judge_record']
 
 
 @dataclass(frozen=True)
@@ -248,19 +250,35 @@ class _Finder:
         return f'{want}: no locked stretch holds a whole cycle both ways'
 
 
+def _te_parts(finder: _Finder, step: TeStep) -> list[SegmentData]:
+    spans = {d: (t0, t1) for d, t0, t1 in step.time_ranges_s}
+    return [finder.drive(step, d, step.speed_rpm, step.load_nm, spans.get(d), 'te')
+            for d in step.directions]
+
+
+def _sweep_parts(finder: _Finder, step: SweepStep) -> list[SegmentData]:
+    points = [(s, ld) for s in step.speeds_rpm for ld in step.loads_nm]
+    spans: list[tuple[float, float] | None] = list(step.time_ranges_s) or [None] * len(points)
+    return [finder.drive(step, step.direction, s, ld, span, 'sweep')
+            for (s, ld), span in zip(points, spans, strict=True)]
+
+
+def _hysteresis_parts(finder: _Finder, step: HysteresisStep) -> list[SegmentData]:
+    return finder.locked(step)
+
+
+def _no_parts(_finder: _Finder, _step: Step) -> list[SegmentData]:
+    return []   # an operator step leaves no data to find
+
+
+#: Step kind -> how its parts are found in a measured record (see plan._KINDS).
+FINDERS: dict[str, Callable[[_Finder, Any], list[SegmentData]]] = {
+    'te': _te_parts, 'sweep': _sweep_parts, 'hysteresis': _hysteresis_parts,
+    'operator': _no_parts}
+
+
 def _step_segments(finder: _Finder, step: Step) -> list[SegmentData]:
-    if isinstance(step, TeStep):
-        spans = {d: (t0, t1) for d, t0, t1 in step.time_ranges_s}
-        return [finder.drive(step, d, step.speed_rpm, step.load_nm, spans.get(d), 'te')
-                for d in step.directions]
-    if isinstance(step, SweepStep):
-        points = [(s, ld) for s in step.speeds_rpm for ld in step.loads_nm]
-        spans = list(step.time_ranges_s) or [None] * len(points)
-        return [finder.drive(step, step.direction, s, ld, span, 'sweep')
-                for (s, ld), span in zip(points, spans, strict=True)]
-    if isinstance(step, HysteresisStep):
-        return finder.locked(step)
-    return []
+    return FINDERS[step.kind](finder, step)
 
 
 def judge_record(plan: TestPlan, profile: ToleranceProfile, record: MeasuredRecord, *,

@@ -27,7 +27,13 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 
 from rv_te_bench.acceptance._results import SegmentData, step_result
-from rv_te_bench.acceptance.plan import DIRECTIONS, HysteresisStep, SweepStep, TeStep
+from rv_te_bench.acceptance.plan import (
+    DIRECTIONS,
+    HysteresisStep,
+    OperatorStep,
+    SweepStep,
+    TeStep,
+)
 from rv_te_bench.acceptance.tolerance import evaluate
 from rv_te_bench.core.te import output_phase_and_te
 from rv_te_bench.errors import AcceptanceError
@@ -43,7 +49,8 @@ if TYPE_CHECKING:
     from sim.bench_info import BenchInfoData
     from sim.program import ProgramSimulator
 
-__all__ = ['StepRunner', 'build_report', 'reanalyse', 'run_plan_offline']
+__all__ = ['PROGRAMS', 'StepRunner', 'build_report', 'reanalyse', 'run_plan_offline']
+
 
 def _fin(x: float) -> float | None:
     return float(x) if math.isfinite(x) else None
@@ -75,22 +82,19 @@ class StepRunner:
         self.segments: list[_Segment] = []
         self.live_name = 'te_pp_rad'
         self._live = (math.inf, -math.inf)
-        if isinstance(step, TeStep):
-            for d in step.directions:
-                self._drive(step.speed_rpm, step.load_nm, DIRECTIONS[d], step.revolutions,
-                            step.settle_s, 'te', {'direction': d, 'speed_rpm': step.speed_rpm,
-                                                  'load_nm': step.load_nm})
-        elif isinstance(step, SweepStep):
-            for s in step.speeds_rpm:
-                for load in step.loads_nm:
-                    self._drive(s, load, DIRECTIONS[step.direction], step.revolutions,
-                                step.settle_s, 'sweep', {'direction': step.direction,
-                                                         'speed_rpm': s, 'load_nm': load})
-        else:
-            self.live_name = 'torque_nm'
-            self._hysteresis(step)
+        self._notes: dict[int, str] = {}
+        PROGRAMS[step.kind](self, step)
 
     # -- programs -----------------------------------------------------------------------------
+    def add_segment(self, plain: dict[str, Any], role: str, label: dict[str, Any]) -> None:
+        """Append a bench segment (``sim.program`` plain form) with its role and label."""
+        self.segments.append(_Segment(plain, role, dict(label)))
+
+    def add_drive(self, speed_rpm: float, load_nm: float, sign: int, revs: int,
+                  settle_s: float, role: str, label: dict[str, Any]) -> None:
+        """A drive segment of ``settle_s`` plus ``revs`` whole output revolutions (+2 %)."""
+        self._drive(speed_rpm, load_nm, sign, revs, settle_s, role, label)
+
     def _drive(self, speed_rpm: float, load_nm: float, sign: int, revs: int, settle_s: float,
                role: str, label: dict[str, Any]) -> None:
         rev_s = self.info.gear_ratio * 60.0 / speed_rpm
@@ -196,30 +200,67 @@ class StepRunner:
     def segment_data(self) -> list[SegmentData]:
         """The data of every segment, with a note where blocks are missing."""
         out = []
-        for seg in self.segments:
+        for i, seg in enumerate(self.segments):
             th_in, th_out, torque = self._cat(seg)
             out.append(SegmentData(role=seg.role, label=seg.label, theta_in_rad=th_in,
                                    theta_out_rad=th_out, torque_out_nm=torque,
-                                   note=self._incomplete([seg])))
+                                   note=self._notes.get(i) or self._incomplete([seg])))
         return out
+
+    def mark(self, segment: int, note: str) -> None:
+        """Segment ``segment`` cannot be analysed, for the reason ``note`` (data lost)."""
+        self._notes.setdefault(segment, note)
 
     def result(self) -> tuple[list[Measured], dict[str, Any]]:
         """Metrics (SI) and the details the report shows."""
         return step_result(self.step, self.info, self.segment_data())
 
 
+def _te_program(r: StepRunner, step: TeStep) -> None:
+    for d in step.directions:
+        r.add_drive(step.speed_rpm, step.load_nm, DIRECTIONS[d], step.revolutions,
+                    step.settle_s, 'te', {'direction': d, 'speed_rpm': step.speed_rpm,
+                                          'load_nm': step.load_nm})
+
+
+def _sweep_program(r: StepRunner, step: SweepStep) -> None:
+    for s in step.speeds_rpm:
+        for load in step.loads_nm:
+            r.add_drive(s, load, DIRECTIONS[step.direction], step.revolutions, step.settle_s,
+                        'sweep', {'direction': step.direction, 'speed_rpm': s,
+                                  'load_nm': load})
+
+
+def _hysteresis_program(r: StepRunner, step: HysteresisStep) -> None:
+    r.live_name = 'torque_nm'
+    r._hysteresis(step)
+
+
+def _operator_program(r: StepRunner, _step: OperatorStep) -> None:
+    r.live_name = 'waiting_s'   # no bench program: the sequencer waits for the operator
+
+
+#: Step kind -> the builder of its bench program (see plan._KINDS for a new kind).
+PROGRAMS: dict[str, Callable[[StepRunner, Any], None]] = {
+    'te': _te_program, 'sweep': _sweep_program, 'hysteresis': _hysteresis_program,
+    'operator': _operator_program}
+
+
 def build_report(*, plan: TestPlan, profile: ToleranceProfile, info: BenchInfoData,
                  serial: str, operator: str, results: list[tuple[list[Measured], dict[str, Any]]],
                  conditions: dict[str, Any] | None = None, started_utc: str = '',
-                 status: str = 'completed') -> dict[str, Any]:
+                 status: str = 'completed', why: str = '') -> dict[str, Any]:
     """The unit's record: identity, bench, conditions, verdicts, per-step details (SI).
 
-    ``status`` other than 'completed' (cancelled, error) makes the verdict that status.
+    ``status`` other than 'completed' (cancelled, aborted, error) makes the verdict that
+    status; ``why`` (the abort's reason) is added to its reason.
     """
     measured = [m for res in results for m in res[0] if not m.name.startswith('sweep:')]
     verdicts, verdict, reason = evaluate(measured, profile)
     if status != 'completed':
         verdict, reason = status, f'{status} after {len(results)} of {len(plan.steps)} steps'
+        if why:
+            reason += f': {why}'
     steps = []
     for step, (ms, details) in zip(plan.steps, results, strict=False):
         steps.append({'name': step.name, 'kind': step.kind,
@@ -268,6 +309,10 @@ def run_plan_offline(plan: TestPlan, profile: ToleranceProfile, *, serial: str, 
     results = []
     for j, step in enumerate(plan.steps):
         runner = StepRunner(step, info)
+        if not runner.program():          # an operator step: nobody to wait for offline
+            measured, details = runner.result()
+            results.append((measured, {**details, 'acknowledged': 'not needed (offline)'}))
+            continue
         try:
             total = sim.load(program_from_plain(runner.program()))
         except ModelInputError as exc:
@@ -316,6 +361,9 @@ def reanalyse(*, plan: TestPlan, profile: ToleranceProfile, info: BenchInfoData,
             msg = (f'recorded step {s["step_index"]} ({s.get("step_name", "?")!r}) does not '
                    f'follow the plan (expected step {n})')
             raise AcceptanceError(msg)
+        if plan.steps[n].kind == 'operator':
+            results.append(StepRunner(plan.steps[n], info).result())
+            continue
         if not s['segment_blocks']:
             msg = (f'recorded step {n} has no segment block counts (recorded before they were '
                    'recorded): it cannot be analysed again')

@@ -283,6 +283,19 @@ def split_cycles(torque_nm: npt.ArrayLike, rated_torque_nm: float) -> list[Cycle
     return out
 
 
+def _refine(c: CycleBounds, tq: np.ndarray, k: int) -> CycleBounds:
+    """The cycle's turns at the raw extremes within k samples of the smoothed ones."""
+    def at(i: int, sign: int) -> int:
+        a, b = max(0, i - k), min(tq.size, i + k + 1)
+        seg = tq[a:b]
+        return a + int(np.argmax(seg) if sign > 0 else np.argmin(seg))
+
+    peak, trough = at(c.peak, 1), at(c.trough, -1)
+    up = c.up_start if c.up_start == 0 else at(c.up_start, -1)
+    back = c.back_end if c.back_end == tq.size - 1 else at(c.back_end, 1)
+    return CycleBounds(up, peak, trough, back)
+
+
 def sample_reader(half_width_nm: float, smooth: int = 1) -> BranchReader:
     """Reads a branch of noisy *samples* at a torque by local fits against time.
 
@@ -506,6 +519,11 @@ def measured_hysteresis(time_s: npt.ArrayLike, torque_nm: npt.ArrayLike,
         k = max(1, min(tq.size // 50 or 1, 25))
         cyc_t = np.convolve(tq, np.ones(k) / k, mode='same') if tq.size >= k else tq
     bounds = split_cycles(cyc_t, tr)
+    if reading.method != 'torque_steps' and bounds:
+        # the smoothed record finds the turns; the raw samples say where exactly they are
+        # (a reversal drops the torque by twice the friction at once: smoothing shifts the
+        # extreme before it)
+        bounds = [_refine(c, tq, k) for c in bounds]
     if not bounds:
         hi = float(np.max(tq)) if tq.size else math.nan
         lo = float(np.min(tq)) if tq.size else math.nan

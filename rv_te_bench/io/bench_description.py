@@ -21,6 +21,9 @@ The file (``rv_te_bench/launch/bench_description_example.yaml`` is a full exampl
     torque_sensor: {present: true, model: HBM T40B, scale_nm_per_unit: 1.0, unit: N m}
     unit_under_test: {serial: SN-42, operator: A. Tester, temperature_c: 23.5, notes: ''}
     joints: {input: input_joint, output: output_joint}       # JointState names (optional)
+    limits: {max_input_speed_rpm: 3000, max_output_torque_nm: 1000}   # the bench's own
+                                                             #   (optional; rv-te test checks
+                                                             #   every sample read back)
     metadata: {daq: NI PXIe-4492}                            # free strings, into the bag
 
 Only ``bench_id``, ``sample_rate_hz`` and either ``preset`` or ``reducer`` are required. With
@@ -168,6 +171,8 @@ class BenchDescription:
         unit_under_test: Serial, operator, temperature, notes.
         joint_in_name: JointState name of the input joint (None: not given).
         joint_out_name: JointState name of the output joint (None: not given).
+        max_input_speed_rpm: The bench's input speed limit [rpm] (NaN: not given).
+        max_output_torque_nm: The bench's output torque limit [N m] (NaN: not given).
         metadata: Free string metadata (read-only mapping).
         origin: Where the description came from (file name), for messages.
     """
@@ -189,6 +194,8 @@ class BenchDescription:
     unit_under_test: UnitUnderTest = field(default_factory=UnitUnderTest)
     joint_in_name: str | None = None
     joint_out_name: str | None = None
+    max_input_speed_rpm: float = math.nan
+    max_output_torque_nm: float = math.nan
     metadata: Mapping[str, str] = field(default_factory=dict, hash=False)
     origin: str = field(default='<bench description>', compare=False)
 
@@ -238,6 +245,10 @@ class BenchDescription:
             v = getattr(self, name)
             if v is not None and (not isinstance(v, str) or not v.strip()):
                 _fail(w, name, 'must be a non-empty string or None', v)
+        for name in ('max_input_speed_rpm', 'max_output_torque_nm'):
+            v = getattr(self, name)
+            if not (isinstance(v, float) and math.isnan(v)) and (not _number(v) or v <= 0):
+                _fail(w, f'limits.{name}', 'must be a finite number > 0', v)
         meta = dict(self.metadata)
         if not all(isinstance(k, str) and isinstance(v, str) for k, v in meta.items()):
             _fail(w, 'metadata', 'must map strings to strings', meta)
@@ -288,6 +299,9 @@ class BenchDescription:
                                 'temperature_c': self.unit_under_test.temperature_c,
                                 'notes': self.unit_under_test.notes},
             'joints': {'input': self.joint_in_name, 'output': self.joint_out_name},
+            'limits': {k: (None if math.isnan(v) else v) for k, v in (
+                ('max_input_speed_rpm', self.max_input_speed_rpm),
+                ('max_output_torque_nm', self.max_output_torque_nm))},
             'metadata': dict(self.metadata),
             'source': 'bench description',
         }
@@ -501,6 +515,10 @@ def parse_bench_description(data: Any, origin: str = '<bench description>',
     j.done()
     if joint_in is not None and joint_in == joint_out:
         j.fail('output', 'must differ from joints.input', joint_out)
+    lim = top.sub('limits')
+    max_speed = lim.num('max_input_speed_rpm')
+    max_torque = lim.num('max_output_torque_nm')
+    lim.done()
     meta_raw = top.data.pop('metadata', {}) or {}
     if not isinstance(meta_raw, dict) or len(meta_raw) > _MAX_METADATA:
         top.fail('metadata', f'must be a mapping of at most {_MAX_METADATA} keys', meta_raw)
@@ -516,7 +534,10 @@ def parse_bench_description(data: Any, origin: str = '<bench description>',
         bench_id=str(bench_id), preset=preset, preset_overrides=tuple(ov),
         sample_rate_hz=float(rate or 0.0), block_size=int(bs), encoder_in=enc_in,
         encoder_out=enc_out, torque_sensor=torque, unit_under_test=uut,
-        joint_in_name=joint_in, joint_out_name=joint_out, metadata=meta, origin=origin, **kin)
+        joint_in_name=joint_in, joint_out_name=joint_out,
+        max_input_speed_rpm=math.nan if max_speed is None else float(max_speed),
+        max_output_torque_nm=math.nan if max_torque is None else float(max_torque),
+        metadata=meta, origin=origin, **kin)
 
 
 def load_bench_description(path: str | Path) -> BenchDescription:
