@@ -48,6 +48,7 @@ lint: venv
 MUTANTS ?=
 mutation: venv
 	$(PY) -m pip install --quiet -e '.[mutation]'
+	rm -rf mutants   # mutmut keeps copies of the sources there: results of an older tree
 	$(VENV)/bin/mutmut run $(MUTANTS)
 	$(VENV)/bin/mutmut results
 

@@ -85,8 +85,9 @@ def pytest_collection_modifyitems(config: pytest.Config, items: list[pytest.Item
 # collection order): the files that took longest last time start first, so that no long
 # file starts last and runs alone at the end (longest-processing-time-first scheduling).
 # The seconds per file are kept in pytest's cache (.pytest_cache) by the run that measured
-# them; without a cache (a fresh clone) files with slow ROS tests go first, then slow, then
-# ROS tests. Tests keep their order within a file.
+# them. Files without a time (a fresh clone, a new file, or one that run left out) go first,
+# those with slow ROS tests first, then slow, then ROS tests. Tests keep their order within
+# a file.
 
 _SECONDS_KEY = 'rv_te_bench/seconds_per_file'
 
@@ -102,8 +103,14 @@ def _heaviest_files_first(config: pytest.Config, items: list[pytest.Item]) -> No
         weight[f] = (w, max(k, kind))
     first = {f: i for i, f in reversed(list(enumerate(
         item.nodeid.split('::', 1)[0] for item in items)))}
-    items.sort(key=lambda it: (-weight[f := it.nodeid.split('::', 1)[0]][0],
-                               -weight[f][1], first[f]))
+
+    def key(item: pytest.Item) -> tuple[int, float, int]:
+        f = item.nodeid.split('::', 1)[0]
+        if f not in seconds:   # new, or left out of the measuring run (make test-fast leaves
+            return (0, -weight[f][1], first[f])   # out the ROS and slow ones): likely long
+        return (1, -weight[f][0], first[f])
+
+    items.sort(key=key)
 
 
 def pytest_runtest_logreport(report: pytest.TestReport) -> None:

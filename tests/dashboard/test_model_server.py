@@ -156,10 +156,17 @@ def test_a_stalled_client_never_holds_more_than_one_update_and_others_keep_going
                  b'Connection: Upgrade\r\nSec-WebSocket-Key: dGhlIHNhbXBsZSBub25jZQ==\r\n'
                  b'Sec-WebSocket-Version: 13\r\n\r\n')
     received = 0
+
+    def stalled_skips() -> int:
+        return max((c.skipped for c in hub.clients), default=0)
+
     with websockets_sync.connect(url, open_timeout=5, max_size=None) as ws:
-        end = time.monotonic() + 6.0
+        # at least 6 s of updates (>= 10 per s on a quiet machine), longer on a busy one:
+        # a hub the stalled client blocked would deliver none, however long it ran
+        start = time.monotonic()
         seq = 0
-        while time.monotonic() < end:
+        while time.monotonic() - start < 6.0 or (
+                (received < 60 or stalled_skips() <= 50) and time.monotonic() - start < 60.0):
             m.on_encoders(_block(seq))
             seq += 1
             try:
@@ -169,7 +176,7 @@ def test_a_stalled_client_never_holds_more_than_one_update_and_others_keep_going
                 pass
         clients = list(hub.clients)
     slow.close()
-    assert received >= 6.0 * 10            # the reading tab got its updates (>= 10 per s)
+    assert received >= 6.0 * 10            # the reading tab got its updates
     assert len(clients) == 2
     assert all(c.queue.qsize() <= 1 for c in clients)
     stalled = max(clients, key=lambda c: c.skipped)

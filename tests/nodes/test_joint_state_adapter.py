@@ -39,7 +39,7 @@ from rv_te_bench.nodes import qos  # noqa: E402
 from rv_te_bench.nodes.bench_node import BenchNode, bench_config_from_params  # noqa: E402
 from rv_te_bench.nodes.joint_state_adapter import JointStateAdapterNode  # noqa: E402
 from rv_te_bench.nodes.te_node import TeNode  # noqa: E402
-from tests.nodes.rosutil import spin_for, spin_until  # noqa: E402
+from tests.nodes.rosutil import spin_for, spin_until, spin_while_progress  # noqa: E402
 
 SPEED_RPM = 2950.0   # 1606.8 samples per output revolution: no window boundary on a sample
 RATE_HZ = 1000.0
@@ -88,7 +88,7 @@ def _as_data(b):
                             b.theta_out_rad, b.torque_out_nm)
 
 
-@pytest.mark.timeout(120)
+@pytest.mark.timeout(300)   # a backstop: the waits below end when progress stops
 @pytest.mark.parametrize(('layout', 'wrap'), [('one_message', False), ('separate', False),
                                               ('one_message', True)])
 def test_joint_state_path_equals_encoder_block_path(graph, tmp_path, layout: str,
@@ -137,8 +137,10 @@ def test_joint_state_path_equals_encoder_block_path(graph, tmp_path, layout: str
         bench_ex.shutdown()
         bench.destroy_node()
     n_samples = bench.joint_states_published
-    assert spin_until(ex, lambda: sum(len(b.theta_in_rad) for b in blocks) == n_samples,
-                      30.0), (adapter.assembler.counters, n_samples)
+    assert spin_while_progress(
+        ex, lambda: sum(len(b.theta_in_rad) for b in blocks) == n_samples,
+        lambda: (adapter.assembler.counters['messages'], len(blocks)), idle_s=30.0), (
+        adapter.assembler.counters, n_samples)
     assert spin_until(ex, lambda: sum(w.window_complete for w in windows) >= 2, 10.0)
     spin_for(ex, 0.3)
 
@@ -302,7 +304,7 @@ def test_bad_adapter_combination_is_one_clear_error(ros_context, overrides: dict
     assert '\n' not in str(info.value)
 
 
-@pytest.mark.timeout(90)
+@pytest.mark.timeout(300)   # a backstop: the waits below end when progress stops
 def test_joint_states_to_recorded_bag_analysed_with_the_gap(graph, tmp_path) -> None:
     """JointState -> adapter -> TE node + recorder -> bag -> rv-te analyze's core: the
     injected stamp jump is a seq_jump in the bag's analysis, not a splice."""
@@ -338,8 +340,11 @@ def test_joint_states_to_recorded_bag_analysed_with_the_gap(graph, tmp_path) -> 
                                 [float(th_in[i]), float(th_out[i])]))
             if i % 50 == 49:
                 ex.spin_once(timeout_sec=0.0)
-        assert spin_until(ex, lambda: adapter.assembler.counters['samples'] == n - len(skip)
-                          and te._blocks == adapter.blocks_published, 20.0)
+        assert spin_while_progress(
+            ex, lambda: adapter.assembler.counters['samples'] == n - len(skip)
+            and te._blocks == adapter.blocks_published,
+            lambda: (adapter.assembler.counters['messages'], te._blocks), idle_s=20.0), \
+            adapter.assembler.counters
         spin_for(ex, 1.5)   # the recorder flushes
     finally:
         ex.remove_node(recorder)

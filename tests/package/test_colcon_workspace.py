@@ -27,7 +27,7 @@ EXECUTABLES = ('bench_node', 'te_node', 'compensation_node', 'recorder', 'replay
 # what a fresh clone holds that the build needs; the rest (tests, bags, venvs) stays out
 IGNORE = shutil.ignore_patterns('.git', '.venv', '.hypothesis', '.pytest_cache', '__pycache__',
                                 '*.egg-info', '*.so', 'build', 'install', 'log', 'bags', 'tests',
-                                'benchmarks', 'out')
+                                'benchmarks', 'out', 'mutants')
 
 
 def user_env() -> dict[str, str]:
