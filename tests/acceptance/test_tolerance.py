@@ -105,3 +105,28 @@ def test_not_measured_fails_the_unit() -> None:
     _, unit, reason = evaluate([Measured('backlash_rad', 'h', 'rad', 1e-4),
                                 Measured('lost_motion_rad', 'h', 'rad', 2e-4)], p)
     assert (unit, reason) == ('pass', 'every limited metric is within its limit')
+
+
+def test_verdicts_and_profiles_keep_every_field_for_the_report() -> None:
+    """Mutation testing's survivors (docs/TESTING.md): the report and the store read these
+    keys; a renamed key or a lost step / unit / source was seen by no test."""
+    lim = math.pi / 10800
+    p = profile({'te_pp_arcmin': {'max': 1.0, 'source': 'catalogue'},
+                 'torsional_rigidity_nm_per_arcmin': {'min': 196, 'region': 'K2',
+                                                      'source': 'c2'}})
+    verdicts, _, _ = evaluate([Measured('te_pp_ccw_rad', 'te', 'rad', 0.25 * lim)], p)
+    assert verdicts[0].to_json_dict() == {
+        'name': 'te_pp_ccw_rad', 'step': 'te', 'unit': 'rad', 'value': 0.25 * lim,
+        'limit_min': None, 'limit_max': pytest.approx(lim, rel=1e-15),
+        'margin': pytest.approx(0.75 * lim, rel=1e-12), 'verdict': 'pass',
+        'source': 'catalogue'}
+    assert verdicts[1].to_json_dict() == {
+        'name': 'torsional_rigidity_K2_nm_per_rad', 'step': '', 'unit': 'N m/rad',
+        'value': None, 'limit_min': pytest.approx(196 / lim, rel=1e-15), 'limit_max': None,
+        'margin': None, 'verdict': 'not_measured', 'source': 'c2'}
+    assert p.to_plain() == {'profile': 'p', 'description': '', 'limits': [
+        {'key': 'te_pp_arcmin', 'family': 'te_pp', 'unit': 'rad', 'min_si': None,
+         'max_si': pytest.approx(lim, rel=1e-15), 'region': '', 'source': 'catalogue'},
+        {'key': 'torsional_rigidity_nm_per_arcmin', 'family': 'torsional_rigidity',
+         'unit': 'N m/rad', 'min_si': pytest.approx(196 / lim, rel=1e-15), 'max_si': None,
+         'region': 'K2', 'source': 'c2'}]}

@@ -56,7 +56,8 @@ def flank_angle(t: list[float], kp: float, kn: float, b: float) -> np.ndarray:
     return out
 
 
-def run_hysteresis(positions: int = 4) -> tuple[StepRunner, HysteresisStep]:
+def run_hysteresis(positions: int = 4, skip: int | None = None,
+                   ) -> tuple[StepRunner, HysteresisStep]:
     plan = parse_plan({'plan': 'h', 'steps': [{
         'kind': 'hysteresis', 'name': 'hysteresis', 'rated_torque_nm': TR,
         'step_fraction': 0.1, 'dwell_s': 0.01, 'positions': positions}]})
@@ -65,6 +66,8 @@ def run_hysteresis(positions: int = 4) -> tuple[StepRunner, HysteresisStep]:
     runner = StepRunner(step, BenchInfoData(gear_ratio=RATIO, sample_rate_hz=FS_HZ,
                                             block_size=100))
     for pos in range(positions):
+        if pos == skip:   # no data from this position
+            continue
         cycle = [(j, s) for j, s in enumerate(runner.segments)
                  if s.role == 'cycle' and s.label['position'] == pos]
         torques = [s.plain['torque_nm'] for _, s in cycle]
@@ -93,6 +96,29 @@ def test_rigidity_is_the_softest_side_of_the_softest_position() -> None:
     assert value['lost_motion_rad'] == pytest.approx(max(lm), rel=1e-6)
     assert value['backlash_rad'] == pytest.approx(max(bl), rel=1e-6)
     assert details['shown_position'] == int(np.argmax(lm))
+
+
+def test_a_position_not_measured_is_not_replaced_by_the_others() -> None:
+    """A mutation survivor: the unit's value taken from the positions that were measured.
+    With position 2 (the softest) missing, the unit's rigidity is not measured and the unit
+    does not pass, rather than taking the 80,000 N m/rad of the others."""
+    runner, step = run_hysteresis(skip=2)
+    measured, details = runner.result()
+    assert {m.name: m.step for m in measured} == dict.fromkeys(
+        ['lost_motion_rad', 'backlash_rad', 'hysteresis_loss_j',
+         'torsional_rigidity_K_nm_per_rad'], 'hysteresis')
+    assert all(math.isnan(m.value) for m in measured), measured
+    assert {m.unit for m in measured} == {'rad', 'J', 'N m/rad'}
+    assert 'error' in details['positions'][2]
+    profile = parse_tolerance({'profile': 'p', 'limits': {
+        'torsional_rigidity_nm_per_arcmin': {'min': 20.0, 'region': 'K'}}})
+    report = build_report(plan=parse_plan({'plan': 'h', 'steps': [
+        {'kind': 'hysteresis', 'name': 'hysteresis', 'rated_torque_nm': TR,
+         'positions': 4}]}), profile=profile, info=runner.info, serial='SN', operator='t',
+        results=[(measured, details)])
+    (k,) = [m for m in report['metrics'] if m['name'] == 'torsional_rigidity_K_nm_per_rad']
+    assert k['verdict'] in {'not_measured', 'not_judged'} and k['value'] is None
+    assert report['verdict'] != 'pass' and step.positions == 4
 
 
 def test_a_unit_soft_at_one_position_fails_its_minimum_rigidity() -> None:
@@ -163,3 +189,60 @@ def test_direction_te_is_the_worst_revolution_and_fails_the_unit() -> None:
     verdicts = {m['name']: m['verdict'] for m in report['metrics']}
     assert verdicts == {'te_pp_ccw_rad': 'fail', 'te_pp_cw_rad': 'pass'}
     assert report['verdict'] == 'fail'
+
+
+# ------------------------------------------------------------------ what the report shows
+
+def test_te_step_skips_its_settling_and_reports_lines_at_their_frequencies() -> None:
+    """Survivors of mutation testing (docs/TESTING.md): the settling time analysed, the
+    spectrum's duration (frequencies) wrong, the spectrum or the report's keys dropped, the
+    step or unit of a metric lost, sweep points misnamed: each changed what the report shows
+    and no test saw it.
+
+    One ccw revolution at 300 rpm after 1 s of settling: TE = A sin(25 phi) (the crank's
+    first order of the 2K-V, 25 per output revolution), and in the settling second a 1e-3 rad
+    transient that must not count. Closed forms: p-p 2 A; the 25th-order line has amplitude A
+    at 25 x 300 / 60 / 79 Hz."""
+    a = 1e-4
+    info = BenchInfoData(gear_ratio=RATIO, crank_per_input=25.0 / RATIO, sample_rate_hz=FS_HZ,
+                         block_size=100)
+    plan = parse_plan({'plan': 'd', 'steps': [
+        {'kind': 'te', 'name': 'te', 'speed_rpm': 300, 'directions': ['ccw'],
+         'revolutions': 1, 'settle_s': 1.0},
+        {'kind': 'sweep', 'name': 'sweep', 'speeds_rpm': [300], 'loads_nm': [0, 50],
+         'revolutions': 1, 'settle_s': 0.0}]})
+    results = []
+    for step in plan.steps:
+        runner = StepRunner(step, info)
+        for j, seg in enumerate(runner.segments):
+            n = round(seg.plain['duration_s'] * FS_HZ)
+            settle = round(seg.label['settle_s'] * FS_HZ)
+            s = 2 * math.pi * (np.arange(n) - settle) / 15_800     # output travel after settle
+            te = a * np.sin(25 * s)
+            te[:settle] = 1e-3 * np.linspace(1.0, 0.0, settle)    # the settling transient
+            runner.next_segment()
+            for b0 in range(0, n, 100):
+                b1 = min(b0 + 100, n)
+                runner.feed(j, RATIO * s[b0:b1], s[b0:b1] + te[b0:b1], np.zeros(b1 - b0))
+        results.append(runner.result())
+    (te_m,), te_details = results[0]
+    assert (te_m.name, te_m.step, te_m.unit) == ('te_pp_ccw_rad', 'te', 'rad')
+    assert te_m.value == pytest.approx(2 * a, rel=1e-6)               # the transient left out
+    assert te_details['kind'] == 'te'
+    (row,) = te_details['rows']
+    assert row['samples'] == round(plan.steps[0].settle_s * FS_HZ) + round(
+        15_800 * 1.02 + 2)
+    assert row['te_pp_rad'] == te_m.value and row['revolutions'] == 1
+    assert row['stats']['te_pp_rad'] == pytest.approx(2 * a, rel=1e-6)
+    assert len(row['position_rad']) == len(row['te_by_position_rad']) > 100
+    line = next(ln for ln in row['spectrum'] if ln['output_order'] == pytest.approx(25.0))
+    assert line['amplitude_rad'] == pytest.approx(a, rel=1e-3)
+    assert line['frequency_hz'] == pytest.approx(25 * 300 / 60 / RATIO, rel=1e-3)
+    peak = int(np.argmax(row['spectrum_amplitude_rad']))
+    assert row['spectrum_orders'][peak] == pytest.approx(25.0, abs=0.5)
+    sweep_m, sweep_details = results[1]
+    assert [(m.name, m.step, m.unit) for m in sweep_m] == [
+        ('sweep:te_pp_ccw_300rpm_0nm_rad', 'sweep', 'rad'),
+        ('sweep:te_pp_ccw_300rpm_50nm_rad', 'sweep', 'rad')]
+    assert [m.value for m in sweep_m] == pytest.approx([2 * a, 2 * a], rel=1e-6)
+    assert sweep_details['kind'] == 'sweep'
