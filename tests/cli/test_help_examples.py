@@ -189,6 +189,8 @@ def run_example(line: str, mp: pytest.MonkeyPatch, store: Path | None = None) ->
                                          else [arg])]
     if argv[:1] == ['launch'] and '--write-default' not in argv:
         argv.append('--check')
+    if argv[:1] == ['dashboard'] and '--duration' not in argv:
+        argv += ['--duration', '1']   # serves until Ctrl-C otherwise (the test hung 600 s)
     if argv:
         _stop_at_start(mp, argv[0])
     if argv[:1] in (['results'], ['spc']) and store is not None:
