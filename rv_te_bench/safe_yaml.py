@@ -24,6 +24,10 @@ Two scalar typings:
   (``1e5``, ``1.0e12``, ``inf``; YAML 1.1 would read ``1.0e12`` as a string); everything else
   (``null``, ``~``, ``1_000``, dates) is a string. An empty plain value is an error (rcl:
   "No value").
+* ``'document'``: the suite's own documents (bench descriptions, test plans, tolerance
+  profiles): ``'yaml'``, except that a plain scalar YAML 1.1 leaves as text but rcl reads as
+  a number is that number (``1e4``, ``1.5e3``, ``5e-6``), so a value means the same in a
+  plan as in a parameter file: one number rule everywhere.
 
 Errors are :class:`~rv_te_bench.errors.YamlInputError` naming where (file and line) and
 what; any value quoted in a message is cut to a few dozen characters (:func:`brief`).
@@ -139,7 +143,8 @@ def decode_text(data: bytes, origin: str) -> str:
 
 
 def read_yaml_file(path: str | Path, *, what: str, limits: YamlLimits,
-                   scalars: Literal['yaml', 'ros'] = 'yaml', unique_keys: bool = True,
+                   scalars: Literal['yaml', 'ros', 'document'] = 'yaml',
+                   unique_keys: bool = True,
                    ) -> Any:
     """Read and parse one YAML file within ``limits``.
 
@@ -150,7 +155,8 @@ def read_yaml_file(path: str | Path, *, what: str, limits: YamlLimits,
         path: The file.
         what: What it is, for messages (``'parameter file'``).
         limits: Bounds (size, depth, aliases, expanded nodes).
-        scalars: ``'yaml'`` (YAML 1.1, as safe_load) or ``'ros'`` (rcl's parameter rules).
+        scalars: ``'yaml'`` (YAML 1.1, as safe_load), ``'ros'`` (rcl's parameter rules) or
+            ``'document'`` (YAML 1.1 with rcl's numbers: the suite's own documents).
         unique_keys: Reject a mapping that repeats a key.
 
     Returns:
@@ -162,7 +168,10 @@ def read_yaml_file(path: str | Path, *, what: str, limits: YamlLimits,
     p = Path(path)
     origin = f'{what} {p}'
     try:
-        with p.open('rb') as f:
+        # O_NONBLOCK: opening a FIFO for reading would otherwise wait for a writer, before
+        # the check below could refuse it (regular files ignore the flag)
+        fd = os.open(p, os.O_RDONLY | os.O_NONBLOCK | getattr(os, 'O_NOCTTY', 0))
+        with os.fdopen(fd, 'rb') as f:
             if not stat.S_ISREG(os.fstat(f.fileno()).st_mode):
                 msg = f'{origin}: not a regular file'
                 raise YamlInputError(msg)
@@ -182,7 +191,8 @@ def _size(n: int) -> str:
 
 
 def load_yaml(text: str | bytes, *, origin: str, limits: YamlLimits,
-              scalars: Literal['yaml', 'ros'] = 'yaml', unique_keys: bool = True,
+              scalars: Literal['yaml', 'ros', 'document'] = 'yaml',
+              unique_keys: bool = True,
               ) -> Any:
     """Parse one YAML document within ``limits`` (see the module doc).
 
@@ -190,7 +200,7 @@ def load_yaml(text: str | bytes, *, origin: str, limits: YamlLimits,
         text: The document (bytes: UTF-8, or UTF-16/32 with a BOM).
         origin: Where it comes from, for messages (``'parameter file x.yaml'``).
         limits: Bounds (size, depth, aliases, expanded nodes).
-        scalars: ``'yaml'`` or ``'ros'`` scalar typing.
+        scalars: ``'yaml'``, ``'ros'`` or ``'document'`` scalar typing.
         unique_keys: Reject a mapping that repeats a key.
 
     Returns:
@@ -302,6 +312,7 @@ class _Builder:
         self.origin = origin
         self.limits = limits
         self.ros = scalars == 'ros'
+        self.document = scalars == 'document'
         self.unique_keys = unique_keys
         self.resolver = Resolver()
         self.constructor = SafeConstructor()
@@ -411,6 +422,10 @@ class _Builder:
             return event.value if key else ros_scalar(event.value, quoted=not plain)
         if tag in (None, '!'):
             tag = self.resolver.resolve(ScalarNode, event.value, event.implicit)
+            if self.document and plain and not key and tag == f'{_STD}str':
+                number = ros_scalar(event.value, quoted=False)   # rcl's numbers (1e4)
+                if isinstance(number, int | float) and not isinstance(number, bool):
+                    return number
         try:
             return self.constructor.construct_object(ScalarNode(tag, event.value,
                                                                 event.start_mark))

@@ -196,7 +196,9 @@ MAX_PRESET_BYTES = 1 << 20
 def _read_preset_file(path: Path) -> str:
     """A preset TOML file's text: a regular file, at most MAX_PRESET_BYTES, UTF-8."""
     try:
-        with path.open('rb') as f:
+        # O_NONBLOCK: a FIFO would otherwise block the open itself, before the check
+        fd = os.open(path, os.O_RDONLY | os.O_NONBLOCK | getattr(os, 'O_NOCTTY', 0))
+        with os.fdopen(fd, 'rb') as f:
             if not stat.S_ISREG(os.fstat(f.fileno()).st_mode):
                 msg = f'preset {path}: not a regular file'
                 raise PresetError(msg)

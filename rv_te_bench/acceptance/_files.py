@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import re
 from importlib import resources
 from pathlib import Path
 from typing import Any
@@ -10,13 +11,23 @@ from rv_te_bench.errors import YamlInputError
 from rv_te_bench.safe_yaml import DOCUMENT_LIMITS, load_yaml
 
 _MAX_TEXT = DOCUMENT_LIMITS.max_bytes
+_NAME = re.compile(r'[A-Za-z_][A-Za-z0-9_.\-]{0,63}')
+
+
+def shown_keys(keys: Any) -> str:
+    """Unknown keys for a message: the ones that look like names (a file of another kind,
+    e.g. ``/etc/shadow`` given as a tolerance, must not have its lines printed); the rest
+    only counted."""
+    names = sorted(str(k) for k in keys if isinstance(k, str) and _NAME.fullmatch(k))
+    other = sum(1 for k in keys if not (isinstance(k, str) and _NAME.fullmatch(k)))
+    return str(names) + (f' and {other} more that are not names' if other else '')
 
 
 def parse_yaml_text(text: str, origin: str, error: type[Exception]) -> Any:
     """A plan or tolerance file through the suite's bounded loader (size, depth, aliases,
     expanded nodes: :mod:`rv_te_bench.safe_yaml`), errors on one line as ``error``."""
     try:
-        return load_yaml(text, origin=origin, limits=DOCUMENT_LIMITS)
+        return load_yaml(text, origin=origin, limits=DOCUMENT_LIMITS, scalars='document')
     except YamlInputError as exc:
         raise error(str(exc)) from None
 

@@ -51,7 +51,7 @@ from dataclasses import asdict, dataclass, field
 from pathlib import Path
 from typing import Any
 
-from rv_te_bench.acceptance._files import parse_yaml_text, read_source, shipped
+from rv_te_bench.acceptance._files import parse_yaml_text, read_source, shipped, shown_keys
 from rv_te_bench.core.hysteresis import HysteresisConfig, RigidityRegion
 from rv_te_bench.errors import PlanError, TeConfigError
 
@@ -74,6 +74,13 @@ __all__ = [
 #: Direction name -> sign of the output rotation.
 DIRECTIONS = {'ccw': 1, 'cw': -1}
 _MAX_STEPS = 100
+#: Upper bounds of a step (a plan runs on a real bench: nothing unbounded): input speed
+#: [rpm], output torque [N m] (robot reducers are rated well below 1e5 N m), whole output
+#: revolutions per direction or point, settle time [s].
+MAX_SPEED_RPM = 1e5
+MAX_TORQUE_NM = 1e6
+MAX_REVOLUTIONS = 100
+MAX_SETTLE_S = 600.0
 
 
 class _Fields:
@@ -106,10 +113,12 @@ class _Fields:
             self.fail(key, f'must be <= {hi:g}', v)
         return float(v)
 
-    def integer(self, key: str, default: int, *, lo: int) -> int:
+    def integer(self, key: str, default: int, *, lo: int, hi: int | None = None) -> int:
         v = self.data.pop(key, default)
-        if isinstance(v, bool) or not isinstance(v, int) or v < lo:
-            self.fail(key, f'must be an integer >= {lo}', v)
+        if isinstance(v, bool) or not isinstance(v, int) or v < lo or (hi is not None
+                                                                        and v > hi):
+            rule = f'an integer >= {lo}' if hi is None else f'an integer in {lo}..{hi}'
+            self.fail(key, f'must be {rule}', v)
         return int(v)
 
     def text(self, key: str, default: str | None = None, *,
@@ -132,7 +141,8 @@ class _Fields:
         return v
 
     def numbers(self, key: str, default: list[float] | None = None, *,
-                lo: float | None = None, nonzero: bool = False) -> tuple[float, ...]:
+                lo: float | None = None, hi: float | None = None,
+                nonzero: bool = False) -> tuple[float, ...]:
         if key not in self.data and default is not None:
             return tuple(default)
         v = self.data.pop(key, None)
@@ -141,8 +151,10 @@ class _Fields:
         out = []
         for j, x in enumerate(v):
             if isinstance(x, bool) or not isinstance(x, int | float) or not math.isfinite(x) \
-                    or (lo is not None and x < lo) or (nonzero and x == 0):
+                    or (lo is not None and x < lo) or (hi is not None and x > hi) \
+                    or (nonzero and x == 0):
                 rule = ('must be finite' + (f' and >= {lo:g}' if lo is not None else '')
+                        + (f' and <= {hi:g}' if hi is not None else '')
                         + (' and non-zero' if nonzero else ''))
                 self.fail(f'{key}[{j}]', rule, x)
             out.append(float(x))
@@ -168,7 +180,7 @@ class _Fields:
 
     def done(self) -> None:
         if self.data:
-            self.fail(f'unknown key(s) {sorted(self.data)}', 'are not allowed here')
+            self.fail(f'unknown key(s) {shown_keys(self.data)}', 'are not allowed here')
 
 
 @dataclass(frozen=True)
@@ -281,10 +293,12 @@ def _te_step(f: _Fields, name: str) -> TeStep:
         f.fail('time_ranges_s', f'must map directions of the step ({", ".join(dirs)}) to '
                '[start, end] in seconds', ranges)
     spans = tuple((str(d), *f.span(f'time_ranges_s.{d}', r)) for d, r in ranges.items())
-    return TeStep(name=name, speed_rpm=f.num('speed_rpm', lo=0.0, lo_open=True, hi=1e5),
-                  load_nm=f.num('load_nm', 0.0, lo=0.0), directions=tuple(dirs),
-                  revolutions=f.integer('revolutions', 1, lo=1),
-                  settle_s=f.num('settle_s', 0.5, lo=0.0), time_ranges_s=spans)
+    return TeStep(name=name,
+                  speed_rpm=f.num('speed_rpm', lo=0.0, lo_open=True, hi=MAX_SPEED_RPM),
+                  load_nm=f.num('load_nm', 0.0, lo=0.0, hi=MAX_TORQUE_NM),
+                  directions=tuple(dirs),
+                  revolutions=f.integer('revolutions', 1, lo=1, hi=MAX_REVOLUTIONS),
+                  settle_s=f.num('settle_s', 0.5, lo=0.0, hi=MAX_SETTLE_S), time_ranges_s=spans)
 
 
 def _hysteresis_step(f: _Fields, name: str) -> HysteresisStep:
@@ -299,7 +313,8 @@ def _hysteresis_step(f: _Fields, name: str) -> HysteresisStep:
                    span)
         regions.append((str(rname), *span))
     step = HysteresisStep(
-        name=name, rated_torque_nm=f.num('rated_torque_nm', lo=0.0, lo_open=True),
+        name=name, rated_torque_nm=f.num('rated_torque_nm', lo=0.0, lo_open=True,
+                                         hi=MAX_TORQUE_NM),
         method=f.text('method', 'torque_steps', choices=('torque_steps', 'constant_speed')),
         step_fraction=f.num('step_fraction', 0.1, lo=0.0, lo_open=True, hi=0.5),
         dwell_s=f.num('dwell_s', 0.2, lo=0.0, lo_open=True, hi=60.0),
@@ -308,7 +323,7 @@ def _hysteresis_step(f: _Fields, name: str) -> HysteresisStep:
         rigidity=tuple(regions), preload=f.flag('preload', True),
         positions=f.integer('positions', 1, lo=1),
         reposition_speed_rpm=f.num('reposition_speed_rpm', 300.0, lo=0.0, lo_open=True,
-                                   hi=1e5))
+                                   hi=MAX_SPEED_RPM))
     step = dataclasses.replace(step, time_ranges_s=f.spans('time_ranges_s', step.positions,
                                                            'position'))
     if step.positions > 36:
@@ -321,11 +336,12 @@ def _hysteresis_step(f: _Fields, name: str) -> HysteresisStep:
 
 
 def _sweep_step(f: _Fields, name: str) -> SweepStep:
-    step = SweepStep(name=name, speeds_rpm=f.numbers('speeds_rpm', lo=0.0, nonzero=True),
-                     loads_nm=f.numbers('loads_nm', [0.0], lo=0.0),
+    step = SweepStep(name=name,
+                     speeds_rpm=f.numbers('speeds_rpm', lo=0.0, hi=MAX_SPEED_RPM, nonzero=True),
+                     loads_nm=f.numbers('loads_nm', [0.0], lo=0.0, hi=MAX_TORQUE_NM),
                      direction=f.text('direction', 'ccw', choices=tuple(DIRECTIONS)),
-                     revolutions=f.integer('revolutions', 1, lo=1),
-                     settle_s=f.num('settle_s', 0.5, lo=0.0))
+                     revolutions=f.integer('revolutions', 1, lo=1, hi=MAX_REVOLUTIONS),
+                     settle_s=f.num('settle_s', 0.5, lo=0.0, hi=MAX_SETTLE_S))
     n = len(step.speeds_rpm) * len(step.loads_nm)
     return dataclasses.replace(step, time_ranges_s=f.spans(
         'time_ranges_s', n, 'sweep point (speeds x loads)'))
@@ -367,6 +383,10 @@ def parse_plan(data: Any, origin: str = '<plan>') -> TestPlan:
     Raises:
         PlanError: Anything wrong, named (file, step, key, rule, value).
     """
+    if isinstance(data, dict) and 'plan' not in data and 'steps' not in data:
+        msg = (f'{origin}: is not a test plan (it has neither a "plan" nor a "steps" key; '
+               'nothing of it is shown)')
+        raise PlanError(msg)
     top = _Fields(data, origin)
     name = top.text('plan')
     from rv_te_bench.store.records import FIELD_MAX_CHARS

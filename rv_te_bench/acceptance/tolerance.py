@@ -27,7 +27,7 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
-from rv_te_bench.acceptance._files import parse_yaml_text, read_source, shipped
+from rv_te_bench.acceptance._files import parse_yaml_text, read_source, shipped, shown_keys
 from rv_te_bench.core.units import ARCMIN_PER_RAD, ARCSEC_PER_RAD
 from rv_te_bench.errors import ToleranceError
 
@@ -54,6 +54,14 @@ LIMIT_KEYS: dict[str, tuple[str, float, str]] = {
     'torsional_rigidity_nm_per_arcmin': ('torsional_rigidity', ARCMIN_PER_RAD, 'N m/rad'),
     'hysteresis_loss_j': ('hysteresis_loss', 1.0, 'J'),
 }
+#: The sides a limit of each family may have: a unit is better with less TE, lost motion and
+#: backlash (a ``min`` on them would fail the best units) and with more rigidity (a ``max``
+#: likewise); the hysteresis loss may be held in a band (a lab's consistency check).
+LIMIT_SIDES: dict[str, tuple[str, ...]] = {
+    'te_pp': ('max',), 'lost_motion': ('max',), 'backlash': ('max',),
+    'hysteresis_loss': ('min', 'max'), 'torsional_rigidity': ('min',)}
+#: Largest limit value in the key's unit (a typo of orders of magnitude is refused).
+MAX_LIMIT_VALUE = 1e6
 
 
 @dataclass(frozen=True)
@@ -115,11 +123,12 @@ def parse_tolerance(data: Any, origin: str = '<tolerance>') -> ToleranceProfile:
         msg = f'{origin}: {what}'
         raise ToleranceError(msg)
 
-    if not isinstance(data, dict):
-        fail(f'must be a mapping with "profile" and "limits", got {type(data).__name__}')
-    unknown = sorted(set(data) - {'profile', 'description', 'limits'})
+    if not isinstance(data, dict) or not {'profile', 'limits'} & set(data):
+        fail('is not a tolerance profile (a mapping with "profile" and "limits"; nothing of '
+             'it is shown)')
+    unknown = set(data) - {'profile', 'description', 'limits'}
     if unknown:
-        fail(f'unknown key(s) {unknown}; allowed: profile, description, limits')
+        fail(f'unknown key(s) {shown_keys(unknown)}; allowed: profile, description, limits')
     name = data.get('profile')
     if not isinstance(name, str) or not name.strip():
         fail(f'profile must be a non-empty string, got {name!r}')
@@ -138,15 +147,22 @@ def parse_tolerance(data: Any, origin: str = '<tolerance>') -> ToleranceProfile:
                                               else set())
         if bad := sorted(set(spec) - allowed):
             fail(f'limit {key}: unknown field(s) {bad}; allowed: {sorted(allowed)}')
-        if 'min' not in spec and 'max' not in spec:
-            fail(f'limit {key}: needs min or max')
+        sides = LIMIT_SIDES[family]
+        for other in {'min', 'max'} - set(sides):
+            if other in spec:
+                (only,) = sides
+                fail(f'limit {key}: {other} is not allowed (only {only}: a unit is better '
+                     f'with {"less" if only == "max" else "more"} {family.replace("_", " ")})')
+        if not set(sides) & set(spec):
+            fail(f'limit {key}: needs {" or ".join(sides)}')
         vals = {}
         for side in ('min', 'max'):
             if side in spec:
                 v = spec[side]
                 if isinstance(v, bool) or not isinstance(v, int | float) or not math.isfinite(v) \
-                        or v < 0:
-                    fail(f'limit {key}.{side} must be a finite number >= 0, got {v!r}')
+                        or not 0 <= v <= MAX_LIMIT_VALUE:
+                    fail(f'limit {key}.{side} must be a number in 0..{MAX_LIMIT_VALUE:g}, '
+                         f'got {v!r}')
                 vals[side] = float(v) * scale
         if 'min' in vals and 'max' in vals and vals['min'] > vals['max']:
             fail(f'limit {key}: min {spec["min"]!r} > max {spec["max"]!r}')

@@ -68,7 +68,9 @@ def _start_ns(text: str | None) -> int | None:
         raise DataImportError(msg) from None
     if when.tzinfo is None:
         when = when.replace(tzinfo=dt.UTC)
-    return round(when.timestamp() * 1e9)
+    # integer arithmetic (a float timestamp would round the nanoseconds)
+    return (when - dt.datetime(1970, 1, 1, tzinfo=dt.UTC)) // dt.timedelta(microseconds=1) \
+        * 1000
 
 
 

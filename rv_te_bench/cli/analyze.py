@@ -24,6 +24,8 @@ from typing import TYPE_CHECKING, Any, TextIO
 from rv_te_bench import __version__
 from rv_te_bench.cli._db import add_db_argument, check_record_text, db_for_bags
 from rv_te_bench.cli.argtypes import int_between, positive_float
+from rv_te_bench.core.orders import MAX_CRANK_HARMONICS
+from rv_te_bench.core.stream_records import MAX_WINDOW_REVOLUTIONS
 from rv_te_bench.errors import RvTeError, StoreError
 from rv_te_bench.safe_yaml import one_line
 from sim.units import rad_to_arcmin, rad_to_deg
@@ -49,10 +51,9 @@ exit codes: 0 ok (partial results are marked PARTIAL), 1 failed (one ERROR: line
 stderr), 2 bad usage
 """
 
-#: Largest --harmonics and --window-revolutions (the TE node's n_crank_harmonics and
-#: window_revolutions ranges).
-MAX_HARMONICS = 200
-MAX_WINDOW_REVOLUTIONS = 1000
+#: Largest --harmonics and --window-revolutions: the core's limits (one definition for the
+#: TE node's parameters, analyze, fleet and the library).
+MAX_HARMONICS = MAX_CRANK_HARMONICS
 #: Seconds between two progress lines on stderr.
 PROGRESS_PERIOD_S = 2.0
 

@@ -88,3 +88,11 @@ def int_between(lo: int, hi: int) -> Callable[[str], int]:
 
     parse.__name__ = 'integer'
     return parse
+
+
+def nonempty_text(text: str) -> str:
+    """An argparse type: text with something besides blanks (a serial, an operator)."""
+    if not text.strip():
+        msg = f'must not be empty, got {text!r}'
+        raise argparse.ArgumentTypeError(msg)
+    return text

@@ -25,7 +25,9 @@ from pathlib import Path
 from typing import TYPE_CHECKING
 
 from rv_te_bench.cli._db import add_db_argument, check_record_text, db_for_bags
-from rv_te_bench.cli.argtypes import int_at_least, nonnegative_int, positive_float, positive_int
+from rv_te_bench.cli.argtypes import int_at_least, int_between, positive_float
+from rv_te_bench.core.orders import MAX_CRANK_HARMONICS
+from rv_te_bench.core.stream_records import MAX_WINDOW_REVOLUTIONS
 from rv_te_bench.errors import RvTeError
 
 if TYPE_CHECKING:
@@ -75,10 +77,12 @@ def register(subparsers: Subparsers) -> None:
                    help='overall gear ratio (bags without BenchInfo)')
     a.add_argument('--crank-per-output', type=positive_float, default=None, metavar='C',
                    help='absolute crank revs per output rev (bags without BenchInfo)')
-    a.add_argument('--harmonics', type=nonnegative_int, default=10, metavar='K',
-                   help='crank harmonics reported (1 f_w .. K f_w; default 10)')
-    a.add_argument('--window-revolutions', type=positive_int, default=1, metavar='W',
-                   help='whole output revolutions per analysis window (default 1)')
+    a.add_argument('--harmonics', type=int_between(0, MAX_CRANK_HARMONICS), default=10,
+                   metavar='K', help='crank harmonics reported (1 f_w .. K f_w; default 10), '
+                                     f'0..{MAX_CRANK_HARMONICS} as analyze')
+    a.add_argument('--window-revolutions', type=int_between(1, MAX_WINDOW_REVOLUTIONS),
+                   default=1, metavar='W', help='whole output revolutions per analysis '
+                   f'window (default 1), 1..{MAX_WINDOW_REVOLUTIONS} as analyze')
     a.add_argument('--no-advice', action='store_true', help='skip the recommendation')
     a.add_argument('--json', action='store_true', help='print the summary as JSON')
     a.add_argument('--quiet', action='store_true', help='no progress on stderr')

@@ -50,25 +50,41 @@ def _date(text: str) -> datetime:
 
 
 def _date_until(text: str) -> datetime:
-    """End of the range (exclusive): a bare date YYYY-MM-DD means the end of that day."""
+    """End of the range (exclusive): a bare date YYYY-MM-DD means the end of that day
+    (9999-12-31 as a bare date: no end)."""
     d = _date(text)
     if len(text.strip()) == 10:
-        d += timedelta(days=1)
+        try:
+            d += timedelta(days=1)
+        except OverflowError:
+            d = datetime.max.replace(tzinfo=UTC)
     return d
+
+
+def _filter_text(text: str) -> str:
+    """A filter value (serial, preset, lot): UTF-8 text, as the store keeps it."""
+    try:
+        text.encode('utf-8')
+    except UnicodeEncodeError:
+        shown = text.encode('utf-8', 'surrogateescape').decode('utf-8', 'replace')
+        msg = f'{shown!r} is not UTF-8 text (the store keeps UTF-8; no record can match)'
+        raise argparse.ArgumentTypeError(msg) from None
+    return text
 
 
 def add_filter_arguments(p: argparse.ArgumentParser) -> None:
     """The record filters (shared with ``rv-te spc``)."""
-    p.add_argument('--serial', default=None, help='unit serial number')
+    p.add_argument('--serial', type=_filter_text, default=None, help='unit serial number')
     p.add_argument('--since', type=_date, default=None, metavar='DATE',
                    help='tested at or after DATE (ISO 8601; no zone = UTC)')
     p.add_argument('--until', type=_date_until, default=None, metavar='DATE',
                    help='tested before DATE; a bare date includes that whole day')
     p.add_argument('--verdict', choices=('pass', 'fail', 'not-judged'), default=None)
-    p.add_argument('--preset', default=None, help='reducer preset (e.g. wang2020-2kv)')
+    p.add_argument('--preset', type=_filter_text, default=None,
+                   help='reducer preset (e.g. wang2020-2kv)')
     p.add_argument('--status', choices=('ok', 'partial', 'failed'), default=None,
                    help='analysis status')
-    p.add_argument('--lot', default=None, help='production lot')
+    p.add_argument('--lot', type=_filter_text, default=None, help='production lot')
 
 
 def filter_from_args(args: argparse.Namespace) -> ResultFilter:

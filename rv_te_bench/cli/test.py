@@ -38,6 +38,7 @@ import yaml
 
 from rv_te_bench import __version__
 from rv_te_bench.cli._db import add_db_argument, check_record_text, db_for_bags
+from rv_te_bench.cli.argtypes import float_between, nonempty_text
 from rv_te_bench.errors import StoreError
 from rv_te_bench.safe_yaml import SMALL_TEXT_LIMITS, brief, load_yaml
 
@@ -63,8 +64,9 @@ def register(subparsers: Subparsers) -> None:
         description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     p.add_argument('plan', help='test plan: a YAML file or a shipped plan name '
                                 '(rv-80e, li2023-rv, wang2020-2kv)')
-    p.add_argument('--serial', required=True, help='serial number of the unit under test')
-    p.add_argument('--operator', required=True, help='who runs the test')
+    p.add_argument('--serial', required=True, type=nonempty_text,
+                   help='serial number of the unit under test')
+    p.add_argument('--operator', required=True, type=nonempty_text, help='who runs the test')
     p.add_argument('--tolerance', default=None, metavar='FILE|NAME',
                    help="tolerance profile (default: the plan's, else the one shipped for "
                         "the bench's preset)")
@@ -74,8 +76,8 @@ def register(subparsers: Subparsers) -> None:
     p.add_argument('--report', default=None, metavar='DIR',
                    help='where the unit report goes (default: <out-dir>/<serial>_<time>/)')
     p.add_argument('--out-dir', default='out/tests', help='folder for sessions and reports')
-    p.add_argument('--wait-s', type=float, default=20.0,
-                   help='how long to wait for the test_sequencer [s]')
+    p.add_argument('--wait-s', type=float_between(0.1, 3600.0), default=20.0,
+                   help='how long to wait for the test_sequencer [s], 0.1..3600')
     p.add_argument('--json', action='store_true', help='print the result as JSON on stdout')
 
     add_db_argument(p, mode='also')
@@ -91,9 +93,10 @@ def register(subparsers: Subparsers) -> None:
                    help='preset override of the simulated unit (e.g. torsion.clearance_rad=3e-4)')
     g.add_argument('--te-mode', default=None, help='TE model mode (default per model)')
     g.add_argument('--encoder', default='heidenhain-ron886', help='encoder preset, both shafts')
-    g.add_argument('--sample-rate-hz', type=float, default=1000.0)
-    g.add_argument('--speed-factor', type=float, default=20.0,
-                   help='times faster than real time; 0 = as fast as possible')
+    g.add_argument('--sample-rate-hz', type=float_between(1.0, 1e6), default=1000.0,
+                   help='encoder sample rate of the simulated bench [Hz], 1..1e6')
+    g.add_argument('--speed-factor', type=float_between(0.0, 1000.0), default=20.0,
+                   help='times faster than real time; 0 = as fast as possible (0..1000)')
     g.add_argument('--seed', type=int, default=1)
     add_from_arguments(p)
     p.set_defaults(func=run, _parser=p)
@@ -218,7 +221,7 @@ def run(args: argparse.Namespace) -> int:
         show_report(report, report_dir, as_json=args.json)
         if args.launch:
             _record(args, report, out_dir / 'bag')
-    return verdict_exit(verdict, args.serial, reason, report)
+    return verdict_exit(verdict, args.serial, reason, report, as_json=args.json)
 
 
 def _linger(dash: Any, args: argparse.Namespace) -> None:
@@ -229,29 +232,33 @@ def _linger(dash: Any, args: argparse.Namespace) -> None:
 
 
 def show_report(report: dict[str, Any], directory: Path, *, as_json: bool) -> None:
-    """Write the unit report; print the record as JSON or the verdict table and its path."""
+    """Write the unit report; print the record as JSON (the one document on stdout; the
+    report's path on stderr) or the verdict table and its path."""
     from rv_te_bench.report.unit import write_unit_report
 
     paths = write_unit_report(report, directory)
     if as_json:
-        print(json.dumps(report, indent=1))
+        print(json.dumps(report, indent=1), flush=True)
+        print(f'report: {paths["html"]}', file=sys.stderr)
     else:
         _print_table(report)
         print(f'report: {paths["html"]}')
 
 
 def verdict_exit(verdict: str, serial: str, reason: str,
-                 report: dict[str, Any] | None) -> int:
-    """The verdict line and the exit code: 0 pass, 3 fail, 1 anything else."""
+                 report: dict[str, Any] | None, *, as_json: bool = False) -> int:
+    """The verdict line (stderr with --json: stdout holds only the JSON) and the exit code:
+    0 pass, 3 fail, 1 anything else."""
     from rv_te_bench.report.unit import human_reason
 
+    out = sys.stderr if as_json else sys.stdout
     if report is not None:
         reason = human_reason(report)
     if verdict == 'pass':
-        print(f'VERDICT: PASS  unit {serial}: {reason}')
+        print(f'VERDICT: PASS  unit {serial}: {reason}', file=out)
         return 0
     if verdict == 'fail':
-        print(f'VERDICT: FAIL  unit {serial}: {reason}')
+        print(f'VERDICT: FAIL  unit {serial}: {reason}', file=out)
         return EXIT_FAIL
     if verdict == 'not_judged':
         print(f'VERDICT: NOT JUDGED  unit {serial}: {reason}')
@@ -273,11 +280,11 @@ def _record(args: argparse.Namespace, report: dict[str, Any], bag: Path, *,
     try:
         with open_store(db) as store:
             store.upsert(store_record(report, bag, software_version=__version__))
-            print(f'recorded in the results store {store.url}')
-    except StoreError as exc:
-        if args.db:
-            raise
-        print(f'WARNING: not recorded in the results store: {exc}', file=sys.stderr)
+            print(f'recorded in the results store {store.url}',
+                  file=sys.stderr if args.json else sys.stdout)
+    except StoreError as exc:   # a result not stored is an error (issue #32), --no-db to skip
+        msg = f'the test was not recorded in the results store: {exc} (--db elsewhere, or --no-db)'
+        raise StoreError(msg) from None
 
 
 def _print_table(report: dict[str, Any]) -> None:

@@ -99,4 +99,4 @@ def run(args: argparse.Namespace) -> int:
     if old:
         print(f'recomputed from {len(rec.blocks)} recorded blocks: every metric equals the '
               'recorded result', file=sys.stderr)
-    return verdict_exit(new['verdict'], r['serial'], new['reason'], new)
+    return verdict_exit(new['verdict'], r['serial'], new['reason'], new, as_json=args.json)

@@ -19,7 +19,10 @@ from rv_te_bench.errors import TeConfigError
 if TYPE_CHECKING:
     from sim.bench_info import BenchInfoData
 
-__all__ = ['OrderSet']
+__all__ = ['MAX_CRANK_HARMONICS', 'OrderSet']
+
+#: Most crank harmonics k f_w reported (the TE node's parameter, the CLI flags, the library).
+MAX_CRANK_HARMONICS = 200
 
 _DUPLICATE_TOL = 1e-9
 
@@ -72,8 +75,8 @@ class OrderSet:
             raise TeConfigError(msg)
         object.__setattr__(self, 'mesh_labels', labels)
         k = self.n_crank_harmonics
-        if isinstance(k, bool) or not isinstance(k, int) or k < 0:
-            msg = f'n_crank_harmonics must be an int >= 0, got {k!r}'
+        if isinstance(k, bool) or not isinstance(k, int) or not 0 <= k <= MAX_CRANK_HARMONICS:
+            msg = f'n_crank_harmonics must be an int in 0..{MAX_CRANK_HARMONICS}, got {k!r}'
             raise TeConfigError(msg)
 
     @classmethod

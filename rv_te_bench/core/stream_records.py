@@ -26,10 +26,13 @@ if TYPE_CHECKING:
     from rv_te_bench.core.spectrum import OrderSpectrum
     from rv_te_bench.core.te import TeStats
 
-__all__ = ['MIN_WINDOW_SAMPLES', 'BatchUpdate', 'BlockProblem', 'CleanBlock', 'CloseReason',
-           'EncoderBatch', 'EncoderBlockData', 'GapEvent', 'GapKind', 'OfflineResult',
+__all__ = ['MAX_WINDOW_REVOLUTIONS', 'MIN_WINDOW_SAMPLES', 'BatchUpdate', 'BlockProblem',
+           'CleanBlock', 'CloseReason', 'EncoderBatch', 'EncoderBlockData', 'GapEvent',
+           'GapKind', 'OfflineResult',
            'StreamUpdate', 'TeAnalysisConfig', 'WindowResult', 'check_block', 'seq_jump_event']
 
+#: Longest analysis window [whole output revolutions] (TE node parameter, CLI, library).
+MAX_WINDOW_REVOLUTIONS = 1000
 GapKind = Literal['seq_jump', 'time_backwards', 'non_finite', 'malformed', 'leading_loss']
 CloseReason = Literal['complete', 'gap', 'overflow', 'flush', 'reconfigure']
 
@@ -330,6 +333,10 @@ class TeAnalysisConfig:
             msg = f'orders must be an OrderSet, got {type(self.orders).__name__}'
             raise TeConfigError(msg)
         _whole_number('window_revolutions', self.window_revolutions, 1)
+        if self.window_revolutions > MAX_WINDOW_REVOLUTIONS:
+            msg = (f'window_revolutions must be <= {MAX_WINDOW_REVOLUTIONS}, got '
+                   f'{self.window_revolutions!r}')
+            raise TeConfigError(msg)
         object.__setattr__(self, 'window_revolutions', float(self.window_revolutions))
         rate = self.decimated_rate_hz
         if not (isinstance(rate, int | float) and math.isfinite(rate) and rate > 0):

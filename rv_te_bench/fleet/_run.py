@@ -158,6 +158,54 @@ def _todo(bags: Sequence[Path], store: ResultStore, force: bool,
     return todo, skipped, duplicates
 
 
+#: How long the scheduler has to accept a connection and answer its handshake [s].
+SCHEDULER_TIMEOUT_S = 20.0
+
+
+def _probe_scheduler(address: str) -> None:
+    """Refuse a malformed address, and one whose endpoint does not answer Dask's handshake
+    within SCHEDULER_TIMEOUT_S (an endpoint that accepts and never answers would keep
+    ``Client`` waiting for ever), in one line each.
+
+    Raises:
+        RvTeError: Malformed, unreachable or silent.
+    """
+    import asyncio
+
+    from distributed.comm import connect
+    from distributed.comm.addressing import parse_address
+
+    shown = address[:200]
+    try:
+        scheme, loc = parse_address(address, strict=True)
+        if scheme not in ('tcp', 'tls', 'ws', 'wss', 'ucx'):
+            msg = f'protocol {scheme!r}: use tcp://, tls://, ws://, wss:// or ucx://'
+            raise ValueError(msg)
+        host, sep, port = loc.rpartition(':')
+        if scheme in ('tcp', 'tls', 'ws', 'wss') and not (sep and host and port.isdigit()
+                                                          and 0 < int(port) < 65536):
+            msg = f'expected {scheme}://HOST:PORT'
+            raise ValueError(msg)
+    except ValueError as exc:
+        msg = (f'--scheduler {shown!r} is not a Dask scheduler address '
+               f'(tcp://host:8786): {_one_line(exc)}')
+        raise RvTeError(msg) from None
+
+    async def handshake() -> None:
+        comm = await connect(address, timeout=SCHEDULER_TIMEOUT_S)
+        await comm.close()
+
+    try:
+        asyncio.run(asyncio.wait_for(handshake(), SCHEDULER_TIMEOUT_S))
+    except TimeoutError:
+        msg = (f'the Dask scheduler at {shown} did not answer within '
+               f'{SCHEDULER_TIMEOUT_S:g} s')
+        raise RvTeError(msg) from None
+    except (OSError, ValueError) as exc:
+        msg = f'cannot reach the Dask scheduler at {shown}: {_one_line(exc)}'
+        raise RvTeError(msg) from None
+
+
 def _client(workers: int, scheduler: str | None) -> tuple[Any, Any]:
     try:
         from distributed import Client, LocalCluster
@@ -165,9 +213,10 @@ def _client(workers: int, scheduler: str | None) -> tuple[Any, Any]:
         msg = "rv-te fleet needs Dask distributed: pip install 'rv-te-bench[fleet]'"
         raise RvTeError(msg) from None
     if scheduler:
+        _probe_scheduler(scheduler)
         try:
-            return Client(scheduler, timeout='20s'), None
-        except (OSError, TimeoutError) as exc:
+            return Client(scheduler, timeout=f'{SCHEDULER_TIMEOUT_S:g}s'), None
+        except (OSError, TimeoutError, ValueError) as exc:
             msg = f'cannot reach the Dask scheduler at {scheduler[:200]}: {_one_line(exc)}'
             raise RvTeError(msg) from None
     # the scheduler's HTTP server on a free port: with None it still tries 8787 and warns

@@ -549,7 +549,8 @@ def load_bench_description(path: str | Path) -> BenchDescription:
     """
     p = Path(path)
     try:
-        data = read_yaml_file(p, what='bench description', limits=DOCUMENT_LIMITS)
+        data = read_yaml_file(p, what='bench description', limits=DOCUMENT_LIMITS,
+                              scalars='document')
     except YamlInputError as exc:
         raise BenchDescriptionError(str(exc)) from None
     if data is None:

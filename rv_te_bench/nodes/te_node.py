@@ -24,9 +24,13 @@ from diagnostic_msgs.msg import DiagnosticArray
 from rclpy.node import Node
 from rv_te_msgs.msg import BenchInfo, EncoderBlock, TePlot, TeSpectrum, TransmissionError
 
-from rv_te_bench.core.orders import OrderSet
+from rv_te_bench.core.orders import MAX_CRANK_HARMONICS, OrderSet
 from rv_te_bench.core.stream import StreamingTeAnalyzer
-from rv_te_bench.core.stream_records import StreamUpdate, TeAnalysisConfig
+from rv_te_bench.core.stream_records import (
+    MAX_WINDOW_REVOLUTIONS,
+    StreamUpdate,
+    TeAnalysisConfig,
+)
 from rv_te_bench.nodes import convert, qos
 from rv_te_bench.nodes.common import (
     OK,
@@ -57,9 +61,10 @@ PARAMS = (
     ParamSpec('mesh_orders', 'double_array', [],
               'Mesh frequencies as output orders [1/rev]; used when gear_ratio > 0'),
     ParamSpec('n_crank_harmonics', 'int', 10, 'Crank harmonics k f_w reported [1]',
-              min_value=1, max_value=200),
+              min_value=1, max_value=MAX_CRANK_HARMONICS),
     ParamSpec('window_revolutions', 'int', 1,
-              'Analysis window length [whole output revolutions]', min_value=1, max_value=1000),
+              'Analysis window length [whole output revolutions]', min_value=1,
+              max_value=MAX_WINDOW_REVOLUTIONS),
     ParamSpec('plot_rate_hz', 'double', 20.0,
               'Rate of te/plot (flat scalars for plot panels) in session time, at most one '
               'per encoder block; 0 = off [Hz]', min_value=0.0, max_value=100000.0,

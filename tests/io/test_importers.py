@@ -72,9 +72,15 @@ def test_round_trip_same_statistics_and_lines(session: tuple, tmp_path: Path, ca
     assert len(got.windows) == len(ref.windows) >= 2
     for a, b in zip(got.windows, ref.windows, strict=True):
         assert a.complete == b.complete
-        assert a.stats.n_samples == b.stats.n_samples
+        # the 12-digit file rounds theta_in by up to 2e-9 rad: the sample at a window's edge
+        # (|phi - phi_s| = 2 pi, to that rounding) may fall on either side of it
+        # (one sample of N more or less moves the mean and std by at most 2 |TE|max / N)
+        edge = 0 if atol <= 1e-11 else 1
+        assert abs(a.stats.n_samples - b.stats.n_samples) <= edge
+        tol = atol + (2 * b.stats.amplitude_rad / b.stats.n_samples
+                      if a.stats.n_samples != b.stats.n_samples else 0.0)
         for f in ('pp_rad', 'amplitude_rad', 'mean_rad', 'std_rad'):
-            assert getattr(a.stats, f) == pytest.approx(getattr(b.stats, f), abs=atol, rel=0)
+            assert getattr(a.stats, f) == pytest.approx(getattr(b.stats, f), abs=tol, rel=0)
     assert got.spectrum is not None and ref.spectrum is not None
     # lines by output order (the preset names two meshes, the original BenchInfo one)
     mine = {round(ln.output_order, 6): ln for ln in got.spectrum.lines}

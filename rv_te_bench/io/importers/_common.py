@@ -47,6 +47,10 @@ _UNIT_ALIASES = {
     'counts': 'counts', 'count': 'counts', 'cnt': 'counts', 'inc': 'counts', 'rev': 'rev',
     'turn': 'rev', 'turns': 'rev', 'r': 'rev',
 }
+#: The sample rates a file may state or be given [Hz] (a DAQ of a TE bench: 1 Hz .. 10 MHz;
+#: outside, the times of a long file would not fit a ROS 2 stamp, or it is a typo).
+MIN_RATE_HZ = 1e-3
+MAX_RATE_HZ = 1e8
 #: Time unit -> seconds per unit.
 TIME_UNITS = {'s': 1.0, 'ms': 1e-3, 'us': 1e-6, 'ns': 1e-9, 'min': 60.0, 'h': 3600.0}
 #: Spellings of a time unit in a column name or a channel property.
@@ -159,8 +163,10 @@ class ImportOptions:
 
     def __post_init__(self) -> None:
         """Validate (one line naming the option and the rule)."""
-        if self.rate_hz is not None and not (math.isfinite(self.rate_hz) and self.rate_hz > 0):
-            msg = f'--rate must be finite and > 0, got {self.rate_hz!r}'
+        if self.rate_hz is not None and not (math.isfinite(self.rate_hz)
+                                             and MIN_RATE_HZ <= self.rate_hz <= MAX_RATE_HZ):
+            msg = (f'--rate must be between {MIN_RATE_HZ:g} and {MAX_RATE_HZ:g} Hz, got '
+                   f'{self.rate_hz!r}')
             raise DataImportError(msg)
         if self.time is not None and self.rate_hz is not None:
             msg = 'give a time column (--time) or a fixed rate (--rate), not both'

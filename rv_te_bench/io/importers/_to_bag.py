@@ -107,8 +107,34 @@ def _unit(role: str, given: str | None, declared: dict[str, str | None], labels:
     return unit
 
 
+#: What a ROS 2 stamp holds: builtin_interfaces/Time ``sec`` is int32 and a bag's log time
+#: uint64 ns, so 1970-01-01T00:00:00Z .. 2038-01-19T03:14:07Z.
+STAMP_MAX_NS = (2**31 - 1) * _NS + _NS - 1
+
+
 def _utc(ns: int) -> str:
-    return dt.datetime.fromtimestamp(ns / _NS, tz=dt.UTC).isoformat(timespec='milliseconds')
+    try:
+        return dt.datetime.fromtimestamp(ns / _NS, tz=dt.UTC).isoformat(timespec='milliseconds')
+    except (OverflowError, OSError, ValueError):
+        return f'{ns / _NS:.6g} s from 1970'
+
+
+def _text(s: str) -> str:
+    """A file name as UTF-8 text (bytes that are not UTF-8 shown as U+FFFD)."""
+    return s.encode('utf-8', 'surrogateescape').decode('utf-8', 'replace')
+
+
+def check_stamp(ns: int, what: str) -> None:
+    """Refuse a time a ROS 2 stamp cannot hold, in one line naming where it came from.
+
+    Raises:
+        DataImportError: Before 1970-01-01 or after 2038-01-19T03:14:07Z.
+    """
+    if not 0 <= ns <= STAMP_MAX_NS:
+        hint = '' if '--start-utc' in what else '; give --start-utc'
+        msg = (f'{what} is {_utc(ns)}, outside what ROS 2 stamps hold (1970-01-01T00:00:00Z '
+               f'.. 2038-01-19T03:14:07Z){hint}')
+        raise DataImportError(msg)
 
 
 def _time_unit(reader: ImportReader, options: ImportOptions) -> str | None:
@@ -176,6 +202,11 @@ class _Blocks:
 
     def _write(self, c: tuple[np.ndarray, ...], a: int, b: int) -> None:
         t = c[0][a:b]
+        last = float(t[-1]) * _NS
+        if not last < STAMP_MAX_NS - self.start_ns:
+            at = self.start_ns + int(last) if math.isfinite(last) else STAMP_MAX_NS + 1
+            check_stamp(at, f'the time of the sample {float(t[-1]):.6g} s after the start '
+                            f'({_utc(self.start_ns)})')
         stamp_ns = self.start_ns + round(float(t[0]) * _NS)
         torque = c[3][a:b] if c[3].size else np.zeros(0)
         msg = self.types[ENCODER_BLOCK](
@@ -288,6 +319,13 @@ def write_bag(reader: ImportReader, desc: BenchDescription, options: ImportOptio
     """
     note = on_note or (lambda _line: None)
     out = Path(out)
+    try:
+        out.name.encode('utf-8')
+    except UnicodeEncodeError:
+        shown = out.name.encode('utf-8', 'surrogateescape').decode('utf-8', 'replace')
+        msg = (f'--out name {shown!r} is not UTF-8 text: rosbag2 keeps the bag and file '
+               'names in metadata.yaml (UTF-8); choose a UTF-8 name')
+        raise DataImportError(msg) from None
     if out.exists() or out.is_symlink():
         msg = f'Output {out} exists already, not overwriting.'
         raise BagExistsError(msg)
@@ -335,7 +373,7 @@ def write_bag(reader: ImportReader, desc: BenchDescription, options: ImportOptio
     meta = desc.to_metadata()
     session = out.parent.name if out.name in {'bag', 'bag_0'} and out.parent.name else out.name
     meta.update({'session': session, 'started_utc': _utc(start_ns),
-                 'imported_from': str(reader.path), 'import_format': fmt,
+                 'imported_from': _text(str(reader.path)), 'import_format': fmt,
                  'import_utc': dt.datetime.now(dt.UTC).isoformat(timespec='seconds')})
     stitcher = TurnStitcher(turns_in=options.turns_in,  # type: ignore[arg-type]
                             turns_out=options.turns_out,  # type: ignore[arg-type]
@@ -386,7 +424,18 @@ def write_bag(reader: ImportReader, desc: BenchDescription, options: ImportOptio
 
 def _start(options: ImportOptions, reader: ImportReader, conv: ChunkConverter,
            note: Callable[[str], None]) -> tuple[int, str]:
-    """(absolute time of the first sample [ns], where it came from)."""
+    """(absolute time of the first sample [ns], where it came from), within what a ROS 2
+    stamp holds (refused in one line naming the source otherwise)."""
+    start_ns, start_from = _start_unchecked(options, reader, conv)
+    check_stamp(start_ns, f'the start time from {start_from}')
+    if start_from == 'the file modification time':
+        note(f'the file states no start time: the file modification time {_utc(start_ns)} '
+             'is used (give --start-utc)')
+    return start_ns, start_from
+
+
+def _start_unchecked(options: ImportOptions, reader: ImportReader,
+                     conv: ChunkConverter) -> tuple[int, str]:
     if options.start_ns is not None:
         return options.start_ns, '--start-utc'
     if reader.start_ns is not None:
@@ -396,10 +445,7 @@ def _start(options: ImportOptions, reader: ImportReader, conv: ChunkConverter,
         return int(conv.t0) * round(conv.time_scale_s * _NS), 'the time column (epoch)'
     if math.isfinite(conv.t0_s) and abs(conv.t0_s) >= EPOCH_MIN_S:
         return round(conv.t0_s * _NS), 'the time column (epoch)'
-    start_ns = reader.path.stat().st_mtime_ns
-    note(f'the file states no start time: the file modification time {_utc(start_ns)} '
-         'is used (give --start-utc)')
-    return start_ns, 'the file modification time'
+    return reader.path.stat().st_mtime_ns, 'the file modification time'
 
 
 def _note_dropouts(gaps: list[ImportGap], conv: ChunkConverter, bags: list[Path],

@@ -133,25 +133,27 @@ def _slope(t: np.ndarray, x: np.ndarray) -> tuple[float, float] | None:
     return v, math.sqrt(float(r @ r) / (t.size - 2) / sxx)
 
 
-def _unwrap_steps(x: np.ndarray, prev: float) -> np.ndarray:
-    """Cumulative turn corrections [rad] of ``x`` after the reading ``prev`` (numpy.unwrap's
-    rule: steps beyond half a turn)."""
+def _wrap_turns(x: np.ndarray, prev: float) -> np.ndarray:
+    """Whole turns (int64, cumulative) that unwrap ``x`` after the reading ``prev``:
+    numpy.unwrap's rule (a step beyond half a turn), counted in integers so that the
+    unwrapped angle, ``x + 2 pi K``, does not depend on where the file was cut in chunks."""
     d = np.diff(x, prepend=prev)
     dmod = np.mod(d + math.pi, _TWO_PI) - math.pi
     dmod[(dmod == -math.pi) & (d > 0)] = math.pi
-    corr = dmod - d
-    corr[np.abs(d) < math.pi] = 0.0
-    return np.cumsum(corr)
+    k = np.rint((dmod - d) / _TWO_PI).astype(np.int64)
+    k[np.abs(d) < math.pi] = 0
+    return np.cumsum(k)
 
 
 class _Channel:
-    """One angle channel's unwrapping state."""
+    """One angle channel's unwrapping state: the unwrapped angle is the recorded one plus
+    ``2 pi k`` whole turns (an integer carried across chunks and drop-outs)."""
 
     def __init__(self, turns: Turns, window: int) -> None:
         self.turns = turns
         self.window = window
         self.prev_raw = math.nan      # last recorded (scaled) value
-        self.offset = 0.0             # unwrapped - recorded, at that sample
+        self.k = 0                    # whole turns added at that sample
         self.wraps = 0
         self.jumps = 0                # steps beyond half a turn left in a counter ('multi')
         self.lo = math.inf            # recorded range (multi-turn evidence)
@@ -165,48 +167,46 @@ class _Channel:
                                          and self.hi - self.lo > _TWO_PI * (1 + 1e-9))
 
     def local(self, raw: np.ndarray, prev: float) -> np.ndarray:
-        """``raw`` unwrapped within itself after ``prev`` (unchanged for a counter)."""
+        """Whole turns (cumulative, int64) that unwrap ``raw`` within itself after ``prev``
+        (none for a counter)."""
         self.lo = min(self.lo, float(raw.min()))
         self.hi = max(self.hi, float(raw.max()))
         if self.turns == 'multi':
             self.jumps += int(np.count_nonzero(np.abs(np.diff(raw, prepend=prev)) > math.pi))
-            return raw.copy()
-        corr = _unwrap_steps(raw, prev)
-        n = int(np.count_nonzero(np.diff(corr, prepend=0.0)))
-        if n == 0:
-            return raw.copy()
-        self.wraps += n
-        return raw + corr
+            return np.zeros(raw.size, dtype=np.int64)
+        turns = _wrap_turns(raw, prev)
+        self.wraps += int(np.count_nonzero(np.diff(turns, prepend=0)))
+        return turns
 
-    def keep(self, t: np.ndarray, raw: np.ndarray, x: np.ndarray) -> None:
-        """Remember the end of a piece written (state for what follows)."""
+    def _emit(self, t: np.ndarray, raw: np.ndarray, k: np.ndarray) -> np.ndarray:
+        """The unwrapped angles; remember the end of the piece (state for what follows)."""
+        x = raw + _TWO_PI * k.astype(np.float64)
         self.prev_raw = float(raw[-1])
-        self.offset = float(x[-1] - raw[-1])
+        self.k = int(k[-1])
         if t.size >= self.window:
             self.tail_t, self.tail_x = t[-self.window:].copy(), x[-self.window:].copy()
         else:
             self.tail_t = np.concatenate([self.tail_t, t])[-self.window:]
             self.tail_x = np.concatenate([self.tail_x, x])[-self.window:]
+        return x
 
     def continue_(self, t: np.ndarray, raw: np.ndarray) -> np.ndarray:
         """Unwrap a piece that continues the last one."""
-        x = self.local(raw, raw[0] if math.isnan(self.prev_raw) else self.prev_raw)
-        x += self.offset
-        self.keep(t, raw, x)
-        return x
+        turns = self.local(raw, raw[0] if math.isnan(self.prev_raw) else self.prev_raw)
+        return self._emit(t, raw, turns + self.k)
 
     def across(self, t: np.ndarray, raw: np.ndarray) -> tuple[np.ndarray, float, How]:
         """Unwrap the data after a drop-out: (angles, advance [rad], how)."""
-        u = self.local(raw, raw[0])          # within the new stretch, from its first value
+        turns = self.local(raw, raw[0])      # within the new stretch, from its first value
+        u = raw + _TWO_PI * turns.astype(np.float64)
         d = float(raw[0]) - self.prev_raw    # the recorded advance across the drop-out
         if self.multi_turn:
             k, how = 0, 'counter'
         else:
             k = self._turns_from_speed(t, u, d)
             how = 'speed' if k is not None else 'ambiguous'
-        x = u + (self.offset + _TWO_PI * (k or 0))
         advance = d + _TWO_PI * k if k is not None else math.nan
-        self.keep(t, raw, x)
+        x = self._emit(t, raw, turns + (self.k + (k or 0)))
         return x, advance, how   # type: ignore[return-value]
 
     def _turns_from_speed(self, t: np.ndarray, u: np.ndarray, d: float) -> int | None:
@@ -309,8 +309,6 @@ class TurnStitcher:
                         how_in, how_out, split)
         self.gaps.append(gap)
         if split:   # the speeds of the new segment are its own
-            for ch in (self.ch_in, self.ch_out):
-                ch.tail_t, ch.tail_x = ch.tail_t[:0], ch.tail_x[:0]
-            self.ch_in.keep(t, th_in, x_in)
-            self.ch_out.keep(t, th_out, x_out)
+            for ch, x in ((self.ch_in, x_in), (self.ch_out, x_out)):
+                ch.tail_t, ch.tail_x = t[-self.window:].copy(), x[-self.window:].copy()
         return Piece(t, x_in, x_out, tq, gap=gap, new_segment=split)

@@ -12,7 +12,6 @@ a drop-out, as a ``nan`` cell is. A time column in nanoseconds is read as 64-bit
 from __future__ import annotations
 
 import io
-import itertools
 import re
 from pathlib import Path
 from typing import TYPE_CHECKING
@@ -33,6 +32,9 @@ _UNIT_IN_NAME = re.compile(r'(?:[\[(]\s*([^\])]+?)\s*[\])]\s*$)|(?:_(rad|deg|arc
                            r'rev|s|ms|us|ns)$)')
 _TIME_UNIT_IN_NAME = re.compile(r'(?:[\[(]\s*([^\])]+?)\s*[\])]\s*$)|(?:_(s|sec|ms|us|ns|min|h)$)')
 _MAX_HEADER = 1 << 20
+#: Longest line read [characters] (a DAQ row of a few dozen numbers is ~1 kB).
+MAX_LINE_CHARS = 1 << 20
+_MAX_BLOCK_CHARS = 64 << 20
 _EMPTY_CELL = {',': re.compile(r'(?<=,)(?=,|\r?$)|^(?=,)', re.MULTILINE),
                ';': re.compile(r'(?<=;)(?=;|\r?$)|^(?=;)', re.MULTILINE),
                '\t': re.compile(r'(?<=\t)(?=\t|\r?$)|^(?=\t)', re.MULTILINE)}
@@ -87,6 +89,7 @@ class CsvReader:
             for _ in range(self._line - 1):     # the comment lines before it
                 self._file.readline(_MAX_HEADER)
         self.data_line = self._line + 1 if header else self._line   # line of sample 0
+        self._line_chars = max(16, 2 * len(first))   # block size estimate per row
         roles = {'in': options.theta_in, 'out': options.theta_out, 'torque': options.torque,
                  'time': options.time}
         if roles['in'] is None or roles['out'] is None:
@@ -126,35 +129,55 @@ class CsvReader:
         return f'line {self.data_line + index}'
 
     def chunks(self) -> Iterator[RawChunk]:
-        """Yield the rows in chunks of ``options.chunk_samples``.
+        """Yield the rows about ``options.chunk_samples`` at a time.
+
+        The file is read in blocks of characters, never a line at a time: memory stays
+        bounded by the block however long a line is, and a line longer than
+        :data:`MAX_LINE_CHARS` is refused (no DAQ row is; a file without line breaks is not
+        a CSV export).
 
         Raises:
-            DataImportError: No data rows; a non-numeric or missing cell (line and column).
+            DataImportError: No data rows; a non-numeric or missing cell (line and column);
+                a line over the limit.
         """
         first = 0
-        size = self.options.chunk_samples
+        rest = ''
+        block = min(_MAX_BLOCK_CHARS, max(1 << 16, self.options.chunk_samples
+                                          * self._line_chars))
         while True:
             try:
-                lines = list(itertools.islice(self._file, size))
+                piece = self._file.read(block)
             except (OSError, UnicodeDecodeError) as exc:
                 msg = f'{self.origin}: cannot read near {self.locate(first)} ({exc})'
                 raise DataImportError(msg) from None
-            if not lines:
+            text = rest + piece
+            if piece:
+                cut = text.rfind('\n') + 1
+                rest, text = text[cut:], text[:cut]
+                if len(rest) > MAX_LINE_CHARS:
+                    msg = (f'{self.origin}: {self.locate(first + text.count(chr(10)))} is '
+                           f'longer than {MAX_LINE_CHARS} characters: not a row of a DAQ '
+                           'export (no line break)')
+                    raise DataImportError(msg)
+                if not text:
+                    continue
+            elif not text:
                 break
-            cols = self._parse(lines, first)
+            else:
+                rest = ''
+            n_lines = text.count('\n') + (0 if text.endswith('\n') else 1)
+            cols = self._parse(text, n_lines, first)
             n = cols['in'].size
-            if n == 0:
-                continue
-            yield RawChunk(first=first, time=cols.get('time'), theta_in=cols['in'],
-                           theta_out=cols['out'], torque=cols.get('torque'))
-            first += n
+            if n:
+                yield RawChunk(first=first, time=cols.get('time'), theta_in=cols['in'],
+                               theta_out=cols['out'], torque=cols.get('torque'))
+                first += n
         if first == 0:
             msg = f'{self.origin}: no data rows after the header'
             raise DataImportError(msg)
 
-    def _parse(self, lines: list[str], first: int) -> dict[str, np.ndarray]:
-        """The chunk's columns by role (time as int64 for nanoseconds when it parses)."""
-        text = ''.join(lines)
+    def _parse(self, text: str, n_lines: int, first: int) -> dict[str, np.ndarray]:
+        """The block's columns by role (time as int64 for nanoseconds when it parses)."""
         try:
             cols = self._load(text)
         except ValueError:
@@ -165,13 +188,13 @@ class CsvReader:
                     raise ValueError
                 cols = self._load(pattern.sub('nan', text))
             except ValueError:
-                self._explain(lines, first)
+                self._explain(text.splitlines(keepends=True), first)
                 raise   # _explain always raises; kept for the type checker
         n = cols['in'].size
-        if n != len(lines) and n:
-            # blank or comment lines inside the chunk would shift the line numbers of later
+        if n != n_lines and n:
+            # blank or comment lines inside the block would shift the line numbers of later
             # messages: only counted here (rare in DAQ exports)
-            self.data_line += len(lines) - n
+            self.data_line += n_lines - n
         return cols
 
     def _load(self, text: str) -> dict[str, np.ndarray]:

@@ -142,7 +142,7 @@ class MdfReader:
                 break
             cols: dict[str, np.ndarray] = {}
             for role, sig in zip(roles, sigs, strict=True):
-                data = None if sig is None else np.asarray(sig.samples, dtype=np.float64)
+                data = None if sig is None else self._numbers(role, sig.samples)
                 if data is None or (cols and data.size != cols[roles[0]].size):
                     got = first + (0 if data is None else data.size)
                     msg = (f'{self.origin}: channel {self.labels[role]!r}, sample {got}: the '
@@ -159,6 +159,22 @@ class MdfReader:
             msg = (f'{self.origin}: channel {self.labels["in"]!r}, sample {first}: the data '
                    f'ends early (truncated or damaged file: {self.n} records announced)')
             raise DataImportError(msg)
+
+    def _numbers(self, role: str, samples: Any) -> np.ndarray:
+        """A channel's samples as float64; text (a value-to-text conversion) or a structure
+        (composed channel) refused in one line."""
+        a = np.asarray(samples)
+        if a.dtype.names:
+            msg = (f'{self.origin}: channel {self.labels[role]!r} is a structure (fields '
+                   f'{", ".join(a.dtype.names[:8])}), not numbers: name one of its numeric '
+                   'members')
+            raise DataImportError(msg)
+        if a.dtype.kind not in 'biuf':
+            what = 'text (a value-to-text conversion)' if a.dtype.kind in 'SUO' \
+                else f'values of type {a.dtype}'
+            msg = f'{self.origin}: channel {self.labels[role]!r} holds {what}, not numbers'
+            raise DataImportError(msg)
+        return a.astype(np.float64, copy=False)
 
     def _iter(self, role: str) -> Iterator[Any]:
         gp, idx = self.where[role]
