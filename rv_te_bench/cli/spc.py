@@ -4,7 +4,12 @@ Individuals and moving range (one point per unit, in test order), or X-bar/R wit
 subgroup per lot (``--by-lot``). The centre line and 3-sigma limits come from a stated
 baseline (default: the first 20 points); Nelson or Western Electric run rules flag drift
 and shifts; with a tolerance (``--usl``/``--lsl``, in the unit shown) the capability
-Cp/Cpk (and Pp/Ppk). METRIC is a stored metric name (``te_pp_revolution_max_rad``,
+Cp/Cpk (sigma within) and Pp/Ppk (overall sigma), both of the baseline points only (the
+first 20 by default), so that later drift does not widen the sigma it is judged by.
+Nelson rules 5 and 6 are read as Minitab and the AIAG SPC manual state them: 2 of 3 (4 of 5)
+points in a row beyond 2 (1) sigma on the same side of the centre line, the other point
+anywhere, a point beyond 3 sigma counting as beyond 2; a hit is reported at the point that
+completes the pattern. METRIC is a stored metric name (``te_pp_revolution_max_rad``,
 ``te_pp_rad``, ``lost_motion_rad``, ...) or ``line:LABEL`` for a spectral line amplitude
 (``line:1 f_w``): ``--list`` shows what the store holds. Angles are shown in arcmin.
 
@@ -68,9 +73,11 @@ def register(subparsers: Subparsers) -> None:
                    help=f'the first N points set the centre line and limits (default '
                         f'{_DEFAULT_BASELINE}; all points when there are fewer)')
     p.add_argument('--rules', choices=('nelson', 'western-electric'), default='nelson',
-                   help='run rules (default: nelson, rules 1-8)')
+                   help='run rules (default: nelson, rules 1-8; rules 5/6: 2 of 3 / 4 of 5 '
+                        'beyond 2 / 1 sigma on one side, the other point anywhere)')
     p.add_argument('--usl', type=finite_float, default=None, metavar='X',
-                   help='upper specification limit in the unit shown (arcmin for angles)')
+                   help='upper specification limit in the unit shown (arcmin for angles); '
+                        'Cp/Cpk and Pp/Ppk are of the baseline points')
     p.add_argument('--lsl', type=finite_float, default=None, metavar='X',
                    help='lower specification limit in the unit shown')
     p.add_argument('--report', type=Path, default=None, metavar='DIR',

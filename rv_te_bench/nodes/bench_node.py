@@ -111,7 +111,8 @@ PARAMS = (
               'Session length in simulated time [s]; 0 = until stopped', min_value=0.0,
               max_value=1e7),
     ParamSpec('duration_output_revs', 'double', 0.0,
-              'Session length [output revolutions] (overrides duration_s when > 0)',
+              'Session length [output revolutions] (0 = duration_s decides; both > 0 is '
+              'refused)',
               min_value=0.0, max_value=1e6),
     ParamSpec('time_mode', 'string', 'realtime', 'realtime (wall clock) or fast (sim time)',
               choices=('realtime', 'fast')),
@@ -227,6 +228,12 @@ def build_simulator(p: dict[str, Any]) -> tuple[BenchSimulator, float]:
         msg = (f"sample_rate_hz / block_size = {block_rate_hz:.6g} blocks/s is above the "
                f'{MAX_BLOCK_RATE_HZ:g} blocks/s the nodes can carry (~1 ms per message); '
                f"at {p['sample_rate_hz']:g} Hz use block_size >= {least}")
+        raise ParameterFileError(msg)
+    if p['duration_s'] > 0 and p['duration_output_revs'] > 0:
+        # both say how long the session runs: one would silently win (issue #32)
+        msg = (f"duration_s={p['duration_s']:g} and duration_output_revs="
+               f"{p['duration_output_revs']:g} both set the session length; set the one not "
+               "meant to 0 (e.g. --param bench.duration_output_revs=0 to run duration_s)")
         raise ParameterFileError(msg)
     sim = BenchSimulator(bench_config_from_params(p))
     duration_s = p['duration_s']
