@@ -147,4 +147,5 @@ def run_from(args: argparse.Namespace, plan: TestPlan, tol_text: str,
     report_dir = Path(args.report) if args.report else out_dir / 'report'
     show_report(report, report_dir, as_json=args.json)
     _record(args, report, bag, beside_bag=bag == Path(args.from_path))
-    return verdict_exit(report['verdict'], args.serial, report['reason'], report)
+    return verdict_exit(report['verdict'], args.serial, report['reason'], report,
+                        as_json=args.json)

@@ -261,7 +261,7 @@ def verdict_exit(verdict: str, serial: str, reason: str,
         print(f'VERDICT: FAIL  unit {serial}: {reason}', file=out)
         return EXIT_FAIL
     if verdict == 'not_judged':
-        print(f'VERDICT: NOT JUDGED  unit {serial}: {reason}')
+        print(f'VERDICT: NOT JUDGED  unit {serial}: {reason}', file=out)
         return 1
     print(f'ERROR: test of unit {serial} {verdict}: {reason}', file=sys.stderr)
     return 1
