@@ -111,7 +111,7 @@ def run(args: argparse.Namespace) -> int:
         return _demo(args)
     from rv_te_bench.store import open_store
 
-    with open_store(db_to_read(args)) as st:
+    with open_store(db_to_read(args), create=False) as st:   # reading changes nothing
         rows = st.query(filter_from_args(args))
     doc = (_type1(args, rows) if args.study == 'type1' else _grr(args, rows))
     _emit(args, doc)
