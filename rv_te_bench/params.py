@@ -1,26 +1,37 @@
 """Node parameter specifications, shared by the nodes and the launcher (no rclpy here).
 
-Each node lists its parameters once as :class:`ParamSpec` items. The node declares them with
-descriptors (description with unit, range, read-only) from that list, and the launcher checks a
-ROS-style parameter file against the same list *before any node starts*, so that a bad file
-(unknown key, wrong type, out of range) stops the launch with the file, key and rule named.
+Each node lists its parameters once, as the fields of a frozen record (``generate_parameter
+_library``'s typed ``Params`` struct, in Python): ``rate_hz: float = param(10.0, 'Rate [Hz]',
+min_value=1.0)``. :func:`param_specs` turns the record into :class:`ParamSpec` items: the
+node declares them with descriptors (description with unit, range, read-only), and the
+launcher checks a ROS-style parameter file against the same list *before any node starts*,
+so that a bad file (unknown key, wrong type, out of range) stops the launch with the file,
+key and rule named. :func:`params_record` builds the record from the declared values, so a
+node reads ``self.p.rate_hz`` and a misspelt name is an attribute error a type checker finds,
+not a ``KeyError`` on the bench.
 """
 
 from __future__ import annotations
 
+import dataclasses
 import math
 import warnings
 from dataclasses import dataclass
 from pathlib import Path
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING, Any, TypeVar
 
 from rv_te_bench.errors import ParameterFileError
 from rv_te_bench.safe_yaml import PARAMETER_FILE_LIMITS, brief, read_yaml_file
 
 if TYPE_CHECKING:
-    from collections.abc import Callable
+    from collections.abc import Callable, Mapping
 
 _TYPES = ('bool', 'int', 'double', 'string', 'string_array', 'double_array')
+#: The annotation of a record field -> the ROS parameter type.
+_ANNOTATION_TYPES = {'bool': 'bool', 'int': 'int', 'float': 'double', 'str': 'string',
+                     'tuple[str, ...]': 'string_array', 'tuple[float, ...]': 'double_array'}
+_SPEC = 'rv_te_bench.param'
+R = TypeVar('R')
 
 
 @dataclass(frozen=True)
@@ -246,3 +257,66 @@ def _flatten_params(params: dict[str, Any], prefix: str = '') -> dict[str, Any]:
         else:
             out[key] = v
     return out
+
+
+def param(default: Any, description: str, *, min_value: float | None = None,
+          max_value: float | None = None, choices: tuple[str, ...] = (), read_only: bool = True,
+          deprecated_by: str = '', rule: Callable[[Any], str | None] | None = None) -> Any:
+    """A node parameter as a field of its frozen record: the default and the descriptor.
+
+    The field's annotation gives the type (``bool``, ``int``, ``float``, ``str``,
+    ``tuple[str, ...]``, ``tuple[float, ...]``); the other arguments are those of
+    :class:`ParamSpec`. A list default is kept as a tuple (the record is frozen).
+    """
+    if isinstance(default, list):
+        default = tuple(default)
+    return dataclasses.field(default=default, metadata={_SPEC: {
+        'description': description, 'min_value': min_value, 'max_value': max_value,
+        'choices': tuple(choices), 'read_only': read_only, 'deprecated_by': deprecated_by,
+        'rule': rule}})
+
+
+def param_specs(record: type) -> tuple[ParamSpec, ...]:
+    """The :class:`ParamSpec` of every field of a node's parameter record, in field order.
+
+    Raises:
+        ValueError: A field is not made by :func:`param` or has an annotation that is no
+            parameter type (a programming error).
+    """
+    out = []
+    for f in dataclasses.fields(record):
+        meta = f.metadata.get(_SPEC)
+        kind = _ANNOTATION_TYPES.get(str(f.type))
+        if meta is None or kind is None:
+            msg = (f'{record.__name__}.{f.name}: a parameter record field needs param() and '
+                   f'one of {sorted(_ANNOTATION_TYPES)}, got {f.type!r}')
+            raise ValueError(msg)
+        default = list(f.default) if isinstance(f.default, tuple) else f.default
+        out.append(ParamSpec(f.name, kind, default, **meta))
+    return tuple(out)
+
+
+def params_record(record: type[R], values: Mapping[str, Any]) -> R:
+    """A node's parameter record from declared (or merged) values.
+
+    Fields not in ``values`` keep their defaults; names that are not fields (``use_sim_time``)
+    are left out; arrays become tuples.
+    """
+    names = {f.name for f in dataclasses.fields(record)}  # type: ignore[arg-type]
+    return record(**{k: tuple(v) if isinstance(v, list) else v
+                     for k, v in values.items() if k in names})
+
+
+def params_changed(record: R, values: Mapping[str, Any]) -> R:
+    """``record`` with the parameters in ``values`` set (a runtime change the node accepted);
+    names that are not fields are left out, arrays become tuples."""
+    names = {f.name for f in dataclasses.fields(record)}  # type: ignore[arg-type]
+    return dataclasses.replace(record, **{  # type: ignore[type-var]
+        k: tuple(v) if isinstance(v, list) else v for k, v in values.items() if k in names})
+
+
+def params_values(record: Any) -> dict[str, Any]:
+    """The parameters of a record as plain values (arrays as lists), in field order: what
+    a node declared, for a record of the session (YAML, JSON)."""
+    return {f.name: list(v) if isinstance(v := getattr(record, f.name), tuple) else v
+            for f in dataclasses.fields(record)}

@@ -389,8 +389,8 @@ def test_cli_ranges_are_the_node_parameter_ranges() -> None:
     so a range error names the flag the user typed, not a node parameter."""
     from rv_te_bench.cli import analyze, record, replay
     from rv_te_bench.nodes import recorder as rec_node
-    from rv_te_bench.nodes import replay as replay_node
     from rv_te_bench.nodes import te_node
+    from rv_te_bench.nodes.params import replay as replay_params
 
     spec = {s.name: s for s in rec_node.PARAMS}
     assert spec['duration_s'].max_value == record.MAX_DURATION_S
@@ -399,9 +399,11 @@ def test_cli_ranges_are_the_node_parameter_ranges() -> None:
                                     spec['flush_interval_s'].max_value) == record.FLUSH_RANGE_S
     assert spec['split_size_bytes'].max_value == record.MAX_SPLIT_BYTES
     assert spec['stall_buffer_bytes'].max_value == record.MAX_STALL_BUFFER_BYTES
-    assert replay.RATE_RANGE == replay_node.RATE_RANGE
-    assert replay.START_OFFSET_RANGE_S == replay_node.START_OFFSET_RANGE_S
-    assert replay.WAIT_RANGE_S == replay_node.WAIT_RANGE_S
+    rp = {s.name: s for s in replay_params.PARAMS}   # what the replay node declares
+    rate, offset, wait = (rp[n] for n in ('rate', 'start_offset_s', 'wait_for_subscribers_s'))
+    assert (rate.min_value, rate.max_value) == replay.RATE_RANGE
+    assert (offset.min_value, offset.max_value) == replay.START_OFFSET_RANGE_S
+    assert (wait.min_value, wait.max_value) == replay.WAIT_RANGE_S
     te = {s.name: s for s in te_node.PARAMS}
     assert te['n_crank_harmonics'].max_value == analyze.MAX_HARMONICS
     assert te['window_revolutions'].max_value == analyze.MAX_WINDOW_REVOLUTIONS

@@ -67,6 +67,7 @@ def test_an_upward_import_and_rclpy_in_core_are_caught(tmp_path: Path) -> None:
 
 @pytest.mark.parametrize(('lower', 'upper'), [
     ('rv_te_bench/io/_bag_types.py', 'rv_te_bench.io.bag_reader'),
+    ('rv_te_bench/launch/checks.py', 'rv_te_bench.launch.session'),   # the old circle
 ])
 def test_a_circle_inside_a_folder_is_caught(tmp_path: Path, lower: str, upper: str) -> None:
     """The record types (lowest floor) reaching up to a reader inside a function."""

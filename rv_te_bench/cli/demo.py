@@ -58,7 +58,7 @@ def expected_advice(spec: SessionSpec, revolutions: float) -> tuple[frozenset[st
     The identified re-assembly needs a complete TE window (``window_revolutions`` output
     revolutions of the TE node); a shorter run can never give it (issue #15: the demo waited
     the whole --advice-timeout-s for it)."""
-    from rv_te_bench.launch.session import node_specs
+    from rv_te_bench.launch.node_specs import node_specs
 
     def params(node: str) -> dict[str, Any]:
         return {**{p.name: p.default for p in node_specs(node)},
@@ -116,7 +116,8 @@ def run(args: argparse.Namespace) -> int:
     import rclpy
 
     from rv_te_bench.io.files import claim_folder, folder_name_problem
-    from rv_te_bench.launch.session import Session, build_session, node_specs
+    from rv_te_bench.launch.node_specs import node_specs
+    from rv_te_bench.launch.session import Session, build_session
     from rv_te_bench.nodes.common import make_executor
     from rv_te_bench.nodes.monitor import SessionMonitor
 

@@ -17,6 +17,7 @@ import sys
 from typing import TYPE_CHECKING, Any
 
 from rv_te_bench.errors import ParameterFileError, RvTeError
+from rv_te_bench.launch.node_specs import node_record, ros_arguments
 from rv_te_bench.safe_yaml import brief
 from sim.errors import SimError
 
@@ -154,12 +155,8 @@ def check_ros_names(node: str, namespace: str, remappings: Sequence[tuple[str, s
             if not side.isascii() or not side.isprintable():
                 msg = f'remapping {brief(f"{a}:={b}")} holds characters ROS names cannot have'
                 raise ParameterFileError(msg)
-    args = ['--ros-args', '-r', f'__node:={node}']
-    if namespace:
-        args += ['-r', f'__ns:={namespace}']
-    for a, b in remappings:
-        args += ['-r', f'{a}:={b}']
-    check_ros_arguments(args, node=node)
+    check_ros_arguments(ros_arguments(node=node, namespace=namespace, remappings=remappings),
+                        node=node)
     remapped: dict[str, str] = {}
     for a, b in remappings:
         src = a.split('://', 1)[-1]
@@ -196,12 +193,7 @@ def check_node_config(node: str, values: dict[str, Any], *, namespace: str) -> N
         ParameterFileError: The node would refuse these parameters at start (names the
             node and the rule).
     """
-
-    from rv_te_bench.launch.session import node_specs
-
-    p = {s.name: list(s.default) if isinstance(s.default, tuple) else s.default
-         for s in node_specs(node)}
-    p.update(values)
+    p = node_record(node, values)
     try:
         if node == 'bench':
             from rv_te_bench.nodes.bench_node import build_simulator

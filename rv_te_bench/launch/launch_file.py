@@ -38,11 +38,11 @@ from pathlib import Path
 from typing import Any
 
 from rv_te_bench.errors import ParameterFileError, YamlInputError, YamlLimitError
+from rv_te_bench.launch.node_specs import node_specs
 from rv_te_bench.launch.session import (
     SessionSpec,
     build_session,
     check_session,
-    node_specs,
     normalise_namespace,
     parse_param_override,
 )

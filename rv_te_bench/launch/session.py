@@ -31,6 +31,7 @@ from typing import TYPE_CHECKING, Any
 
 from rv_te_bench.errors import ParameterFileError, YamlInputError, YamlLimitError
 from rv_te_bench.launch.checks import check_namespace, check_node_config, check_ros_names
+from rv_te_bench.launch.node_specs import NODE_TYPES, node_specs, ros_arguments
 from rv_te_bench.params import (
     ParamSpec,
     check_parameters,
@@ -51,27 +52,10 @@ if TYPE_CHECKING:
     from collections.abc import Callable, Sequence
     from typing import IO
 
-# node name -> (module, class name); the order is the start order; shutdown runs reversed
-# except that the recorder always stops last.
-NODE_TYPES: dict[str, tuple[str, str]] = {
-    'recorder': ('rv_te_bench.nodes.recorder', 'RecorderNode'),
-    'compensation': ('rv_te_bench.nodes.compensation_node', 'CompensationNode'),
-    'te_node': ('rv_te_bench.nodes.te_node', 'TeNode'),
-    'bench': ('rv_te_bench.nodes.bench_node', 'BenchNode'),
-    'joint_state_adapter': ('rv_te_bench.nodes.joint_state_adapter', 'JointStateAdapterNode'),
-    'test_sequencer': ('rv_te_bench.nodes.test_sequencer', 'TestSequencerNode'),
-}
 #: Nodes the raw data depends on: the session ends when one of them fails.
 RAW_DATA_NODES = ('bench', 'joint_state_adapter', 'recorder')
 STOP_ORDER = ('test_sequencer', 'bench', 'joint_state_adapter', 'te_node', 'compensation',
               'recorder')
-
-
-def node_specs(name: str) -> tuple[ParamSpec, ...]:
-    """The parameter specs of a node type (imports the node module's PARAMS only)."""
-    module_name, _ = NODE_TYPES[name]
-
-    return tuple(importlib.import_module(module_name).PARAMS)
 
 
 def normalise_namespace(ns: str) -> str:
@@ -306,18 +290,16 @@ def clock_remapping(spec: SessionSpec) -> tuple[str, str] | None:
     return '/clock', f'{spec.namespace}/clock'
 
 
-def ros_args(spec: SessionSpec, node: str, params_file: Path | None) -> list[str]:
-    """The ``--ros-args`` for one node process."""
-    args = ['--ros-args', '-r', f'__node:={node}']
-    if spec.namespace:
-        args += ['-r', f'__ns:={spec.namespace}']
-    for a, b in spec.remappings:
-        args += ['-r', f'{a}:={b}']
-    if (clock := clock_remapping(spec)) is not None:
-        args += ['-r', f'{clock[0]}:={clock[1]}']
-    if params_file is not None:
-        args += ['--params-file', str(params_file)]
-    return args
+def ros_args(spec: SessionSpec, node: str | None, params_file: Path | None) -> list[str]:
+    """The ``--ros-args`` for one node process (``node`` None: all nodes in one process)."""
+    return ros_arguments(node=node, namespace=spec.namespace,
+                         remappings=session_remappings(spec), params_file=params_file)
+
+
+def session_remappings(spec: SessionSpec) -> list[tuple[str, str]]:
+    """The session's remappings, then its own /clock (:func:`clock_remapping`)."""
+    clock = clock_remapping(spec)
+    return [*spec.remappings, *([] if clock is None else [clock])]
 
 
 #: BLAS / OpenMP thread pools of a node process: one thread each unless the user set them.
@@ -539,13 +521,7 @@ def run_single_process(spec: SessionSpec, *, until: Callable[[], bool] | None = 
 
     from rv_te_bench.nodes.common import make_executor
 
-    args = ['--ros-args']
-    if spec.namespace:
-        args += ['-r', f'__ns:={spec.namespace}']
-    for a, b in spec.remappings:
-        args += ['-r', f'{a}:={b}']
-    if (clock := clock_remapping(spec)) is not None:
-        args += ['-r', f'{clock[0]}:={clock[1]}']
+    args = ros_args(spec, None, None)
     ctx = rclpy.context.Context()
     rclpy.init(args=args, context=ctx, signal_handler_options=SignalHandlerOptions.NO)
     stop = {'requested': False}

@@ -45,9 +45,9 @@ from rv_te_bench.nodes.common import (
     run_node,
     session_topic,
 )
-from rv_te_bench.params import ParamSpec
+from rv_te_bench.nodes.params.bench import PARAMS, BenchParams
+from rv_te_bench.params import params_changed, params_record
 from rv_te_bench.safe_yaml import DOCUMENT_LIMITS, load_yaml
-from sim.bench_info import DEFAULT_SAMPLE_RATE_HZ
 
 if TYPE_CHECKING:  # annotations only: the sim and the services load when the node starts
     from rv_te_msgs.srv import RunBenchProgram
@@ -55,106 +55,8 @@ if TYPE_CHECKING:  # annotations only: the sim and the services load when the no
 
     from sim.bench import BenchBlock, BenchConfig, BenchSimulator
 
-PARAMS = (
-    ParamSpec('bench_id', 'string', 'bench0', 'Bench id (frame_id of every message) [-]'),
-    ParamSpec('preset', 'string', 'wang2020-2kv', 'Reducer preset name or TOML path [-]'),
-    ParamSpec('overrides', 'string_array', [],
-              'Preset overrides "key=value" (same keys as rv-te --set) [-]'),
-    ParamSpec('te_mode', 'string', 'nlte',
-              'Reducer model mode: nlte | ste | dte (2K-V), geometric | elastic (hu2020-rv), dte '
-              '(li2023)'),
-    ParamSpec('drive_profile', 'string', 'constant', 'Input speed profile [-]',
-              choices=('constant', 'sinusoidal', 'ramp', 'forward_reverse')),
-    ParamSpec('speed_rpm', 'double', 300.0,
-              'Input speed [rpm]: constant / forward speed, sinusoidal mean C, ramp end speed',
-              min_value=-100000.0, max_value=100000.0),
-    ParamSpec('speed_amplitude_rpm', 'double', 0.0,
-              'Sinusoidal speed amplitude A [rpm] (V = A sin(B t) + C, Hu 2020)',
-              min_value=0.0, max_value=100000.0),
-    ParamSpec('speed_angular_freq_rad_s', 'double', 1.0,
-              'Sinusoidal speed angular frequency B [rad/s]', min_value=1e-6, max_value=1e4),
-    ParamSpec('drive_allow_reversal', 'bool', False,
-              'Allow sinusoidal/ramp profiles whose speed changes sign (Hu 2020: A > C)'),
-    ParamSpec('ramp_start_rpm', 'double', 0.0, 'Ramp start speed [rpm]',
-              min_value=-100000.0, max_value=100000.0),
-    ParamSpec('ramp_duration_s', 'double', 5.0, 'Ramp duration [s]', min_value=1e-3,
-              max_value=1e6),
-    ParamSpec('reverse_at_s', 'double', 10.0, 'Forward-reverse: start of reversal [s]',
-              min_value=0.0, max_value=1e6),
-    ParamSpec('reverse_ramp_s', 'double', 1.0, 'Forward-reverse: reversal duration [s]',
-              min_value=1e-3, max_value=1e6),
-    ParamSpec('load_profile', 'string', 'constant', 'Load torque profile [-]',
-              choices=('constant', 'sinusoidal')),
-    ParamSpec('load_nm', 'double', 0.0, 'Constant load / sinusoidal mean load [N m]',
-              min_value=-1e6, max_value=1e6),
-    ParamSpec('load_amplitude_nm', 'double', 0.0, 'Sinusoidal load amplitude [N m]',
-              min_value=0.0, max_value=1e6),
-    ParamSpec('load_frequency_hz', 'double', 0.0,
-              'Sinusoidal load frequency [Hz]; 0 = tie it to load_tie_to', min_value=0.0,
-              max_value=1e5),
-    ParamSpec('load_tie_to', 'string', 'crank',
-              'Rate the sinusoidal load follows when load_frequency_hz = 0 [-]',
-              choices=('input', 'output', 'crank', 'crank_rel', 'mesh')),
-    ParamSpec('load_harmonic', 'double', 1.0, 'Multiple of the tied rate [1]',
-              min_value=1e-6, max_value=1e4),
-    ParamSpec('encoder_in', 'string', 'heidenhain-ron886', 'Input-shaft encoder preset [-]'),
-    ParamSpec('encoder_out', 'string', 'heidenhain-ron886', 'Output-shaft encoder preset [-]'),
-    ParamSpec('sample_rate_hz', 'double', DEFAULT_SAMPLE_RATE_HZ, 'DAQ sample rate [Hz]',
-              min_value=1.0,
-              max_value=1e6),
-    ParamSpec('block_size', 'int', 100,
-              'Samples per EncoderBlock [1]; sample_rate_hz / block_size <= 1000 blocks/s',
-              min_value=1, max_value=100000),
-    ParamSpec('seed', 'int', 0, 'Random seed of the encoder noise [-]', min_value=0,
-              max_value=2**31 - 1),
-    ParamSpec('duration_s', 'double', 0.0,
-              'Session length in simulated time [s]; 0 = until stopped', min_value=0.0,
-              max_value=1e7),
-    ParamSpec('duration_output_revs', 'double', 0.0,
-              'Session length [output revolutions] (0 = duration_s decides; both > 0 is '
-              'refused)',
-              min_value=0.0, max_value=1e6),
-    ParamSpec('time_mode', 'string', 'realtime', 'realtime (wall clock) or fast (sim time)',
-              choices=('realtime', 'fast')),
-    ParamSpec('speed_factor', 'double', 20.0,
-              'fast mode: times faster than real time; 0 = as fast as possible [1]',
-              min_value=0.0, max_value=1e4),
-    ParamSpec('wait_for_nodes', 'string_array', [],
-              'Start the clock once these nodes (same namespace) subscribe bench/encoders [-]'),
-    ParamSpec('wait_timeout_s', 'double', 20.0,
-              'Start anyway after this long when subscribers are missing [s]',
-              min_value=0.0, max_value=3600.0),
-    ParamSpec('diagnostics_period_s', 'double', 1.0, 'Diagnostics period [s]',
-              min_value=0.05, max_value=60.0),
-    ParamSpec('output', 'string', 'encoder_block',
-              'What the bench publishes: encoder_block (bench/encoders + bench/info) or '
-              'joint_state (joint_states, one sensor_msgs/JointState per DAQ sample, as a '
-              'ros2_control bench; ~0.1 ms of Python per message: keep sample_rate_hz to a '
-              'few kHz) [-]', choices=('encoder_block', 'joint_state')),
-    ParamSpec('joint_state_layout', 'string', 'one_message',
-              'output joint_state: both joints in one message per sample (one_message, as '
-              'joint_state_broadcaster) or one message per joint and sample (separate) [-]',
-              choices=('one_message', 'separate')),
-    ParamSpec('joint_state_names', 'string_array', ['input_joint', 'output_joint'],
-              'output joint_state: names of the input and output joints [-]',
-              rule=lambda v: None if len(v) == 2 and v[0] and v[1] and v[0] != v[1]
-              else 'must be two different non-empty joint names'),
-    ParamSpec('joint_state_wrap', 'bool', False,
-              'output joint_state: publish positions wrapped to [0, 2 pi), as single-turn '
-              'absolute encoders read them'),
-    ParamSpec('commanded', 'bool', False,
-              'Idle until a program arrives on bench/run_program (test_sequencer), instead '
-              'of running the drive profile from the start'),
-    ParamSpec('realtime_priority', 'int', 0,
-              'realtime time mode: SCHED_FIFO priority of the thread that paces and '
-              'publishes the blocks, its middleware threads at nice -10 (Linux; needs '
-              'CAP_SYS_NICE or an rtprio limit, as ros2_control\'s thread_priority); 0 = '
-              'normal scheduling. Keeps a bench on time beside other benches on a shared PC '
-              '[-]', min_value=0, max_value=99),
-)
 
-
-def bench_config_from_params(p: dict[str, Any]) -> BenchConfig:
+def bench_config_from_params(p: BenchParams) -> BenchConfig:
     """Node parameters -> validated :class:`sim.bench.BenchConfig` (shared with the CLI).
 
     Raises:
@@ -165,36 +67,36 @@ def bench_config_from_params(p: dict[str, Any]) -> BenchConfig:
     from sim.kinematics import kinematics_from_preset
     from sim.presets import load_preset
 
-    kind = p['drive_profile']
+    kind = p.drive_profile
     if kind == 'constant':
-        drive = drive_from_spec(kind, speed_rpm=p['speed_rpm'])
+        drive = drive_from_spec(kind, speed_rpm=p.speed_rpm)
     elif kind == 'sinusoidal':
-        drive = drive_from_spec(kind, amplitude_rpm=p['speed_amplitude_rpm'],
-                                angular_freq_rad_s=p['speed_angular_freq_rad_s'],
-                                mean_rpm=p['speed_rpm'],
-                                allow_reversal=p['drive_allow_reversal'])
+        drive = drive_from_spec(kind, amplitude_rpm=p.speed_amplitude_rpm,
+                                angular_freq_rad_s=p.speed_angular_freq_rad_s,
+                                mean_rpm=p.speed_rpm,
+                                allow_reversal=p.drive_allow_reversal)
     elif kind == 'ramp':
-        drive = drive_from_spec(kind, start_rpm=p['ramp_start_rpm'], end_rpm=p['speed_rpm'],
-                                duration_s=p['ramp_duration_s'],
-                                allow_reversal=p['drive_allow_reversal'])
+        drive = drive_from_spec(kind, start_rpm=p.ramp_start_rpm, end_rpm=p.speed_rpm,
+                                duration_s=p.ramp_duration_s,
+                                allow_reversal=p.drive_allow_reversal)
     else:
-        drive = drive_from_spec(kind, speed_rpm=p['speed_rpm'], reverse_at_s=p['reverse_at_s'],
-                                ramp_s=p['reverse_ramp_s'])
-    if p['load_profile'] == 'constant':
-        load = load_from_spec('constant', torque_nm=p['load_nm'])
+        drive = drive_from_spec(kind, speed_rpm=p.speed_rpm, reverse_at_s=p.reverse_at_s,
+                                ramp_s=p.reverse_ramp_s)
+    if p.load_profile == 'constant':
+        load = load_from_spec('constant', torque_nm=p.load_nm)
     else:
-        preset = load_preset(p['preset'], list(p['overrides']))
+        preset = load_preset(p.preset, list(p.overrides))
         kin = kinematics_from_preset(preset)
         extra: dict[str, Any] = (
-            {'frequency_hz': p['load_frequency_hz']} if p['load_frequency_hz'] > 0
-            else {'tie_to': p['load_tie_to'], 'harmonic': p['load_harmonic']})
-        load = load_from_spec('sinusoidal', kinematics=kin, drive=drive, mean_nm=p['load_nm'],
-                              amplitude_nm=p['load_amplitude_nm'], **extra)
+            {'frequency_hz': p.load_frequency_hz} if p.load_frequency_hz > 0
+            else {'tie_to': p.load_tie_to, 'harmonic': p.load_harmonic})
+        load = load_from_spec('sinusoidal', kinematics=kin, drive=drive, mean_nm=p.load_nm,
+                              amplitude_nm=p.load_amplitude_nm, **extra)
     return BenchConfig(
-        preset=p['preset'], overrides=tuple(p['overrides']), te_mode=p['te_mode'],
-        drive=drive, load=load, encoder_in=p['encoder_in'], encoder_out=p['encoder_out'],
-        sample_rate_hz=p['sample_rate_hz'], block_size=p['block_size'], seed=p['seed'],
-        bench_id=p['bench_id'])
+        preset=p.preset, overrides=tuple(p.overrides), te_mode=p.te_mode,
+        drive=drive, load=load, encoder_in=p.encoder_in, encoder_out=p.encoder_out,
+        sample_rate_hz=p.sample_rate_hz, block_size=p.block_size, seed=p.seed,
+        bench_id=p.bench_id)
 
 
 #: Longest the bench waits at its end for its readers to acknowledge the info and blocks [s].
@@ -207,7 +109,7 @@ _MAX_CATCH_UP_BLOCKS = 100
 MAX_BLOCK_RATE_HZ = 1000.0
 
 
-def build_simulator(p: dict[str, Any]) -> tuple[BenchSimulator, float]:
+def build_simulator(p: BenchParams) -> tuple[BenchSimulator, float]:
     """The bench's start-up: simulator and session length [s] from its parameters.
 
     Run by the node and by ``rv-te launch --check`` (the same checks).
@@ -222,30 +124,30 @@ def build_simulator(p: dict[str, Any]) -> tuple[BenchSimulator, float]:
     """
     from sim.bench import BenchSimulator
 
-    block_rate_hz = p['sample_rate_hz'] / p['block_size']
+    block_rate_hz = p.sample_rate_hz / p.block_size
     if block_rate_hz > MAX_BLOCK_RATE_HZ:
-        least = math.ceil(p['sample_rate_hz'] / MAX_BLOCK_RATE_HZ)
+        least = math.ceil(p.sample_rate_hz / MAX_BLOCK_RATE_HZ)
         msg = (f"sample_rate_hz / block_size = {block_rate_hz:.6g} blocks/s is above the "
                f'{MAX_BLOCK_RATE_HZ:g} blocks/s the nodes can carry (~1 ms per message); '
-               f"at {p['sample_rate_hz']:g} Hz use block_size >= {least}")
+               f"at {p.sample_rate_hz:g} Hz use block_size >= {least}")
         raise ParameterFileError(msg)
-    if p['duration_s'] > 0 and p['duration_output_revs'] > 0:
+    if p.duration_s > 0 and p.duration_output_revs > 0:
         # both say how long the session runs: one would silently win (issue #32)
-        msg = (f"duration_s={p['duration_s']:g} and duration_output_revs="
-               f"{p['duration_output_revs']:g} both set the session length; set the one not "
-               "meant to 0 (e.g. --param bench.duration_output_revs=0 to run duration_s)")
+        msg = (f'duration_s={p.duration_s:g} and duration_output_revs='
+               f'{p.duration_output_revs:g} both set the session length; set the one not '
+               'meant to 0 (e.g. --param bench.duration_output_revs=0 to run duration_s)')
         raise ParameterFileError(msg)
     sim = BenchSimulator(bench_config_from_params(p))
-    duration_s = p['duration_s']
-    if p['duration_output_revs'] > 0:
+    duration_s = p.duration_s
+    if p.duration_output_revs > 0:
         nominal_hz = abs(sim.config.drive.nominal_speed_rpm) / 60.0
         if not nominal_hz > 0:
             msg = ('duration_output_revs needs a non-zero nominal input speed (speed_rpm), '
                    'got 0 rpm')
             raise ParameterFileError(msg)
         # + one sample: the sample at exactly N revolutions closes the last window
-        duration_s = (p['duration_output_revs'] * sim.info.gear_ratio / nominal_hz
-                      + 1.0 / p['sample_rate_hz'])
+        duration_s = (p.duration_output_revs * sim.info.gear_ratio / nominal_hz
+                      + 1.0 / p.sample_rate_hz)
     return sim, duration_s
 
 
@@ -259,20 +161,20 @@ class BenchNode(Node):
             InvalidParameterValueException, SimError: Bad parameters (named), at start-up.
         """
         super().__init__('bench', **kwargs)
-        self.p = declare_from_specs(self, PARAMS)
+        self.p = params_record(BenchParams, declare_from_specs(self, PARAMS))
         reject_invalid_changes(self, PARAMS)
         self.add_post_set_parameters_callback(self._on_params_set)
         self.sim, self.duration_s = build_simulator(self.p)
         info = self.sim.info
         self.program: Any = None
-        if self.p['commanded']:
+        if self.p.commanded:
             self._start_commanded()
-        self.block_period_s = self.p['block_size'] / self.p['sample_rate_hz']
+        self.block_period_s = self.p.block_size / self.p.sample_rate_hz
         self.finished = False
         self.exit_code = 0
         self.blocks_published = 0
         self.sim_time_s = 0.0
-        self.joint_state = self.p['output'] == 'joint_state'
+        self.joint_state = self.p.output == 'joint_state'
         self._max_catch_up_blocks = _MAX_CATCH_UP_BLOCKS
         if self.joint_state:
             from sensor_msgs.msg import JointState
@@ -282,8 +184,8 @@ class BenchNode(Node):
                                                   qos.JOINT_STATE_QOS)
             self.joint_states_published = 0
             # one tick's burst of JointStates fits the readers' queue (a larger one loses)
-            per_block = self.p['block_size'] * (
-                2 if self.p['joint_state_layout'] == 'separate' else 1)
+            per_block = self.p.block_size * (
+                2 if self.p.joint_state_layout == 'separate' else 1)
             self._max_catch_up_blocks = max(1, min(
                 _MAX_CATCH_UP_BLOCKS, qos.JOINT_STATE_QUEUE_DEPTH // per_block))
         else:
@@ -293,12 +195,12 @@ class BenchNode(Node):
             self.pub_data = self.pub_blocks
         self.pub_diag = self.create_publisher(DiagnosticArray, '/diagnostics',
                                               qos.DIAGNOSTICS_QOS)
-        self.fast = self.p['time_mode'] == 'fast'
+        self.fast = self.p.time_mode == 'fast'
         self.pub_clock = self.create_publisher(Clock, '/clock', qos.CLOCK_QOS) if self.fast \
             else None
         self.wall_start = time.time()
         self.mono_start = time.monotonic()
-        self.started = not self.p['wait_for_nodes']
+        self.started = not self.p.wait_for_nodes
         if self.started and self.pub_clock is not None:   # the session clock starts here
             self.pub_clock.publish(Clock(clock=convert.s_to_stamp(self.wall_start)))
         if not self.joint_state:
@@ -309,16 +211,16 @@ class BenchNode(Node):
         self._lag_max_s = 0.0
         self._lag_period_max_s = 0.0   # since the previous diagnostics message
         tick = self.block_period_s if not self.fast else max(
-            1e-3, self.block_period_s / self.p['speed_factor'] if self.p['speed_factor'] > 0
+            1e-3, self.block_period_s / self.p.speed_factor if self.p.speed_factor > 0
             else 1e-3)
         self.timer = self.create_timer(tick, self._on_tick)
-        self.create_timer(self.p['diagnostics_period_s'], self._publish_diagnostics)
+        self.create_timer(self.p.diagnostics_period_s, self._publish_diagnostics)
         #: What real-time scheduling took effect (diagnostics 'scheduling').
         self.scheduling = self._realtime_scheduling()
         self.get_logger().info(
             f'bench {info.bench_id}: preset {info.preset} ({info.reducer_type}, '
-            f'i={info.gear_ratio:.6g}), {self.p["sample_rate_hz"]:g} Hz, blocks of '
-            f'{self.p["block_size"]}, {self.p["time_mode"]} time'
+            f'i={info.gear_ratio:.6g}), {self.p.sample_rate_hz:g} Hz, blocks of '
+            f'{self.p.block_size}, {self.p.time_mode} time'
             + (f', {self.duration_s:.3f} s' if self.duration_s > 0 else ''))
 
     def _realtime_scheduling(self) -> str:
@@ -326,7 +228,7 @@ class BenchNode(Node):
         spins the executor: its timer thread inherits it), nice -10 for the middleware's
         threads. Only in realtime mode: a real-time thread that simulates as fast as it can
         (fast mode) would take a core from every other process."""
-        want = int(self.p['realtime_priority'])
+        want = int(self.p.realtime_priority)
         if want == 0:
             return 'normal'
         if self.fast:
@@ -402,7 +304,7 @@ class BenchNode(Node):
 
     def _tick_commanded(self) -> None:
         elapsed = time.monotonic() - self.mono_start
-        factor = self.p['speed_factor'] if self.fast else 1.0
+        factor = self.p.speed_factor if self.fast else 1.0
         due = 10 if self.fast and factor <= 0 else int(
             elapsed * factor / self.block_period_s) + 1 - self._prog_blocks
         for _ in range(max(0, min(due, 100))):
@@ -413,14 +315,13 @@ class BenchNode(Node):
             self._prog_blocks += 1
 
     def _on_params_set(self, params: list[Any]) -> None:
-        for prm in params:
-            self.p[prm.name] = prm.value
+        self.p = params_changed(self.p, {prm.name: prm.value for prm in params})
 
     def _due_blocks(self) -> int:
         """How many blocks the clock says are due now (bounded catch-up)."""
         elapsed = time.monotonic() - self.mono_start
         if self.fast:
-            factor = self.p['speed_factor']
+            factor = self.p.speed_factor
             if factor <= 0:
                 return 10  # as fast as possible: several per tick, still yielding to spin
             elapsed *= factor
@@ -438,13 +339,13 @@ class BenchNode(Node):
             mine = {i.node_name for i in self.get_publishers_info_by_topic(marker)
                     if i.node_namespace == ns}
             have = {n for n in have if n in mine or not self._of_another_session(n, ns, marker)}
-        missing = sorted(set(self.p['wait_for_nodes']) - have)
+        missing = sorted(set(self.p.wait_for_nodes) - have)
         if not missing:
             missing = self._not_matched(ns, have)
         if not missing and self.pub_clock is not None:
             missing = self._clock_not_matched(ns)
         waited = time.monotonic() - self.mono_start
-        if missing and waited < self.p['wait_timeout_s']:
+        if missing and waited < self.p.wait_timeout_s:
             return False
         if missing:
             self.get_logger().warning(
@@ -466,7 +367,7 @@ class BenchNode(Node):
             return [f'({self.pub_data.topic_name} matching)']
         # in joint_state output the adapter publishes BenchInfo (and holds its first blocks
         # until the session's recorder subscribes): nothing more to wait for here
-        if self.joint_state or 'recorder' not in self.p['wait_for_nodes'] \
+        if self.joint_state or 'recorder' not in self.p.wait_for_nodes \
                 or 'recorder' not in have:
             return []
         infos = self.get_subscriptions_info_by_topic(self.pub_info.topic_name)
@@ -493,7 +394,7 @@ class BenchNode(Node):
         """
         if self.pub_clock is None:
             return []
-        wanted = set(self.p['wait_for_nodes'])
+        wanted = set(self.p.wait_for_nodes)
         readers = [i.node_name for i in self.get_subscriptions_info_by_topic(
                    self.pub_clock.topic_name)   # (/clock, or the session's own, remapped)
                    if i.node_namespace == ns and i.node_name in wanted]
@@ -535,12 +436,12 @@ class BenchNode(Node):
             stamp_s = self.wall_start + b.t0_s
             msg = convert.make_encoder_block(
                 bench_id=self.sim.info.bench_id, seq=b.seq, stamp_s=stamp_s,
-                sample_rate_hz=self.p['sample_rate_hz'], time_offset_s=b.time_offset_s,
+                sample_rate_hz=self.p.sample_rate_hz, time_offset_s=b.time_offset_s,
                 theta_in_rad=b.theta_in_rad, theta_out_rad=b.theta_out_rad,
                 torque_out_nm=b.torque_out_nm)
             self.pub_blocks.publish(msg)
         self.blocks_published += 1
-        self.sim_time_s = b.t0_s + len(b.time_offset_s) / self.p['sample_rate_hz']
+        self.sim_time_s = b.t0_s + len(b.time_offset_s) / self.p.sample_rate_hz
         if self.pub_clock is not None:
             self.pub_clock.publish(Clock(clock=convert.s_to_stamp(self.wall_start
                                                                   + self.sim_time_s)))
@@ -550,12 +451,12 @@ class BenchNode(Node):
         base_ns = round(self.wall_start * 1e9)
         stamps = (base_ns + np.round((b.t0_s + b.time_offset_s) * 1e9).astype(np.int64)).tolist()
         th_in, th_out = b.theta_in_rad, b.theta_out_rad
-        if self.p['joint_state_wrap']:
+        if self.p.joint_state_wrap:
             th_in, th_out = np.mod(th_in, 2.0 * math.pi), np.mod(th_out, 2.0 * math.pi)
         torque = (b.torque_out_nm if len(b.torque_out_nm) else
                   np.full(len(th_in), math.nan)).tolist()
-        name_in, name_out = self.p['joint_state_names']
-        separate = self.p['joint_state_layout'] == 'separate'
+        name_in, name_out = self.p.joint_state_names
+        separate = self.p.joint_state_layout == 'separate'
         frame, js, pub = self.sim.info.bench_id, self._joint_state_type, self.pub_data
         nan = math.nan
         for t_ns, p_in, p_out, tq in zip(stamps, th_in.tolist(), th_out.tolist(), torque,

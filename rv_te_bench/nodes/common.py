@@ -31,7 +31,6 @@ if TYPE_CHECKING:
     from rv_te_bench.params import ParamSpec
 
 
-
 #: rclpy parameter types by ParamSpec.type (for typed overrides).
 PARAMETER_TYPES = {
     'bool': Parameter.Type.BOOL,

@@ -38,7 +38,8 @@ from rv_te_bench.nodes.common import (
     reject_invalid_changes,
     run_node,
 )
-from rv_te_bench.params import ParamSpec
+from rv_te_bench.nodes.params.compensation import PARAMS, CompensationParams
+from rv_te_bench.params import params_record
 from sim.bench_info import BenchInfoData
 
 if TYPE_CHECKING:
@@ -48,41 +49,20 @@ if TYPE_CHECKING:
     from sim.presets import Preset
 
 
-PARAMS = (
-    ParamSpec('preset', 'string', '',
-              'Reducer preset; empty = the preset named in bench/info [-]'),
-    ParamSpec('overrides', 'string_array', [], 'Preset overrides "key=value" [-]'),
-    ParamSpec('optimize_phases', 'bool', True,
-              'Run the Wang 2020 Eq. 21 assembly-phase optimisation for 2K-V presets'),
-    ParamSpec('step_deg', 'double', 10.0, 'Phase grid step [deg]', min_value=0.5,
-              max_value=90.0),
-    ParamSpec('refine', 'bool', True, 'Refine the grid optimum below the grid step'),
-    ParamSpec('identify', 'bool', True,
-              'Identify eccentricities from each complete window (2K-V presets)'),
-    ParamSpec('te_metric', 'string', 'pp', 'Measured statistic given to the tooth-profile '
-              'compensation (RV presets) [-]', choices=('pp', 'amplitude')),
-    ParamSpec('diagnostics_period_s', 'double', 1.0, 'Diagnostics period [s]',
-              min_value=0.05, max_value=60.0),
-    ParamSpec('search_nice', 'int', 10,
-              'Niceness of the search thread (Linux): the searches yield the cores to the '
-              'data path of the benches (0: same priority as the node) [-]',
-              min_value=0, max_value=19),
-)
-
 _MAX_SAMPLES = 2_000_000  # bound on the decimated TE kept for identification
 
 
-def check_config(p: dict[str, Any]) -> None:
+def check_config(p: CompensationParams) -> None:
     """The compensation node's start-up checks (also run by ``rv-te launch --check``).
 
     Raises:
         sim.errors.PresetError: The ``preset`` parameter names no loadable preset, or an
             override is invalid.
     """
-    if p['preset']:
+    if p.preset:
         from sim.presets import load_preset
 
-        load_preset(p['preset'], list(p['overrides']))
+        load_preset(p.preset, list(p.overrides))
 
 
 class _Cancelled(Exception):  # noqa: N818 - a control-flow signal, not an error
@@ -95,7 +75,7 @@ class CompensationNode(Node):
     def __init__(self, **kwargs: Any) -> None:
         """Declare parameters and topics; ``kwargs`` go to ``Node``."""
         super().__init__('compensation', **kwargs)
-        self.p = declare_from_specs(self, PARAMS)
+        self.p = params_record(CompensationParams, declare_from_specs(self, PARAMS))
         reject_invalid_changes(self, PARAMS)
         self.drops = DropCounter(self)
         #: Niceness the search thread got (None: not set, e.g. not Linux)
@@ -129,12 +109,12 @@ class CompensationNode(Node):
         self.create_subscription(TransmissionError, 'te/samples', self._on_samples,
                                  qos.ENCODER_QOS)
         self.create_timer(0.2, self._collect)
-        self.create_timer(self.p['diagnostics_period_s'], self._publish_diagnostics)
-        if self.p['preset']:   # a bad preset parameter stops the node at start-up
+        self.create_timer(self.p.diagnostics_period_s, self._publish_diagnostics)
+        if self.p.preset:   # a bad preset parameter stops the node at start-up
             from sim.presets import load_preset
 
-            self._set_preset(self.p['preset'],
-                             lambda: load_preset(self.p['preset'], list(self.p['overrides'])),
+            self._set_preset(self.p.preset,
+                             lambda: load_preset(self.p.preset, list(self.p.overrides)),
                              strict=True)
 
     def _lower_search_priority(self) -> None:
@@ -142,7 +122,7 @@ class CompensationNode(Node):
         priority of one thread by its thread id). A search after each window costs about a
         CPU second (2K-V identification); four benches' searches at once starved the benches
         on 2 cores (issue #23 item 1), while the advice is not urgent."""
-        want = int(self.p['search_nice'])
+        want = int(self.p.search_nice)
         if want <= 0 or not sys.platform.startswith('linux'):
             return
         tid = threading.get_native_id()
@@ -171,12 +151,12 @@ class CompensationNode(Node):
         self.model_name = self.preset.model
         self.advice = advice_kind(self.model_name)
         self.get_logger().info(f'preset {self.preset.name} (model {self.model_name})')
-        if self.advice == 'assembly-phases' and self.p['optimize_phases']:
+        if self.advice == 'assembly-phases' and self.p.optimize_phases:
             self._submit('assembly-phases', self._job_phases)
 
     def _on_info(self, msg: BenchInfo) -> None:
         self.bench_id = msg.bench_id
-        if not self.p['preset']:
+        if not self.p.preset:
             from rv_te_bench.io.bench_record import preset_from_bench_info
 
             info = BenchInfoData.from_message(msg)
@@ -199,8 +179,8 @@ class CompensationNode(Node):
     def _on_window(self, msg: TransmissionError) -> None:
         if self.preset is None or not msg.window_complete:
             return
-        measured = msg.window.pp_rad if self.p['te_metric'] == 'pp' else msg.window.amplitude_rad
-        if self.advice == 'assembly-phases' and self.p['identify'] and self._te:
+        measured = msg.window.pp_rad if self.p.te_metric == 'pp' else msg.window.amplitude_rad
+        if self.advice == 'assembly-phases' and self.p.identify and self._te:
             self._request('identified-assembly-phases', self._identify_job)
         elif self.advice == 'tooth-profile' and math.isfinite(measured) and measured > 0:
             self._request('tooth-profile', lambda: lambda: self._job_tooth(measured))
@@ -243,7 +223,7 @@ class CompensationNode(Node):
 
         params = Wang2kvParams.from_preset(self.preset)
         result = optimise_phases(
-            params, step_deg=self.p['step_deg'], refine=self.p['refine'],
+            params, step_deg=self.p.step_deg, refine=self.p.refine,
             progress=self._progress('assembly-phases'))
         return result.to_advice(self.preset.name)
 
@@ -254,13 +234,13 @@ class CompensationNode(Node):
         params = Wang2kvParams.from_preset(self.preset)
         # the same search as the preset's optimum: the two then differ only in the unit
         return identified_advice(phase_out_rad, te_rad, params, preset_name=self.preset.name,
-                                 step_deg=self.p['step_deg'], refine=self.p['refine'],
+                                 step_deg=self.p.step_deg, refine=self.p.refine,
                                  progress=self._progress('identified-assembly-phases'))
 
     def _job_tooth(self, measured_rad: float) -> Advice:
         from rv_te_bench.core.tooth_compensation import tooth_profile_advice
 
-        return tooth_profile_advice(self.preset, measured_rad, te_metric=self.p['te_metric'])
+        return tooth_profile_advice(self.preset, measured_rad, te_metric=self.p.te_metric)
 
     # -- outputs (executor thread) --------------------------------------------------------
     def _collect(self) -> None:

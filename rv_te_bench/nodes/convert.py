@@ -3,8 +3,9 @@
 from __future__ import annotations
 
 import array
+import importlib
 import math
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 from builtin_interfaces.msg import Time
@@ -192,3 +193,13 @@ def make_compensation_advice(advice: Advice, stamp: Time, frame_id: str) -> Comp
         mods.append(mm)
     msg.modifications = mods
     return msg
+
+
+def message_class(msgtype: str) -> Any:
+    """The Python message class of ``pkg/msg/Name`` (its package imported).
+
+    Raises:
+        ImportError, AttributeError, ValueError: No such package, type or name shape.
+    """
+    pkg, _, name = msgtype.split('/')
+    return getattr(importlib.import_module(f'{pkg}.msg'), name)

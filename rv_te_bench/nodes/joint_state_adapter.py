@@ -48,70 +48,14 @@ from rv_te_bench.nodes.common import (
     reject_invalid_changes,
     run_node,
 )
-from rv_te_bench.params import ParamSpec
-
-PARAMS = (
-    ParamSpec('bench_description', 'string', '',
-              'Bench description YAML file (rv_te_bench/launch/bench_description_example.yaml)'
-              ' published as bench/info; empty = no bench/info (then give the TE node its '
-              'gear_ratio) [path]'),
-    ParamSpec('input_joint', 'string', '',
-              'JointState name of the input-shaft encoder; empty = joints.input of the bench '
-              "description, else 'input_joint' [-]"),
-    ParamSpec('output_joint', 'string', '',
-              'JointState name of the output-shaft encoder; empty = joints.output of the '
-              "bench description, else 'output_joint' [-]"),
-    ParamSpec('sample_rate_hz', 'double', 0.0,
-              'Expected sample rate of the header stamps [Hz]; a stamp step above 1.5 periods '
-              'is a reported gap; 0 = sample_rate_hz of the bench description',
-              min_value=0.0, max_value=1e6),
-    ParamSpec('block_size', 'int', 0,
-              'Samples per EncoderBlock [1]; 0 = block_size of the bench description, else 100',
-              min_value=0, max_value=100000),
-    ParamSpec('position_unit', 'string', 'rad',
-              'JointState position unit: rad, or counts (raw counters, see counts_per_rev_*)',
-              choices=('rad', 'counts')),
-    ParamSpec('counts_per_rev_in', 'double', 0.0,
-              'Input encoder counts per revolution [1/rev] with position_unit counts; 0 = '
-              'encoders.input.counts_per_rev of the bench description', min_value=0.0,
-              max_value=2.0**53),
-    ParamSpec('counts_per_rev_out', 'double', 0.0,
-              'Output encoder counts per revolution [1/rev] with position_unit counts; 0 = '
-              'from the bench description', min_value=0.0, max_value=2.0**53),
-    ParamSpec('wrap', 'string', 'none',
-              'Single-turn absolute encoders whose position wraps at 2 pi (after scaling) and '
-              'is unwrapped here; needs < half a turn between two samples [-]',
-              choices=('none', 'input', 'output', 'both')),
-    ParamSpec('effort_scale', 'double', 0.0,
-              'Output torque per unit of the output joint effort [N m / unit]; 0 = the bench '
-              "description's torque sensor scale when present, else no torque",
-              min_value=-1e9, max_value=1e9),
-    ParamSpec('pairing_tolerance_s', 'double', -1.0,
-              'Joints in separate messages: largest stamp difference of one sample\'s input '
-              'and output [s], below half a sample period; < 0 = a quarter sample period',
-              min_value=-1.0, max_value=1.0),
-    ParamSpec('max_unpaired', 'int', 64,
-              'Joints in separate messages: samples one joint may run ahead of the other '
-              'before its oldest half is a missing joint [1]', min_value=1, max_value=100000),
-    ParamSpec('idle_flush_s', 'double', 0.5,
-              'Publish the open (short) block when no sample came for this long [s]',
-              min_value=0.01, max_value=60.0),
-    ParamSpec('wait_for_nodes', 'string_array', [],
-              'Hold the first blocks until these nodes (same namespace) subscribe '
-              'bench/encoders, so a session\'s TE node and recorder get the stream from seq 0 '
-              '[-]'),
-    ParamSpec('wait_timeout_s', 'double', 20.0,
-              'Publish anyway after this long when subscribers are missing [s]',
-              min_value=0.0, max_value=3600.0),
-    ParamSpec('diagnostics_period_s', 'double', 1.0, 'Diagnostics period [s]',
-              min_value=0.05, max_value=60.0),
-)
+from rv_te_bench.nodes.params.joint_state_adapter import PARAMS, JointStateAdapterParams
+from rv_te_bench.params import params_record
 
 #: Most blocks held while waiting for the session's subscribers (then the oldest go).
 _MAX_HELD_BLOCKS = 10000
 
 
-def build_config(p: dict[str, Any]) -> tuple[JointStateConfig, Any]:
+def build_config(p: JointStateAdapterParams) -> tuple[JointStateConfig, Any]:
     """The adapter's start-up: assembler config and BenchInfo fields from its parameters.
 
     Run by the node and by ``rv-te launch --check`` (the same checks).
@@ -126,22 +70,22 @@ def build_config(p: dict[str, Any]) -> tuple[JointStateConfig, Any]:
         TeConfigError: An invalid combination (named by the core's validation).
     """
     desc = None
-    if p['bench_description']:
+    if p.bench_description:
         from rv_te_bench.io.bench_description import load_bench_description
 
-        desc = load_bench_description(p['bench_description'])
-    rate = p['sample_rate_hz'] or (desc.sample_rate_hz if desc is not None else 0.0)
+        desc = load_bench_description(p.bench_description)
+    rate = p.sample_rate_hz or (desc.sample_rate_hz if desc is not None else 0.0)
     if not rate > 0:
         msg = ('sample_rate_hz is 0 and no bench_description gives it: set the expected '
                'JointState rate [Hz]')
         raise ParameterFileError(msg)
-    block = p['block_size'] or (desc.block_size if desc is not None else 100)
-    in_name = p['input_joint'] or (desc.joint_in_name if desc is not None else None) \
+    block = p.block_size or (desc.block_size if desc is not None else 100)
+    in_name = p.input_joint or (desc.joint_in_name if desc is not None else None) \
         or 'input_joint'
-    out_name = p['output_joint'] or (desc.joint_out_name if desc is not None else None) \
+    out_name = p.output_joint or (desc.joint_out_name if desc is not None else None) \
         or 'output_joint'
-    cpr = [p['counts_per_rev_in'], p['counts_per_rev_out']]
-    if p['position_unit'] == 'counts':
+    cpr = [p.counts_per_rev_in, p.counts_per_rev_out]
+    if p.position_unit == 'counts':
         for k, (name, enc) in enumerate((('counts_per_rev_in', 'input'),
                                          ('counts_per_rev_out', 'output'))):
             if cpr[k] == 0 and desc is not None:
@@ -151,17 +95,17 @@ def build_config(p: dict[str, Any]) -> tuple[JointStateConfig, Any]:
                 msg = (f'position_unit counts needs {name} > 0 (or encoders.{enc}.'
                        f'counts_per_rev in the bench description), got {cpr[k]!r}')
                 raise ParameterFileError(msg)
-    scale = p['effort_scale']
+    scale = p.effort_scale
     if scale == 0 and desc is not None and desc.torque_sensor.present:
         scale = desc.torque_sensor.scale_nm_per_unit
-    tol = p['pairing_tolerance_s'] if p['pairing_tolerance_s'] >= 0 else 0.25 / rate
+    tol = p.pairing_tolerance_s if p.pairing_tolerance_s >= 0 else 0.25 / rate
     config = JointStateConfig(
         input_joint=in_name, output_joint=out_name, sample_rate_hz=float(rate),
-        block_size=int(block), position_unit=p['position_unit'],
+        block_size=int(block), position_unit=p.position_unit,
         counts_per_rev_in=float(cpr[0]), counts_per_rev_out=float(cpr[1]),
-        wrap_in=p['wrap'] in {'input', 'both'}, wrap_out=p['wrap'] in {'output', 'both'},
+        wrap_in=p.wrap in {'input', 'both'}, wrap_out=p.wrap in {'output', 'both'},
         effort_scale=float(scale), pairing_tolerance_s=float(tol),
-        max_unpaired=int(p['max_unpaired']))
+        max_unpaired=int(p.max_unpaired))
     info = None
     if desc is not None:
         info = dataclasses.replace(desc.bench_info(), sample_rate_hz=float(rate),
@@ -169,7 +113,7 @@ def build_config(p: dict[str, Any]) -> tuple[JointStateConfig, Any]:
     return config, info
 
 
-def check_config(p: dict[str, Any]) -> None:
+def check_config(p: JointStateAdapterParams) -> None:
     """What the node checks at start (for ``rv-te launch --check``).
 
     Raises:
@@ -189,7 +133,7 @@ class JointStateAdapterNode(Node):
                 parameters or bench description (named), at start-up.
         """
         super().__init__('joint_state_adapter', **kwargs)
-        self.p = declare_from_specs(self, PARAMS)
+        self.p = params_record(JointStateAdapterParams, declare_from_specs(self, PARAMS))
         reject_invalid_changes(self, PARAMS)
         self.config, info = build_config(self.p)
         self.assembler = JointStateAssembler(self.config)
@@ -199,7 +143,7 @@ class JointStateAdapterNode(Node):
         self.recent_gaps: deque[JointStateGap] = deque(maxlen=64)   # diagnostics and tests
         self._last_msg = time.monotonic()
         self._start = time.monotonic()
-        self._held: deque[EncoderBlock] | None = deque() if self.p['wait_for_nodes'] else None
+        self._held: deque[EncoderBlock] | None = deque() if self.p.wait_for_nodes else None
         self.pub_blocks = self.create_publisher(EncoderBlock, 'bench/encoders', qos.ENCODER_QOS)
         self.pub_info = self.create_publisher(BenchInfo, 'bench/info', qos.LATCHED_QOS)
         self.pub_diag = self.create_publisher(DiagnosticArray, '/diagnostics',
@@ -207,8 +151,8 @@ class JointStateAdapterNode(Node):
         self.create_subscription(
             JointState, 'joint_states', self._on_joint_state, qos.JOINT_STATE_QOS,
             qos_overriding_options=QoSOverridingOptions.with_default_policies())
-        self.create_timer(self.p['idle_flush_s'] / 2.0, self._on_idle)
-        self.create_timer(self.p['diagnostics_period_s'], self._publish_diagnostics)
+        self.create_timer(self.p.idle_flush_s / 2.0, self._on_idle)
+        self.create_timer(self.p.diagnostics_period_s, self._publish_diagnostics)
         self._wait_timer = (self.create_timer(0.1, self._check_subscribers)
                             if self._held is not None else None)
         c = self.config
@@ -220,7 +164,7 @@ class JointStateAdapterNode(Node):
         self.get_logger().info(
             f'joint_states -> bench/encoders: {c.input_joint!r} / {c.output_joint!r}, '
             f'{c.sample_rate_hz:g} Hz, blocks of {c.block_size}, {c.position_unit}, wrap '
-            f'{self.p["wrap"]}, pairing tolerance {c.pairing_tolerance_s:.3g} s')
+            f'{self.p.wrap}, pairing tolerance {c.pairing_tolerance_s:.3g} s')
 
     # -- data path (lean: one sample per message is the usual case) ------------------------
     def _on_joint_state(self, msg: JointState) -> None:
@@ -272,9 +216,9 @@ class JointStateAdapterNode(Node):
         ns = self.get_namespace()
         have = {i.node_name for i in self.get_subscriptions_info_by_topic(
             self.pub_blocks.topic_name) if i.node_namespace == ns}
-        missing = sorted(set(self.p['wait_for_nodes']) - have)
+        missing = sorted(set(self.p.wait_for_nodes) - have)
         waited = time.monotonic() - self._start
-        if missing and waited < self.p['wait_timeout_s']:
+        if missing and waited < self.p.wait_timeout_s:
             return
         if missing:
             self.get_logger().warning(f'publishing without {missing} on '
@@ -292,7 +236,7 @@ class JointStateAdapterNode(Node):
     def _on_idle(self) -> None:
         """The stream paused: publish the open block so the TE node is not kept waiting."""
         if self.assembler.pending_samples and \
-                time.monotonic() - self._last_msg >= self.p['idle_flush_s']:
+                time.monotonic() - self._last_msg >= self.p.idle_flush_s:
             self._emit(self.assembler.flush())
 
     def _publish_diagnostics(self) -> None:

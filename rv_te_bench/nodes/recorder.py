@@ -19,7 +19,6 @@ space returns; what could not be kept is counted per topic, logged, published on
 from __future__ import annotations
 
 import datetime as dt
-import importlib
 import platform
 import struct
 import sys
@@ -38,67 +37,21 @@ from rosgraph_msgs.msg import Clock as ClockMsg
 from rv_te_bench.errors import BagError, BagExistsError, YamlInputError
 from rv_te_bench.io.bag_reader import encoder_block_seq
 from rv_te_bench.io.bag_writer import BagWriter, qos_profile_dict
-from rv_te_bench.io.files import folder_name_problem, write_atomic
+from rv_te_bench.io.files import write_atomic
 from rv_te_bench.io.msgdefs import ENCODER_BLOCK
 from rv_te_bench.nodes import qos
 from rv_te_bench.nodes.common import declare_from_specs, run_node
-from rv_te_bench.params import ParamSpec
+from rv_te_bench.nodes.convert import message_class
+from rv_te_bench.nodes.params.recorder import DEFAULT_TOPICS, PARAMS, RecorderParams
+from rv_te_bench.params import params_record, params_values
 from rv_te_bench.safe_yaml import PARAMETER_FILE_LIMITS, brief, load_yaml
 
 __all__ = ['DEFAULT_TOPICS', 'PARAMS', 'RecorderNode', 'main']
 
-DEFAULT_TOPICS = [
-    'bench/encoders', 'bench/info', 'te/samples', 'te/plot', 'te/statistics', 'te/spectrum',
-    'compensation/advice', 'test/step', 'test/report', '/diagnostics', '/clock',
-]
-PARAMS = (
-    ParamSpec('output_dir', 'string', 'out/bags',
-              'Folder in which the bag folder is created [path]'),
-    ParamSpec('bag_name', 'string', '',
-              'Bag folder name inside output_dir; empty: rv_te_<UTC time>, made unique [-]',
-              rule=lambda v: folder_name_problem(v) if v else None),
-    ParamSpec('topics', 'string_array', DEFAULT_TOPICS,
-              'Topics to record; relative names resolve under the namespace [-]'),
-    ParamSpec('topic_types', 'string_array', [],
-              "Explicit types 'topic=pkg/msg/Type'; others come from the graph [-]"),
-    ParamSpec('compression', 'string', 'zstd', 'MCAP chunk compression [-]',
-              choices=('zstd', 'lz4', 'none')),
-    ParamSpec('chunk_size_bytes', 'int', 1 << 20,
-              'Uncompressed chunk size that triggers a write [bytes]', min_value=1024,
-              max_value=1 << 30),
-    ParamSpec('flush_interval_s', 'double', 1.0,
-              'Longest time a message stays in memory; bounds loss on a crash [s]',
-              min_value=0.01, max_value=60.0),
-    ParamSpec('split_size_bytes', 'int', 0,
-              'Start a new .mcap file past this size; 0: never [bytes]', min_value=0,
-              max_value=1 << 62),
-    ParamSpec('split_duration_s', 'double', 0.0,
-              'Start a new .mcap file after this span; 0: never [s]', min_value=0.0,
-              max_value=1e7),
-    ParamSpec('duration_s', 'double', 0.0,
-              'Stop and close the bag after this time; 0: until stopped [s]', min_value=0.0,
-              max_value=1e7),
-    ParamSpec('discovery_period_s', 'double', 0.5,
-              'Period of the graph scan for new publishers [s]', min_value=0.05,
-              max_value=60.0),
-    ParamSpec('session_metadata_yaml', 'string', '',
-              "YAML mapping stored as the bag's rv_te_session metadata record [-]"),
-    ParamSpec('stall_buffer_bytes', 'int', 64 << 20,
-              'Messages held in memory while the disk is full; beyond it they are lost '
-              '(counted) [bytes]', min_value=0, max_value=1 << 40),
-    ParamSpec('summary_file', 'string', '',
-              'Write the closing summary (bag, messages on disk, lost) as YAML here; '
-              'empty: none [path]'),
-)
 _THROTTLE_S = 5.0
 #: Messages held while a sim-time recorder waits for its first /clock (10 s at 100 blocks/s
 #: on every suite topic); beyond that they are written at time 0.
 MAX_HELD_MESSAGES = 10_000
-
-
-def _msg_class(msgtype: str) -> Any:
-    pkg, _, name = msgtype.split('/')
-    return getattr(importlib.import_module(f'{pkg}.msg'), name)
 
 
 def _qos_dict(profile: QoSProfile) -> dict[str, Any]:
@@ -107,7 +60,7 @@ def _qos_dict(profile: QoSProfile) -> dict[str, Any]:
                             history=profile.history.name.lower(), depth=profile.depth)
 
 
-def check_config(p: dict[str, Any]) -> dict[str, str]:
+def check_config(p: RecorderParams) -> dict[str, str]:
     """The recorder's start-up checks (also run by ``rv-te launch --check``).
 
     Returns:
@@ -119,29 +72,29 @@ def check_config(p: dict[str, Any]) -> dict[str, str]:
             bag folder that exists already or cannot be made.
     """
     explicit = {}
-    for item in p['topic_types']:
+    for item in p.topic_types:
         name, sep, msgtype = item.partition('=')
         msgtype = msgtype.strip()
         if not sep or not name.strip() or msgtype.count('/') != 2:
             msg = f"topic_types entry {brief(item)} must be 'topic=pkg/msg/Type'"
             raise BagError(msg)
         try:
-            _msg_class(msgtype)
+            message_class(msgtype)
         except (ImportError, AttributeError, ValueError) as exc:
             msg = f'topic_types entry {brief(item)}: type {brief(msgtype)} not importable ({exc})'
             raise BagError(msg) from None
         explicit[name.strip()] = msgtype
-    _parse_metadata(p['session_metadata_yaml'])
-    if p['bag_name']:
-        path = Path(p['output_dir']) / p['bag_name']
+    _parse_metadata(p.session_metadata_yaml)
+    if p.bag_name:
+        path = Path(p.output_dir) / p.bag_name
         if path.exists() or path.is_symlink():
             msg = f'Bag {path} exists already, not overwriting.'
             raise BagError(msg)
-    parent = Path(p['output_dir'])
+    parent = Path(p.output_dir)
     while not parent.exists() and parent != parent.parent:
         parent = parent.parent
     if parent.exists() and not parent.is_dir():
-        msg = f'Cannot create bag folder under {p["output_dir"]}: {parent} is not a folder.'
+        msg = f'Cannot create bag folder under {p.output_dir}: {parent} is not a folder.'
         raise BagError(msg)
     return explicit
 
@@ -200,13 +153,13 @@ class RecorderNode(Node):
         self._held: list[tuple[_TopicState, bytes]] = []
         self._subscriptions_by_topic: dict[str, Any] = {}
         given_types = check_config(p)
-        self._wanted = [self._resolve(t) for t in p['topics']]
+        self._wanted = [self._resolve(t) for t in p.topics]
         self._explicit = {self._resolve(t): m for t, m in given_types.items()}
-        self._summary_file = p['summary_file']
+        self._summary_file = p.summary_file
         self.exit_code = 0
         self.bag_path, self._writer = self._open_bag(p)
         self.write_errors = 0
-        self._duration_s = p['duration_s']
+        self._duration_s = p.duration_s
         self._start = self.get_clock().now()
         self._sim_clock_ns = 0
         self._use_sim_time = bool(self.get_parameter('use_sim_time').value)
@@ -225,38 +178,38 @@ class RecorderNode(Node):
         # stands still until the first /clock, and a bench that waits for the recorder to
         # subscribe publishes no /clock before that (a deadlock until its wait times out)
         steady = Clock(clock_type=ClockType.STEADY_TIME)
-        self.create_timer(min(0.25, p['flush_interval_s'] / 2), self._on_flush_timer,
+        self.create_timer(min(0.25, p.flush_interval_s / 2), self._on_flush_timer,
                           clock=steady)
         self.create_timer(1.0, self._publish_diagnostics, clock=steady)
-        self.create_timer(p['discovery_period_s'], self._discover, clock=steady)
+        self.create_timer(p.discovery_period_s, self._discover, clock=steady)
         self._discover()
         self.get_logger().info(f'recording {self._wanted} to {self.bag_path}')
 
     # ---------------------------------------------------------------- parameters
-    def _declare_parameters(self) -> dict[str, Any]:
-        return declare_from_specs(self, PARAMS)
+    def _declare_parameters(self) -> RecorderParams:
+        return params_record(RecorderParams, declare_from_specs(self, PARAMS))
 
-    def _open_bag(self, p: dict[str, Any]) -> tuple[Path, BagWriter]:
+    def _open_bag(self, p: RecorderParams) -> tuple[Path, BagWriter]:
         """Create the bag; a default name gets _2, _3, ... when taken (two recorders
         started in the same second), a given name must be free."""
         stamp = dt.datetime.now(dt.UTC).strftime('%Y%m%d_%H%M%S')
-        base = p['bag_name'] or f'rv_te_{stamp}'
+        base = p.bag_name or f'rv_te_{stamp}'
         meta = self._session_metadata(p)
         for attempt in range(1, 1000):
-            path = Path(p['output_dir']) / (base if attempt == 1 else f'{base}_{attempt}')
+            path = Path(p.output_dir) / (base if attempt == 1 else f'{base}_{attempt}')
             try:
                 return path, BagWriter(
-                    path, compression=p['compression'],
-                    chunk_size_bytes=p['chunk_size_bytes'],
-                    flush_interval_s=p['flush_interval_s'],
-                    split_size_bytes=p['split_size_bytes'] or None,
-                    split_duration_s=p['split_duration_s'] or None,
-                    session_metadata=meta, stall_buffer_bytes=p['stall_buffer_bytes'],
+                    path, compression=p.compression,
+                    chunk_size_bytes=p.chunk_size_bytes,
+                    flush_interval_s=p.flush_interval_s,
+                    split_size_bytes=p.split_size_bytes or None,
+                    split_duration_s=p.split_duration_s or None,
+                    session_metadata=meta, stall_buffer_bytes=p.stall_buffer_bytes,
                     on_event=self._on_writer_event)
             except BagExistsError:
-                if p['bag_name']:
+                if p.bag_name:
                     raise
-        msg = f'no free bag name {base}_<n> in {p["output_dir"]}'
+        msg = f'no free bag name {base}_<n> in {p.output_dir}'
         raise BagError(msg)
 
     def _on_writer_event(self, line: str) -> None:
@@ -275,8 +228,8 @@ class RecorderNode(Node):
             msg = f'topic {brief(topic)} is not a valid ROS topic name: {detail}'
             raise BagError(msg) from None
 
-    def _session_metadata(self, p: dict[str, Any]) -> dict[str, Any]:
-        given = _parse_metadata(p['session_metadata_yaml'])
+    def _session_metadata(self, p: RecorderParams) -> dict[str, Any]:
+        given = _parse_metadata(p.session_metadata_yaml)
 
         def version(dist: str) -> str:
             try:
@@ -292,7 +245,8 @@ class RecorderNode(Node):
                          'rclpy': version('ros-jazzy-rclpy'),
                          'rosbags': version('rosbags'), 'mcap': version('mcap'),
                          'python': platform.python_version()},
-            'recorder_parameters': {k: v for k, v in p.items() if k != 'session_metadata_yaml'},
+            'recorder_parameters': {k: v for k, v in params_values(p).items()
+                                    if k != 'session_metadata_yaml'},
             'log_time': self._log_time_statement(),
         }
         meta.update(given)
@@ -349,7 +303,7 @@ class RecorderNode(Node):
 
     def _subscribe(self, topic: str, msgtype: str) -> None:
         try:
-            cls = _msg_class(msgtype)
+            cls = message_class(msgtype)
         except (ImportError, AttributeError, ValueError) as exc:
             self.get_logger().error(f'cannot record {topic}: type {msgtype} not importable '
                                     f'({exc})', throttle_duration_sec=_THROTTLE_S)

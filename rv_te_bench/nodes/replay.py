@@ -19,26 +19,22 @@ import time
 from collections.abc import Sequence
 from typing import Any
 
-from rcl_interfaces.msg import FloatingPointRange, ParameterDescriptor, ParameterType
 from rclpy.node import Node
-from rclpy.parameter import Parameter
 from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
 from rosgraph_msgs.msg import Clock
 
 from rv_te_bench.errors import BagError, YamlInputError
 from rv_te_bench.io.bag_reader import bag_topics, iter_messages, open_bag
 from rv_te_bench.nodes import qos
-from rv_te_bench.nodes.common import run_node
-from rv_te_bench.nodes.recorder import _msg_class
+from rv_te_bench.nodes.common import declare_from_specs, run_node
+from rv_te_bench.nodes.convert import message_class
+from rv_te_bench.nodes.params.replay import PARAMS, ReplayParams
+from rv_te_bench.params import params_record
 from rv_te_bench.safe_yaml import SMALL_TEXT_LIMITS, load_yaml
 
 __all__ = ['ReplayNode', 'main']
 
 _THROTTLE_S = 5.0
-#: Parameter ranges (rv-te replay states and checks the same ones for its flags).
-RATE_RANGE = (0.001, 1000.0)
-START_OFFSET_RANGE_S = (0.0, 1e7)
-WAIT_RANGE_S = (0.0, 3600.0)
 
 
 def _recorded_qos(offered: Any) -> QoSProfile:
@@ -80,13 +76,13 @@ class ReplayNode(Node):
                  **kwargs: Any) -> None:
         super().__init__(node_name, **kwargs)
         p = self._declare_parameters()
-        self.bag = open_bag(p['bag'])
-        self.rate = p['rate']
-        self.loop = p['loop']
-        self.start_offset_s = p['start_offset_s']
-        self.clock_period_s = 1.0 / p['clock_rate_hz']
-        self._wait_s = p['wait_for_subscribers_s']
-        wanted = set(p['topics'] or [])
+        self.bag = open_bag(p.bag)
+        self.rate = p.rate
+        self.loop = p.loop
+        self.start_offset_s = p.start_offset_s
+        self.clock_period_s = 1.0 / p.clock_rate_hz
+        self._wait_s = p.wait_for_subscribers_s
+        wanted = set(p.topics or [])
         # metadata.yaml of a bag folder, or the MCAP channels of a lone .mcap file (rosbag2
         # keeps the offered QoS in each channel's metadata there too)
         topics = bag_topics(self.bag.path)
@@ -105,7 +101,7 @@ class ReplayNode(Node):
             if wanted and topic not in wanted:
                 continue
             try:
-                cls = _msg_class(msgtype)
+                cls = message_class(msgtype)
             except (ImportError, AttributeError, ValueError) as exc:
                 msg = f'Bag {self.bag.path}: cannot publish {topic}, type {msgtype}: {exc}'
                 raise BagError(msg) from None
@@ -114,7 +110,7 @@ class ReplayNode(Node):
             if profile.durability == DurabilityPolicy.TRANSIENT_LOCAL:
                 self._latched_topics.add(topic)
         self._clock_pub = self.create_publisher(Clock, '/clock', qos.CLOCK_QOS) \
-            if p['clock'] else None
+            if p.clock else None
         self.published = dict.fromkeys(self._replay_pubs, 0)
         self.finished = False
         self.exit_code = 0
@@ -127,36 +123,12 @@ class ReplayNode(Node):
         self.get_logger().info(f'replaying {self.bag.path} at {self.rate}x: '
                                f'{sorted(self._replay_pubs)}')
 
-    def _declare_parameters(self) -> dict[str, Any]:
-        def d(text: str, **extra: Any) -> ParameterDescriptor:
-            return ParameterDescriptor(description=text, read_only=True, **extra)
-
-        def f_range(lo: float, hi: float) -> list[FloatingPointRange]:
-            return [FloatingPointRange(from_value=lo, to_value=hi)]
-
-        specs: list[tuple[str, Any, ParameterDescriptor]] = [
-            ('bag', '', d('Bag folder (or .mcap file) to play [path]')),
-            ('rate', 1.0, d('Playback speed factor; 2 plays twice as fast [-]',
-                            floating_point_range=f_range(*RATE_RANGE))),
-            ('loop', False, d('Start again at the end [-]')),
-            ('topics', Parameter.Type.STRING_ARRAY,
-             d('Topics to play; empty: all [-]', type=ParameterType.PARAMETER_STRING_ARRAY)),
-            ('start_offset_s', 0.0, d('Skip this much of the bag from its start [s]',
-                                      floating_point_range=f_range(*START_OFFSET_RANGE_S))),
-            ('clock', False, d('Publish the playback time on /clock [-]')),
-            ('clock_rate_hz', 100.0, d('Rate of /clock messages [Hz]',
-                                       floating_point_range=f_range(1.0, 10_000.0))),
-            ('wait_for_subscribers_s', 0.0,
-             d('Wait up to this long for a subscriber on every topic before playing [s]',
-               floating_point_range=f_range(*WAIT_RANGE_S))),
-        ]
-        out = {}
-        for name, default, desc in specs:
-            out[name] = self.declare_parameter(name, default, desc).value
-        if not out['bag']:
+    def _declare_parameters(self) -> ReplayParams:
+        p = params_record(ReplayParams, declare_from_specs(self, PARAMS))
+        if not p.bag:
             msg = "Parameter 'bag' is empty: give the bag folder to play"
             raise BagError(msg)
-        return out
+        return p
 
     # ------------------------------------------------------------------ playback
     def _sleep_until(self, due: float, base_ns: int, wall0: float) -> bool:

@@ -24,13 +24,9 @@ from diagnostic_msgs.msg import DiagnosticArray
 from rclpy.node import Node
 from rv_te_msgs.msg import BenchInfo, EncoderBlock, TePlot, TeSpectrum, TransmissionError
 
-from rv_te_bench.core.orders import MAX_CRANK_HARMONICS, OrderSet
+from rv_te_bench.core.orders import OrderSet
 from rv_te_bench.core.stream import StreamingTeAnalyzer
-from rv_te_bench.core.stream_records import (
-    MAX_WINDOW_REVOLUTIONS,
-    StreamUpdate,
-    TeAnalysisConfig,
-)
+from rv_te_bench.core.stream_records import StreamUpdate, TeAnalysisConfig
 from rv_te_bench.nodes import convert, qos
 from rv_te_bench.nodes.common import (
     OK,
@@ -41,43 +37,14 @@ from rv_te_bench.nodes.common import (
     reject_invalid_changes,
     run_node,
 )
-from rv_te_bench.params import ParamSpec
+from rv_te_bench.nodes.params.te import PARAMS, TeParams
+from rv_te_bench.params import params_changed, params_record
 from sim.bench_info import BenchInfoData
 
 _MAX_PENDING_BLOCKS = 1000   # blocks kept while waiting for bench/info
 
-PARAMS = (
-    ParamSpec('gear_ratio', 'double', 0.0,
-              'Overall ratio i [input rev / output rev]; 0 = take it from bench/info',
-              min_value=0.0, max_value=1e5),
-    ParamSpec('crank_per_output', 'double', 0.0,
-              '|Absolute crank revolutions per output revolution| f_w / f_out [1] (25 for '
-              'the Wang 2020 2K-V; as rv-te analyze --crank-per-output); used when '
-              'gear_ratio > 0', min_value=0.0, max_value=1e5),
-    ParamSpec('crank_per_input', 'double', 0.0,
-              'crank_per_output = |crank_per_input| x gear_ratio; absolute crank revolutions '
-              'per input revolution [1]', min_value=-1e3, max_value=1e3,
-              deprecated_by='crank_per_output'),
-    ParamSpec('mesh_orders', 'double_array', [],
-              'Mesh frequencies as output orders [1/rev]; used when gear_ratio > 0'),
-    ParamSpec('n_crank_harmonics', 'int', 10, 'Crank harmonics k f_w reported [1]',
-              min_value=1, max_value=MAX_CRANK_HARMONICS),
-    ParamSpec('window_revolutions', 'int', 1,
-              'Analysis window length [whole output revolutions]', min_value=1,
-              max_value=MAX_WINDOW_REVOLUTIONS),
-    ParamSpec('plot_rate_hz', 'double', 20.0,
-              'Rate of te/plot (flat scalars for plot panels) in session time, at most one '
-              'per encoder block; 0 = off [Hz]', min_value=0.0, max_value=100000.0,
-              read_only=False),
-    ParamSpec('decimated_rate_hz', 'double', 50.0,
-              'Rate of TE samples published on te/samples [Hz]', min_value=0.1,
-              max_value=100000.0, read_only=False),
-    ParamSpec('diagnostics_period_s', 'double', 1.0, 'Diagnostics period [s]',
-              min_value=0.05, max_value=60.0),
-)
 
-
-def initial_orders(p: dict[str, Any]) -> OrderSet | None:
+def initial_orders(p: TeParams) -> OrderSet | None:
     """The orders a TE node configured by parameters starts with (None: from bench/info).
 
     Run by the node and by ``rv-te launch --check`` (the same checks).
@@ -85,17 +52,17 @@ def initial_orders(p: dict[str, Any]) -> OrderSet | None:
     Raises:
         TeConfigError: An invalid ratio / crank / mesh combination or window.
     """
-    if not p['gear_ratio'] > 0:
+    if not p.gear_ratio > 0:
         return None
-    cpo = float(p['crank_per_output'])
-    if cpo == 0.0 and float(p['crank_per_input']) != 0.0:
-        cpo = OrderSet.crank_per_output_of(p['crank_per_input'], p['gear_ratio'])
-    orders = OrderSet(gear_ratio=p['gear_ratio'], crank_per_output=cpo,
-                      mesh_orders_out=tuple(p['mesh_orders']),
-                      mesh_labels=tuple(f'mesh {o:g} f_out' for o in p['mesh_orders']),
-                      n_crank_harmonics=p['n_crank_harmonics'])
-    TeAnalysisConfig(orders=orders, window_revolutions=float(p['window_revolutions']),
-                     decimated_rate_hz=p['decimated_rate_hz'])
+    cpo = float(p.crank_per_output)
+    if cpo == 0.0 and float(p.crank_per_input) != 0.0:
+        cpo = OrderSet.crank_per_output_of(p.crank_per_input, p.gear_ratio)
+    orders = OrderSet(gear_ratio=p.gear_ratio, crank_per_output=cpo,
+                      mesh_orders_out=tuple(p.mesh_orders),
+                      mesh_labels=tuple(f'mesh {o:g} f_out' for o in p.mesh_orders),
+                      n_crank_harmonics=p.n_crank_harmonics)
+    TeAnalysisConfig(orders=orders, window_revolutions=float(p.window_revolutions),
+                     decimated_rate_hz=p.decimated_rate_hz)
     return orders
 
 
@@ -105,7 +72,7 @@ class TeNode(Node):
     def __init__(self, **kwargs: Any) -> None:
         """Declare parameters, create topics; ``kwargs`` go to ``Node`` (context, overrides)."""
         super().__init__('te_node', **kwargs)
-        self.p = declare_from_specs(self, PARAMS)
+        self.p = params_record(TeParams, declare_from_specs(self, PARAMS))
         orders = initial_orders(self.p)   # a bad combination stops the node here
         reject_invalid_changes(self, PARAMS)
         self.add_post_set_parameters_callback(self._on_params_set)
@@ -140,17 +107,17 @@ class TeNode(Node):
         self.create_subscription(BenchInfo, 'bench/info', self._on_info, qos.LATCHED_QOS)
         self.create_subscription(EncoderBlock, 'bench/encoders', self._on_block,
                                  qos.ENCODER_QOS)
-        self.create_timer(self.p['diagnostics_period_s'], self._publish_diagnostics)
+        self.create_timer(self.p.diagnostics_period_s, self._publish_diagnostics)
         if orders is not None:
             self._crank_per_output()   # warns when the deprecated spelling is used
             self._configure(orders)
 
     def _crank_per_output(self) -> float:
         """crank_per_output, or from the deprecated crank_per_input (with a warning)."""
-        cpo = float(self.p['crank_per_output'])
-        old = float(self.p['crank_per_input'])
+        cpo = float(self.p.crank_per_output)
+        old = float(self.p.crank_per_input)
         if old != 0.0:
-            derived = OrderSet.crank_per_output_of(old, self.p['gear_ratio'])
+            derived = OrderSet.crank_per_output_of(old, self.p.gear_ratio)
             use = cpo if cpo > 0.0 else derived
             self.get_logger().warning(
                 f"parameter 'crank_per_input' is deprecated: use crank_per_output "
@@ -161,8 +128,8 @@ class TeNode(Node):
     # -- configuration --------------------------------------------------------------------
     def _configure(self, orders: OrderSet) -> None:
         config = TeAnalysisConfig(orders=orders,
-                                  window_revolutions=float(self.p['window_revolutions']),
-                                  decimated_rate_hz=self.p['decimated_rate_hz'])
+                                  window_revolutions=float(self.p.window_revolutions),
+                                  decimated_rate_hz=self.p.decimated_rate_hz)
         if self.analyzer is None:
             self.analyzer = StreamingTeAnalyzer(config)
             pending, self._pending = self._pending, deque()
@@ -174,21 +141,20 @@ class TeNode(Node):
         self.get_logger().info(
             f'TE analysis configured: i={orders.gear_ratio:.6g}, '
             f'crank/output={orders.crank_per_output:.6g}, '
-            f'window={self.p["window_revolutions"]:g} rev')
+            f'window={self.p.window_revolutions:g} rev')
 
     def _on_params_set(self, params: list[Any]) -> None:
-        for prm in params:
-            self.p[prm.name] = prm.value
+        self.p = params_changed(self.p, {prm.name: prm.value for prm in params})
         if self.analyzer is not None and any(p.name == 'decimated_rate_hz' for p in params):
-            self.analyzer.set_decimated_rate(self.p['decimated_rate_hz'])  # window stays
+            self.analyzer.set_decimated_rate(self.p.decimated_rate_hz)  # window stays
 
     def _on_info(self, msg: BenchInfo) -> None:
         self.bench_id = msg.bench_id
-        if self.p['gear_ratio'] > 0:
+        if self.p.gear_ratio > 0:
             return  # parameters win (real bench)
         try:
             orders = OrderSet.from_bench_info(BenchInfoData.from_message(msg),
-                                              self.p['n_crank_harmonics'])
+                                              self.p.n_crank_harmonics)
         except (ValueError, TypeError) as exc:
             self.drops.drop('bad_bench_info', str(exc))
             return
@@ -247,7 +213,7 @@ class TeNode(Node):
         self._seq_samples += 1
         msg.window_index = self.analyzer.counters.get('windows', 0) if self.analyzer else 0
         msg.window_complete = False
-        msg.sample_rate_hz = float(self.p['decimated_rate_hz'])
+        msg.sample_rate_hz = float(self.p.decimated_rate_hz)
         msg.te_rad = convert.float64_field(update.te_rad)
         msg.theta_out_rad = convert.float64_field(update.phase_out_rad)
         if self.analyzer is not None:
@@ -258,7 +224,7 @@ class TeNode(Node):
         self.pub_samples.publish(msg)
 
     def _publish_plot(self, update: StreamUpdate, frame_id: str, *, force: bool) -> None:
-        rate = self.p['plot_rate_hz']
+        rate = self.p.plot_rate_hz
         t_s = float(update.time_s[-1]) if len(update.time_s) else float(update.stamp_s)
         if rate <= 0 or self.analyzer is None or (
                 not force and t_s - self._last_plot_s < 1.0 / rate - 1e-9):

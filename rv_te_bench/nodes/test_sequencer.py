@@ -44,7 +44,8 @@ from rv_te_bench.acceptance.tolerance import load_tolerance, parse_tolerance
 from rv_te_bench.errors import AcceptanceError
 from rv_te_bench.nodes import qos
 from rv_te_bench.nodes.common import DropCounter, declare_from_specs, run_node
-from rv_te_bench.params import ParamSpec
+from rv_te_bench.nodes.params.test_sequencer import PARAMS, TestSequencerParams
+from rv_te_bench.params import params_record
 from sim.bench_info import BenchInfoData
 
 if TYPE_CHECKING:
@@ -54,20 +55,6 @@ if TYPE_CHECKING:
     from rv_te_bench.acceptance.tolerance import Measured
 
 __all__ = ['PARAMS', 'TestSequencerNode', 'main']
-
-PARAMS = (
-    ParamSpec('bench_timeout_s', 'double', 20.0,
-              'Give up when the bench sends no block (or no bench/info) for this long [s]',
-              min_value=0.5, max_value=3600.0),
-    ParamSpec('feedback_period_s', 'double', 0.25, 'Feedback period [s]', min_value=0.02,
-              max_value=10.0),
-    ParamSpec('wait_for_nodes', 'string_array', ['recorder'],
-              'Start a plan once these nodes (same namespace) subscribe bench/encoders, so '
-              'that every step is recorded [-]'),
-    ParamSpec('wait_timeout_s', 'double', 10.0,
-              'Start anyway after this long when they are missing (logged) [s]',
-              min_value=0.0, max_value=3600.0),
-)
 
 
 class _Cancelled(Exception):  # noqa: N818 - a control-flow signal, not an error
@@ -82,7 +69,7 @@ class TestSequencerNode(Node):
     def __init__(self, **kwargs: Any) -> None:
         """Declare parameters, the action server, clients, topics; ``kwargs`` go to Node."""
         super().__init__('test_sequencer', **kwargs)
-        self.p = declare_from_specs(self, PARAMS)
+        self.p = params_record(TestSequencerParams, declare_from_specs(self, PARAMS))
         self.drops = DropCounter(self)
         self.bench_info: BenchInfoData | None = None
         self.busy: dict[str, Any] | None = None
@@ -213,16 +200,16 @@ class TestSequencerNode(Node):
         return result
 
     async def _bench(self) -> BenchInfoData:
-        deadline = time.monotonic() + self.p['bench_timeout_s']
+        deadline = time.monotonic() + self.p.bench_timeout_s
         while self.bench_info is None or not self.cli_program.service_is_ready():
             if time.monotonic() > deadline:
                 what = 'bench/info' if self.bench_info is None else 'the bench/run_program service'
-                msg = (f'no bench: {what} not seen in {self.p["bench_timeout_s"]:g} s (is the '
+                msg = (f'no bench: {what} not seen in {self.p.bench_timeout_s:g} s (is the '
                        'bench running with commanded: true?)')
                 raise AcceptanceError(msg)
             await self._sleep()
-        wanted = set(self.p['wait_for_nodes'])
-        deadline = time.monotonic() + self.p['wait_timeout_s']
+        wanted = set(self.p.wait_for_nodes)
+        deadline = time.monotonic() + self.p.wait_timeout_s
         ns = self.get_namespace()
         while wanted:
             have = {i.node_name for i in self.get_subscriptions_info_by_topic(
@@ -266,14 +253,14 @@ class TestSequencerNode(Node):
                 await self._stop_bench()
                 self._publish_step(req, j, n_steps, step, 'cancelled', params, '')
                 raise _Cancelled
-            if time.monotonic() - self._prog['last_wall'] > self.p['bench_timeout_s']:
+            if time.monotonic() - self._prog['last_wall'] > self.p.bench_timeout_s:
                 await self._stop_bench()
                 self._publish_step(req, j, n_steps, step, 'aborted', params, '')
                 msg = (f'step {step.name!r}: no block from the bench for '
-                       f'{self.p["bench_timeout_s"]:g} s')
+                       f'{self.p.bench_timeout_s:g} s')
                 raise AcceptanceError(msg)
             now = time.monotonic()
-            if now - last_feedback >= self.p['feedback_period_s']:
+            if now - last_feedback >= self.p.feedback_period_s:
                 last_feedback = now
                 self._feedback(goal_handle, j, n_steps, step, runner)
             await self._sleep()

@@ -20,7 +20,8 @@ from rv_te_bench.launch.launch_file import (
     parse_launch_arguments,
     session_from_launch,
 )
-from rv_te_bench.launch.session import NODE_TYPES, build_session
+from rv_te_bench.launch.node_specs import NODE_TYPES
+from rv_te_bench.launch.session import build_session
 
 NODE = '''\
 - node:

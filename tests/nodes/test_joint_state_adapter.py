@@ -68,12 +68,11 @@ def bench_values(**extra: object) -> dict[str, object]:
 
 def reference_windows(values: dict[str, object]) -> list:
     """The EncoderBlock path, offline: the same simulated unit's blocks -> windows."""
-    from rv_te_bench.nodes.bench_node import PARAMS
+    from rv_te_bench.nodes.params.bench import BenchParams
+    from rv_te_bench.params import params_record
     from sim.bench import BenchSimulator
 
-    p = {s.name: list(s.default) if isinstance(s.default, tuple) else s.default for s in PARAMS}
-    p.update(values)
-    sim = BenchSimulator(bench_config_from_params(p))
+    sim = BenchSimulator(bench_config_from_params(params_record(BenchParams, values)))
     n_blocks = math.ceil(2.3 * 79.0 / (SPEED_RPM / 60.0) * RATE_HZ / BLOCK) + 1
     data = [_as_data(sim.next_block()) for _ in range(n_blocks)]
     orders = OrderSet.from_bench_info(sim.info)

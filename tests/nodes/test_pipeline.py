@@ -142,7 +142,7 @@ def test_invalid_runtime_change_is_rejected(ros_context) -> None:
         assert te.get_parameter('decimated_rate_hz').value == 50.0
         res = te.set_parameters([Parameter('decimated_rate_hz', value=20.0)])[0]
         assert res.successful
-        assert te.p['decimated_rate_hz'] == 20.0
+        assert te.p.decimated_rate_hz == 20.0
     finally:
         te.destroy_node()
 

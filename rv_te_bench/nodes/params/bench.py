@@ -1,0 +1,131 @@
+"""The parameters of the bench node: one frozen record, declared from its fields.
+
+The node is :mod:`rv_te_bench.nodes.bench_node`.
+No rclpy here: the launcher checks parameter files against :data:`PARAMS` before any node
+starts (:mod:`rv_te_bench.launch.node_specs`).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+from rv_te_bench.params import param, param_specs
+from sim.bench_info import DEFAULT_SAMPLE_RATE_HZ
+
+__all__ = ['PARAMS', 'BenchParams']
+
+
+@dataclass(frozen=True)
+class BenchParams:
+    """The bench node's parameters (a simulated bench: preset, drive, load, encoders, DAQ,
+    session length, output).
+
+    Declared from these fields (:func:`~rv_te_bench.params.param_specs`), read through the
+    record (:func:`~rv_te_bench.params.params_record`); units in the descriptions.
+    """
+
+    bench_id: str = param('bench0', 'Bench id (frame_id of every message) [-]')
+    preset: str = param('wang2020-2kv', 'Reducer preset name or TOML path [-]')
+    overrides: tuple[str, ...] = param(
+        (), 'Preset overrides "key=value" (same keys as rv-te --set) [-]')
+    te_mode: str = param(
+        'nlte',
+        'Reducer model mode: nlte | ste | dte (2K-V), geometric | elastic (hu2020-rv), dte '
+        '(li2023)')
+    drive_profile: str = param(
+        'constant', 'Input speed profile [-]',
+        choices=('constant', 'sinusoidal', 'ramp', 'forward_reverse'))
+    speed_rpm: float = param(
+        300.0, 'Input speed [rpm]: constant / forward speed, sinusoidal mean C, ramp end speed',
+        min_value=-100000.0, max_value=100000.0)
+    speed_amplitude_rpm: float = param(
+        0.0, 'Sinusoidal speed amplitude A [rpm] (V = A sin(B t) + C, Hu 2020)', min_value=0.0,
+        max_value=100000.0)
+    speed_angular_freq_rad_s: float = param(
+        1.0, 'Sinusoidal speed angular frequency B [rad/s]', min_value=1e-6, max_value=1e4)
+    drive_allow_reversal: bool = param(
+        False, 'Allow sinusoidal/ramp profiles whose speed changes sign (Hu 2020: A > C)')
+    ramp_start_rpm: float = param(
+        0.0, 'Ramp start speed [rpm]', min_value=-100000.0, max_value=100000.0)
+    ramp_duration_s: float = param(5.0, 'Ramp duration [s]', min_value=1e-3, max_value=1e6)
+    reverse_at_s: float = param(
+        10.0, 'Forward-reverse: start of reversal [s]', min_value=0.0, max_value=1e6)
+    reverse_ramp_s: float = param(
+        1.0, 'Forward-reverse: reversal duration [s]', min_value=1e-3, max_value=1e6)
+    load_profile: str = param(
+        'constant', 'Load torque profile [-]', choices=('constant', 'sinusoidal'))
+    load_nm: float = param(
+        0.0, 'Constant load / sinusoidal mean load [N m]', min_value=-1e6, max_value=1e6)
+    load_amplitude_nm: float = param(
+        0.0, 'Sinusoidal load amplitude [N m]', min_value=0.0, max_value=1e6)
+    load_frequency_hz: float = param(
+        0.0, 'Sinusoidal load frequency [Hz]; 0 = tie it to load_tie_to', min_value=0.0,
+        max_value=1e5)
+    load_tie_to: str = param(
+        'crank', 'Rate the sinusoidal load follows when load_frequency_hz = 0 [-]',
+        choices=('input', 'output', 'crank', 'crank_rel', 'mesh'))
+    load_harmonic: float = param(
+        1.0, 'Multiple of the tied rate [1]', min_value=1e-6, max_value=1e4)
+    encoder_in: str = param('heidenhain-ron886', 'Input-shaft encoder preset [-]')
+    encoder_out: str = param('heidenhain-ron886', 'Output-shaft encoder preset [-]')
+    sample_rate_hz: float = param(
+        DEFAULT_SAMPLE_RATE_HZ, 'DAQ sample rate [Hz]', min_value=1.0, max_value=1e6)
+    block_size: int = param(
+        100, 'Samples per EncoderBlock [1]; sample_rate_hz / block_size <= 1000 blocks/s',
+        min_value=1, max_value=100000)
+    seed: int = param(0, 'Random seed of the encoder noise [-]', min_value=0, max_value=2**31 - 1)
+    duration_s: float = param(
+        0.0, 'Session length in simulated time [s]; 0 = until stopped', min_value=0.0,
+        max_value=1e7)
+    duration_output_revs: float = param(
+        0.0, 'Session length [output revolutions] (0 = duration_s decides; both > 0 is '
+        'refused)', min_value=0.0,
+        max_value=1e6)
+    time_mode: str = param(
+        'realtime', 'realtime (wall clock) or fast (sim time)', choices=('realtime', 'fast'))
+    speed_factor: float = param(
+        20.0, 'fast mode: times faster than real time; 0 = as fast as possible [1]', min_value=0.0,
+        max_value=1e4)
+    wait_for_nodes: tuple[str, ...] = param(
+        (), 'Start the clock once these nodes (same namespace) subscribe bench/encoders [-]')
+    wait_timeout_s: float = param(
+        20.0, 'Start anyway after this long when subscribers are missing [s]', min_value=0.0,
+        max_value=3600.0)
+    diagnostics_period_s: float = param(
+        1.0, 'Diagnostics period [s]', min_value=0.05, max_value=60.0)
+    output: str = param(
+        'encoder_block',
+        'What the bench publishes: encoder_block (bench/encoders + bench/info) or '
+        'joint_state (joint_states, one sensor_msgs/JointState per DAQ sample, as a '
+        'ros2_control bench; ~0.1 ms of Python per message: keep sample_rate_hz to a '
+        'few kHz) [-]',
+        choices=('encoder_block', 'joint_state'))
+    joint_state_layout: str = param(
+        'one_message',
+        'output joint_state: both joints in one message per sample (one_message, as '
+        'joint_state_broadcaster) or one message per joint and sample (separate) [-]',
+        choices=('one_message', 'separate'))
+    joint_state_names: tuple[str, ...] = param(
+        ('input_joint', 'output_joint'),
+        'output joint_state: names of the input and output joints [-]',
+        rule=lambda v: None if len(v) == 2 and v[0] and v[1] and v[0] != v[1]
+        else 'must be two different non-empty joint names')
+    joint_state_wrap: bool = param(
+        False,
+        'output joint_state: publish positions wrapped to [0, 2 pi), as single-turn '
+        'absolute encoders read them')
+    commanded: bool = param(
+        False,
+        'Idle until a program arrives on bench/run_program (test_sequencer), instead '
+        'of running the drive profile from the start')
+    realtime_priority: int = param(
+        0,
+        'realtime time mode: SCHED_FIFO priority of the thread that paces and '
+        'publishes the blocks, its middleware threads at nice -10 (Linux; needs '
+        'CAP_SYS_NICE or an rtprio limit, as ros2_control\'s thread_priority); 0 = '
+        'normal scheduling. Keeps a bench on time beside other benches on a shared PC '
+        '[-]',
+        min_value=0, max_value=99)
+
+
+PARAMS = param_specs(BenchParams)
