@@ -19,7 +19,7 @@ Usage examples:
   rv-te test rv-80e --serial SN8 --operator kim --launch hu2020-rv \\
       --set torsion.clearance_rad=4e-4 --condition ambient_temperature_c=23
   rv-te test li2023-rv --serial LI-0002 --operator kim --from bags/li_session
-  rv-te test li2023-rv --serial LI-0003 --operator kim --from run.csv --bench bench.yaml \\
+  rv-te test li2023-rv --serial LI-0003 --operator kim --from li_run.csv --bench li_bench.yaml \\
       --time t_s --theta-in theta_in_rad --theta-out theta_out_rad --torque torque_nm
 """
 
@@ -157,7 +157,12 @@ def _session(args: argparse.Namespace, out_dir: Path) -> Session:
     out_dir.mkdir(parents=True, exist_ok=True)
     log = (out_dir / 'session.log').open('wb')
     session = Session(spec, stdout=log)
-    session.start()
+    try:
+        session.start()
+    except BaseException:   # the nodes already started stop with it (and the log closes)
+        session.stop()
+        log.close()
+        raise
     return session, log
 
 
@@ -196,11 +201,11 @@ def run(args: argparse.Namespace) -> int:
                                source=f'rv-te test {args.serial}')
         if dash is None:
             return EXIT_PORT_IN_USE
-    if args.launch:
-        session, log = _session(args, out_dir)
-        print(f'session: bench {args.launch} (simulated), test_sequencer, recorder -> '
-              f'{out_dir / "bag"}', file=sys.stderr)
-    try:
+    try:   # the page is stopped whatever happens from here, a session failing to start too
+        if args.launch:
+            session, log = _session(args, out_dir)
+            print(f'session: bench {args.launch} (simulated), test_sequencer, recorder -> '
+                  f'{out_dir / "bag"}', file=sys.stderr)
         result = _run_goal(args, plan_text, tol_text, yaml.safe_dump(conditions) if conditions
                            else '')
     finally:

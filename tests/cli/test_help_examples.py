@@ -21,6 +21,7 @@ from pathlib import Path
 from typing import Any
 
 import pytest
+import yaml
 
 from rv_te_bench.cli.main import build_parser, main
 
@@ -89,6 +90,14 @@ def example_dir(tmp_path_factory: pytest.TempPathFactory) -> Path:
     from tests.io import daq_files
 
     daq_files.example_inputs(d)   # rv-te import: bench.yaml, run.csv, run.tdms, run.mf4
+    # rv-te test li2023-rv --from: the plan run on a simulated Li 2023 unit, as a session
+    # bag written by rosbags and as a DAQ's CSV written by pandas, with its bench description
+    from tests.acceptance import recorded_data as rec
+
+    run = rec.run_plan(yaml.safe_load((acceptance / 'plans' / 'li2023-rv.yaml').read_text()))
+    rec.write_session_bag(d / 'bags' / 'li_session', run)
+    rec.write_csv(d / 'li_run.csv', run)
+    rec.bench_yaml(d / 'li_bench.yaml', run)
     return d
 
 
@@ -225,7 +234,8 @@ def test_every_help_example_works(example_dir: Path, unit_store: Path, unit_test
         err = capsys.readouterr().err
         if code != 0:
             failed[line] = (code, err.strip().splitlines()[-1:] if err.strip() else '')
-    assert not failed
+    assert not failed, '\n'.join(f'{line}: exit {code}: {err}'
+                                  for line, (code, err) in failed.items())
 
 
 @pytest.mark.ros
