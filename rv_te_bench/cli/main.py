@@ -7,16 +7,21 @@ Each subcommand module has ``register(subparsers)`` (adds its parser, sets ``fun
 
 from __future__ import annotations
 
-import argparse
-import importlib
-import os
 import sys
-from typing import TYPE_CHECKING
 
-from rv_te_bench import __version__
-from rv_te_bench.errors import RvTeError
-from rv_te_bench.safe_yaml import one_line
-from sim.errors import SimError
+# A Ctrl-C while the command starts (its imports take ~1 s, more on a busy machine) ends it
+# quietly, here or in main()'s own handler, never in a traceback (issue #16). Only the
+# interpreter's own start-up (site, the .pth files: ~0.1 s) stays outside our reach.
+try:
+    import argparse
+    import importlib
+    import os
+    from typing import TYPE_CHECKING
+
+    from rv_te_bench import __version__
+except KeyboardInterrupt:
+    print('interrupted', file=sys.stderr)
+    raise SystemExit(130) from None
 
 if TYPE_CHECKING:
     from collections.abc import Sequence
@@ -69,6 +74,10 @@ def main(argv: Sequence[str] | None = None) -> int:
     """Entry point of ``rv-te``; returns the exit code."""
     _tolerant_stdout()
     try:
+        from rv_te_bench.errors import RvTeError
+        from rv_te_bench.safe_yaml import one_line
+        from sim.errors import SimError
+
         parser = build_parser()
         args = parser.parse_args(argv)
     except KeyboardInterrupt:   # Ctrl-C while the subcommands import
