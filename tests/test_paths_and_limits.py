@@ -77,13 +77,27 @@ def test_claim_folder_numbers_default_names_and_refuses_given_ones(tmp_path: Pat
 
 @pytest.mark.ros
 def test_two_default_named_recorders_in_the_same_second_get_two_bags(
-        ros_context: object, tmp_path: Path) -> None:
+        ros_context: object, tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
     pytest.importorskip('rclpy')
+    from types import SimpleNamespace
+
     from rclpy.parameter import Parameter
 
+    from rv_te_bench.nodes import recorder as recorder_mod
     from rv_te_bench.nodes.recorder import RecorderNode
 
     now = dt.datetime.now(dt.UTC)
+
+    class _SameSecond(dt.datetime):
+        """The recorders' clock stands still: both start in this second, however long the
+        nodes take to build on a busy machine (it took > 2 s under load and the test
+        failed on the clock, not on the recorder)."""
+
+        @classmethod
+        def now(cls, tz: dt.tzinfo | None = None) -> dt.datetime:  # type: ignore[override]
+            return now.astimezone(tz)
+
+    monkeypatch.setattr(recorder_mod, 'dt', SimpleNamespace(datetime=_SameSecond, UTC=dt.UTC))
     # the default names of this second and the next are taken (by another recorder that
     # started in the same second): the recorder must not fail, nor write into them
     taken = {f'rv_te_{(now + dt.timedelta(seconds=s)).strftime("%Y%m%d_%H%M%S")}'
