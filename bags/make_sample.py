@@ -48,6 +48,7 @@ def write_sample(path: Path, *, duration_s: float = DURATION_S,
     """
     import numpy as np
 
+    from rv_te_bench.io._legacy_msgs import added_field_defaults
     from rv_te_bench.io.bag_writer import BagWriter, qos_profile_dict
     from rv_te_bench.io.msgdefs import BENCH_INFO, ENCODER_BLOCK, rv_te_typestore
     from sim.bench import BenchConfig, BenchSimulator
@@ -86,7 +87,7 @@ def write_sample(path: Path, *, duration_s: float = DURATION_S,
             encoder_in_resolution_rad=info.encoder_in_resolution_rad,
             encoder_out_resolution_rad=info.encoder_out_resolution_rad,
             sample_rate_hz=info.sample_rate_hz, block_size=info.block_size,
-            parameters_yaml=info.parameters_yaml)
+            parameters_yaml=info.parameters_yaml, **added_field_defaults(BENCH_INFO))
         writer.write(INFO_TOPIC, START_NS, store.serialize_cdr(msg, BENCH_INFO))
         samples = 0
         for _ in range(n_blocks):
@@ -97,7 +98,8 @@ def write_sample(path: Path, *, duration_s: float = DURATION_S,
                 time_offset_s=np.asarray(block.time_offset_s, dtype=np.float64),
                 theta_in_rad=np.asarray(block.theta_in_rad, dtype=np.float64),
                 theta_out_rad=np.asarray(block.theta_out_rad, dtype=np.float64),
-                torque_out_nm=np.asarray(block.torque_out_nm, dtype=np.float64))
+                torque_out_nm=np.asarray(block.torque_out_nm, dtype=np.float64),
+                **added_field_defaults(ENCODER_BLOCK))
             writer.write(ENCODER_TOPIC, stamp_ns, store.serialize_cdr(msg, ENCODER_BLOCK))
             samples += len(block.theta_in_rad)
     return {'blocks': n_blocks, 'samples': samples, 'duration_s': samples / sample_rate_hz}

@@ -39,7 +39,8 @@ setup(
     name=PACKAGE,
     version=VERSION,
     packages=find_packages(include=['rv_te_bench', 'rv_te_bench.*', 'sim', 'sim.*']),
-    package_data={'rv_te_bench': ['launch/*.yaml', 'py.typed', 'acceptance/plans/*.yaml',
+    package_data={'rv_te_bench': ['launch/*.yaml', 'py.typed', 'io/legacy_msgs/*.msg',
+                                  'acceptance/plans/*.yaml',
                                   'acceptance/tolerances/*.yaml'],
                   'sim': ['preset_data/*.toml']},
     data_files=[

@@ -43,7 +43,7 @@ if TYPE_CHECKING:
     from sim.models import TeModel
 
 __all__ = ['DEFAULT_SAMPLE_RATE_HZ', 'BenchBlock', 'BenchConfig', 'BenchInfoData', 'BenchSimulator',
-           'bench_info_of', 'loss_fields', 'skewed_reading']
+           'bench_info_of', 'loss_fields', 'read_heads', 'scale_fields', 'skewed_reading']
 
 
 def skewed_reading(theta_out_rad: np.ndarray, omega_ref_rad_s: np.ndarray | float,
@@ -213,6 +213,9 @@ class BenchBlock:
         temp_case_degc: Case temperature sensor reading [degC] (None without losses).
         temp_case_true_degc: True case temperature [degC] (None without losses).
         power_loss_w: Loss power [W] (None without losses).
+        theta_in_heads_rad: Every read head's reading of the input scale, shape
+            (heads, n) [rad] (head 0 = ``theta_in_rad``); None on a one-head scale.
+        theta_out_heads_rad: The same for the output scale.
     """
 
     seq: int
@@ -230,6 +233,29 @@ class BenchBlock:
     temp_case_degc: np.ndarray | None = None
     temp_case_true_degc: np.ndarray | None = None
     power_loss_w: np.ndarray | None = None
+    theta_in_heads_rad: np.ndarray | None = None
+    theta_out_heads_rad: np.ndarray | None = None
+
+
+def read_heads(encoder: SimulatedEncoder, theta_rad: np.ndarray,
+               ) -> tuple[np.ndarray, np.ndarray | None]:
+    """(head 0's reading, every head's readings or None) of one encoder: a one-head
+    encoder draws exactly as :meth:`SimulatedEncoder.measure` (the same numbers)."""
+    if not encoder.spec.heads:
+        return _readonly(encoder.measure(theta_rad)), None
+    heads = _readonly(encoder.measure_heads(theta_rad))
+    return heads[0], heads
+
+
+def scale_fields(side: str, spec: EncoderSpec) -> dict[str, Any]:
+    """The BenchInfo fields of one encoder's scale and heads (``side``: 'in' or 'out')."""
+    dia = spec.scale_diameter_m
+    return {f'encoder_{side}_head_angles_rad': spec.head_angles_rad if spec.heads else (),
+            f'encoder_{side}_scale_serial': spec.serial,
+            f'encoder_{side}_scale_diameter_m': dia,
+            f'encoder_{side}_scale_eccentricity_m': (spec.eccentricity_amplitude_rad * dia / 2.0
+                                                     if dia > 0 else 0.0),
+            f'encoder_{side}_scale_index_rad': spec.scale_index_rad}
 
 
 def loss_fields(lb: Any) -> dict[str, np.ndarray]:
@@ -270,6 +296,7 @@ def bench_info_of(*, bench_id: str, preset: Preset, kinematics: ReducerKinematic
         sample_rate_hz=float(sample_rate_hz),
         block_size=int(block_size),
         parameters_yaml=yaml.safe_dump(record, sort_keys=True),
+        **scale_fields('in', encoder_in), **scale_fields('out', encoder_out),
     )
 
 
@@ -358,16 +385,20 @@ class BenchSimulator:
             theta_out, omega_in / self._gear_ratio, te, t, cfg.daq_skew_s)
         extra = ({} if self._losses is None
                  else loss_fields(self._losses.block(t, omega_in, load)))
+        read_in, heads_in = read_heads(self._enc_in, theta_in)
+        read_out, heads_out = read_heads(self._enc_out, theta_out_read)
         block = BenchBlock(
             seq=self._seq,
             t0_s=float(t0),
             time_offset_s=self._offsets,
-            theta_in_rad=_readonly(self._enc_in.measure(theta_in)),
-            theta_out_rad=_readonly(self._enc_out.measure(theta_out_read)),
+            theta_in_rad=read_in,
+            theta_out_rad=read_out,
             torque_out_nm=_readonly(load),
             te_true_rad=_readonly(te),
             theta_in_true_rad=_readonly(theta_in),
             theta_out_true_rad=_readonly(theta_out),
+            theta_in_heads_rad=heads_in,
+            theta_out_heads_rad=heads_out,
             **extra,
         )
         self._seq += 1

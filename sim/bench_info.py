@@ -28,6 +28,14 @@ _FIELD_TYPES: dict[str, Callable[[Any], Any]] = {
 }
 
 
+#: Fields issue 36 appended to the message (scales and read heads): absent from older bags.
+_ADDED_FIELDS = frozenset({
+    'encoder_in_head_angles_rad', 'encoder_out_head_angles_rad', 'encoder_in_scale_serial',
+    'encoder_out_scale_serial', 'encoder_in_scale_diameter_m', 'encoder_out_scale_diameter_m',
+    'encoder_in_scale_eccentricity_m', 'encoder_out_scale_eccentricity_m',
+    'encoder_in_scale_index_rad', 'encoder_out_scale_index_rad'})
+
+
 @dataclass(frozen=True, kw_only=True)
 class BenchInfoData:
     """What a bench says about itself: the fields of ``rv_te_msgs/BenchInfo`` (no header).
@@ -60,6 +68,19 @@ class BenchInfoData:
         sample_rate_hz: Nominal DAQ rate [Hz].
         block_size: Samples per EncoderBlock.
         parameters_yaml: The bench settings and the preset's values as YAML.
+        encoder_in_head_angles_rad: Angle of each read head around the input scale from
+            head 0 [rad] (empty: one head).
+        encoder_out_head_angles_rad: The same for the output scale.
+        encoder_in_scale_serial: Serial number of the input scale ('' : not stated).
+        encoder_out_scale_serial: Serial number of the output scale.
+        encoder_in_scale_diameter_m: Input scale's graduation diameter [m] (0: not stated).
+        encoder_out_scale_diameter_m: Output scale's graduation diameter [m].
+        encoder_in_scale_eccentricity_m: Stated mounting eccentricity of the input scale
+            (run-out / 2) [m] (0: not stated).
+        encoder_out_scale_eccentricity_m: The same for the output scale.
+        encoder_in_scale_index_rad: The input scale turned on its shaft from its reference
+            mounting [rad] (reversal).
+        encoder_out_scale_index_rad: The same for the output scale.
     """
 
     bench_id: str = ''
@@ -77,6 +98,16 @@ class BenchInfoData:
     sample_rate_hz: float = 0.0
     block_size: int = 0
     parameters_yaml: str = ''
+    encoder_in_head_angles_rad: tuple[float, ...] = ()
+    encoder_out_head_angles_rad: tuple[float, ...] = ()
+    encoder_in_scale_serial: str = ''
+    encoder_out_scale_serial: str = ''
+    encoder_in_scale_diameter_m: float = 0.0
+    encoder_out_scale_diameter_m: float = 0.0
+    encoder_in_scale_eccentricity_m: float = 0.0
+    encoder_out_scale_eccentricity_m: float = 0.0
+    encoder_in_scale_index_rad: float = 0.0
+    encoder_out_scale_index_rad: float = 0.0
 
     @classmethod
     def field_names(cls) -> tuple[str, ...]:
@@ -89,14 +120,20 @@ class BenchInfoData:
 
         Args:
             msg: An object with every field of the record as an attribute (arrays as any
-                sequence: ``array.array``, numpy, list).
+                sequence: ``array.array``, numpy, list); a message of the definition before
+                issue 36 lacks the scale and head fields, which then keep their defaults
+                ("not stated").
 
         Raises:
-            AttributeError: A field is missing.
+            AttributeError: A field of the older definition is missing.
             TypeError, ValueError: A value does not convert (a number that is no number).
         """
-        return cls(**{f.name: _FIELD_TYPES[str(f.type)](getattr(msg, f.name))
-                      for f in fields(cls)})
+        values = {}
+        for f in fields(cls):
+            if f.name in _ADDED_FIELDS and not hasattr(msg, f.name):
+                continue
+            values[f.name] = _FIELD_TYPES[str(f.type)](getattr(msg, f.name))
+        return cls(**values)
 
     def message_values(self) -> dict[str, Any]:
         """The fields as the message takes them: ``str``, ``float``, ``int``, lists."""

@@ -37,7 +37,7 @@ from typing import TYPE_CHECKING, Any, ClassVar
 import numpy as np
 
 from sim._checks import Rule, real_number
-from sim.bench import BenchBlock, bench_info_of, loss_fields
+from sim.bench import BenchBlock, bench_info_of, loss_fields, read_heads
 from sim.bench_info import DEFAULT_SAMPLE_RATE_HZ
 from sim.encoders import EncoderSpec, SimulatedEncoder, encoder_preset
 from sim.errors import ModelInputError
@@ -456,12 +456,14 @@ class ProgramSimulator:
         else:
             theta_out_read = theta_out
         ro = self._readonly
+        read_in, heads_in = read_heads(self._enc_in, theta_in)
+        read_out, heads_out = read_heads(self._enc_out, theta_out_read)
         block = BenchBlock(
             seq=self.seq, t0_s=float(t[0]), time_offset_s=self._offsets,
-            theta_in_rad=ro(self._enc_in.measure(theta_in)),
-            theta_out_rad=ro(self._enc_out.measure(theta_out_read)),
+            theta_in_rad=read_in, theta_out_rad=read_out,
             torque_out_nm=ro(torque), te_true_rad=ro(te), theta_in_true_rad=ro(theta_in),
-            theta_out_true_rad=ro(theta_out), **extra)
+            theta_out_true_rad=ro(theta_out), theta_in_heads_rad=heads_in,
+            theta_out_heads_rad=heads_out, **extra)
         self.seq += 1
         self._block_in_program += 1
         return block, i

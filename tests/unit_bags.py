@@ -4,6 +4,10 @@ The encoder data comes from :mod:`tests.wang2020_reference` (the paper's equatio
 out in the tests), the bag from rosbags' own rosbag2/MCAP writer (1 MiB chunks, no
 compression), the messages serialised by the rosbags typestore: nothing of the project's
 simulation or writing code is involved.
+
+The messages are of the definitions before issue 36 (no read-head fields,
+:mod:`rv_te_bench.io._legacy_msgs`): every test on these bags also checks that older bags
+stay readable.
 """
 
 from __future__ import annotations
@@ -13,7 +17,8 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from rv_te_bench.io.msgdefs import BENCH_INFO, ENCODER_BLOCK, rv_te_typestore
+from rv_te_bench.io._legacy_msgs import legacy_typestore
+from rv_te_bench.io.msgdefs import BENCH_INFO, ENCODER_BLOCK
 from tests import wang2020_reference as ref
 
 if TYPE_CHECKING:
@@ -35,7 +40,7 @@ def write_unit_bag(path: Path, theta_in: np.ndarray, theta_out: np.ndarray, *,
     ``storage='sqlite3'`` writes rosbag2's sqlite3 storage instead of MCAP."""
     from rosbags.rosbag2 import StoragePlugin, Writer
 
-    store = rv_te_typestore()
+    store = legacy_typestore()        # bags recorded before the head fields existed
     types = store.types
 
     def header(t_ns: int) -> object:

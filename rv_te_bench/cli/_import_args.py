@@ -22,6 +22,11 @@ def add_file_arguments(g: Any) -> None:
     g.add_argument('--theta-in', metavar='COL', help='input-angle column / channel (name, '
                    'group/channel for TDMS, 0-based CSV index, or the JointState joint name)')
     g.add_argument('--theta-out', metavar='COL', help='output-angle column / channel')
+    g.add_argument('--theta-out-heads', metavar='COL,COL,...', default='',
+                   help='one column / channel (or JointState joint) per read head of the '
+                   'output scale, head 0 first, comma-separated (the bench description '
+                   'states their angles: encoders.output.heads_deg); head 0 is the output '
+                   'angle')
     g.add_argument('--torque', metavar='COL', help='output-torque column / channel (x the '
                    "bench's torque_sensor.scale_nm_per_unit = N m)")
     g.add_argument('--time', metavar='COL', help='time column / channel (default: the '
@@ -92,4 +97,5 @@ def import_options(args: argparse.Namespace) -> ImportOptions:
         unit_out=args.unit_out, counts_per_rev_in=args.counts_per_rev_in,
         counts_per_rev_out=args.counts_per_rev_out, turns_in=turns['in'],
         turns_out=turns['out'], start_ns=_start_ns(args.start_utc),
-        chunk_samples=args.chunk_samples, delimiter=args.delimiter)
+        chunk_samples=args.chunk_samples, delimiter=args.delimiter,
+        theta_out_heads=tuple(c.strip() for c in args.theta_out_heads.split(',') if c.strip()))

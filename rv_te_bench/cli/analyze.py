@@ -23,6 +23,7 @@ from typing import TYPE_CHECKING, Any, TextIO
 
 from rv_te_bench import __version__
 from rv_te_bench.cli._db import add_db_argument, check_record_text, db_for_bags
+from rv_te_bench.cli._heads import add_heads_arguments, load_calibration
 from rv_te_bench.cli.argtypes import int_between, positive_float
 from rv_te_bench.core.orders import MAX_CRANK_HARMONICS
 from rv_te_bench.core.stream_records import MAX_WINDOW_REVOLUTIONS
@@ -84,6 +85,7 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
                    help='skip the compensation recommendation (the 2K-V assembly-phase '
                         'search takes several seconds)')
     p.add_argument('--quiet', action='store_true', help='no progress lines on stderr')
+    add_heads_arguments(p)
     add_db_argument(p, mode='also')
     p.add_argument('--serial', default=None,
                    help='unit serial recorded with the result (default: from the bag)')
@@ -158,6 +160,7 @@ def _run(args: argparse.Namespace) -> int:
     if args.report is not None and args.report.exists() and not args.force:
         msg = f'Report directory {args.report} exists already; use --force to overwrite.'
         raise ReportExistsError(msg)
+    calibration = load_calibration(args)
     results: list[AnalysisResult] = []
     for bag in args.bags:
         progress = None if args.quiet else _Progress(str(bag), sys.stderr)
@@ -166,7 +169,8 @@ def _run(args: argparse.Namespace) -> int:
                           crank_per_output=args.crank_per_output,
                           n_crank_harmonics=args.harmonics,
                           window_revolutions=args.window_revolutions,
-                          with_advice=not args.no_advice, progress=progress)
+                          with_advice=not args.no_advice, progress=progress,
+                          heads_mode=args.heads, calibration=calibration)
         if progress is not None and progress.printed:
             dt_s = time.monotonic() - t0
             print(f'{bag}: done, {res.blocks_read} blocks in {dt_s:.1f} s '
@@ -177,6 +181,8 @@ def _run(args: argparse.Namespace) -> int:
         if res.gaps:
             print(f'WARNING: {bag}: {len(res.gaps)} gap(s) in the encoder stream',
                   file=sys.stderr)
+        if res.recommendation.encoder_flag:
+            print(f'FLAG: {bag}: {res.recommendation.encoder_flag}', file=sys.stderr)
         results.append(res)
 
     doc = report_json(results)
@@ -305,6 +311,13 @@ def _print_one(res: AnalysisResult, out: TextIO) -> None:
         d = res.dominant
         print(f'  dominant: {d.line.label} ({_am(d.line.amplitude_rad, 0)} arcmin): '
               f'{d.likely_source}', file=out)
+    heads = (res.encoder or {}).get('heads') or {}
+    for side in ('output', 'input'):
+        if (heads.get(side) or {}).get('layout') or (heads.get(side) or {}).get('calibration'):
+            print(f'  {side} encoder: {heads[side]["description"]}', file=out)
+    note = (res.encoder or {}).get('once_per_rev') or {}
+    if note and (res.dominant is None or abs(res.dominant.line.output_order - 1) > 1e-6):
+        print(f'  {note["text"]}', file=out)
     if res.gaps:
         print(f'  gaps: {len(res.gaps)}', file=out)
         for g in res.gaps[:10]:

@@ -25,6 +25,7 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
+from rv_te_bench.cli._heads import add_heads_arguments, encoder_note, heads_combiner
 from rv_te_bench.cli._progress import ProgressBar
 from rv_te_bench.cli.argtypes import nonnegative_int, positive_float
 from rv_te_bench.cli.optimize_phases import (
@@ -43,6 +44,7 @@ if TYPE_CHECKING:
 
     from rv_te_bench.cli.argtypes import Subparsers
     from rv_te_bench.core.angle_fold import FoldedTe
+    from rv_te_bench.core.head_combine import HeadCombiner
     from rv_te_bench.core.identify import Identification
     from rv_te_bench.core.phases import EccentricGeometry
     from rv_te_bench.core.stream_records import GapEvent
@@ -89,6 +91,7 @@ def register(subparsers: Subparsers) -> None:
                    help='share of the TE variance the model must explain for re-assembly '
                         'advice (default 0.99)')
     p.add_argument('--no-recommend', action='store_true', help='identify only')
+    add_heads_arguments(p)
     add_search_arguments(p)
     p.add_argument('--json', action='store_true', help='machine-readable output')
     p.set_defaults(func=run)
@@ -117,16 +120,19 @@ class BagRecord:
 
 
 def fold_bag(path: str, topic: str | None, gear_ratio: float, *,
-             progress: Callable[[int, int], None] | None = None) -> BagRecord:
+             progress: Callable[[int, int], None] | None = None,
+             combiner: HeadCombiner | None = None) -> BagRecord:
     """Stream a bag's encoder blocks into an :class:`AngleFold` (phi = theta_in / i).
 
     Reads with ``strict=False``: a damaged part ends the read, what came before is kept
-    and the record is marked partial.
+    and the record is marked partial. With ``combiner`` the output angle is formed from
+    the read heads (and a calibration) first (:mod:`rv_te_bench.core.head_combine`).
 
     Raises:
         BagError: Not a bag, no encoder topic, or no block readable.
     """
     from rv_te_bench.core.angle_fold import AngleFold
+    from rv_te_bench.core.head_combine import WindowBreak, combine_stream
     from rv_te_bench.core.seq_gaps import SeqGapWatch
     from rv_te_bench.core.stream_records import EncoderBatch
     from rv_te_bench.io.bag_reader import (
@@ -139,8 +145,11 @@ def fold_bag(path: str, topic: str | None, gear_ratio: float, *,
     stream = read_encoder_batches(path, topic, strict=False)
     blocks = samples = malformed = 0
     extra: list[str] = []
+    items = stream if combiner is None else combine_stream(stream, combiner)
     try:
-        for item in stream:
+        for item in items:
+            if isinstance(item, WindowBreak):   # the fold needs no window: nothing to do
+                continue
             if isinstance(item, EncoderBatch):
                 blocks += item.n_blocks
                 th_in, th_out = item.theta_in_rad, item.theta_out_rad
@@ -315,12 +324,15 @@ def _run(args: argparse.Namespace) -> int:
             raise CompensationError(msg)
         info, info_problem = _bench_info(args)
         preset, params, ratio, source = _setup(args, info)
+        combiner = heads_combiner(args, info)
         record = fold_bag(args.bag, args.topic, ratio,
-                          progress=None if args.quiet else _Progress(str(args.bag)))
+                          progress=None if args.quiet else _Progress(str(args.bag)),
+                          combiner=combiner)
         if info_problem:
             record.problems.insert(0, info_problem)
             record.partial = True
         idf = identify_folded(record.folded, params, rng=np.random.default_rng(args.seed))
+        note = encoder_note(info, combiner, args.calibration_record, record.folded)
         idf = replace(idf, fit=replace(idf.fit, min_explained_fraction=min_explained))
         if not args.no_recommend:
             if idf.fit.acceptable:
@@ -364,7 +376,11 @@ def _run(args: argparse.Namespace) -> int:
                       't_after_s': g.t_after_s} for g in record.gaps],
             'gear_ratio': ratio,
             'part_magnitudes_source': source, 'identification': idf.to_json_dict(),
-            'advice_withheld': withheld}
+            'advice_withheld': withheld,
+            'encoder': {'heads': None if combiner is None else combiner.report(),
+                        'once_per_rev': note.to_plain()},
+            'advice_encoder_flag': note.text() if note.comparable and not note.separated
+            else ''}
         if rec is not None:
             out['reassembly'] = rec.to_json_dict()
             out['advice'] = rec.to_advice(
@@ -375,6 +391,10 @@ def _run(args: argparse.Namespace) -> int:
     print(f'Eccentricities identified from {args.bag} (preset {preset.name}, i = {ratio:.6g})'
           f'{flag}\n')
     print(_text(idf, source))
+    print(f'\n{note.text()}')
+    if rec is not None and note.comparable and not note.separated:
+        print('FLAG: the re-assembly advice below rests on the once-per-revolution line, '
+              'which the output encoder could produce in part (see above)')
     if rec is not None:
         print()
         print(format_result(rec, 'Recommended re-assembly (turn each part from the '

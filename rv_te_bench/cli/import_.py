@@ -32,6 +32,10 @@ examples:
   rv-te import joint_states_bag --bench bench.yaml --out bags/run_js
                         rosbag2 bag (MCAP or sqlite3) of sensor_msgs/JointState; joints
                         from the bench description (joints: input, output) or --theta-in
+  rv-te import heads.csv --bench bench4.yaml --out bags/run_heads --time t_s \\
+      --theta-in theta_in_rad --theta-out-heads out_h0,out_h1,out_h2,out_h3
+                        four read heads on the output scale (bench4.yaml: heads_deg):
+                        one column per head, head 0 first; rv-te analyze averages them
   rv-te import --write-bench-example my_bench.yaml
                         write the example bench description to edit
 

@@ -30,7 +30,8 @@ if TYPE_CHECKING:
 SUBCOMMAND_MODULES = (
     'demo', 'launch', 'dashboard', 'bench', 'record', 'replay', 'import_', 'analyze', 'test',
     'unit_report', 'model',
-    'optimize_phases', 'compensate', 'identify', 'presets', 'results', 'spc', 'msa', 'fleet',
+    'optimize_phases', 'compensate', 'identify', 'selfcal', 'presets', 'results', 'spc',
+    'msa', 'fleet',
 )
 
 EXAMPLES = """\

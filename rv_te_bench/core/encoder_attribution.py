@@ -24,8 +24,10 @@ if TYPE_CHECKING:
     from rv_te_bench.core.bench_uncertainty import EncoderErrorModel
     from rv_te_bench.core.encoder_calibration import EncoderCalibration
     from rv_te_bench.core.heads import HeadLayout
+    from sim.bench_info import BenchInfoData
 
-__all__ = ['COMPARABLE_FRACTION', 'OncePerRevNote', 'once_per_rev_note']
+__all__ = ['COMPARABLE_FRACTION', 'OncePerRevNote', 'line_amplitude_rad', 'note_for_bench',
+           'once_per_rev_note']
 
 #: The encoder's possible share of the once-per-revolution line above which results resting
 #: on that line are flagged (a 10 % error of e_ot is ten times the identification's own).
@@ -140,3 +142,46 @@ def once_per_rev_note(*, line_rad: float = math.nan,
         gain = float(abs(layout.transfer([1])[0]))
         return OncePerRevNote(gain * possible, line_rad, gain < 1e-3, layout.describe(), source)
     return OncePerRevNote(possible, line_rad, False, 'one read head, no calibration', source)
+
+
+def note_for_bench(info: BenchInfoData, heads_record: dict[str, Any] | None,
+                   line_rad: float) -> OncePerRevNote:
+    """The note for a bench's record and what its TE node did with the heads (the YAML of
+    ``te/encoder_heads``: ``{'output': {'mode', 'layout', 'calibration'}, ...}``; None: one
+    head, nothing applied)."""
+    from rv_te_bench.core.bench_uncertainty import default_encoder_errors
+    from rv_te_bench.core.encoder_calibration import calibration_from_plain
+    from rv_te_bench.core.heads import HeadLayout
+
+    out = (heads_record or {}).get('output') or {}
+    layout = cal = None
+    if out.get('mode') == 'average' and (lay := out.get('layout')):
+        layout = HeadLayout.of(lay['angles_rad'])
+    if out.get('calibration'):
+        cal = calibration_from_plain(out['calibration'], 'te/encoder_heads')
+    return once_per_rev_note(
+        line_rad=line_rad, eccentricity_m=info.encoder_out_scale_eccentricity_m,
+        diameter_m=info.encoder_out_scale_diameter_m,
+        error_model=(default_encoder_errors(info.encoder_out_model,
+                                            info.encoder_out_resolution_rad)
+                     if info.encoder_out_model else None),
+        layout=layout, calibration=cal)
+
+
+def line_amplitude_rad(theta_out_rad: Any, te_rad: Any) -> float:
+    """Amplitude of the TE's order-1 line over whole output revolutions [rad] (NaN with
+    less than one)."""
+    import numpy as np
+
+    from rv_te_bench.core.harmonic_fold import HarmonicFold
+    from rv_te_bench.errors import TeInputError
+
+    th = np.asarray(theta_out_rad, dtype=np.float64)
+    te = np.asarray(te_rad, dtype=np.float64)
+    bins = 64 if th.size < 20_000 else 1024
+    fold = HarmonicFold(1, n_bins=bins)
+    fold.add(th, te[None, :])
+    try:
+        return float(abs(fold.harmonics([1]).c[0, 0]))
+    except TeInputError:
+        return math.nan

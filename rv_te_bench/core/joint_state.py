@@ -106,6 +106,10 @@ class JointStateConfig:
             one sample's input and output positions (>= 0, below half a sample period).
         max_unpaired: Samples one joint may run ahead of the other (reordering) before its
             oldest unpaired half counts as a missing joint (>= 1).
+        output_head_joints: Joint names of the output scale's further read heads (heads
+            1..N-1; head 0 is ``output_joint``), read from the output joint's message
+            (issue 36); a head absent from a message, or not finite, is left out of that
+            sample's block (the block is kept).
     """
 
     input_joint: str
@@ -120,6 +124,7 @@ class JointStateConfig:
     effort_scale: float = 0.0
     pairing_tolerance_s: float = 0.0
     max_unpaired: int = 64
+    output_head_joints: tuple[str, ...] = ()
 
     def __post_init__(self) -> None:
         """Check every field; the message names the field and the value."""
@@ -131,6 +136,14 @@ class JointStateConfig:
         if self.input_joint == self.output_joint:
             msg = (f'input_joint and output_joint must differ, both are '
                    f'{self.input_joint!r}')
+            raise TeConfigError(msg)
+        heads = tuple(self.output_head_joints)
+        object.__setattr__(self, 'output_head_joints', heads)
+        names = [self.input_joint, self.output_joint, *heads]
+        if len(heads) > 15 or not all(isinstance(h, str) and h for h in heads) \
+                or len(set(names)) != len(names):
+            msg = (f'output_head_joints must be at most 15 different joint names, none the '
+                   f'input or output joint, got {list(heads)!r}')
             raise TeConfigError(msg)
         rate = self.sample_rate_hz
         if isinstance(rate, bool) or not isinstance(rate, int | float) \
@@ -193,6 +206,9 @@ class JointStateBlock:
         theta_in_rad: Input-shaft angle, scaled and unwrapped [rad], read-only.
         theta_out_rad: Output-shaft angle, scaled and unwrapped [rad], read-only.
         torque_out_nm: Output torque [N m] (empty without ``effort_scale``), read-only.
+        out_head_ids: The output heads present in the whole block (head 0 first), or ()
+            without further heads.
+        theta_out_heads_rad: Their readings, (heads, n) [rad], unwrapped beside head 0.
     """
 
     seq: int
@@ -202,6 +218,8 @@ class JointStateBlock:
     theta_in_rad: np.ndarray
     theta_out_rad: np.ndarray
     torque_out_nm: np.ndarray = field(default_factory=lambda: _EMPTY)
+    out_head_ids: tuple[int, ...] = ()
+    theta_out_heads_rad: np.ndarray = field(default_factory=lambda: _EMPTY)
 
     @property
     def stamp_s(self) -> float:
@@ -212,9 +230,11 @@ class JointStateBlock:
         """The TE core's block (what a TE node makes of the published EncoderBlock)."""
         from rv_te_bench.core.stream_records import EncoderBlockData
 
+        heads = ({'out_head_ids': self.out_head_ids,
+                  'theta_out_heads_rad': self.theta_out_heads_rad} if self.out_head_ids else {})
         return EncoderBlockData(self.seq, self.stamp_s, self.sample_rate_hz,
                                 self.time_offset_s, self.theta_in_rad, self.theta_out_rad,
-                                self.torque_out_nm)
+                                self.torque_out_nm, **heads)
 
 
 @dataclass(frozen=True)
@@ -281,15 +301,18 @@ class JointStateAssembler:
         self._jump_ns = STAMP_JUMP_PERIODS * self._period_ns
         self._tol_ns = config.pairing_tolerance_s * 1e9
         self._use_effort = config.effort_scale != 0.0
+        self._head_names = config.output_head_joints
         self._layouts: dict[tuple[str, ...], tuple[int, int]] = {}
+        self._head_index: dict[tuple[str, ...], tuple[int, ...]] = {}
+        self._heads: list[tuple[float, ...]] = []   # further heads per sample of the block
         # the open block
         self._t: list[int] = []
         self._in: list[float] = []
         self._out: list[float] = []
         self._eff: list[float] = []
         # halves of samples waiting for their other joint: (stamp_ns, position, effort)
-        self._half_in: deque[tuple[int, float, float]] = deque()
-        self._half_out: deque[tuple[int, float, float]] = deque()
+        self._half_in: deque[tuple[int, float, float, tuple[float, ...]]] = deque()
+        self._half_out: deque[tuple[int, float, float, tuple[float, ...]]] = deque()
         self._last_ns: int | None = None          # last accepted sample's stamp
         self._next_seq = 0
         # unwrap state: last scaled (wrapped) reading and the turns added to it [rad]
@@ -300,7 +323,8 @@ class JointStateAssembler:
         self._gap: _OpenGap | None = None
         self.counters: dict[str, int] = dict.fromkeys(
             ('messages', 'samples', 'blocks', 'gaps', 'samples_dropped', 'ignored_messages',
-             'stamp_jump', 'stamp_backwards', 'missing_joint', 'non_finite'), 0)
+             'stamp_jump', 'stamp_backwards', 'missing_joint', 'non_finite',
+             'blocks_head_missing'), 0)
 
     @property
     def config(self) -> JointStateConfig:
@@ -339,14 +363,16 @@ class JointStateAssembler:
         p_in = self._value(positions, i_in)
         p_out = self._value(positions, i_out)
         e_out = self._value(efforts, i_out) if self._use_effort else math.nan
+        heads = self._head_values(key, positions) if self._head_names and p_out is not None \
+            else ()
         if p_in is not None and p_out is not None and not self._half_in \
                 and not self._half_out:
-            self._sample(int(stamp_ns), p_in, p_out, e_out, out)
+            self._sample(int(stamp_ns), p_in, p_out, e_out, out, heads)
             return tuple(out) if out else _NOTHING
         if p_in is not None:
-            self._half_in.append((int(stamp_ns), p_in, math.nan))
+            self._half_in.append((int(stamp_ns), p_in, math.nan, ()))
         if p_out is not None:
-            self._half_out.append((int(stamp_ns), p_out, e_out))
+            self._half_out.append((int(stamp_ns), p_out, e_out, heads))
         if p_in is None and p_out is None:   # named but no position value: missing joint
             self._problem('missing_joint', int(stamp_ns), out,
                           f'no position for {self._in_name!r}/{self._out_name!r}')
@@ -367,6 +393,18 @@ class JointStateAssembler:
         self._layouts[key] = (i_in, i_out)
         return i_in, i_out
 
+    def _head_values(self, key: tuple[str, ...], positions: Sequence[float],
+                     ) -> tuple[float, ...]:
+        """The further heads' positions of a message (NaN for a head it lacks)."""
+        idx = self._head_index.get(key)
+        if idx is None:
+            if len(self._head_index) >= _MAX_LAYOUTS:
+                self._head_index.clear()
+            idx = self._head_index[key] = tuple(
+                key.index(h) if h in key else -1 for h in self._head_names)
+        vals = (self._value(positions, i) for i in idx)
+        return tuple(math.nan if v is None else v for v in vals)
+
     @staticmethod
     def _value(values: Sequence[float], i: int) -> float | None:
         if i < 0:
@@ -384,7 +422,7 @@ class JointStateAssembler:
             if abs(a[0] - b[0]) <= tol:
                 hin.popleft()
                 hout.popleft()
-                self._sample(a[0], a[1], b[1], b[2], out)
+                self._sample(a[0], a[1], b[1], b[2], out, b[3])
             elif a[0] < b[0]:
                 hin.popleft()
                 self._problem('missing_joint', a[0], out,
@@ -400,7 +438,8 @@ class JointStateAssembler:
                               f'no {other!r} for {self._cfg.max_unpaired} samples')
 
     def _sample(self, t: int, p_in: float, p_out: float, e_out: float,
-                out: list[JointStateBlock | JointStateGap]) -> None:
+                out: list[JointStateBlock | JointStateGap],
+                heads: tuple[float, ...] = ()) -> None:
         if not (math.isfinite(p_in) and math.isfinite(p_out)):
             self._problem('non_finite', t, out, f'position {p_in!r}/{p_out!r} at {t} ns')
             return
@@ -423,6 +462,8 @@ class JointStateAssembler:
         self._out.append(p_out)
         if self._use_effort:
             self._eff.append(e_out)
+        if self._head_names:
+            self._heads.append(heads or (math.nan,) * len(self._head_names))
         if len(self._t) >= self._cfg.block_size:
             out.append(self._close_block())
 
@@ -470,10 +511,26 @@ class JointStateAssembler:
                                                             self._off_out)
         torque = (np.array(self._eff, dtype=np.float64) * self._cfg.effort_scale
                   if self._use_effort else _EMPTY)
+        heads: dict[str, object] = {}
+        if self._head_names:
+            raw = np.array(self._heads, dtype=np.float64).T        # (heads - 1, n)
+            if cfg.position_unit == 'counts':
+                raw *= cfg.scale_out_rad
+            raw_out = np.array(self._out, dtype=np.float64) * (
+                cfg.scale_out_rad if cfg.position_unit == 'counts' else 1.0)
+            # a head reads the same shaft within arcseconds: its turn is head 0's
+            rows = th_out[None, :] + (np.mod(raw - raw_out[None, :] + math.pi, _TWO_PI)
+                                      - math.pi)
+            keep = [j + 1 for j in range(rows.shape[0]) if np.isfinite(rows[j]).all()]
+            heads = {'out_head_ids': (0, *keep), 'theta_out_heads_rad': _readonly(
+                np.vstack([th_out[None, :], rows[[k - 1 for k in keep]]]))}
+            self.counters['blocks_head_missing'] += int(len(keep) < rows.shape[0])
+            self._heads = []
         block = JointStateBlock(
             self._next_seq, int(t[0]), float(self._cfg.sample_rate_hz),
             _readonly((t - t[0]).astype(np.float64) * 1e-9), _readonly(th_in),
-            _readonly(th_out), _readonly(torque) if self._use_effort else _EMPTY)
+            _readonly(th_out), _readonly(torque) if self._use_effort else _EMPTY,
+            **heads)  # type: ignore[arg-type]
         self._next_seq += 1
         self.counters['blocks'] += 1
         self.counters['samples'] += len(self._t)

@@ -19,6 +19,7 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
+from rv_te_bench.core.head_combine import WindowBreak
 from rv_te_bench.core.spectrum import OrderSpectrum, SpectrumWorkspace
 from rv_te_bench.core.stream import StreamingTeAnalyzer
 from rv_te_bench.core.stream_records import (
@@ -39,13 +40,16 @@ if TYPE_CHECKING:
 __all__ = ['SPECTRA_AHEAD', 'analyze_blocks']
 
 
-def analyze_blocks(blocks: Iterable[EncoderBlockData | EncoderBatch], config: TeAnalysisConfig,
+def analyze_blocks(blocks: Iterable[EncoderBlockData | EncoderBatch | WindowBreak],
+                   config: TeAnalysisConfig,
                    *, on_window: Callable[[WindowResult], None] | None = None,
                    spectra_thread: bool | Executor = False) -> OfflineResult:
     """Run a whole recording through a :class:`StreamingTeAnalyzer` (offline analysis).
 
     Args:
-        blocks: The blocks (or batches of consecutive blocks) in recording order.
+        blocks: The blocks (or batches of consecutive blocks) in recording order, and
+            :class:`~rv_te_bench.core.head_combine.WindowBreak` markers where the open window
+            closes (other read heads form the angle from there).
         config: Analysis settings.
         on_window: Called with each window as it closes; the windows are then not kept
             (memory stays bounded by one window however long the recording).
@@ -74,6 +78,9 @@ def analyze_blocks(blocks: Iterable[EncoderBlockData | EncoderBatch], config: Te
             else contextlib.nullcontext() as spectra:
         closed = keep if spectra is None else spectra.closed
         for item in blocks:
+            if isinstance(item, WindowBreak):   # other read heads form the angle from here
+                analyzer.split_window()
+                continue
             update = analyzer.push_batch(item) if isinstance(item, EncoderBatch) \
                 else analyzer.push(item)
             closed(update.windows)

@@ -47,8 +47,8 @@ if TYPE_CHECKING:
 
     import numpy.typing as npt
 
-__all__ = ['DEFAULT_MAX_ORDER', 'HarmonicEstimate', 'HeadSelfCalibration', 'ReversalResult',
-           'ReversalSession', 'reversal_separation']
+__all__ = ['DEFAULT_MAX_ORDER', 'HarmonicEstimate', 'HeadSelfCalibration', 'ReversalFold',
+           'ReversalResult', 'ReversalSession', 'reversal_separation']
 
 #: Orders of the scale revolution estimated by default.
 DEFAULT_MAX_ORDER = 32
@@ -234,6 +234,54 @@ class ReversalSession:
         te = np.asarray(te_rad, dtype=np.float64)
         f.add(theta_out_rad, te[None, :])
         return ReversalSession(f.harmonics(_orders(max_order)), float(index_rad), label)
+
+
+class ReversalFold:
+    """One reversal session streamed block by block: TE (Wang 2020 Eq. 22) folded on the
+    output reading (the shaft angle).
+
+    Args:
+        gear_ratio: i.
+        max_order: Highest order estimated.
+        n_bins: Bins per revolution.
+    """
+
+    def __init__(self, *, gear_ratio: float, max_order: int = DEFAULT_MAX_ORDER,
+                 n_bins: int = DEFAULT_HARMONIC_BINS) -> None:
+        """See the class docstring."""
+        if not (math.isfinite(gear_ratio) and gear_ratio > 0):
+            msg = f'gear_ratio must be finite and > 0, got {gear_ratio!r}'
+            raise TeConfigError(msg)
+        self.gear_ratio = float(gear_ratio)
+        self.orders = _orders(max_order)
+        self._fold = HarmonicFold(1, n_bins=n_bins)
+
+    def add(self, theta_in_rad: npt.ArrayLike, theta_out_rad: npt.ArrayLike) -> None:
+        """Fold a block of encoder readings [rad].
+
+        Raises:
+            TeInputError: Shapes differ.
+        """
+        th_in = np.asarray(theta_in_rad, dtype=np.float64)
+        th_out = np.asarray(theta_out_rad, dtype=np.float64)
+        if th_in.shape != th_out.shape or th_in.ndim != 1:
+            msg = (f'theta_in and theta_out must be 1-D of one length, got {th_in.shape}, '
+                   f'{th_out.shape}')
+            raise TeInputError(msg)
+        self._fold.add(th_out, (th_out - th_in / self.gear_ratio)[None, :])
+
+    @property
+    def revolutions(self) -> float:
+        """Output revolutions folded."""
+        return self._fold.revolutions
+
+    def session(self, index_rad: float, label: str = '') -> ReversalSession:
+        """The session for :func:`reversal_separation`.
+
+        Raises:
+            TeInputError: Less than one whole output revolution.
+        """
+        return ReversalSession(self._fold.harmonics(self.orders), float(index_rad), label)
 
 
 @dataclass(frozen=True)

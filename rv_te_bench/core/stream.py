@@ -343,6 +343,14 @@ class StreamingTeAnalyzer:
                               samples_per_rev=cfg.samples_per_rev,
                               revolutions=round(cfg.window_revolutions), workspace=workspace)
 
+    def split_window(self) -> None:
+        """Close the open window as partial (``close_reason='heads'``, no spectrum) before
+        samples whose shaft angle comes from another set of read heads (a head missing in
+        some blocks, :mod:`rv_te_bench.core.head_combine`): the scale error left in the TE
+        changes there, and no spectrum mixes the two. Nothing is lost, continuity is kept
+        (no gap is counted); the closed window comes with the next push's windows."""
+        self._close('heads', pending=True)
+
     def flush(self) -> tuple[WindowResult, ...]:
         """Close the open window at the end of a recording (partial, ``'flush'``)."""
         self._close('flush', pending=True)

@@ -34,7 +34,7 @@ __all__ = ['MAX_WINDOW_REVOLUTIONS', 'MIN_WINDOW_SAMPLES', 'BatchUpdate', 'Block
 #: Longest analysis window [whole output revolutions] (TE node parameter, CLI, library).
 MAX_WINDOW_REVOLUTIONS = 1000
 GapKind = Literal['seq_jump', 'time_backwards', 'non_finite', 'malformed', 'leading_loss']
-CloseReason = Literal['complete', 'gap', 'overflow', 'flush', 'reconfigure']
+CloseReason = Literal['complete', 'gap', 'overflow', 'flush', 'reconfigure', 'heads']
 
 #: Smallest window buffer (samples).
 MIN_WINDOW_SAMPLES = 16
@@ -46,6 +46,14 @@ _OFFS_SUM_SAFE_N = 10**8
 
 def _empty_array() -> np.ndarray:
     return _EMPTY
+
+
+_NO_HEADS = np.empty((0, 0), dtype=np.float64)
+_NO_HEADS.setflags(write=False)
+
+
+def _no_heads() -> np.ndarray:
+    return _NO_HEADS
 
 
 @dataclass(frozen=True)
@@ -64,6 +72,13 @@ class EncoderBlockData:
         theta_in_rad: Unwrapped input-shaft angle per sample [rad].
         theta_out_rad: Unwrapped output-shaft angle per sample [rad].
         torque_out_nm: Output torque per sample [N m], or empty.
+        in_head_ids: Numbers of the input scale's read heads in ``theta_in_heads_rad``
+            (empty: one head; issue 36).
+        theta_in_heads_rad: Their readings, shape (heads, n) [rad].
+        out_head_ids: The same for the output scale.
+        theta_out_heads_rad: Their readings, shape (heads, n) [rad]. The TE core reads
+            ``theta_*_rad`` only: :class:`~rv_te_bench.core.head_combine.HeadCombiner`
+            forms those from the heads before a block is pushed.
     """
 
     seq: int
@@ -73,6 +88,10 @@ class EncoderBlockData:
     theta_in_rad: np.ndarray
     theta_out_rad: np.ndarray
     torque_out_nm: np.ndarray = field(default_factory=_empty_array)
+    in_head_ids: tuple[int, ...] = ()
+    theta_in_heads_rad: np.ndarray = field(default_factory=_no_heads)
+    out_head_ids: tuple[int, ...] = ()
+    theta_out_heads_rad: np.ndarray = field(default_factory=_no_heads)
 
     @classmethod
     def checked(cls, *, seq: int, stamp_s: float, sample_rate_hz: float,
@@ -152,6 +171,10 @@ class EncoderBatch:
         time_offset_s: Sample times relative to their block's stamp [s], shape (N,).
         theta_in_rad: Input-shaft angles [rad], shape (N,).
         theta_out_rad: Output-shaft angles [rad], shape (N,).
+        in_head_ids: The input scale's heads, the same in every block of the batch.
+        theta_in_heads_rad: Their readings, shape (heads, N) [rad].
+        out_head_ids: The output scale's heads, the same in every block.
+        theta_out_heads_rad: Their readings, shape (heads, N) [rad].
 
     Raises:
         TeInputError: The arrays do not fit together (names the sizes).
@@ -164,6 +187,10 @@ class EncoderBatch:
     time_offset_s: np.ndarray
     theta_in_rad: np.ndarray
     theta_out_rad: np.ndarray
+    in_head_ids: tuple[int, ...] = ()
+    theta_in_heads_rad: np.ndarray = field(default_factory=_no_heads)
+    out_head_ids: tuple[int, ...] = ()
+    theta_out_heads_rad: np.ndarray = field(default_factory=_no_heads)
 
     def __post_init__(self) -> None:
         """Check the structure."""
@@ -183,6 +210,13 @@ class EncoderBatch:
             msg = (f'EncoderBatch starts must run from 0 to {n} in strictly increasing steps, '
                    f'got {starts[:5].tolist()}...{starts[-2:].tolist()}')
             raise TeInputError(msg)
+        for side in ('in', 'out'):
+            ids = getattr(self, f'{side}_head_ids')
+            heads = np.shape(getattr(self, f'theta_{side}_heads_rad'))
+            if ids and heads != (len(ids), n):
+                msg = (f'EncoderBatch {side}put heads: {len(ids)} heads need readings of shape '
+                       f'({len(ids)}, {n}), got {heads}')
+                raise TeInputError(msg)
 
     @property
     def n_blocks(self) -> int:
@@ -197,9 +231,14 @@ class EncoderBatch:
     def block(self, k: int) -> EncoderBlockData:
         """Block ``k`` as an :class:`EncoderBlockData` (views, no copy)."""
         a, b = int(self.starts[k]), int(self.starts[k + 1])
+        heads: dict[str, Any] = {}
+        for side in ('in', 'out'):
+            if ids := getattr(self, f'{side}_head_ids'):
+                heads[f'{side}_head_ids'] = ids
+                heads[f'theta_{side}_heads_rad'] = getattr(self, f'theta_{side}_heads_rad')[:, a:b]
         return EncoderBlockData(int(self.seq[k]), float(self.stamp_s[k]),
                                 float(self.sample_rate_hz[k]), self.time_offset_s[a:b],
-                                self.theta_in_rad[a:b], self.theta_out_rad[a:b])
+                                self.theta_in_rad[a:b], self.theta_out_rad[a:b], **heads)
 
     @classmethod
     def from_blocks(cls, blocks: Iterable[EncoderBlockData]) -> EncoderBatch:
@@ -221,12 +260,24 @@ class EncoderBatch:
         def cat(name: str) -> np.ndarray:
             return np.concatenate([np.asarray(getattr(b, name), dtype=np.float64).ravel()
                                    for b in blocks])
+        heads: dict[str, Any] = {}
+        for side in ('in', 'out'):
+            ids = {tuple(getattr(b, f'{side}_head_ids')) for b in blocks}
+            if len(ids) > 1:
+                msg = (f'EncoderBatch.from_blocks: the blocks carry different {side}put heads '
+                       f'{sorted(ids)}: batch them apart')
+                raise TeInputError(msg)
+            if first := ids.pop():
+                heads[f'{side}_head_ids'] = first
+                heads[f'theta_{side}_heads_rad'] = np.concatenate(
+                    [np.asarray(getattr(b, f'theta_{side}_heads_rad'), dtype=np.float64)
+                     for b in blocks], axis=1)
         return cls(seq=np.array([int(b.seq) for b in blocks], dtype=np.int64),
                    stamp_s=np.array([b.stamp_s for b in blocks], dtype=np.float64),
                    sample_rate_hz=np.array([b.sample_rate_hz for b in blocks], dtype=np.float64),
                    starts=np.concatenate([[0], np.cumsum(sizes)]).astype(np.int64),
                    time_offset_s=cat('time_offset_s'), theta_in_rad=cat('theta_in_rad'),
-                   theta_out_rad=cat('theta_out_rad'))
+                   theta_out_rad=cat('theta_out_rad'), **heads)
 
 
 def check_block(block: Any) -> CleanBlock | BlockProblem:
@@ -412,8 +463,8 @@ class WindowResult:
             the record is not strictly monotonic in phi, e.g. a reversal).
         first_seq: Sequence number of the block of the first sample.
         last_seq: Sequence number of the block of the last sample.
-        close_reason: ``'complete'``, ``'gap'``, ``'overflow'``, ``'flush'`` or
-            ``'reconfigure'``.
+        close_reason: ``'complete'``, ``'gap'``, ``'overflow'``, ``'flush'``,
+            ``'reconfigure'`` or ``'heads'`` (the read heads forming the angle changed).
     """
 
     index: int

@@ -45,6 +45,12 @@ def encoder_block_seq(data: bytes | memoryview) -> int:
     return struct.unpack_from(end + 'Q', data, 4 + _seq_offset(data, end))[0]
 
 
+#: Bytes the four head sequences take at least (their counts): fewer after the torque
+#: array is the end padding of a message without them (the definition before issue 36;
+#: serialisers pad the end by up to 7 bytes).
+_HEAD_FIELDS_MIN = 16
+
+
 @dataclass(frozen=True, slots=True)
 class _Layout:
     """Where the fields of one serialised EncoderBlock lie (byte offsets from its start,
@@ -56,10 +62,45 @@ class _Layout:
     counts: tuple[int, ...]
     data_at: tuple[int, ...]            # first element of each array
     length: int                         # bytes the message uses
+    # the head fields (issue 36): in ids, in readings, out ids, out readings; () when the
+    # message has none (the older definition)
+    head_count_at: tuple[int, ...] = ()
+    head_counts: tuple[int, ...] = ()
+    head_data_at: tuple[int, ...] = ()
+
+    @property
+    def has_heads(self) -> bool:
+        """Some head field holds data."""
+        return any(self.head_counts)
+
+
+def _head_layout(buf: bytes | memoryview, order: str, off: int, size: int,
+                 ) -> tuple[tuple[int, ...], tuple[int, ...], tuple[int, ...], int]:
+    """(count positions, counts, data positions, end offset) of the four head fields from
+    payload offset ``off``; empty when the message ends there (the older definition)."""
+    if size - (4 + off) < _HEAD_FIELDS_MIN:
+        return (), (), (), off
+    count_at, counts, data_at = [], [], []
+    for width in (1, 8, 1, 8):
+        off = (off + _ALIGN4) & ~_ALIGN4
+        (count,) = struct.unpack_from(order + 'I', buf, 4 + off)
+        count_at.append(4 + off)
+        off += 4
+        if count and width == 8:
+            off = (off + _ALIGN8) & ~_ALIGN8
+        if 4 + off + width * count > size:
+            msg = (f'head field of {count} x {width} bytes runs past the message end '
+                   f'({size} bytes)')
+            raise BagError(msg)
+        counts.append(count)
+        data_at.append(4 + off)
+        off += width * count
+    return tuple(count_at), tuple(counts), tuple(data_at), off
 
 
 def _layout(buf: bytes | memoryview) -> _Layout:
-    """Walk the CDR layout of one EncoderBlock (header, seq, rate, four float64 arrays).
+    """Walk the CDR layout of one EncoderBlock (header, seq, rate, four float64 arrays,
+    the head fields when present).
 
     Raises:
         BagError: Not a CDR EncoderBlock, truncated, or an array runs past the end.
@@ -87,10 +128,40 @@ def _layout(buf: bytes | memoryview) -> _Layout:
             counts.append(count)
             data_at.append(4 + off)
             off += 8 * count
+        h_at, h_counts, h_data, off = _head_layout(buf, order, off, size)
     except struct.error as exc:
         msg = f'EncoderBlock CDR truncated ({size} bytes): {exc}'
         raise BagError(msg) from None
-    return _Layout(order, seq_at, tuple(count_at), tuple(counts), tuple(data_at), 4 + off)
+    return _Layout(order, seq_at, tuple(count_at), tuple(counts), tuple(data_at), 4 + off,
+                   h_at, h_counts, h_data)
+
+
+def _heads_of(buf: bytes, lay: _Layout, n: int) -> dict[str, object]:
+    """The EncoderBlockData head fields of a decoded message (ids, (heads, n) readings).
+
+    Raises:
+        BagError: Readings that do not fit the ids and the block's length.
+    """
+    out: dict[str, object] = {}
+    if not lay.has_heads:
+        return out
+    dtype = np.dtype(lay.order + 'f8')
+    for k, side in ((0, 'in'), (2, 'out')):
+        n_ids, n_vals = lay.head_counts[k], lay.head_counts[k + 1]
+        if n_ids == 0 and n_vals == 0:
+            continue
+        if n_vals != n_ids * n:
+            msg = (f'{side}_head_ids names {n_ids} heads but theta_{side}_heads_rad holds '
+                   f'{n_vals} values for {n} samples')
+            raise BagError(msg)
+        ids = tuple(buf[lay.head_data_at[k]:lay.head_data_at[k] + n_ids])
+        vals = np.frombuffer(buf, dtype, n_vals, lay.head_data_at[k + 1]).reshape(n_ids, n)
+        if lay.order == '>':
+            vals = vals.astype(np.float64)
+            vals.setflags(write=False)
+        out[f'{side}_head_ids'] = ids
+        out[f'theta_{side}_heads_rad'] = vals
+    return out
 
 
 def decode_encoder_block(data: bytes | memoryview) -> EncoderBlockData:
@@ -118,11 +189,12 @@ def decode_encoder_block(data: bytes | memoryview) -> EncoderBlockData:
         arrays = [a.astype(np.float64) for a in arrays]
         for a in arrays:
             a.setflags(write=False)
+    heads = _heads_of(buf, lay, lay.counts[1])
     try:
         return EncoderBlockData(seq=int(seq), stamp_s=sec + nsec * 1e-9,
                                 sample_rate_hz=float(rate), time_offset_s=arrays[0],
                                 theta_in_rad=arrays[1], theta_out_rad=arrays[2],
-                                torque_out_nm=arrays[3])
+                                torque_out_nm=arrays[3], **heads)  # type: ignore[arg-type]
     except (ValueError, TypeError) as exc:
         msg = f'EncoderBlock content invalid: {exc}'
         raise BagError(msg) from None
@@ -144,6 +216,8 @@ class _ParsedBlocks:
     rate_hz: np.ndarray
     count: np.ndarray       # samples per block
     data: tuple[np.ndarray, np.ndarray, np.ndarray]  # byte position of time/in/out arrays
+    # per side with heads (fast path only): side -> (head ids, byte position of the readings)
+    heads: tuple[tuple[str, tuple[int, ...], np.ndarray], ...] = ()
 
 
 def _parse_same_layout(u8: np.ndarray, starts: np.ndarray,
@@ -162,8 +236,21 @@ def _parse_same_layout(u8: np.ndarray, starts: np.ndarray,
     seq_at, count_at, data_at = first.seq_at, first.count_at, first.data_at
     if not ((ends - starts) >= first.length).all():
         return None
+    heads: list[tuple[str, tuple[int, ...], np.ndarray]] = []
+    extra: list[int] = []
+    if first.head_counts:       # today's layout: the head counts (and ids) decide too
+        extra = [c + k for c in first.head_count_at for k in range(4)]
+        for k, side in ((0, 'in'), (2, 'out')):
+            n_ids, n_vals = first.head_counts[k], first.head_counts[k + 1]
+            if n_vals != n_ids * n:
+                return None
+            if n_ids:
+                at = first.head_data_at[k]
+                extra.extend(range(at, at + n_ids))
+                ids = tuple(int(x) for x in u8[int(starts[0]) + at:int(starts[0]) + at + n_ids])
+                heads.append((side, ids, starts + first.head_data_at[k + 1]))
     deciding = np.array([0, 1, 12, 13, 14, 15,
-                         *(c + k for c in count_at for k in range(4))], dtype=np.int64)
+                         *(c + k for c in count_at for k in range(4)), *extra], dtype=np.int64)
     rows = u8[starts[:, None] + deciding]
     if not (rows == rows[0]).all():
         return None
@@ -177,7 +264,8 @@ def _parse_same_layout(u8: np.ndarray, starts: np.ndarray,
         ok=np.ones(starts.size, dtype=bool), seq=seq, stamp_s=stamp,
         rate_hz=tail[:, 8:].copy().view('<f8').ravel(),
         count=np.full(starts.size, n, dtype=np.int64),
-        data=(starts + data_at[0], starts + data_at[1], starts + data_at[2]))
+        data=(starts + data_at[0], starts + data_at[1], starts + data_at[2]),
+        heads=tuple(heads))
 
 
 def _parse_encoder_blocks(u8: np.ndarray, starts: np.ndarray, ends: np.ndarray) -> _ParsedBlocks:
@@ -221,6 +309,15 @@ def _parse_encoder_blocks(u8: np.ndarray, starts: np.ndarray, ends: np.ndarray) 
     n = counts[1]
     ok &= (counts[0] == n) & (counts[2] == n) & (n > 0) & ((counts[3] == 0) | (counts[3] == n))
     ok &= seq < np.uint64(1 << 63)
+    # head fields (issue 36): a message that carries heads is decoded on its own (off is
+    # 4-aligned here, and its four counts follow one another while they are 0)
+    has = ok & (ends - (p + off) >= _HEAD_FIELDS_MIN)
+    if has.any():
+        q = np.where(has, p + off, starts)
+        for k in range(4):
+            c = _gather_le(u8, q + 4 * k, '<u4')
+            ok &= ~has | (c == 0)
+            has &= c == 0
     stamp = sec.astype(np.float64) + nsec.astype(np.float64) * 1e-9
     return _ParsedBlocks(ok, seq, stamp, rate, n, (data[0], data[1], data[2]))
 
@@ -255,11 +352,18 @@ def _encoder_items(buf: memoryview, starts: np.ndarray,
             bi += 1
         n = parsed.count[a:b]
         arrays = [_concat_f64(u8, d[a:b], n) for d in parsed.data]
+        heads: dict[str, object] = {}
+        for side, ids, pos in parsed.heads:
+            h = len(ids)
+            vals = _concat_f64(u8, pos[a:b], n * h)           # block by block, (h, n) each
+            heads[f'{side}_head_ids'] = ids
+            heads[f'theta_{side}_heads_rad'] = (
+                vals.reshape(b - a, h, int(n[0])).transpose(1, 0, 2).reshape(h, -1))
         yield EncoderBatch(seq=parsed.seq[a:b].astype(np.int64), stamp_s=parsed.stamp_s[a:b],
                            sample_rate_hz=parsed.rate_hz[a:b],
                            starts=np.concatenate([[0], np.cumsum(n)]).astype(np.int64),
                            time_offset_s=arrays[0], theta_in_rad=arrays[1],
-                           theta_out_rad=arrays[2])
+                           theta_out_rad=arrays[2], **heads)  # type: ignore[arg-type]
     yield from bad[bi:]
 
 
@@ -270,17 +374,30 @@ def decode_encoder_block_rosbags(data: bytes | memoryview) -> EncoderBlockData:
         BagError: The bytes do not deserialise as EncoderBlock.
     """
     from rv_te_bench.core.stream_records import EncoderBlockData
+    from rv_te_bench.io._legacy_msgs import upgrade_cdr
 
     try:
-        msg = rv_te_typestore().deserialize_cdr(bytes(data), ENCODER_BLOCK)
+        msg = rv_te_typestore().deserialize_cdr(upgrade_cdr(ENCODER_BLOCK, data), ENCODER_BLOCK)
     except Exception as exc:  # noqa: BLE001 - rosbags raises assorted errors on bad bytes
         text = f'EncoderBlock does not deserialise: {exc}'
         raise BagError(text) from None
     stamp = msg.header.stamp
+    n = len(msg.theta_in_rad)
+    heads: dict[str, object] = {}
+    for side in ('in', 'out'):
+        ids = tuple(int(i) for i in getattr(msg, f'{side}_head_ids'))
+        vals = np.asarray(getattr(msg, f'theta_{side}_heads_rad'), np.float64)
+        if ids:
+            if vals.size != len(ids) * n:
+                text = (f'{side}_head_ids names {len(ids)} heads but theta_{side}_heads_rad '
+                        f'holds {vals.size} values for {n} samples')
+                raise BagError(text)
+            heads[f'{side}_head_ids'] = ids
+            heads[f'theta_{side}_heads_rad'] = vals.reshape(len(ids), n)
     return EncoderBlockData(
         seq=int(msg.seq), stamp_s=stamp.sec + stamp.nanosec * 1e-9,
         sample_rate_hz=float(msg.sample_rate_hz),
         time_offset_s=np.asarray(msg.time_offset_s, np.float64),
         theta_in_rad=np.asarray(msg.theta_in_rad, np.float64),
         theta_out_rad=np.asarray(msg.theta_out_rad, np.float64),
-        torque_out_nm=np.asarray(msg.torque_out_nm, np.float64))
+        torque_out_nm=np.asarray(msg.torque_out_nm, np.float64), **heads)  # type: ignore[arg-type]

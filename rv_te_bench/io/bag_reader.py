@@ -143,13 +143,16 @@ def bag_topics(path: str | Path) -> dict[str, dict[str, Any]]:
 
 
 def _check_encoder_definition(bag: Bag, topic: str) -> None:
-    """Refuse a bag whose EncoderBlock definition differs from ours (decode would lie)."""
+    """Refuse a bag whose EncoderBlock definition differs from ours (decode would lie);
+    the definition before issue 36 (no head fields) is read as well."""
+    from rv_te_bench.io._legacy_msgs import LEGACY_HASHES
+
     for entry in bag.info.get('topics_with_message_count') or []:
         meta = entry.get('topic_metadata', {})
         if meta.get('name') == topic:
             digest = meta.get('type_description_hash') or ''
             ours = rv_te_typestore().hash_rihs01(ENCODER_BLOCK)
-            if digest and digest != ours:
+            if digest and digest != ours and digest not in LEGACY_HASHES[ENCODER_BLOCK]:
                 msg = (f'Bag {bag.path}: {ENCODER_BLOCK} on {topic!r} has type hash {digest}, '
                        f'this software reads {ours}: the definition changed.')
                 raise BagError(msg)

@@ -18,9 +18,14 @@ The file (``rv_te_bench/launch/bench_description_example.yaml`` is a full exampl
       input: {model: heidenhain-ron886}                      # known model: its resolution
       output: {model: RESOLUTE-32, counts_per_rev: 4294967296}   # or counts_per_rev,
                                                              #   or resolution_rad
+      # a scale's record and read heads (issue 36), each optional:
+      #   serial: RING-42                          the scale's serial (for its calibration)
+      #   heads_deg: [0, 90, 180, 270]             read heads around it, head 0 first
+      #   scale: {diameter_mm: 100, runout_um: 4, index_deg: 0}   (or eccentricity_um)
     torque_sensor: {present: true, model: HBM T40B, scale_nm_per_unit: 1.0, unit: N m}
     unit_under_test: {serial: SN-42, operator: A. Tester, temperature_c: 23.5, notes: ''}
     joints: {input: input_joint, output: output_joint}       # JointState names (optional)
+      #   output_heads: [h0, h1, h2, h3]           one joint per output head (head 0 first)
     limits: {max_input_speed_rpm: 3000, max_output_torque_nm: 1000}   # the bench's own
                                                              #   (optional; rv-te test checks
                                                              #   every sample read back)
@@ -39,7 +44,7 @@ the rule and the value.
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 from types import MappingProxyType
 from typing import TYPE_CHECKING, Any
@@ -92,11 +97,23 @@ class EncoderInfo:
         resolution_rad: Smallest increment [rad] (0.0: unknown / not quantised).
         counts_per_rev: Increments per revolution when known (raw counter columns are
             divided by it), else None.
+        serial: The scale's serial number ('' : not stated; a calibration must name it).
+        head_angles_rad: Angles of the scale's read heads from head 0 [rad] (empty: one).
+        scale_diameter_m: Graduation diameter [m] (0: not stated).
+        scale_eccentricity_m: Stated mounting eccentricity, run-out / 2 [m] (0: not stated).
+        scale_index_rad: The scale turned on its shaft from its reference mounting [rad].
+        head_joints: JointState names of the heads, head 0 first (empty: one joint).
     """
 
     model: str
     resolution_rad: float = 0.0
     counts_per_rev: int | None = None
+    serial: str = ''
+    head_angles_rad: tuple[float, ...] = ()
+    scale_diameter_m: float = 0.0
+    scale_eccentricity_m: float = 0.0
+    scale_index_rad: float = 0.0
+    head_joints: tuple[str, ...] = ()
 
     def __post_init__(self) -> None:
         """Validate (model non-empty, resolution finite >= 0, counts >= 1)."""
@@ -108,6 +125,19 @@ class EncoderInfo:
         cpr = self.counts_per_rev
         if cpr is not None and (isinstance(cpr, bool) or not isinstance(cpr, int) or cpr < 1):
             _fail('EncoderInfo', 'counts_per_rev', 'must be an integer >= 1', cpr)
+        object.__setattr__(self, 'head_angles_rad', tuple(self.head_angles_rad))
+        object.__setattr__(self, 'head_joints', tuple(self.head_joints))
+        if self.head_joints and len(self.head_joints) != max(1, len(self.head_angles_rad)):
+            _fail('EncoderInfo', 'head_joints', f'must name one joint per head '
+                  f'({len(self.head_angles_rad)})', list(self.head_joints))
+
+    def scale_fields(self, side: str) -> dict[str, Any]:
+        """The BenchInfo fields of this scale (``side``: 'in' or 'out')."""
+        return {f'encoder_{side}_head_angles_rad': self.head_angles_rad,
+                f'encoder_{side}_scale_serial': self.serial,
+                f'encoder_{side}_scale_diameter_m': self.scale_diameter_m,
+                f'encoder_{side}_scale_eccentricity_m': self.scale_eccentricity_m,
+                f'encoder_{side}_scale_index_rad': self.scale_index_rad}
 
 
 @dataclass(frozen=True)
@@ -328,7 +358,8 @@ class BenchDescription:
             encoder_in_resolution_rad=self.encoder_in.resolution_rad,
             encoder_out_resolution_rad=self.encoder_out.resolution_rad,
             sample_rate_hz=self.sample_rate_hz, block_size=self.block_size,
-            parameters_yaml=yaml.safe_dump(record, sort_keys=True))
+            parameters_yaml=yaml.safe_dump(record, sort_keys=True),
+            **self.encoder_in.scale_fields('in'), **self.encoder_out.scale_fields('out'))
 
     def to_metadata(self) -> dict[str, Any]:
         """The bag's metadata ``custom_data`` (keys the report reads: ``unit_serial``).
@@ -350,8 +381,14 @@ class BenchDescription:
 
 
 def _encoder_plain(e: EncoderInfo) -> dict[str, Any]:
-    return {'model': e.model, 'resolution_rad': e.resolution_rad,
-            'counts_per_rev': e.counts_per_rev}
+    out: dict[str, Any] = {'model': e.model, 'resolution_rad': e.resolution_rad,
+                           'counts_per_rev': e.counts_per_rev}
+    if e.serial or e.head_angles_rad or e.scale_diameter_m or e.scale_index_rad:
+        out.update({'serial': e.serial, 'head_angles_rad': list(e.head_angles_rad),
+                    'scale_diameter_m': e.scale_diameter_m,
+                    'scale_eccentricity_m': e.scale_eccentricity_m,
+                    'scale_index_rad': e.scale_index_rad, 'head_joints': list(e.head_joints)})
+    return out
 
 
 class _Keys:
@@ -420,8 +457,32 @@ def _encoder(k: _Keys) -> EncoderInfo:
         cpr = known.counts_per_rev
     if res is None:
         res = _TWO_PI / cpr if cpr else (known.resolution_rad if known is not None else 0.0)
+    serial = k.text('serial', '') or ''
+    heads = k.data.pop('heads_deg', [])
+    if not isinstance(heads, list) or len(heads) > 16 or not all(_number(a) for a in heads):
+        k.fail('heads_deg', 'must be a list of at most 16 angles [deg] (head 0 first)', heads)
+    if len(heads) == 1 and heads[0] != 0:
+        k.fail('heads_deg', 'with one head must be [0] or left out', heads)
+    scale = k.sub('scale')
+    dia = scale.num('diameter_mm', default=0.0) or 0.0
+    ecc = scale.num('eccentricity_um', positive=False)
+    runout = scale.num('runout_um', positive=False)
+    if ecc is not None and runout is not None:
+        scale.fail('runout_um', 'and eccentricity_um both given (run-out = 2 x eccentricity): '
+                   'give one', runout)
+    e_um = ecc if ecc is not None else (runout / 2.0 if runout is not None else 0.0)
+    if e_um < 0:
+        scale.fail('eccentricity_um', 'must be >= 0', e_um)
+    if e_um > 0 and dia == 0:
+        scale.fail('diameter_mm', 'is required with a run-out (angle error = 412 e/D arcsec)')
+    index = scale.num('index_deg', default=0.0, positive=False) or 0.0
+    scale.done()
     k.done()
-    return EncoderInfo(model=model, resolution_rad=float(res), counts_per_rev=cpr)
+    return EncoderInfo(model=model, resolution_rad=float(res), counts_per_rev=cpr,
+                       serial=serial, head_angles_rad=tuple(math.radians(a) for a in heads)
+                       if len(heads) > 1 else (),
+                       scale_diameter_m=dia * 1e-3, scale_eccentricity_m=e_um * 1e-6,
+                       scale_index_rad=math.radians(index))
 
 
 def _kinematic_fields(top: _Keys, preset: str | None, overrides: tuple[str, ...],
@@ -512,9 +573,20 @@ def parse_bench_description(data: Any, origin: str = '<bench description>',
     u.done()
     j = top.sub('joints')
     joint_in, joint_out = j.text('input'), j.text('output')
+    head_joints = j.data.pop('output_heads', [])
+    n_heads = max(1, len(enc_out.head_angles_rad))
+    if head_joints and (not isinstance(head_joints, list) or len(head_joints) != n_heads
+                        or not all(isinstance(n, str) and n.strip() for n in head_joints)
+                        or len(set(head_joints)) != len(head_joints)):
+        j.fail('output_heads', f'must list {n_heads} different joint names, one per head of '
+               'encoders.output.heads_deg (head 0 first)', head_joints)
     j.done()
     if joint_in is not None and joint_in == joint_out:
         j.fail('output', 'must differ from joints.input', joint_out)
+    if joint_in is not None and joint_in in head_joints:
+        j.fail('output_heads', 'must not name joints.input', head_joints)
+    if head_joints:
+        enc_out = replace(enc_out, head_joints=tuple(head_joints))
     lim = top.sub('limits')
     max_speed = lim.num('max_input_speed_rpm')
     max_torque = lim.num('max_output_torque_nm')

@@ -106,7 +106,10 @@ def read_bench_info(path: str | Path, topic: str | None = None) -> BenchInfoData
             raise BenchInfoError(text)
         return None
     try:
-        return BenchInfoData.from_message(rv_te_typestore().deserialize_cdr(last, BENCH_INFO))
+        from rv_te_bench.io._legacy_msgs import upgrade_cdr
+
+        return BenchInfoData.from_message(
+            rv_te_typestore().deserialize_cdr(upgrade_cdr(BENCH_INFO, last), BENCH_INFO))
     except Exception as exc:  # noqa: BLE001
         text = f'Bag {bag.path}: BenchInfo does not deserialise: {str(exc).rstrip(".")}'
         raise BenchInfoError(text) from None

@@ -32,9 +32,9 @@ NODE_TOPICS: dict[str, tuple[str, ...]] = {
     'bench': ('bench/encoders', 'bench/info', 'joint_states', '/diagnostics', '/clock'),
     'joint_state_adapter': ('joint_states', 'bench/encoders', 'bench/info', '/diagnostics'),
     'te_node': ('bench/encoders', 'bench/info', 'te/samples', 'te/plot', 'te/statistics',
-                'te/spectrum', '/diagnostics'),
-    'compensation': ('bench/info', 'te/statistics', 'te/samples', 'compensation/advice',
-                     '/diagnostics'),
+                'te/spectrum', 'te/encoder_heads', '/diagnostics'),
+    'compensation': ('bench/info', 'te/statistics', 'te/samples', 'te/encoder_heads',
+                     'compensation/advice', '/diagnostics'),
     'recorder': ('/diagnostics', '/clock'),
 }
 #: Longest fully qualified topic or service name (rmw: 255 - 8 for the DDS prefixes).
@@ -200,9 +200,10 @@ def check_node_config(node: str, values: dict[str, Any], *, namespace: str) -> N
 
             build_simulator(p)
         elif node == 'te_node':
-            from rv_te_bench.nodes.te_node import initial_orders
+            from rv_te_bench.nodes.te_node import initial_orders, load_calibrations
 
             initial_orders(p)
+            load_calibrations(p)
         elif node == 'compensation':
             from rv_te_bench.nodes.compensation_node import check_config
 

@@ -274,7 +274,33 @@ def session_metadata_yaml(spec: SessionSpec) -> str:
     if spec.launch_file:
         meta['launch_file'] = spec.launch_file
         meta['launch_arguments'] = dict(spec.launch_arguments)
+    if 'te_node' in spec.nodes and (cal := encoder_calibrations_metadata(
+            spec.parameters.get('te_node', {}))):
+        meta['encoder_calibration'] = cal
     return dump_ros_yaml(meta)
+
+
+def encoder_calibrations_metadata(te_params: dict[str, Any]) -> dict[str, Any]:
+    """The calibrations a session's TE node applies, for the bag's metadata: per scale the
+    file, serial, date, method and validity (or why the file cannot be read)."""
+    from rv_te_bench.errors import EncoderCalibrationError
+    from rv_te_bench.io.calibration_file import load_encoder_calibration
+
+    out: dict[str, Any] = {}
+    for side, key in (('output', 'out'), ('input', 'in')):
+        path = te_params.get(f'encoder_{key}_calibration')
+        if not path:
+            continue
+        try:
+            cal = load_encoder_calibration(path)
+        except EncoderCalibrationError as exc:
+            out[side] = {'file': str(path), 'error': str(exc)}
+            continue
+        out[side] = {'file': str(path), 'scale_serial': cal.scale_serial, 'date': cal.date,
+                     'method': cal.method, 'valid_until': cal.valid_until,
+                     'orders': list(cal.orders),
+                     'undetermined_orders': list(cal.undetermined_orders)}
+    return out
 
 
 def clock_remapping(spec: SessionSpec) -> tuple[str, str] | None:

@@ -94,9 +94,34 @@ def bench_config_from_params(p: BenchParams) -> BenchConfig:
                               amplitude_nm=p.load_amplitude_nm, **extra)
     return BenchConfig(
         preset=p.preset, overrides=tuple(p.overrides), te_mode=p.te_mode,
-        drive=drive, load=load, encoder_in=p.encoder_in, encoder_out=p.encoder_out,
+        drive=drive, load=load, encoder_in=_scale_of(p, 'in'), encoder_out=_scale_of(p, 'out'),
         sample_rate_hz=p.sample_rate_hz, block_size=p.block_size, seed=p.seed,
         bench_id=p.bench_id)
+
+
+def _scale_of(p: BenchParams, side: str) -> Any:
+    """The ``encoder_<side>`` preset name, or the scale as mounted when its heads or scale
+    parameters are set (:func:`sim.scales.mounted_scale`; the scale's random phases come
+    from a generator of the seed, apart from the encoders' noise streams)."""
+    name = getattr(p, f'encoder_{side}')
+    keys = ('heads_deg', 'scale_eccentricity_um', 'scale_diameter_mm', 'scale_grade_arcsec',
+            'scale_index_deg', 'scale_serial')
+    v = {k: getattr(p, f'encoder_{side}_{k}') for k in keys}
+    if not any(v.values()):
+        return name
+    import numpy as np
+
+    from sim.encoders import encoder_preset
+    from sim.scales import mounted_scale
+
+    rng = np.random.default_rng([int(p.seed), 36, 0 if side == 'in' else 1])
+    return mounted_scale(
+        encoder_preset(name), rng, heads_deg=list(v['heads_deg']),
+        eccentricity_m=v['scale_eccentricity_um'] * 1e-6,
+        diameter_m=v['scale_diameter_mm'] * 1e-3,
+        grade_arcsec=v['scale_grade_arcsec'],
+        index_rad=math.radians(v['scale_index_deg']),
+        serial=v['scale_serial'])
 
 
 #: Longest the bench waits at its end for its readers to acknowledge the info and blocks [s].
@@ -438,7 +463,8 @@ class BenchNode(Node):
                 bench_id=self.sim.info.bench_id, seq=b.seq, stamp_s=stamp_s,
                 sample_rate_hz=self.p.sample_rate_hz, time_offset_s=b.time_offset_s,
                 theta_in_rad=b.theta_in_rad, theta_out_rad=b.theta_out_rad,
-                torque_out_nm=b.torque_out_nm)
+                torque_out_nm=b.torque_out_nm, theta_in_heads_rad=b.theta_in_heads_rad,
+                theta_out_heads_rad=b.theta_out_heads_rad)
             self.pub_blocks.publish(msg)
         self.blocks_published += 1
         self.sim_time_s = b.t0_s + len(b.time_offset_s) / self.p.sample_rate_hz
@@ -459,25 +485,35 @@ class BenchNode(Node):
         separate = self.p.joint_state_layout == 'separate'
         frame, js, pub = self.sim.info.bench_id, self._joint_state_type, self.pub_data
         nan = math.nan
-        for t_ns, p_in, p_out, tq in zip(stamps, th_in.tolist(), th_out.tolist(), torque,
-                                         strict=True):
+        # an output scale with several heads: one joint per head, head 0 = the output joint,
+        # head j = '<output joint>_head<j>', all in the output joint's message
+        extra = b.theta_out_heads_rad[1:] if b.theta_out_heads_rad is not None else None
+        head_names = [f'{name_out}_head{j}' for j in range(1, 1 + (
+            0 if extra is None else extra.shape[0]))]
+        if extra is not None and self.p.joint_state_wrap:
+            extra = np.mod(extra, 2.0 * math.pi)
+        heads = ([()] * len(stamps) if extra is None else [tuple(r) for r in extra.T.tolist()])
+        zeros = [nan] * len(head_names)
+        for t_ns, p_in, p_out, tq, hs in zip(stamps, th_in.tolist(), th_out.tolist(), torque,
+                                             heads, strict=True):
             stamp = Time(sec=t_ns // 1_000_000_000, nanosec=t_ns % 1_000_000_000)
             if separate:
-                for name, pos, eff in ((name_in, p_in, nan), (name_out, p_out, tq)):
+                for names, pos, eff in (([name_in], [p_in], [nan]),
+                                        ([name_out, *head_names], [p_out, *hs], [tq, *zeros])):
                     m = js()
                     m.header.stamp = stamp
                     m.header.frame_id = frame
-                    m.name = [name]
-                    m.position = [pos]
-                    m.effort = [eff]
+                    m.name = names
+                    m.position = pos
+                    m.effort = eff
                     pub.publish(m)
             else:
                 m = js()
                 m.header.stamp = stamp
                 m.header.frame_id = frame
-                m.name = [name_in, name_out]
-                m.position = [p_in, p_out]
-                m.effort = [nan, tq]
+                m.name = [name_in, name_out, *head_names]
+                m.position = [p_in, p_out, *hs]
+                m.effort = [nan, tq, *zeros]
                 pub.publish(m)
         self.joint_states_published += len(stamps)
 

@@ -20,14 +20,17 @@ import os
 import sys
 import threading
 from concurrent.futures import Future, ThreadPoolExecutor
+from dataclasses import replace
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
 from diagnostic_msgs.msg import DiagnosticArray
 from rclpy.node import Node
 from rv_te_msgs.msg import BenchInfo, CompensationAdvice, TransmissionError
+from std_msgs.msg import String
 
 from rv_te_bench.core.advice import advice_kind
+from rv_te_bench.errors import RvTeError, YamlInputError
 from rv_te_bench.nodes import convert, qos
 from rv_te_bench.nodes.common import (
     OK,
@@ -40,6 +43,7 @@ from rv_te_bench.nodes.common import (
 )
 from rv_te_bench.nodes.params.compensation import PARAMS, CompensationParams
 from rv_te_bench.params import params_record
+from rv_te_bench.safe_yaml import DOCUMENT_LIMITS, load_yaml
 from sim.bench_info import BenchInfoData
 
 if TYPE_CHECKING:
@@ -104,6 +108,11 @@ class CompensationNode(Node):
         self.pub_diag = self.create_publisher(DiagnosticArray, '/diagnostics',
                                               qos.DIAGNOSTICS_QOS)
         self.create_subscription(BenchInfo, 'bench/info', self._on_info, qos.LATCHED_QOS)
+        # what the TE node did with the read heads: whether the once-per-revolution line can
+        # hold the output encoder's error (issue 36)
+        self.create_subscription(String, 'te/encoder_heads', self._on_heads, qos.LATCHED_QOS)
+        self.info: BenchInfoData | None = None
+        self.heads_record: dict[str, Any] | None = None
         self.create_subscription(TransmissionError, 'te/statistics', self._on_window,
                                  qos.LATCHED_QOS)
         self.create_subscription(TransmissionError, 'te/samples', self._on_samples,
@@ -156,11 +165,43 @@ class CompensationNode(Node):
 
     def _on_info(self, msg: BenchInfo) -> None:
         self.bench_id = msg.bench_id
+        try:
+            self.info = BenchInfoData.from_message(msg)
+        except (ValueError, TypeError) as exc:
+            self.drops.drop('bad_bench_info', str(exc))
+            return
         if not self.p.preset:
             from rv_te_bench.io.bench_record import preset_from_bench_info
 
-            info = BenchInfoData.from_message(msg)
+            info = self.info
             self._set_preset(info.preset, lambda: preset_from_bench_info(info))
+
+    def _on_heads(self, msg: String) -> None:
+        try:
+            record = load_yaml(msg.data, origin='te/encoder_heads', limits=DOCUMENT_LIMITS)
+        except YamlInputError as exc:
+            self.drops.drop('bad_encoder_heads', str(exc))
+            return
+        self.heads_record = record if isinstance(record, dict) else None
+
+    def _encoder_note(self, advice: Advice) -> Advice:
+        """The identified advice with what the output encoder could put on the
+        once-per-revolution line it rests on; flagged in the summary when comparable."""
+        if self.info is None or not self._te:
+            return advice
+        from rv_te_bench.core.encoder_attribution import line_amplitude_rad, note_for_bench
+
+        try:
+            note = note_for_bench(self.info, self.heads_record, line_amplitude_rad(
+                np.concatenate(self._phase), np.concatenate(self._te)))
+        except (RvTeError, KeyError, TypeError, ValueError) as exc:
+            self.drops.drop('bad_encoder_heads', str(exc))
+            return advice
+        details = {**advice.details, 'encoder_once_per_rev': note.to_plain()}
+        summary = advice.summary
+        if note.comparable and not note.separated:
+            summary = f'{summary} [ENCODER: {note.text()}]'
+        return replace(advice, details=details, summary=summary)
 
     def _on_samples(self, msg: TransmissionError) -> None:
         te = np.asarray(msg.te_rad, dtype=np.float64)
@@ -258,6 +299,8 @@ class CompensationNode(Node):
                 self.get_logger().error(f'{name} failed: {exc}', throttle_duration_sec=10.0)
                 continue
             advice = fut.result()
+            if name == 'identified-assembly-phases':
+                advice = self._encoder_note(advice)
             self.pub_advice.publish(convert.make_compensation_advice(
                 advice, self.get_clock().now().to_msg(), self.bench_id))
             self.published[name] = self.published.get(name, 0) + 1

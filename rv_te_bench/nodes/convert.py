@@ -65,18 +65,31 @@ def encoder_block_to_data(msg: EncoderBlock) -> EncoderBlockData:
     """EncoderBlock message -> core EncoderBlockData (validation is the core's job)."""
     from rv_te_bench.core.stream_records import EncoderBlockData
 
+    heads: dict[str, Any] = {}
+    for side in ('in', 'out'):
+        ids = bytes(getattr(msg, f'{side}_head_ids'))
+        if ids:   # (heads, n) rows; a size that does not fit is the combiner's to report
+            vals = _arr(getattr(msg, f'theta_{side}_heads_rad'))
+            n = len(msg.theta_in_rad)
+            heads[f'{side}_head_ids'] = tuple(ids)
+            heads[f'theta_{side}_heads_rad'] = (vals.reshape(len(ids), n)
+                                                if vals.size == len(ids) * n else vals)
     return EncoderBlockData(
         seq=int(msg.seq), stamp_s=stamp_to_s(msg.header.stamp),
         sample_rate_hz=float(msg.sample_rate_hz),
         time_offset_s=_arr(msg.time_offset_s), theta_in_rad=_arr(msg.theta_in_rad),
-        theta_out_rad=_arr(msg.theta_out_rad), torque_out_nm=_arr(msg.torque_out_nm))
+        theta_out_rad=_arr(msg.theta_out_rad), torque_out_nm=_arr(msg.torque_out_nm), **heads)
 
 
 def make_encoder_block(*, bench_id: str, seq: int, stamp_s: float, sample_rate_hz: float,
                        time_offset_s: np.ndarray, theta_in_rad: np.ndarray,
                        theta_out_rad: np.ndarray, torque_out_nm: np.ndarray | None,
-                       ) -> EncoderBlock:
-    """Build an EncoderBlock message from arrays."""
+                       theta_in_heads_rad: np.ndarray | None = None,
+                       theta_out_heads_rad: np.ndarray | None = None,
+                       in_head_ids: npt.ArrayLike | None = None,
+                       out_head_ids: npt.ArrayLike | None = None) -> EncoderBlock:
+    """Build an EncoderBlock message from arrays; a scale's heads (rows of
+    ``theta_*_heads_rad``, numbered ``*_head_ids``, default 0 .. N-1) when it has several."""
     msg = EncoderBlock()
     msg.header.stamp = s_to_stamp(stamp_s)
     msg.header.frame_id = bench_id
@@ -87,6 +100,13 @@ def make_encoder_block(*, bench_id: str, seq: int, stamp_s: float, sample_rate_h
     msg.theta_out_rad = float64_field(theta_out_rad)
     if torque_out_nm is not None:
         msg.torque_out_nm = float64_field(torque_out_nm)
+    for side, heads, ids in (('in', theta_in_heads_rad, in_head_ids),
+                             ('out', theta_out_heads_rad, out_head_ids)):
+        if heads is not None and len(heads):
+            rows = np.asarray(heads, dtype=np.float64)
+            numbers = np.arange(rows.shape[0]) if ids is None else np.asarray(ids)
+            setattr(msg, f'{side}_head_ids', numbers.astype(np.uint8).tobytes())
+            setattr(msg, f'theta_{side}_heads_rad', float64_field(rows.ravel()))
     return msg
 
 

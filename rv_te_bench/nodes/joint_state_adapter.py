@@ -82,8 +82,10 @@ def build_config(p: JointStateAdapterParams) -> tuple[JointStateConfig, Any]:
     block = p.block_size or (desc.block_size if desc is not None else 100)
     in_name = p.input_joint or (desc.joint_in_name if desc is not None else None) \
         or 'input_joint'
-    out_name = p.output_joint or (desc.joint_out_name if desc is not None else None) \
-        or 'output_joint'
+    heads = tuple(p.output_head_joints) or (desc.encoder_out.head_joints
+                                             if desc is not None else ())
+    out_name = p.output_joint or (heads[0] if heads else None) or (
+        desc.joint_out_name if desc is not None else None) or 'output_joint'
     cpr = [p.counts_per_rev_in, p.counts_per_rev_out]
     if p.position_unit == 'counts':
         for k, (name, enc) in enumerate((('counts_per_rev_in', 'input'),
@@ -105,12 +107,27 @@ def build_config(p: JointStateAdapterParams) -> tuple[JointStateConfig, Any]:
         counts_per_rev_in=float(cpr[0]), counts_per_rev_out=float(cpr[1]),
         wrap_in=p.wrap in {'input', 'both'}, wrap_out=p.wrap in {'output', 'both'},
         effort_scale=float(scale), pairing_tolerance_s=float(tol),
-        max_unpaired=int(p.max_unpaired))
+        max_unpaired=int(p.max_unpaired), output_head_joints=_further_heads(heads, out_name))
     info = None
     if desc is not None:
         info = dataclasses.replace(desc.bench_info(), sample_rate_hz=float(rate),
                                    block_size=int(block))
     return config, info
+
+
+def _further_heads(heads: tuple[str, ...], out_name: str) -> tuple[str, ...]:
+    """Heads 1..N-1 of the output scale (head 0 is the output joint).
+
+    Raises:
+        ParameterFileError: The first head joint is not the output joint.
+    """
+    if not heads:
+        return ()
+    if heads[0] != out_name:
+        msg = (f'output_head_joints must start with the output joint {out_name!r} (head 0), '
+               f'got {list(heads)!r}')
+        raise ParameterFileError(msg)
+    return heads[1:]
 
 
 def check_config(p: JointStateAdapterParams) -> None:
@@ -196,7 +213,9 @@ class JointStateAdapterNode(Node):
             bench_id=self.bench_id, seq=b.seq, stamp_s=b.stamp_s,
             sample_rate_hz=b.sample_rate_hz, time_offset_s=b.time_offset_s,
             theta_in_rad=b.theta_in_rad, theta_out_rad=b.theta_out_rad,
-            torque_out_nm=b.torque_out_nm if b.torque_out_nm.size else None)
+            torque_out_nm=b.torque_out_nm if b.torque_out_nm.size else None,
+            theta_out_heads_rad=b.theta_out_heads_rad if b.out_head_ids else None,
+            out_head_ids=b.out_head_ids or None)
         msg.header.stamp = Time(sec=b.stamp_ns // 1_000_000_000,
                                 nanosec=b.stamp_ns % 1_000_000_000)   # exact, not via float
         if self._held is not None:

@@ -24,7 +24,9 @@ from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPo
 from rosgraph_msgs.msg import Clock
 
 from rv_te_bench.errors import BagError, YamlInputError
+from rv_te_bench.io._legacy_msgs import upgrade_cdr
 from rv_te_bench.io.bag_reader import bag_topics, iter_messages, open_bag
+from rv_te_bench.io.msgdefs import BENCH_INFO, ENCODER_BLOCK
 from rv_te_bench.nodes import qos
 from rv_te_bench.nodes.common import declare_from_specs, run_node
 from rv_te_bench.nodes.convert import message_class
@@ -97,6 +99,8 @@ class ReplayNode(Node):
             raise BagError(msg)
         self._replay_pubs: dict[str, Any] = {}
         self._latched_topics: set[str] = set()
+        self._types = types
+        self._legacy: dict[str, bool] = {}   # topic -> recorded in the pre-issue-36 layout
         for topic, msgtype in types.items():
             if wanted and topic not in wanted:
                 continue
@@ -183,6 +187,26 @@ class ReplayNode(Node):
         finally:
             self.finished = True
 
+    def _bytes(self, topic: str, data: bytes | memoryview) -> bytes:
+        """The message as today's definition lays it out: a bag recorded before issue 36
+        (no read-head fields) is brought up to date, decided on each topic's first
+        message (a subscriber would otherwise fail to deserialise it)."""
+        msgtype = self._types.get(topic, '')
+        if msgtype not in (ENCODER_BLOCK, BENCH_INFO):
+            return bytes(data)
+        old = self._legacy.get(topic)
+        if old is None:
+            try:
+                up = upgrade_cdr(msgtype, data)
+            except Exception:  # noqa: BLE001 - neither layout: published as recorded
+                up = bytes(data)
+            old = self._legacy[topic] = up != bytes(data)
+            if old:
+                self.get_logger().info(f'{topic}: recorded before the read-head fields; '
+                                       'published in the current layout')
+            return up
+        return upgrade_cdr(msgtype, data) if old else bytes(data)
+
     def _play_once(self) -> None:
         stream = iter_messages(self.bag.path, list(self._replay_pubs), strict=False)
         start_ns: int | None = None
@@ -197,7 +221,7 @@ class ReplayNode(Node):
                 # skipped by --start-offset; latched state (bench/info) still holds then,
                 # as it would for a late joiner of the live session
                 if topic in self._latched_topics:
-                    self._replay_pubs[topic].publish(bytes(data))
+                    self._replay_pubs[topic].publish(self._bytes(topic, data))
                     self.published[topic] += 1
                 else:
                     self.skipped_by_offset += 1
@@ -209,7 +233,7 @@ class ReplayNode(Node):
             due = wall0 + (stamp_ns - base_ns) * 1e-9 / self.rate
             if not self._sleep_until(due, base_ns, wall0):
                 return
-            self._replay_pubs[topic].publish(bytes(data))
+            self._replay_pubs[topic].publish(self._bytes(topic, data))
             self.published[topic] += 1
         if self.out_of_order:
             self.get_logger().warning(

@@ -17,18 +17,23 @@ import math
 import sys
 import time
 from collections import deque
+from dataclasses import replace
 from typing import Any
 
 import numpy as np
 from diagnostic_msgs.msg import DiagnosticArray
 from rclpy.node import Node
 from rv_te_msgs.msg import BenchInfo, EncoderBlock, TePlot, TeSpectrum, TransmissionError
+from std_msgs.msg import String
 
+from rv_te_bench.core.head_combine import HeadCombiner
 from rv_te_bench.core.orders import OrderSet
 from rv_te_bench.core.stream import StreamingTeAnalyzer
 from rv_te_bench.core.stream_records import StreamUpdate, TeAnalysisConfig
+from rv_te_bench.errors import EncoderCalibrationError, HeadLayoutError
 from rv_te_bench.nodes import convert, qos
 from rv_te_bench.nodes.common import (
+    ERROR,
     OK,
     WARN,
     DropCounter,
@@ -39,9 +44,24 @@ from rv_te_bench.nodes.common import (
 )
 from rv_te_bench.nodes.params.te import PARAMS, TeParams
 from rv_te_bench.params import params_changed, params_record
+from rv_te_bench.safe_yaml import dump_ros_yaml
 from sim.bench_info import BenchInfoData
 
 _MAX_PENDING_BLOCKS = 1000   # blocks kept while waiting for bench/info
+
+
+
+def load_calibrations(p: TeParams) -> dict[str, Any]:
+    """The calibration files a TE node's parameters name, read and checked (``'in'`` /
+    ``'out'`` -> EncoderCalibration). Run by the node and by ``rv-te launch --check``.
+
+    Raises:
+        EncoderCalibrationError: A file that cannot be read or is invalid (one line).
+    """
+    from rv_te_bench.io.calibration_file import load_encoder_calibration
+
+    files = {'in': p.encoder_in_calibration, 'out': p.encoder_out_calibration}
+    return {side: load_encoder_calibration(path) for side, path in files.items() if path}
 
 
 def initial_orders(p: TeParams) -> OrderSet | None:
@@ -74,6 +94,10 @@ class TeNode(Node):
         super().__init__('te_node', **kwargs)
         self.p = params_record(TeParams, declare_from_specs(self, PARAMS))
         orders = initial_orders(self.p)   # a bad combination stops the node here
+        self.calibrations = load_calibrations(self.p)   # a bad file stops it here too
+        self.combiner: HeadCombiner | None = None
+        self.heads_problem = ''      # why a calibration or the averaging is not applied
+        self._heads_used: Any = None
         reject_invalid_changes(self, PARAMS)
         self.add_post_set_parameters_callback(self._on_params_set)
         self.drops = DropCounter(self)
@@ -104,6 +128,9 @@ class TeNode(Node):
         self.pub_spectrum = self.create_publisher(TeSpectrum, 'te/spectrum', qos.LATCHED_QOS)
         self.pub_diag = self.create_publisher(DiagnosticArray, '/diagnostics',
                                               qos.DIAGNOSTICS_QOS)
+        # how the angles are formed from the read heads (and the calibration), latched:
+        # the recorder keeps it in the bag
+        self.pub_heads = self.create_publisher(String, 'te/encoder_heads', qos.LATCHED_QOS)
         self.create_subscription(BenchInfo, 'bench/info', self._on_info, qos.LATCHED_QOS)
         self.create_subscription(EncoderBlock, 'bench/encoders', self._on_block,
                                  qos.ENCODER_QOS)
@@ -150,17 +177,49 @@ class TeNode(Node):
 
     def _on_info(self, msg: BenchInfo) -> None:
         self.bench_id = msg.bench_id
+        try:
+            info = BenchInfoData.from_message(msg)
+        except (ValueError, TypeError) as exc:
+            self.drops.drop('bad_bench_info', str(exc))
+            return
+        self._configure_heads(info)
         if self.p.gear_ratio > 0:
             return  # parameters win (real bench)
         try:
-            orders = OrderSet.from_bench_info(BenchInfoData.from_message(msg),
-                                              self.p.n_crank_harmonics)
+            orders = OrderSet.from_bench_info(info, self.p.n_crank_harmonics)
         except (ValueError, TypeError) as exc:
             self.drops.drop('bad_bench_info', str(exc))
             return
         if self.analyzer is not None and self.analyzer.config.orders == orders:
             return
         self._configure(orders)
+
+    def _configure_heads(self, info: BenchInfoData) -> None:
+        """The head combination of this bench; a calibration of another scale or head
+        angles that cannot be averaged are reported (log, diagnostics, te/encoder_heads)
+        and left out: the TE goes on from what can be used (nothing is lost)."""
+        mode = self.p.heads_mode
+        cal = {f'calibration_{k}': v for k, v in self.calibrations.items()}
+        problems = []
+        try:
+            combiner = HeadCombiner(info, mode=mode, **cal)
+        except (EncoderCalibrationError, HeadLayoutError) as exc:
+            problems.append(str(exc))
+            try:   # without the calibrations
+                combiner = HeadCombiner(info, mode=mode)
+            except HeadLayoutError as exc2:
+                problems.append(str(exc2))
+                combiner = HeadCombiner(replace(info, encoder_in_head_angles_rad=(),
+                                                encoder_out_head_angles_rad=()), mode=mode)
+        self.combiner = combiner
+        self.heads_problem = '; '.join(problems)
+        for text in problems:
+            self.get_logger().error(f'encoder heads: {text}; not applied, the TE goes on '
+                                    'without it')
+        plain = {**combiner.describe(), 'problem': self.heads_problem}
+        self.pub_heads.publish(String(data=dump_ros_yaml(plain)))
+        self.get_logger().info(
+            f"encoder heads: output {combiner.scales['out'].describe()}")
 
     # -- data path ------------------------------------------------------------------------
     def _on_block(self, msg: EncoderBlock) -> None:
@@ -177,6 +236,15 @@ class TeNode(Node):
         except (ValueError, TypeError) as exc:
             self.drops.drop('malformed', str(exc))
             return
+        if self.combiner is not None and self.combiner.active:
+            block, events = self.combiner.block(block)
+            used = tuple((e.side, e.used) for e in events) or 'all'
+            if self._heads_used is not None and used != self._heads_used:
+                self.analyzer.split_window()   # no window mixes two sets of heads
+            self._heads_used = used
+            for e in events:
+                self.get_logger().warning(f'encoder heads: {e.detail}',
+                                          throttle_duration_sec=5.0)
         if self._first_seq is None:
             self._first_seq = block.seq
             if block.seq != 0:
@@ -261,13 +329,19 @@ class TeNode(Node):
     def _publish_diagnostics(self) -> None:
         counters = dict(self.analyzer.counters) if self.analyzer is not None else {}
         lat = np.asarray(self._latency_ms) if self._latency_ms else np.asarray([np.nan])
-        values = {**counters, 'gaps_reported': self._gaps_total,
+        heads = {} if self.combiner is None else {
+            f'heads_{k}': v for k, v in self.combiner.counters.items()}
+        if self.heads_problem:
+            heads['heads_problem'] = self.heads_problem
+        values = {**counters, **heads, 'gaps_reported': self._gaps_total,
                   'dropped_total': self.drops.total,
                   **{f'dropped_{k}': v for k, v in self.drops.counts.items()},
                   'latency_median_ms': float(np.median(lat)),
                   'latency_max_ms': float(np.max(lat)),
                   **({'last_gap': self.last_gap} if self.last_gap else {})}
         level = OK if self.drops.total == 0 and self._gaps_total == 0 else WARN
+        if self.heads_problem:
+            level = ERROR
         message = ('waiting for bench/info' if self.analyzer is None
                    else f'{self._blocks} blocks, {self._gaps_total} gaps')
         self.pub_diag.publish(diagnostic_array(self, 'te analysis', level, message, values))

@@ -62,6 +62,8 @@ class _GuardedBlocks:
         except BagError as exc:
             self.error = str(exc)
             raise StopIteration from None
+        if not hasattr(item, 'theta_out_rad'):   # a WindowBreak marker: passed on
+            return item
         if isinstance(item, EncoderBatch):
             self.blocks += item.n_blocks
             self.samples += item.n_samples

@@ -37,10 +37,19 @@ import numpy as np
 
 from rv_te_bench.core.advice import advice_kind
 from rv_te_bench.core.angle_fold import AngleFold
+from rv_te_bench.core.encoder_attribution import OncePerRevNote, once_per_rev_note
+from rv_te_bench.core.head_combine import HeadCombiner, combine_stream
 from rv_te_bench.core.orders import OrderSet
 from rv_te_bench.core.spectrum import SpectrumAverager, SpectrumSummary
 from rv_te_bench.core.units import json_float
-from rv_te_bench.errors import BagError, BenchInfoError, RvTeError, TeConfigError
+from rv_te_bench.errors import (
+    BagError,
+    BenchInfoError,
+    EncoderCalibrationError,
+    HeadLayoutError,
+    RvTeError,
+    TeConfigError,
+)
 from rv_te_bench.report._guarded import _GuardedBlocks
 from rv_te_bench.report.results import (
     AnalysisBench,
@@ -58,6 +67,7 @@ if TYPE_CHECKING:
     from collections.abc import Callable
 
     from rv_te_bench.core.angle_fold import FoldedTe
+    from rv_te_bench.core.encoder_calibration import EncoderCalibration
     from rv_te_bench.core.stream_records import WindowResult
     from rv_te_bench.core.te import TeStats
     from sim.bench_info import BenchInfoData
@@ -124,6 +134,8 @@ def analyze_bag(
     with_advice: bool = True,
     advice_search: tuple[float, bool] = (10.0, False),
     progress: ProgressFn | None = None,
+    heads_mode: str = 'average',
+    calibration: EncoderCalibration | None = None,
 ) -> AnalysisResult:
     """Analyse one recorded session.
 
@@ -141,13 +153,19 @@ def analyze_bag(
             its live advice (the demo does).
         progress: Called as ``progress(blocks, samples, elapsed_s)`` after each chunk of
             blocks read.
+        heads_mode: How a scale's read heads form its angle: ``'average'`` (equal-division
+            averaging of every head the bag holds) or ``'head0'`` (head 0 alone).
+        calibration: A calibration of the output scale to take off its readings (checked
+            against the scale serial in BenchInfo).
 
     Returns:
         The analysis; ``partial`` is set when a read error ended the bag early.
 
     Raises:
         BagError: The bag cannot be opened, has no encoder topic, or no block could be read.
-        TeConfigError: Ratio/crank order missing (no BenchInfo and no flags) or invalid.
+        TeConfigError: Ratio/crank order missing (no BenchInfo and no flags) or invalid;
+            head angles that cannot be averaged (HeadLayoutError); a calibration for
+            another scale or expired (EncoderCalibrationError).
     """
     from concurrent.futures import ThreadPoolExecutor
 
@@ -168,6 +186,7 @@ def analyze_bag(
     info, info_problem = _read_bench_info(path, gear_ratio, crank_per_output)
     bench = _analysis_bench(path, info, gear_ratio, crank_per_output, n_crank_harmonics)
     config = TeAnalysisConfig(orders=bench.orders, window_revolutions=window_revolutions)
+    combiner = _combiner(path, info, heads_mode, calibration)
 
     # one helper thread reads the bag ahead and computes window spectra: with the caller,
     # two runnable threads on two cores (a third preempts the caller: issue 23)
@@ -177,7 +196,9 @@ def analyze_bag(
         stream = read_encoder_batches(path, topic, strict=False, executor=helper)
         # a 2K-V unit is identified from every sample, folded on theta_in / i as it is read
         fold = AngleFold() if with_advice and bench.reducer_type == '2kv' else None
-        reader = _GuardedBlocks(stream, bench.gear_ratio, progress=progress, t_start=t_start,
+        # the shaft angles formed from the read heads (and the calibration) before anything
+        items = stream if combiner is None else combine_stream(stream, combiner)
+        reader = _GuardedBlocks(items, bench.gear_ratio, progress=progress, t_start=t_start,
                                 fold=fold, max_points=MAX_TRACE_POINTS)
         averager = SpectrumAverager()
         kept: list[WindowResult] = []
@@ -220,6 +241,18 @@ def analyze_bag(
                    advice_search)
         if with_advice else
         Recommendation(available=False, reason='not requested (--no-advice)'))
+    note = _once_per_rev(info, spectrum, combiner, calibration)
+    encoder: dict[str, Any] = {'once_per_rev': note.to_plain()}
+    if combiner is not None:
+        encoder['heads'] = combiner.report()
+        missing = combiner.counters['blocks_head_missing']
+        if missing:
+            problems.append(f'{missing} blocks lacked read heads: their angle came from the '
+                            'heads they had (windows closed there; see encoder.heads.events)')
+    if dominant is not None and abs(dominant.line.output_order - 1.0) < 1e-6:
+        dominant = replace(dominant, likely_source=f'{dominant.likely_source}. {note.text()}')
+    if note.comparable and not note.separated and recommendation.available:
+        recommendation = replace(recommendation, encoder_flag=note.text())
     return AnalysisResult(
         path=path, topic=topic, bench=bench, windows=windows,
         cumulative=offline.cumulative, spectrum=spectrum, dominant=dominant,
@@ -227,7 +260,53 @@ def analyze_bag(
         recommendation=recommendation, partial=partial,
         problems=tuple(problems), blocks_read=reader.blocks,
         elapsed_s=time.monotonic() - t_start, read_problems=tuple(read_problems),
-        session=session_info(path))
+        session=session_info(path), encoder=encoder)
+
+
+def _combiner(path: Path, info: BenchInfoData | None, mode: str,
+              calibration: EncoderCalibration | None) -> HeadCombiner | None:
+    """The head combination of a bag (None: nothing to do).
+
+    Raises:
+        EncoderCalibrationError: A calibration for a bag without BenchInfo (no serial to
+            check it against), for another scale, or expired.
+        HeadLayoutError: BenchInfo's head angles cannot be averaged.
+    """
+    if info is None:
+        if calibration is not None:
+            msg = (f'{path}: the bag has no BenchInfo, so the scale serial the calibration of '
+                   f'{calibration.scale_serial!r} is for cannot be checked: not applied')
+            raise EncoderCalibrationError(msg)
+        return None
+    try:
+        return HeadCombiner(info, mode=mode, calibration_out=calibration)
+    except HeadLayoutError as exc:
+        msg = (f'{path}: {str(exc).rstrip(".")}; the bag is intact: analyse head 0 alone '
+               'with --heads head0')
+        raise HeadLayoutError(msg) from None
+
+
+def _once_per_rev(info: BenchInfoData | None, spectrum: SpectrumSummary | None,
+                  combiner: HeadCombiner | None,
+                  calibration: EncoderCalibration | None) -> OncePerRevNote:
+    """What the output encoder could put on the measured once-per-revolution line."""
+    from rv_te_bench.core.bench_uncertainty import default_encoder_errors
+
+    line = math.nan
+    if spectrum is not None:
+        for ln in spectrum.lines:
+            if abs(ln.output_order - 1.0) < 1e-6:
+                line = ln.amplitude_rad
+    scale = None if combiner is None else combiner.scales['out']
+    layout = scale.layout if scale is not None and scale.mode == 'average' else None
+    return once_per_rev_note(
+        line_rad=line,
+        eccentricity_m=0.0 if info is None else info.encoder_out_scale_eccentricity_m,
+        diameter_m=0.0 if info is None else info.encoder_out_scale_diameter_m,
+        error_model=(None if info is None or not info.encoder_out_model
+                     else default_encoder_errors(info.encoder_out_model,
+                                                 info.encoder_out_resolution_rad)),
+        layout=layout, calibration=calibration)
 
 
 def _read_bench_info(path: Path, gear_ratio: float | None, crank_per_output: float | None,

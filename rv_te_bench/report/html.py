@@ -224,6 +224,7 @@ def _bag_section(res: AnalysisResult) -> str:
                    f'(output order {d.line.output_order:.6g}, {_am(d.line.amplitude_rad)} '
                    f'arcmin). Likely source: {_e(d.likely_source)}.</p>')
 
+    out.append(_encoder_section(res))
     out.append('<h3>Gaps</h3>')
     if res.gaps:
         out.append('<table><tr><th class="l">kind</th><th>seq</th><th>at [s]</th>'
@@ -240,6 +241,8 @@ def _bag_section(res: AnalysisResult) -> str:
     ident = ('' if rec.identification is None else
              '<p class="muted">' + '<br>'.join(
                  _e(x) for x in describe_identification(rec.identification)) + '</p>')
+    if rec.encoder_flag:
+        out.append(f'<p class="warn"><b>Encoder:</b> {_e(rec.encoder_flag)}</p>')
     if rec.advice is None:
         out.append(f'<p>{_e(rec.reason)}</p>{ident}')
     else:
@@ -262,6 +265,27 @@ def _bag_section(res: AnalysisResult) -> str:
                     for m in a.modifications]
             out.append('</table>')
         out.append(ident)
+    return '\n'.join(out)
+
+
+def _encoder_section(res: AnalysisResult) -> str:
+    """Read heads, calibration and the once-per-revolution note (issue 36)."""
+    enc = res.encoder or {}
+    out = ['<h3>Encoders and the once-per-revolution line</h3>']
+    heads = enc.get('heads') or {}
+    for side in ('output', 'input'):
+        d = heads.get(side) or {}
+        if d.get('layout') or d.get('calibration'):
+            out.append(f'<p>{_e(side)} scale: {_e(d.get("description", ""))}</p>')
+    events = heads.get('events') or []
+    if events:
+        n = (heads.get('counters') or {}).get('blocks_head_missing', len(events))
+        out.append(f'<p class="warn">{n} blocks lacked read heads (nothing dropped; the windows '
+                   'close there):<br>' + '<br>'.join(_e(x) for x in events[:10]) + '</p>')
+    note = enc.get('once_per_rev') or {}
+    if note:
+        cls = 'warn' if note.get('comparable') and not note.get('separated') else 'muted'
+        out.append(f'<p class="{cls}">{_e(note.get("text", ""))}</p>')
     return '\n'.join(out)
 
 

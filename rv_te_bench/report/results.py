@@ -153,12 +153,14 @@ class Recommendation:
     reason: str
     advice: Advice | None = None
     identification: dict[str, Any] | None = None
+    encoder_flag: str = ''
 
     def to_json_dict(self) -> dict[str, Any]:
-        """JSON-friendly dict."""
+        """JSON-friendly dict (``encoder_flag``: why the advice may rest on the output
+        encoder's once-per-revolution error, '' when it does not)."""
         return {'available': self.available, 'reason': self.reason,
                 'advice': None if self.advice is None else self.advice.to_json_dict(),
-                'identification': self.identification}
+                'identification': self.identification, 'encoder_flag': self.encoder_flag}
 
 
 @dataclass(frozen=True)
@@ -249,6 +251,10 @@ class AnalysisResult:
         elapsed_s: Wall time of the analysis [s].
         read_problems: Every problem the reader met (file, byte offset, what), in order.
         session: The bag's session (name, start, unit serial) for titles.
+        encoder: How the shaft angles were formed from the read heads and any calibration
+            (``heads``: ``HeadCombiner.report()`` of :mod:`rv_te_bench.core.head_combine`)
+            and what the output encoder could put on the once-per-revolution line
+            (``once_per_rev``: :class:`~rv_te_bench.core.encoder_attribution.OncePerRevNote`).
     """
 
     path: Path
@@ -268,6 +274,7 @@ class AnalysisResult:
     elapsed_s: float
     read_problems: tuple[str, ...] = ()
     session: SessionInfo = field(default_factory=lambda: SessionInfo(name=''))
+    encoder: dict[str, Any] = field(default_factory=dict)
 
     @property
     def complete_windows(self) -> tuple[WindowResult, ...]:
@@ -300,6 +307,7 @@ class AnalysisResult:
                       't_after_s': g.t_after_s} for g in self.gaps],
             'counters': {k: _jsonable(v) for k, v in self.counters.items()},
             'recommendation': self.recommendation.to_json_dict(),
+            'encoder': _jsonable(self.encoder),
         }
 
 

@@ -17,6 +17,7 @@ from rv_te_bench.acceptance import (
     parse_tolerance,
     run_plan_offline,
 )
+from rv_te_bench.io._legacy_msgs import added_field_defaults
 from rv_te_bench.io.msgdefs import BENCH_INFO, ENCODER_BLOCK, rv_te_typestore
 from sim.program import ProgramSimulator
 
@@ -91,7 +92,7 @@ def write_session_bag(path: Path, run: Run, *, torque: bool = True,
             encoder_in_resolution_rad=info.encoder_in_resolution_rad,
             encoder_out_resolution_rad=info.encoder_out_resolution_rad,
             sample_rate_hz=info.sample_rate_hz, block_size=info.block_size,
-            parameters_yaml=info.parameters_yaml)
+            parameters_yaml=info.parameters_yaml, **added_field_defaults(BENCH_INFO))
         w.write(ci, T0_NS, bytes(store.serialize_cdr(msg, BENCH_INFO)))
         for b in run.blocks:
             if b.seq in drop_seqs:
@@ -101,7 +102,8 @@ def write_session_bag(path: Path, run: Run, *, torque: bool = True,
                 header=header(t_ns), seq=b.seq, sample_rate_hz=info.sample_rate_hz,
                 time_offset_s=np.asarray(b.time_offset_s), theta_in_rad=np.asarray(b.theta_in_rad),
                 theta_out_rad=np.asarray(b.theta_out_rad),
-                torque_out_nm=np.asarray(b.torque_out_nm) if torque else np.zeros(0))
+                torque_out_nm=np.asarray(b.torque_out_nm) if torque else np.zeros(0),
+                **added_field_defaults(ENCODER_BLOCK))
             w.write(ce, t_ns + 1000, bytes(store.serialize_cdr(m, ENCODER_BLOCK)))
     return path
 

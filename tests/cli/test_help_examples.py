@@ -98,7 +98,34 @@ def example_dir(tmp_path_factory: pytest.TempPathFactory) -> Path:
     rec.write_session_bag(d / 'bags' / 'li_session', run)
     rec.write_csv(d / 'li_run.csv', run)
     rec.bench_yaml(d / 'li_bench.yaml', run)
+    _heads_inputs(d)
     return d
+
+
+def _heads_inputs(d: Path) -> None:
+    """What the read-head examples name (issue 36): a 4-head bag, a reversal pair, a later
+    one-head run of scale RING-42, a cal/ folder, a CSV with one column per head."""
+    import numpy as np
+    import yaml
+
+    from tests.heads_bags import write_heads_bag
+
+    four = (0.0, 90.0, 180.0, 270.0)
+    write_heads_bag(d / 'bags' / 'four_heads', four, serial='RING-42')
+    write_heads_bag(d / 'bags' / 'run_0deg', (0.0,), serial='RING-42')
+    write_heads_bag(d / 'bags' / 'run_180deg', (0.0,), serial='RING-42', index_deg=180.0)
+    write_heads_bag(d / 'bags' / 'later_run', (0.0,), serial='RING-42')
+    (d / 'cal').mkdir()
+    bench = yaml.safe_load((d / 'bench.yaml').read_text())
+    bench['encoders']['output'].update({'heads_deg': list(four), 'serial': 'RING-42'})
+    (d / 'bench4.yaml').write_text(yaml.safe_dump(bench))
+    k = np.arange(4000)
+    t = k / 2000.0
+    th_out = 2 * np.pi * 5.0 * t / 79.0
+    cols = ['t_s', 'theta_in_rad', *(f'out_h{j}' for j in range(4))]
+    rows = np.column_stack([t, 79.0 * th_out, *(th_out + 1e-6 * j for j in range(4))])
+    (d / 'heads.csv').write_text(','.join(cols) + '\n' + '\n'.join(
+        ','.join(f'{v:.17g}' for v in r) for r in rows) + '\n')
 
 
 @pytest.fixture(scope='module')

@@ -18,6 +18,7 @@ import pytest
 import rv_te_bench.io.bag_reader  # noqa: F401 - in the tree: an import error must fail
 from rv_te_bench.cli import identify, optimize_phases
 from rv_te_bench.io import bag_writer, msgdefs
+from rv_te_bench.io._legacy_msgs import added_field_defaults
 from sim import presets
 from sim import wang2020 as wang
 
@@ -118,7 +119,8 @@ def _write_bag(path: Path, theta_in: np.ndarray, theta_out: np.ndarray, *,
                 mesh_orders=np.array([1300.0]), mesh_labels=['stage-2 mesh (52 f_w)'],
                 encoder_in_model='heidenhain-ron886', encoder_out_model='heidenhain-ron886',
                 encoder_in_resolution_rad=1.745e-7, encoder_out_resolution_rad=1.745e-7,
-                sample_rate_hz=RATE_HZ, block_size=block, parameters_yaml='')
+                sample_rate_hz=RATE_HZ, block_size=block, parameters_yaml='',
+                **added_field_defaults(msgdefs.BENCH_INFO))
             writer.write('/bench/info', T0_NS,
                          bytes(store.serialize_cdr(bi, msgdefs.BENCH_INFO)))
         if encoders:
@@ -129,7 +131,8 @@ def _write_bag(path: Path, theta_in: np.ndarray, theta_out: np.ndarray, *,
                 msg = eb(header=hdr(t_ns), seq=seq, sample_rate_hz=RATE_HZ,
                          time_offset_s=np.arange(min(block, theta_in.size - s)) / RATE_HZ,
                          theta_in_rad=theta_in[s:s + block], theta_out_rad=theta_out[s:s + block],
-                         torque_out_nm=np.zeros(0))
+                         torque_out_nm=np.zeros(0),
+                         **added_field_defaults(msgdefs.ENCODER_BLOCK))
                 writer.write('/bench/encoders', t_ns + 1,
                              bytes(store.serialize_cdr(msg, msgdefs.ENCODER_BLOCK)))
     return path

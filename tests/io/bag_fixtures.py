@@ -14,6 +14,7 @@ from typing import Any
 
 import numpy as np
 
+from rv_te_bench.io._legacy_msgs import added_field_defaults
 from rv_te_bench.io.bag_writer import BagWriter, qos_profile_dict
 from rv_te_bench.io.msgdefs import BENCH_INFO, ENCODER_BLOCK, rv_te_typestore
 
@@ -45,7 +46,8 @@ def encoder_cdr(seq: int, n: int, *, frame_id: str = 'bench0', torque: bool = Tr
     t_ns = T0_NS + round(seq * n / SAMPLE_RATE_HZ * 1e9)
     msg = eb(header=header(stamp=stamp(sec=t_ns // 10**9, nanosec=t_ns % 10**9),
                            frame_id=frame_id),
-             seq=seq, sample_rate_hz=SAMPLE_RATE_HZ, **block_arrays(seq, n, torque=torque))
+             seq=seq, sample_rate_hz=SAMPLE_RATE_HZ, **block_arrays(seq, n, torque=torque),
+             **added_field_defaults(ENCODER_BLOCK))
     return bytes(store.serialize_cdr(msg, ENCODER_BLOCK))
 
 
@@ -61,7 +63,8 @@ def bench_info_cdr(preset: str = 'wang2020-2kv') -> bytes:
                mesh_orders=np.array([1300.0]), mesh_labels=['stage-2 mesh (52 f_w)'],
                encoder_in_model='heidenhain-ron886', encoder_out_model='heidenhain-ron886',
                encoder_in_resolution_rad=1e-7, encoder_out_resolution_rad=1e-7,
-               sample_rate_hz=SAMPLE_RATE_HZ, block_size=100, parameters_yaml='a: 1\n')
+               sample_rate_hz=SAMPLE_RATE_HZ, block_size=100, parameters_yaml='a: 1\n',
+               **added_field_defaults(BENCH_INFO))
     return bytes(store.serialize_cdr(msg, BENCH_INFO))
 
 

@@ -252,9 +252,24 @@ def test_definition_change_is_refused(sample_bag: Path, tmp_path: Path) -> None:
     copy = tmp_path / 'copy'
     shutil.copytree(sample_bag, copy)
     meta = copy / 'metadata.yaml'
-    meta.write_text(meta.read_text().replace('RIHS01_12298', 'RIHS01_00000'))
+    ours = rv_te_typestore().hash_rihs01(ENCODER_BLOCK)
+    assert ours in meta.read_text()
+    meta.write_text(meta.read_text().replace(ours, 'RIHS01_' + '0' * 64))
     with pytest.raises(BagError, match='definition changed'):
         read_encoder_blocks(copy)
+
+
+def test_the_definition_before_read_heads_is_read(sample_bag: Path, tmp_path: Path) -> None:
+    """A bag whose metadata names the EncoderBlock hash of before issue 36 is read (older
+    bags stay readable); its blocks carry no heads."""
+    copy = tmp_path / 'copy'
+    shutil.copytree(sample_bag, copy)
+    meta = copy / 'metadata.yaml'
+    ours = rv_te_typestore().hash_rihs01(ENCODER_BLOCK)
+    meta.write_text(meta.read_text().replace(
+        ours, 'RIHS01_1229821431777e90a6034a2640f4811afa7b42cdd596471fe57b8be9481d6c4d'))
+    blocks = list(read_encoder_blocks(copy))
+    assert blocks and blocks[0].out_head_ids == ()
 
 
 def test_reads_a_bag_folder_written_by_rosbags(tmp_path: Path) -> None:

@@ -13,6 +13,7 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
+from rv_te_bench.io._legacy_msgs import added_field_defaults
 from rv_te_bench.io.bag_writer import BagWriter
 from rv_te_bench.io.msgdefs import BENCH_INFO, ENCODER_BLOCK, rv_te_typestore
 
@@ -140,7 +141,7 @@ def write_bag(
                 encoder_in_model='ideal', encoder_out_model='ideal',
                 encoder_in_resolution_rad=0.0, encoder_out_resolution_rad=0.0,
                 sample_rate_hz=sample_rate_hz, block_size=block_size,
-                parameters_yaml='synthetic: true\n')
+                parameters_yaml='synthetic: true\n', **added_field_defaults(BENCH_INFO))
             writer.write(INFO_TOPIC, t0_ns, store.serialize_cdr(info, BENCH_INFO))
         if not with_blocks:
             return Synth(t_s=t[:0], theta_in_rad=theta_in[:0], theta_out_rad=theta_out[:0],
@@ -155,7 +156,8 @@ def write_bag(
             msg = types[ENCODER_BLOCK](
                 header=header(stamp_ns), seq=seq, sample_rate_hz=sample_rate_hz,
                 time_offset_s=t[sl] - t[start], theta_in_rad=theta_in[sl],
-                theta_out_rad=theta_out[sl], torque_out_nm=np.zeros(0))
+                theta_out_rad=theta_out[sl], torque_out_nm=np.zeros(0),
+                **added_field_defaults(ENCODER_BLOCK))
             writer.write(encoder_topic, stamp_ns, store.serialize_cdr(msg, ENCODER_BLOCK))
     return Synth(t_s=t[keep], theta_in_rad=theta_in[keep], theta_out_rad=theta_out[keep],
                  te_rad=te[keep])

@@ -58,7 +58,8 @@ def detect_format(path: Path) -> str:
 
 
 def open_reader(path: Path, fmt: str, options: ImportOptions, *, header: bool = True,
-                joints: tuple[str | None, str | None] = (None, None)) -> ImportReader:
+                joints: tuple[str | None, str | None] = (None, None),
+                head_joints: tuple[str, ...] = ()) -> ImportReader:
     """Open ``path`` with the reader of ``fmt`` (checks the columns / channels).
 
     Raises:
@@ -71,7 +72,7 @@ def open_reader(path: Path, fmt: str, options: ImportOptions, *, header: bool = 
         if not path.exists():
             msg = f'{path} does not exist'
             raise DataImportError(msg)
-        return JointStateBagReader(path, options, joints)
+        return JointStateBagReader(path, options, joints, head_joints)
     if not path.is_file():
         what = 'does not exist' if not path.exists() else 'is not a regular file'
         msg = f'{path} {what}'
@@ -104,7 +105,8 @@ def import_file(path: str | Path, desc: BenchDescription, out: str | Path, *,
     path = Path(path)
     fmt = fmt or detect_format(path)
     reader = open_reader(path, fmt, options, header=header,
-                         joints=(desc.joint_in_name, desc.joint_out_name))
+                         joints=(desc.joint_in_name, desc.joint_out_name),
+                         head_joints=desc.encoder_out.head_joints)
     try:
         return write_bag(reader, desc, options, Path(out), fmt=fmt, on_note=on_note)
     finally:

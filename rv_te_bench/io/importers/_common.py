@@ -34,6 +34,8 @@ __all__ = [
     'RawChunk',
     'angle_unit',
     'channel_roles',
+    'head_roles',
+    'stack_heads',
     'time_unit',
 ]
 
@@ -101,8 +103,20 @@ def channel_roles(path: Path, options: ImportOptions,
                f'(channels: {", ".join(names()[:20])})')
         raise DataImportError(msg)
     roles = {'in': options.theta_in, 'out': options.theta_out, 'torque': options.torque,
-             'time': options.time}
+             'time': options.time, **head_roles(options)}
     return {r: spec for r, spec in roles.items() if spec is not None}
+
+
+def head_roles(options: ImportOptions) -> dict[str, str]:
+    """The roles of the output scale's further heads (``out_h1``, ``out_h2``, ...: heads 1..N-1;
+    head 0 is ``out``) and their columns / channels."""
+    return {f'out_h{j}': spec for j, spec in enumerate(options.theta_out_heads[1:], start=1)}
+
+
+def stack_heads(cols: dict[str, np.ndarray], options: ImportOptions) -> np.ndarray | None:
+    """The further heads' columns of a chunk as one (N-1, n) array, or None."""
+    names = list(head_roles(options))
+    return np.vstack([cols[r] for r in names]) if names else None
 
 
 def time_unit(text: str | None) -> str | None:
@@ -143,6 +157,10 @@ class ImportOptions:
         start_ns: Absolute time of the first sample [ns since the epoch]; None: the file's.
         chunk_samples: Samples read at a time (memory is proportional to it).
         delimiter: CSV delimiter; None: sniffed from the header line.
+        theta_out_heads: One column / channel per read head of the output scale, head 0
+            first (issue 36; empty: one head): head 0 is the output angle (``theta_out``
+            defaults to it), the others are unwrapped beside it in its unit; a missing value
+            of a further head leaves that head out of its block (the block is not dropped).
     """
 
     theta_in: str | None = None
@@ -160,9 +178,23 @@ class ImportOptions:
     start_ns: int | None = None
     chunk_samples: int = 100_000
     delimiter: str | None = None
+    theta_out_heads: tuple[str, ...] = ()
 
     def __post_init__(self) -> None:
         """Validate (one line naming the option and the rule)."""
+        heads = tuple(str(h) for h in self.theta_out_heads)
+        object.__setattr__(self, 'theta_out_heads', heads)
+        if heads:
+            if len(heads) < 2 or len(set(heads)) != len(heads) or len(heads) > 16:
+                msg = (f'--theta-out-heads must name 2 to 16 different columns, one per read '
+                       f'head (head 0 first), got {list(heads)}')
+                raise DataImportError(msg)
+            if self.theta_out is None:
+                object.__setattr__(self, 'theta_out', heads[0])
+            elif self.theta_out != heads[0]:
+                msg = (f'--theta-out {self.theta_out!r} must be the first of --theta-out-heads '
+                       f'(head 0), got {heads[0]!r}')
+                raise DataImportError(msg)
         if self.rate_hz is not None and not (math.isfinite(self.rate_hz)
                                              and MIN_RATE_HZ <= self.rate_hz <= MAX_RATE_HZ):
             msg = (f'--rate must be between {MIN_RATE_HZ:g} and {MAX_RATE_HZ:g} Hz, got '
@@ -204,6 +236,8 @@ class RawChunk:
         theta_in: Input angle in the file's unit.
         theta_out: Output angle in the file's unit.
         torque: Torque in the recorded unit, or None.
+        out_heads: The output scale's further heads (1..N-1) in the output's unit, shape
+            (N-1, n), or None.
     """
 
     first: int
@@ -211,6 +245,7 @@ class RawChunk:
     theta_in: np.ndarray
     theta_out: np.ndarray
     torque: np.ndarray | None = None
+    out_heads: np.ndarray | None = None
 
 
 class ImportReader(Protocol):

@@ -77,6 +77,8 @@ class SiChunk:
         torque_out_nm: Torque [N m] (empty when none).
         breaks: Drop-outs inside this chunk (and one at index 0 when the previous chunk
             ended in one), in order.
+        theta_out_heads_rad: The output scale's further heads [rad], (N-1, n), NaN where a
+            head has no reading (the sample is kept), or None.
     """
 
     t_s: np.ndarray
@@ -84,6 +86,7 @@ class SiChunk:
     theta_out_rad: np.ndarray
     torque_out_nm: np.ndarray
     breaks: tuple[Break, ...] = ()
+    theta_out_heads_rad: np.ndarray | None = None
 
 
 def to_rad_factor(unit: str, counts_per_rev: int | None, where: str) -> float:
@@ -210,8 +213,15 @@ class ChunkConverter:
             else:
                 self._open = (self._open[0], self._open[1] + tail, self._open[2])
         self.samples += idx.size
+        heads = None
+        if raw.out_heads is not None:
+            if raw.out_heads.shape[-1] != n:
+                msg = (f'{self.origin}: head channels of different lengths near '
+                       f'{self.locate(raw.first)}')
+                raise DataImportError(msg)
+            heads = np.asarray(raw.out_heads, dtype=np.float64)[:, idx] * self.k_out
         return SiChunk(t_s=t_s[idx], theta_in_rad=th_in[idx], theta_out_rad=th_out[idx],
-                       torque_out_nm=torque, breaks=breaks)
+                       torque_out_nm=torque, breaks=breaks, theta_out_heads_rad=heads)
 
     def _breaks(self, raw: RawChunk, ok: np.ndarray, idx: np.ndarray,
                 t_s: np.ndarray) -> tuple[Break, ...]:

@@ -34,6 +34,7 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 
 from rv_te_bench.errors import BagExistsError, DataImportError
+from rv_te_bench.io._legacy_msgs import added_field_defaults
 from rv_te_bench.io.bag_writer import BagWriter, qos_profile_dict
 from rv_te_bench.io.importers._common import TIME_UNITS, angle_unit, time_unit
 from rv_te_bench.io.importers._convert import ChunkConverter, to_rad_factor
@@ -175,24 +176,30 @@ class _Blocks:
         self.written = 0      # blocks written (seq also counts the numbers skipped at gaps)
         self.samples = 0
         self.last_t_s = 0.0
+        self.head_missing_blocks = 0   # blocks written without some of the output heads
         self._rest: tuple[np.ndarray, ...] | None = None
 
     def push(self, piece: Piece) -> None:
         """Write the piece's whole blocks; a drop-out before it ends the open block and
         skips one seq (every consumer sees the gap)."""
-        arrays = (piece.t_s, piece.theta_in_rad, piece.theta_out_rad, piece.torque_out_nm)
+        extra = piece.theta_out_heads_rad
+        heads = (np.vstack([piece.theta_out_rad[None, :], extra]) if extra is not None
+                 else np.empty((0, piece.t_s.size)))
+        arrays = (piece.t_s, piece.theta_in_rad, piece.theta_out_rad, piece.torque_out_nm,
+                  heads)
         if piece.gap is not None and self.samples + (0 if self._rest is None
                                                      else self._rest[0].size):
             self.finish()
             self.seq += 1
         if self._rest is not None:
-            arrays = tuple(np.concatenate([a, b]) for a, b in zip(self._rest, arrays,
-                                                                    strict=True))
+            arrays = tuple(np.concatenate([a, b], axis=-1) for a, b in zip(self._rest, arrays,
+                                                                             strict=True))
         n = arrays[0].size
         full = n - n % self.bs
         for s in range(0, full, self.bs):
             self._write(arrays, s, s + self.bs)
-        self._rest = None if full == n else tuple(a[full:] if a.size else a for a in arrays)
+        self._rest = None if full == n else tuple(a[..., full:] if a.size else a
+                                                  for a in arrays)
 
     def finish(self) -> None:
         """Write the open (short) block."""
@@ -209,6 +216,13 @@ class _Blocks:
                             f'({_utc(self.start_ns)})')
         stamp_ns = self.start_ns + round(float(t[0]) * _NS)
         torque = c[3][a:b] if c[3].size else np.zeros(0)
+        heads = c[4][:, a:b]
+        ids = np.zeros(0, dtype=np.uint8)
+        if heads.shape[0]:   # a head with a missing reading in this block is left out of it
+            keep = np.flatnonzero(np.isfinite(heads).all(axis=1))
+            ids = keep.astype(np.uint8)
+            heads = heads[keep]
+            self.head_missing_blocks += int(keep.size < c[4].shape[0])
         msg = self.types[ENCODER_BLOCK](
             header=self.types['std_msgs/msg/Header'](
                 stamp=self.types['builtin_interfaces/msg/Time'](
@@ -217,7 +231,9 @@ class _Blocks:
             seq=self.seq, sample_rate_hz=self.rate_hz, time_offset_s=t - t[0],
             theta_in_rad=np.ascontiguousarray(c[1][a:b]),
             theta_out_rad=np.ascontiguousarray(c[2][a:b]),
-            torque_out_nm=np.ascontiguousarray(torque))
+            torque_out_nm=np.ascontiguousarray(torque),
+            in_head_ids=np.zeros(0, dtype=np.uint8), theta_in_heads_rad=np.zeros(0),
+            out_head_ids=ids, theta_out_heads_rad=np.ascontiguousarray(heads).ravel())
         self.writer.write(ENCODER_TOPIC, stamp_ns, self.store.serialize_cdr(msg, ENCODER_BLOCK))
         self.seq += 1
         self.written += 1
@@ -332,6 +348,7 @@ def write_bag(reader: ImportReader, desc: BenchDescription, options: ImportOptio
     _remove_killed_imports(out, note)
     origin = reader.origin
     labels = reader.labels
+    _check_heads(reader, desc, note)
     unit_in = _unit('in', options.unit_in, reader.declared_units, labels, origin)
     unit_out = _unit('out', options.unit_out, reader.declared_units, labels, origin)
     t_unit = _time_unit(reader, options)
@@ -407,6 +424,10 @@ def write_bag(reader: ImportReader, desc: BenchDescription, options: ImportOptio
             note(f'column {labels[role]!r}: {jumps} steps of more than half a turn between two '
                  f'samples, kept as recorded (multi-turn, --no-unwrap-{role}); if it is a '
                  f'single-turn encoder these are wraps: import with --unwrap-{role}')
+    missing = sum(b.head_missing_blocks for _, b in segments.done)
+    if missing:
+        note(f'{missing} blocks lack one or more output heads (a missing value in a head '
+             'column): those heads are left out of those blocks, the samples are kept')
     if getattr(reader, 'unpaired', 0):
         note(f'{reader.unpaired} joint positions had no partner at the same stamp: left out '
              '(the sample times in the bag show where)')
@@ -420,6 +441,21 @@ def write_bag(reader: ImportReader, desc: BenchDescription, options: ImportOptio
         wraps_out=wraps_out, torque='torque' in labels, time_unit=t_unit,
         samples_dropped=conv.dropped, gaps=tuple(stitcher.gaps[:MAX_GAPS_LISTED]),
         gaps_total=len(stitcher.gaps), segments=tuple(str(b) for b in bags))
+
+
+def _check_heads(reader: ImportReader, desc: BenchDescription,
+                 note: Callable[[str], None]) -> None:
+    """One column per output head, as many as the bench description's heads_deg."""
+    given = 1 + sum(1 for role in reader.labels if role.startswith('out_h'))
+    stated = len(desc.encoder_out.head_angles_rad)
+    if given > 1 and given != stated:
+        msg = (f'{reader.origin}: {given} output head columns given, but {desc.origin} '
+               f'states {stated or 1} head(s) (encoders.output.heads_deg): give one column '
+               'per head, head 0 first')
+        raise DataImportError(msg)
+    if stated > 1 and given == 1:
+        note(f'{desc.origin} states {stated} output heads but one column was imported: the '
+             'bag holds head 0 only (give --theta-out-heads for all of them)')
 
 
 def _start(options: ImportOptions, reader: ImportReader, conv: ChunkConverter,
@@ -520,5 +556,7 @@ def _bench_info_cdr(info: BenchInfoData, stamp_ns: int) -> bytes:
         encoder_in_resolution_rad=float(info.encoder_in_resolution_rad),
         encoder_out_resolution_rad=float(info.encoder_out_resolution_rad),
         sample_rate_hz=float(info.sample_rate_hz), block_size=int(info.block_size),
-        parameters_yaml=info.parameters_yaml)
+        parameters_yaml=info.parameters_yaml,
+        **{k: (np.asarray(v, dtype=np.float64) if isinstance(v, list | tuple) else v)
+           for k, v in info.message_values().items() if k in added_field_defaults(BENCH_INFO)})
     return bytes(store.serialize_cdr(msg, BENCH_INFO))

@@ -107,7 +107,9 @@ class ImportGap:
 @dataclass(frozen=True)
 class Piece:
     """Good samples to write, unwrapped; ``gap`` is the drop-out before them (None: they
-    continue the previous piece); ``new_segment``: they start a new segment."""
+    continue the previous piece); ``new_segment``: they start a new segment;
+    ``theta_out_heads_rad``: the output scale's further heads (N-1, n), unwrapped (NaN
+    where a head had no reading), or None."""
 
     t_s: np.ndarray
     theta_in_rad: np.ndarray
@@ -115,6 +117,17 @@ class Piece:
     torque_out_nm: np.ndarray
     gap: ImportGap | None = None
     new_segment: bool = False
+    theta_out_heads_rad: np.ndarray | None = None
+
+
+def heads_beside(raw_heads: np.ndarray, raw_out: np.ndarray, out_rad: np.ndarray,
+                 ) -> np.ndarray:
+    """Further heads of one scale unwrapped beside head 0: each head reads the same shaft
+    within arcseconds (plus its constant zero), so its turn is head 0's: ``x_j = x_0 +
+    wrap(r_j - r_0)`` with wrap to [-pi, pi). A missing reading (NaN) stays missing; no
+    state is needed across drop-outs."""
+    d = raw_heads - raw_out[None, :]
+    return out_rad[None, :] + (np.mod(d + math.pi, _TWO_PI) - math.pi)
 
 
 def _slope(t: np.ndarray, x: np.ndarray) -> tuple[float, float] | None:
@@ -265,11 +278,13 @@ class TurnStitcher:
         out: list[Piece] = []
         brk_at = {b.index: b for b in chunk.breaks}
         bounds = [0, *brk_at, chunk.t_s.size]
+        heads = (chunk.theta_out_heads_rad if chunk.theta_out_heads_rad is not None
+                 else np.empty((0, chunk.t_s.size)))
         arrays = (chunk.t_s, chunk.theta_in_rad, chunk.theta_out_rad, chunk.torque_out_nm)
         for a, b in itertools.pairwise(bounds):
             if a == b:
                 continue
-            part = tuple(arr[a:b] if arr.size else arr for arr in arrays)
+            part = (*(arr[a:b] if arr.size else arr for arr in arrays), heads[:, a:b])
             brk = brk_at.get(a)
             if brk is not None:
                 if self._pending_break is not None:
@@ -290,14 +305,18 @@ class TurnStitcher:
         return [self._resolve()] if self._pending_break is not None else []
 
     def _continue(self, part: tuple[np.ndarray, ...]) -> Piece:
-        t, th_in, th_out, tq = part
-        return Piece(t, self.ch_in.continue_(t, th_in), self.ch_out.continue_(t, th_out), tq)
+        t, th_in, th_out, tq, heads = part
+        x_out = self.ch_out.continue_(t, th_out)
+        return Piece(t, self.ch_in.continue_(t, th_in), x_out, tq,
+                     theta_out_heads_rad=heads_beside(heads, th_out, x_out) if heads.size
+                     else None)
 
     def _resolve(self) -> Piece:
         brk, parts = self._pending_break, self._pending
         assert brk is not None
         self._pending_break, self._pending = None, []
         t, th_in, th_out, tq = (np.concatenate([p[i] for p in parts]) for i in range(4))
+        heads = np.concatenate([p[4] for p in parts], axis=1)
         x_in, adv_in, how_in = self.ch_in.across(t, th_in)
         x_out, adv_out, how_out = self.ch_out.across(t, th_out)
         split = 'ambiguous' in (how_in, how_out)
@@ -311,4 +330,6 @@ class TurnStitcher:
         if split:   # the speeds of the new segment are its own
             for ch, x in ((self.ch_in, x_in), (self.ch_out, x_out)):
                 ch.tail_t, ch.tail_x = t[-self.window:].copy(), x[-self.window:].copy()
-        return Piece(t, x_in, x_out, tq, gap=gap, new_segment=split)
+        return Piece(t, x_in, x_out, tq, gap=gap, new_segment=split,
+                     theta_out_heads_rad=heads_beside(heads, th_out, x_out) if heads.size
+                     else None)

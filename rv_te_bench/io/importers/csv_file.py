@@ -19,7 +19,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from rv_te_bench.errors import DataImportError
-from rv_te_bench.io.importers._common import RawChunk, time_unit
+from rv_te_bench.io.importers._common import RawChunk, head_roles, stack_heads, time_unit
 
 if TYPE_CHECKING:
     from collections.abc import Iterator
@@ -91,7 +91,7 @@ class CsvReader:
         self.data_line = self._line + 1 if header else self._line   # line of sample 0
         self._line_chars = max(16, 2 * len(first))   # block size estimate per row
         roles = {'in': options.theta_in, 'out': options.theta_out, 'torque': options.torque,
-                 'time': options.time}
+                 'time': options.time, **head_roles(options)}
         if roles['in'] is None or roles['out'] is None:
             msg = (f'{path}: name the angle columns with --theta-in and --theta-out '
                    f'(columns: {", ".join(self.columns[:20])})')
@@ -170,7 +170,8 @@ class CsvReader:
             n = cols['in'].size
             if n:
                 yield RawChunk(first=first, time=cols.get('time'), theta_in=cols['in'],
-                               theta_out=cols['out'], torque=cols.get('torque'))
+                               theta_out=cols['out'], torque=cols.get('torque'),
+                               out_heads=stack_heads(cols, self.options))
                 first += n
         if first == 0:
             msg = f'{self.origin}: no data rows after the header'

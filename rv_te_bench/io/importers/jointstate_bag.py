@@ -58,7 +58,8 @@ class JointStateBagReader:
     declared_rate_hz: float | None = None
 
     def __init__(self, path: Path, options: ImportOptions,
-                 joints: tuple[str | None, str | None] = (None, None)) -> None:
+                 joints: tuple[str | None, str | None] = (None, None),
+                 head_joints: tuple[str, ...] = ()) -> None:
         from rosbags.highlevel import AnyReader
         from rosbags.typesys import Stores, get_typestore
 
@@ -72,6 +73,14 @@ class JointStateBagReader:
                    'joints: {input, output} in the bench description)')
             raise DataImportError(msg)
         self.joint_torque = options.torque
+        # the output scale's further heads (1..N-1): --theta-out-heads, else the bench
+        # description's joints.output_heads (head 0 is the output joint)
+        heads = options.theta_out_heads or head_joints
+        if heads and heads[0] != self.joint_out:
+            msg = (f'{path}: the first head joint {heads[0]!r} must be the output joint '
+                   f'{self.joint_out!r} (head 0)')
+            raise DataImportError(msg)
+        self.head_joints = tuple(heads[1:])
         try:
             self._reader = AnyReader([self.path],
                                      default_typestore=get_typestore(Stores.ROS2_JAZZY))
@@ -95,6 +104,8 @@ class JointStateBagReader:
                        'time': f'{self.topic}:header.stamp'}
         if self.joint_torque:
             self.labels['torque'] = f'{self.topic}:{self.joint_torque}.effort'
+        for j, name in enumerate(self.head_joints, start=1):
+            self.labels[f'out_h{j}'] = f'{self.topic}:{name}'
         self.declared_units: dict[str, str | None] = {}
         self.start_ns: int | None = None
         self.unpaired = 0
@@ -107,8 +118,11 @@ class JointStateBagReader:
     def _collect(self, batch: list[Any]) -> dict[str, np.ndarray]:
         """Stamps and values per joint of a batch of messages (loop over messages)."""
         want = {self.joint_in: 'in', self.joint_out: 'out'}
+        want.update({name: f'h{j}' for j, name in enumerate(self.head_joints, start=1)})
         cols: dict[str, list[float]] = {'in_t': [], 'in': [], 'out_t': [], 'out': [],
                                         'tq_t': [], 'tq': []}
+        for j in range(1, len(self.head_joints) + 1):
+            cols[f'h{j}_t'], cols[f'h{j}'] = [], []
         for k, msg in batch:
             stamp = msg.header.stamp.sec * 1_000_000_000 + msg.header.stamp.nanosec
             names = list(msg.name)
@@ -187,6 +201,11 @@ class JointStateBagReader:
         rest = {'in_t': t_in[~keep_in], 'in': cols['in'][~keep_in],
                 'out_t': t_out[~keep_out], 'out': cols['out'][~keep_out],
                 'tq_t': cols['tq_t'][~keep_tq], 'tq': cols['tq'][~keep_tq]}
+        keep_h = {}
+        for j in range(1, len(self.head_joints) + 1):
+            th = cols[f'h{j}_t']
+            keep_h[j] = np.ones(th.size, dtype=bool) if limit is None else th <= limit
+            rest[f'h{j}_t'], rest[f'h{j}'] = th[~keep_h[j]], cols[f'h{j}'][~keep_h[j]]
         ti, vi = t_in[keep_in], cols['in'][keep_in]
         to, vo = t_out[keep_out], cols['out'][keep_out]
         common, ii, io_ = np.intersect1d(ti, to, assume_unique=False, return_indices=True)
@@ -203,10 +222,18 @@ class JointStateBagReader:
             _, a, b = np.intersect1d(common, tq_t, return_indices=True)
             torque = np.full(common.size, np.nan)
             torque[a] = tq[b]
+        heads = None
+        if self.head_joints:    # a head without a reading at a stamp: NaN (left out later)
+            heads = np.full((len(self.head_joints), common.size), np.nan)
+            for j in range(1, len(self.head_joints) + 1):
+                th, vh = cols[f'h{j}_t'][keep_h[j]], cols[f'h{j}'][keep_h[j]]
+                _, a, b = np.intersect1d(common, th, return_indices=True)
+                heads[j - 1, a] = vh[b]
         if self.start_ns is None:
             self.start_ns = int(common[0])
         return RawChunk(first=first, time=common - np.int64(self.start_ns),
-                        theta_in=vi[ii], theta_out=vo[io_], torque=torque), rest
+                        theta_in=vi[ii], theta_out=vo[io_], torque=torque,
+                        out_heads=heads), rest
 
     def close(self) -> None:
         """Close the bag."""

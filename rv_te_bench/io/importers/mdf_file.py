@@ -24,6 +24,7 @@ from rv_te_bench.io.importers._common import (
     channel_roles,
     refuse_empty,
     require_reader,
+    stack_heads,
 )
 
 if TYPE_CHECKING:
@@ -153,7 +154,8 @@ class MdfReader:
             master = np.asarray(sigs[0].timestamps, dtype=np.float64)
             n = cols['in'].size
             yield RawChunk(first=first, time=cols.get('time', master), theta_in=cols['in'],
-                           theta_out=cols['out'], torque=cols.get('torque'))
+                           theta_out=cols['out'], torque=cols.get('torque'),
+                           out_heads=stack_heads(cols, self.options))
             first += n
         if first != self.n:
             msg = (f'{self.origin}: channel {self.labels["in"]!r}, sample {first}: the data '

@@ -25,6 +25,7 @@ from rv_te_bench.io.importers._common import (
     channel_roles,
     refuse_empty,
     require_reader,
+    stack_heads,
 )
 
 if TYPE_CHECKING:
@@ -210,7 +211,8 @@ class TdmsReader:
                     raise DataImportError(msg)
                 cols[role] = data
             yield RawChunk(first=first, time=cols.get('time'), theta_in=cols['in'],
-                           theta_out=cols['out'], torque=cols.get('torque'))
+                           theta_out=cols['out'], torque=cols.get('torque'),
+                           out_heads=stack_heads(cols, self.options))
 
     def close(self) -> None:
         """Close the file."""

@@ -68,6 +68,44 @@ class BenchParams:
         1.0, 'Multiple of the tied rate [1]', min_value=1e-6, max_value=1e4)
     encoder_in: str = param('heidenhain-ron886', 'Input-shaft encoder preset [-]')
     encoder_out: str = param('heidenhain-ron886', 'Output-shaft encoder preset [-]')
+    encoder_in_heads_deg: tuple[float, ...] = param(
+        (), 'input scale: angles of its read heads from head 0 [deg]; empty: the '
+        'preset\'s one head (2 heads: 0, 180; 4: 0, 90, 180, 270)',
+        rule=lambda v: None if len(v) <= 16 else 'must list at most 16 heads')
+    encoder_in_scale_eccentricity_um: float = param(
+        0.0, 'input scale: mounting eccentricity (run-out / 2) [um]; +-412 e/D arcsec '
+        '(needs the diameter)', min_value=0.0, max_value=1000.0)
+    encoder_in_scale_diameter_mm: float = param(
+        0.0, 'input scale: graduation diameter [mm] (0: not stated)', min_value=0.0,
+        max_value=10000.0)
+    encoder_in_scale_grade_arcsec: float = param(
+        0.0, 'input scale: the maker\'s accuracy of graduation +- [arcsec]; > 0 draws a '
+        'graduation error of that grade (phases from the seed); 0: the preset\'s',
+        min_value=0.0, max_value=3600.0)
+    encoder_in_scale_index_deg: float = param(
+        0.0, 'input scale: turned on its shaft by this from its reference mounting [deg] '
+        '(reversal: 180 or 120)', min_value=-360.0, max_value=360.0)
+    encoder_in_scale_serial: str = param(
+        '', 'input scale: serial number (a calibration must name it) [-]')
+    encoder_out_heads_deg: tuple[float, ...] = param(
+        (), 'output scale: angles of its read heads from head 0 [deg]; empty: the '
+        'preset\'s one head (2 heads: 0, 180; 4: 0, 90, 180, 270)',
+        rule=lambda v: None if len(v) <= 16 else 'must list at most 16 heads')
+    encoder_out_scale_eccentricity_um: float = param(
+        0.0, 'output scale: mounting eccentricity (run-out / 2) [um]; +-412 e/D arcsec '
+        '(needs the diameter)', min_value=0.0, max_value=1000.0)
+    encoder_out_scale_diameter_mm: float = param(
+        0.0, 'output scale: graduation diameter [mm] (0: not stated)', min_value=0.0,
+        max_value=10000.0)
+    encoder_out_scale_grade_arcsec: float = param(
+        0.0, 'output scale: the maker\'s accuracy of graduation +- [arcsec]; > 0 draws a '
+        'graduation error of that grade (phases from the seed); 0: the preset\'s',
+        min_value=0.0, max_value=3600.0)
+    encoder_out_scale_index_deg: float = param(
+        0.0, 'output scale: turned on its shaft by this from its reference mounting [deg] '
+        '(reversal: 180 or 120)', min_value=-360.0, max_value=360.0)
+    encoder_out_scale_serial: str = param(
+        '', 'output scale: serial number (a calibration must name it) [-]')
     sample_rate_hz: float = param(
         DEFAULT_SAMPLE_RATE_HZ, 'DAQ sample rate [Hz]', min_value=1.0, max_value=1e6)
     block_size: int = param(
@@ -107,7 +145,8 @@ class BenchParams:
         choices=('one_message', 'separate'))
     joint_state_names: tuple[str, ...] = param(
         ('input_joint', 'output_joint'),
-        'output joint_state: names of the input and output joints [-]',
+        'output joint_state: names of the input and output joints; an output scale '
+        "with several heads adds '<output>_head1', ... in the output's message [-]",
         rule=lambda v: None if len(v) == 2 and v[0] and v[1] and v[0] != v[1]
         else 'must be two different non-empty joint names')
     joint_state_wrap: bool = param(

@@ -35,6 +35,11 @@ class JointStateAdapterParams:
         '',
         'JointState name of the output-shaft encoder; empty = joints.output of the '
         "bench description, else 'output_joint' [-]")
+    output_head_joints: tuple[str, ...] = param(
+        (),
+        'JointState names of the output scale\'s read heads, head 0 first (head 0 is '
+        'the output joint); empty = joints.output_heads of the bench description, '
+        'else one head. The heads must come in the output joint\'s message [-]')
     sample_rate_hz: float = param(
         0.0,
         'Expected sample rate of the header stamps [Hz]; a stamp step above 1.5 periods '

@@ -19,6 +19,7 @@ __all__ = ['DEFAULT_TOPICS', 'PARAMS', 'RecorderParams']
 DEFAULT_TOPICS = (
     'bench/encoders', 'bench/info', 'te/samples', 'te/plot', 'te/statistics', 'te/spectrum',
     'compensation/advice', 'test/step', 'test/report', '/diagnostics', '/clock',
+    'te/encoder_heads',
 )
 
 

@@ -55,6 +55,17 @@ class TeParams:
         read_only=False)
     diagnostics_period_s: float = param(
         1.0, 'Diagnostics period [s]', min_value=0.05, max_value=60.0)
+    heads_mode: str = param(
+        'average',
+        'How a scale with several read heads (bench/info) forms its angle: average '
+        '(equal-division averaging) or head0 (head 0 alone) [-]',
+        choices=('average', 'head0'))
+    encoder_out_calibration: str = param(
+        '',
+        'Encoder calibration file of the output scale (rv-te selfcal), taken off its '
+        'readings; its scale serial must be the one bench/info reports; empty: none [path]')
+    encoder_in_calibration: str = param(
+        '', 'Encoder calibration file of the input scale; empty: none [path]')
 
 
 PARAMS = param_specs(TeParams)
