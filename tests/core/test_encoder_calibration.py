@@ -120,3 +120,26 @@ def test_once_per_rev_note_states_the_possible_share_and_flags_it() -> None:
     sheet = once_per_rev_note(line_rad=1 * AS,
                               error_model=default_encoder_errors('heidenhain-ron886'))
     assert 'data sheet' in sheet.source and sheet.comparable
+
+
+def test_note_for_a_bench_record_and_its_te_nodes_heads() -> None:
+    """What the compensation node sees: BenchInfo (5 um on 100 mm) and te/encoder_heads."""
+    from rv_te_bench.core.encoder_attribution import line_amplitude_rad, note_for_bench
+    from sim.bench_info import BenchInfoData
+
+    info = BenchInfoData(gear_ratio=79.0, encoder_out_model='renishaw-resm',
+                         encoder_out_scale_eccentricity_m=5e-6, encoder_out_scale_diameter_m=0.1,
+                         encoder_out_head_angles_rad=(0.0, math.pi))
+    th = np.linspace(0.0, 2.2 * math.pi, 30_000)
+    line = line_amplitude_rad(th, 15 * AS * np.sin(th + 0.3))
+    assert line / AS == pytest.approx(15.0, rel=1e-3)
+    assert math.isnan(line_amplitude_rad(th[:1000], th[:1000]))     # under one turn
+    one = note_for_bench(info, None, line)
+    assert one.comparable and not one.separated
+    assert one.possible_rad / AS > 20.6                              # + the data sheet
+    avg = note_for_bench(info, {'output': {'mode': 'average', 'layout': {
+        'angles_rad': [0.0, math.pi]}, 'calibration': None}}, line)
+    assert avg.separated and not avg.comparable
+    cal = note_for_bench(info, {'output': {'mode': 'head0', 'layout': None,
+                                           'calibration': _cal().to_plain()}}, line)
+    assert cal.separated and 'RING-42' in cal.text()
