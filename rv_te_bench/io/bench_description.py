@@ -102,6 +102,8 @@ class EncoderInfo:
         scale_diameter_m: Graduation diameter [m] (0: not stated).
         scale_eccentricity_m: Stated mounting eccentricity, run-out / 2 [m] (0: not stated).
         scale_index_rad: The scale turned on its shaft from its reference mounting [rad].
+        scale_tilt_rad: Stated tilt of the scale plane against the axis, axial run-out (TIR)
+            / D [rad] (0: not stated); an order-2 error tau^2 / 4 of every head.
         head_joints: JointState names of the heads, head 0 first (empty: one joint).
     """
 
@@ -113,6 +115,7 @@ class EncoderInfo:
     scale_diameter_m: float = 0.0
     scale_eccentricity_m: float = 0.0
     scale_index_rad: float = 0.0
+    scale_tilt_rad: float = 0.0
     head_joints: tuple[str, ...] = ()
 
     def __post_init__(self) -> None:
@@ -127,6 +130,9 @@ class EncoderInfo:
             _fail('EncoderInfo', 'counts_per_rev', 'must be an integer >= 1', cpr)
         object.__setattr__(self, 'head_angles_rad', tuple(self.head_angles_rad))
         object.__setattr__(self, 'head_joints', tuple(self.head_joints))
+        if not _number(self.scale_tilt_rad) or not 0 <= self.scale_tilt_rad <= 0.1:
+            _fail('EncoderInfo', 'scale_tilt_rad', 'must be a finite number in [0, 0.1]',
+                  self.scale_tilt_rad)
         if self.head_joints and len(self.head_joints) != max(1, len(self.head_angles_rad)):
             _fail('EncoderInfo', 'head_joints', f'must name one joint per head '
                   f'({len(self.head_angles_rad)})', list(self.head_joints))
@@ -383,11 +389,13 @@ class BenchDescription:
 def _encoder_plain(e: EncoderInfo) -> dict[str, Any]:
     out: dict[str, Any] = {'model': e.model, 'resolution_rad': e.resolution_rad,
                            'counts_per_rev': e.counts_per_rev}
-    if e.serial or e.head_angles_rad or e.scale_diameter_m or e.scale_index_rad:
+    if (e.serial or e.head_angles_rad or e.scale_diameter_m or e.scale_index_rad
+            or e.scale_tilt_rad):
         out.update({'serial': e.serial, 'head_angles_rad': list(e.head_angles_rad),
                     'scale_diameter_m': e.scale_diameter_m,
                     'scale_eccentricity_m': e.scale_eccentricity_m,
-                    'scale_index_rad': e.scale_index_rad, 'head_joints': list(e.head_joints)})
+                    'scale_index_rad': e.scale_index_rad, 'scale_tilt_rad': e.scale_tilt_rad,
+                    'head_joints': list(e.head_joints)})
     return out
 
 
@@ -476,13 +484,33 @@ def _encoder(k: _Keys) -> EncoderInfo:
     if e_um > 0 and dia == 0:
         scale.fail('diameter_mm', 'is required with a run-out (angle error = 412 e/D arcsec)')
     index = scale.num('index_deg', default=0.0, positive=False) or 0.0
+    tilt = _scale_tilt_rad(scale, dia)
     scale.done()
     k.done()
     return EncoderInfo(model=model, resolution_rad=float(res), counts_per_rev=cpr,
                        serial=serial, head_angles_rad=tuple(math.radians(a) for a in heads)
                        if len(heads) > 1 else (),
                        scale_diameter_m=dia * 1e-3, scale_eccentricity_m=e_um * 1e-6,
-                       scale_index_rad=math.radians(index))
+                       scale_index_rad=math.radians(index), scale_tilt_rad=tilt)
+
+
+def _scale_tilt_rad(scale: _Keys, dia_mm: float) -> float:
+    """The scale's tilt [rad]: ``tilt_mrad``, or ``axial_runout_um`` (TIR of the scale face
+    at its graduation diameter) / D; one of them."""
+    tilt = scale.num('tilt_mrad', positive=False)
+    axial = scale.num('axial_runout_um', positive=False)
+    if tilt is not None and axial is not None:
+        scale.fail('axial_runout_um', 'and tilt_mrad both given (tilt = axial run-out / D): '
+                   'give one', axial)
+    if axial is not None:
+        if axial < 0:
+            scale.fail('axial_runout_um', 'must be >= 0', axial)
+        if axial > 0 and dia_mm == 0:
+            scale.fail('diameter_mm', 'is required with an axial run-out (tilt = run-out / D)')
+        return axial * 1e-6 / (dia_mm * 1e-3) if axial > 0 else 0.0
+    if tilt is not None and not 0 <= tilt <= 100:
+        scale.fail('tilt_mrad', 'must be between 0 and 100', tilt)
+    return (tilt or 0.0) * 1e-3
 
 
 def _kinematic_fields(top: _Keys, preset: str | None, overrides: tuple[str, ...],

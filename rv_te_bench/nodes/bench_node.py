@@ -105,7 +105,7 @@ def _scale_of(p: BenchParams, side: str) -> Any:
     from a generator of the seed, apart from the encoders' noise streams)."""
     name = getattr(p, f'encoder_{side}')
     keys = ('heads_deg', 'scale_eccentricity_um', 'scale_diameter_mm', 'scale_grade_arcsec',
-            'scale_index_deg', 'scale_serial')
+            'scale_tilt_mrad', 'scale_index_deg', 'scale_serial')
     v = {k: getattr(p, f'encoder_{side}_{k}') for k in keys}
     if not any(v.values()):
         return name
@@ -119,7 +119,7 @@ def _scale_of(p: BenchParams, side: str) -> Any:
         encoder_preset(name), rng, heads_deg=list(v['heads_deg']),
         eccentricity_m=v['scale_eccentricity_um'] * 1e-6,
         diameter_m=v['scale_diameter_mm'] * 1e-3,
-        grade_arcsec=v['scale_grade_arcsec'],
+        grade_arcsec=v['scale_grade_arcsec'], tilt_rad=v['scale_tilt_mrad'] * 1e-3,
         index_rad=math.radians(v['scale_index_deg']),
         serial=v['scale_serial'])
 

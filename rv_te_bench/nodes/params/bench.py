@@ -82,6 +82,10 @@ class BenchParams:
         0.0, 'input scale: the maker\'s accuracy of graduation +- [arcsec]; > 0 draws a '
         'graduation error of that grade (phases from the seed); 0: the preset\'s',
         min_value=0.0, max_value=3600.0)
+    encoder_in_scale_tilt_mrad: float = param(
+        0.0, 'input scale: tilt of the scale plane against the shaft axis (axial run-out / '
+        'D) [mrad]; an order-2 error tau^2 / 4 (1 mrad: 0.05 arcsec)', min_value=0.0,
+        max_value=100.0)
     encoder_in_scale_index_deg: float = param(
         0.0, 'input scale: turned on its shaft by this from its reference mounting [deg] '
         '(reversal: 180 or 120)', min_value=-360.0, max_value=360.0)
@@ -101,6 +105,10 @@ class BenchParams:
         0.0, 'output scale: the maker\'s accuracy of graduation +- [arcsec]; > 0 draws a '
         'graduation error of that grade (phases from the seed); 0: the preset\'s',
         min_value=0.0, max_value=3600.0)
+    encoder_out_scale_tilt_mrad: float = param(
+        0.0, 'output scale: tilt of the scale plane against the shaft axis (axial run-out / '
+        'D) [mrad]; an order-2 error tau^2 / 4 (1 mrad: 0.05 arcsec)', min_value=0.0,
+        max_value=100.0)
     encoder_out_scale_index_deg: float = param(
         0.0, 'output scale: turned on its shaft by this from its reference mounting [deg] '
         '(reversal: 180 or 120)', min_value=-360.0, max_value=360.0)
