@@ -36,11 +36,12 @@ test: venv
 test-fast: venv
 	$(PYTEST_PAR) -m "not ros and not slow"
 
-# The house rules checked by tools: ruff's rule set ([tool.ruff.lint] in pyproject.toml) and
-# the layering contracts ([tool.importlinter]).
+# The house rules checked by tools: ruff's rule set ([tool.ruff.lint] in pyproject.toml), the
+# layering contracts ([tool.importlinter]) and the type check ([tool.mypy]: its files).
 lint: venv
 	$(VENV)/bin/ruff check .
 	$(VENV)/bin/lint-imports
+	$(VENV)/bin/mypy
 
 # Mutation testing of core/, acceptance/, store/ and io/importers/ ([tool.mutmut] in
 # pyproject.toml; docs/TESTING.md has the score and the accepted survivors). Hours on two

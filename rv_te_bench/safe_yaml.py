@@ -379,6 +379,7 @@ class _Builder:
                 value, size_ = self.anchors[event.anchor]
                 self.count(event, size_)
             else:   # scalar; a mapping key of a ROS parameter file stays the text (rcl)
+                assert isinstance(event, yaml.ScalarEvent)  # the only event left
                 self.count(event, 1)
                 is_key = bool(stack) and isinstance(stack[-1][0], dict) and not stack[-1][4]
                 value, size_ = self.scalar(event, key=is_key), 1
@@ -421,7 +422,7 @@ class _Builder:
                 raise self.fail(event, f'no {"key" if key else "value"} (rcl needs one)')
             return event.value if key else ros_scalar(event.value, quoted=not plain)
         if tag in (None, '!'):
-            tag = self.resolver.resolve(ScalarNode, event.value, event.implicit)
+            tag = self.resolver.resolve(ScalarNode, event.value, event.implicit)  # type: ignore[no-untyped-call]  # untyped in types-PyYAML
             if self.document and plain and not key and tag == f'{_STD}str':
                 number = ros_scalar(event.value, quoted=False)   # rcl's numbers (1e4)
                 if isinstance(number, int | float) and not isinstance(number, bool):

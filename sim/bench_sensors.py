@@ -24,7 +24,7 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-from sim._checks import real_number
+from sim._checks import Rule, real_number
 from sim.errors import ModelInputError, PresetError
 
 if TYPE_CHECKING:
@@ -77,8 +77,10 @@ class SensorSpec:
         if self.quantity not in ('torque', 'temperature'):
             msg = f"SensorSpec.quantity must be 'torque' or 'temperature', got {self.quantity!r}"
             raise ModelInputError(msg)
-        for f, rule in (('full_scale', '>0'), ('accuracy_class_pct', '>=0'),
-                        ('zero_offset', ''), ('gain_error', ''), ('noise_rms', '>=0')):
+        rules: tuple[tuple[str, Rule], ...] = (
+            ('full_scale', '>0'), ('accuracy_class_pct', '>=0'), ('zero_offset', ''),
+            ('gain_error', ''), ('noise_rms', '>=0'))
+        for f, rule in rules:
             object.__setattr__(self, f, real_number(f'SensorSpec.{f}', getattr(self, f), rule))
         if abs(self.gain_error) >= 0.5:
             msg = f'SensorSpec.gain_error must lie within +-0.5, got {self.gain_error!r}'

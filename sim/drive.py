@@ -40,6 +40,7 @@ from sim.units import RAD_S_PER_RPM
 
 if TYPE_CHECKING:
     import numpy.typing as npt
+    from _typeshed import DataclassInstance
 
     from sim.kinematics import ReducerKinematics
 
@@ -67,7 +68,7 @@ def _num(cls: str, name: str, value: Any, *, rule: Rule = '') -> float:
     return real_number(f'{cls}.{name}', value, rule)
 
 
-def _set_nums(obj: object, rules: dict[str, str]) -> None:
+def _set_nums(obj: object, rules: dict[str, Rule]) -> None:
     """Validate and store the numeric fields of a frozen dataclass as float."""
     cls = type(obj).__name__
     for name, rule in rules.items():
@@ -82,7 +83,7 @@ def _check_bool(obj: object, name: str) -> None:
     object.__setattr__(obj, name, bool(value))
 
 
-def _t(t_s: npt.ArrayLike) -> np.ndarray:
+def _t(t_s: npt.ArrayLike) -> npt.NDArray[np.float64]:
     return np.asarray(t_s, dtype=np.float64)
 
 
@@ -360,7 +361,7 @@ DRIVE_KINDS: dict[str, type] = {
 }
 LOAD_KINDS: tuple[str, ...] = ('constant', 'sinusoidal')
 _TIE_TARGETS = ('input', 'output', 'crank', 'crank_rel', 'mesh')
-_P = TypeVar('_P')
+_P = TypeVar('_P', bound='DataclassInstance')
 
 
 def _construct(kind_label: str, cls: type[_P], params: dict[str, Any]) -> _P:

@@ -469,7 +469,8 @@ class SimulatedEncoder:
             ModelInputError: Not 1-D or not finite.
         """
         if self.spec.heads:
-            return self.measure_heads(theta_true_rad)[0]
+            first: npt.NDArray[np.float64] = self.measure_heads(theta_true_rad)[0]
+            return first
         th = self._checked(theta_true_rad)
         x = th + self.spec.angle_error_rad(th)
         if self.spec.noise_sigma_rad:

@@ -49,6 +49,7 @@ from dataclasses import dataclass
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
+import numpy.typing as npt
 
 from sim.errors import ModelInputError, PresetError
 from sim.kinematics import kinematics_from_preset
@@ -460,7 +461,7 @@ class HuGeometricTeModel:
         amp = np.array([self.line_amplitude_rad[k] for k in FACTOR_KEYS])
         n = np.array([self.orders[k] for k in FACTOR_KEYS])
         ph = np.array([self.phases_rad[k] for k in FACTOR_KEYS])
-        te = amp @ np.cos(np.outer(n, th_out) + ph[:, None])
+        te: npt.NDArray[np.float64] = amp @ np.cos(np.outer(n, th_out) + ph[:, None])
         if self.elastic:
             te = te + elastic_te_rad(self.params, arrays[3])
         return te
@@ -765,4 +766,5 @@ def elastic_te_rad(params: HuRvParams, torque_nm: np.ndarray | float) -> np.ndar
     if np.any(over):
         slope = (bb[-1] - bb[-2]) / (tt[-1] - tt[-2])
         beta = np.where(over, bb[-1] + slope * (mag - tt[-1]), beta)
-    return -np.sign(t) * beta
+    te: npt.NDArray[np.float64] = -np.sign(t) * beta
+    return te

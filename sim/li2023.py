@@ -139,13 +139,16 @@ _DPOSV = _lapack_dposv()
 # 2-core machine (blocks of 1000 ran at 0.9x real time instead of 12x).
 _SUB_STEPS = 100
 _BLAS_SERIAL_MNK = 200_000
+#: Newmark operators of one step size: ([P; R], L, P, W, K_eff constant part).
+_NewmarkOps = tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray]
 
 
 def _serial_matmul(a: np.ndarray, b: np.ndarray) -> np.ndarray:
     """``a @ b`` (2-D) in row slices small enough that OpenBLAS runs them on one thread."""
     rows = max(1, _BLAS_SERIAL_MNK // max(1, a.shape[1] * b.shape[1]))
     if a.shape[0] <= rows:
-        return a @ b
+        prod: npt.NDArray[np.float64] = a @ b
+        return prod
     out = np.empty((a.shape[0], b.shape[1]))
     for r0 in range(0, a.shape[0], rows):
         np.matmul(a[r0:r0 + rows], b, out=out[r0:r0 + rows])
@@ -423,7 +426,8 @@ def _cycloid_curvature_radius(theta_rel: np.ndarray, p: Li2023Params) -> np.ndar
     rho0 = 1.0 / np.abs(kappa)
     centre = w + 1j * z1 / np.abs(z1) / kappa
     convex = np.abs(centre) < np.abs(w)
-    return np.where(convex, rho0 - rr, -(rho0 + rr))
+    rho: npt.NDArray[np.float64] = np.where(convex, rho0 - rr, -(rho0 + rr))
+    return rho
 
 
 def _hertz_stiffness(force_n: np.ndarray, rho_c: np.ndarray, p: Li2023Params) -> np.ndarray:
@@ -435,7 +439,8 @@ def _hertz_stiffness(force_n: np.ndarray, rho_c: np.ndarray, p: Li2023Params) ->
     b = np.sqrt(4.0 * np.maximum(force_n, 1e-9) * r_star * 2.0 * c
                 / (np.pi * p.face_width_m))
     denom = c * (np.log(4.0 * np.abs(rho_c) / b) - 0.5) + c * (np.log(4.0 * rr / b) - 0.5)
-    return np.pi * p.face_width_m / (2.0 * denom)
+    k: npt.NDArray[np.float64] = np.pi * p.face_width_m / (2.0 * denom)
+    return k
 
 
 def ltca(params: Li2023Params, *, torque_nm: float | None = None,
@@ -543,7 +548,9 @@ def _quantise(h: np.ndarray) -> np.ndarray:
     # a step just below a power of ten rounds to a mantissa of 10: renormalise, so that
     # 0.99999999e-4 and 1.00000001e-4 both give 1.0 * 1e-4 (one operator set, not two)
     up = mant >= 10.0
-    return np.where(up, mant / 10.0, mant) * 10.0 ** np.where(up, e + 1.0, e)
+    rounded: npt.NDArray[np.float64] = (np.where(up, mant / 10.0, mant)
+                                        * 10.0 ** np.where(up, e + 1.0, e))
+    return rounded
 
 
 # --------------------------------------------------------------------------------------
@@ -627,7 +634,7 @@ class Li2023DteModel:
         self._build_matrices()
         self._build_error_patterns()
         self._keff_buf = np.empty((_SUB_STEPS, self.ndof**2))
-        self._ops_cache: dict[float, tuple[np.ndarray, np.ndarray]] = {}
+        self._ops_cache: dict[float, _NewmarkOps] = {}
         self.reset()
 
     # ---- assembly ----------------------------------------------------------------------
@@ -772,7 +779,9 @@ class Li2023DteModel:
     def stiffness_matrix(self, theta_in_rad: npt.ArrayLike) -> np.ndarray:
         """K(t) at input angles ``theta_in_rad`` (kinematic phases), shape (S, n, n)."""
         th = np.atleast_1d(np.asarray(theta_in_rad, dtype=np.float64))
-        return (self._coeffs(th) @ self._basis).reshape(th.size, self.ndof, self.ndof)
+        kmat: npt.NDArray[np.float64] = (self._coeffs(th) @ self._basis).reshape(
+            th.size, self.ndof, self.ndof)
+        return kmat
 
     def _phase(self, th: np.ndarray) -> tuple[dict[str, np.ndarray], np.ndarray, np.ndarray]:
         """Kinematic angles and mesh stiffnesses at input angles ``th``."""
@@ -1051,6 +1060,7 @@ class Li2023DteModel:
             start = 1
         if start < t.size:
             prev = self._last
+            assert prev is not None  # set with the state, on the first call
             tt = np.concatenate([[prev[0]], t[start:]])
             tht = np.concatenate([[prev[1]], th[start:]])
             omt = np.concatenate([[prev[2]], om[start:]])
@@ -1153,7 +1163,7 @@ class Li2023DteModel:
         self._zstate = None
         return te
 
-    def _ops(self, h: float) -> tuple[np.ndarray, ...]:
+    def _ops(self, h: float) -> _NewmarkOps:
         """Cached Newmark operators of step ``h``: ([P; R], L, W) (see :meth:`_run_chunk_q`)."""
         ops = self._ops_cache.get(h)
         if ops is None:
@@ -1193,6 +1203,7 @@ class Li2023DteModel:
         uplo, n_c, one = ctypes.c_char(b'L'), ctypes.c_int(nd), ctypes.c_int(1)
         p_uplo, p_n, p_one, p_info = (ctypes.addressof(o) for o in (uplo, n_c, one, info))
         x = self._state
+        assert x is not None  # set by the first step before any batch
         mdiag = np.diag(self.mass_matrix)
         c = self.damping_matrix
         for s0, s1 in itertools.pairwise(cuts):

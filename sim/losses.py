@@ -53,7 +53,7 @@ from typing import TYPE_CHECKING, NamedTuple
 
 import numpy as np
 
-from sim._checks import real_number
+from sim._checks import Rule, real_number
 from sim.errors import ModelInputError, PresetError
 from sim.kinematics import kinematics_from_preset
 from sim.lubricant import Lubricant
@@ -86,7 +86,7 @@ def palmgren_m0_nm(nu_mm2_s: npt.ArrayLike, n_rpm: npt.ArrayLike, f0: float,
     return 1e-7 * f0 * x ** (2.0 / 3.0) * (dm_m * 1e3) ** 3 * 1e-3
 
 
-_RULES: dict[str, str] = {
+_RULES: dict[str, Rule] = {
     'gear_ratio': '>0', 'bearing_speed_ratio': '>=0', 'reference_speed_rpm': '>0',
     'reference_temp_degc': '', 'reference_torque_nm': '>0', 'mesh_loss_ref': '>=0',
     'mesh_load_exp': '', 'mesh_speed_exp': '', 'mesh_visc_exp': '', 'mesh_loss_static': '>=0',
@@ -206,8 +206,9 @@ class LossPowers(NamedTuple):
     @property
     def total_w(self) -> np.ndarray:
         """Sum of the losses [W]."""
-        return self.mesh_w + self.bearing_load_w + self.bearing_drag_w + self.churn_w \
-            + self.seal_w
+        total: npt.NDArray[np.float64] = self.mesh_w + self.bearing_load_w + self.bearing_drag_w \
+            + self.churn_w + self.seal_w
+        return total
 
 
 def _arr(name: str, x: npt.ArrayLike) -> np.ndarray:
@@ -262,8 +263,10 @@ class LossModel:
             f = p.mesh_loss_ref * (t / p.reference_torque_nm) ** p.mesh_load_exp \
                 * (w / self.w_ref_rad_s) ** p.mesh_speed_exp \
                 * (nu / self.nu_ref_mm2_s) ** p.mesh_visc_exp
-        return np.minimum(np.nan_to_num(f, nan=p.mesh_loss_static, posinf=p.mesh_loss_static),
-                          p.mesh_loss_static)
+        f_mesh: npt.NDArray[np.float64] = np.minimum(
+            np.nan_to_num(f, nan=p.mesh_loss_static, posinf=p.mesh_loss_static),
+            p.mesh_loss_static)
+        return f_mesh
 
     def bearing_drag_nm(self, omega_in_rad_s: npt.ArrayLike,
                         nu_mm2_s: npt.ArrayLike) -> np.ndarray:
@@ -278,15 +281,19 @@ class LossModel:
         """Churning drag at the input [N m] (Changenet-Velex exponents)."""
         p = self.params
         w = np.abs(_arr('omega_in_rad_s', omega_in_rad_s))
-        return p.churn_torque_ref_nm * (w / self.w_ref_rad_s) ** p.churn_speed_exp \
+        churn: npt.NDArray[np.float64] = p.churn_torque_ref_nm \
+            * (w / self.w_ref_rad_s) ** p.churn_speed_exp \
             * (_arr('nu_mm2_s', nu_mm2_s) / self.nu_ref_mm2_s) ** p.churn_visc_exp
+        return churn
 
     def no_load_torque_nm(self, omega_in_rad_s: npt.ArrayLike,
                           temp_case_degc: npt.ArrayLike) -> np.ndarray:
         """No-load running torque T_drag at the input [N m] (>= 0, for |w| > 0)."""
         nu = self.viscosity_mm2_s(temp_case_degc)
-        return self.bearing_drag_nm(omega_in_rad_s, nu) + self.churn_nm(omega_in_rad_s, nu) \
+        drag: npt.NDArray[np.float64] = self.bearing_drag_nm(omega_in_rad_s, nu) \
+            + self.churn_nm(omega_in_rad_s, nu) \
             + self.params.seal_torque_nm
+        return drag
 
     # -- running ----------------------------------------------------------------------------
     def _terms(self, w: np.ndarray, load: np.ndarray, temp: npt.ArrayLike
@@ -343,7 +350,8 @@ class LossModel:
         load = _arr('load_nm', load_nm)
         t_in = self.input_torque_nm(w, load, temp_case_degc)
         with np.errstate(divide='ignore', invalid='ignore'):
-            return (load * w / self.params.gear_ratio) / (t_in * w)
+            eff: npt.NDArray[np.float64] = (load * w / self.params.gear_ratio) / (t_in * w)
+            return eff
 
     # -- at rest ----------------------------------------------------------------------------
     def _static_drag_nm(self) -> float:
@@ -356,8 +364,9 @@ class LossModel:
         """Input torque at which rotation begins, against a resisting output load [N m]."""
         p = self.params
         t = np.abs(_arr('load_nm', load_nm))
-        return p.static_to_kinetic * self._static_drag_nm() \
+        breakaway: npt.NDArray[np.float64] = p.static_to_kinetic * self._static_drag_nm() \
             + (1.0 + p.mesh_loss_static) * t / p.gear_ratio + self.bearing_load_coef * t
+        return breakaway
 
     def back_driving_torque_nm(self) -> float:
         """Output torque at which the output turns, input free and unloaded [N m]

@@ -12,6 +12,8 @@ from typing import TYPE_CHECKING, Protocol
 from sim.errors import PresetError
 
 if TYPE_CHECKING:
+    from collections.abc import Callable
+
     import numpy as np
 
     from sim.kinematics import ReducerKinematics
@@ -62,5 +64,6 @@ def build_te_model(preset: Preset, mode: str) -> TeModel:
                f'known models: {", ".join(sorted(MODEL_FACTORIES))}')
         raise PresetError(msg)
     module_name, func_name = target.split(':')
-    factory = getattr(importlib.import_module(module_name), func_name)
+    factory: Callable[[Preset, str], TeModel] = getattr(importlib.import_module(module_name),
+                                                       func_name)
     return factory(preset, mode)

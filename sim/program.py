@@ -86,7 +86,9 @@ class DriveSegment:
 
     def __post_init__(self) -> None:
         """Validate (ModelInputError names the field)."""
-        for name, rule in (('speed_rpm', '!=0'), ('duration_s', '>0'), ('load_nm', '')):
+        rules: tuple[tuple[str, Rule], ...] = (
+            ('speed_rpm', '!=0'), ('duration_s', '>0'), ('load_nm', ''))
+        for name, rule in rules:
             object.__setattr__(self, name, _num('drive segment', name, getattr(self, name), rule))
 
 
@@ -105,7 +107,8 @@ class TorqueSegment:
 
     def __post_init__(self) -> None:
         """Validate (ModelInputError names the field)."""
-        for name, rule in (('torque_nm', ''), ('duration_s', '>0')):
+        rules: tuple[tuple[str, Rule], ...] = (('torque_nm', ''), ('duration_s', '>0'))
+        for name, rule in rules:
             object.__setattr__(self, name, _num('torque segment', name, getattr(self, name),
                                                 rule))
 
@@ -128,7 +131,9 @@ class OutputSpeedSegment:
 
     def __post_init__(self) -> None:
         """Validate (ModelInputError names the field)."""
-        for name, rule in (('speed_rad_s', '!=0'), ('target_torque_nm', ''), ('hold_s', '>=0')):
+        rules: tuple[tuple[str, Rule], ...] = (
+            ('speed_rad_s', '!=0'), ('target_torque_nm', ''), ('hold_s', '>=0'))
+        for name, rule in rules:
             object.__setattr__(self, name, _num('output_speed segment', name,
                                                 getattr(self, name), rule))
 
@@ -152,13 +157,14 @@ class OutputPositionSegment:
 
     def __post_init__(self) -> None:
         """Validate (ModelInputError names the field)."""
-        for name, rule in (('position_rad', ''), ('duration_s', '>0')):
+        rules: tuple[tuple[str, Rule], ...] = (('position_rad', ''), ('duration_s', '>0'))
+        for name, rule in rules:
             object.__setattr__(self, name, _num('output_position segment', name,
                                                 getattr(self, name), rule))
 
 
 Segment = DriveSegment | TorqueSegment | OutputSpeedSegment | OutputPositionSegment
-SEGMENT_KINDS: dict[str, type] = {c.kind: c for c in (DriveSegment, TorqueSegment,
+SEGMENT_KINDS: dict[str, type[Segment]] = {c.kind: c for c in (DriveSegment, TorqueSegment,
                                                       OutputSpeedSegment,
                                                       OutputPositionSegment)}
 

@@ -27,7 +27,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 from scipy.signal import lfilter
 
-from sim._checks import real_number
+from sim._checks import Rule, real_number
 from sim.errors import ModelInputError, PresetError
 
 if TYPE_CHECKING:
@@ -35,8 +35,9 @@ if TYPE_CHECKING:
 
 __all__ = ['ThermalParams', 'ThermalState', 'step_response_degc']
 
-_RULES = {'case_mass_kg': '>0', 'specific_heat_j_kgk': '>0', 'surface_area_m2': '>=0',
-          'h_conv_w_m2k': '>=0', 'mount_conductance_w_k': '>=0', 'ambient_degc': ''}
+_RULES: dict[str, Rule] = {
+    'case_mass_kg': '>0', 'specific_heat_j_kgk': '>0', 'surface_area_m2': '>=0',
+    'h_conv_w_m2k': '>=0', 'mount_conductance_w_k': '>=0', 'ambient_degc': ''}
 
 
 @dataclass(frozen=True)

@@ -51,6 +51,8 @@ import numpy as np
 from sim.errors import ModelInputError, PresetError
 
 if TYPE_CHECKING:
+    from collections.abc import Callable
+
     import numpy.typing as npt
 
     from sim.presets import Preset
@@ -87,12 +89,13 @@ class TorsionParams:
 
     def __post_init__(self) -> None:
         """Validate (PresetError names the preset key and the rule)."""
-        for name, ok, rule in (
-                ('rated_torque_nm', lambda v: v > 0, '> 0'),
-                ('friction_torque_nm', lambda v: 0 <= v < self.rated_torque_nm / 2,
-                 '>= 0 and < rated_torque_nm / 2'),
-                ('clearance_rad', lambda v: v >= 0, '>= 0'),
-                ('series_stiffness_nm_rad', lambda v: v >= 0, '>= 0 (0 = none)')):
+        checks: tuple[tuple[str, Callable[[float], bool], str], ...] = (
+            ('rated_torque_nm', lambda v: v > 0, '> 0'),
+            ('friction_torque_nm', lambda v: 0 <= v < self.rated_torque_nm / 2,
+             '>= 0 and < rated_torque_nm / 2'),
+            ('clearance_rad', lambda v: v >= 0, '>= 0'),
+            ('series_stiffness_nm_rad', lambda v: v >= 0, '>= 0 (0 = none)'))
+        for name, ok, rule in checks:
             v = getattr(self, name)
             if isinstance(v, bool) or not isinstance(v, int | float) or not math.isfinite(v) \
                     or not ok(v):
@@ -177,7 +180,9 @@ class TorsionCurve:
         d = self.deflection_pos_rad if side > 0 else self.deflection_neg_rad
         out = np.interp(t, self.torque_nm, d)
         slope = (d[-1] - d[-2]) / (self.torque_nm[-1] - self.torque_nm[-2])
-        return np.where(t > self.torque_nm[-1], d[-1] + slope * (t - self.torque_nm[-1]), out)
+        defl: npt.NDArray[np.float64] = np.where(
+            t > self.torque_nm[-1], d[-1] + slope * (t - self.torque_nm[-1]), out)
+        return defl
 
     def elastic_torque_nm(self, angle_rad: npt.ArrayLike) -> np.ndarray:
         """g(phi): the elastic torque at torsion angles ``angle_rad`` [N m] (0 in the play)."""
@@ -189,7 +194,9 @@ class TorsionCurve:
         def inv(d: np.ndarray, table: np.ndarray) -> np.ndarray:
             out = np.interp(d, table, t)
             slope = (t[-1] - t[-2]) / (table[-1] - table[-2])
-            return np.where(d > table[-1], t[-1] + slope * (d - table[-1]), out)
+            torque: npt.NDArray[np.float64] = np.where(
+                d > table[-1], t[-1] + slope * (d - table[-1]), out)
+            return torque
 
         return np.where(pos > 0, inv(np.maximum(pos, 0.0), self.deflection_pos_rad),
                         np.where(neg > 0, -inv(np.maximum(neg, 0.0), self.deflection_neg_rad),

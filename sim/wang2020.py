@@ -339,7 +339,8 @@ def _check_theta(theta_out_rad: npt.ArrayLike) -> np.ndarray:
     return th
 
 
-def _phases(params: Wang2kvParams, phases_rad: PhasesLike | None) -> tuple[np.ndarray, ...]:
+def _phases(params: Wang2kvParams,
+            phases_rad: PhasesLike | None) -> tuple[np.ndarray | np.float64, ...]:
     if phases_rad is None:
         return tuple(np.float64(p) for p in params.phases_rad)
     if len(phases_rad) != 4:
@@ -349,10 +350,12 @@ def _phases(params: Wang2kvParams, phases_rad: PhasesLike | None) -> tuple[np.nd
     return tuple(np.asarray(p, dtype=np.float64) for p in phases_rad)
 
 
-def _term(e: float, phase: np.ndarray, psi: float, cos_t: np.ndarray,
+def _term(e: float, phase: np.ndarray | np.float64, psi: float, cos_t: np.ndarray,
           sin_t: np.ndarray) -> np.ndarray:
     """e sin(phase + psi + w) - e sin(phase + psi) with cos_t = cos w, sin_t = sin w."""
-    return e * (np.sin(phase + psi) * (cos_t - 1.0) + np.cos(phase + psi) * sin_t)
+    term: npt.NDArray[np.float64] = e * (np.sin(phase + psi) * (cos_t - 1.0)
+                                         + np.cos(phase + psi) * sin_t)
+    return term
 
 
 def mesh_increments_m(theta_out_rad: npt.ArrayLike, params: Wang2kvParams, *,
@@ -405,7 +408,8 @@ def nlte_rad(theta_out_rad: npt.ArrayLike, params: Wang2kvParams, *,
              phases_rad: PhasesLike | None = None) -> np.ndarray:
     """Wang 2020 Eq. 8: total non-load TE [rad], the larger of the two pairs' NLTE."""
     n1, n2 = nlte_pairs_rad(theta_out_rad, params, phases_rad=phases_rad)
-    return np.maximum(n1, n2)
+    n: npt.NDArray[np.float64] = np.maximum(n1, n2)
+    return n
 
 
 def backlash_pairs_rad(theta_out_rad: npt.ArrayLike, params: Wang2kvParams, *,
@@ -467,7 +471,8 @@ def static_te_rad(theta_out_rad: npt.ArrayLike, load_nm: npt.ArrayLike,
                    0.5 * (inc.delta1_m + inc.delta2_m) - 0.5 * d)
     back = np.where(np.abs(u1b - u2b) >= d, np.minimum(u1b, u2b) + d,
                     0.5 * (u1b + u2b) + 0.5 * d)
-    return np.where(f >= 0, fwd, back) / r
+    force: npt.NDArray[np.float64] = np.where(f >= 0, fwd, back) / r
+    return force
 
 
 def contact_forces_n(theta_out_rad: npt.ArrayLike, load_nm: npt.ArrayLike,
@@ -525,7 +530,8 @@ _SCALAR_SPAN = 512           # scalar stepping works on stretches of at most thi
 def _mode_of(x: np.ndarray, u: np.ndarray) -> np.ndarray:
     """Contact bits (drive1, drive2, back1, back2) for x (n,) against u (4, n)."""
     act = (_SIGN[:, None] * (u - x[None, :])) > 0
-    return (_BITS[:, None] * act).sum(axis=0)
+    bits: npt.NDArray[np.int64] = (_BITS[:, None] * act).sum(axis=0)
+    return bits
 
 
 @dataclass

@@ -54,9 +54,9 @@ def deltas(x: FloatArray, bas: FloatArray) -> tuple[FloatArray, FloatArray]:
 def _solve_normal(a: FloatArray, b: FloatArray) -> FloatArray:
     """Least-squares solution from the normal equations (min-norm if a pair is empty)."""
     try:
-        return np.linalg.solve(a, b)
+        return np.asarray(np.linalg.solve(a, b), dtype=np.float64)
     except np.linalg.LinAlgError:
-        return np.linalg.lstsq(a, b, rcond=None)[0]
+        return np.asarray(np.linalg.lstsq(a, b, rcond=None)[0], dtype=np.float64)
 
 
 def alternate(x: FloatArray, bas: FloatArray, w: FloatArray, y: FloatArray,
@@ -123,14 +123,21 @@ def polish(x0: FloatArray, bas: FloatArray, w: FloatArray, y: FloatArray) -> Flo
 
     def resid(x: FloatArray) -> FloatArray:
         d1, d2 = deltas(x, bas)
-        return np.maximum(d1, d2) + x[6] * w - y
+        r: FloatArray = np.maximum(d1, d2) + x[6] * w - y
+        return r
 
     def jac(x: FloatArray) -> FloatArray:
         d1, d2 = deltas(x, bas)
         return design(bas, d1 >= d2, w)
 
     s = max(float(np.abs(best_x).max()), 1e-12)
-    sol = least_squares(lambda u: resid(u * s), best_x / s, jac=lambda u: jac(u * s) * s,
+    def resid_scaled(u: FloatArray) -> FloatArray:
+        return resid(u * s)
+
+    def jac_scaled(u: FloatArray) -> FloatArray:
+        return jac(u * s) * s
+
+    sol = least_squares(resid_scaled, best_x / s, jac=jac_scaled,
                         method='trf', xtol=1e-12, ftol=1e-12)
     x = sol.x * s if 2 * sol.cost <= best_cost else best_x
     return alternate(x, bas, w, y)[0]

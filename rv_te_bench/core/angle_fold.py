@@ -104,7 +104,7 @@ class FoldedTe:
         """(counts, mean phi [rad], mean TE [rad]) over groups of ``factor`` adjacent bins."""
         groups = self.bins // int(factor)
         _, idx = np.unique(groups, return_inverse=True)
-        n = np.bincount(idx, weights=self.counts)
+        n = np.asarray(np.bincount(idx, weights=self.counts), dtype=np.float64)  # float: weighted
         return (n, np.bincount(idx, weights=self.counts * self.phi_rad) / n,
                 np.bincount(idx, weights=self.counts * self.te_rad) / n)
 

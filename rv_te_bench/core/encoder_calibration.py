@@ -170,7 +170,8 @@ class EncoderCalibration:
         arcseconds: an order-k error moves by k x that, far below its uncertainty).
         """
         r = np.asarray(reading_rad, dtype=np.float64)
-        return r - self.error_rad(r - index_rad - head_angle_rad)
+        corrected: npt.NDArray[np.float64] = r - self.error_rad(r - index_rad - head_angle_rad)
+        return corrected
 
     def check_for(self, scale_serial: str, *, when: _dt.date | None = None) -> None:
         """Refuse a calibration for another scale, or one expired at ``when``.

@@ -194,6 +194,7 @@ class HarmonicFold:
         sinc = np.sinc(ks * self._h / (2.0 * math.pi))    # numpy sinc(x) = sin(pi x)/(pi x)
         c = (2.0 / m) * spec[:, ks] * shift / sinc
         cov = sigma * (2.0 / m**2) * float(np.sum(1.0 / self._n)) / float(np.mean(sinc) ** 2)
+        assert self._ref is not None  # set with the first samples
         mean = spec[:, 0].real / m + self._ref
         return ChannelHarmonics(orders=ks, c=c, cov=cov, mean=mean,
                                 n_samples=self.n_samples, revolutions=self.revolutions)

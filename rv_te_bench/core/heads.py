@@ -144,7 +144,8 @@ class HeadLayout:
         k = np.asarray(orders, dtype=np.float64)
         b = np.asarray(self.angles_rad)
         w = np.asarray(self.weights)
-        return np.exp(-1j * k[..., None] * b) @ w
+        gain: npt.NDArray[np.complex128] = np.exp(-1j * k[..., None] * b) @ w
+        return gain
 
     def remaining_orders(self, max_order: int) -> tuple[int, ...]:
         """Orders 1 .. max_order the weighted mean does not cancel (|H_k| > CANCEL_TOL):
@@ -156,7 +157,9 @@ class HeadLayout:
         """a_jk = e^{-ik beta_j} - e^{-ik beta_0} for heads j = 1 .. N-1, shape (K, N-1)."""
         k = np.asarray(orders, dtype=np.float64)
         b = np.asarray(self.angles_rad)
-        return np.exp(-1j * k[:, None] * b[None, 1:]) - np.exp(-1j * k[:, None] * b[0])
+        a: npt.NDArray[np.complex128] = (np.exp(-1j * k[:, None] * b[None, 1:])
+                                         - np.exp(-1j * k[:, None] * b[0]))
+        return a
 
     def observability(self, orders: npt.ArrayLike) -> np.ndarray:
         """|a_k| / sqrt(2 N) per order: 1 for equal division where N does not divide k, 0
@@ -166,7 +169,9 @@ class HeadLayout:
         if self.n_heads < 2:
             return np.zeros(k.shape)
         a = self.difference_vectors(k)
-        return np.sqrt(np.sum(np.abs(a) ** 2, axis=1) / (2.0 * self.n_heads))
+        obs: npt.NDArray[np.float64] = np.sqrt(np.sum(np.abs(a) ** 2, axis=1)
+                                               / (2.0 * self.n_heads))
+        return obs
 
     def unobservable_orders(self, max_order: int) -> tuple[int, ...]:
         """Orders 1 .. max_order the head differences cannot see (observability below
@@ -185,8 +190,10 @@ class HeadLayout:
             msg = f'readings must have one row per head ({self.n_heads}), got shape {r.shape}'
             raise HeadLayoutError(msg)
         if self.n_heads == 1:
-            return r[0].copy()
-        return np.asarray(self.weights) @ r
+            row: npt.NDArray[np.float64] = r[0].copy()
+            return row
+        combined: npt.NDArray[np.float64] = np.asarray(self.weights) @ r
+        return combined
 
     def subset(self, head_ids: Sequence[int]) -> HeadLayout:
         """The layout of some of the heads (a block that lacks one).

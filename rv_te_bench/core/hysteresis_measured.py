@@ -52,6 +52,8 @@ from rv_te_bench.core.hysteresis import (
 from rv_te_bench.errors import TeConfigError, TeInputError
 
 if TYPE_CHECKING:
+    from collections.abc import Callable
+
     import numpy.typing as npt
 
     from rv_te_bench.core.hysteresis import BranchReader
@@ -117,13 +119,15 @@ class DwellSet:
     @property
     def count(self) -> np.ndarray:
         """Samples averaged in each dwell."""
-        return self.stop - self.start
+        n: npt.NDArray[np.int64] = self.stop - self.start
+        return n
 
 
 def _moving_sum(x: np.ndarray, w: int) -> np.ndarray:
     """Sums of x[i:i+w] for i = 0..n-w."""
     c = np.concatenate([[0.0], np.cumsum(x)])
-    return c[w:] - c[:-w]
+    sums: npt.NDArray[np.float64] = c[w:] - c[:-w]
+    return sums
 
 
 def find_dwells(torque_nm: npt.ArrayLike, angle_rad: npt.ArrayLike, *, min_samples: int,
@@ -441,9 +445,11 @@ def _aggregate(cycles: list[HysteresisMetrics], config: HysteresisConfig,
         return float(arr.mean()), float(arr.std(ddof=1)) if arr.size > 1 else math.nan
 
     values, spread = {}, {}
-    for name, get in (('lost_motion_rad', lambda m: m.lost_motion_rad),
-                      ('backlash_rad', lambda m: m.backlash_rad),
-                      ('hysteresis_loss_j', lambda m: m.hysteresis_loss_j)):
+    getters: tuple[tuple[str, Callable[[HysteresisMetrics], float]], ...] = (
+        ('lost_motion_rad', lambda m: m.lost_motion_rad),
+        ('backlash_rad', lambda m: m.backlash_rad),
+        ('hysteresis_loss_j', lambda m: m.hysteresis_loss_j))
+    for name, get in getters:
         values[name], spread[name] = mean_sd([get(m) for m in cycles])
     for r in config.rigidity_regions:
         pos, _ = mean_sd([m.rigidity_nm_per_rad[r.name][0] for m in cycles])

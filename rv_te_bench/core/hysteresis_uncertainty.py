@@ -303,9 +303,9 @@ def min_budget(measurand: str, a: Budget, b: Budget, *, notes: Sequence[str] = (
 def _quadratic_slope(x: np.ndarray, y: np.ndarray, x0: float) -> float:
     """d/dx at x0 of the parabola through three points (Lagrange form)."""
     (xa, xb, xc), (ya, yb, yc) = x, y
-    return (ya * (2 * x0 - xb - xc) / ((xa - xb) * (xa - xc))
-            + yb * (2 * x0 - xa - xc) / ((xb - xa) * (xb - xc))
-            + yc * (2 * x0 - xa - xb) / ((xc - xa) * (xc - xb)))
+    return float(ya * (2 * x0 - xb - xc) / ((xa - xb) * (xa - xc))
+                 + yb * (2 * x0 - xa - xc) / ((xb - xa) * (xb - xc))
+                 + yc * (2 * x0 - xa - xb) / ((xc - xa) * (xc - xb)))
 
 
 def local_compliance(torque_nm: npt.ArrayLike, angle_rad: npt.ArrayLike) -> np.ndarray:
@@ -325,8 +325,8 @@ def local_compliance(torque_nm: npt.ArrayLike, angle_rad: npt.ArrayLike) -> np.n
     with np.errstate(divide='ignore', invalid='ignore'):
         sec = np.diff(a) / np.diff(t)
     sec = np.where(np.isfinite(sec), sec, np.inf)
-    left = np.r_[np.inf, sec]
-    right = np.r_[sec, np.inf]
+    left: npt.NDArray[np.float64] = np.r_[np.inf, sec]
+    right: npt.NDArray[np.float64] = np.r_[sec, np.inf]
     out = np.where(np.abs(left) <= np.abs(right), left, right)
     out = np.where(np.isfinite(out), out, 0.0)
     n = t.size

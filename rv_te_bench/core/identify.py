@@ -451,7 +451,7 @@ def identify_folded(folded: FoldedTe, params: GeometrySource, *,
     # (a, b) -> Q e^{-i alpha} = b + i a; the rotation keeps vector errors
     sig = {k: math.sqrt(max(cov[i, i] + cov[j, j], 0.0))
            for k, (i, j) in (('pair1', (0, 1)), ('pair2', (2, 3)), ('e_ot', (4, 5)))}
-    cov_q = q_covariance(cov, geom.alpha_rad)
+    cov_q = q_covariance(np.asarray(cov, dtype=np.float64), geom.alpha_rad)
     return _finish(geom, folded, x, q1, q2, ee, frac1, fit, sig, cov_q, split=split)
 
 

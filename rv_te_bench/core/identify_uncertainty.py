@@ -140,17 +140,17 @@ def identification_budgets(ident: Identification, folded: FoldedTe, *,
                 note=f'closed form (Gauss-Newton): response to order {order:g} of the '
                      'output revolution, sine and cosine quadrature'))
     # the fit residual as white noise: the covariance of the weighted least squares
-    n = folded.n_samples
+    n_samples = folded.n_samples
     fit = ident.fit
-    rss = (fit.residual_rms_rad ** 2) * n if fit is not None else 0.0
-    dof = max(n - 7, 1)
+    rss = (fit.residual_rms_rad ** 2) * n_samples if fit is not None else 0.0
+    dof = max(n_samples - 7, 1)
     cov = (rss * r_p * r_p / dof) * (pinv @ pinv.T)
     for name, _ in IDENTIFIED:
         u = math.sqrt(max(float(grads[name] @ cov @ grads[name]), 0.0))
         inputs[name].append(UncertaintyInput(
             name='fit residual (least-squares covariance)', kind='A', u=u, sensitivity=1.0,
             distribution='t', dof=float(dof), unit='m' if name.endswith('_m') else 'rad',
-            source=f'this record ({n} samples)',
+            source=f'this record ({n_samples} samples)',
             note='residual taken as white noise: rss / (n - 7) (J^T J)^-1'))
     values = {'e_ot_m': ident.e_m['e_ot'], 'pair1_m': ident.e_m['pair1'],
               'pair2_m': ident.e_m['pair2'], 'theta_ot_rad': ident.phases_rad['theta_ot'],

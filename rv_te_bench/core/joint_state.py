@@ -362,7 +362,8 @@ class JointStateAssembler:
         out: list[JointStateBlock | JointStateGap] = []
         p_in = self._value(positions, i_in)
         p_out = self._value(positions, i_out)
-        e_out = self._value(efforts, i_out) if self._use_effort else math.nan
+        e_val = self._value(efforts, i_out) if self._use_effort else math.nan
+        e_out = math.nan if e_val is None else e_val   # no effort value: torque unknown
         heads = self._head_values(key, positions) if self._head_names and p_out is not None \
             else ()
         if p_in is not None and p_out is not None and not self._half_in \

@@ -47,7 +47,7 @@ from rv_te_bench.core.advice import Advice, Modification
 from rv_te_bench.core.te import TeStats, te_statistics
 from rv_te_bench.core.units import json_deg
 from rv_te_bench.errors import CompensationError
-from sim._checks import real_number
+from sim._checks import Rule, real_number
 from sim.units import deg_to_rad, rad_to_arcmin, rad_to_deg
 
 if TYPE_CHECKING:
@@ -94,7 +94,7 @@ _TWO_PI = 2.0 * math.pi
 def _finite(name: str, value: Any, *, positive: bool = False, nonneg: bool = False,
             ) -> float:
     """Return ``value`` as float or raise CompensationError naming ``name``."""
-    rule = '>0' if positive else '>=0' if nonneg else ''
+    rule: Rule = '>0' if positive else '>=0' if nonneg else ''
     return real_number(name, value, rule, error=CompensationError, coerce=True)
 
 
@@ -117,8 +117,8 @@ class EccentricGeometry:
         mesh_stiffness_n_m: Mesh stiffness k of Wang 2020 Eqs 10-18 [N/m] (NaN: STE not available).
     """
 
-    e_m: tuple[float, float, float, float]
-    phases_rad: tuple[float, float, float, float]
+    e_m: tuple[float, ...]           # 4 values (checked on construction)
+    phases_rad: tuple[float, ...]    # 4 values (checked on construction)
     alpha_rad: float
     r_p_m: float
     crank_order: float = -25.0
@@ -362,7 +362,7 @@ def _combos(ax: Sequence[FloatArray], flat: np.ndarray, shape: tuple[int, int, i
 
 def grid_search_phases(geom: EccentricGeometry, axes_rad: Sequence[npt.ArrayLike], *,
                        progress: ProgressCallback | None = None,
-                       ) -> tuple[tuple[float, float, float, float], float, int]:
+                       ) -> tuple[tuple[float, ...], float, int]:
     """Minimise the Wang 2020 Eq. 21 objective over the Cartesian product of four phase axes.
 
     Args:
@@ -441,7 +441,7 @@ def grid_search_phases(geom: EccentricGeometry, axes_rad: Sequence[npt.ArrayLike
     cands = _combos(ax, flat, (total, n1, n2), (n3, n4))
     j, s_m, _ = _certain_best(cands, geom, nf, prior_lo=lo)
     best = tuple(float(x) for x in cands[j])
-    return best, s_m / geom.r_p_m, n1 * n2 * n3 * n4  # type: ignore[return-value]
+    return best, s_m / geom.r_p_m, n1 * n2 * n3 * n4
 
 
 # --------------------------------------------------------------------------- result
@@ -492,7 +492,7 @@ class PhaseOptimisation:
     refined: bool = False
     n_combinations: int = 0
     elapsed_s: float = math.nan
-    e_m: tuple[float, float, float, float] = (math.nan,) * 4
+    e_m: tuple[float, ...] = (math.nan,) * 4
     details: dict[str, Any] = field(default_factory=dict, compare=False)
 
     @property

@@ -30,7 +30,7 @@ from __future__ import annotations
 import functools
 import math
 from dataclasses import dataclass, field
-from typing import TYPE_CHECKING, Literal
+from typing import TYPE_CHECKING, Any, Literal
 
 import numpy as np
 from numpy.lib.stride_tricks import sliding_window_view
@@ -161,7 +161,7 @@ class ControlChart:
         """Index of the first point any rule flags, or None."""
         return self.hits[0].index if self.hits else None
 
-    def to_json_dict(self, scale: float = 1.0, unit: str = '') -> dict:
+    def to_json_dict(self, scale: float = 1.0, unit: str = '') -> dict[str, Any]:
         """JSON form; values multiplied by ``scale`` (e.g. rad -> arcmin) and tagged."""
         def arr(a: np.ndarray) -> list[float | None]:
             return [None if not math.isfinite(v) else float(v) * scale for v in a]
@@ -306,7 +306,8 @@ def _k_of_m(flags: np.ndarray, k: int, m: int) -> np.ndarray:
         return np.zeros(0, dtype=np.int64)
     count = sliding_window_view(flags.astype(np.int64), m).sum(axis=1)
     end = np.arange(m - 1, flags.size)
-    return end[(count >= k) & flags[m - 1:]]
+    idx: npt.NDArray[np.int64] = end[(count >= k) & flags[m - 1:]]
+    return idx
 
 
 def run_rules(z: npt.ArrayLike, *, rules: RuleSet = 'nelson') -> list[RuleHit]:
@@ -366,7 +367,7 @@ class Capability:
     ppk: float | None
     fraction_out: float
 
-    def to_json_dict(self, scale: float = 1.0, unit: str = '') -> dict:
+    def to_json_dict(self, scale: float = 1.0, unit: str = '') -> dict[str, Any]:
         """JSON form; the limits, mean and sigmas multiplied by ``scale``."""
         def sc(v: float | None) -> float | None:
             return None if v is None else v * scale

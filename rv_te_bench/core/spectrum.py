@@ -167,7 +167,7 @@ class OrderSpectrum:
         Computed on first use (the lines carry their phases already; the full array is
         rarely needed and costs an angle and a wrap per bin).
         """
-        phase = np.angle(self.bins)
+        phase: npt.NDArray[np.float64] = np.angle(self.bins)
         phase -= self.orders * self.phi0_rad  # refer the phase to phi = 0, not the grid start
         _wrap_pi_inplace(phase)
         phase.setflags(write=False)
@@ -301,7 +301,8 @@ def _lagrange4_numpy(x: np.ndarray, y: np.ndarray, spacing: float, n_grid: int, 
     """
     n = x.size
     if n < 4:
-        return np.interp(np.arange(n_grid) * spacing, x, y)
+        resampled: npt.NDArray[np.float64] = np.interp(np.arange(n_grid) * spacing, x, y)
+        return resampled
     ws = work if work is not None else SpectrumWorkspace()
     # count[m] = number of nodes with x <= m * spacing: a node in ((m-1) s, m s] goes to
     # cell m (ceil; a node that rounds onto a grid point may land one cell off, which only

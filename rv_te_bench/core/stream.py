@@ -45,7 +45,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import replace
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING
 
 import numpy as np
 
@@ -222,7 +222,9 @@ class StreamingTeAnalyzer:
         self._cum = RunningStats()
         self._cum_folded = 0
         self._cum_rev = 0.0
-        self._cum_key: tuple[Any, ...] = (None, 0, 0.0, None)   # the last read, see cumulative
+        # the last read, see cumulative: (accumulator, samples, angle travelled, statistics)
+        self._cum_key: tuple[RunningStats | None, int, float, TeStats | None] = (
+            None, 0, 0.0, None)
         self._buf = WindowBuffer(config.max_window_samples)
         self._spectrum_work = SpectrumWorkspace()   # the window spectra's work arrays
         # set_spectrum_hook: called with (window index, window buffer) instead of computing
@@ -264,7 +266,8 @@ class StreamingTeAnalyzer:
         # a second read with nothing new (the TE node's plot message) reuses the first:
         # same accumulator object, as many samples, same angle travelled
         key = self._cum_key
-        if key[0] is cum and key[1] == cum.n_samples and key[2] == self._cum_rev:
+        if key[0] is cum and key[1] == cum.n_samples and key[2] == self._cum_rev \
+                and key[3] is not None:
             return key[3]
         stats = cum.stats(self._cum_rev / _TWO_PI)
         self._cum_key = (cum, cum.n_samples, self._cum_rev, stats)

@@ -169,13 +169,13 @@ class UncertaintyInput:
                 'share': share, 'source': self.source, 'note': self.note}
 
 
-def _shape_std(shape: Sequence[float]) -> float:
+def _shape_std(shape: npt.ArrayLike) -> float:
     return float(np.std(np.asarray(shape, dtype=np.float64)))
 
 
 def type_b(name: str, *, sensitivity: float, distribution: Distribution,
            half_width: float | None = None, u: float | None = None, unit: str = 'rad',
-           source: str = '', note: str = '', shape: Sequence[float] = ()) -> UncertaintyInput:
+           source: str = '', note: str = '', shape: npt.ArrayLike = ()) -> UncertaintyInput:
     """A type B input from a bound (rectangular/triangular half-width, arcsine amplitude)
     or from a standard uncertainty (normal).
 
@@ -287,7 +287,7 @@ def _bin_masses(shape: str, sigma: float, dof: float, edges: np.ndarray,
     else:
         pdf = np.exp(-0.5 * z * z)
         tail = 0.5 * math.erfc(float(edges[-1]) / sigma / math.sqrt(2.0))
-    m = pdf / pdf.sum() * (1.0 - 2.0 * tail)
+    m = np.asarray(pdf / pdf.sum() * (1.0 - 2.0 * tail), dtype=np.float64)
     m[0] += tail
     m[-1] += tail
     return m
@@ -334,8 +334,9 @@ def coverage_factor(inputs: Sequence[UncertaintyInput], p: float = COVERAGE_PROB
     uc = math.sqrt(float(np.sum(sig * sig)))
     if uc == 0.0:
         return math.nan, 'normal'
-    shapes = ['normal' if (x.distribution == 't' and math.isinf(x.dof)) else x.distribution
-              for x in inputs]
+    shapes: list[Distribution] = [
+        'normal' if (x.distribution == 't' and math.isinf(x.dof)) else x.distribution
+        for x in inputs]
     if all(s == 'normal' for s in shapes):
         return _normal_quantile(0.5 + p / 2.0), 'normal'
     bounded = sum(float(g) ** 2 for s, g in zip(shapes, sig, strict=True)
@@ -360,7 +361,8 @@ def coverage_factor(inputs: Sequence[UncertaintyInput], p: float = COVERAGE_PROB
     return k, 'distribution'
 
 
-def _convolved_quantile(parts: list[tuple[str, float, float, tuple[float, ...]]], span: float,
+def _convolved_quantile(parts: list[tuple[Distribution, float, float, tuple[float, ...]]],
+                        span: float,
                         uc: float,
                         p: float) -> tuple[float, bool]:
     n = _GRID_BINS
