@@ -10,7 +10,7 @@ from __future__ import annotations
 
 import struct
 from dataclasses import dataclass
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
@@ -31,7 +31,7 @@ _ALIGN4, _ALIGN8 = 3, 7
 def _seq_offset(buf: bytes | memoryview, end: str) -> int:
     """Offset (after the 4-byte encapsulation) of EncoderBlock.seq: header.stamp (8 B),
     frame_id (length + bytes), padding to 8."""
-    (flen,) = struct.unpack_from(end + 'I', buf, 12)
+    flen: int = struct.unpack_from(end + 'I', buf, 12)[0]
     return (12 + flen + _ALIGN8) & ~_ALIGN8
 
 
@@ -42,7 +42,8 @@ def encoder_block_seq(data: bytes | memoryview) -> int:
         struct.error, IndexError: The bytes are too short to hold it.
     """
     end = '<' if data[1] == 1 else '>'
-    return struct.unpack_from(end + 'Q', data, 4 + _seq_offset(data, end))[0]
+    seq: int = struct.unpack_from(end + 'Q', data, 4 + _seq_offset(data, end))[0]
+    return seq
 
 
 #: Bytes the four head sequences take at least (their counts): fewer after the torque
@@ -377,7 +378,9 @@ def decode_encoder_block_rosbags(data: bytes | memoryview) -> EncoderBlockData:
     from rv_te_bench.io._legacy_msgs import upgrade_cdr
 
     try:
-        msg = rv_te_typestore().deserialize_cdr(upgrade_cdr(ENCODER_BLOCK, data), ENCODER_BLOCK)
+        # a class the typestore generates at run time: no static type
+        msg: Any = rv_te_typestore().deserialize_cdr(upgrade_cdr(ENCODER_BLOCK, data),
+                                                     ENCODER_BLOCK)
     except Exception as exc:  # noqa: BLE001 - rosbags raises assorted errors on bad bytes
         text = f'EncoderBlock does not deserialise: {exc}'
         raise BagError(text) from None

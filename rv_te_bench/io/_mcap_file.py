@@ -65,10 +65,11 @@ def record_bytes(*records: McapRecord) -> bytes:
     builder = RecordBuilder()
     for record in records:
         record.write(builder)
-    return builder.end()
+    out: bytes = builder.end()
+    return out
 
 
-def compressor(compression: Compression) -> tuple[str, Callable[[bytes], bytes]]:
+def compressor(compression: Compression) -> tuple[str, Callable[[bytes | bytearray], bytes]]:
     """(MCAP compression name, function) for a ``compression`` setting.
 
     Raises:
@@ -193,7 +194,9 @@ class McapFile:
         try:
             file.append(head)
         except OSError:
-            for undo in (lambda: storage.close(fd), lambda: storage.unlink(path)):
+            undos: tuple[Callable[[], None], ...] = (lambda: storage.close(fd),
+                                                     lambda: storage.unlink(path))
+            for undo in undos:
                 try:
                     undo()
                 except OSError:
@@ -251,7 +254,7 @@ class McapFile:
             pass   # finish() or close_without_summary() tries again
 
     def write_chunk(self, chunk: Chunk, *, compression: str,
-                    compress: Callable[[bytes], bytes]) -> dict[int, int]:
+                    compress: Callable[[bytes | bytearray], bytes]) -> dict[int, int]:
         """Write one chunk and its message indexes; index and count it once on disk.
 
         Returns:

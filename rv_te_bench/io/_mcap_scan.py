@@ -119,7 +119,8 @@ def _decompress(compression: str, data: memoryview, size: int) -> bytes:
         if compression == 'lz4':
             import lz4.frame
 
-            return lz4.frame.decompress(bytes(data))
+            out: bytes = lz4.frame.decompress(bytes(data))
+            return out
     except MemoryError:
         raise _CorruptError(f'{compression} chunk does not fit in memory') from None
     except Exception as exc:  # noqa: BLE001 - codecs raise assorted errors on bad input
@@ -360,13 +361,12 @@ def _scan_file(
 
 def _file_channels(file: Path) -> _ScanState:
     """Schemas and channels of one MCAP file: from its summary, else by a scan."""
-    state = _summary(file)
-    if state is None:
-        state = _ScanState()
-        for _ in _scan_file(file, state, lambda _t: None, messages=False):
-            pass
-    else:
-        state = state[0]
+    summary = _summary(file)
+    if summary is not None:
+        return summary[0]
+    state = _ScanState()
+    for _ in _scan_file(file, state, lambda _t: None, messages=False):
+        pass
     return state
 
 

@@ -78,8 +78,9 @@ def mcap_units(bag: Bag, report: Callable[[str], None], topics: Collection[str] 
         for inner, found in _scan_units(file, state, report, executor=executor):
             out = []
             for cid, log_time, start, end in found:
-                target = resolved.get(cid, False)
-                if target is False:
+                if cid in resolved:
+                    target = resolved[cid]
+                else:
                     chan = state.channels.get(cid)
                     if chan is None:
                         report(f'{file}: message on unknown channel {cid}; skipped')

@@ -47,7 +47,7 @@ import math
 from dataclasses import dataclass, field, replace
 from pathlib import Path
 from types import MappingProxyType
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING, Any, NoReturn
 
 import yaml
 
@@ -78,7 +78,7 @@ _MAX_TEXT = 4096        # longest free text (notes, metadata values) [characters
 _MAX_METADATA = 100     # most free metadata keys
 
 
-def _fail(where: str, key: str, rule: str, value: Any = None) -> None:
+def _fail(where: str, key: str, rule: str, value: Any = None) -> NoReturn:
     got = '' if value is None else f', got {brief(value)}'
     msg = f'{where}: {key} {rule}{got}'
     raise BenchDescriptionError(msg)
@@ -409,7 +409,7 @@ class _Keys:
             _fail(where, key or 'document', 'must be a mapping', data)
         self.data = dict(data)
 
-    def fail(self, key: str, rule: str, value: Any = None) -> None:
+    def fail(self, key: str, rule: str, value: Any = None) -> NoReturn:
         _fail(self.where, f'{self.prefix}{key}', rule, value)
 
     def num(self, key: str, *, required: bool = False, positive: bool = True,

@@ -179,12 +179,11 @@ def _torque_from_topic(path: Path, spec: TorqueTopic,
     if len(times) < 2:
         msg = f'{path}: the torque topic {spec.topic} has {len(times)} usable reading(s)'
         raise BagError(msg)
-    t = np.asarray(times)
-    v = np.asarray(values)
-    order = np.argsort(t, kind='stable')
-    t, v = t[order], v[order]
-    out = np.interp(sample_times_s, t, v)
-    k = np.clip(np.searchsorted(t, sample_times_s), 1, t.size - 1)
-    near = np.minimum(np.abs(sample_times_s - t[k - 1]), np.abs(t[k] - sample_times_s))
+    order = np.argsort(times, kind='stable')
+    t_s = np.asarray(times, dtype=np.float64)[order]
+    val = np.asarray(values, dtype=np.float64)[order]
+    out = np.interp(sample_times_s, t_s, val)
+    k = np.clip(np.searchsorted(t_s, sample_times_s), 1, t_s.size - 1)
+    near = np.minimum(np.abs(sample_times_s - t_s[k - 1]), np.abs(t_s[k] - sample_times_s))
     out[near > spec.max_gap_s] = math.nan
-    return out, f'topic {spec.topic} ({what}, x {spec.scale:g}, {t.size} readings)'
+    return out, f'topic {spec.topic} ({what}, x {spec.scale:g}, {t_s.size} readings)'

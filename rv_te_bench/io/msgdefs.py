@@ -16,11 +16,13 @@ import sys
 from pathlib import Path
 from typing import TYPE_CHECKING
 
+from rosbags.interfaces import Nodetype
 from rosbags.typesys import Stores, get_types_from_msg, get_typestore
 
 from rv_te_bench.errors import BagError
 
 if TYPE_CHECKING:
+    from rosbags.interfaces.typing import FieldDesc, Typesdict
     from rosbags.typesys.store import Typestore
 
 __all__ = [
@@ -134,13 +136,12 @@ def type_hash(msgtype: str) -> str:
     return store.hash_rihs01(msgtype)
 
 
-def _referenced(node: object) -> list[str]:
+def _referenced(node: FieldDesc) -> list[str]:
     """Type names a rosbags field definition refers to (also inside arrays/sequences)."""
-    kind, detail = node  # type: ignore[misc]
-    if getattr(kind, 'name', '') == 'NAME':
-        return [str(detail)]
-    if getattr(kind, 'name', '') in ('ARRAY', 'SEQUENCE'):
-        return _referenced(detail[0])
+    if node[0] == Nodetype.NAME:
+        return [node[1]]
+    if node[0] == Nodetype.ARRAY or node[0] == Nodetype.SEQUENCE:
+        return _referenced(node[1][0])
     return []
 
 
@@ -157,7 +158,7 @@ def learn_type(msgtype: str) -> None:
     """
     store = rv_te_typestore()
     todo = [msgtype]
-    found: dict[str, object] = {}
+    found: Typesdict = {}
     while todo:
         name = todo.pop()
         if name in store.fielddefs or name in found:

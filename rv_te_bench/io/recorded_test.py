@@ -83,7 +83,7 @@ def read_recorded_test(bag: str | Path, *, serial: str | None = None) -> Recorde
             blocks: dict[int, tuple[np.ndarray, np.ndarray, np.ndarray]] = {}
             enc = [c for c in reader.connections if c.topic.endswith('bench/encoders')]
             for conn, _, raw in reader.messages(connections=enc):
-                m = reader.deserialize(raw, conn.msgtype)
+                m: Any = reader.deserialize(raw, conn.msgtype)   # a generated class
                 seq = int(m.seq)
                 if any(a <= seq <= b for a, b in ranges):
                     blocks[seq] = (np.asarray(m.theta_in_rad, dtype=np.float64),

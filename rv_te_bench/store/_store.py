@@ -144,7 +144,7 @@ def _password(url: str) -> str | None:
     if m and m.group('pw'):
         return m.group('pw')
     try:
-        return make_url(url).password   # type: ignore[return-value]
+        return make_url(url).password
     except (ArgumentError, ValueError):
         return None
 
@@ -440,7 +440,7 @@ class ResultStore:
                              .where(ResultRow.test == test, ResultRow.plan == plan)).all()
         return {r[0]: (r[1], r[2], r[3], r[4]) for r in rows}
 
-    def _where(self, stmt: Select[tuple[ResultRow]], f: ResultFilter) -> Select[tuple[ResultRow]]:
+    def _where(self, stmt: Select[ResultRow], f: ResultFilter) -> Select[ResultRow]:
         conds = []
         for col, v in ((ResultRow.serial, f.serial), (ResultRow.verdict, f.verdict),
                        (ResultRow.preset, f.preset), (ResultRow.status, f.status),

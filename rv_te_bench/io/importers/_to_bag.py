@@ -185,8 +185,8 @@ class _Blocks:
         extra = piece.theta_out_heads_rad
         heads = (np.vstack([piece.theta_out_rad[None, :], extra]) if extra is not None
                  else np.empty((0, piece.t_s.size)))
-        arrays = (piece.t_s, piece.theta_in_rad, piece.theta_out_rad, piece.torque_out_nm,
-                  heads)
+        arrays: tuple[np.ndarray, ...] = (piece.t_s, piece.theta_in_rad, piece.theta_out_rad,
+                                          piece.torque_out_nm, heads)
         if piece.gap is not None and self.samples + (0 if self._rest is None
                                                      else self._rest[0].size):
             self.finish()
@@ -428,8 +428,9 @@ def write_bag(reader: ImportReader, desc: BenchDescription, options: ImportOptio
     if missing:
         note(f'{missing} blocks lack one or more output heads (a missing value in a head '
              'column): those heads are left out of those blocks, the samples are kept')
-    if getattr(reader, 'unpaired', 0):
-        note(f'{reader.unpaired} joint positions had no partner at the same stamp: left out '
+    unpaired = getattr(reader, 'unpaired', 0)   # the joint-state bag reader's count
+    if unpaired:
+        note(f'{unpaired} joint positions had no partner at the same stamp: left out '
              '(the sample times in the bag show where)')
     wraps_in, wraps_out = stitcher.wraps
     last = segments.done[-1][1]

@@ -213,6 +213,8 @@ class _Channel:
         turns = self.local(raw, raw[0])      # within the new stretch, from its first value
         u = raw + _TWO_PI * turns.astype(np.float64)
         d = float(raw[0]) - self.prev_raw    # the recorded advance across the drop-out
+        k: int | None
+        how: How
         if self.multi_turn:
             k, how = 0, 'counter'
         else:
@@ -220,7 +222,7 @@ class _Channel:
             how = 'speed' if k is not None else 'ambiguous'
         advance = d + _TWO_PI * k if k is not None else math.nan
         x = self._emit(t, raw, turns + (self.k + (k or 0)))
-        return x, advance, how   # type: ignore[return-value]
+        return x, advance, how
 
     def _turns_from_speed(self, t: np.ndarray, u: np.ndarray, d: float) -> int | None:
         """The whole turns to add to the recorded advance ``d``, or None if ambiguous."""

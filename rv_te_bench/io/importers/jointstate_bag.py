@@ -54,7 +54,7 @@ class JointStateBagReader:
     """
 
     has_time = True
-    time_unit = 'ns'
+    time_unit: str | None = 'ns'
     declared_rate_hz: float | None = None
 
     def __init__(self, path: Path, options: ImportOptions,

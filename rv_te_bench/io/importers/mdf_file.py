@@ -88,14 +88,15 @@ class MdfReader:
             ch = self._mdf.groups[gp].channels[idx]
             unit = getattr(ch, 'unit', '') or ''
             conv = getattr(ch, 'conversion', None)
-            if conv is not None and getattr(conv, 'unit', ''):
-                unit = conv.unit
+            conv_unit = getattr(conv, 'unit', '') if conv is not None else ''
+            if conv_unit:
+                unit = conv_unit
             self.declared_units[role] = str(unit) or None
         self.has_time = True     # the master channel, or --time
         # a time master channel is in seconds (ASAM MDF4: sync type time); a --time channel
         # in the unit it states (or --time-unit)
         self.time_unit: str | None = None if 'time' in self.where else 's'
-        self.declared_rate_hz = None
+        self.declared_rate_hz: float | None = None
         start = getattr(self._mdf.header, 'start_time', None)
         try:
             self.start_ns = int(start.timestamp() * 1e9) if start is not None else None
@@ -111,7 +112,7 @@ class MdfReader:
             msg = (f'{self.origin}: channel {spec!r} not found (channels: '
                    f'{", ".join(self._names()[:20])})')
             raise DataImportError(msg)
-        return tuple(places[0])  # type: ignore[return-value]
+        return tuple(places[0])
 
     def locate(self, index: int) -> str:
         """Sample index -> ``'sample N'`` (0-based record of the channel group)."""
@@ -151,7 +152,9 @@ class MdfReader:
                            'announced)')
                     raise DataImportError(msg)
                 cols[role] = data
-            master = np.asarray(sigs[0].timestamps, dtype=np.float64)
+            first_sig = sigs[0]
+            assert first_sig is not None   # a missing first channel raised above
+            master = np.asarray(first_sig.timestamps, dtype=np.float64)
             n = cols['in'].size
             yield RawChunk(first=first, time=cols.get('time', master), theta_in=cols['in'],
                            theta_out=cols['out'], torque=cols.get('torque'),
