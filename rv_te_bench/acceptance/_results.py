@@ -212,8 +212,9 @@ def _one_position(step: HysteresisStep, info: BenchInfoData, segs: list[SegmentD
     if torque.size != th_in.size:
         return nan, {'error': 'no torque channel in the record: a hysteresis curve needs the '
                               'output torque', **found}
-    times = [s.time_s for s in segs]
-    if all(t is not None for t in times):
+    times = [s.time_s for s in segs if s.time_s is not None]
+    time_s: np.ndarray
+    if len(times) == len(segs):
         time_s = np.concatenate(times)
     else:
         time_s = np.arange(th_in.size) / info.sample_rate_hz

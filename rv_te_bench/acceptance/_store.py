@@ -18,11 +18,13 @@ if TYPE_CHECKING:
     from pathlib import Path
 
     from rv_te_bench.store import UnitRecord
+    from rv_te_bench.store.records import Direction, Verdict
 
 __all__ = ['record_of_report', 'store_record']
 
-_VERDICT = {'pass': 'pass', 'fail': 'fail', 'not_measured': 'not-measured',
-            'not_judged': 'not-judged', 'info': None}
+_VERDICT: dict[str, Verdict | None] = {'pass': 'pass', 'fail': 'fail',
+                                       'not_measured': 'not-measured',
+                                       'not_judged': 'not-judged', 'info': None}
 
 
 def store_record(report: dict[str, Any], bag: Path, *, software_version: str = '',
@@ -47,15 +49,17 @@ def record_of_report(report: dict[str, Any], *, bag_path: str, bag_sha256: str,
     for m in report['metrics']:
         if m['value'] is None or not math.isfinite(m['value']):
             continue
-        name, direction = m['name'], 'all'
-        for d in ('ccw', 'cw'):
+        name: str = m['name']
+        direction: Direction = 'all'
+        sides: tuple[Direction, ...] = ('ccw', 'cw')
+        for d in sides:
             if name == f'te_pp_{d}_rad':
                 name, direction = 'te_pp_revolution_max_rad', d
         metrics.append(MetricValue(name=name, value=float(m['value']), direction=direction,
                                    limit_low=m['limit_min'], limit_high=m['limit_max'],
                                    verdict=_VERDICT.get(m['verdict'])))
     b, u = report['bench'], report['unit']
-    verdict = report['verdict'] if report['verdict'] in {'pass', 'fail'} else 'not-judged'
+    verdict: Verdict = report['verdict'] if report['verdict'] in {'pass', 'fail'} else 'not-judged'
     return UnitRecord(
         test='test-plan', plan=report['plan']['plan'], bag_path=bag_path,
         bag_sha256=bag_sha256,

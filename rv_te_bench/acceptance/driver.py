@@ -344,7 +344,8 @@ class ProgramDriver:
         j = k + n
         lo = np.maximum(j - w + 1, 0)
         mean = (c[j + 1] - c[lo]) / (j + 1 - lo)
-        return np.abs(mean - target) <= self.settings.torque_tolerance_nm
+        ok: npt.NDArray[np.bool_] = np.abs(mean - target) <= self.settings.torque_tolerance_nm
+        return ok
 
     def _segment_end(self, seg: dict[str, Any], t: np.ndarray, tq: np.ndarray | None,
                      k: int) -> int | None:

@@ -164,7 +164,7 @@ def run_msa_demo(cfg: MsaDemoConfig, *,
             runs += [(serial, over, op, f'grr repeat {rep + 1}') for serial, over in parts]
     runs += [(parts[0][0], parts[0][1], 'A', f'type 1 repeat {k + 1}')
              for k in range(cfg.type1_repeats)]
-    records = []
+    records: list[UnitRecord] = []
     start = dt.datetime(2026, 11, 1, 8, 0, tzinfo=dt.UTC)
     runs.append((parts[0][0], parts[0][1], 'A', 'reference (ideal encoders)'))
     for n, (serial, over, op, what) in enumerate(runs):

@@ -49,11 +49,14 @@ import dataclasses
 import math
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any, NoReturn
 
 from rv_te_bench.acceptance._files import parse_yaml_text, read_source, shipped, shown_keys
 from rv_te_bench.core.hysteresis import HysteresisConfig, RigidityRegion
 from rv_te_bench.errors import PlanError, TeConfigError
+
+if TYPE_CHECKING:
+    from collections.abc import Callable
 
 __all__ = [
     'DIRECTIONS',
@@ -93,7 +96,7 @@ class _Fields:
         self.data = dict(data)
         self.where = where
 
-    def fail(self, key: str, rule: str, value: Any = None) -> None:
+    def fail(self, key: str, rule: str, value: Any = None) -> NoReturn:
         got = '' if value is None else f', got {value!r}'
         msg = f'{self.where}: {key} {rule}{got}'
         raise PlanError(msg)
@@ -103,7 +106,7 @@ class _Fields:
         if key not in self.data:
             if default is None:
                 self.fail(key, 'is required')
-            return float(default)  # type: ignore[arg-type]
+            return float(default)
         v = self.data.pop(key)
         if isinstance(v, bool) or not isinstance(v, int | float) or not math.isfinite(v):
             self.fail(key, 'must be a finite number', v)
@@ -358,8 +361,9 @@ def _operator_step(f: _Fields, name: str) -> OperatorStep:
 #: Step kind -> parser. A new kind (issue 38) adds its dataclass and parser here, its
 #: program to runner.PROGRAMS, its result to _results.RESULTS and how recorded data is cut
 #: for it to recorded.FINDERS (tests/acceptance/test_kinds.py checks they agree).
-_KINDS = {'te': _te_step, 'hysteresis': _hysteresis_step, 'sweep': _sweep_step,
-          'operator': _operator_step}
+_KINDS: dict[str, Callable[[_Fields, str], Step]] = {
+    'te': _te_step, 'hysteresis': _hysteresis_step, 'sweep': _sweep_step,
+    'operator': _operator_step}
 STEP_KINDS = tuple(_KINDS)
 
 

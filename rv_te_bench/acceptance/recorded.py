@@ -88,7 +88,7 @@ class _Finder:
         self.info = record.info
         tq = record.torque_out_nm
         self.torque_ok = tq is not None and bool(np.all(np.isfinite(tq)))
-        self.noise = torque_noise_nm(tq) if self.torque_ok else 0.0
+        self.noise = torque_noise_nm(tq) if tq is not None and self.torque_ok else 0.0
         loads = _plan_loads(plan)
         gaps = [b - a for a, b in itertools.pairwise(loads)]
         self.max_load = max(loads)
@@ -176,7 +176,7 @@ class _Finder:
                 continue
             cands.append(k)
         after = [k for k in cands if self.runs[k].t_start_s >= self.cursor_s]
-        best = (after or cands or [None])[0]
+        best = after[0] if after else cands[0] if cands else None
         if best is None:
             load = f' against {load_nm:g} N m' if self.torque_ok else ''
             note = (f'no {direction} run at {speed_rpm:g} rpm (+-'

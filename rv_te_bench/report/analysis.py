@@ -344,6 +344,7 @@ def _analysis_bench(path: Path, info: BenchInfoData | None, gear_ratio: float | 
         source = 'bench_info+cli' if given else 'bench_info'
     try:
         if info is None:
+            assert gear_ratio is not None and crank_per_output is not None   # (checked above)
             orders = OrderSet(gear_ratio=float(gear_ratio),
                               crank_per_output=float(crank_per_output),
                               n_crank_harmonics=n_crank_harmonics)

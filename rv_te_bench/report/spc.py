@@ -116,7 +116,7 @@ def spc_document(chart: ControlChart, series: Series, *, title: str,
     """The JSON of an SPC run (display units, unit tagged; strict JSON: a value that is not
     finite, such as Cpk of a series without spread, is null)."""
     scale, unit = display_unit(series.metric)
-    return _finite({
+    doc: dict[str, Any] = _finite({
         'title': title, 'metric': series.metric, 'direction': series.direction,
         'unit': unit, 'baseline': baseline_text, 'n_points': int(chart.values.size),
         'chart': chart.to_json_dict(scale, unit),
@@ -126,6 +126,7 @@ def spc_document(chart: ControlChart, series: Series, *, title: str,
                                              series.tested_at, series.values, strict=True)],
         'capability': None if capability is None else capability.to_json_dict(scale, unit),
     })
+    return doc
 
 
 def _finite(obj: Any) -> Any:

@@ -85,7 +85,8 @@ def human_reason(report: dict[str, Any]) -> str:
     failed = [_label(m['name']) for m in report['metrics'] if m['verdict'] == 'fail']
     missing = [_label(m['name']) for m in report['metrics'] if m['verdict'] == 'not_measured']
     if report['verdict'] not in {'pass', 'fail'}:
-        return report['reason']
+        reason: str = report['reason']
+        return reason
     if not failed and not missing:
         return 'Every limited metric is within its limit.'
     parts = []
