@@ -265,7 +265,8 @@ class HeadCombiner:
         if events:
             self.counters['blocks_head_missing'] += 1
             self.events.extend(events[:max(0, MAX_EVENTS_KEPT - len(self.events))])
-        return replace(b, **values), events
+        return replace(b, theta_in_rad=values['theta_in_rad'],
+                       theta_out_rad=values['theta_out_rad']), events
 
     def batch(self, b: EncoderBatch) -> EncoderBatch:
         """A batch (every block with the same heads, as the bag reader makes them) with its
@@ -283,7 +284,8 @@ class HeadCombiner:
                 msg = 'HeadCombiner.batch takes batches with every head (use block())'
                 raise EncoderCalibrationError(msg)
             values[f'theta_{side}_rad'] = out
-        return replace(b, **values)
+        return replace(b, theta_in_rad=values['theta_in_rad'],
+                       theta_out_rad=values['theta_out_rad'])
 
     def batch_complete(self, b: EncoderBatch) -> bool:
         """Whether every block of the batch carries every head it needs of both scales

@@ -230,11 +230,14 @@ class JointStateBlock:
         """The TE core's block (what a TE node makes of the published EncoderBlock)."""
         from rv_te_bench.core.stream_records import EncoderBlockData
 
-        heads = ({'out_head_ids': self.out_head_ids,
-                  'theta_out_heads_rad': self.theta_out_heads_rad} if self.out_head_ids else {})
+        if self.out_head_ids:
+            return EncoderBlockData(self.seq, self.stamp_s, self.sample_rate_hz,
+                                    self.time_offset_s, self.theta_in_rad, self.theta_out_rad,
+                                    self.torque_out_nm, out_head_ids=self.out_head_ids,
+                                    theta_out_heads_rad=self.theta_out_heads_rad)
         return EncoderBlockData(self.seq, self.stamp_s, self.sample_rate_hz,
                                 self.time_offset_s, self.theta_in_rad, self.theta_out_rad,
-                                self.torque_out_nm, **heads)
+                                self.torque_out_nm)
 
 
 @dataclass(frozen=True)

@@ -121,7 +121,8 @@ time_offset_s 1, theta_in_rad 2, theta_out_rad 2
         except (TypeError, ValueError) as exc:
             msg = f'block seq {seq}: arrays not convertible to float64 ({exc})'
             raise TeInputError(msg) from None
-        block = cls(seq, stamp_s, sample_rate_hz, *arrays)
+        t, th_in, th_out, torque = arrays
+        block = cls(seq, stamp_s, sample_rate_hz, t, th_in, th_out, torque)
         block.validate()
         return block
 

@@ -17,6 +17,7 @@ if TYPE_CHECKING:
     import numpy.typing as npt
 
     from rv_te_bench.core.angle_fold import AngleFold
+    from rv_te_bench.core.head_combine import WindowBreak
     from rv_te_bench.core.stream_records import EncoderBatch, EncoderBlockData
 
     FloatArray = npt.NDArray[np.float64]
@@ -34,7 +35,8 @@ class _GuardedBlocks:
     most ``max_points`` points: the trace is thinned by 2 when exceeded).
     """
 
-    def __init__(self, blocks: Iterable[EncoderBlockData | EncoderBatch], gear_ratio: float,
+    def __init__(self, blocks: Iterable[EncoderBlockData | EncoderBatch | WindowBreak],
+                 gear_ratio: float,
                  *, progress: ProgressFn | None, t_start: float,
                  fold: AngleFold | None = None, max_points: int) -> None:
         self._it = iter(blocks)
@@ -51,18 +53,18 @@ class _GuardedBlocks:
         self._parts: list[tuple[npt.NDArray[np.int64], FloatArray, FloatArray]] = []
         self._kept = 0
 
-    def __iter__(self) -> Iterator[EncoderBlockData | EncoderBatch]:
+    def __iter__(self) -> Iterator[EncoderBlockData | EncoderBatch | WindowBreak]:
         return self
 
-    def __next__(self) -> EncoderBlockData | EncoderBatch:
-        from rv_te_bench.core.stream_records import EncoderBatch
+    def __next__(self) -> EncoderBlockData | EncoderBatch | WindowBreak:
+        from rv_te_bench.core.stream_records import EncoderBatch, EncoderBlockData
 
         try:
             item = next(self._it)
         except BagError as exc:
             self.error = str(exc)
             raise StopIteration from None
-        if not hasattr(item, 'theta_out_rad'):   # a WindowBreak marker: passed on
+        if not isinstance(item, EncoderBlockData | EncoderBatch):   # a WindowBreak: passed on
             return item
         if isinstance(item, EncoderBatch):
             self.blocks += item.n_blocks

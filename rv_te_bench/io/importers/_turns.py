@@ -33,6 +33,8 @@ from typing import TYPE_CHECKING, Literal
 import numpy as np
 
 if TYPE_CHECKING:
+    import numpy.typing as npt
+
     from rv_te_bench.io.importers._convert import Break, SiChunk
 
 __all__ = ['SPEED_WINDOW_S', 'ImportGap', 'Piece', 'TurnStitcher']
@@ -127,7 +129,9 @@ def heads_beside(raw_heads: np.ndarray, raw_out: np.ndarray, out_rad: np.ndarray
     wrap(r_j - r_0)`` with wrap to [-pi, pi). A missing reading (NaN) stays missing; no
     state is needed across drop-outs."""
     d = raw_heads - raw_out[None, :]
-    return out_rad[None, :] + (np.mod(d + math.pi, _TWO_PI) - math.pi)
+    heads: npt.NDArray[np.float64] = out_rad[None, :] + (np.mod(d + math.pi, _TWO_PI)
+                                                         - math.pi)
+    return heads
 
 
 def _slope(t: np.ndarray, x: np.ndarray) -> tuple[float, float] | None:
