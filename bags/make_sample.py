@@ -50,6 +50,7 @@ def write_sample(path: Path, *, duration_s: float = DURATION_S,
 
     from rv_te_bench.io._legacy_msgs import added_field_defaults
     from rv_te_bench.io.bag_writer import BagWriter, qos_profile_dict
+    from rv_te_bench.io.bench_record import bench_info_cdr
     from rv_te_bench.io.msgdefs import BENCH_INFO, ENCODER_BLOCK, rv_te_typestore
     from sim.bench import BenchConfig, BenchSimulator
     from sim.drive import ConstantSpeed
@@ -67,7 +68,6 @@ def write_sample(path: Path, *, duration_s: float = DURATION_S,
         return header_cls(stamp=time_cls(sec=stamp_ns // 1_000_000_000,
                                          nanosec=stamp_ns % 1_000_000_000), frame_id=BENCH_ID)
 
-    info = sim.info
     n_blocks = round(duration_s * sample_rate_hz / block_size)
     session = {'preset': PRESET, 'input_speed_rpm': INPUT_SPEED_RPM, 'seed': SEED,
                'made_by': 'bags/make_sample.py'}
@@ -77,18 +77,8 @@ def write_sample(path: Path, *, duration_s: float = DURATION_S,
             durability='transient_local', depth=1)])
         writer.add_topic(ENCODER_TOPIC, ENCODER_BLOCK,
                          offered_qos_profiles=[qos_profile_dict(depth=1000)])
-        msg = types[BENCH_INFO](
-            header=header(START_NS), bench_id=info.bench_id, preset=info.preset,
-            reducer_type=info.reducer_type, gear_ratio=info.gear_ratio,
-            crank_per_input=info.crank_per_input, crank_rel_per_input=info.crank_rel_per_input,
-            mesh_orders=np.asarray(info.mesh_orders, dtype=np.float64),
-            mesh_labels=list(info.mesh_labels), encoder_in_model=info.encoder_in_model,
-            encoder_out_model=info.encoder_out_model,
-            encoder_in_resolution_rad=info.encoder_in_resolution_rad,
-            encoder_out_resolution_rad=info.encoder_out_resolution_rad,
-            sample_rate_hz=info.sample_rate_hz, block_size=info.block_size,
-            parameters_yaml=info.parameters_yaml, **added_field_defaults(BENCH_INFO))
-        writer.write(INFO_TOPIC, START_NS, store.serialize_cdr(msg, BENCH_INFO))
+        # every field of the simulated bench's record (the one field list: BenchInfoData)
+        writer.write(INFO_TOPIC, START_NS, bench_info_cdr(sim.info, START_NS))
         samples = 0
         for _ in range(n_blocks):
             block = sim.next_block()

@@ -2,6 +2,8 @@
 
 * :func:`read_bench_info`: the last BenchInfo of a bag (through the summary's chunk index
   when the file has one), as the one in-memory record of it, :class:`sim.bench_info.BenchInfoData`;
+  :func:`bench_info_cdr` the other way: a record as the message's CDR bytes, for bags
+  written without ROS (``rv-te import``, ``bags/make_sample.py``);
 * :func:`overrides_from_parameters_yaml` and :func:`preset_from_bench_info`: the preset a
   bench ran with, rebuilt from its ``parameters_yaml``. The text comes from a bag or from
   the network: it is parsed by the suite's bounded loader (:mod:`rv_te_bench.safe_yaml`),
@@ -10,7 +12,10 @@
 
 from __future__ import annotations
 
+import dataclasses
 from typing import TYPE_CHECKING, Any
+
+import numpy as np
 
 from rv_te_bench.errors import BagError, BenchInfoError, YamlInputError
 from rv_te_bench.io._bag_open import find_messages, open_bag, scan_topics, topic_types
@@ -25,8 +30,8 @@ if TYPE_CHECKING:
 
     from sim.presets import Preset
 
-__all__ = ['PARAMETERS_YAML_LIMITS', 'overrides_from_parameters_yaml', 'preset_from_bench_info',
-           'read_bench_info']
+__all__ = ['PARAMETERS_YAML_LIMITS', 'bench_info_cdr', 'overrides_from_parameters_yaml',
+           'preset_from_bench_info', 'read_bench_info']
 
 #: A BenchInfo record holds the preset's values and the bench settings: a few kB.
 PARAMETERS_YAML_LIMITS = DOCUMENT_LIMITS
@@ -113,3 +118,28 @@ def read_bench_info(path: str | Path, topic: str | None = None) -> BenchInfoData
     except Exception as exc:  # noqa: BLE001
         text = f'Bag {bag.path}: BenchInfo does not deserialise: {str(exc).rstrip(".")}'
         raise BenchInfoError(text) from None
+
+
+#: BenchInfo's float64[] fields (rosbags serialises primitive arrays from numpy only).
+_FLOAT_ARRAYS = frozenset(f.name for f in dataclasses.fields(BenchInfoData)
+                          if f.type == 'tuple[float, ...]')
+_NS = 1_000_000_000
+
+
+def bench_info_cdr(info: BenchInfoData, stamp_ns: int) -> bytes:
+    """``info`` as one serialised ``rv_te_msgs/BenchInfo`` (CDR), as the bench node sends it.
+
+    The header is stamped ``stamp_ns`` with the bench id as its frame. Every field comes
+    from the record (:meth:`~sim.bench_info.BenchInfoData.message_values`, each value
+    converted to its declared type first): a field added to the record and the message is
+    written without a change here. :func:`read_bench_info` reads it back.
+    """
+    store = rv_te_typestore()
+    types = store.types
+    values = BenchInfoData.from_message(info).message_values()
+    for name in _FLOAT_ARRAYS:
+        values[name] = np.asarray(values[name], dtype=np.float64)
+    header = types['std_msgs/msg/Header'](
+        stamp=types['builtin_interfaces/msg/Time'](sec=stamp_ns // _NS, nanosec=stamp_ns % _NS),
+        frame_id=info.bench_id)
+    return bytes(store.serialize_cdr(types[BENCH_INFO](header=header, **values), BENCH_INFO))

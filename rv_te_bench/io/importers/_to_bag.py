@@ -34,8 +34,8 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 
 from rv_te_bench.errors import BagExistsError, DataImportError
-from rv_te_bench.io._legacy_msgs import added_field_defaults
 from rv_te_bench.io.bag_writer import BagWriter, qos_profile_dict
+from rv_te_bench.io.bench_record import bench_info_cdr
 from rv_te_bench.io.importers._common import TIME_UNITS, angle_unit, time_unit
 from rv_te_bench.io.importers._convert import ChunkConverter, to_rad_factor
 from rv_te_bench.io.importers._turns import TurnStitcher
@@ -274,7 +274,7 @@ class _Segments:
             qos_profile_dict(durability='transient_local', depth=1)])
         self.writer.add_topic(ENCODER_TOPIC, ENCODER_BLOCK,
                               offered_qos_profiles=[qos_profile_dict(depth=1000)])
-        self.writer.write(INFO_TOPIC, self.start_ns, _bench_info_cdr(self.info, self.start_ns))
+        self.writer.write(INFO_TOPIC, self.start_ns, bench_info_cdr(self.info, self.start_ns))
         self.blocks = _Blocks(self.writer, self.desc, self.rate_hz, self.start_ns)
         self.done.append((tmp_bag, self.blocks))
 
@@ -538,26 +538,3 @@ def _remove_killed_imports(out: Path, note: Callable[[str], None]) -> None:
         shutil.rmtree(path, ignore_errors=True)
         note(f'removed {path}: {size / 1e6:.1f} MB left by an earlier import to the same '
              f'bag whose process {pid} was killed')
-
-
-def _bench_info_cdr(info: BenchInfoData, stamp_ns: int) -> bytes:
-    store = rv_te_typestore()
-    types = store.types
-    msg = types[BENCH_INFO](
-        header=types['std_msgs/msg/Header'](
-            stamp=types['builtin_interfaces/msg/Time'](sec=stamp_ns // _NS,
-                                                       nanosec=stamp_ns % _NS),
-            frame_id=info.bench_id),
-        bench_id=info.bench_id, preset=info.preset, reducer_type=info.reducer_type,
-        gear_ratio=float(info.gear_ratio), crank_per_input=float(info.crank_per_input),
-        crank_rel_per_input=float(info.crank_rel_per_input),
-        mesh_orders=np.asarray(info.mesh_orders, dtype=np.float64),
-        mesh_labels=list(info.mesh_labels), encoder_in_model=info.encoder_in_model,
-        encoder_out_model=info.encoder_out_model,
-        encoder_in_resolution_rad=float(info.encoder_in_resolution_rad),
-        encoder_out_resolution_rad=float(info.encoder_out_resolution_rad),
-        sample_rate_hz=float(info.sample_rate_hz), block_size=int(info.block_size),
-        parameters_yaml=info.parameters_yaml,
-        **{k: (np.asarray(v, dtype=np.float64) if isinstance(v, list | tuple) else v)
-           for k, v in info.message_values().items() if k in added_field_defaults(BENCH_INFO)})
-    return bytes(store.serialize_cdr(msg, BENCH_INFO))
