@@ -39,6 +39,7 @@ from rv_te_bench.errors import BagError
 from rv_te_bench.io.bag_reader import decode_encoder_block
 from rv_te_bench.nodes import convert, qos
 from rv_te_bench.nodes.common import DropCounter
+from sim.bench_info import BenchInfoData
 
 if TYPE_CHECKING:
     from collections.abc import Callable
@@ -129,12 +130,11 @@ class DashboardBridge(Node):
 
     # -- callbacks (convert, hand over; no maths) -------------------------------------------
     def _on_info(self, m: BenchInfo) -> None:
-        self.model.on_bench_info({
-            'bench_id': m.bench_id, 'preset': m.preset, 'reducer_type': m.reducer_type,
-            'gear_ratio': m.gear_ratio, 'crank_per_input': m.crank_per_input,
-            'mesh_orders': list(m.mesh_orders), 'mesh_labels': list(m.mesh_labels),
-            'encoder_in_model': m.encoder_in_model, 'encoder_out_model': m.encoder_out_model,
-            'sample_rate_hz': m.sample_rate_hz, 'block_size': int(m.block_size)})
+        # every field of the bench's record (BenchInfoData: the one field list) but the
+        # settings YAML, which the page does not show
+        info = BenchInfoData.from_message(m).message_values()
+        del info['parameters_yaml']
+        self.model.on_bench_info(info)
 
     def _on_block(self, data: bytes) -> None:
         b = decode_encoder_block(data)
