@@ -35,6 +35,7 @@ from rv_te_bench.errors import TeInputError
 if TYPE_CHECKING:
     from collections.abc import Callable, Iterable
 
+    from rv_te_bench.core.envelope import MinMaxEnvelope
     from rv_te_bench.core.stream import WindowBuffer
 
 __all__ = ['SPECTRA_AHEAD', 'analyze_blocks']
@@ -43,7 +44,8 @@ __all__ = ['SPECTRA_AHEAD', 'analyze_blocks']
 def analyze_blocks(blocks: Iterable[EncoderBlockData | EncoderBatch | WindowBreak],
                    config: TeAnalysisConfig,
                    *, on_window: Callable[[WindowResult], None] | None = None,
-                   spectra_thread: bool | Executor = False) -> OfflineResult:
+                   spectra_thread: bool | Executor = False,
+                   envelope: MinMaxEnvelope | None = None) -> OfflineResult:
     """Run a whole recording through a :class:`StreamingTeAnalyzer` (offline analysis).
 
     Args:
@@ -63,12 +65,15 @@ def analyze_blocks(blocks: Iterable[EncoderBlockData | EncoderBatch | WindowBrea
             ahead); it is not shut down here. Two cores run the caller and one helper
             thread without preempting either (a third runnable thread costs the caller
             CPU time: issue 23, 6-14 % less wall time with one shared helper).
+        envelope: Filled with the min/max envelope of every clean sample's TE
+            (:meth:`StreamingTeAnalyzer.set_envelope`), for plots of long records.
 
     Returns:
         All windows (the last, partial one from the final flush; none with ``on_window``),
         cumulative statistics, counters and gap events.
     """
     analyzer = StreamingTeAnalyzer(config)
+    analyzer.set_envelope(envelope)
     windows: list[WindowResult] = []
     gaps: list[GapEvent] = []
     keep = windows.extend if on_window is None else (lambda ws: [on_window(w) for w in ws])

@@ -71,6 +71,8 @@ from rv_te_bench.errors import TeInputError
 if TYPE_CHECKING:
     from collections.abc import Callable
 
+    from rv_te_bench.core.envelope import MinMaxEnvelope
+
 __all__ = ['BatchUpdate', 'EncoderBatch', 'EncoderBlockData', 'GapEvent', 'OfflineResult',
            'StreamUpdate', 'StreamingTeAnalyzer', 'TeAnalysisConfig', 'WindowBuffer',
            'WindowResult', 'seq_jump_event']
@@ -231,6 +233,7 @@ class StreamingTeAnalyzer:
         # a complete window's spectrum here; it may take the buffer's arrays (and give it
         # others of the same size)
         self._spectrum_hook: Callable[[int, WindowBuffer], None] | None = None
+        self._envelope: MinMaxEnvelope | None = None   # set_envelope
         self._pending: list[WindowResult] = []
         self._last_seq: int | None = None
         self._last_t: float | None = None
@@ -293,6 +296,8 @@ class StreamingTeAnalyzer:
                 gear ratio changes (TE values under the old ratio are not comparable).
         """
         self._close('reconfigure', pending=True)
+        if self._envelope is not None:
+            self._envelope.gap()
         if reset_cumulative is None:
             reset_cumulative = config.gear_ratio != self._config.gear_ratio
         if reset_cumulative:
@@ -323,6 +328,12 @@ class StreamingTeAnalyzer:
         a hook that fails to compute one calls :meth:`count_spectrum_failure`.
         """
         self._spectrum_hook = hook
+
+    def set_envelope(self, envelope: MinMaxEnvelope | None) -> None:
+        """Fill ``envelope`` with every clean sample's TE, window by window, as windows close
+        (in the pass that finds each window's min and max; a gap starts a new segment).
+        None: no envelope (the live TE node's default)."""
+        self._envelope = envelope
 
     @property
     def spectrum_workspace(self) -> SpectrumWorkspace:
@@ -380,7 +391,9 @@ class StreamingTeAnalyzer:
         complete = reason == 'complete'
         w_rev = self._config.window_revolutions
         spectrum = None
-        moments = moments_of_finite(te, scratch=buf.scratch())
+        env = self._envelope
+        moments = moments_of_finite(te, scratch=buf.scratch(),
+                                    min_max=None if env is None else env.add(phi, te))
         if self._cum_folded == 0:
             self._cum.add_moments(moments)
         elif self._cum_folded < te.size:   # part went in when `cumulative` was read
@@ -624,5 +637,7 @@ class StreamingTeAnalyzer:
         closed = self._close('gap')
         if closed is not None:
             windows.append(closed)
+        if self._envelope is not None:
+            self._envelope.gap()
         self._last_phi = None
         self._decim_offset = 0

@@ -241,15 +241,20 @@ class TeMoments:
                        revolutions=float(revolutions), n_samples=self.n_samples)
 
 
-def moments_of_finite(te_rad: np.ndarray, *, scratch: np.ndarray | None = None) -> TeMoments:
+def moments_of_finite(te_rad: np.ndarray, *, scratch: np.ndarray | None = None,
+                      min_max: tuple[float, float] | None = None) -> TeMoments:
     """:class:`TeMoments` of a non-empty 1-D float64 record known to be finite.
 
     Pairwise sums as numpy's ``mean``/``std``; the deviations are squared in ``scratch``
-    (at least as long as ``te_rad``) when given, else in a new array.
+    (at least as long as ``te_rad``) when given, else in a new array. ``min_max``: the
+    record's (min, max) when the caller has them already (no pass for them here).
     """
     n = te_rad.size
-    lo = float(np.minimum.reduce(te_rad))
-    hi = float(np.maximum.reduce(te_rad))
+    if min_max is None:
+        lo = float(np.minimum.reduce(te_rad))
+        hi = float(np.maximum.reduce(te_rad))
+    else:
+        lo, hi = min_max
     mean = float(np.add.reduce(te_rad)) / n
     dev = np.subtract(te_rad, mean, out=None if scratch is None else scratch[:n])
     np.multiply(dev, dev, out=dev)

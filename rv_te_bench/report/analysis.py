@@ -38,6 +38,7 @@ import numpy as np
 from rv_te_bench.core.advice import advice_kind
 from rv_te_bench.core.angle_fold import AngleFold
 from rv_te_bench.core.encoder_attribution import OncePerRevNote, once_per_rev_note
+from rv_te_bench.core.envelope import MinMaxEnvelope
 from rv_te_bench.core.head_combine import HeadCombiner, combine_stream
 from rv_te_bench.core.orders import OrderSet
 from rv_te_bench.core.spectrum import SpectrumAverager, SpectrumSummary
@@ -211,8 +212,10 @@ def analyze_bag(
                 w = replace(w, spectrum=w.spectrum.lines_only())
             kept.append(w)
 
+        envelope = MinMaxEnvelope()
         offline = analyze_blocks(reader, config, on_window=on_window,
-                                 spectra_thread=False if helper is None else helper)
+                                 spectra_thread=False if helper is None else helper,
+                                 envelope=envelope)
     finally:
         if helper is not None:
             helper.shutdown(wait=True, cancel_futures=True)
@@ -235,7 +238,7 @@ def analyze_bag(
         problems.append('no complete output revolution without a gap: no spectrum, and the '
                         'statistics do not cover whole revolutions')
     dominant = None if spectrum is None else dominant_harmonic(spectrum, bench)
-    trace = reader.trace()
+    trace = replace(reader.trace(), envelope=envelope.data())
     recommendation = (
         _recommend(bench, offline.cumulative, None if fold is None else fold.result(),
                    advice_search)

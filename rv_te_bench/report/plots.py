@@ -12,7 +12,7 @@ from __future__ import annotations
 
 import io
 import math
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 from matplotlib.backends.backend_agg import FigureCanvasAgg
@@ -79,17 +79,36 @@ def te_figure(results: Sequence[AnalysisResult]) -> Figure:
     revolutions); longer records are folded onto 0..360 deg, one curve per revolution, so
     that repeatability shows. Gaps in a recording show as breaks.
 
+    A record with more samples than its thinned trace keeps (``trace.stride`` > 1) is drawn
+    from its min/max envelope instead (:mod:`rv_te_bench.core.envelope`: every sample lies
+    in the band, however long the record): folded records as the band of all revolutions
+    per bin of angle (half a degree), and a second panel shows the band over the whole
+    session against output revolutions (a life test's drift).
+
     Args:
         results: One or more analyses (their thinned TE traces are drawn).
 
     Returns:
         The figure.
     """
-    fig = _new_figure(10.0, 4.6)
-    ax = fig.add_subplot()
     spans = [_span_deg(r) for r in results]
     fold = max(spans, default=0.0) > OVERLAY_REVOLUTIONS * 360.0
+    banded = [r.trace.stride > 1 and r.trace.envelope is not None
+              and r.trace.envelope.size > 0 for r in results]
+    session = fold and any(banded)
+    fig = _new_figure(10.0, 7.6 if session else 4.6, hspace=0.4,
+                      **({'top': 0.95, 'bottom': 0.08} if session else {}))
+    ax, ax_session = (fig.subplots(2, 1) if session else (fig.add_subplot(), None))
     for k, res in enumerate(results):
+        st = res.cumulative
+        label = (f'{_name(res)}: p-p {float(rad_to_arcmin(st.pp_rad)):.3f}\', '
+                 f'mean {float(rad_to_arcmin(st.mean_rad)):.3f}\'')
+        if res.partial:
+            label += ' (PARTIAL)'
+        color = _COLORS[k % len(_COLORS)]
+        if banded[k]:
+            _envelope_band(ax, ax_session, res, fold=fold, color=color, label=label)
+            continue
         th = np.asarray(res.trace.theta_out_rad)
         te_am = rad_to_arcmin(np.asarray(res.trace.te_rad))
         finite = np.isfinite(th)
@@ -101,13 +120,8 @@ def te_figure(results: Sequence[AnalysisResult]) -> Figure:
             wraps = np.nonzero(np.diff(x_deg) < 0.0)[0] + 1
             x_deg = np.insert(x_deg, wraps, np.nan)
             te_am = np.insert(te_am, wraps, np.nan)
-        st = res.cumulative
-        label = (f'{_name(res)}: p-p {float(rad_to_arcmin(st.pp_rad)):.3f}\', '
-                 f'mean {float(rad_to_arcmin(st.mean_rad)):.3f}\'')
-        if res.partial:
-            label += ' (PARTIAL)'
         ax.plot(x_deg, te_am, lw=0.5 if fold else 0.8, alpha=0.6 if fold else 1.0,
-                color=_COLORS[k % len(_COLORS)], label=label)
+                color=color, label=label)
     ax.axhline(0.0, color='0.3', lw=0.6)
     if fold:
         ax.set_xlim(0.0, 360.0)
@@ -122,14 +136,53 @@ def te_figure(results: Sequence[AnalysisResult]) -> Figure:
         ax.set_xlabel('output angle from start of record [deg]  '
                       '(dotted: whole output revolutions)')
     ax.set_ylabel('transmission error TE [arcmin]')
-    stride = max((r.trace.stride for r in results), default=1)
     title = 'Transmission error  TE = theta_out - theta_in / i'
-    if stride > 1:
-        title += f'  (1 in {stride} samples shown)'
+    if any(banded):
+        title += '  (band: min-max of every sample)'
+    else:
+        stride = max((r.trace.stride for r in results), default=1)
+        if stride > 1:
+            title += f'  (1 in {stride} samples shown)'
     ax.set_title(title)
     ax.grid(visible=True, alpha=0.3)
     ax.legend(loc='upper right', fontsize=8)
+    if ax_session is not None:
+        ax_session.axhline(0.0, color='0.3', lw=0.6)
+        ax_session.set_xlabel('output revolutions from start of record')
+        ax_session.set_ylabel('TE [arcmin]')
+        ax_session.set_title('TE over the whole session (band: min-max of every sample)')
+        ax_session.grid(visible=True, alpha=0.3)
     return fig
+
+
+def _envelope_band(ax: Any, ax_session: Any, res: AnalysisResult, *, fold: bool,
+                   color: str, label: str) -> None:
+    """Draw a record's min/max envelope: against angle (folded or not) and over the
+    session (``ax_session``, when given); breaks at gaps."""
+    env = res.trace.envelope
+    assert env is not None
+    lo = rad_to_arcmin(env.min_rad)
+    hi = rad_to_arcmin(env.max_rad)
+    x_rad = np.abs(env.phi_rad - env.phi_rad[0])
+    if fold:
+        nb = env.fold_min_rad.size
+        x = (np.arange(nb) + 0.5) * (360.0 / nb)
+        ax.fill_between(x, rad_to_arcmin(env.fold_min_rad), rad_to_arcmin(env.fold_max_rad),
+                        color=color, alpha=0.5, lw=0.0, label=label)
+    else:
+        x, blo, bhi = _breaks(rad_to_deg(x_rad), lo, hi, env.segment)
+        ax.fill_between(x, blo, bhi, color=color, alpha=0.6, lw=0.0, label=label)
+    if ax_session is not None:
+        x, blo, bhi = _breaks(x_rad / (2 * math.pi), lo, hi, env.segment)
+        ax_session.fill_between(x, blo, bhi, color=color, alpha=0.6, lw=0.0)
+
+
+def _breaks(x: np.ndarray, lo: np.ndarray, hi: np.ndarray, segment: np.ndarray,
+            ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """NaN rows between segments (a gap shows as a break in the band)."""
+    cuts = np.flatnonzero(segment[1:] != segment[:-1]) + 1
+    return (np.insert(x, cuts, np.nan), np.insert(lo, cuts, np.nan),
+            np.insert(hi, cuts, np.nan))
 
 
 def _span_deg(res: AnalysisResult) -> float:

@@ -56,3 +56,35 @@ def test_spectrum_figure_labels_lines(tmp_path) -> None:
     assert heights['1 f_w'] == pytest.approx(0.6, rel=1e-6)
     assert heights['mesh 52 f_w'] == pytest.approx(0.02, rel=1e-3)
     assert 'arcmin' in ax_bar.get_ylabel() and 'output order' in ax_full.get_xlabel()
+
+
+def test_long_record_is_drawn_as_a_band_holding_every_sample(tmp_path) -> None:
+    """A record thinned for the plot (stride > 1) is drawn from its min/max envelope: the
+    band reaches the written TE's extremes, which a 1-in-k trace can miss, and a second
+    panel shows the whole session against output revolutions."""
+    from rv_te_bench.report.analysis import MAX_TRACE_POINTS
+
+    path = tmp_path / 'bag'
+    fs = 4000.0
+    duration_s = 1.5 * MAX_TRACE_POINTS / fs          # thinned at least by 2
+    # a narrow spike per revolution (order 300 harmonics summed): peaks between samples
+    harmonics = (*HARMONICS, Harmonic(997.0, float(arcmin_to_rad(0.05)), 0.1))
+    synth = write_bag(path, harmonics=harmonics, duration_s=duration_s, sample_rate_hz=fs,
+                      block_size=400)
+    res = analyze_bag(path, with_advice=False)
+    assert res.trace.stride > 1
+    fig = te_figure([res])
+    ax, ax_session = fig.axes
+    assert 'band' in ax.get_title() and 'revolutions' in ax_session.get_xlabel()
+    (band,) = [c for c in ax.collections if c.get_label().startswith('bag')]
+    verts = np.concatenate([p.vertices for p in band.get_paths()])
+    te_am = rad_to_arcmin(synth.te_rad)
+    assert verts[:, 1].max() == pytest.approx(float(te_am.max()), rel=1e-9)
+    assert verts[:, 1].min() == pytest.approx(float(te_am.min()), rel=1e-9)
+    assert verts[:, 0].min() >= 0.0 and verts[:, 0].max() <= 360.0
+    (session,) = ax_session.collections
+    sv = np.concatenate([p.vertices for p in session.get_paths()])
+    # x: where each bucket starts (0.5 rev/s): the last within one bucket of the end
+    bucket_rev = res.trace.envelope.bucket_samples / fs * 0.5
+    assert duration_s * 0.5 - bucket_rev - 1e-9 <= sv[:, 0].max() <= duration_s * 0.5
+    assert png_bytes(fig).startswith(b'\x89PNG')
