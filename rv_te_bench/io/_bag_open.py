@@ -107,15 +107,17 @@ def open_bag(path: str | Path) -> Bag:
 
 
 def units(bag: Bag, stream: MessageStream[Any], topics: Collection[str] | None,
-          executor: Executor | None = None) -> Iterator[Unit]:
+          executor: Executor | None = None, *, read_ahead: bool = True) -> Iterator[Unit]:
     """Per storage unit: the buffer and its wanted messages (problems go to ``stream``).
 
-    ``executor``: the thread that reads MCAP chunks ahead (None: one of the scan's own).
+    ``executor``: the thread that reads MCAP chunks ahead (None: one of the scan's own);
+    ``read_ahead`` False: none read ahead, no thread.
     """
     if bag.storage == _storage_sqlite3.STORAGE:   # issue #19 s.4
         return _storage_sqlite3.sqlite_units(bag, stream.report_problem,
                                              None if topics is None else set(topics))
-    return _storage_mcap.mcap_units(bag, stream.report_problem, topics, executor)
+    return _storage_mcap.mcap_units(bag, stream.report_problem, topics, executor,
+                                   read_ahead=read_ahead)
 
 
 def messages(bag: Bag, stream: MessageStream[Any], topics: Collection[str] | None,

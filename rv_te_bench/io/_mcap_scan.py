@@ -15,7 +15,6 @@ from __future__ import annotations
 import collections
 import contextlib
 import mmap
-import os
 import struct
 import threading
 import zlib
@@ -24,6 +23,7 @@ from typing import TYPE_CHECKING, Any
 
 from mcap.opcode import Opcode
 
+from rv_te_bench.io._cores import READ_AHEAD_ENV, helper_threads_allowed, read_ahead_setting
 from rv_te_bench.io._mcap_file import MAGIC
 
 if TYPE_CHECKING:
@@ -172,20 +172,8 @@ _Unit = tuple[memoryview, list[tuple[int, int, int, int]]]
 #: Environment switch: ``0`` turns the helper threads of one bag's analysis off, the
 #: read-ahead here and the spectra thread of ``analyze_bag`` (a Dask worker of a fleet run on
 #: a machine whose cores are all workers: parallel bags use the cores better).
-READ_AHEAD_ENV = 'RV_TE_READ_AHEAD'
-
-
 def _read_ahead_on() -> bool:
-    return os.environ.get(READ_AHEAD_ENV, '1') != '0'
-
-
-def helper_threads_allowed() -> bool:
-    """True unless ``RV_TE_READ_AHEAD=0`` or this process may run on a single core."""
-    if not _read_ahead_on():
-        return False
-    cores = len(os.sched_getaffinity(0)) if hasattr(os, 'sched_getaffinity') \
-        else (os.cpu_count() or 1)
-    return cores > 1
+    return read_ahead_setting() != '0'
 
 
 #: Chunks decompressed ahead of the one being consumed (by one worker thread: zstd, lz4 and

@@ -62,7 +62,8 @@ def check_magic(file: Path) -> None:
 
 
 def mcap_units(bag: Bag, report: Callable[[str], None], topics: Collection[str] | None,
-               executor: Executor | None = None) -> Iterator[Unit]:
+               executor: Executor | None = None, *, read_ahead: bool = True,
+               ) -> Iterator[Unit]:
     """Per chunk: the buffer and its wanted messages (topic, msgtype, log_time, start, end).
 
     Args:
@@ -70,12 +71,14 @@ def mcap_units(bag: Bag, report: Callable[[str], None], topics: Collection[str] 
         report: Called with one line per problem (the read goes on where it can).
         topics: Topic names to keep; None keeps all.
         executor: The thread that reads MCAP chunks ahead (None: one of the scan's own).
+        read_ahead: False: no chunk is read ahead (no thread at all; the one-core path).
     """
     wanted = None if topics is None else set(topics)
     for file in bag.files:
         state = _ScanState()
         resolved: dict[int, tuple[str, str] | None] = {}
-        for inner, found in _scan_units(file, state, report, executor=executor):
+        for inner, found in _scan_units(file, state, report, executor=executor,
+                                          prefetch=read_ahead):
             out = []
             for cid, log_time, start, end in found:
                 if cid in resolved:

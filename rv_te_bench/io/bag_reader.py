@@ -197,7 +197,7 @@ def read_encoder_blocks(
 
 def read_encoder_batches(
     path: str | Path, topic: str | None = None, *, strict: bool = True,
-    executor: Executor | None = None,
+    executor: Executor | None = None, read_ahead: bool = True,
 ) -> MessageStream[EncoderBatch | EncoderBlockData]:
     """Encoder blocks of a bag, a whole MCAP chunk at a time (the fast offline path).
 
@@ -216,6 +216,7 @@ def read_encoder_batches(
             shared with other work of the caller (``analyze_bag`` computes window spectra
             on it too); None: on a thread of the reader's own. Either way not under
             ``RV_TE_READ_AHEAD=0``.
+        read_ahead: False: no chunk read ahead, no thread (the one-core path).
 
     Returns:
         Stream of batches and single blocks in recording order.
@@ -229,7 +230,7 @@ def read_encoder_batches(
 
     def produce(stream: MessageStream[Any]) -> Iterator[EncoderBatch | EncoderBlockData]:
         index = 0
-        for buf, found in units(bag, stream, [name], executor):
+        for buf, found in units(bag, stream, [name], executor, read_ahead=read_ahead):
             typed = []
             for _, msgtype, log_time, start, end in found:
                 if msgtype != ENCODER_BLOCK:

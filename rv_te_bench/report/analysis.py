@@ -190,11 +190,13 @@ def analyze_bag(
     combiner = _combiner(path, info, heads_mode, calibration)
 
     # one helper thread reads the bag ahead and computes window spectra: with the caller,
-    # two runnable threads on two cores (a third preempts the caller: issue 23)
+    # two runnable threads on two cores (a third preempts the caller: issue 23); where one
+    # core is allowed (affinity, cgroup quota) no thread at all, no read-ahead (issue 41)
     helper = ThreadPoolExecutor(max_workers=1, thread_name_prefix='te-helper') \
         if helper_threads_allowed() else None
     try:
-        stream = read_encoder_batches(path, topic, strict=False, executor=helper)
+        stream = read_encoder_batches(path, topic, strict=False, executor=helper,
+                                      read_ahead=helper is not None)
         # a 2K-V unit is identified from every sample, folded on theta_in / i as it is read
         fold = AngleFold() if with_advice and bench.reducer_type == '2kv' else None
         # the shaft angles formed from the read heads (and the calibration) before anything

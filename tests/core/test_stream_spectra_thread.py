@@ -191,14 +191,15 @@ def test_an_error_of_the_source_leaves_a_shared_executor_running_and_idle(
 
 @pytest.mark.parametrize(('env', 'cores', 'spectra', 'reads'), [
     (None, {0, 1}, 'te-helper', 'te-helper'), ('0', {0, 1}, 'MainThread', 'MainThread'),
-    (None, {1}, 'MainThread', 'mcap-read')])
+    (None, {1}, 'MainThread', 'MainThread'), ('1', {0, 1}, 'te-helper', 'te-helper')])
 def test_analyze_bag_helper_thread_follows_the_read_ahead_switch(
         tmp_path: object, monkeypatch: pytest.MonkeyPatch, env: str | None, cores: set[int],
         spectra: str, reads: str) -> None:
     """analyze_bag reads ahead and computes spectra on one helper thread, shared (no third
     thread on two cores), unless RV_TE_READ_AHEAD=0 (a fleet worker per core: nothing off
-    the main thread) or the process may run on one core only (taskset, a cpuset: the spectra
-    in line; the reader still decompresses ahead on a thread of its own, as before)."""
+    the main thread) or the process may run on one core only (taskset, a cpuset, a cgroup
+    quota): then all on the main thread, the reader's read-ahead too (issue 41; it ran on
+    a thread of the reader's own before)."""
     from rv_te_bench.io import _mcap_scan
     from rv_te_bench.io.bag_reader import READ_AHEAD_ENV
     from rv_te_bench.report.analysis import analyze_bag
@@ -209,6 +210,7 @@ def test_analyze_bag_helper_thread_follows_the_read_ahead_switch(
     else:
         monkeypatch.setenv(READ_AHEAD_ENV, env)
     monkeypatch.setattr('os.sched_getaffinity', lambda _pid: cores)
+    monkeypatch.setattr('rv_te_bench.io._cores.allowed_cores', lambda: float(len(cores)))
     spectra_on: set[str] = set()
     reads_on: set[str] = set()
 
@@ -237,4 +239,5 @@ def test_analyze_bag_helper_thread_follows_the_read_ahead_switch(
         assert reads_on <= {'te-helper', 'MainThread'}   # no thread of the reader's own
     else:
         assert spectra_on == {spectra}
+        assert reads_on == {reads}        # no read-ahead thread of the reader's own either
     assert not [t.name for t in threading.enumerate() if t.name.startswith('te-helper')]
