@@ -18,6 +18,14 @@ Then, as whole commands in fresh processes (interpreter start and imports includ
 `rv-te analyze BAG --json --no-advice` command against a Python process that imports
 rosbags and reads the bag as above.
 
+Issue 41's rows: ``--one-core`` pins the process to one core first (as ``taskset -c 0``:
+the analysis then runs on its one-thread path), ``--busy-core`` runs a CPU-bound process
+pinned to another core while it measures (a fleet worker or a busy line PC beside it), and
+``--paths both`` adds the analysis forced on each of its two paths (``RV_TE_READ_AHEAD=1``:
+helper thread; ``=0``: one thread) beside the one it picks itself (unset), so that the
+choice can be checked against both in the same run. ``--bag-dir`` keeps the bags for the
+next run (written once, reused when there).
+
 With ``--baseline REV`` the analysis as of that git revision also runs, interleaved with the
 others (the "before"): ``analyze_bag`` (report/analysis.py: how it drives the core and its
 threads) and the TE core (core/te.py, core/spectrum.py, core/stream.py) at REV, with
@@ -25,7 +33,7 @@ today's reader set as REV's (chunks read ahead; isal's or zlib's CRC-32).
 
     .venv/bin/python benchmarks/bench_analyze.py [--minutes 10]
         [--blocks 100 1000 3000 10000] [--repeats 5] [--allocator tuned|default]
-        [--baseline REV]
+        [--baseline REV] [--one-core] [--busy-core] [--paths auto|both] [--bag-dir DIR]
 """
 
 from __future__ import annotations
@@ -34,6 +42,7 @@ import argparse
 import os
 import platform
 import statistics
+import subprocess
 import sys
 import tempfile
 import time
@@ -56,13 +65,60 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument('--allocator', choices=('tuned', 'default'), default='tuned')
     ap.add_argument('--process-repeats', type=int, default=3,
                     help='repeats of the whole-command comparison (0: skip it)')
+    ap.add_argument('--one-core', action='store_true',
+                    help='pin this process (and the commands it runs) to one core first')
+    ap.add_argument('--busy-core', action='store_true',
+                    help='a CPU-bound process on another core while measuring')
+    ap.add_argument('--paths', choices=('auto', 'both'), default='auto',
+                    help='both: also the analysis forced on each of its two paths')
+    ap.add_argument('--bag-dir', type=Path, default=None,
+                    help='write the bags here, or reuse the ones already there')
     args = ap.parse_args(argv)
+    cores = sorted(os.sched_getaffinity(0))
+    if args.one_core:
+        os.sched_setaffinity(0, {cores[0]})
+    burner = _burner(cores[-1] if len(cores) > 1 else None) if args.busy_core else None
+    try:
+        return _run(args, burner is not None)
+    finally:
+        if burner is not None:
+            burner.kill()
+            burner.wait()
+
+
+def _burner(core: int | None) -> subprocess.Popen[bytes]:
+    """A CPU-bound process pinned to ``core`` (None: not pinned)."""
+    proc = subprocess.Popen([sys.executable, '-c', 'while True: pass'])
+    if core is not None:
+        os.sched_setaffinity(proc.pid, {core})
+    return proc
+
+
+def sample_bag(bag_dir: Path, block: int, minutes: float, rate_hz: float) -> tuple[Path, int]:
+    """The benchmark's bag with ``block`` samples per EncoderBlock in ``bag_dir`` (written
+    when not there yet); its path and sample count."""
+    from make_sample import write_sample
+
+    bag = bag_dir / f'bag{block}_{minutes:g}min_{rate_hz:g}hz'
+    n = round(minutes * 60.0 * rate_hz)
+    if not (bag / 'metadata.yaml').is_file():
+        import shutil
+
+        shutil.rmtree(bag, ignore_errors=True)
+        t0 = time.perf_counter()
+        info = write_sample(bag, duration_s=minutes * 60.0, sample_rate_hz=rate_hz,
+                            block_size=block)
+        n = info['samples']
+        print(f'bag: {info["blocks"]} blocks of {block}, {n} samples '
+              f'(written in {time.perf_counter() - t0:.1f} s)', file=sys.stderr)
+    return bag, n
+
+
+def _run(args: argparse.Namespace, busy: bool) -> int:
 
     from rv_te_bench.allocator import tune_for_batch_work
 
     tuned = tune_for_batch_work() if args.allocator == 'tuned' else False
-    from make_sample import write_sample
-
     from rv_te_bench.core.stream_records import EncoderBatch
     from rv_te_bench.io.bag_reader import read_encoder_batches
     from rv_te_bench.report.analysis import analyze_bag
@@ -86,19 +142,18 @@ def main(argv: list[str] | None = None) -> int:
             with swapped(base_core), reader_as_then:
                 return int(base_analysis.analyze_bag(bag, with_advice=False)
                            .cumulative.n_samples)
+    from rv_te_bench.io.bag_reader import READ_AHEAD_ENV, helper_threads_allowed
+
+    os.environ.pop(READ_AHEAD_ENV, None)   # the analysis as a user runs it: its own choice
+    chose: dict[int, list[bool]] = {b: [] for b in args.blocks}
     load0 = os.getloadavg()
-    tmp = Path(tempfile.mkdtemp(prefix='rv-te-analyze-bench-'))
+    tmp = args.bag_dir or Path(tempfile.mkdtemp(prefix='rv-te-analyze-bench-'))
+    tmp.mkdir(parents=True, exist_ok=True)
     rows = []
     proc_rows: list[tuple[int, dict[str, float]]] = []
     for block in args.blocks:
-        bag = tmp / f'bag{block}'
-        t0 = time.perf_counter()
-        info = write_sample(bag, duration_s=args.minutes * 60.0, sample_rate_hz=args.rate_hz,
-                            block_size=block)
+        bag, n = sample_bag(tmp, block, args.minutes, args.rate_hz)
         size_mb = sum(f.stat().st_size for f in bag.iterdir()) / 1e6
-        n = info['samples']
-        print(f'bag: {info["blocks"]} blocks of {block}, {n} samples, {size_mb:.1f} MB '
-              f'(written in {time.perf_counter() - t0:.1f} s)', file=sys.stderr)
 
         def ours_read(bag: Path = bag) -> int:
             return sum(it.n_samples if isinstance(it, EncoderBatch) else len(it.theta_in_rad)
@@ -107,14 +162,25 @@ def main(argv: list[str] | None = None) -> int:
         def analyze(bag: Path = bag) -> int:
             return int(analyze_bag(bag, with_advice=False).cumulative.n_samples)
 
+        def forced(mode: str, bag: Path = bag) -> int:
+            os.environ[READ_AHEAD_ENV] = mode
+            try:
+                return int(analyze_bag(bag, with_advice=False).cumulative.n_samples)
+            finally:
+                os.environ.pop(READ_AHEAD_ENV, None)
+
         paths = [('rosbags', lambda bag=bag: rosbags_read(bag)), ('read', ours_read),
                  ('analyze', analyze)]
+        if args.paths == 'both':
+            paths += [('helper', lambda: forced('1')), ('inline', lambda: forced('0'))]
         if base_core is not None:
             paths.insert(2, ('base', lambda bag=bag: analyze_base(bag)))
         wall: dict[str, list[float]] = {name: [] for name, _fn in paths}
         cpu: dict[str, list[float]] = {name: [] for name, _fn in paths}
         for _ in range(args.repeats):   # interleaved, so machine noise hits all alike
             for name, fn in paths:
+                if name == 'analyze':
+                    chose[block].append(helper_threads_allowed())
                 c0, t0 = time.process_time(), time.perf_counter()
                 got = fn()
                 wall[name].append(time.perf_counter() - t0)
@@ -125,12 +191,15 @@ def main(argv: list[str] | None = None) -> int:
         med = {k: statistics.median(v) for k, v in wall.items()}
         med_cpu = {k: statistics.median(v) for k, v in cpu.items()}
         ratios = {k: sorted(a / r for a, r in zip(wall[k], wall['rosbags'], strict=True))
-                  for k in ('analyze', 'base') if k in wall}
+                  for k in ('analyze', 'base', 'helper', 'inline') if k in wall}
         rows.append((block, n, size_mb, med, med_cpu, ratios))
         if args.process_repeats > 0:
             proc_rows.append((block, _whole_commands(bag, args.process_repeats)))
 
-    print(f'\nmachine: {platform.node()} {platform.machine()}, {os.cpu_count()} cores, '
+    print(f'\nmachine: {platform.node()} {platform.machine()}, {_cpu_model()}, '
+          f'{os.cpu_count()} cores, '
+          f'{"this process on ONE core (as taskset -c 0)" if args.one_core else "both cores"}'
+          f'{", a CPU-bound process on the other core" if busy else ""}, '
           f'python {platform.python_version()}, date {time.strftime("%Y-%m-%d")}; '
           f'{args.minutes:g} min at {args.rate_hz:g} Hz, median of {args.repeats}; '
           f'allocator: {"tuned as rv-te analyze" if tuned else "glibc defaults"}; '
@@ -139,10 +208,16 @@ def main(argv: list[str] | None = None) -> int:
     print('| block | path | wall [s] | CPU [s] | samples/s | wall / rosbags read |')
     print('|---|---|---|---|---|---|')
     for block, n, size_mb, med, med_cpu, ratios in rows:
+        picked = chose[block]
+        auto = ('helper thread' if all(picked) else 'one thread' if not any(picked)
+                else f'helper thread {sum(picked)} of {len(picked)}')
         for name, label in (('rosbags', 'rosbags AnyReader read + deserialise (floor)'),
                             ('read', 'read_encoder_batches (our reader)'),
                             ('base', f'analyze_bag before (analysis at {args.baseline})'),
-                            ('analyze', 'analyze_bag (read + TE + windows + spectra)')):
+                            ('analyze', 'analyze_bag (read + TE + windows + spectra)'
+                             + (f'; its choice: {auto}' if args.paths == 'both' else '')),
+                            ('helper', 'analyze_bag forced on the helper-thread path'),
+                            ('inline', 'analyze_bag forced on the one-thread path')):
             if name not in med:
                 continue
             extra = ''
@@ -222,6 +297,17 @@ class _reader_as_at:  # noqa: N801 - used like a function
          bag_reader.read_bench_info) = self._saved
 
 
+def _cpu_model() -> str:
+    """The CPU model (as ``lscpu`` prints 'Model name')."""
+    try:
+        for line in Path('/proc/cpuinfo').read_text().splitlines():
+            if line.startswith('model name'):
+                return line.split(':', 1)[1].strip()
+    except OSError:
+        pass
+    return platform.processor() or 'unknown CPU'
+
+
 def rosbags_read(bag: str | Path) -> int:
     """The floor: rosbags AnyReader reads and deserialises every EncoderBlock; samples seen."""
     from rosbags.highlevel import AnyReader
@@ -243,8 +329,6 @@ _ROSBAGS_SCRIPT = ('import sys; sys.path[:0] = sys.argv[2:]; '
 
 def _whole_commands(bag: Path, repeats: int) -> dict[str, float]:
     """Median wall time of the two commands, interleaved."""
-    import subprocess
-
     commands = {
         'rosbags': [sys.executable, '-c', _ROSBAGS_SCRIPT, str(bag), str(ROOT / 'benchmarks'),
                     str(ROOT)],
