@@ -328,7 +328,19 @@ def _concat_f64(u8: np.ndarray, pos: np.ndarray, counts: np.ndarray) -> np.ndarr
 
     The bytes are copied message by message (one slice each, any alignment) and viewed as
     float64 once: faster than an element gather when the sources are not 8-byte aligned.
+    Arrays of equal length at equal steps (the usual chunk) are copied in one strided copy.
     """
+    m = pos.size
+    if m > 1:
+        step = int(pos[1] - pos[0])
+        n = int(counts[0])
+        # messages of one layout lie at equal steps in a chunk: one strided copy of all
+        # (a view of rows of 8 n bytes, ``step`` apart), no per-message Python work
+        if step >= 8 * n and int(pos[-1]) + 8 * n <= u8.size \
+                and (counts == n).all() and (np.diff(pos) == step).all():
+            rows = np.lib.stride_tricks.as_strided(u8[int(pos[0]):], shape=(m, 8 * n),
+                                                   strides=(step, 1), writeable=False)
+            return rows.copy().view('<f8').ravel()
     ends = pos + 8 * counts
     return np.concatenate([u8[a:b] for a, b in zip(pos.tolist(), ends.tolist(),
                                                      strict=True)]).view('<f8')

@@ -356,3 +356,27 @@ def test_read_ahead_switch(tmp_path: Path, monkeypatch: pytest.MonkeyPatch,
         items.append(item)
     assert any(n.startswith('mcap-read') for n in seen) is thread
     assert [b.seq for b in _flatten(items)] == list(range(30))
+
+
+@pytest.mark.parametrize('layout', ['equal_steps', 'unequal_steps', 'unequal_counts', 'one'])
+def test_concat_f64_copies_every_array_whatever_the_layout(layout: str) -> None:
+    """The strided one-copy path (equal lengths at equal steps, any alignment) and the
+    per-message path give the arrays' bytes, checked against a struct read of each."""
+    import struct
+
+    from rv_te_bench.io._encoder_cdr import _concat_f64
+
+    rng = np.random.default_rng(5)
+    buf = bytearray(rng.integers(0, 256, 20_000, dtype=np.uint8).tobytes())
+    counts = {'equal_steps': [40] * 6, 'unequal_steps': [40] * 6,
+              'unequal_counts': [40, 41, 40, 39, 40, 40], 'one': [40]}[layout]
+    step = 333                                    # odd: the arrays are not 8-byte aligned
+    pos = [7 + k * step + (k * k * 3 if layout == 'unequal_steps' else 0)
+           for k in range(len(counts))]
+    want = []
+    for p, c in zip(pos, counts, strict=True):
+        values = rng.normal(size=c)
+        buf[p:p + 8 * c] = struct.pack(f'<{c}d', *values)
+        want.extend(struct.unpack_from(f'<{c}d', buf, p))
+    got = _concat_f64(np.frombuffer(bytes(buf), np.uint8), np.array(pos), np.array(counts))
+    np.testing.assert_array_equal(got, np.array(want))
