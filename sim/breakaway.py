@@ -32,7 +32,8 @@ from sim.errors import ModelInputError
 if TYPE_CHECKING:
     from sim.losses import LossModel
 
-__all__ = ['RampRecord', 'back_driving_ramp', 'ramp_breakaway', 'starting_ramp']
+__all__ = ['RampRecord', 'back_driving_ramp', 'ramp_angle_rad', 'ramp_breakaway',
+           'shaft_friction', 'starting_ramp']
 
 #: Inertia used when a preset gives none [kg m^2] (a small input shaft).
 _DEFAULT_INERTIA_KGM2 = 1e-4
@@ -85,15 +86,39 @@ def ramp_breakaway(*, breakaway_nm: float, kinetic_nm: float, inertia_kgm2: floa
         msg = f'direction must be +1 or -1, got {direction!r}'
         raise ModelInputError(msg)
     t = np.arange(math.floor(dur * fs) + 1, dtype=np.float64) / fs
-    torque = r * t
+    return RampRecord(t, direction * r * t, direction * ramp_angle_rad(t, ts, tk, j, r), ts)
+
+
+def ramp_angle_rad(t_s: np.ndarray, breakaway_nm: float, kinetic_nm: float,
+                   inertia_kgm2: float, ramp_rate_nm_s: float) -> np.ndarray:
+    """Shaft angle [rad] at times ``t_s`` from the ramp's start (the closed form above;
+    zero before breakaway, everywhere for a self-locking gear). Values are not checked."""
+    t = np.asarray(t_s, dtype=np.float64)
     angle = np.zeros_like(t)
-    if math.isfinite(ts):
-        tb = ts / r
+    if math.isfinite(breakaway_nm):
+        r, tk, j = ramp_rate_nm_s, kinetic_nm, inertia_kgm2
+        tb = breakaway_nm / r
         m = t > tb
         x = t[m]
         angle[m] = (r * (x ** 3 - tb ** 3) / 6.0 - r * tb ** 2 * (x - tb) / 2.0
                     - tk * (x - tb) ** 2 / 2.0) / j
-    return RampRecord(t, direction * torque, direction * angle, ts)
+    return angle
+
+
+def shaft_friction(model: LossModel, shaft: str) -> tuple[float, float, float]:
+    """(T_s, T_k, J) of the ``'input'`` shaft (output free, unloaded: the starting torque)
+    or the ``'output'`` shaft (input free: the back-driving torque, inertia J_in i^2)."""
+    p = model.params
+    j = p.inertia_in_kgm2 or _DEFAULT_INERTIA_KGM2
+    if shaft == 'input':
+        ts = float(model.starting_torque_nm(0.0))
+    elif shaft == 'output':
+        ts = model.back_driving_torque_nm()
+        j *= p.gear_ratio ** 2
+    else:
+        msg = f"shaft must be 'input' or 'output', got {shaft!r}"
+        raise ModelInputError(msg)
+    return ts, (ts / p.static_to_kinetic if math.isfinite(ts) else 0.0), j
 
 
 def starting_ramp(model: LossModel, *, ramp_rate_nm_s: float, sample_rate_hz: float,
@@ -111,10 +136,7 @@ def starting_ramp(model: LossModel, *, ramp_rate_nm_s: float, sample_rate_hz: fl
 def back_driving_ramp(model: LossModel, *, ramp_rate_nm_s: float, sample_rate_hz: float,
                       duration_s: float, direction: int = 1) -> RampRecord:
     """Output torque ramp, input free and unloaded: the output angle (inertia J_in i^2)."""
-    p = model.params
-    ts = model.back_driving_torque_nm()
-    j = (p.inertia_in_kgm2 or _DEFAULT_INERTIA_KGM2) * p.gear_ratio ** 2
-    tk = ts / p.static_to_kinetic if math.isfinite(ts) else 0.0
+    ts, tk, j = shaft_friction(model, 'output')
     return ramp_breakaway(breakaway_nm=ts, kinetic_nm=tk, inertia_kgm2=j,
                           ramp_rate_nm_s=ramp_rate_nm_s, sample_rate_hz=sample_rate_hz,
                           duration_s=duration_s, direction=direction)

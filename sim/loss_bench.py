@@ -164,7 +164,8 @@ class LossChannels:
                         'temperature': SimulatedSensor(self.specs['temperature'], r_temp)}
 
     def block(self, t_s: np.ndarray, omega_in_rad_s: np.ndarray, load_nm: np.ndarray, *,
-              torque_out_reading_nm: np.ndarray | None = None) -> LossBlock:
+              torque_out_reading_nm: np.ndarray | None = None,
+              torque_in_true_nm: np.ndarray | None = None) -> LossBlock:
         """The channels of one block; advances the case temperature.
 
         Args:
@@ -173,14 +174,21 @@ class LossChannels:
             load_nm: True output load [N m], bench convention.
             torque_out_reading_nm: Use this as the output transducer reading (a program's
                 locked segments already hold a reading) instead of measuring ``load_nm``.
+            torque_in_true_nm: The input torque where the drive does not turn the input at
+                a set speed (a torque ramp: the ramp; a free input: 0); the loss power is
+                then 0 (quasi-static).
         """
         t = np.asarray(t_s, dtype=np.float64)
         w = np.broadcast_to(np.asarray(omega_in_rad_s, dtype=np.float64), t.shape)
         load = np.broadcast_to(np.asarray(load_nm, dtype=np.float64), t.shape)
         alpha = np.gradient(w, t) if t.size > 1 else np.zeros_like(t)
         temp0 = self.thermal.temp_degc
-        t_in = self.model.input_torque_nm(w, load, temp0, alpha_in_rad_s2=alpha)
-        p_loss = self.model.loss_powers(w, load, temp0).total_w
+        if torque_in_true_nm is None:
+            t_in = self.model.input_torque_nm(w, load, temp0, alpha_in_rad_s2=alpha)
+            p_loss = self.model.loss_powers(w, load, temp0).total_w
+        else:
+            t_in = np.broadcast_to(np.asarray(torque_in_true_nm, dtype=np.float64), t.shape)
+            p_loss = np.zeros(t.shape)
         temps = self.thermal.advance(p_loss, self.dt_s)
         out = (self.sensors['torque_out'].measure(load) if torque_out_reading_nm is None
                else np.array(torque_out_reading_nm, dtype=np.float64))

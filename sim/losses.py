@@ -259,7 +259,7 @@ class LossModel:
         w = np.abs(_arr('omega_in_rad_s', omega_in_rad_s))
         t = np.abs(_arr('load_nm', load_nm))
         nu = _arr('nu_mm2_s', nu_mm2_s)
-        with np.errstate(divide='ignore'):
+        with np.errstate(divide='ignore', invalid='ignore'):   # 0 load at w = 0: 0 * inf
             f = p.mesh_loss_ref * (t / p.reference_torque_nm) ** p.mesh_load_exp \
                 * (w / self.w_ref_rad_s) ** p.mesh_speed_exp \
                 * (nu / self.nu_ref_mm2_s) ** p.mesh_visc_exp

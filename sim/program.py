@@ -59,6 +59,7 @@ __all__ = [
     'OutputSpeedSegment',
     'ProgramSimulator',
     'Segment',
+    'TorqueRampSegment',
     'TorqueSegment',
     'program_from_plain',
     'program_to_plain',
@@ -163,10 +164,51 @@ class OutputPositionSegment:
                                                 getattr(self, name), rule))
 
 
-Segment = DriveSegment | TorqueSegment | OutputSpeedSegment | OutputPositionSegment
+@dataclass(frozen=True)
+class TorqueRampSegment:
+    """A quasi-static torque ramp until the shaft turns (needs the loss model).
+
+    ``shaft='input'``: the drive ramps the input torque, the output free and unloaded (the
+    starting torque); ``'output'``: the loader ramps the output torque, the input free (the
+    back-driving torque). The shaft holds until the breakaway torque of
+    :mod:`sim.losses`, then turns (:mod:`sim.breakaway`); the controller releases the
+    torque when the shaft has turned ``stop_angle_rad`` and the shaft stops there.
+
+    Attributes:
+        shaft: ``'input'`` or ``'output'``.
+        ramp_rate_nm_s: Ramp rate [N m/s], non-zero; its sign is the direction.
+        max_torque_nm: The ramp ends here [N m], > 0 (duration ``max / |rate|``).
+        stop_angle_rad: Shaft travel at which the torque is released [rad], > 0.
+    """
+
+    kind: ClassVar[str] = 'torque_ramp'
+    shaft: str
+    ramp_rate_nm_s: float
+    max_torque_nm: float
+    stop_angle_rad: float = 0.01
+
+    def __post_init__(self) -> None:
+        """Validate (ModelInputError names the field)."""
+        if self.shaft not in ('input', 'output'):
+            msg = f"torque_ramp segment: shaft must be 'input' or 'output', got {self.shaft!r}"
+            raise ModelInputError(msg)
+        for name, rule in (('ramp_rate_nm_s', '!=0'), ('max_torque_nm', '>0'),
+                           ('stop_angle_rad', '>0')):
+            object.__setattr__(self, name, _num('torque_ramp segment', name,
+                                                getattr(self, name), rule))
+
+    @property
+    def duration_s(self) -> float:
+        """max_torque_nm / |ramp_rate_nm_s|."""
+        return self.max_torque_nm / abs(self.ramp_rate_nm_s)
+
+
+Segment = (DriveSegment | TorqueSegment | OutputSpeedSegment | OutputPositionSegment
+           | TorqueRampSegment)
 SEGMENT_KINDS: dict[str, type[Segment]] = {c.kind: c for c in (DriveSegment, TorqueSegment,
                                                       OutputSpeedSegment,
-                                                      OutputPositionSegment)}
+                                                      OutputPositionSegment,
+                                                      TorqueRampSegment)}
 
 
 def program_from_plain(items: Any) -> tuple[Segment, ...]:
@@ -285,6 +327,8 @@ class ProgramSimulator:
         self._enc_out = SimulatedEncoder(specs[1], rng_out)
         self.losses: LossChannels | None = None if losses is None else LossChannels(
             self.preset, losses, rng.spawn(1)[0], self.sample_rate_hz)
+        if self.losses is not None:   # the transducers' ranges and classes, for the record
+            self._settings['loss_channels'] = self.losses.describe()['sensors']
         self._offsets = np.arange(block_size, dtype=np.float64) / self.sample_rate_hz
         self._offsets.setflags(write=False)
         self._curves: dict[float, TorsionCurve] = {}
@@ -333,6 +377,10 @@ class ProgramSimulator:
                 theta += seg.speed_rpm * RAD_S_PER_RPM * self._blocks(duration) \
                     * self.block_size / self.sample_rate_hz
                 phi = None
+            elif isinstance(seg, TorqueRampSegment):
+                duration = seg.duration_s
+                theta += self._ramp_travel_in(seg)
+                phi = None
             else:
                 curve = self.curve(theta)
                 phi = self._rest_angle(curve, phi)
@@ -362,6 +410,23 @@ class ProgramSimulator:
         self._block_in_program = 0
         self._seg_index = -1
         return first
+
+    def _ramp_friction(self, seg: TorqueRampSegment) -> tuple[float, float, float]:
+        if self.losses is None:
+            msg = ('torque_ramp segment: needs the loss model and torque transducers '
+                   '(ProgramSimulator(losses=...))')
+            raise ModelInputError(msg)
+        from sim.breakaway import shaft_friction
+
+        return shaft_friction(self.losses.model, seg.shaft)
+
+    def _ramp_travel_in(self, seg: TorqueRampSegment) -> float:
+        """Input travel a ramp segment ends with [rad]."""
+        ts = self._ramp_friction(seg)[0]
+        if not ts < seg.max_torque_nm:
+            return 0.0
+        sign = 1.0 if seg.ramp_rate_nm_s > 0 else -1.0
+        return sign * seg.stop_angle_rad * (self.gear_ratio if seg.shaft == 'output' else 1.0)
 
     @property
     def segment_blocks(self) -> tuple[int, ...]:
@@ -440,13 +505,18 @@ class ProgramSimulator:
             if isinstance(planned.segment, DriveSegment):
                 self.model.reset()
         seg = planned.segment
+        ramp_in: np.ndarray | None = None
         if isinstance(seg, DriveSegment):
             theta_in, te, torque = self._drive(seg, t)
+        elif isinstance(seg, TorqueRampSegment):
+            theta_in, te, torque, ramp_in = self._ramp(seg, t)
         else:
             theta_in, te, torque = self._locked(seg, t)
         extra: dict[str, np.ndarray] = {}
         if self.losses is not None:
-            if isinstance(seg, DriveSegment):
+            if ramp_in is not None:
+                lb = self.losses.block(t, np.zeros_like(t), torque, torque_in_true_nm=ramp_in)
+            elif isinstance(seg, DriveSegment):
                 lb = self.losses.block(t, np.full_like(t, seg.speed_rpm * RAD_S_PER_RPM),
                                        torque)
             else:
@@ -493,6 +563,28 @@ class ProgramSimulator:
         self.torsion_rad = None
         self._last_true_torque_nm = 0.0
         return theta_in, te, load
+
+    def _ramp(self, seg: TorqueRampSegment, t: np.ndarray) -> tuple[np.ndarray, ...]:
+        """A torque ramp block: input angle, TE (0), output load, input torque."""
+        from sim.breakaway import ramp_angle_rad
+
+        ts, tk, j = self._ramp_friction(seg)
+        rate = abs(seg.ramp_rate_nm_s)
+        sign = 1.0 if seg.ramp_rate_nm_s > 0 else -1.0
+        tr = t - self._seg_t0
+        angle = ramp_angle_rad(tr, ts, tk, j, rate)
+        stopped = angle >= seg.stop_angle_rad
+        angle = np.minimum(angle, seg.stop_angle_rad)
+        applied = np.where(stopped, 0.0, np.minimum(rate * tr, seg.max_torque_nm)) * sign
+        scale = self.gear_ratio if seg.shaft == 'output' else 1.0
+        theta_in = self._seg_theta0 + sign * angle * scale
+        self.theta_in_rad = float(theta_in[-1])
+        self.torsion_rad = None
+        self._last_true_torque_nm = 0.0
+        zeros = np.zeros_like(t)
+        if seg.shaft == 'input':
+            return theta_in, zeros, zeros, applied
+        return theta_in, zeros, -applied, zeros
 
     def _reverse_offset(self, theta_in: np.ndarray) -> np.ndarray | float:
         """Flank change when turning backwards (see the module docstring)."""

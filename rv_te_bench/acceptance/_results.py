@@ -15,6 +15,7 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
+from rv_te_bench.acceptance._loss_results import LOSS_RESULTS
 from rv_te_bench.acceptance.plan import HysteresisStep, OperatorStep
 from rv_te_bench.acceptance.tolerance import Measured
 from rv_te_bench.core.directional import direction_te
@@ -48,6 +49,8 @@ class SegmentData:
         role: 'te' | 'sweep' | 'preload' | 'cycle' | 'reposition'.
         label: direction, speed_rpm, load_nm, settle_s (drives); position (hysteresis).
         theta_in_rad, theta_out_rad, torque_out_nm: The samples (torque empty: no channel).
+        torque_in_nm, temp_case_degc: Input torque [N m] and case temperature [degC]
+            (empty: no channel).
         time_s: Sample times [s] (None: consecutive at the bench's rate).
         note: Why the segment cannot be analysed ('' when it can).
         found: What the data said about the segment (found speed, load, times), for the
@@ -59,6 +62,8 @@ class SegmentData:
     theta_in_rad: np.ndarray = field(default_factory=lambda: np.zeros(0))
     theta_out_rad: np.ndarray = field(default_factory=lambda: np.zeros(0))
     torque_out_nm: np.ndarray = field(default_factory=lambda: np.zeros(0))
+    torque_in_nm: np.ndarray = field(default_factory=lambda: np.zeros(0))
+    temp_case_degc: np.ndarray = field(default_factory=lambda: np.zeros(0))
     time_s: np.ndarray | None = None
     note: str = ''
     found: dict[str, Any] = field(default_factory=dict)
@@ -187,14 +192,23 @@ def _hysteresis_result(step: HysteresisStep, info: BenchInfoData, segments: list
         vals = [v[n] for v in per if math.isfinite(v[n])]
         pick = min if n.startswith('torsional_rigidity_') else max
         worst[n] = pick(vals) if len(vals) == len(per) else math.nan
+    spread = {n: (max(v[n] for v in per) - min(v[n] for v in per))
+              if step.positions > 1 and all(math.isfinite(v[n]) for v in per) else math.nan
+              for n in ('lost_motion_rad', 'backlash_rad')}
+    details['per_position'] = [{n: _fin(v[n]) for n in names} for v in per]
+    details['position_spread'] = {n: _fin(x) for n, x in spread.items()}
     # the curve shown: the position with the largest lost motion
     lm = [v['lost_motion_rad'] for v in per]
     shown = int(np.nanargmax(lm)) if np.any(np.isfinite(lm)) else 0
     details.update(details['positions'][shown])
     details['shown_position'] = shown
     note = '; '.join(notes)
-    return [Measured(n, step.name, _unit(n), worst[n], note if not math.isfinite(worst[n])
-                     else '') for n in names], details
+    out = [Measured(n, step.name, _unit(n), worst[n], note if not math.isfinite(worst[n])
+                    else '') for n in names]
+    if step.positions > 1:   # GB/T 40731 and catalogues: the maximum and the spread
+        out += [Measured(f'sweep:{n[:-4]}_spread_rad', step.name, 'rad', x,
+                         note if not math.isfinite(x) else '') for n, x in spread.items()]
+    return out, details
 
 
 def _one_position(step: HysteresisStep, info: BenchInfoData, segs: list[SegmentData],
@@ -280,5 +294,5 @@ def _operator_result(step: OperatorStep, _info: BenchInfoData, _segments: list[S
 RESULTS: dict[str, Callable[[Any, BenchInfoData, list[SegmentData]],
                             tuple[list[Measured], dict[str, Any]]]] = {
     'te': _te_result, 'sweep': _te_result, 'hysteresis': _hysteresis_result,
-    'operator': _operator_result}
+    'operator': _operator_result, **LOSS_RESULTS}
 

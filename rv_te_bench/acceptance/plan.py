@@ -52,6 +52,15 @@ from pathlib import Path
 from typing import TYPE_CHECKING, Any, NoReturn
 
 from rv_te_bench.acceptance._files import parse_yaml_text, read_source, shipped, shown_keys
+from rv_te_bench.acceptance.loss_steps import (
+    LOSS_KINDS,
+    BackDrivingStep,
+    EfficiencyStep,
+    LifeStep,
+    NoLoadStep,
+    StartingTorqueStep,
+    TemperatureRiseStep,
+)
 from rv_te_bench.core.hysteresis import HysteresisConfig, RigidityRegion
 from rv_te_bench.errors import PlanError, TeConfigError
 
@@ -249,7 +258,8 @@ class OperatorStep:
     kind: str = 'operator'
 
 
-Step = TeStep | HysteresisStep | SweepStep | OperatorStep
+Step = (TeStep | HysteresisStep | SweepStep | OperatorStep | EfficiencyStep | NoLoadStep
+        | StartingTorqueStep | BackDrivingStep | TemperatureRiseStep | LifeStep)
 
 
 @dataclass(frozen=True)
@@ -363,7 +373,7 @@ def _operator_step(f: _Fields, name: str) -> OperatorStep:
 #: for it to recorded.FINDERS (tests/acceptance/test_kinds.py checks they agree).
 _KINDS: dict[str, Callable[[_Fields, str], Step]] = {
     'te': _te_step, 'hysteresis': _hysteresis_step, 'sweep': _sweep_step,
-    'operator': _operator_step}
+    'operator': _operator_step, **LOSS_KINDS}
 STEP_KINDS = tuple(_KINDS)
 
 

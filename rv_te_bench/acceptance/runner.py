@@ -27,6 +27,7 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 
 from rv_te_bench.acceptance._results import SegmentData, step_result
+from rv_te_bench.acceptance.loss_steps import LOSS_PROGRAMS
 from rv_te_bench.acceptance.plan import (
     DIRECTIONS,
     HysteresisStep,
@@ -62,6 +63,7 @@ class _Segment:
     role: str                     # 'te' | 'sweep' | 'preload' | 'cycle'
     label: dict[str, Any] = field(default_factory=dict)
     chunks: list[tuple[np.ndarray, ...]] = field(default_factory=list)
+    extra: list[tuple[np.ndarray, np.ndarray]] = field(default_factory=list)
     samples: int = 0
     blocks: int = 0
     expected_blocks: int = -1      # from the bench's answer; -1: not known
@@ -167,12 +169,17 @@ class StepRunner:
 
     # -- data -----------------------------------------------------------------------------------
     def feed(self, segment: int, theta_in_rad: np.ndarray, theta_out_rad: np.ndarray,
-             torque_out_nm: np.ndarray) -> float:
-        """Take one block of segment ``segment``; return the live metric (SI)."""
+             torque_out_nm: np.ndarray, torque_in_nm: np.ndarray | None = None,
+             temp_case_degc: np.ndarray | None = None) -> float:
+        """Take one block of segment ``segment``; return the live metric (SI). The input
+        torque and case temperature (None: the bench has no such channel) are kept for
+        the steps that need them."""
         seg = self.segments[segment]
         arrays = tuple(np.asarray(a, dtype=np.float64) for a in
                        (theta_in_rad, theta_out_rad, torque_out_nm))
         seg.chunks.append(arrays)
+        seg.extra.append(tuple(np.zeros(0) if a is None else np.asarray(a, dtype=np.float64)
+                               for a in (torque_in_nm, temp_case_degc)))
         seg.samples += arrays[0].size
         seg.blocks += 1
         if self.live_name == 'torque_nm':
@@ -202,8 +209,12 @@ class StepRunner:
         out = []
         for i, seg in enumerate(self.segments):
             th_in, th_out, torque = self._cat(seg)
+            t_in, temp = ((np.concatenate([e[0] for e in seg.extra]),
+                           np.concatenate([e[1] for e in seg.extra])) if seg.extra
+                          else (np.zeros(0), np.zeros(0)))
             out.append(SegmentData(role=seg.role, label=seg.label, theta_in_rad=th_in,
                                    theta_out_rad=th_out, torque_out_nm=torque,
+                                   torque_in_nm=t_in, temp_case_degc=temp,
                                    note=self._notes.get(i) or self._incomplete([seg])))
         return out
 
@@ -243,7 +254,7 @@ def _operator_program(r: StepRunner, _step: OperatorStep) -> None:
 #: Step kind -> the builder of its bench program (see plan._KINDS for a new kind).
 PROGRAMS: dict[str, Callable[[StepRunner, Any], None]] = {
     'te': _te_program, 'sweep': _sweep_program, 'hysteresis': _hysteresis_program,
-    'operator': _operator_program}
+    'operator': _operator_program, **LOSS_PROGRAMS}
 
 
 def build_report(*, plan: TestPlan, profile: ToleranceProfile, info: BenchInfoData,
@@ -327,7 +338,8 @@ def run_plan_offline(plan: TestPlan, profile: ToleranceProfile, *, serial: str, 
             if seg != last_seg:
                 runner.next_segment()
                 last_seg = seg
-            live = runner.feed(seg, block.theta_in_rad, block.theta_out_rad, block.torque_out_nm)
+            live = runner.feed(seg, block.theta_in_rad, block.theta_out_rad, block.torque_out_nm,
+                               block.torque_in_nm, block.temp_case_degc)
             done += 1
             if on_feedback is not None:
                 on_feedback(j, step.name, done / total, runner.live_name, live)

@@ -53,13 +53,31 @@ LIMIT_KEYS: dict[str, tuple[str, float, str]] = {
     'backlash_arcsec': ('backlash', 1.0 / ARCSEC_PER_RAD, 'rad'),
     'torsional_rigidity_nm_per_arcmin': ('torsional_rigidity', ARCMIN_PER_RAD, 'N m/rad'),
     'hysteresis_loss_j': ('hysteresis_loss', 1.0, 'J'),
+    'efficiency_pct': ('efficiency', 0.01, '1'),
+    'no_load_torque_nm': ('no_load_torque', 1.0, 'N m'),
+    'starting_torque_nm': ('starting_torque', 1.0, 'N m'),
+    'back_driving_torque_nm': ('back_driving_torque', 1.0, 'N m'),
+    'temperature_rise_k': ('temperature_rise', 1.0, 'K'),
+    'trend_alarms': ('trend_alarms', 1.0, '1'),
 }
+#: Family -> the one metric it judges (the families judged by name; te_pp and torsional
+#: rigidity match several).
+_SINGLE_METRIC = {'lost_motion': 'lost_motion_rad', 'backlash': 'backlash_rad',
+                  'hysteresis_loss': 'hysteresis_loss_j',
+                  'efficiency': 'efficiency_at_max_load',
+                  'no_load_torque': 'no_load_torque_max_nm',
+                  'starting_torque': 'starting_torque_nm',
+                  'back_driving_torque': 'back_driving_torque_nm',
+                  'temperature_rise': 'temperature_rise_k', 'trend_alarms': 'trend_alarms'}
 #: The sides a limit of each family may have: a unit is better with less TE, lost motion and
 #: backlash (a ``min`` on them would fail the best units) and with more rigidity (a ``max``
 #: likewise); the hysteresis loss may be held in a band (a lab's consistency check).
 LIMIT_SIDES: dict[str, tuple[str, ...]] = {
     'te_pp': ('max',), 'lost_motion': ('max',), 'backlash': ('max',),
-    'hysteresis_loss': ('min', 'max'), 'torsional_rigidity': ('min',)}
+    'hysteresis_loss': ('min', 'max'), 'torsional_rigidity': ('min',),
+    'efficiency': ('min',), 'no_load_torque': ('max',), 'starting_torque': ('max',),
+    'back_driving_torque': ('min', 'max'), 'temperature_rise': ('max',),
+    'trend_alarms': ('max',)}
 #: Largest limit value in the key's unit (a typo of orders of magnitude is refused).
 MAX_LIMIT_VALUE = 1e6
 
@@ -82,16 +100,14 @@ class Limit:
             return name.startswith('te_pp_') and name.endswith('_rad')
         if self.family == 'torsional_rigidity':
             return name == f'torsional_rigidity_{self.region}_nm_per_rad'
-        return name == {'lost_motion': 'lost_motion_rad', 'backlash': 'backlash_rad',
-                        'hysteresis_loss': 'hysteresis_loss_j'}[self.family]
+        return name == _SINGLE_METRIC[self.family]
 
     @property
     def placeholder_name(self) -> str:
         """Metric name shown when nothing was measured for this limit."""
-        return {'te_pp': 'te_pp_rad', 'lost_motion': 'lost_motion_rad',
-                'backlash': 'backlash_rad', 'hysteresis_loss': 'hysteresis_loss_j',
-                'torsional_rigidity': f'torsional_rigidity_{self.region}_nm_per_rad'}[
-                    self.family]
+        return {'te_pp': 'te_pp_rad',
+                'torsional_rigidity': f'torsional_rigidity_{self.region}_nm_per_rad',
+                **_SINGLE_METRIC}[self.family]
 
 
 @dataclass(frozen=True)

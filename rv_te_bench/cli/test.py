@@ -99,6 +99,9 @@ def register(subparsers: Subparsers) -> None:
                    help='times faster than real time; 0 = as fast as possible (0..1000)')
     g.add_argument('--seed', type=int, default=1)
     add_from_arguments(p)
+    from rv_te_bench.cli._test_offline import add_offline_arguments
+
+    add_offline_arguments(p)
     p.set_defaults(func=run, _parser=p)
 
 
@@ -188,6 +191,26 @@ def run(args: argparse.Namespace) -> int:
         from rv_te_bench.cli._test_from import run_from
 
         return run_from(args, plan, tol_text, conditions)
+    if getattr(args, 'sim', None):
+        if args.launch:
+            args._parser.error('--sim runs the simulated bench in this process and --launch '
+                               'starts a ROS session: give one')
+        from rv_te_bench.cli._test_offline import run_offline
+
+        return run_offline(args, plan, tol_text, conditions)
+    from rv_te_bench.cli._test_offline import loss_steps_in
+
+    if loss_steps_in(plan):
+        from rv_te_bench.errors import AcceptanceError
+
+        msg = (f'step {loss_steps_in(plan)[0]!r} needs the input torque and case temperature, '
+               'which the ROS bench/encoders topic does not carry yet: run the plan with '
+               '--sim PRESET (simulated bench in this process); nothing was run')
+        raise AcceptanceError(msg)
+    if args.launch:
+        from rv_te_bench.cli._test_offline import sim_preflight
+
+        sim_preflight(plan, args.launch, list(args.set), {'torque_out'})
     args.namespace_norm = normalise_namespace(args.namespace)
     stamp = datetime.now(UTC).strftime('%Y%m%dT%H%M%SZ')
     safe_serial = ''.join(c if c.isalnum() or c in '-_.' else '_' for c in args.serial)

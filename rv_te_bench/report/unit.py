@@ -18,6 +18,7 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
+from rv_te_bench.report.loss_report import loss_condition, loss_figures, loss_sections
 from rv_te_bench.report.plots import _new_figure, _short, png_bytes
 from sim.units import ARCMIN_PER_RAD, ARCSEC_PER_RAD
 
@@ -32,6 +33,12 @@ _LABELS = {
     'te_pp_ccw_rad': 'TE p-p, ccw (output +)', 'te_pp_cw_rad': 'TE p-p, cw (output -)',
     'te_pp_rad': 'TE p-p', 'lost_motion_rad': 'lost motion', 'backlash_rad': 'backlash',
     'hysteresis_loss_j': 'hysteresis loss (loop area)',
+    'efficiency_at_max_load': 'efficiency at the largest load, worst speed (fraction)',
+    'no_load_torque_max_nm': 'no-load running torque, largest (input)',
+    'starting_torque_nm': 'starting torque (input, output free)',
+    'back_driving_torque_nm': 'back-driving torque (output, input free)',
+    'temperature_rise_k': 'case temperature rise until settled',
+    'trend_alarms': 'run-in: quantities flagged growing',
 }
 _VERDICT_COLOUR = {'pass': '#1b7f3b', 'fail': '#b00020', 'not_measured': '#9a6700',
                    'not_judged': '#9a6700', 'info': '#555', 'cancelled': '#9a6700',
@@ -220,6 +227,7 @@ def unit_figures(report: dict[str, Any]) -> dict[str, bytes]:
         if s['kind'] == 'hysteresis' and s.get('ascending_torque_nm'):
             out['hysteresis.png'] = png_bytes(_hysteresis_figure(s))
             break
+    out.update(loss_figures(report))
     return out
 
 
@@ -263,7 +271,9 @@ def _conditions(report: dict[str, Any]) -> list[tuple[str, str]]:
                         + (', preloaded to -T_R' if step['preload'] else '')
                         + (f", at {step['positions']} output positions"
                            if step.get('positions', 1) > 1 else '')))
-        else:
+        elif loss_condition(step) is not None:
+            out.append(loss_condition(step))
+        elif step['kind'] == 'sweep':
             out.append((f"sweep {step['name']!r}",
                         f"speeds {step['speeds_rpm']} rpm x loads {step['loads_nm']} N m, "
                         f"{step['direction']}"))
@@ -419,6 +429,7 @@ def render_unit_html(report: dict[str, Any], images: dict[str, bytes]) -> str:
                          f"<td>{_fmt((r['te_pp_rad'] or math.nan) * ARCMIN_PER_RAD)}</td>"
                          f"<td>{_fmt(st.get('te_mean_arcmin') or math.nan)}</td></tr>")
             p.append('</table>')
+    loss_sections(report, img, p)
     p.append('<h2>Advice</h2><ul>' + ''.join(f'<li>{_e(a)}</li>' for a in _advice(report))
              + '</ul>')
     p.append('<p class="muted">Definitions and limit sources: docs/ACCEPTANCE.md. TE = '

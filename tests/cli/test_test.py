@@ -148,7 +148,8 @@ def test_plan_names_its_tolerance_relative_to_itself(tmp_path: Path,
 
 
 def test_shipped_plans_and_profiles_are_valid() -> None:
-    assert set(shipped_plans()) == {'rv-80e', 'li2023-rv', 'wang2020-2kv'}
+    assert set(shipped_plans()) == {'rv-80e', 'li2023-rv', 'wang2020-2kv', 'full-rv-80e',
+                                    'full-li2023-rv'}
     for name in shipped_plans():
         p, _ = load_plan(name)
         assert p.steps
