@@ -104,6 +104,11 @@ def test_a_position_not_measured_is_not_replaced_by_the_others() -> None:
     does not pass, rather than taking the 80,000 N m/rad of the others."""
     runner, step = run_hysteresis(skip=2)
     measured, details = runner.result()
+    spread = [m for m in measured if m.name.startswith('sweep:')]   # shown, not judged
+    assert [m.name for m in spread] == ['sweep:lost_motion_spread_rad',
+                                        'sweep:backlash_spread_rad']
+    assert all(math.isnan(m.value) for m in spread)
+    measured = [m for m in measured if m not in spread]
     assert {m.name: m.step for m in measured} == dict.fromkeys(
         ['lost_motion_rad', 'backlash_rad', 'hysteresis_loss_j',
          'torsional_rigidity_K_nm_per_rad'], 'hysteresis')

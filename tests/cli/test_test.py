@@ -34,7 +34,7 @@ BAD_PLANS = [
     (plan(steps=[]), 'steps must be a list of 1..100 steps'),
     (plan(steps=['te']), 'step 0: must be a mapping'),
     (plan(steps=[{'kind': 'fly'}]),
-     "kind must be one of ['te', 'hysteresis', 'sweep', 'operator']"),
+     "kind must be one of ['te', 'hysteresis', 'sweep', 'operator', 'efficiency', "),
     (step(speed_rpm=-5), "step 0 ('te'): speed_rpm must be > 0, got -5"),
     (step(speed_rpm='fast'), "speed_rpm must be a finite number, got 'fast'"),
     (step(speedrpm=5), "unknown key(s) ['speedrpm']"),
