@@ -91,6 +91,9 @@ def _cut(seg: SegmentData, info: BenchInfoData, need: tuple[str, ...]
 
 def _efficiency_result(step: Any, info: BenchInfoData, segments: list[SegmentData]) -> Result:
     u_in, u_out = _u_class(info, 'torque_in'), _u_class(info, 'torque_out')
+    # the speed ratio from the angles: one increment (uniform) per reading
+    u_angle = max(info.encoder_in_resolution_rad, info.encoder_out_resolution_rad) \
+        / math.sqrt(12.0)
     rows, measured = [], []
     for seg in (s for s in segments if s.role == 'efficiency'):
         d, note = _cut(seg, info, ('torque_in', 'torque_out', 'temperature'))
@@ -102,7 +105,8 @@ def _efficiency_result(step: Any, info: BenchInfoData, segments: list[SegmentDat
             try:
                 p = efficiency_point(d['time_s'], d['theta_in_rad'], d['theta_out_rad'],
                                      d['torque_in'], d['torque_out'], u_class_in_nm=u_in,
-                                     u_class_out_nm=u_out, temp_case_degc=d['temperature'])
+                                     u_class_out_nm=u_out, u_angle_rad=u_angle,
+                                     temp_case_degc=d['temperature'])
             except TeInputError as exc:
                 note = str(exc)
             else:
@@ -127,7 +131,9 @@ def _efficiency_result(step: Any, info: BenchInfoData, segments: list[SegmentDat
     return measured, {'kind': step.kind, 'rows': rows, 'max_load_nm': top,
                       'coverage_k': 2.0,
                       'uncertainty': 'torque transducer classes read as rectangular '
-                                     '(c FS / 100 / sqrt 3), not averaged; + s/sqrt(n)'}
+                                     '(c FS / 100 / sqrt 3), not averaged; + s/sqrt(n); '
+                                     'the speed ratio from the encoder angles (one '
+                                     'increment per reading)'}
 
 
 def _no_load_result(step: Any, info: BenchInfoData, segments: list[SegmentData]) -> Result:
