@@ -192,8 +192,10 @@ class TorqueRampSegment:
         if self.shaft not in ('input', 'output'):
             msg = f"torque_ramp segment: shaft must be 'input' or 'output', got {self.shaft!r}"
             raise ModelInputError(msg)
-        for name, rule in (('ramp_rate_nm_s', '!=0'), ('max_torque_nm', '>0'),
-                           ('stop_angle_rad', '>0')):
+        rules: tuple[tuple[str, Rule], ...] = (('ramp_rate_nm_s', '!=0'),
+                                               ('max_torque_nm', '>0'),
+                                               ('stop_angle_rad', '>0'))
+        for name, rule in rules:
             object.__setattr__(self, name, _num('torque_ramp segment', name,
                                                 getattr(self, name), rule))
 

@@ -63,7 +63,7 @@ class _Segment:
     role: str                     # 'te' | 'sweep' | 'preload' | 'cycle'
     label: dict[str, Any] = field(default_factory=dict)
     chunks: list[tuple[np.ndarray, ...]] = field(default_factory=list)
-    extra: list[tuple[np.ndarray, np.ndarray]] = field(default_factory=list)
+    extra: list[tuple[np.ndarray, ...]] = field(default_factory=list)
     samples: int = 0
     blocks: int = 0
     expected_blocks: int = -1      # from the bench's answer; -1: not known

@@ -124,11 +124,11 @@ def loss_figures(report: dict[str, Any]) -> dict[str, bytes]:
                 [('', s['time_s'], s['temp_case_degc'])]))
         elif k == 'life' and any(v.get('tracked') for v in s['trends'].values()):
             n0 = int(s.get('baseline_checkpoints', 3))
-            series = []
+            series: list[tuple[str, list[float], list[float]]] = []
             for n, v in s['trends'].items():
                 if v.get('tracked'):
                     base = sum(v['values'][:n0]) / n0
-                    series.append((n, list(range(1, len(v['values']) + 1)),
+                    series.append((n, [float(i) for i in range(1, len(v['values']) + 1)],
                                    [100.0 * (x / base - 1.0) for x in v['values']]))
             out[name] = png_bytes(_xy_fig(
                 f'Run-in: change from the baseline (first {n0} checkpoints; {s["name"]})',

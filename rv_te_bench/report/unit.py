@@ -271,8 +271,8 @@ def _conditions(report: dict[str, Any]) -> list[tuple[str, str]]:
                         + (', preloaded to -T_R' if step['preload'] else '')
                         + (f", at {step['positions']} output positions"
                            if step.get('positions', 1) > 1 else '')))
-        elif loss_condition(step) is not None:
-            out.append(loss_condition(step))
+        elif (line := loss_condition(step)) is not None:
+            out.append(line)
         elif step['kind'] == 'sweep':
             out.append((f"sweep {step['name']!r}",
                         f"speeds {step['speeds_rpm']} rpm x loads {step['loads_nm']} N m, "
