@@ -33,10 +33,13 @@ def _scale(heads_deg: tuple[float, ...], index_deg: float = 0.0) -> Scale:
 
 def write_heads_bag(path: Path, heads_deg: tuple[float, ...], *, revs: float = 2.05,
                     drop_head: tuple[int, int] | None = None, serial: str = SERIAL,
-                    index_deg: float = 0.0) -> Path:
+                    index_deg: float = 0.0, heads_record: str | None = None,
+                    started_utc: str | None = None) -> Path:
     """A bag of the unit at 300 rpm read through an eccentric scale by ``heads_deg``;
     ``drop_head`` = (head, seq): that block lacks that head; ``index_deg``: the scale turned
-    on its shaft (reversal), readings zeroed to the shaft angle."""
+    on its shaft (reversal), readings zeroed to the shaft angle; ``heads_record``: the text
+    of a ``/te/encoder_heads`` message (what a session's TE node records); ``started_utc``:
+    the session start in the bag's metadata (custom_data, as the recorder writes it)."""
     from rosbags.rosbag2 import StoragePlugin, Writer
 
     store = rv_te_typestore()
@@ -60,6 +63,12 @@ def write_heads_bag(path: Path, heads_deg: tuple[float, ...], *, revs: float = 2
     with Writer(path, version=9, storage_plugin=StoragePlugin.MCAP) as w:
         ci = w.add_connection('/bench/info', BENCH_INFO, typestore=store)
         ce = w.add_connection('/bench/encoders', ENCODER_BLOCK, typestore=store)
+        if started_utc is not None:
+            w.set_custom_data('started_utc', started_utc)
+        if heads_record is not None:
+            ch = w.add_connection('/te/encoder_heads', 'std_msgs/msg/String', typestore=store)
+            w.write(ch, t0 + 1, bytes(store.serialize_cdr(
+                types['std_msgs/msg/String'](data=heads_record), 'std_msgs/msg/String')))
         w.write(ci, t0, bytes(store.serialize_cdr(types[BENCH_INFO](
             header=header(t0), bench_id='b', preset='wang2020-2kv', reducer_type='2kv',
             gear_ratio=ref.RATIO, crank_per_input=ref.CRANK_ORDER / ref.RATIO,

@@ -4,6 +4,7 @@
 from __future__ import annotations
 
 import argparse
+import sys
 from typing import TYPE_CHECKING
 
 if TYPE_CHECKING:
@@ -22,7 +23,12 @@ def add_heads_arguments(p: argparse.ArgumentParser) -> None:
                         'their number cancels) or head 0 alone')
     p.add_argument('--calibration', metavar='FILE', default=None,
                    help='encoder calibration of the output scale (rv-te selfcal) to take off '
-                        "its readings; its scale serial must be the bag's")
+                        "its readings; its scale serial must be the bag's. Without it, the "
+                        "calibration the session's TE node applied live (te/encoder_heads in "
+                        'the bag) is applied, so the offline TE is the live one')
+    p.add_argument('--no-session-calibration', action='store_true',
+                   help="do not apply the calibration the session's TE node applied (the "
+                        'uncalibrated readings)')
 
 
 def load_calibration(args: argparse.Namespace) -> EncoderCalibration | None:
@@ -48,6 +54,7 @@ def heads_combiner(args: argparse.Namespace, info: BenchInfoData | None) -> Head
     """
     from rv_te_bench.core.head_combine import HeadCombiner
     from rv_te_bench.errors import EncoderCalibrationError
+    from rv_te_bench.io.session_heads import choose_calibration
 
     cal = load_calibration(args)
     if info is None:
@@ -56,6 +63,15 @@ def heads_combiner(args: argparse.Namespace, info: BenchInfoData | None) -> Head
                    f'({cal.scale_serial!r}) cannot be checked: not applied')
             raise EncoderCalibrationError(msg)
         return None
+    cal, source, problems = choose_calibration(
+        args.bag, info, cal, from_session=not args.no_session_calibration)
+    args.calibration_record, args.calibration_source = cal, source
+    for text in problems:
+        print(f'WARNING: {args.bag}: {text}', file=sys.stderr)
+    if source == 'session':
+        print(f"NOTE: {args.bag}: the calibration the session's TE node applied is applied "
+              f'({cal.describe()}); --no-session-calibration leaves it out',  # type: ignore[union-attr]
+              file=sys.stderr)
     return HeadCombiner(info, mode=args.heads, calibration_out=cal)
 
 

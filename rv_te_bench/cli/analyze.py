@@ -170,7 +170,8 @@ def _run(args: argparse.Namespace) -> int:
                           n_crank_harmonics=args.harmonics,
                           window_revolutions=args.window_revolutions,
                           with_advice=not args.no_advice, progress=progress,
-                          heads_mode=args.heads, calibration=calibration)
+                          heads_mode=args.heads, calibration=calibration,
+                          session_calibration=not args.no_session_calibration)
         if progress is not None and progress.printed:
             dt_s = time.monotonic() - t0
             print(f'{bag}: done, {res.blocks_read} blocks in {dt_s:.1f} s '

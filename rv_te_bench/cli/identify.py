@@ -378,6 +378,7 @@ def _run(args: argparse.Namespace) -> int:
             'part_magnitudes_source': source, 'identification': idf.to_json_dict(),
             'advice_withheld': withheld,
             'encoder': {'heads': None if combiner is None else combiner.report(),
+                        'calibration_source': getattr(args, 'calibration_source', ''),
                         'once_per_rev': note.to_plain()},
             'advice_encoder_flag': note.text() if note.comparable and not note.separated
             else ''}

@@ -30,6 +30,7 @@ from rv_te_bench.core.heads import HeadLayout
 from rv_te_bench.errors import EncoderCalibrationError, HeadLayoutError, TeConfigError
 
 if TYPE_CHECKING:
+    import datetime as _dt
     from collections.abc import Iterable, Iterator
 
     from rv_te_bench.core.encoder_calibration import EncoderCalibration
@@ -144,8 +145,10 @@ class HeadCombiner:
 
     def __init__(self, info: BenchInfoData, *, mode: str = 'average',
                  calibration_out: EncoderCalibration | None = None,
-                 calibration_in: EncoderCalibration | None = None) -> None:
-        """See the class docstring."""
+                 calibration_in: EncoderCalibration | None = None,
+                 when: _dt.date | None = None) -> None:
+        """See the class docstring (``when``: the day the readings were taken, for the
+        calibrations' validity; None: today)."""
         if mode not in HEAD_MODES:
             msg = f'heads mode must be one of {list(HEAD_MODES)}, got {mode!r}'
             raise TeConfigError(msg)
@@ -159,7 +162,7 @@ class HeadCombiner:
                 msg = f'the bench\'s {side}put scale: {exc}'
                 raise HeadLayoutError(msg) from None
             if cal is not None:
-                cal.check_for(getattr(info, f'encoder_{side}_scale_serial'))
+                cal.check_for(getattr(info, f'encoder_{side}_scale_serial'), when=when)
             scales[side] = ScaleHeads(layout, cal, float(getattr(
                 info, f'encoder_{side}_scale_index_rad')), mode,  # type: ignore[arg-type]
                 max(1, len(angles)), tuple(float(a) for a in angles) or (0.0,))

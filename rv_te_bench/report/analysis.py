@@ -27,6 +27,7 @@ average in :mod:`rv_te_bench.core.spectrum` (:class:`SpectrumAverager`,
 
 from __future__ import annotations
 
+import datetime
 import math
 import time
 from dataclasses import replace
@@ -51,6 +52,7 @@ from rv_te_bench.errors import (
     RvTeError,
     TeConfigError,
 )
+from rv_te_bench.io.session_heads import choose_calibration
 from rv_te_bench.report._guarded import _GuardedBlocks
 from rv_te_bench.report.results import (
     AnalysisBench,
@@ -137,6 +139,7 @@ def analyze_bag(
     progress: ProgressFn | None = None,
     heads_mode: str = 'average',
     calibration: EncoderCalibration | None = None,
+    session_calibration: bool = True,
 ) -> AnalysisResult:
     """Analyse one recorded session.
 
@@ -157,7 +160,10 @@ def analyze_bag(
         heads_mode: How a scale's read heads form its angle: ``'average'`` (equal-division
             averaging of every head the bag holds) or ``'head0'`` (head 0 alone).
         calibration: A calibration of the output scale to take off its readings (checked
-            against the scale serial in BenchInfo).
+            against the scale serial in BenchInfo, valid on the session's day).
+        session_calibration: With no ``calibration``, take off the one the session's TE
+            node applied live (its ``te/encoder_heads`` record in the bag), so that the
+            offline TE is the live one; the report says where it came from.
 
     Returns:
         The analysis; ``partial`` is set when a read error ended the bag early.
@@ -187,7 +193,11 @@ def analyze_bag(
     info, info_problem = _read_bench_info(path, gear_ratio, crank_per_output)
     bench = _analysis_bench(path, info, gear_ratio, crank_per_output, n_crank_harmonics)
     config = TeAnalysisConfig(orders=bench.orders, window_revolutions=window_revolutions)
-    combiner = _combiner(path, info, heads_mode, calibration)
+    session = session_info(path)
+    when = _session_day(session.started_utc)
+    calibration, cal_source, cal_problems = choose_calibration(
+        path, info, calibration, from_session=session_calibration, when=when)
+    combiner = _combiner(path, info, heads_mode, calibration, when)
 
     # one helper thread reads the bag ahead and computes window spectra: with the caller,
     # two runnable threads on two cores (a third preempts the caller: issue 23); where one
@@ -231,6 +241,7 @@ def analyze_bag(
 
     partial = bool(read_problems) or stream.partial
     problems = list(open_bag(path).notes)   # unlisted files ignored, what was not written
+    problems.extend(cal_problems)
     if partial:
         problems.append(f'{reader.blocks} blocks read; part of the bag is unreadable: '
                         + summarize_problems(read_problems))
@@ -250,6 +261,10 @@ def analyze_bag(
     encoder: dict[str, Any] = {'once_per_rev': note.to_plain()}
     if combiner is not None:
         encoder['heads'] = combiner.report()
+        if cal_source:
+            encoder['calibration_source'] = cal_source
+            out = encoder['heads']['output']
+            out['description'] = f"{out['description']} ({_SOURCES[cal_source]})"
         missing = combiner.counters['blocks_head_missing']
         if missing:
             problems.append(f'{missing} blocks lacked read heads: their angle came from the '
@@ -265,11 +280,26 @@ def analyze_bag(
         recommendation=recommendation, partial=partial,
         problems=tuple(problems), blocks_read=reader.blocks,
         elapsed_s=time.monotonic() - t_start, read_problems=tuple(read_problems),
-        session=session_info(path), encoder=encoder)
+        session=session, encoder=encoder)
+
+
+#: Where the output calibration applied offline came from, for people.
+_SOURCES = {'file': 'from --calibration',
+            'session': "as the session's TE node applied it live, from te/encoder_heads in "
+                       'the bag; --no-session-calibration leaves it out'}
+
+
+def _session_day(started_utc: str) -> datetime.date | None:
+    """The day a session was recorded (None: unknown -> today)."""
+    try:
+        return datetime.date.fromisoformat(started_utc[:10])
+    except ValueError:
+        return None
 
 
 def _combiner(path: Path, info: BenchInfoData | None, mode: str,
-              calibration: EncoderCalibration | None) -> HeadCombiner | None:
+              calibration: EncoderCalibration | None,
+              when: datetime.date | None = None) -> HeadCombiner | None:
     """The head combination of a bag (None: nothing to do).
 
     Raises:
@@ -284,7 +314,7 @@ def _combiner(path: Path, info: BenchInfoData | None, mode: str,
             raise EncoderCalibrationError(msg)
         return None
     try:
-        return HeadCombiner(info, mode=mode, calibration_out=calibration)
+        return HeadCombiner(info, mode=mode, calibration_out=calibration, when=when)
     except HeadLayoutError as exc:
         msg = (f'{path}: {str(exc).rstrip(".")}; the bag is intact: analyse head 0 alone '
                'with --heads head0')
