@@ -1,4 +1,5 @@
-"""rv-te import with one column per read head (issue 36): CSV by pandas, TDMS by nptdms.
+"""rv-te import with one column per read head (issue 36): CSV by pandas, TDMS by nptdms,
+MDF by asammdf.
 
 The unit's TE comes from the paper's equations in tests/wang2020_reference, the heads'
 readings from the tests' exact-geometry scale; the files are written by pandas / nptdms as
@@ -102,6 +103,32 @@ def test_tdms_one_channel_per_head(tmp_path: Path) -> None:
                  '--theta-out-heads', 'enc/head0,enc/head1,enc/head2,enc/head3']) == 0
     assert next(iter(read_encoder_blocks(out))).out_head_ids == (0, 1, 2, 3)
     assert abs(_line1(out) - _truth_arcsec()) < 0.2
+
+
+def test_mdf_one_channel_per_head(tmp_path: Path) -> None:
+    """MDF 4.10 written by asammdf as a DAQ does: one channel group, master time, the
+    input and four head channels; the heads reach the bag and their mean gives the
+    reducer's line."""
+    asammdf = pytest.importorskip('asammdf')
+    t, th_in, heads = _record()
+    mdf = asammdf.MDF(version='4.10')
+    mdf.append([asammdf.Signal(th_in, t, name='theta_in', unit='rad'),
+                *(asammdf.Signal(heads[j], t, name=f'out_h{j}', unit='rad')
+                  for j in range(4))])
+    path = tmp_path / 'run.mf4'
+    mdf.save(str(path), overwrite=True)
+    mdf.close()
+    out = tmp_path / 'bag'
+    assert main(['import', str(path), '--bench', str(_bench(tmp_path)), '--out', str(out),
+                 '--theta-in', 'theta_in',
+                 '--theta-out-heads', 'out_h0,out_h1,out_h2,out_h3']) == 0
+    blocks = list(read_encoder_blocks(out))
+    assert sum(b.theta_in_rad.size for b in blocks) == t.size
+    assert blocks[0].out_head_ids == (0, 1, 2, 3)
+    np.testing.assert_allclose(blocks[0].theta_out_heads_rad, heads[:, :500], rtol=0,
+                               atol=1e-12)
+    assert abs(_line1(out) - _truth_arcsec()) < 0.2
+    assert abs(_line1(out, heads_mode='head0') - _truth_arcsec()) > 5.0
 
 
 @pytest.mark.parametrize(('args', 'bench_heads', 'message'), [
