@@ -263,6 +263,40 @@ def _fmt(x: float | None, width: int, digits: int) -> str:
     return f'{"-":>{width}}' if x is None else f'{x:>{width}.{digits}f}'
 
 
+def _am_u(u_rad: float | None, width: int) -> str:
+    """An expanded uncertainty in arcmin, two significant digits ('-' when unknown)."""
+    if u_rad is None or not math.isfinite(u_rad):
+        return f'{"-":>{width}}'
+    return f'{float(rad_to_arcmin(u_rad)):>{width}.2g}'
+
+
+def _line_u95(res: AnalysisResult, label: str) -> tuple[float | None, float | None]:
+    from rv_te_bench.report.uncertainty import line_budget_key
+
+    if res.uncertainty is None:
+        return None, None
+    b = res.uncertainty.budgets
+    a, p = (b.get(line_budget_key(label, w)) for w in ('amplitude', 'phase'))
+    return (None if a is None else a.u95), (None if p is None else p.u95)
+
+
+def _print_te_pp_u95(res: AnalysisResult, out: TextIO) -> None:
+    """TE p-p with its expanded uncertainty (the line people quote)."""
+    if res.uncertainty is None:
+        return
+    parts = []
+    for name, what in (('te_pp_revolution_max_rad', 'largest of one output revolution'),
+                       ('te_pp_rad', 'all clean samples')):
+        b = res.uncertainty.budgets.get(name)
+        if b is not None:
+            parts.append(f'{what} {float(rad_to_arcmin(b.value)):.4f} +- '
+                         f'{float(rad_to_arcmin(b.u95)):.2g}')
+    if parts:
+        p = next(iter(res.uncertainty.budgets.values())).coverage_probability
+        print(f'  TE p-p [arcmin]: {"; ".join(parts)} (+- U, {100 * p:.2f} % coverage; '
+              'budgets in --json)', file=out)
+
+
 def _print_identification(rec: Recommendation, out: TextIO) -> None:
     if rec.identification is None:
         return
@@ -290,6 +324,7 @@ def _print_one(res: AnalysisResult, out: TextIO) -> None:
         print(f'  {w.index:>10} {w.start_stamp_s - t0:>9.3f} {w.end_stamp_s - t0:>9.3f} '
               f'{"yes" if w.complete else "no":>5} {_stats_row(w.stats)}', file=out)
     print(f'  {"cumulative":>10} {"":>9} {"":>9} {"":>5} {_stats_row(res.cumulative)}', file=out)
+    _print_te_pp_u95(res, out)
     spec = res.spectrum
     if spec is None:
         print('  spectrum: none (no complete output revolution)', file=out)
@@ -298,16 +333,20 @@ def _print_one(res: AnalysisResult, out: TextIO) -> None:
               f'f_w = {spec.crank_hz:.5g} Hz', file=out)
         width = max([22, *(len(ln.label) for ln in spec.lines)])
         print(f'    {"line":<{width}} {"output order":>12} {"crank order":>11} {"freq[Hz]":>10} '
-              f'{"ampl[arcmin]":>12} {"phase[deg]":>10}', file=out)
+              f'{"ampl[arcmin]":>12} {"+-U":>8} {"phase[deg]":>10} {"+-U":>7}', file=out)
         from rv_te_bench.report.analysis import PHASE_MIN_FRACTION
 
         strongest = max((ln.amplitude_rad for ln in spec.lines), default=0.0)
         for ln in spec.lines:
             # The phase of a line at the noise floor means nothing: print '-'.
-            phase = (f'{float(rad_to_deg(ln.phase_rad)):>10.1f}'
-                     if ln.amplitude_rad > PHASE_MIN_FRACTION * strongest else f'{"-":>10}')
+            shown = ln.amplitude_rad > PHASE_MIN_FRACTION * strongest
+            phase = (f'{float(rad_to_deg(ln.phase_rad)):>10.1f}' if shown else f'{"-":>10}')
+            u_a, u_p = _line_u95(res, ln.label)
+            u_p_text = f'{float(rad_to_deg(u_p)):>7.2g}' if shown and u_p is not None \
+                else f'{"-":>7}'
             print(f'    {ln.label:<{width}} {ln.output_order:>12.6g} {ln.crank_order:>11.4g} '
-                  f'{ln.frequency_hz:>10.4g} {_am(ln.amplitude_rad, 12)} {phase}', file=out)
+                  f'{ln.frequency_hz:>10.4g} {_am(ln.amplitude_rad, 12)} '
+                  f'{_am_u(u_a, 8)} {phase} {u_p_text}', file=out)
     if res.dominant is not None:
         d = res.dominant
         print(f'  dominant: {d.line.label} ({_am(d.line.amplitude_rad, 0)} arcmin): '

@@ -80,6 +80,10 @@ def register(subparsers: Subparsers) -> None:
                         'Cp/Cpk and Pp/Ppk are of the baseline points')
     p.add_argument('--lsl', type=finite_float, default=None, metavar='X',
                    help='lower specification limit in the unit shown')
+    p.add_argument('--measurement-sigma', type=finite_float, default=None, metavar='S',
+                   help='standard uncertainty of one measurement in the unit shown, for the '
+                        'corrected Cp/Cpk (default: the root mean square of the stored u_c '
+                        'of the baseline values, when the store has them)')
     p.add_argument('--report', type=Path, default=None, metavar='DIR',
                    help='write spc.png, spc.html and spc.json into DIR')
     p.add_argument('--json', action='store_true', help='print the chart as JSON')
@@ -134,9 +138,13 @@ def run(args: argparse.Namespace) -> int:
                          if lot in first]
         else:
             base_vals = series.values[:n_base]
+            base_uc = series.uc[:n_base]
+        if args.by_lot:
+            base_uc = [u for u, lot in zip(series.uc, series.lots, strict=True) if lot in first]
         cap = spc.capability(base_vals, sigma_within=chart.process_sigma,
                              lsl=None if args.lsl is None else args.lsl / scale,
-                             usl=None if args.usl is None else args.usl / scale)
+                             usl=None if args.usl is None else args.usl / scale,
+                             sigma_measurement=_measurement_sigma(args, base_uc, scale))
     title = f'{args.metric}' + ('' if args.direction == 'all' else f' ({args.direction})') \
         + f' across {len(series.values)} units' + (f' [{unit}]' if unit else '')
     doc = spc_document(chart, series, title=title, capability=cap, baseline_text=base_text)
@@ -150,6 +158,22 @@ def run(args: argparse.Namespace) -> int:
     else:
         _print_quietly('\n'.join(_summary(doc)))
     return 0
+
+
+def _measurement_sigma(args: argparse.Namespace, uc: list[float | None],
+                       scale: float) -> float:
+    """The measurement's standard deviation [SI]: --measurement-sigma, else the rms of the
+    stored u_c (every baseline value must have one), else NaN (no correction)."""
+    import math
+
+    if args.measurement_sigma is not None:
+        if args.measurement_sigma < 0:
+            msg = f'--measurement-sigma must be >= 0, got {args.measurement_sigma:g}'
+            raise SpcError(msg)
+        return args.measurement_sigma / scale
+    if not uc or any(u is None for u in uc):
+        return math.nan
+    return math.sqrt(sum(u * u for u in uc if u is not None) / len(uc))
 
 
 def _print_quietly(text: str) -> None:
@@ -186,4 +210,13 @@ def _summary(doc: dict[str, Any]) -> list[str]:
         out.append(f'  capability (baseline): Cp {_g(cap["cp"])}, Cpk {_g(cap["cpk"])}, '
                    f'Pp {_g(cap["pp"])}, Ppk {_g(cap["ppk"])}; '
                    f'{100 * cap["fraction_out"]:.1f} % out of tolerance')
+        sm = cap.get('sigma_measurement')
+        if sm is None:
+            out.append('  measurement variance: not known (no stored uncertainty; '
+                       '--measurement-sigma): Cp/Cpk include the measurement\'s spread')
+        else:
+            out.append(f'  measurement sigma {_g(sm)} {unit} (u_c of the budgets): corrected '
+                       f'for it Cp {_g(cap["cp_corrected"])}, Cpk {_g(cap["cpk_corrected"])}, '
+                       f'Pp {_g(cap["pp_corrected"])}, Ppk {_g(cap["ppk_corrected"])} '
+                       '(sigma_process^2 = sigma^2 - sigma_measurement^2)')
     return out

@@ -65,7 +65,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, field, replace
-from typing import Any, SupportsFloat
+from typing import TYPE_CHECKING, Any, SupportsFloat
 
 import numpy as np
 import numpy.typing as npt
@@ -93,10 +93,14 @@ from rv_te_bench.core.phases import (
 from rv_te_bench.core.units import json_deg, rad_to_arcmin, rad_to_arcsec
 from rv_te_bench.errors import CompensationError, TeInputError
 
+if TYPE_CHECKING:
+    from rv_te_bench.core.bench_uncertainty import BenchUncertainty
+
 __all__ = ['LABEL_MISFIT_FLOOR', 'LABEL_RATIO_RESOLVED', 'MIN_EXPLAINED_FRACTION', 'OBSERVABILITY',
            'SPLIT_WELL_POSED_DEG_PER_PCT', 'FitQuality', 'Identification', 'PoorFitError',
            'check_fit',
-           'identified_advice', 'identify_eccentricities', 'identify_folded',
+           'identification_u95_json', 'identified_advice', 'identify_eccentricities',
+           'identify_folded',
            'recommend_reassembly']
 
 FloatArray = npt.NDArray[np.float64]
@@ -544,7 +548,9 @@ def check_fit(identification: Identification) -> None:
 def identified_advice(phase_out_rad: npt.ArrayLike | FoldedTe, te_rad: npt.ArrayLike | None,
                       params: GeometrySource, *, preset_name: str, step_deg: float = 10.0,
                       refine: bool = False,
-                      progress: ProgressCallback | None = None) -> Advice:
+                      progress: ProgressCallback | None = None,
+                      uncertainty: BenchUncertainty | None = None,
+                      gear_ratio: float = math.nan) -> Advice:
     """Identify this unit from its TE record and recommend re-assembly phases, as Advice.
 
     The one call the compensation node and the offline report make: identification
@@ -554,7 +560,10 @@ def identified_advice(phase_out_rad: npt.ArrayLike | FoldedTe, te_rad: npt.Array
     ``'identified-assembly-phases'`` (current = identified phases; details hold the
     identification with its fit quality). ``step_deg`` and ``refine`` as in
     :func:`recommend_reassembly` (use the same as for the preset's optimum, so that the two
-    recommendations differ only in the unit they are for).
+    recommendations differ only in the unit they are for). With ``uncertainty`` (the
+    bench's error model) and ``gear_ratio``, a folded record's identification carries the
+    budgets of e_ot, |Q1|, |Q2| and their phases (:mod:`.identify_uncertainty`): ``u95_m``,
+    ``u95_rad`` (and ``u95_um``, ``u95_deg``) and ``uncertainty`` in its JSON.
 
     Raises:
         PoorFitError: The model explains less than :data:`MIN_EXPLAINED_FRACTION` of the TE.
@@ -571,7 +580,29 @@ def identified_advice(phase_out_rad: npt.ArrayLike | FoldedTe, te_rad: npt.Array
     assert ident.fit is not None
     details = dict(advice.details)
     details['identification'] = ident.to_json_dict()
+    if uncertainty is not None and isinstance(phase_out_rad, FoldedTe) and math.isfinite(
+            gear_ratio):
+        details['identification'].update(identification_u95_json(
+            ident, phase_out_rad, gear_ratio=gear_ratio, bench=uncertainty))
     details['fit'] = ident.fit.to_json_dict()
     summary = (f'{advice.summary} (this unit, identified from its TE; '
                f'{ident.fit.describe()})')
     return replace(advice, details=details, summary=summary)
+
+
+def identification_u95_json(ident: Identification, folded: FoldedTe, *, gear_ratio: float,
+                            bench: BenchUncertainty) -> dict[str, Any]:
+    """The identification's U (``u95_m``, ``u95_rad``, ``u95_um``, ``u95_deg``) and its
+    budgets (``uncertainty``), for its JSON."""
+    from rv_te_bench.core.identify_uncertainty import identification_budgets
+
+    buds = identification_budgets(ident, folded, gear_ratio=gear_ratio, bench=bench)
+    mags = {'e_ot': 'e_ot_m', 'pair1': 'pair1_m', 'pair2': 'pair2_m'}
+    phs = {'theta_ot': 'theta_ot_rad', 'pair1': 'pair1_phase_rad', 'pair2': 'pair2_phase_rad'}
+    return {
+        'u95_m': {k: _num(buds[v].u95) for k, v in mags.items()},
+        'u95_rad': {k: _num(buds[v].u95) for k, v in phs.items()},
+        'u95_um': {k: _num(buds[v].u95 * 1e6, 6) for k, v in mags.items()},
+        'u95_deg': {k: _num(math.degrees(buds[v].u95), 4) for k, v in phs.items()},
+        'uncertainty': {v: b.to_json_dict() for v, b in buds.items()},
+    }

@@ -352,7 +352,12 @@ class Capability:
     """Process capability against a tolerance (None where a limit is missing).
 
     ``cp``/``cpk`` use the within sigma of the chart, ``pp``/``ppk`` the overall
-    standard deviation of the values they were computed from; ``n`` values.
+    standard deviation of the values they were computed from; ``n`` values. With the
+    measurement's standard uncertainty ``sigma_measurement`` (the u_c of the values'
+    budgets, root mean square), the observed spread holds the measurement's:
+    sigma_process^2 = sigma^2 - sigma_measurement^2, and the ``*_corrected`` indices are
+    the unit population's own (None when the measurement spread is not below the
+    observed one: the data cannot tell the process spread).
     """
 
     lsl: float | None
@@ -366,6 +371,11 @@ class Capability:
     pp: float | None
     ppk: float | None
     fraction_out: float
+    sigma_measurement: float = math.nan
+    cp_corrected: float | None = None
+    cpk_corrected: float | None = None
+    pp_corrected: float | None = None
+    ppk_corrected: float | None = None
 
     def to_json_dict(self, scale: float = 1.0, unit: str = '') -> dict[str, Any]:
         """JSON form; the limits, mean and sigmas multiplied by ``scale``."""
@@ -375,12 +385,24 @@ class Capability:
                 'sigma_within': self.sigma_within * scale,
                 'sigma_overall': self.sigma_overall * scale, 'n': self.n, 'cp': self.cp,
                 'cpk': self.cpk, 'pp': self.pp, 'ppk': self.ppk,
-                'fraction_out': self.fraction_out}
+                'fraction_out': self.fraction_out,
+                'sigma_measurement': (self.sigma_measurement * scale
+                                      if math.isfinite(self.sigma_measurement) else None),
+                'cp_corrected': self.cp_corrected, 'cpk_corrected': self.cpk_corrected,
+                'pp_corrected': self.pp_corrected, 'ppk_corrected': self.ppk_corrected}
 
 
 def capability(values: npt.ArrayLike, *, sigma_within: float, lsl: float | None = None,
-               usl: float | None = None) -> Capability:
-    """Cp, Cpk (within sigma) and Pp, Ppk (overall) of ``values`` against LSL/USL.
+               usl: float | None = None, sigma_measurement: float = math.nan) -> Capability:
+    """Cp, Cpk (within sigma) and Pp, Ppk (overall) of ``values`` against LSL/USL; with
+    ``sigma_measurement`` also corrected for the measurement's spread (see
+    :class:`Capability`).
+
+    Examples:
+        >>> c = capability([1.0, 3.0, 2.0, 4.0], sigma_within=1.0, usl=8.0, lsl=-4.0,
+        ...                sigma_measurement=0.6)
+        >>> c.cp, round(c.cp_corrected, 9)     # 12 / (6 x 1), 12 / (6 x sqrt(1 - 0.36))
+        (2.0, 2.5)
 
     Raises:
         SpcError: No limit, LSL >= USL, non-finite values, or sigma_within <= 0.
@@ -415,6 +437,16 @@ def capability(values: npt.ArrayLike, *, sigma_within: float, lsl: float | None 
         return both, k
     cp, cpk = idx(sigma_within)
     pp, ppk = idx(s_all)
+    corr: dict[str, float | None] = {}
+    sm = float(sigma_measurement)
+    if not (math.isnan(sm) or (math.isfinite(sm) and sm >= 0)):
+        msg = f'sigma_measurement must be finite and >= 0, got {sigma_measurement!r}'
+        raise SpcError(msg)
+    if math.isfinite(sm):
+        for name, sig in (('c', sigma_within), ('p', s_all)):
+            rest = sig * sig - sm * sm
+            both, k = idx(math.sqrt(rest)) if rest > 0 else (None, None)
+            corr[f'{name}p_corrected'], corr[f'{name}pk_corrected'] = both, k
     out = np.zeros(x.size, dtype=bool)
     if usl is not None:
         out |= x > usl
@@ -422,4 +454,4 @@ def capability(values: npt.ArrayLike, *, sigma_within: float, lsl: float | None 
         out |= x < lsl
     return Capability(lsl=lsl, usl=usl, mean=mu, sigma_within=sigma_within,
                       sigma_overall=s_all, n=int(x.size), cp=cp, cpk=cpk, pp=pp, ppk=ppk,
-                      fraction_out=float(out.mean()))
+                      fraction_out=float(out.mean()), sigma_measurement=sm, **corr)

@@ -102,8 +102,15 @@ def te_pp_budget(measurand: str, value_rad: float, *, phi_max_rad: float, phi_mi
                  per_revolution_rad: npt.ArrayLike | None = None,
                  speed_spread_rad_s: float = 0.0, samples_per_rev: float = math.nan,
                  dominant: tuple[float, float] | None = None,
-                 theta_out_offset_rad: float = 0.0) -> Budget:
+                 theta_out_offset_rad: float = 0.0,
+                 other_extremes: Sequence[tuple[float, float]] = ()) -> Budget:
     """The budget of a TE peak-to-peak value.
+
+    When the record has near-equal peaks (a 2K-V's crank-order ripple under a slow
+    output-order wave), the encoder error may move the maximum (minimum) from one to
+    another: ``other_extremes`` lists the other (phi_max, phi_min) pairs within reach, and
+    each harmonic's sensitivity is the largest over all pairs (the envelope theorem holds
+    for whichever pair is the extreme of the corrected record).
 
     Args:
         measurand: Its name (``'te_pp_ccw_rad'``).
@@ -121,17 +128,19 @@ def te_pp_budget(measurand: str, value_rad: float, *, phi_max_rad: float, phi_mi
             bias); NaN: not known.
         dominant: (amplitude [rad], output order) of the dominant line (peak curvature).
         theta_out_offset_rad: Output encoder angle at phi = 0 (its zero) [rad].
+        other_extremes: Further (phi_max, phi_min) candidates (see above).
     """
     i = float(gear_ratio)
-    pts_out = np.array([phi_max_rad, phi_min_rad]) + theta_out_offset_rad
-    pts_in = i * np.array([phi_max_rad, phi_min_rad])
     w = np.array([1.0, -1.0])
     eo, ei = bench.encoder_out, bench.encoder_in
     inputs: list[UncertaintyInput | None] = []
-    inputs += harmonic_inputs(eo, 'output encoder', pts_out, w,
-                              components=eo.long_range_components())
-    inputs += harmonic_inputs(ei, 'input encoder', pts_in, w, scale=1.0 / i,
-                              components=ei.long_range_components())
+    pairs = [(phi_max_rad, phi_min_rad), *other_extremes]
+    for enc, who, turns, sc in ((eo, 'output encoder', 1.0, 1.0),
+                                (ei, 'input encoder', i, 1.0 / i)):
+        per_pair = [harmonic_inputs(enc, who, turns * np.array(p) + (
+            theta_out_offset_rad if turns == 1.0 else 0.0), w, scale=sc,
+            components=enc.long_range_components()) for p in pairs]
+        inputs += [max(xs, key=lambda x: x.sensitivity) for xs in zip(*per_pair, strict=True)]
     for enc, who, sc in ((eo, 'output encoder', 1.0), (ei, 'input encoder', 1.0 / i)):
         if enc.resolution_rad > 0:
             inputs.append(type_b(f'{who}: quantisation at the two extremes',

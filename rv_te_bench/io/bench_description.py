@@ -30,6 +30,12 @@ The file (``rv_te_bench/launch/bench_description_example.yaml`` is a full exampl
                                                              #   (optional; rv-te test checks
                                                              #   every sample read back)
     metadata: {daq: NI PXIe-4492}                            # free strings, into the bag
+    uncertainty:                     # optional: the bench's own error values (the budgets'
+      daq_skew_ns: 25                #   inputs; docs/UNCERTAINTY.md); keys in
+      encoders:                      #   core.bench_uncertainty.bench_uncertainty_from_plain
+        output: {eccentricity_um: 1.5, eccentricity_u_um: 0.5, scale_diameter_mm: 100}
+      torque_sensor: {accuracy_class_pct: 0.05, nominal_nm: 1000, gain_tolerance_pct: 0.05}
+      temperature: {spread_k: 0.5}
 
 Only ``bench_id``, ``sample_rate_hz`` and either ``preset`` or ``reducer`` are required. With
 a preset, ratio, crank orders and mesh orders/labels come from the preset's kinematics
@@ -51,8 +57,9 @@ from typing import TYPE_CHECKING, Any, NoReturn
 
 import yaml
 
+from rv_te_bench.core.bench_uncertainty import BenchUncertainty, bench_uncertainty_from_plain
 from rv_te_bench.core.orders import OrderSet
-from rv_te_bench.errors import BenchDescriptionError, YamlInputError
+from rv_te_bench.errors import BenchDescriptionError, TeConfigError, YamlInputError
 from rv_te_bench.safe_yaml import DOCUMENT_LIMITS, brief, read_yaml_file
 from sim.bench_info import BenchInfoData
 
@@ -233,6 +240,7 @@ class BenchDescription:
     max_input_speed_rpm: float = math.nan
     max_output_torque_nm: float = math.nan
     metadata: Mapping[str, str] = field(default_factory=dict, hash=False)
+    uncertainty: Mapping[str, Any] | None = field(default=None, hash=False)
     origin: str = field(default='<bench description>', compare=False)
 
     def __post_init__(self) -> None:
@@ -339,6 +347,7 @@ class BenchDescription:
                 ('max_input_speed_rpm', self.max_input_speed_rpm),
                 ('max_output_torque_nm', self.max_output_torque_nm))},
             'metadata': dict(self.metadata),
+            **({'uncertainty': dict(self.uncertainty)} if self.uncertainty else {}),
             'source': 'bench description',
         }
 
@@ -629,6 +638,7 @@ def parse_bench_description(data: Any, origin: str = '<bench description>',
             top.fail(f'metadata.{key}', f'must be a text or number of at most {_MAX_TEXT} '
                      'characters', value)
         meta[key] = str(value)
+    unc = _uncertainty(top, enc_in, enc_out)
     top.done()
     return BenchDescription(
         bench_id=str(bench_id), preset=preset, preset_overrides=tuple(ov),
@@ -637,7 +647,25 @@ def parse_bench_description(data: Any, origin: str = '<bench description>',
         joint_in_name=joint_in, joint_out_name=joint_out,
         max_input_speed_rpm=math.nan if max_speed is None else float(max_speed),
         max_output_torque_nm=math.nan if max_torque is None else float(max_torque),
-        metadata=meta, origin=origin, **kin)
+        metadata=meta, uncertainty=unc, origin=origin, **kin)
+
+
+def _uncertainty(top: _Keys, enc_in: EncoderInfo, enc_out: EncoderInfo,
+                 ) -> dict[str, Any] | None:
+    """The ``uncertainty:`` section (the bench's own error values; keys in
+    :func:`rv_te_bench.core.bench_uncertainty.bench_uncertainty_from_plain`), checked
+    against the described encoders' data-sheet defaults, kept as written."""
+    raw = top.data.pop('uncertainty', None)
+    if raw is None:
+        return None
+    base = BenchUncertainty.defaults(enc_in.model, enc_out.model,
+                                     resolution_in_rad=enc_in.resolution_rad,
+                                     resolution_out_rad=enc_out.resolution_rad)
+    try:
+        bench_uncertainty_from_plain(raw, base, where=f'{top.where}: uncertainty')
+    except TeConfigError as exc:
+        raise BenchDescriptionError(str(exc)) from None
+    return dict(raw)
 
 
 def load_bench_description(path: str | Path) -> BenchDescription:

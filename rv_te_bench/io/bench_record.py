@@ -31,7 +31,7 @@ if TYPE_CHECKING:
     from sim.presets import Preset
 
 __all__ = ['PARAMETERS_YAML_LIMITS', 'bench_info_cdr', 'overrides_from_parameters_yaml',
-           'preset_from_bench_info', 'read_bench_info']
+           'preset_from_bench_info', 'read_bench_info', 'uncertainty_from_parameters_yaml']
 
 #: A BenchInfo record holds the preset's values and the bench settings: a few kB.
 PARAMETERS_YAML_LIMITS = DOCUMENT_LIMITS
@@ -58,6 +58,22 @@ def overrides_from_parameters_yaml(text: str) -> list[str]:
             isinstance(o, str | int | float) for o in overrides):
         return []
     return [str(o) for o in overrides]
+
+
+def uncertainty_from_parameters_yaml(text: str) -> Any:
+    """The bench description's ``uncertainty:`` section a bench recorded in
+    ``BenchInfoData.parameters_yaml`` (``bench.uncertainty``; the mapping as written, to be
+    checked by :func:`rv_te_bench.core.bench_uncertainty.bench_uncertainty_from_plain`),
+    or None when there is none or the text is unreadable."""
+    if not text:
+        return None
+    try:
+        record = load_yaml(text, origin='BenchInfo.parameters_yaml',
+                           limits=PARAMETERS_YAML_LIMITS)
+    except YamlInputError:
+        return None
+    bench = record.get('bench') if isinstance(record, dict) else None
+    return bench.get('uncertainty') if isinstance(bench, dict) else None
 
 
 def preset_from_bench_info(info: BenchInfoData, extra_overrides: Sequence[str] = ()) -> Preset:

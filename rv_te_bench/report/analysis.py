@@ -64,12 +64,14 @@ from rv_te_bench.report.results import (
     report_title,
     stats_json,
 )
+from rv_te_bench.report.uncertainty import analysis_uncertainty
 from sim.units import rad_to_arcmin
 
 if TYPE_CHECKING:
     from collections.abc import Callable
 
     from rv_te_bench.core.angle_fold import FoldedTe
+    from rv_te_bench.core.bench_uncertainty import BenchUncertainty
     from rv_te_bench.core.encoder_calibration import EncoderCalibration
     from rv_te_bench.core.stream_records import WindowResult
     from rv_te_bench.core.te import TeStats
@@ -252,9 +254,12 @@ def analyze_bag(
                         'statistics do not cover whole revolutions')
     dominant = None if spectrum is None else dominant_harmonic(spectrum, bench)
     trace = replace(reader.trace(), envelope=envelope.data())
+    uncertainty = analysis_uncertainty(info=bench.info, gear_ratio=bench.gear_ratio,
+                                       windows=windows, cumulative=offline.cumulative,
+                                       spectrum=spectrum, trace=trace)
     recommendation = (
         _recommend(bench, offline.cumulative, None if fold is None else fold.result(),
-                   advice_search)
+                   advice_search, uncertainty.bench)
         if with_advice else
         Recommendation(available=False, reason='not requested (--no-advice)'))
     note = _once_per_rev(info, spectrum, combiner, calibration)
@@ -280,7 +285,7 @@ def analyze_bag(
         recommendation=recommendation, partial=partial,
         problems=tuple(problems), blocks_read=reader.blocks,
         elapsed_s=time.monotonic() - t_start, read_problems=tuple(read_problems),
-        session=session, encoder=encoder)
+        session=session, encoder=encoder, uncertainty=uncertainty)
 
 
 #: Where the output calibration applied offline came from, for people.
@@ -444,7 +449,8 @@ def likely_source(output_order: float, orders: OrderSet, reducer_type: str = '')
 
 
 def _recommend(bench: AnalysisBench, cumulative: TeStats, folded: FoldedTe | None,
-               search: tuple[float, bool] = (10.0, False)) -> Recommendation:
+               search: tuple[float, bool] = (10.0, False),
+               uncertainty: BenchUncertainty | None = None) -> Recommendation:
     """Ask the compensation code for advice on the bench's preset (lazy imports).
 
     * ``wang2020-2kv`` model: eccentricities and assembly phases identified from the
@@ -470,7 +476,7 @@ def _recommend(bench: AnalysisBench, cumulative: TeStats, folded: FoldedTe | Non
     kind = advice_kind(preset.model)
     try:
         if kind == 'assembly-phases':
-            return _advice_2kv(preset, folded, search)
+            return _advice_2kv(preset, folded, search, uncertainty, bench.gear_ratio)
         if kind == 'tooth-profile':
             from rv_te_bench.core.tooth_compensation import (
                 tooth_profile_advice,
@@ -489,8 +495,9 @@ def _recommend(bench: AnalysisBench, cumulative: TeStats, folded: FoldedTe | Non
         'no compensation model'))
 
 
-def _advice_2kv(preset: Any, folded: FoldedTe | None,
-                search: tuple[float, bool]) -> Recommendation:
+def _advice_2kv(preset: Any, folded: FoldedTe | None, search: tuple[float, bool],
+                uncertainty: BenchUncertainty | None = None,
+                gear_ratio: float = math.nan) -> Recommendation:
     """Identified assembly phases when possible, else the model-based Wang 2020 Eq. 21
     optimum; ``search`` = (grid step [deg], refine) for both."""
     from rv_te_bench.core.identify import PoorFitError, identified_advice
@@ -501,7 +508,9 @@ def _advice_2kv(preset: Any, folded: FoldedTe | None,
     if folded is not None and folded.n_samples > 0:
         try:
             advice = identified_advice(folded, None, params, preset_name=preset.name,
-                                       step_deg=search[0], refine=search[1])
+                                       step_deg=search[0], refine=search[1],
+                                       uncertainty=uncertainty,
+                                       gear_ratio=gear_ratio)
         except PoorFitError as exc:
             return Recommendation(available=False, reason=str(exc),
                                   identification=exc.identification.to_json_dict())
@@ -519,9 +528,18 @@ def describe_identification(ident: dict[str, Any]) -> list[str]:
     """Lines for people about an identification (the JSON of ``Identification``): what one
     TE record identified, what rests on assumed part magnitudes, and the notes."""
     e, ph = ident['e_um'], ident['phases_deg']
-    out = [f"identified from the TE (up to the label swap): Q1 = e_p1 + e_g {e['pair1']:.3f} um "
-           f"at {ph['pair1']:.1f} deg, Q2 = e_p2 - e_g {e['pair2']:.3f} um at "
-           f"{ph['pair2']:.1f} deg, E = e_ot {e['e_ot']:.3f} um at {ph['theta_ot']:.1f} deg"]
+    ue, up = ident.get('u95_um') or {}, ident.get('u95_deg') or {}
+
+    def um(k: str) -> str:
+        return f'{e[k]:.3f}' + (f' +- {ue[k]:.2g}' if ue.get(k) is not None else '')
+
+    def deg(k: str) -> str:
+        return f'{ph[k]:.1f}' + (f' +- {up[k]:.2g}' if up.get(k) is not None else '')
+
+    out = [f'identified from the TE (up to the label swap): Q1 = e_p1 + e_g {um("pair1")} um '
+           f'at {deg("pair1")} deg, Q2 = e_p2 - e_g {um("pair2")} um at {deg("pair2")} deg, '
+           f'E = e_ot {um("e_ot")} um at {deg("theta_ot")} deg'
+           + (' (+- U, about 95 %)' if ue else '')]
     assumed = ident.get('assumed_e_um') or {}
     if assumed and 'theta_g' in ph:
         mags = '/'.join(f'{assumed[k]:.3g}' for k in ('e_p1', 'e_p2', 'e_g'))

@@ -139,6 +139,12 @@ def _am(x_rad: float, digits: int = 4) -> str:
     return f'{v:.{digits}f}' if math.isfinite(v) else '-'
 
 
+def _am_g(x_rad: float) -> str:
+    """An uncertainty in arcmin to two significant digits."""
+    v = float(rad_to_arcmin(x_rad))
+    return f'{v:.2g}' if math.isfinite(v) else '-'
+
+
 def _secs(x: float | None) -> str:
     return '-' if x is None else f'{x:.6g}'
 
@@ -197,6 +203,16 @@ def _bag_section(res: AnalysisResult) -> str:
                    f'</td>{_stats_cells(w.stats)}</tr>')
     out.append(f'<tr><th class="l" colspan="4">cumulative (all clean samples)</th>'
                f'{_stats_cells(res.cumulative)}</tr></table>')
+    unc = res.uncertainty
+    if unc is not None:
+        parts = [f'{what} <b>{_am(b.value)} &plusmn; {_am_g(b.u95)}</b> arcmin'
+                 for name, what in (('te_pp_revolution_max_rad',
+                                     'largest of one output revolution'),
+                                    ('te_pp_rad', 'all clean samples'))
+                 if (b := unc.budgets.get(name)) is not None]
+        if parts:
+            out.append(f'<p><b>TE p-p</b>: {"; ".join(parts)} (&plusmn; U, about 95 %; the '
+                       'budgets below, docs/UNCERTAINTY.md).</p>')
 
     spec = res.spectrum
     out.append('<h3>Spectrum</h3>')
@@ -208,16 +224,22 @@ def _bag_section(res: AnalysisResult) -> str:
                    'a&middot;cos(order&middot;&phi; + phase), &phi; = &theta;<sub>in</sub>/i.</p>')
         out.append('<table><tr><th class="l">line</th><th>output order</th>'
                    '<th>crank order</th><th>frequency [Hz]</th><th>amplitude [arcmin]</th>'
-                   '<th>spread between windows [arcmin]</th><th>phase [deg]</th></tr>')
+                   '<th>&plusmn; U [arcmin]</th><th>spread between windows [arcmin]</th>'
+                   '<th>phase [deg]</th><th>&plusmn; U [deg]</th></tr>')
         strongest = max((ln.amplitude_rad for ln in spec.lines), default=0.0)
         for ln, spread in zip(spec.lines, spec.amplitude_spread_rad, strict=True):
             phase = (f'{float(rad_to_deg(ln.phase_rad)):.1f}'
                      if ln.amplitude_rad > PHASE_MIN_FRACTION * strongest else '-')
+            u_a, u_p = _line_u95(res, ln.label)
+            u_p_text = f'{math.degrees(u_p):.2g}' if phase != '-' and math.isfinite(u_p) \
+                else '-'
             out.append(f'<tr><td class="l">{_e(ln.label)}</td><td>{ln.output_order:.6g}</td>'
                        f'<td>{ln.crank_order:.4g}</td><td>{ln.frequency_hz:.5g}</td>'
-                       f'<td>{_am(ln.amplitude_rad)}</td><td>{_am(spread, 5)}</td>'
-                       f'<td>{phase}</td></tr>')
+                       f'<td>{_am(ln.amplitude_rad)}</td><td>{_am_g(u_a)}</td>'
+                       f'<td>{_am(spread, 5)}</td><td>{phase}</td><td>{u_p_text}</td></tr>')
         out.append('</table>')
+    if unc is not None:
+        out.append(_budgets_section(res))
     if res.dominant is not None:
         d = res.dominant
         out.append(f'<p><b>Dominant harmonic:</b> {_e(d.line.label)} '
@@ -287,6 +309,35 @@ def _encoder_section(res: AnalysisResult) -> str:
         cls = 'warn' if note.get('comparable') and not note.get('separated') else 'muted'
         out.append(f'<p class="{cls}">{_e(note.get("text", ""))}</p>')
     return '\n'.join(out)
+def _line_u95(res: AnalysisResult, label: str) -> tuple[float, float]:
+    from rv_te_bench.report.uncertainty import line_budget_key
+
+    if res.uncertainty is None:
+        return math.nan, math.nan
+    return (res.uncertainty.u95(line_budget_key(label, 'amplitude')),
+            res.uncertainty.u95(line_budget_key(label, 'phase')))
+
+
+def _budgets_section(res: AnalysisResult) -> str:
+    """The budgets people audit: TE p-p of one revolution and the dominant line."""
+    from rv_te_bench.report.uncertainty import budget_html, line_budget_key
+
+    unc = res.uncertainty
+    assert unc is not None
+    shown = [('TE p-p, largest of one output revolution', 'te_pp_revolution_max_rad')]
+    if res.dominant is not None:
+        lab = res.dominant.line.label
+        shown += [(f'line {lab} amplitude', line_budget_key(lab, 'amplitude')),
+                  (f'line {lab} phase', line_budget_key(lab, 'phase'))]
+    parts = ['<h3>Uncertainty budgets</h3><p class="muted">GUM law of propagation; k from '
+             'the inputs\' distributions (about 95 %); every budget in report.json '
+             '(uncertainty.budgets). Encoder inputs: '
+             f'{_e(unc.bench.encoder_in.model)} (input), {_e(unc.bench.encoder_out.model)} '
+             '(output).</p>']
+    parts += [budget_html(title, unc.budgets[key]) for title, key in shown
+              if key in unc.budgets]
+    parts += [f'<p class="muted">note: {_e(n)}</p>' for n in unc.notes]
+    return ''.join(parts)
 
 
 def render_html(results: Sequence[AnalysisResult], images: dict[str, bytes],

@@ -205,6 +205,17 @@ def _strong_labels(results: Sequence[AnalysisResult]) -> list[tuple[float, str]]
     return sorted(((order, label) for label, (order, _) in strongest), key=lambda x: x[0])
 
 
+def _line_u95_arcmin(res: AnalysisResult) -> np.ndarray | None:
+    """U of each labelled line's amplitude [arcmin], in the spectrum's order (None
+    without budgets)."""
+    from rv_te_bench.report.uncertainty import line_budget_key
+
+    if res.uncertainty is None or res.spectrum is None:
+        return None
+    return rad_to_arcmin(np.array([res.uncertainty.u95(line_budget_key(ln.label, 'amplitude'))
+                                   for ln in res.spectrum.lines]))
+
+
 def spectrum_figure(results: Sequence[AnalysisResult]) -> Figure:
     """Order spectrum with labelled crank harmonics, sidebands and mesh orders.
 
@@ -244,6 +255,11 @@ def spectrum_figure(results: Sequence[AnalysisResult]) -> Figure:
         line_a = np.maximum(rad_to_arcmin(np.array([ln.amplitude_rad for ln in spec.lines])),
                             floor)
         ax_full.plot(line_o, line_a, 'o', ms=4, mfc='none', color=color)
+        line_u = _line_u95_arcmin(res)
+        if line_u is not None:
+            lo = np.minimum(line_u, line_a - floor)      # the bar stays on the log axis
+            ax_full.errorbar(line_o, line_a, yerr=(lo, line_u), fmt='none', ecolor=color,
+                             elinewidth=0.8, capsize=2)
         if line_o.size:
             x_max = max(x_max, float(line_o.max()))
         if k == 0:
@@ -285,16 +301,22 @@ def spectrum_figure(results: Sequence[AnalysisResult]) -> Figure:
             continue
         amp_by = {ln.label: ln.amplitude_rad for ln in res.spectrum.lines}
         vals = rad_to_arcmin(np.array([amp_by.get(lab, math.nan) for _, lab in chosen]))
+        u_by = dict(zip((ln.label for ln in res.spectrum.lines),
+                        _line_u95_arcmin(res) if res.uncertainty is not None
+                        else [math.nan] * len(res.spectrum.lines), strict=True))
+        errs = np.array([u_by.get(lab, math.nan) for _, lab in chosen])
         bars = ax_bar.bar(xs + (k - (n_bags - 1) / 2) * width, vals, width,
-                          color=_COLORS[k % len(_COLORS)], label=_name(res))
+                          color=_COLORS[k % len(_COLORS)], label=_name(res),
+                          yerr=np.where(np.isfinite(errs), errs, 0.0), capsize=3,
+                          error_kw={'elinewidth': 0.9})
         if n_bags == 1:  # values stay readable on single bars only
             texts = [f'{v:.3f}' if np.isfinite(v) and v >= 0.01 * peak else '' for v in vals]
             ax_bar.bar_label(bars, labels=texts, fontsize=7, padding=1)
     ax_bar.set_xticks(xs, [_short(lab) for _, lab in chosen], rotation=35, ha='right',
                       fontsize=8)
     ax_bar.set_ylabel('peak amplitude [arcmin]')
-    ax_bar.set_title(f'The {len(chosen)} strongest labelled lines (crank harmonics k f_w, '
-                     'sidebands f_w +/- f_out, mesh orders), by frequency')
+    ax_bar.set_title(f'The {len(chosen)} strongest labelled lines (crank harmonics, sidebands, '
+                     'mesh orders) by frequency, +-U (~95 %)')
     ax_bar.grid(visible=True, axis='y', alpha=0.3)
     if n_bags > 1:
         ax_bar.legend(fontsize=8)

@@ -27,6 +27,7 @@ if TYPE_CHECKING:
     from rv_te_bench.core.spectrum import SpectrumLine
     from rv_te_bench.core.stream_records import GapEvent, WindowResult
     from rv_te_bench.core.te import TeStats
+    from rv_te_bench.report.uncertainty import AnalysisUncertainty
     from sim.bench_info import BenchInfoData
 
     FloatArray = npt.NDArray[np.float64]
@@ -260,6 +261,8 @@ class AnalysisResult:
             (``heads``: ``HeadCombiner.report()`` of :mod:`rv_te_bench.core.head_combine`)
             and what the output encoder could put on the once-per-revolution line
             (``once_per_rev``: :class:`~rv_te_bench.core.encoder_attribution.OncePerRevNote`).
+        uncertainty: The budgets of the TE p-p and the lines (docs/UNCERTAINTY.md), None
+            when not computed.
     """
 
     path: Path
@@ -280,6 +283,7 @@ class AnalysisResult:
     read_problems: tuple[str, ...] = ()
     session: SessionInfo = field(default_factory=lambda: SessionInfo(name=''))
     encoder: dict[str, Any] = field(default_factory=dict)
+    uncertainty: AnalysisUncertainty | None = None
 
     @property
     def complete_windows(self) -> tuple[WindowResult, ...]:
@@ -298,14 +302,14 @@ class AnalysisResult:
             'read_problems': list(self.read_problems),
             'blocks_read': self.blocks_read,
             'bench': self.bench.to_json_dict(),
-            'cumulative': stats_json(self.cumulative),
+            'cumulative': {**stats_json(self.cumulative), **self._u95('te_pp_rad')},
             'windows': [{
                 'index': int(w.index), 'complete': bool(w.complete),
                 'start_stamp_s': json_float(w.start_stamp_s),
                 'end_stamp_s': json_float(w.end_stamp_s),
                 'first_seq': int(w.first_seq), 'last_seq': int(w.last_seq),
                 **stats_json(w.stats)} for w in self.windows],
-            'spectrum': None if self.spectrum is None else self.spectrum.to_json_dict(),
+            'spectrum': None if self.spectrum is None else self._spectrum_json(),
             'dominant': None if self.dominant is None else self.dominant.to_json_dict(),
             'gaps': [{'kind': g.kind, 'seq': int(g.seq), 'detail': g.detail,
                       'at_s': g.at_s, 'missing_s': g.missing_s, 't_before_s': g.t_before_s,
@@ -313,7 +317,26 @@ class AnalysisResult:
             'counters': {k: _jsonable(v) for k, v in self.counters.items()},
             'recommendation': self.recommendation.to_json_dict(),
             'encoder': _jsonable(self.encoder),
+            **({} if self.uncertainty is None
+               else {'uncertainty': self.uncertainty.to_json_dict()}),
         }
+
+    def _u95(self, name: str, key: str | None = None) -> dict[str, Any]:
+        """``{key or name + '_u95': U}`` when the budget exists (else nothing)."""
+        if self.uncertainty is None or name not in self.uncertainty.budgets:
+            return {}
+        return {key or f'{name}_u95': json_float(self.uncertainty.u95(name))}
+
+    def _spectrum_json(self) -> dict[str, Any]:
+        """The spectrum's JSON with each line's ``amplitude_rad_u95`` / ``phase_rad_u95``."""
+        from rv_te_bench.report.uncertainty import line_budget_key
+
+        assert self.spectrum is not None
+        doc = self.spectrum.to_json_dict()
+        for ln in doc['lines']:
+            ln.update(self._u95(line_budget_key(ln['label'], 'amplitude'), 'amplitude_rad_u95'))
+            ln.update(self._u95(line_budget_key(ln['label'], 'phase'), 'phase_rad_u95'))
+        return doc
 
 
 def stats_json(stats: TeStats) -> dict[str, Any]:

@@ -185,7 +185,17 @@ def _html(doc: dict[str, Any], png_b64: str) -> str:
             f'<td>{cap["n"]}</td><td>{_n(cap["cp"], 3)}</td><td>{_n(cap["cpk"], 3)}</td>'
             f'<td>{_n(cap["pp"], 3)}</td><td>{_n(cap["ppk"], 3)}</td>'
             f'<td>{100 * cap["fraction_out"]:.1f} %</td></tr></table>'
-            f'<p class="muted">Values in {e(unit) or "the metric unit"}. Cp/Cpk use the '
+            + (f'<p>Measurement sigma {_n(cap["sigma_measurement"])} {e(unit)} (the stored '
+               'u<sub>c</sub> of the values\' uncertainty budgets, rms): corrected for it, '
+               f'Cp {_n(cap["cp_corrected"], 3)}, Cpk {_n(cap["cpk_corrected"], 3)}, '
+               f'Pp {_n(cap["pp_corrected"], 3)}, Ppk {_n(cap["ppk_corrected"], 3)} '
+               '(&sigma;<sub>process</sub><sup>2</sup> = &sigma;<sup>2</sup> &minus; '
+               '&sigma;<sub>measurement</sub><sup>2</sup>; &ndash; where the measurement '
+               'spread is not below the observed one).</p>'
+               if cap.get('sigma_measurement') is not None else
+               '<p class="muted">Measurement variance not known (no stored uncertainty): '
+               'Cp/Cpk include the measurement\'s spread.</p>')
+            + f'<p class="muted">Values in {e(unit) or "the metric unit"}. Cp/Cpk use the '
             'within sigma of the chart; Pp/Ppk the overall standard deviation.</p>')
     return (
         '<!DOCTYPE html><html lang="en"><head><meta charset="utf-8">'

@@ -2,8 +2,9 @@
 
 Columns: the record's identity and conditions, then ``<metric>`` for the whole record and
 ``<metric>_cw`` / ``<metric>_ccw`` per direction (SI, the name carries the unit), then
-``line_<label>_amplitude_rad`` per spectral line (labels made column-safe). Empty cells
-where a record has no such value.
+``line_<label>_amplitude_rad`` per spectral line (labels made column-safe); beside each
+value that has one, its expanded uncertainty U in ``<column>_u95``. Empty cells where a
+record has no such value.
 
 CSV is opened by spreadsheets, which run a cell starting with ``=``, ``+``, ``-``, ``@`` (or
 a tab / carriage return) as a formula: such text cells (a serial, an operator, a failure
@@ -53,8 +54,11 @@ def _metric_column(name: str, direction: str) -> str:
 
 def records_table(rows: list[StoredResult]) -> tuple[list[str], list[dict[str, Any]]]:
     """(columns, one dict per record) of the wide table."""
-    metric_cols = sorted({_metric_column(n, d) for r in rows for (n, d) in r.metrics})
-    line_cols = sorted({_line_column(lab) for r in rows for lab in r.lines})
+    metric_cols = sorted({_metric_column(n, d) for r in rows for (n, d) in r.metrics}
+                         | {f'{_metric_column(n, d)}_u95' for r in rows for (n, d) in r.u95})
+    line_cols = sorted({_line_column(lab) for r in rows for lab in r.lines}
+                       | {f'{_line_column(lab)}_u95' for r in rows for lab, (u, _) in
+                          r.line_u95.items() if u is not None})
     cols = list(_BASE) + metric_cols + line_cols
     table = []
     for r in rows:
@@ -63,8 +67,13 @@ def records_table(rows: list[StoredResult]) -> tuple[list[str], list[dict[str, A
         d['analysed_at'] = r.analysed_at.isoformat()
         for (n, dirn), v in r.metrics.items():
             d[_metric_column(n, dirn)] = v
+        for (n, dirn), u in r.u95.items():
+            d[f'{_metric_column(n, dirn)}_u95'] = u
         for lab, (amp, _phase) in r.lines.items():
             d[_line_column(lab)] = amp
+        for lab, (u, _pu) in r.line_u95.items():
+            if u is not None:
+                d[f'{_line_column(lab)}_u95'] = u
         table.append(d)
     return cols, table
 

@@ -116,6 +116,8 @@ class MetricRow(Base):
     limit_low: Mapped[float | None] = mapped_column(Float)
     limit_high: Mapped[float | None] = mapped_column(Float)
     verdict: Mapped[str | None] = mapped_column(String(16))
+    u95: Mapped[float | None] = mapped_column(Float)
+    uc: Mapped[float | None] = mapped_column(Float)
 
     result: Mapped[ResultRow] = relationship(back_populates='metrics')
 
@@ -139,6 +141,9 @@ class LineRow(Base):
     frequency_hz: Mapped[float | None] = mapped_column(Float)
     amplitude_rad: Mapped[float] = mapped_column(Float, nullable=False)
     phase_rad: Mapped[float | None] = mapped_column(Float)
+    amplitude_u95_rad: Mapped[float | None] = mapped_column(Float)
+    amplitude_uc_rad: Mapped[float | None] = mapped_column(Float)
+    phase_u95_rad: Mapped[float | None] = mapped_column(Float)
 
     result: Mapped[ResultRow] = relationship(back_populates='lines')
 

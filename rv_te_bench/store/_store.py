@@ -23,7 +23,7 @@ from __future__ import annotations
 import math
 import os
 import re
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from datetime import UTC, datetime
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
@@ -64,7 +64,7 @@ DEFAULT_DB_NAME = 'rv-te-results.sqlite'
 _MIGRATIONS = Path(__file__).resolve().parent / 'migrations'
 #: The newest schema revision in migrations/versions (a test checks it is alembic's head,
 #: so a new migration must move it): a store at it is opened without alembic.
-SCHEMA_HEAD = '0002'
+SCHEMA_HEAD = '0003'
 _VERSION_TABLE = Table('alembic_version', MetaData(), Column('version_num', String(32)))
 
 
@@ -115,6 +115,10 @@ class StoredResult:
     limits: dict[tuple[str, str], tuple[float | None, float | None, str | None]]
     lines: dict[str, tuple[float, float | None]]
     advice: dict[str, Any] | None
+    u95: dict[tuple[str, str], float] = field(default_factory=dict)
+    uc: dict[tuple[str, str], float] = field(default_factory=dict)
+    line_u95: dict[str, tuple[float | None, float | None]] = field(default_factory=dict)
+    line_uc: dict[str, float] = field(default_factory=dict)
 
 
 @dataclass(frozen=True)
@@ -128,6 +132,8 @@ class Series:
     lots: list[str | None]
     tested_at: list[datetime]
     result_ids: list[int]
+    u95: list[float | None] = field(default_factory=list)
+    uc: list[float | None] = field(default_factory=list)
 
 
 #: scheme://user:PASSWORD@host... (the password runs to the last '@', as SQLAlchemy reads it)
@@ -419,11 +425,15 @@ class ResultStore:
             row.metrics.extend(
                 MetricRow(name=m.name, direction=m.direction, value=float(m.value),
                           limit_low=_opt(m.limit_low), limit_high=_opt(m.limit_high),
-                          verdict=m.verdict) for m in record.metrics)
+                          verdict=m.verdict, u95=_opt(m.u95), uc=_opt(m.uc))
+                for m in record.metrics)
             row.lines.extend(
                 LineRow(label=ln.label, output_order=_opt(ln.output_order),
                         crank_order=_opt(ln.crank_order), frequency_hz=_opt(ln.frequency_hz),
-                        amplitude_rad=float(ln.amplitude_rad), phase_rad=_opt(ln.phase_rad))
+                        amplitude_rad=float(ln.amplitude_rad), phase_rad=_opt(ln.phase_rad),
+                        amplitude_u95_rad=_opt(ln.amplitude_u95_rad),
+                        amplitude_uc_rad=_opt(ln.amplitude_uc_rad),
+                        phase_u95_rad=_opt(ln.phase_u95_rad))
                 for ln in record.lines)
             s.flush()
             return row.id
@@ -476,20 +486,28 @@ class ResultStore:
         """
         rows = self.query(flt)
         vals, serials, lots, when, ids = [], [], [], [], []
+        us: list[float | None] = []
+        ucs: list[float | None] = []
         for r in rows:
             if metric.startswith('line:'):
                 hit = r.lines.get(metric[5:])
                 v = None if hit is None else hit[0]
+                u = (r.line_u95.get(metric[5:]) or (None, None))[0]
+                uc = r.line_uc.get(metric[5:])
             else:
                 v = r.metrics.get((metric, direction))
+                u = r.u95.get((metric, direction))
+                uc = r.uc.get((metric, direction))
             if v is None:
                 continue
             vals.append(v)
+            us.append(u)
+            ucs.append(uc)
             serials.append(r.serial)
             lots.append(r.lot)
             when.append(r.tested_at)
             ids.append(r.id)
-        return Series(metric, direction, vals, serials, lots, when, ids)
+        return Series(metric, direction, vals, serials, lots, when, ids, us, ucs)
 
     def metric_names(self) -> list[tuple[str, str]]:
         """The (name, direction) pairs present in the store, sorted."""
@@ -514,7 +532,13 @@ def _stored(r: ResultRow) -> StoredResult:
         limits={(m.name, m.direction): (m.limit_low, m.limit_high, m.verdict)
                 for m in r.metrics},
         lines={ln.label: (ln.amplitude_rad, ln.phase_rad) for ln in r.lines},
-        advice=r.advice)
+        advice=r.advice,
+        u95={(m.name, m.direction): m.u95 for m in r.metrics if m.u95 is not None},
+        uc={(m.name, m.direction): m.uc for m in r.metrics if m.uc is not None},
+        line_u95={ln.label: (ln.amplitude_u95_rad, ln.phase_u95_rad) for ln in r.lines
+                  if ln.amplitude_u95_rad is not None or ln.phase_u95_rad is not None},
+        line_uc={ln.label: ln.amplitude_uc_rad for ln in r.lines
+                 if ln.amplitude_uc_rad is not None})
 
 
 def upsert_all(store: ResultStore, records: Iterable[UnitRecord]) -> list[int]:

@@ -23,10 +23,10 @@ __all__ = ['DIRECTIONS', 'FIELD_MAX_CHARS', 'LineValue', 'MetricValue', 'UnitRec
            'bag_stat', 'failed_record', 'records_from_analysis_json']
 
 Direction = Literal['all', 'cw', 'ccw']
-Verdict = Literal['pass', 'fail', 'not-measured', 'not-judged']
+Verdict = Literal['pass', 'fail', 'indeterminate', 'not-measured', 'not-judged']
 Status = Literal['ok', 'partial', 'failed']
 DIRECTIONS: tuple[str, ...] = ('all', 'cw', 'ccw')
-_VERDICTS = ('pass', 'fail', 'not-measured', 'not-judged')
+_VERDICTS = ('pass', 'fail', 'indeterminate', 'not-measured', 'not-judged')
 _STATUSES = ('ok', 'partial', 'failed')
 _HASH_CHUNK = 1 << 20
 # The store's column widths (rv_te_bench/store/_schema.py): SQLite ignores them, PostgreSQL
@@ -48,6 +48,8 @@ class MetricValue:
     limit_low: float | None = None
     limit_high: float | None = None
     verdict: Verdict | None = None
+    u95: float | None = None
+    uc: float | None = None
 
     def __post_init__(self) -> None:
         if not self.name or len(self.name) > 64:
@@ -60,6 +62,11 @@ class MetricValue:
         if not math.isfinite(self.value):
             msg = f'metric {self.name}: value must be finite, got {self.value!r}'
             raise StoreError(msg)
+        for what in ('u95', 'uc'):
+            u = getattr(self, what)
+            if u is not None and not (math.isfinite(u) and u >= 0):
+                msg = f'metric {self.name}: {what} must be finite and >= 0, got {u!r}'
+                raise StoreError(msg)
         if self.verdict is not None and self.verdict not in _VERDICTS:
             msg = f'metric {self.name}: verdict must be one of {_VERDICTS}, got {self.verdict!r}'
             raise StoreError(msg)
@@ -75,6 +82,9 @@ class LineValue:
     crank_order: float | None = None
     frequency_hz: float | None = None
     phase_rad: float | None = None
+    amplitude_u95_rad: float | None = None
+    amplitude_uc_rad: float | None = None
+    phase_u95_rad: float | None = None
 
     def __post_init__(self) -> None:
         if not self.label or len(self.label) > 64:
@@ -218,18 +228,28 @@ def _f(x: Any) -> float | None:
     return v if math.isfinite(v) else None
 
 
+def _uc(bag: dict[str, Any], budget: str) -> float | None:
+    """u_c of a budget of the analysis JSON (``uncertainty.budgets.<name>.u_c``)."""
+    b = ((bag.get('uncertainty') or {}).get('budgets') or {}).get(budget) or {}
+    return _f(b.get('u_c')) if isinstance(b, dict) else None
+
+
 def _metrics_of(bag: dict[str, Any]) -> list[MetricValue]:
     out: list[MetricValue] = []
     cum = bag.get('cumulative') or {}
     for name in ('te_pp_rad', 'te_amplitude_rad', 'te_mean_rad', 'te_std_rad'):
         v = _f(cum.get(name))
         if v is not None:
-            out.append(MetricValue(name, v))
+            out.append(MetricValue(name, v, u95=_f(cum.get(f'{name}_u95')),
+                                   uc=_uc(bag, name)))
     complete = [w for w in bag.get('windows') or [] if w.get('complete')]
     pps = [v for v in (_f(w.get('te_pp_rad')) for w in complete) if v is not None]
     if pps:
         # the catalogue's TE: p-p over one whole output revolution; the worst and the mean
-        out.append(MetricValue('te_pp_revolution_max_rad', max(pps)))
+        unc = bag.get('uncertainty') or {}
+        out.append(MetricValue('te_pp_revolution_max_rad', max(pps),
+                               u95=_f(unc.get('te_pp_revolution_max_rad_u95')),
+                               uc=_uc(bag, 'te_pp_revolution_max_rad')))
         out.append(MetricValue('te_pp_revolution_mean_rad', sum(pps) / len(pps)))
     for key, name in (('revolutions', 'revolutions'), ('n_samples', 'samples_count')):
         v = _f(cum.get(key))
@@ -262,7 +282,10 @@ def _lines_of(bag: dict[str, Any]) -> list[LineValue]:
                                output_order=_f(ln.get('output_order')),
                                crank_order=_f(ln.get('crank_order')),
                                frequency_hz=_f(ln.get('frequency_hz')),
-                               phase_rad=_f(ln.get('phase_rad'))))
+                               phase_rad=_f(ln.get('phase_rad')),
+                               amplitude_u95_rad=_f(ln.get('amplitude_rad_u95')),
+                               amplitude_uc_rad=_uc(bag, f'line {label} amplitude'),
+                               phase_u95_rad=_f(ln.get('phase_rad_u95'))))
     return lines
 
 

@@ -24,6 +24,7 @@ from rv_te_bench.store import (
     export_records,
     open_store,
 )
+from rv_te_bench.store._store import SCHEMA_HEAD
 from tests.store.conftest import make_record
 
 ROOT = Path(__file__).resolve().parents[2]
@@ -331,7 +332,7 @@ def test_store_at_revision_0001_is_upgraded_keeping_its_records(tmp_path: Path) 
     with open_store(db) as st:
         assert [r.serial for r in st.query()] == ['OLD1', 'SN00005']
     con = sqlite3.connect(db)
-    assert con.execute('select version_num from alembic_version').fetchone()[0] == '0002'
+    assert con.execute('select version_num from alembic_version').fetchone()[0] == SCHEMA_HEAD
     assert 'VARCHAR(256)' in con.execute(
         "select sql from sqlite_master where name = 'results'").fetchone()[0]
     con.close()
@@ -357,3 +358,46 @@ def test_a_store_at_the_head_opens_without_alembic(tmp_path: Path) -> None:
     runs = [subprocess.run([sys.executable, '-c', code], capture_output=True, text=True,
                            check=True, timeout=120).stdout.split()[-1] for _ in range(2)]
     assert runs == ['True', 'False']   # created (migrated), then opened as it is
+
+
+def test_store_at_0002_gains_the_u95_columns_and_keeps_its_metrics(tmp_path: Path) -> None:
+    """Issue 35: revision 0003 adds metrics.u95 and the lines' U columns; a store written
+    at 0002 keeps its metrics (U NULL, read back as none) and takes records with U."""
+    from alembic import command
+    from alembic.config import Config
+
+    from rv_te_bench.store import LineValue, MetricValue
+    from rv_te_bench.store._store import _MIGRATIONS
+    db = tmp_path / 'v2.sqlite'
+    engine = create_engine(f'sqlite:///{db}')
+    cfg = Config()
+    cfg.set_main_option('script_location', os.fspath(_MIGRATIONS))
+    with engine.begin() as conn:
+        cfg.attributes['connection'] = conn
+        command.upgrade(cfg, '0002')
+    engine.dispose()
+    con = sqlite3.connect(db)
+    con.execute("insert into results (id, record_key, test, plan, serial, tested_at, "
+                "analysed_at, status, verdict, command, software_version, bag_path, "
+                "bag_sha256) values (1, 'k', 'te-analysis', '', 'OLD2', '2026-11-01 00:00:00', "
+                "'2026-11-01 00:00:00', 'ok', 'pass', 'analyze', 'v', '/b', ?)", ('0' * 64,))
+    con.execute("insert into metrics (result_id, name, direction, value) values "
+                "(1, 'te_pp_rad', 'all', 5e-4)")
+    con.commit()
+    con.close()
+    rec = replace(make_record(7), verdict='indeterminate',
+                  metrics=(MetricValue('te_pp_rad', 6e-4, u95=4e-6, limit_high=6.1e-4,
+                                       verdict='indeterminate'),),
+                  lines=(LineValue('1 f_w', 2e-4, amplitude_u95_rad=1e-8,
+                                   phase_u95_rad=3e-3),))
+    with open_store(db) as st:
+        st.upsert(rec)
+        old, new = st.query()
+    assert old.metrics[('te_pp_rad', 'all')] == 5e-4 and old.u95 == {}
+    assert new.u95 == {('te_pp_rad', 'all'): 4e-6} and new.verdict == 'indeterminate'
+    assert new.line_u95 == {'1 f_w': (1e-8, 3e-3)}
+    with open_store(db) as st:
+        series = st.series('te_pp_rad')
+    assert series.values == [5e-4, 6e-4] and series.u95 == [None, 4e-6]
+    with pytest.raises(StoreError, match='u95 must be finite and >= 0'):
+        MetricValue('te_pp_rad', 1.0, u95=-1.0)

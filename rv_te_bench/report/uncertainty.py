@@ -1,0 +1,250 @@
+"""The uncertainty of an offline analysis's results (issue 35; docs/UNCERTAINTY.md).
+
+Budgets of the TE p-p (over all clean samples, and the largest of one whole output
+revolution), of every labelled line of the averaged spectrum (amplitude and phase), from
+the core's budget functions (:mod:`rv_te_bench.core.te_uncertainty`) and the bench's
+error model (:func:`bench_uncertainty_of`: the data-sheet defaults of the bag's encoder
+models, with the bench description's ``uncertainty:`` section over them when the bag's
+BenchInfo carries one).
+
+What the streamed analysis does not keep, and how it is replaced:
+
+* the positions of a revolution's TE maximum and minimum (the p-p's sensitivity to an
+  encoder harmonic is 2 |sin(k Delta / 2)|, Delta the angle between them): taken from the
+  analysis's TE trace folded onto one output revolution (720 bins; the pattern of a unit
+  repeats every revolution); peaks within reach of the encoder errors of the extremes
+  (a 2K-V's crank-order ripple) are candidates too, each harmonic at its largest
+  sensitivity over them. Without a trace the bound 2 (extremes half a period apart);
+* the samples per revolution: from the sample count and the revolutions.
+
+Cost: a few milliseconds per bag (tens of budgets; benchmarks/README.md, offline analysis).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+from typing import TYPE_CHECKING, Any
+
+import numpy as np
+
+from rv_te_bench.core.bench_uncertainty import BenchUncertainty, bench_uncertainty_from_plain
+from rv_te_bench.core.te_uncertainty import line_budgets, te_pp_budget
+from rv_te_bench.errors import TeConfigError
+
+if TYPE_CHECKING:
+    from rv_te_bench.core.spectrum import SpectrumSummary
+    from rv_te_bench.core.stream_records import WindowResult
+    from rv_te_bench.core.te import TeStats
+    from rv_te_bench.core.uncertainty import Budget
+    from rv_te_bench.report.results import TeTrace
+    from sim.bench_info import BenchInfoData
+
+__all__ = ['AnalysisUncertainty', 'analysis_uncertainty', 'bench_uncertainty_of',
+           'budget_html', 'display_of', 'line_budget_key']
+
+_FOLD_BINS = 720
+#: Near-equal peaks (dips) considered as the extreme, the nearest in value first.
+_MAX_CANDIDATES = 6
+
+
+def line_budget_key(label: str, what: str) -> str:
+    """Name of a line's budget: ``'line <label> amplitude'`` / ``'... phase'``."""
+    return f'line {label} {what}'
+
+
+def bench_uncertainty_of(info: BenchInfoData | None) -> tuple[BenchUncertainty, list[str]]:
+    """The bench's error model: data-sheet defaults of its encoders, with the bench
+    description's ``uncertainty:`` section (recorded in BenchInfo ``parameters_yaml``)
+    over them. Returns (model, notes): a section that does not parse is named in a note
+    and the defaults are used."""
+    from rv_te_bench.io.bench_record import uncertainty_from_parameters_yaml
+
+    if info is None:
+        return BenchUncertainty.defaults('', ''), [
+            'the bag has no BenchInfo: encoder models unknown, only what the data shows']
+    base = BenchUncertainty.defaults(
+        info.encoder_in_model, info.encoder_out_model,
+        resolution_in_rad=info.encoder_in_resolution_rad,
+        resolution_out_rad=info.encoder_out_resolution_rad)
+    section = uncertainty_from_parameters_yaml(info.parameters_yaml)
+    if section is None:
+        return base, []
+    try:
+        return bench_uncertainty_from_plain(
+            section, base, where='BenchInfo parameters_yaml bench.uncertainty'), []
+    except TeConfigError as exc:
+        return base, [f'the bench description\'s uncertainty section is not used: {exc}']
+
+
+@dataclass(frozen=True)
+class AnalysisUncertainty:
+    """The budgets of one analysis (SI; keys as in the analysis JSON).
+
+    Attributes:
+        bench: The bench's error model used.
+        budgets: ``te_pp_rad`` (all clean samples), ``te_pp_revolution_max_rad`` (the
+            largest p-p of one whole revolution), ``line <label> amplitude`` / ``phase``.
+        notes: What was assumed for the whole analysis.
+    """
+
+    bench: BenchUncertainty
+    budgets: dict[str, Budget] = field(default_factory=dict)
+    notes: tuple[str, ...] = ()
+
+    def u95(self, name: str) -> float:
+        """U of a budget (NaN when there is none)."""
+        b = self.budgets.get(name)
+        return math.nan if b is None else b.u95
+
+    def to_json_dict(self) -> dict[str, Any]:
+        """JSON: every budget in full, the bench model, the values' U under ``*_u95``."""
+        out: dict[str, Any] = {'coverage_probability': None, 'notes': list(self.notes),
+                               'bench': self.bench.to_plain(), 'budgets': {}}
+        for name, b in self.budgets.items():
+            out['budgets'][name] = b.to_json_dict()
+            out['coverage_probability'] = b.coverage_probability
+        rev = self.budgets.get('te_pp_revolution_max_rad')
+        if rev is not None:
+            out['te_pp_revolution_max_rad'] = rev.value
+            out['te_pp_revolution_max_rad_u95'] = rev.u95
+        return out
+
+
+def _extremes(trace: TeTrace | None, reach_rad: float,
+              ) -> tuple[tuple[float, float], list[tuple[float, float]]] | None:
+    """(phi of the max, phi of the min) of the TE folded onto one output revolution, and
+    the other (max, min) pairs whose peaks lie within ``reach_rad`` of the extremes (the
+    encoder errors could make one of them the extreme)."""
+    if trace is None or trace.te_rad.size < 8:
+        return None
+    th = np.asarray(trace.theta_out_rad, dtype=np.float64)
+    te = np.asarray(trace.te_rad, dtype=np.float64)
+    ok = np.isfinite(th) & np.isfinite(te)
+    if np.count_nonzero(ok) < 8:
+        return None
+    phi = np.mod(th[ok] - te[ok], 2 * np.pi)
+    k = np.minimum((phi / (2 * np.pi) * _FOLD_BINS).astype(np.int64), _FOLD_BINS - 1)
+    n = np.bincount(k, minlength=_FOLD_BINS)
+    s = np.bincount(k, weights=te[ok], minlength=_FOLD_BINS)
+    if np.count_nonzero(n) < _FOLD_BINS // 4:
+        return None
+    mean = np.where(n > 0, s / np.maximum(n, 1), np.nan)
+    centres = (np.arange(_FOLD_BINS) + 0.5) * 2 * np.pi / _FOLD_BINS
+    top, bottom = int(np.nanargmax(mean)), int(np.nanargmin(mean))
+    filled = np.where(np.isfinite(mean), mean, np.nanmean(mean))
+    left, right = np.roll(filled, 1), np.roll(filled, -1)
+    peaks = np.flatnonzero((filled >= left) & (filled >= right)
+                           & (filled >= filled[top] - reach_rad))
+    dips = np.flatnonzero((filled <= left) & (filled <= right)
+                          & (filled <= filled[bottom] + reach_rad))
+    peaks = peaks[np.argsort(-filled[peaks])][:_MAX_CANDIDATES]
+    dips = dips[np.argsort(filled[dips])][:_MAX_CANDIDATES]
+    others = [(float(centres[a]), float(centres[b])) for a in peaks for b in dips
+              if (a, b) != (top, bottom)]
+    return (float(centres[top]), float(centres[bottom])), others
+
+
+def analysis_uncertainty(*, info: BenchInfoData | None, gear_ratio: float,
+                         windows: tuple[WindowResult, ...], cumulative: TeStats,
+                         spectrum: SpectrumSummary | None,
+                         trace: TeTrace | None) -> AnalysisUncertainty:
+    """The budgets of an analysis's TE p-p and lines (see the module docstring)."""
+    bench, notes = bench_uncertainty_of(info)
+    complete = [w for w in windows if w.complete]
+    pps = np.array([w.stats.pp_rad for w in complete], dtype=np.float64)
+    pps = pps[np.isfinite(pps)]
+    revs = cumulative.revolutions if math.isfinite(cumulative.revolutions) else math.nan
+    spr = cumulative.n_samples / revs if math.isfinite(revs) and revs > 0 else math.nan
+    reach = 2.0 * sum(g for _, _, g in bench.encoder_out.long_range_components()) + \
+        2.0 * sum(g for _, _, g in bench.encoder_in.long_range_components()) / gear_ratio
+    found = _extremes(trace, reach)
+    others: list[tuple[float, float]] = []
+    if found is None:
+        ext = (math.pi, 0.0)      # the bound: extremes half a revolution apart
+        notes.append('positions of the TE extremes unknown (no trace): the p-p budgets use '
+                     'the bound 2 g for every harmonic')
+    else:
+        ext, others = found
+        if others:
+            notes.append(f'{len(others) + 1} pairs of near-equal TE extremes (within '
+                         f'{reach * 648000 / math.pi:.2g}" of the max and min): each encoder '
+                         'harmonic at its largest sensitivity over them')
+    dominant = None
+    if spectrum is not None and spectrum.lines:
+        big = max(spectrum.lines, key=lambda ln: ln.amplitude_rad)
+        dominant = (big.amplitude_rad, big.output_order)
+    budgets: dict[str, Budget] = {}
+    common = {'phi_max_rad': ext[0], 'phi_min_rad': ext[1], 'gear_ratio': gear_ratio,
+              'bench': bench, 'samples_per_rev': spr, 'dominant': dominant,
+              'other_extremes': others}
+    if math.isfinite(cumulative.pp_rad):
+        budgets['te_pp_rad'] = te_pp_budget(
+            'te_pp_rad', cumulative.pp_rad,
+            per_revolution_rad=pps if pps.size >= 2 else None, **common)
+    if pps.size:
+        budgets['te_pp_revolution_max_rad'] = te_pp_budget(
+            'te_pp_revolution_max_rad', float(np.max(pps)),
+            per_revolution_rad=pps if pps.size >= 2 else None, **common)
+    if spectrum is not None:
+        per_window = [w.spectrum for w in complete if w.spectrum is not None]
+        grid = per_window[0].samples_per_rev if per_window else math.nan
+        for ln in spectrum.lines:
+            amps, phs = [], []
+            for sp in per_window:
+                try:
+                    x = sp.line(ln.label)
+                except KeyError:
+                    continue
+                amps.append(x.amplitude_rad)
+                phs.append(x.phase_rad)
+            out_hz = ln.frequency_hz / ln.output_order if ln.output_order > 0 else math.nan
+            a, p = line_budgets(ln.label, ln.amplitude_rad, ln.phase_rad, ln.output_order,
+                                gear_ratio=gear_ratio, bench=bench, output_hz=out_hz,
+                                window_amplitudes_rad=amps if len(amps) >= 2 else None,
+                                window_phases_rad=phs if len(phs) >= 2 else None,
+                                samples_per_rev=float(grid), n_samples=cumulative.n_samples)
+            budgets[line_budget_key(ln.label, 'amplitude')] = a
+            budgets[line_budget_key(ln.label, 'phase')] = p
+    return AnalysisUncertainty(bench=bench, budgets=budgets, notes=tuple(notes))
+
+
+def display_of(name: str) -> tuple[float, str]:
+    """(scale from SI, unit shown) of a budget: arcmin for angles (arcsec for encoder
+    inputs), deg for phases, N m/arcmin for rigidity, um for identified eccentricities."""
+    if name.endswith(('phase', '_phase_rad')) or name == 'theta_ot_rad':
+        return 180.0 / math.pi, 'deg'
+    if name.endswith('_nm_per_rad'):
+        return math.pi / 10800.0, 'N m/arcmin'
+    if name.endswith('_m'):
+        return 1e6, 'um'
+    if name.endswith('_j'):
+        return 1.0, 'J'
+    return 10800.0 / math.pi, 'arcmin'
+
+
+def budget_html(title: str, b: Budget) -> str:
+    """A budget as an HTML table: the inputs (name, type, distribution, u, sensitivity,
+    contribution, share, source), largest first, and the notes."""
+    from html import escape
+
+    sc, unit = display_of(b.measurand if not title.startswith('line ') else title)
+    head = (f'<h4>{escape(title)}: {b.value * sc:.6g} {unit}, U = {b.u95 * sc:.3g} {unit} '
+            f'(k = {b.k:.3f}, {escape(b.k_basis)}; u<sub>c</sub> = {b.u_c * sc:.3g} {unit}'
+            + (f'; bias bound {max(b.bias_bound, b.bias_low_bound) * sc:.3g} {unit}'
+               if max(b.bias_bound, b.bias_low_bound) > 0 else '') + ')</h4>')
+    rows = ['<table><tr><th class="l">input</th><th class="l">type</th>'
+            '<th class="l">distribution</th><th>u(x)</th><th class="l">unit</th>'
+            f'<th>|c| u [{unit}]</th><th>share</th><th class="l">source</th></tr>']
+    for x, share in zip(b.inputs, b.shares, strict=True):
+        if x.contribution <= 0:
+            continue
+        ux, uu = (x.u * 648000.0 / math.pi, 'arcsec') if x.unit == 'rad' else (x.u, x.unit)
+        src = x.source.split(';')[0][:90]
+        rows.append(f'<tr><td class="l">{escape(x.name)}</td><td class="l">{x.kind}</td>'
+                    f'<td class="l">{x.distribution}</td><td>{ux:.3g}</td>'
+                    f'<td class="l">{escape(uu)}</td><td>{x.contribution * sc:.3g}</td>'
+                    f'<td>{100 * share:.1f} %</td><td class="l">{escape(src)}</td></tr>')
+    rows.append('</table>')
+    notes = ''.join(f'<li>{escape(n)}</li>' for n in b.notes)
+    return head + ''.join(rows) + (f'<ul class="muted">{notes}</ul>' if notes else '')
