@@ -16,8 +16,10 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 
 from rv_te_bench.acceptance._loss_results import LOSS_RESULTS
+from rv_te_bench.acceptance._uncertainty import hysteresis_point_budgets, te_direction_budget
 from rv_te_bench.acceptance.plan import HysteresisStep, OperatorStep
 from rv_te_bench.acceptance.tolerance import Measured
+from rv_te_bench.core.bench_uncertainty import BenchUncertainty
 from rv_te_bench.core.directional import direction_te
 from rv_te_bench.core.hysteresis_measured import (
     HysteresisReading,
@@ -32,6 +34,7 @@ if TYPE_CHECKING:
     from collections.abc import Callable
 
     from rv_te_bench.acceptance.plan import Step
+    from rv_te_bench.core.uncertainty import Budget
     from sim.bench_info import BenchInfoData
 
 __all__ = ['RESULTS', 'SegmentData', 'hysteresis_reading', 'step_result']
@@ -86,11 +89,21 @@ def _fin(x: float) -> float | None:
     return float(x) if math.isfinite(x) else None
 
 
+def _measured(name: str, step: str, unit: str, value: float, note: str,
+              budget: Budget | None) -> Measured:
+    """A metric with its budget's U (its interval's reach below and above)."""
+    if budget is None or not math.isfinite(value):
+        return Measured(name, step, unit, value, note)
+    return Measured(name, step, unit, value, note, u95=budget.u95, u_below=budget.u_below,
+                    u_above=budget.u_above, budget=budget.to_json_dict())
+
+
 def _unit(name: str) -> str:
     return 'N m/rad' if name.endswith('_nm_per_rad') else ('J' if name.endswith('_j') else 'rad')
 
 
 def step_result(step: Step, info: BenchInfoData, segments: list[SegmentData],
+                uncertainty: BenchUncertainty | None = None,
                 ) -> tuple[list[Measured], dict[str, Any]]:
     """Metrics (SI) and the details the report shows, of one step.
 
@@ -101,12 +114,19 @@ def step_result(step: Step, info: BenchInfoData, segments: list[SegmentData],
             point, in the order of :class:`~rv_te_bench.acceptance.runner.StepRunner`'s
             program; for a hysteresis step those of role 'preload' and 'cycle' are read per
             ``position`` label.
+        uncertainty: The bench's error model for the metrics' budgets (default: the
+            data-sheet values of the BenchInfo encoder models).
     """
-    return RESULTS[step.kind](step, info, segments)
+    if uncertainty is None:
+        uncertainty = BenchUncertainty.defaults(
+            info.encoder_in_model, info.encoder_out_model,
+            resolution_in_rad=info.encoder_in_resolution_rad,
+            resolution_out_rad=info.encoder_out_resolution_rad)
+    return RESULTS[step.kind](step, info, segments, uncertainty)
 
 
-def _te_result(step: Step, info: BenchInfoData,
-               segments: list[SegmentData]) -> tuple[list[Measured], dict[str, Any]]:
+def _te_result(step: Step, info: BenchInfoData, segments: list[SegmentData],
+               bench: BenchUncertainty) -> tuple[list[Measured], dict[str, Any]]:
     segments = [s for s in segments if s.role in {'te', 'sweep'}]
     measured: list[Measured] = []
     rows = []
@@ -116,6 +136,7 @@ def _te_result(step: Step, info: BenchInfoData,
         row: dict[str, Any] = {**seg.label, 'samples': int(th_in.size), **seg.found}
         note = seg.note
         value = math.nan
+        budget = None
         if not note:
             try:
                 d = direction_te(th_in[settle:], th_out[settle:], gear_ratio=info.gear_ratio,
@@ -126,6 +147,9 @@ def _te_result(step: Step, info: BenchInfoData,
                 note = str(exc)
             else:
                 value = d.te_pp_rad
+                if seg.role == 'te':
+                    budget = te_direction_budget('te_pp_rad', th_in[settle:], th_out[settle:],
+                                                 d, gear_ratio=info.gear_ratio, bench=bench)
                 pos, curve = _decimate(d.position_rad, d.te_by_position_rad)
                 row.update({
                     'revolutions': d.revolutions, 'te_pp_per_rev_rad': list(d.pp_per_rev_rad),
@@ -140,13 +164,15 @@ def _te_result(step: Step, info: BenchInfoData,
         if note:
             row['error'] = note
         row['te_pp_rad'] = _fin(value)
+        if budget is not None:
+            row['te_pp_rad_u95'] = _fin(budget.u95)
         rows.append(row)
         what = (f'{seg.label["direction"]} at {seg.label["speed_rpm"]:g} rpm, '
                 f'{seg.label["load_nm"]:g} N m')
         note_line = f'{what}: {note}' if note else ''
         if seg.role == 'te':
-            measured.append(Measured(f'te_pp_{seg.label["direction"]}_rad', step.name, 'rad',
-                                     value, note_line))
+            measured.append(_measured(f'te_pp_{seg.label["direction"]}_rad', step.name,
+                                      'rad', value, note_line, budget))
         else:
             name = (f'te_pp_{seg.label["direction"]}_{seg.label["speed_rpm"]:g}rpm_'
                     f'{seg.label["load_nm"]:g}nm_rad')
@@ -171,27 +197,32 @@ def hysteresis_reading(step: HysteresisStep, sample_rate_hz: float) -> Hysteresi
 
 
 def _hysteresis_result(step: HysteresisStep, info: BenchInfoData, segments: list[SegmentData],
-                       ) -> tuple[list[Measured], dict[str, Any]]:
+                       bench: BenchUncertainty) -> tuple[list[Measured], dict[str, Any]]:
     """Metrics per measurement position; the unit's value is the worst position's."""
     names = metric_names(step.config())
     details: dict[str, Any] = {'kind': 'hysteresis', 'method': step.method,
                                'rated_torque_nm': step.rated_torque_nm, 'positions': []}
     per: list[dict[str, float]] = []
+    budgets: list[dict[str, Budget]] = []
     notes: list[str] = []
     for pos in range(step.positions):
         segs = [s for s in segments if s.role in {'preload', 'cycle'}
                 and s.label.get('position') == pos]
-        values, curve = _one_position(step, info, segs, names)
+        values, curve, buds = _one_position(step, info, segs, names, bench)
         per.append(values)
+        budgets.append(buds)
         details['positions'].append(curve)
         if curve.get('error'):
             where = f'position {pos + 1}: ' if step.positions > 1 else ''
             notes.append(where + curve['error'])
     worst = {}
+    worst_budget: dict[str, Budget | None] = {}
     for n in names:
         vals = [v[n] for v in per if math.isfinite(v[n])]
         pick = min if n.startswith('torsional_rigidity_') else max
         worst[n] = pick(vals) if len(vals) == len(per) else math.nan
+        at = [k for k, v in enumerate(per) if v[n] == worst[n]]
+        worst_budget[n] = budgets[at[0]].get(n) if at else None
     spread = {n: (max(v[n] for v in per) - min(v[n] for v in per))
               if step.positions > 1 and all(math.isfinite(v[n]) for v in per) else math.nan
               for n in ('lost_motion_rad', 'backlash_rad')}
@@ -203,8 +234,10 @@ def _hysteresis_result(step: HysteresisStep, info: BenchInfoData, segments: list
     details.update(details['positions'][shown])
     details['shown_position'] = shown
     note = '; '.join(notes)
-    out = [Measured(n, step.name, _unit(n), worst[n], note if not math.isfinite(worst[n])
-                    else '') for n in names]
+    details['u95'] = {n: _fin(b.u95) for n, b in worst_budget.items() if b is not None}
+    out = [_measured(n, step.name, _unit(n), worst[n],
+                     note if not math.isfinite(worst[n]) else '', worst_budget[n])
+           for n in names]
     if step.positions > 1:   # GB/T 40731 and catalogues: the maximum and the spread
         out += [Measured(f'sweep:{n[:-4]}_spread_rad', step.name, 'rad', x,
                          note if not math.isfinite(x) else '') for n, x in spread.items()]
@@ -212,20 +245,21 @@ def _hysteresis_result(step: HysteresisStep, info: BenchInfoData, segments: list
 
 
 def _one_position(step: HysteresisStep, info: BenchInfoData, segs: list[SegmentData],
-                  names: list[str]) -> tuple[dict[str, float], dict[str, Any]]:
+                  names: list[str], bench: BenchUncertainty,
+                  ) -> tuple[dict[str, float], dict[str, Any], dict[str, Budget]]:
     nan = dict.fromkeys(names, math.nan)
     if not segs:
-        return nan, {'error': 'no data'}
+        return nan, {'error': 'no data'}, {}
     bad = [s.note for s in segs if s.note]
     if bad:
-        return nan, {'error': bad[0], **segs[0].found}
+        return nan, {'error': bad[0], **segs[0].found}, {}
     th_in = np.concatenate([s.theta_in_rad for s in segs])
     th_out = np.concatenate([s.theta_out_rad for s in segs])
     torque = np.concatenate([s.torque_out_nm for s in segs])
     found = {k: v for s in segs for k, v in s.found.items()}
     if torque.size != th_in.size:
         return nan, {'error': 'no torque channel in the record: a hysteresis curve needs the '
-                              'output torque', **found}
+                              'output torque', **found}, {}
     times = [s.time_s for s in segs if s.time_s is not None]
     time_s: np.ndarray
     if len(times) == len(segs):
@@ -251,7 +285,7 @@ def _one_position(step: HysteresisStep, info: BenchInfoData, segs: list[SegmentD
         m = measured_hysteresis(time_s, applied, angle, step.config(), reading)
     except TeInputError as exc:
         curve['error'] = str(exc)
-        return nan, curve
+        return nan, curve, {}
     first = m.cycles[0]
     asc_t, asc_a = _decimate(*first.ascending)
     dn_t, dn_a = _decimate(*first.descending)
@@ -282,17 +316,37 @@ def _one_position(step: HysteresisStep, info: BenchInfoData, segs: list[SegmentD
         'backlash_rad': _fin(m.values['backlash_rad'])})
     if m.missing:
         curve['error'] = '; '.join(m.missing)
-    return {n: m.values[n] for n in names}, curve
+    buds: dict[str, Budget] = {}
+    if reading.method == 'torque_steps':
+        try:
+            buds = hysteresis_point_budgets(m.points, float(th_out[0]), step.config(),
+                                            bench=bench)
+        except TeInputError:
+            buds = {}
+    return {n: m.values[n] for n in names}, curve, buds
 
 
 def _operator_result(step: OperatorStep, _info: BenchInfoData, _segments: list[SegmentData],
-                     ) -> tuple[list[Measured], dict[str, Any]]:
+                     _bench: BenchUncertainty) -> tuple[list[Measured], dict[str, Any]]:
     return [], {'kind': 'operator', 'instruction': step.instruction}
 
 
+def _without_budget(f: Callable[[Any, BenchInfoData, list[SegmentData]],
+                                 tuple[list[Measured], dict[str, Any]]],
+                    ) -> Callable[[Any, BenchInfoData, list[SegmentData], BenchUncertainty],
+                                  tuple[list[Measured], dict[str, Any]]]:
+    """A step result that has no uncertainty budget yet (the bench's model unused)."""
+    def run(step: Any, info: BenchInfoData, segments: list[SegmentData],
+            _bench: BenchUncertainty) -> tuple[list[Measured], dict[str, Any]]:
+        return f(step, info, segments)
+
+    return run
+
+
 #: Step kind -> its result from the segments' data (see plan._KINDS for a new kind).
-RESULTS: dict[str, Callable[[Any, BenchInfoData, list[SegmentData]],
+RESULTS: dict[str, Callable[[Any, BenchInfoData, list[SegmentData], BenchUncertainty],
                             tuple[list[Measured], dict[str, Any]]]] = {
     'te': _te_result, 'sweep': _te_result, 'hysteresis': _hysteresis_result,
-    'operator': _operator_result, **LOSS_RESULTS}
+    'operator': _operator_result,
+    **{kind: _without_budget(f) for kind, f in LOSS_RESULTS.items()}}
 

@@ -23,8 +23,11 @@ if TYPE_CHECKING:
 __all__ = ['record_of_report', 'store_record']
 
 _VERDICT: dict[str, Verdict | None] = {'pass': 'pass', 'fail': 'fail',
+                                       'indeterminate': 'indeterminate',
                                        'not_measured': 'not-measured',
                                        'not_judged': 'not-judged', 'info': None}
+#: Unit verdicts that are a judgement (the record's status is 'ok').
+_JUDGED = {'pass', 'fail', 'indeterminate'}
 
 
 def store_record(report: dict[str, Any], bag: Path, *, software_version: str = '',
@@ -55,24 +58,27 @@ def record_of_report(report: dict[str, Any], *, bag_path: str, bag_sha256: str,
         for d in sides:
             if name == f'te_pp_{d}_rad':
                 name, direction = 'te_pp_revolution_max_rad', d
+        budget = m.get('budget') or {}
         metrics.append(MetricValue(name=name, value=float(m['value']), direction=direction,
                                    limit_low=m['limit_min'], limit_high=m['limit_max'],
-                                   verdict=_VERDICT.get(m['verdict'])))
+                                   verdict=_VERDICT.get(m['verdict']), u95=m.get('u95'),
+                                   uc=budget.get('u_c')))
     b, u = report['bench'], report['unit']
-    verdict: Verdict = report['verdict'] if report['verdict'] in {'pass', 'fail'} else 'not-judged'
+    verdict: Verdict = report['verdict'] if report['verdict'] in _JUDGED else 'not-judged'
     return UnitRecord(
         test='test-plan', plan=report['plan']['plan'], bag_path=bag_path,
         bag_sha256=bag_sha256,
         tested_at=datetime.fromisoformat(u['date_utc']), serial=u['serial'], lot=lot,
         bench_id=b.get('bench_id') or None, preset=b.get('preset') or None,
         reducer_type=b.get('reducer_type') or None, operator=u['operator'],
-        status='ok' if report['verdict'] in {'pass', 'fail'} else (
+        status='ok' if report['verdict'] in _JUDGED else (
             'partial' if report['verdict'] == 'not_judged' else 'failed'),
-        failure=None if report['verdict'] in {'pass', 'fail'} else report['reason'],
+        failure=None if report['verdict'] in _JUDGED else report['reason'],
         verdict=verdict, command='test --from' if 'source' in report else 'test',
         software_version=software_version,
         bag_size_bytes=bag_size_bytes, bag_mtime_ns=bag_mtime_ns, metrics=tuple(metrics),
         details={'tolerance': report['tolerance']['profile'],
+                 'decision_rule': report['tolerance'].get('decision_rule'),
                  'conditions': report.get('conditions', {}), 'reason': report['reason'],
                  **({'source': {k: v for k, v in report['source'].items() if k != 'steps'}}
                     if 'source' in report else {}),

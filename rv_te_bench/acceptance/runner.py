@@ -46,6 +46,7 @@ if TYPE_CHECKING:
 
     from rv_te_bench.acceptance.plan import Step, TestPlan
     from rv_te_bench.acceptance.tolerance import Measured, ToleranceProfile
+    from rv_te_bench.core.bench_uncertainty import BenchUncertainty
     from sim.bench import BenchBlock
     from sim.bench_info import BenchInfoData
     from sim.program import ProgramSimulator
@@ -75,12 +76,16 @@ class StepRunner:
     Args:
         step: The plan step.
         info: The bench's record (its ``BenchInfo``).
+        uncertainty: The bench's error model for the metrics' budgets (default: the
+            data-sheet values of the BenchInfo encoder models).
     """
 
-    def __init__(self, step: Step, info: BenchInfoData) -> None:
+    def __init__(self, step: Step, info: BenchInfoData, *,
+                 uncertainty: BenchUncertainty | None = None) -> None:
         """Build the step's program."""
         self.step = step
         self.info = info
+        self.uncertainty = uncertainty
         self.segments: list[_Segment] = []
         self.live_name = 'te_pp_rad'
         self._live = (math.inf, -math.inf)
@@ -224,7 +229,7 @@ class StepRunner:
 
     def result(self) -> tuple[list[Measured], dict[str, Any]]:
         """Metrics (SI) and the details the report shows."""
-        return step_result(self.step, self.info, self.segment_data())
+        return step_result(self.step, self.info, self.segment_data(), self.uncertainty)
 
 
 def _te_program(r: StepRunner, step: TeStep) -> None:
@@ -299,6 +304,7 @@ def run_plan_offline(plan: TestPlan, profile: ToleranceProfile, *, serial: str, 
                      conditions: dict[str, Any] | None = None,
                      on_feedback: Callable[[int, str, float, str, float], None] | None = None,
                      on_block: Callable[[BenchBlock], None] | None = None,
+                     uncertainty: BenchUncertainty | None = None,
                      ) -> dict[str, Any]:
     """Run every step on a :class:`sim.program.ProgramSimulator` (no ROS) and report.
 
@@ -311,6 +317,7 @@ def run_plan_offline(plan: TestPlan, profile: ToleranceProfile, *, serial: str, 
         on_feedback: Called per block with (step index, step name, step progress, live
             metric name, live value).
         on_block: Called with every block the bench produced (a recording of the run).
+        uncertainty: The bench's error model (default: the data sheets of its encoders).
 
     Raises:
         AcceptanceError: A step's program is refused by the bench.
@@ -319,7 +326,7 @@ def run_plan_offline(plan: TestPlan, profile: ToleranceProfile, *, serial: str, 
     info = sim.info if info is None else info
     results = []
     for j, step in enumerate(plan.steps):
-        runner = StepRunner(step, info)
+        runner = StepRunner(step, info, uncertainty=uncertainty)
         if not runner.program():          # an operator step: nobody to wait for offline
             measured, details = runner.result()
             results.append((measured, {**details, 'acknowledged': 'not needed (offline)'}))
@@ -352,7 +359,8 @@ def reanalyse(*, plan: TestPlan, profile: ToleranceProfile, info: BenchInfoData,
               steps: list[dict[str, Any]],
               blocks: dict[int, tuple[np.ndarray, np.ndarray, np.ndarray]],
               serial: str, operator: str, conditions: dict[str, Any] | None = None,
-              started_utc: str = '', status: str = 'completed') -> dict[str, Any]:
+              started_utc: str = '', status: str = 'completed',
+              uncertainty: BenchUncertainty | None = None) -> dict[str, Any]:
     """The unit record computed again from recorded blocks (a session bag).
 
     Args:
@@ -362,6 +370,7 @@ def reanalyse(*, plan: TestPlan, profile: ToleranceProfile, info: BenchInfoData,
         blocks: seq -> (theta_in_rad, theta_out_rad, torque_out_nm).
         serial, operator, conditions, started_utc: The unit's identity and conditions.
         status: 'completed', or how the recorded test ended ('cancelled', 'error').
+        uncertainty: The bench's error model (default: the data sheets of its encoders).
 
     Raises:
         AcceptanceError: The recorded steps do not follow the plan, or carry no segment
@@ -380,7 +389,7 @@ def reanalyse(*, plan: TestPlan, profile: ToleranceProfile, info: BenchInfoData,
             msg = (f'recorded step {n} has no segment block counts (recorded before they were '
                    'recorded): it cannot be analysed again')
             raise AcceptanceError(msg)
-        runner = StepRunner(plan.steps[n], info)
+        runner = StepRunner(plan.steps[n], info, uncertainty=uncertainty)
         runner.expect(s['segment_blocks'])
         ends = np.cumsum(s['segment_blocks'])
         last = -1

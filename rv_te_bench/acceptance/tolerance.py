@@ -9,6 +9,7 @@ A profile (YAML; limits in catalogue units, the unit in the key; docs/ACCEPTANCE
       lost_motion_arcmin: {max: 1.0, source: "..."}
       backlash_arcmin: {max: 1.0, source: "..."}
       torsional_rigidity_nm_per_arcmin: {min: 196, region: K, source: "..."}
+    decision_rule: {kind: guarded, guard_fraction: 1.0, source: "lab procedure QP-12"}
 
 Each limit applies to the measured metrics of its family: ``te_pp`` to the TE p-p of every
 direction of every ``te`` step, ``torsional_rigidity`` to the named region (the smaller of
@@ -18,18 +19,29 @@ limited metric passes: a limit whose metric the plan did not measure fails the u
 metric the plan measures but whose data could not be judged (a recorded test whose record
 misses what the step needs, a step whose blocks were lost) is ``not_judged`` with the
 reason, never a number; the unit is then ``not_judged`` unless a metric fails.
+
+The profile names its decision rule (ILAC-G8, ISO 14253-1; :mod:`rv_te_bench.core.decision`):
+``simple`` acceptance (the default: within the limit passes, the uncertainty is stated, not
+applied) or ``guarded`` acceptance with a guard band w = guard_fraction x U: a metric
+passes when it is inside the limit by w, fails when outside by w, and is
+``indeterminate`` otherwise; the unit is indeterminate when nothing fails, every limit was
+judged and something is indeterminate.
 """
 
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from rv_te_bench.acceptance._files import parse_yaml_text, read_source, shipped, shown_keys
+from rv_te_bench.core.decision import DecisionRule, decide
 from rv_te_bench.core.units import ARCMIN_PER_RAD, ARCSEC_PER_RAD
-from rv_te_bench.errors import ToleranceError
+from rv_te_bench.errors import TeConfigError, ToleranceError
+
+if TYPE_CHECKING:
+    from collections.abc import Callable
 
 __all__ = [
     'LIMIT_KEYS',
@@ -118,10 +130,16 @@ class ToleranceProfile:
     limits: tuple[Limit, ...]
     description: str = ''
     origin: str = '<tolerance>'
+    rule: DecisionRule = field(default_factory=DecisionRule)
+    rule_source: str = ''
 
     def to_plain(self) -> dict[str, Any]:
         """For records (SI limits)."""
         return {'profile': self.name, 'description': self.description,
+                'decision_rule': {'kind': self.rule.kind,
+                                  'guard_fraction': self.rule.guard_fraction,
+                                  'statement': self.rule.describe(),
+                                  'source': self.rule_source},
                 'limits': [{'key': lim.key, 'family': lim.family, 'unit': lim.unit,
                             'min_si': None if math.isnan(lim.min_si) else lim.min_si,
                             'max_si': None if math.isnan(lim.max_si) else lim.max_si,
@@ -142,9 +160,10 @@ def parse_tolerance(data: Any, origin: str = '<tolerance>') -> ToleranceProfile:
     if not isinstance(data, dict) or not {'profile', 'limits'} & set(data):
         fail('is not a tolerance profile (a mapping with "profile" and "limits"; nothing of '
              'it is shown)')
-    unknown = set(data) - {'profile', 'description', 'limits'}
+    unknown = set(data) - {'profile', 'description', 'limits', 'decision_rule'}
     if unknown:
-        fail(f'unknown key(s) {shown_keys(unknown)}; allowed: profile, description, limits')
+        fail(f'unknown key(s) {shown_keys(unknown)}; allowed: profile, description, limits, '
+             'decision_rule')
     name = data.get('profile')
     if not isinstance(name, str) or not name.strip():
         fail(f'profile must be a non-empty string, got {name!r}')
@@ -192,8 +211,32 @@ def parse_tolerance(data: Any, origin: str = '<tolerance>') -> ToleranceProfile:
         limits.append(Limit(key=key, family=family, unit=unit,
                             min_si=vals.get('min', math.nan), max_si=vals.get('max', math.nan),
                             region=region, source=source))
+    rule, rule_source = _decision_rule(data.get('decision_rule', 'simple'), fail)
     return ToleranceProfile(name=name.strip(), limits=tuple(limits),
-                            description=str(data.get('description', '') or ''), origin=origin)
+                            description=str(data.get('description', '') or ''), origin=origin,
+                            rule=rule, rule_source=rule_source)
+
+
+def _decision_rule(raw: Any, fail: Callable[[str], None]) -> tuple[DecisionRule, str]:
+    """``decision_rule: simple`` | ``guarded`` | ``{kind, guard_fraction, source}``."""
+    spec = {'kind': raw} if isinstance(raw, str) else raw
+    if not isinstance(spec, dict):
+        fail(f'decision_rule must be "simple", "guarded" or a mapping {{kind, guard_fraction, '
+             f'source}}, got {raw!r}')
+    if bad := sorted(set(map(str, spec)) - {'kind', 'guard_fraction', 'source'}):
+        fail(f'decision_rule: unknown field(s) {bad}; allowed: kind, guard_fraction, source')
+    kind = spec.get('kind', 'simple')
+    frac = spec.get('guard_fraction', 1.0)
+    source = spec.get('source', '')
+    if not isinstance(source, str):
+        fail(f'decision_rule.source must be a string, got {source!r}')
+    if kind == 'simple' and 'guard_fraction' in spec:
+        fail('decision_rule: a guard_fraction goes with kind guarded, not simple')
+    try:
+        return DecisionRule(kind=kind, guard_fraction=frac), source
+    except TeConfigError as exc:
+        fail(f'decision_rule: {exc}')
+    raise AssertionError  # fail() raised
 
 
 def shipped_tolerances() -> list[str]:
@@ -215,13 +258,24 @@ def load_tolerance(name_or_path: str | Path, *, relative_to: Path | None = None,
 
 @dataclass(frozen=True)
 class Measured:
-    """A measured metric (SI); ``note``: why it could not be judged (value NaN)."""
+    """A measured metric (SI) with its expanded uncertainty.
+
+    Attributes:
+        note: Why it could not be judged (value NaN).
+        u95: U (about 95 %; NaN: no budget); ``u_below`` / ``u_above`` how far below /
+            above the value its interval reaches when it is not symmetric (NaN: U).
+        budget: The budget's JSON (for the record), or None.
+    """
 
     name: str
     step: str
     unit: str
     value: float
     note: str = ''
+    u95: float = math.nan
+    u_below: float = math.nan
+    u_above: float = math.nan
+    budget: dict[str, Any] | None = field(default=None, compare=False, repr=False)
 
 
 @dataclass(frozen=True)
@@ -238,43 +292,53 @@ class MetricVerdict:
     verdict: str
     source: str
     note: str = ''
+    u95: float = math.nan
+    guard: float = math.nan
+    pfa: float = math.nan
+    borderline: bool = False
+    budget: dict[str, Any] | None = field(default=None, compare=False, repr=False)
 
     def to_json_dict(self) -> dict[str, Any]:
-        """JSON-friendly (NaN -> None)."""
+        """JSON-friendly (NaN -> None); ``u95`` the value's U in SI, ``guard`` the guard
+        band applied, ``pfa`` the probability that the true value lies outside the limit
+        (shown for borderline results)."""
         def fin(x: float) -> float | None:
             return float(x) if math.isfinite(x) else None
         out = {'name': self.name, 'step': self.step, 'unit': self.unit,
-               'value': fin(self.value), 'limit_min': fin(self.limit_min),
+               'value': fin(self.value), 'u95': fin(self.u95),
+               'limit_min': fin(self.limit_min),
                'limit_max': fin(self.limit_max), 'margin': fin(self.margin),
-               'verdict': self.verdict, 'source': self.source}
+               'verdict': self.verdict, 'source': self.source, 'guard': fin(self.guard),
+               'pfa': fin(self.pfa), 'borderline': self.borderline}
         if self.note:
             out['note'] = self.note
+        if self.budget is not None:
+            out['budget'] = self.budget
         return out
 
 
-def _judge(m: Measured, lim: Limit) -> MetricVerdict:
-    margins = []
-    if math.isfinite(lim.max_si):
-        margins.append(lim.max_si - m.value)
-    if math.isfinite(lim.min_si):
-        margins.append(m.value - lim.min_si)
+def _judge(m: Measured, lim: Limit, rule: DecisionRule) -> MetricVerdict:
     if not math.isfinite(m.value):
-        verdict, margin = ('not_judged' if m.note else 'not_measured'), math.nan
-    else:
-        margin = min(margins)
-        verdict = 'pass' if margin >= 0 else 'fail'
-    return MetricVerdict(m.name, m.step, m.unit, m.value, lim.min_si, lim.max_si, margin,
-                         verdict, lim.source, m.note)
+        return MetricVerdict(m.name, m.step, m.unit, m.value, lim.min_si, lim.max_si,
+                             math.nan, 'not_judged' if m.note else 'not_measured', lim.source,
+                             m.note, u95=m.u95)
+    d = decide(m.value, m.u95, lower=lim.min_si, upper=lim.max_si, rule=rule,
+               u_below=m.u_below, u_above=m.u_above)
+    return MetricVerdict(m.name, m.step, m.unit, m.value, lim.min_si, lim.max_si, d.margin,
+                         d.verdict, lim.source, m.note, u95=m.u95, guard=d.guard, pfa=d.pfa,
+                         borderline=d.borderline, budget=m.budget)
 
 
 def evaluate(measured: list[Measured], profile: ToleranceProfile,
              ) -> tuple[list[MetricVerdict], str, str]:
-    """Judge every measured metric; returns (verdicts, 'pass' | 'fail' | 'not_judged',
-    reason).
+    """Judge every measured metric under the profile's decision rule; returns
+    (verdicts, 'pass' | 'fail' | 'not_judged' | 'indeterminate', reason).
 
     Every limit whose family was not measured appears once as ``not_measured``. A metric
     with a note and no value is ``not_judged``; the unit is then 'not_judged' unless a
-    metric fails or a limit is not measured at all.
+    metric fails or a limit is not measured at all. Under guarded acceptance a metric
+    neither proven in nor out is ``indeterminate``; the unit is then 'indeterminate' when
+    nothing fails, nothing is missing and everything was judged.
     """
     out: list[MetricVerdict] = []
     used: set[int] = set()
@@ -282,10 +346,10 @@ def evaluate(measured: list[Measured], profile: ToleranceProfile,
         lim = next((x for x in profile.limits if x.metric_matches(m.name)), None)
         if lim is None:
             out.append(MetricVerdict(m.name, m.step, m.unit, m.value, math.nan, math.nan,
-                                     math.nan, 'info', '', m.note))
+                                     math.nan, 'info', '', m.note, u95=m.u95, budget=m.budget))
             continue
         used.add(id(lim))
-        out.append(_judge(m, lim))
+        out.append(_judge(m, lim, profile.rule))
     for lim in profile.limits:
         if id(lim) not in used:
             out.append(MetricVerdict(lim.placeholder_name, '', lim.unit, math.nan, lim.min_si,
@@ -293,8 +357,11 @@ def evaluate(measured: list[Measured], profile: ToleranceProfile,
     failed = [v.name for v in out if v.verdict == 'fail']
     missing = [v.name for v in out if v.verdict == 'not_measured']
     unjudged = [v for v in out if v.verdict == 'not_judged']
-    if not failed and not missing and not unjudged:
-        return out, 'pass', 'every limited metric is within its limit'
+    open_ = [v.name for v in out if v.verdict == 'indeterminate']
+    if not failed and not missing and not unjudged and not open_:
+        return out, 'pass', ('every limited metric is within its limit' if profile.rule.kind
+                             == 'simple' else 'every limited metric is within its limit by '
+                             'at least its guard band')
     parts = []
     if failed:
         parts.append('out of limit: ' + ', '.join(failed))
@@ -303,4 +370,9 @@ def evaluate(measured: list[Measured], profile: ToleranceProfile,
     if unjudged:
         steps = dict.fromkeys(f"step '{v.step}': {v.note}" for v in unjudged)
         parts.append('not judged: ' + '; '.join(steps))
-    return out, 'fail' if failed or missing else 'not_judged', '; '.join(parts)
+    if open_:
+        parts.append('neither conformance nor non-conformance proven (the value +- its '
+                     'guard band straddles the limit): ' + ', '.join(open_))
+    verdict = ('fail' if failed or missing else 'not_judged' if unjudged
+               else 'indeterminate')
+    return out, verdict, '; '.join(parts)

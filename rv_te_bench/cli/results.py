@@ -79,7 +79,8 @@ def add_filter_arguments(p: argparse.ArgumentParser) -> None:
                    help='tested at or after DATE (ISO 8601; no zone = UTC)')
     p.add_argument('--until', type=_date_until, default=None, metavar='DATE',
                    help='tested before DATE; a bare date includes that whole day')
-    p.add_argument('--verdict', choices=('pass', 'fail', 'not-judged'), default=None)
+    p.add_argument('--verdict', choices=('pass', 'fail', 'indeterminate', 'not-judged'),
+                   default=None)
     p.add_argument('--preset', type=_filter_text, default=None,
                    help='reducer preset (e.g. wang2020-2kv)')
     p.add_argument('--status', choices=('ok', 'partial', 'failed'), default=None,
@@ -143,8 +144,11 @@ def _json(r: UnitRecord) -> dict[str, Any]:
             'software_version': r.software_version,
             'metrics': [{'name': n, 'direction': d, 'value': v,
                          'limit_low': r.limits[(n, d)][0], 'limit_high': r.limits[(n, d)][1],
-                         'verdict': r.limits[(n, d)][2]} for (n, d), v in r.metrics.items()],
-            'lines': [{'label': lab, 'amplitude_rad': a, 'phase_rad': ph}
+                         'verdict': r.limits[(n, d)][2], 'u95': r.u95.get((n, d))}
+                        for (n, d), v in r.metrics.items()],
+            'lines': [{'label': lab, 'amplitude_rad': a, 'phase_rad': ph,
+                       'amplitude_rad_u95': r.line_u95.get(lab, (None, None))[0],
+                       'phase_rad_u95': r.line_u95.get(lab, (None, None))[1]}
                       for lab, (a, ph) in r.lines.items()],
             'advice': r.advice}
 
@@ -157,13 +161,13 @@ def _table(rows: list[Any]) -> None:
     if not rows:
         print('no records match')
         return
-    print(f'{"tested (UTC)":<17} {"serial":<14} {"preset":<16} {"status":<8} {"verdict":<10} '
+    print(f'{"tested (UTC)":<17} {"serial":<14} {"preset":<16} {"status":<8} {"verdict":<13} '
           f'{_PP_HEAD:>9} {_FW_HEAD:>9}  bag')
     for r in rows:
         pp = r.metrics.get(('te_pp_revolution_max_rad', 'all'), r.metrics.get(('te_pp_rad', 'all')))
         fw = r.lines.get('1 f_w')
         print(f'{r.tested_at.strftime("%Y-%m-%d %H:%M"):<17} {(r.serial or "-")[:14]:<14} '
-              f'{(r.preset or "-")[:16]:<16} {r.status:<8} {r.verdict:<10} {_am(pp)} '
+              f'{(r.preset or "-")[:16]:<16} {r.status:<8} {r.verdict:<13} {_am(pp)} '
               f'{_am(fw[0] if fw else None)}  {r.bag_path}'
               + (f'\n{"":<17} failed: {r.failure}' if r.failure else ''))
     print(f'{len(rows)} record(s)')

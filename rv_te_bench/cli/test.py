@@ -50,9 +50,11 @@ if TYPE_CHECKING:
     from rv_te_bench.cli.argtypes import Subparsers
     from rv_te_bench.launch.session import Session
 
-__all__ = ['EXIT_FAIL', 'register', 'run']
+__all__ = ['EXIT_FAIL', 'EXIT_INDETERMINATE', 'register', 'run']
 
 EXIT_FAIL = 3
+#: Exit code of a unit whose conformance the guarded decision rule could not prove.
+EXIT_INDETERMINATE = 4
 #: Reducer model -> TE model mode a simulated session uses.
 DEFAULT_TE_MODE = {'wang2020-2kv': 'nlte', 'hu2020-rv': 'elastic', 'li2023-rv': 'dte'}
 
@@ -276,7 +278,8 @@ def show_report(report: dict[str, Any], directory: Path, *, as_json: bool) -> No
 def verdict_exit(verdict: str, serial: str, reason: str,
                  report: dict[str, Any] | None, *, as_json: bool = False) -> int:
     """The verdict line (stderr with --json: stdout holds only the JSON) and the exit code:
-    0 pass, 3 fail, 1 anything else."""
+    0 pass, 3 fail, 4 indeterminate (guarded acceptance: conformance not proven), 1 anything
+    else."""
     from rv_te_bench.report.unit import human_reason
 
     out = sys.stderr if as_json else sys.stdout
@@ -288,6 +291,9 @@ def verdict_exit(verdict: str, serial: str, reason: str,
     if verdict == 'fail':
         print(f'VERDICT: FAIL  unit {serial}: {reason}', file=out)
         return EXIT_FAIL
+    if verdict == 'indeterminate':
+        print(f'VERDICT: INDETERMINATE  unit {serial}: {reason}', file=out)
+        return EXIT_INDETERMINATE
     if verdict == 'not_judged':
         print(f'VERDICT: NOT JUDGED  unit {serial}: {reason}', file=out)
         return 1
@@ -316,15 +322,17 @@ def _record(args: argparse.Namespace, report: dict[str, Any], bag: Path, *,
 
 
 def _print_table(report: dict[str, Any]) -> None:
-    from rv_te_bench.report.unit import metric_rows
+    from rv_te_bench.report.unit import decision_rule_text, metric_rows
 
     print(f"unit {report['unit']['serial']}  operator {report['unit']['operator']}  "
           f"{report['unit']['date_utc']}  plan {report['plan']['plan']}  "
           f"tolerance {report['tolerance']['profile']}")
-    print(f"{'metric':<34} {'value':>12} {'limit':>14} {'margin':>12}  verdict")
+    print(f'decision rule: {decision_rule_text(report)}')
+    print(f"{'metric':<34} {'value':>12} {'+-U':>8} {'limit':>14} {'margin':>12}  verdict")
     for r in metric_rows(report):
-        print(f"{r['label']:<34} {r['value']:>12} {r['limit']:>14} {r['margin']:>12}  "
-              f"{r['verdict']}")
+        pfa = f"  (P false accept {r['pfa']})" if r['pfa'] else ''
+        print(f"{r['label']:<34} {r['value']:>12} {r['u95']:>8} {r['limit']:>14} "
+              f"{r['margin']:>12}  {r['verdict']}{pfa}")
 
 
 class _Progress:

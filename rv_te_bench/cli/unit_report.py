@@ -64,7 +64,7 @@ def _differences(new: dict[str, Any], old: dict[str, Any]) -> list[str]:
 
 
 def run(args: argparse.Namespace) -> int:
-    """Recompute, compare, report; 0 pass, 3 fail, 1 error."""
+    """Recompute, compare, report; 0 pass, 3 fail, 4 indeterminate, 1 error."""
     from rv_te_bench.acceptance import load_tolerance, parse_plan
     from rv_te_bench.acceptance._files import parse_yaml_text
     from rv_te_bench.acceptance.runner import reanalyse
@@ -83,9 +83,12 @@ def run(args: argparse.Namespace) -> int:
     else:
         profile, _ = load_tolerance(plan.tolerance or info.preset)
     old = json.loads(r['report_json']) if r['report_json'] else {}
-    status = 'completed' if r['verdict'] in {'pass', 'fail'} else r['verdict']
+    status = 'completed' if r['verdict'] in {'pass', 'fail', 'indeterminate'} else r['verdict']
+    from rv_te_bench.io.bench_record import bench_uncertainty_of
+
     new = reanalyse(plan=plan, profile=profile, info=info, steps=rec.steps, blocks=rec.blocks,
                     serial=r['serial'], operator=r['operator_name'],
+                    uncertainty=bench_uncertainty_of(info)[0],
                     conditions=old.get('conditions'),
                     started_utc=old.get('unit', {}).get('date_utc', ''), status=status)
     new['bench']['bag'] = str(bag)

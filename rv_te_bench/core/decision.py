@@ -90,7 +90,8 @@ def _phi(x: float) -> float:
 
 
 def decide(value: float, u95: float, *, lower: float = math.nan, upper: float = math.nan,
-           rule: DecisionRule | None = None, k: float = 2.0) -> Decision:
+           rule: DecisionRule | None = None, k: float = 2.0, u_below: float = math.nan,
+           u_above: float = math.nan) -> Decision:
     """Judge ``value`` (with expanded uncertainty ``u95``) against [lower, upper].
 
     Args:
@@ -100,6 +101,11 @@ def decide(value: float, u95: float, *, lower: float = math.nan, upper: float = 
         lower, upper: Limits (NaN: that side open); at least one finite.
         rule: The decision rule (default simple acceptance).
         k: Coverage factor of U (for the PFA's standard uncertainty).
+        u_below, u_above: How far below / above the value its interval reaches, when the
+            interval is not symmetric (a one-sided bias: a p-p reads high, a minimum of two
+            sides low); NaN: ``u95``. The guard band towards a limit is the interval's
+            reach on that limit's side: conformance with an upper limit is proven when
+            value + w_above <= upper, non-conformance when value - w_below > upper.
 
     Examples:
         A TE of 0.99' against <= 1' with U = 0.05': simple acceptance passes it,
@@ -115,37 +121,38 @@ def decide(value: float, u95: float, *, lower: float = math.nan, upper: float = 
     if not (math.isfinite(lower) or math.isfinite(upper)):
         msg = 'decide needs a finite lower or upper limit'
         raise TeConfigError(msg)
-    u_known = math.isfinite(u95) and u95 >= 0
-    big_u = u95 if u_known else 0.0
-    margins = []
-    if math.isfinite(upper):
-        margins.append(upper - value)
-    if math.isfinite(lower):
-        margins.append(value - lower)
-    margin = min(margins)
-    pfa = math.nan
-    if u_known:
-        u = big_u / k
-        if u > 0:
-            pfa = (_phi((lower - value) / u) if math.isfinite(lower) else 0.0) + \
-                  (_phi((value - upper) / u) if math.isfinite(upper) else 0.0)
-        else:
-            pfa = 0.0 if margin >= 0 else 1.0
-    w = rule.guard_fraction * big_u if rule.kind == 'guarded' else 0.0
-    verdict: Verdict
     if not math.isfinite(value):
         msg = f'decide needs a finite value, got {value!r}'
         raise TeConfigError(msg)
+    u_known = math.isfinite(u95) and u95 >= 0
+    big_u = u95 if u_known else 0.0
+    below = u_below if (u_known and math.isfinite(u_below) and u_below >= 0) else big_u
+    above = u_above if (u_known and math.isfinite(u_above) and u_above >= 0) else big_u
+    f = rule.guard_fraction if rule.kind == 'guarded' else 0.0
+    # per limit: (margin inside, guard to prove conformance, guard to prove non-conformance,
+    #             standard uncertainty towards it)
+    sides = []
+    if math.isfinite(upper):
+        sides.append((upper - value, f * above, f * below, above / k))
+    if math.isfinite(lower):
+        sides.append((value - lower, f * below, f * above, below / k))
+    margin, guard, _, _ = min(sides, key=lambda x: x[0])
+    pfa = math.nan
+    if u_known:
+        pfa = 0.0
+        for m, _, _, u in sides:
+            pfa += _phi(-m / u) if u > 0 else (0.0 if m >= 0 else 1.0)
+    verdict: Verdict
     if rule.kind == 'simple':
         verdict = 'pass' if margin >= 0 else 'fail'
-    elif margin >= w:
-        verdict = 'pass'
-    elif margin < -w:
+    elif any(m < -g_fail for m, _, g_fail, _ in sides):
         verdict = 'fail'
+    elif all(m >= g_pass for m, g_pass, _, _ in sides):
+        verdict = 'pass'
     else:
         verdict = 'indeterminate'
-    return Decision(verdict=verdict, margin=margin, guard=w, pfa=pfa,
-                    borderline=u_known and abs(margin) <= 2.0 * big_u)
+    return Decision(verdict=verdict, margin=margin, guard=guard, pfa=pfa,
+                    borderline=u_known and abs(margin) <= 2.0 * max(below, above))
 
 
 def unit_verdict(verdicts: list[str]) -> Verdict:

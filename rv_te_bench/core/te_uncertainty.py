@@ -58,6 +58,8 @@ if TYPE_CHECKING:
     from rv_te_bench.core.bench_uncertainty import BenchUncertainty, EncoderErrorModel
 
 __all__ = [
+    'extreme_candidates',
+    'extreme_reach',
     'harmonic_inputs',
     'line_budgets',
     'te_pp_budget',
@@ -287,3 +289,65 @@ def _unknown_notes(bench: BenchUncertainty) -> list[str]:
             'are not in the budget (state them in the bench description)'
             for who, e in (('input encoder', bench.encoder_in),
                            ('output encoder', bench.encoder_out)) if not e.known]
+
+
+#: Bins of one output revolution the extremes are located on.
+EXTREME_BINS = 720
+#: Near-equal peaks (dips) kept as candidates for the extreme, the nearest in value first.
+MAX_EXTREME_CANDIDATES = 6
+
+
+def extreme_candidates(phi_rad: npt.ArrayLike, te_rad: npt.ArrayLike, reach_rad: float,
+                       ) -> tuple[tuple[float, float], list[tuple[float, float]]] | None:
+    """Where a TE record has its maximum and minimum on one output revolution, and which
+    other peaks and dips the encoder errors could make the extreme.
+
+    The record is folded on phi mod 2 pi into :data:`EXTREME_BINS` bins (mean TE per bin:
+    a unit's pattern repeats every revolution); the extremes are the bins of the largest
+    and smallest mean; the candidates the other local maxima (minima) within ``reach_rad``
+    of them (a 2K-V's crank-order ripple under a slow output-order wave has near-equal
+    peaks).
+
+    Args:
+        phi_rad: Output angle theta_in / i of each sample [rad].
+        te_rad: TE at those samples [rad] (NaN rows skipped).
+        reach_rad: How far below the maximum (above the minimum) a peak (dip) may lie.
+
+    Returns:
+        ((phi_max, phi_min), [other (phi_max, phi_min) pairs]) [rad], or None when the
+        record covers less than a quarter of the bins.
+    """
+    phi = np.asarray(phi_rad, dtype=np.float64)
+    te = np.asarray(te_rad, dtype=np.float64)
+    ok = np.isfinite(phi) & np.isfinite(te)
+    if np.count_nonzero(ok) < 8:
+        return None
+    nb = EXTREME_BINS
+    p = np.mod(phi[ok], _TWO_PI)
+    k = np.minimum((p / _TWO_PI * nb).astype(np.int64), nb - 1)
+    n = np.bincount(k, minlength=nb)
+    if np.count_nonzero(n) < nb // 4:
+        return None
+    mean = np.where(n > 0, np.bincount(k, weights=te[ok], minlength=nb) / np.maximum(n, 1),
+                    np.nan)
+    centres = (np.arange(nb) + 0.5) * _TWO_PI / nb
+    top, bottom = int(np.nanargmax(mean)), int(np.nanargmin(mean))
+    filled = np.where(np.isfinite(mean), mean, np.nanmean(mean))
+    left, right = np.roll(filled, 1), np.roll(filled, -1)
+    peaks = np.flatnonzero((filled >= left) & (filled >= right)
+                           & (filled >= filled[top] - reach_rad))
+    dips = np.flatnonzero((filled <= left) & (filled <= right)
+                          & (filled <= filled[bottom] + reach_rad))
+    peaks = peaks[np.argsort(-filled[peaks])][:MAX_EXTREME_CANDIDATES]
+    dips = dips[np.argsort(filled[dips])][:MAX_EXTREME_CANDIDATES]
+    others = [(float(centres[a]), float(centres[b])) for a in peaks for b in dips
+              if (a, b) != (top, bottom)]
+    return (float(centres[top]), float(centres[bottom])), others
+
+
+def extreme_reach(bench: BenchUncertainty, gear_ratio: float) -> float:
+    """How far the encoders' long-range errors can move one peak against another: twice
+    the sum of their harmonic amplitudes (the input's divided by i) [rad]."""
+    return (2.0 * sum(g for _, _, g in bench.encoder_out.long_range_components())
+            + 2.0 * sum(g for _, _, g in bench.encoder_in.long_range_components())
+            / gear_ratio)

@@ -17,7 +17,8 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-from rv_te_bench.errors import BagError, BenchInfoError, YamlInputError
+from rv_te_bench.core.bench_uncertainty import BenchUncertainty, bench_uncertainty_from_plain
+from rv_te_bench.errors import BagError, BenchInfoError, TeConfigError, YamlInputError
 from rv_te_bench.io._bag_open import find_messages, open_bag, scan_topics, topic_types
 from rv_te_bench.io._bag_types import MessageStream, summarize_problems
 from rv_te_bench.io.msgdefs import BENCH_INFO, ENCODER_BLOCK, rv_te_typestore
@@ -30,7 +31,8 @@ if TYPE_CHECKING:
 
     from sim.presets import Preset
 
-__all__ = ['PARAMETERS_YAML_LIMITS', 'bench_info_cdr', 'overrides_from_parameters_yaml',
+__all__ = ['PARAMETERS_YAML_LIMITS', 'bench_info_cdr', 'bench_uncertainty_of',
+           'overrides_from_parameters_yaml',
            'preset_from_bench_info', 'read_bench_info', 'uncertainty_from_parameters_yaml']
 
 #: A BenchInfo record holds the preset's values and the bench settings: a few kB.
@@ -74,6 +76,28 @@ def uncertainty_from_parameters_yaml(text: str) -> Any:
         return None
     bench = record.get('bench') if isinstance(record, dict) else None
     return bench.get('uncertainty') if isinstance(bench, dict) else None
+
+
+def bench_uncertainty_of(info: BenchInfoData | None) -> tuple[BenchUncertainty, list[str]]:
+    """The bench's error model: data-sheet defaults of its encoders, with the bench
+    description's ``uncertainty:`` section (recorded in BenchInfo ``parameters_yaml``)
+    over them. Returns (model, notes): a section that does not parse is named in a note
+    and the defaults are used."""
+    if info is None:
+        return BenchUncertainty.defaults('', ''), [
+            'the bag has no BenchInfo: encoder models unknown, only what the data shows']
+    base = BenchUncertainty.defaults(
+        info.encoder_in_model, info.encoder_out_model,
+        resolution_in_rad=info.encoder_in_resolution_rad,
+        resolution_out_rad=info.encoder_out_resolution_rad)
+    section = uncertainty_from_parameters_yaml(info.parameters_yaml)
+    if section is None:
+        return base, []
+    try:
+        return bench_uncertainty_from_plain(
+            section, base, where='BenchInfo parameters_yaml bench.uncertainty'), []
+    except TeConfigError as exc:
+        return base, [f'the bench description\'s uncertainty section is not used: {exc}']
 
 
 def preset_from_bench_info(info: BenchInfoData, extra_overrides: Sequence[str] = ()) -> Preset:

@@ -42,6 +42,7 @@ from rv_te_bench.acceptance import StepRunner, build_report, parse_plan
 from rv_te_bench.acceptance._files import parse_yaml_text
 from rv_te_bench.acceptance.tolerance import load_tolerance, parse_tolerance
 from rv_te_bench.errors import AcceptanceError
+from rv_te_bench.io.bench_record import bench_uncertainty_of
 from rv_te_bench.nodes import qos
 from rv_te_bench.nodes.common import DropCounter, declare_from_specs, run_node
 from rv_te_bench.nodes.params.test_sequencer import PARAMS, TestSequencerParams
@@ -227,7 +228,7 @@ class TestSequencerNode(Node):
     async def _run_step(self, goal_handle: ServerGoalHandle, req: RunTestPlan.Goal, j: int,
                         step: Step, info: BenchInfoData,
                         n_steps: int) -> tuple[list[Measured], dict[str, Any]]:
-        runner = StepRunner(step, info)
+        runner = StepRunner(step, info, uncertainty=bench_uncertainty_of(info)[0])
         call = RunBenchProgram.Request(program_yaml=yaml.safe_dump(runner.program()))
         future = self.cli_program.call_async(call)
         while not future.done():

@@ -28,11 +28,16 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-from rv_te_bench.core.bench_uncertainty import BenchUncertainty, bench_uncertainty_from_plain
-from rv_te_bench.core.te_uncertainty import line_budgets, te_pp_budget
-from rv_te_bench.errors import TeConfigError
+from rv_te_bench.core.te_uncertainty import (
+    extreme_candidates,
+    extreme_reach,
+    line_budgets,
+    te_pp_budget,
+)
+from rv_te_bench.io.bench_record import bench_uncertainty_of
 
 if TYPE_CHECKING:
+    from rv_te_bench.core.bench_uncertainty import BenchUncertainty
     from rv_te_bench.core.spectrum import SpectrumSummary
     from rv_te_bench.core.stream_records import WindowResult
     from rv_te_bench.core.te import TeStats
@@ -43,38 +48,11 @@ if TYPE_CHECKING:
 __all__ = ['AnalysisUncertainty', 'analysis_uncertainty', 'bench_uncertainty_of',
            'budget_html', 'display_of', 'line_budget_key']
 
-_FOLD_BINS = 720
-#: Near-equal peaks (dips) considered as the extreme, the nearest in value first.
-_MAX_CANDIDATES = 6
 
 
 def line_budget_key(label: str, what: str) -> str:
     """Name of a line's budget: ``'line <label> amplitude'`` / ``'... phase'``."""
     return f'line {label} {what}'
-
-
-def bench_uncertainty_of(info: BenchInfoData | None) -> tuple[BenchUncertainty, list[str]]:
-    """The bench's error model: data-sheet defaults of its encoders, with the bench
-    description's ``uncertainty:`` section (recorded in BenchInfo ``parameters_yaml``)
-    over them. Returns (model, notes): a section that does not parse is named in a note
-    and the defaults are used."""
-    from rv_te_bench.io.bench_record import uncertainty_from_parameters_yaml
-
-    if info is None:
-        return BenchUncertainty.defaults('', ''), [
-            'the bag has no BenchInfo: encoder models unknown, only what the data shows']
-    base = BenchUncertainty.defaults(
-        info.encoder_in_model, info.encoder_out_model,
-        resolution_in_rad=info.encoder_in_resolution_rad,
-        resolution_out_rad=info.encoder_out_resolution_rad)
-    section = uncertainty_from_parameters_yaml(info.parameters_yaml)
-    if section is None:
-        return base, []
-    try:
-        return bench_uncertainty_from_plain(
-            section, base, where='BenchInfo parameters_yaml bench.uncertainty'), []
-    except TeConfigError as exc:
-        return base, [f'the bench description\'s uncertainty section is not used: {exc}']
 
 
 @dataclass(frozen=True)
@@ -113,36 +91,12 @@ class AnalysisUncertainty:
 
 def _extremes(trace: TeTrace | None, reach_rad: float,
               ) -> tuple[tuple[float, float], list[tuple[float, float]]] | None:
-    """(phi of the max, phi of the min) of the TE folded onto one output revolution, and
-    the other (max, min) pairs whose peaks lie within ``reach_rad`` of the extremes (the
-    encoder errors could make one of them the extreme)."""
-    if trace is None or trace.te_rad.size < 8:
+    """The TE extremes of the trace (:func:`~.te_uncertainty.extreme_candidates`)."""
+    if trace is None:
         return None
     th = np.asarray(trace.theta_out_rad, dtype=np.float64)
     te = np.asarray(trace.te_rad, dtype=np.float64)
-    ok = np.isfinite(th) & np.isfinite(te)
-    if np.count_nonzero(ok) < 8:
-        return None
-    phi = np.mod(th[ok] - te[ok], 2 * np.pi)
-    k = np.minimum((phi / (2 * np.pi) * _FOLD_BINS).astype(np.int64), _FOLD_BINS - 1)
-    n = np.bincount(k, minlength=_FOLD_BINS)
-    s = np.bincount(k, weights=te[ok], minlength=_FOLD_BINS)
-    if np.count_nonzero(n) < _FOLD_BINS // 4:
-        return None
-    mean = np.where(n > 0, s / np.maximum(n, 1), np.nan)
-    centres = (np.arange(_FOLD_BINS) + 0.5) * 2 * np.pi / _FOLD_BINS
-    top, bottom = int(np.nanargmax(mean)), int(np.nanargmin(mean))
-    filled = np.where(np.isfinite(mean), mean, np.nanmean(mean))
-    left, right = np.roll(filled, 1), np.roll(filled, -1)
-    peaks = np.flatnonzero((filled >= left) & (filled >= right)
-                           & (filled >= filled[top] - reach_rad))
-    dips = np.flatnonzero((filled <= left) & (filled <= right)
-                          & (filled <= filled[bottom] + reach_rad))
-    peaks = peaks[np.argsort(-filled[peaks])][:_MAX_CANDIDATES]
-    dips = dips[np.argsort(filled[dips])][:_MAX_CANDIDATES]
-    others = [(float(centres[a]), float(centres[b])) for a in peaks for b in dips
-              if (a, b) != (top, bottom)]
-    return (float(centres[top]), float(centres[bottom])), others
+    return extreme_candidates(th - te, te, reach_rad)
 
 
 def analysis_uncertainty(*, info: BenchInfoData | None, gear_ratio: float,
@@ -156,8 +110,7 @@ def analysis_uncertainty(*, info: BenchInfoData | None, gear_ratio: float,
     pps = pps[np.isfinite(pps)]
     revs = cumulative.revolutions if math.isfinite(cumulative.revolutions) else math.nan
     spr = cumulative.n_samples / revs if math.isfinite(revs) and revs > 0 else math.nan
-    reach = 2.0 * sum(g for _, _, g in bench.encoder_out.long_range_components()) + \
-        2.0 * sum(g for _, _, g in bench.encoder_in.long_range_components()) / gear_ratio
+    reach = extreme_reach(bench, gear_ratio)
     found = _extremes(trace, reach)
     others: list[tuple[float, float]] = []
     if found is None:

@@ -26,8 +26,8 @@ if TYPE_CHECKING:
     import numpy.typing as npt
     from matplotlib.figure import Figure
 
-__all__ = ['format_live', 'human_reason', 'metric_rows', 'render_unit_html', 'unit_figures',
-           'write_unit_report']
+__all__ = ['decision_rule_text', 'format_live', 'human_reason', 'metric_rows',
+           'render_unit_html', 'unit_figures', 'write_unit_report']
 
 _LABELS = {
     'te_pp_ccw_rad': 'TE p-p, ccw (output +)', 'te_pp_cw_rad': 'TE p-p, cw (output -)',
@@ -41,8 +41,8 @@ _LABELS = {
     'trend_alarms': 'run-in: quantities flagged growing',
 }
 _VERDICT_COLOUR = {'pass': '#1b7f3b', 'fail': '#b00020', 'not_measured': '#9a6700',
-                   'not_judged': '#9a6700', 'info': '#555', 'cancelled': '#9a6700',
-                   'aborted': '#b00020', 'error': '#b00020'}
+                   'indeterminate': '#b35c00', 'not_judged': '#9a6700', 'info': '#555',
+                   'cancelled': '#9a6700', 'aborted': '#b00020', 'error': '#b00020'}
 
 
 def _display(unit: str, x: float | None) -> tuple[float, str]:
@@ -78,29 +78,55 @@ def metric_rows(report: dict[str, Any]) -> list[dict[str, str]]:
         lo, _ = _display(m['unit'], m['limit_min'])
         hi, _ = _display(m['unit'], m['limit_max'])
         mg, _ = _display(m['unit'], m['margin'])
+        u, _ = _display(m['unit'], m.get('u95'))
         limit = ('<= ' + _fmt(hi) if math.isfinite(hi) else '') + (
             (' and ' if math.isfinite(hi) and math.isfinite(lo) else '')
             + ('>= ' + _fmt(lo) if math.isfinite(lo) else ''))
+        pfa = m.get('pfa')
         rows.append({'label': f'{_label(m["name"])} [{unit}]', 'value': _fmt(v),
+                     'u95': _u_text(u),
                      'limit': limit or '-', 'margin': _fmt(mg), 'verdict': m['verdict'],
+                     'pfa': (f'{100 * pfa:.2g} %' if m.get('borderline') and pfa is not None
+                             else ''),
                      'source': m.get('source', ''), 'step': m.get('step', '')})
     return rows
+
+
+def _u_text(u: float) -> str:
+    """An expanded uncertainty to two significant digits (no exponent above 100)."""
+    if not math.isfinite(u):
+        return '-'
+    return f'{u:.0f}' if u >= 100 else f'{u:.2g}'
+
+
+def decision_rule_text(report: dict[str, Any]) -> str:
+    """The rule the verdicts applied, in one sentence (with its source when stated)."""
+    rule = report.get('tolerance', {}).get('decision_rule')
+    if not rule:
+        return ('simple acceptance (ILAC-G8 4.2.1): pass when the value is within the limit; '
+                'the uncertainty is stated, not applied')
+    src = rule.get('source') or ''
+    return rule['statement'] + (f' [{src}]' if src else '')
 
 
 def human_reason(report: dict[str, Any]) -> str:
     """The verdict's reason with the metrics' names as people read them."""
     failed = [_label(m['name']) for m in report['metrics'] if m['verdict'] == 'fail']
     missing = [_label(m['name']) for m in report['metrics'] if m['verdict'] == 'not_measured']
-    if report['verdict'] not in {'pass', 'fail'}:
+    open_ = [_label(m['name']) for m in report['metrics'] if m['verdict'] == 'indeterminate']
+    if report['verdict'] not in {'pass', 'fail', 'indeterminate'}:
         reason: str = report['reason']
         return reason
-    if not failed and not missing:
+    if not failed and not missing and not open_:
         return 'Every limited metric is within its limit.'
     parts = []
     if failed:
         parts.append('out of limit: ' + '; '.join(failed))
     if missing:
         parts.append('not measured: ' + '; '.join(missing))
+    if open_:
+        parts.append('conformance not proven (value and U straddle the limit): '
+                     + '; '.join(open_))
     text = '; '.join(parts) + '.'
     return text[0].upper() + text[1:]
 
@@ -322,6 +348,30 @@ def _advice(report: dict[str, Any]) -> list[str]:
     return out
 
 
+def _budget_html(report: dict[str, Any]) -> list[str]:
+    """The budgets of the limited metrics (inputs, shares, sources), collapsed."""
+    out = []
+    for m in report['metrics']:
+        b = m.get('budget')
+        if not b or m['verdict'] == 'info':
+            continue
+        v, unit = _display(m['unit'], 1.0)
+        rows = ''.join(
+            f"<tr><td class='l'>{_e(x['name'])}</td><td class='l'>{_e(x['distribution'])}</td>"
+            f"<td>{_fmt((x['contribution'] or 0.0) * v, 3)}</td>"
+            f"<td>{100 * (x['share'] or 0.0):.1f} %</td>"
+            f"<td class='l muted'>{_e((x['source'] or '').split(';')[0][:80])}</td></tr>"
+            for x in b['inputs'] if (x['contribution'] or 0) > 0)
+        out.append(f"<details><summary>Uncertainty budget: {_e(_label(m['name']))} "
+                   f"(U = {_fmt((m.get('u95') or math.nan) * v, 3)} {_e(unit)}, k = "
+                   f"{_fmt(b['k'] or math.nan, 3)})</summary><table><tr><th class='l'>input"
+                   f"</th><th class='l'>distribution</th><th>|c| u [{_e(unit)}]</th>"
+                   f"<th>share</th><th class='l'>source</th></tr>{rows}</table>"
+                   + ''.join(f'<p class="muted">{_e(n)}</p>' for n in b.get('notes', []))
+                   + '</details>')
+    return out
+
+
 def render_unit_html(report: dict[str, Any], images: dict[str, bytes]) -> str:
     """One self-contained page (PNGs embedded)."""
     u, b = report['unit'], report['bench']
@@ -339,13 +389,20 @@ def render_unit_html(report: dict[str, Any], images: dict[str, bytes]) -> str:
         head.append(('bag', b['bag']))
     p += [f'<tr><th class="l">{_e(k)}</th><td class="l">{_e(v)}</td></tr>'
           for k, v in head + _conditions(report)]
-    p.append('</table><h2>Verdict</h2><table><tr><th class="l">metric</th><th>value</th>'
-             '<th>limit</th><th>margin</th><th>verdict</th><th class="l">limit source</th></tr>')
+    p.append('</table><h2>Verdict</h2>'
+             f'<p><b>Decision rule:</b> {_e(decision_rule_text(report))}. U: expanded '
+             'uncertainty, about 95 % (docs/UNCERTAINTY.md); P(false accept): the probability '
+             'that the true value lies outside the limit, shown for results within 2 U of it.'
+             '</p><table><tr><th class="l">metric</th><th>value</th><th>&plusmn; U</th>'
+             '<th>limit</th><th>margin</th><th>verdict</th><th>P(false accept)</th>'
+             '<th class="l">limit source</th></tr>')
     for r in metric_rows(report):
         p.append(f"<tr><td class='l'>{_e(r['label'])}</td><td>{_e(r['value'])}</td>"
-                 f"<td>{_e(r['limit'])}</td><td>{_e(r['margin'])}</td>"
-                 f"<td>{_badge(r['verdict'])}</td><td class='l muted'>{_e(r['source'])}</td></tr>")
+                 f"<td>{_e(r['u95'])}</td><td>{_e(r['limit'])}</td><td>{_e(r['margin'])}</td>"
+                 f"<td>{_badge(r['verdict'])}</td><td>{_e(r['pfa'])}</td>"
+                 f"<td class='l muted'>{_e(r['source'])}</td></tr>")
     p.append('</table>')
+    p += _budget_html(report)
     unjudged = [(st['name'], st['not_judged']) for st in report['steps']
                 if st.get('not_judged')]
     if unjudged:

@@ -66,7 +66,8 @@ def test_table_on_stdout(bags: dict, capsys: pytest.CaptureFixture[str]) -> None
     assert m is not None, out
     assert float(m.group(1)) == pytest.approx(pp, abs=1e-4)           # printed to 4 decimals
     assert float(m.group(2)) == pytest.approx(float(rad_to_arcmin(np.abs(te).max())), abs=1e-4)
-    assert re.search(r'1 f_w\s+25\s+1\s+12\.5\s+0\.6000\s+17\.2', out), out  # 0.3 rad = 17.2 deg
+    # amplitude, its U, phase (0.3 rad = 17.2 deg), its U
+    assert re.search(r'1 f_w\s+25\s+1\s+12\.5\s+0\.6000\s+\S+\s+17\.2\s+\S+', out), out
     assert 'dominant: 1 f_w' in out
     assert 'gaps: none' in out
     assert 'ERROR' not in err

@@ -60,3 +60,25 @@ def test_unit_verdict() -> None:
     assert unit_verdict(['pass', 'indeterminate']) == 'indeterminate'
     assert unit_verdict(['indeterminate', 'fail']) == 'fail'
     assert unit_verdict(['pass', 'not_measured']) == 'fail'
+
+
+def test_an_asymmetric_interval_guards_each_side_with_its_own_reach() -> None:
+    """A p-p reads high by up to b (its interval reaches U + b below the value, U above):
+    against an upper limit conformance needs value + U <= limit, not value + U + b."""
+    d = decide(0.97, 0.05, upper=1.0, rule=GUARDED, u_below=0.05, u_above=0.02)
+    assert d.verdict == 'pass' and d.guard == pytest.approx(0.02)
+    assert decide(0.97, 0.05, upper=1.0, rule=GUARDED).verdict == 'indeterminate'
+    # non-conformance of that p-p needs value - (U + b) > limit
+    assert decide(1.04, 0.05, upper=1.0, rule=GUARDED, u_below=0.05,
+                  u_above=0.02).verdict == 'indeterminate'
+    assert decide(1.06, 0.05, upper=1.0, rule=GUARDED, u_below=0.05,
+                  u_above=0.02).verdict == 'fail'
+    # a minimum of two sides reads low: its interval reaches further above; a lower limit
+    # is guarded with the reach below
+    d = decide(200.0, 8.0, lower=196.0, rule=GUARDED, u_below=3.0, u_above=8.0)
+    assert d.verdict == 'pass'
+    assert decide(190.0, 8.0, lower=196.0, rule=GUARDED, u_below=3.0,
+                  u_above=8.0).verdict == 'indeterminate'
+    # the PFA uses the reach towards the limit: normal with u = u_above / k
+    d = decide(0.99, 0.05, upper=1.0, u_below=0.09, u_above=0.02)
+    assert d.pfa == pytest.approx(0.5 * math.erfc(0.01 / 0.01 / math.sqrt(2)), rel=1e-9)
