@@ -150,6 +150,7 @@ def _run(args: argparse.Namespace, busy: bool) -> int:
     tmp = args.bag_dir or Path(tempfile.mkdtemp(prefix='rv-te-analyze-bench-'))
     tmp.mkdir(parents=True, exist_ok=True)
     rows = []
+    budget_cpu: dict[int, float] = {}
     proc_rows: list[tuple[int, dict[str, float]]] = []
     for block in args.blocks:
         bag, n = sample_bag(tmp, block, args.minutes, args.rate_hz)
@@ -190,6 +191,7 @@ def _run(args: argparse.Namespace, busy: bool) -> int:
                     return 1
         med = {k: statistics.median(v) for k, v in wall.items()}
         med_cpu = {k: statistics.median(v) for k, v in cpu.items()}
+        budget_cpu[block] = _budget_cpu(bag)
         ratios = {k: sorted(a / r for a, r in zip(wall[k], wall['rosbags'], strict=True))
                   for k in ('analyze', 'base', 'helper', 'inline') if k in wall}
         rows.append((block, n, size_mb, med, med_cpu, ratios))
@@ -228,6 +230,16 @@ def _run(args: argparse.Namespace, busy: bool) -> int:
             print(f'| {block} ({size_mb:.0f} MB) | {label} | {med[name]:.2f} | '
                   f'{med_cpu[name]:.2f} | {n / med[name] / 1e6:.2f} M | '
                   f'{med[name] / med["rosbags"]:.2f}{extra} |')
+    if budget_cpu:
+        print('\nThe uncertainty budgets alone (issue 35: TE p-p, every line; '
+              '`report.uncertainty.analysis_uncertainty` on the analysis of the bag, CPU time of '
+              'this thread, median of 21; the load does not enter a CPU time):\n')
+        print('| block | budgets CPU [ms] | analyze_bag CPU [ms] | budgets / analysis |')
+        print('|---|---|---|---|')
+        for (block, _n, _size, _med, med_cpu, _r) in rows:
+            b = budget_cpu[block]
+            print(f'| {block} | {1e3 * b:.1f} | {1e3 * med_cpu["analyze"]:.0f} | '
+                  f'{100 * b / med_cpu["analyze"]:.1f} % |')
     if proc_rows:
         print('\nWhole commands in fresh processes (median of '
               f'{args.process_repeats}; interpreter start and imports included):\n')
@@ -238,6 +250,22 @@ def _run(args: argparse.Namespace, busy: bool) -> int:
             print(f'| {block} | {t["rosbags"]:.2f} | {t["analyze"]:.2f} | '
                   f'{t["analyze"] / t["rosbags"]:.2f} |')
     return 0
+
+
+def _budget_cpu(bag: Path) -> float:
+    """CPU time [s] of the analysis's uncertainty budgets (median of 21 runs)."""
+    from rv_te_bench.report.analysis import analyze_bag
+    from rv_te_bench.report.uncertainty import analysis_uncertainty
+
+    res = analyze_bag(bag, with_advice=False)
+    times = []
+    for _ in range(21):
+        c0 = time.thread_time()
+        analysis_uncertainty(info=res.bench.info, gear_ratio=res.bench.gear_ratio,
+                             windows=res.windows, cumulative=res.cumulative,
+                             spectrum=res.spectrum, trace=res.trace)
+        times.append(time.thread_time() - c0)
+    return statistics.median(times)
 
 
 class _reader_as_at:  # noqa: N801 - used like a function

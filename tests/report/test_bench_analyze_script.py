@@ -14,4 +14,6 @@ def test_bench_analyze_quick_run(capsys: pytest.CaptureFixture[str]) -> None:
                        '--allocator', 'default', '--process-repeats', '1']) == 0
     rows = [r for r in capsys.readouterr().out.splitlines() if r.startswith('| 100')]
     assert [r.split('|')[2].strip()[:7] for r in rows[:3]] == ['rosbags', 'read_en', 'analyze']
-    assert len(rows) == 4  # and the whole-command row
+    assert len(rows) == 5  # the budgets' row and the whole-command row
+    budget = rows[3].split('|')
+    assert float(budget[2]) > 0 and budget[4].strip().endswith('%')
