@@ -83,5 +83,9 @@ def hysteresis_point_budgets(points: tuple[np.ndarray, np.ndarray], theta_out0_r
     if not bounds:
         return {}
     c = bounds[0]
-    sl = slice(c.up_start, c.back_end + 1)
+    # hysteresis_metrics reads one cycle 0 -> +T_R -> 0 -> -T_R -> 0: the loading branch
+    # from its last point at or below zero torque (a preload leaves it at -T_R)
+    up = np.flatnonzero(t[c.up_start:c.peak + 1] <= 0.0)
+    start = c.up_start + (int(up[-1]) if up.size else 0)
+    sl = slice(start, c.back_end + 1)
     return hysteresis_budgets(t[sl], a[sl], config, bench=bench, theta_out_rad=theta_out0_rad)

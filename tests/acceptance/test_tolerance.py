@@ -119,12 +119,16 @@ def test_verdicts_and_profiles_keep_every_field_for_the_report() -> None:
         'name': 'te_pp_ccw_rad', 'step': 'te', 'unit': 'rad', 'value': 0.25 * lim,
         'limit_min': None, 'limit_max': pytest.approx(lim, rel=1e-15),
         'margin': pytest.approx(0.75 * lim, rel=1e-12), 'verdict': 'pass',
-        'source': 'catalogue'}
+        'source': 'catalogue', 'u95': None, 'guard': 0.0, 'pfa': None, 'borderline': False}
     assert verdicts[1].to_json_dict() == {
         'name': 'torsional_rigidity_K2_nm_per_rad', 'step': '', 'unit': 'N m/rad',
         'value': None, 'limit_min': pytest.approx(196 / lim, rel=1e-15), 'limit_max': None,
-        'margin': None, 'verdict': 'not_measured', 'source': 'c2'}
-    assert p.to_plain() == {'profile': 'p', 'description': '', 'limits': [
+        'margin': None, 'verdict': 'not_measured', 'source': 'c2', 'u95': None, 'guard': None,
+        'pfa': None, 'borderline': False}
+    assert p.to_plain() == {'profile': 'p', 'description': '', 'decision_rule': {
+        'kind': 'simple', 'guard_fraction': 1.0, 'statement':
+            'simple acceptance (ILAC-G8 4.2.1): pass when the value is within the limit; the '
+            'uncertainty is stated, not applied', 'source': ''}, 'limits': [
         {'key': 'te_pp_arcmin', 'family': 'te_pp', 'unit': 'rad', 'min_si': None,
          'max_si': pytest.approx(lim, rel=1e-15), 'region': '', 'source': 'catalogue'},
         {'key': 'torsional_rigidity_nm_per_arcmin', 'family': 'torsional_rigidity',
