@@ -232,8 +232,10 @@ def _decision_rule(raw: Any, fail: Callable[[str], None]) -> tuple[DecisionRule,
         fail(f'decision_rule.source must be a string, got {source!r}')
     if kind == 'simple' and 'guard_fraction' in spec:
         fail('decision_rule: a guard_fraction goes with kind guarded, not simple')
+    if isinstance(frac, bool) or not isinstance(frac, int | float):
+        fail(f'decision_rule.guard_fraction must be a number, got {frac!r}')
     try:
-        return DecisionRule(kind=kind, guard_fraction=frac), source
+        return DecisionRule(kind=kind, guard_fraction=float(frac)), source
     except TeConfigError as exc:
         fail(f'decision_rule: {exc}')
     raise AssertionError  # fail() raised
@@ -304,7 +306,7 @@ class MetricVerdict:
         (shown for borderline results)."""
         def fin(x: float) -> float | None:
             return float(x) if math.isfinite(x) else None
-        out = {'name': self.name, 'step': self.step, 'unit': self.unit,
+        out: dict[str, Any] = {'name': self.name, 'step': self.step, 'unit': self.unit,
                'value': fin(self.value), 'u95': fin(self.u95),
                'limit_min': fin(self.limit_min),
                'limit_max': fin(self.limit_max), 'margin': fin(self.margin),

@@ -341,7 +341,7 @@ def extreme_candidates(phi_rad: npt.ArrayLike, te_rad: npt.ArrayLike, reach_rad:
     peaks = peaks[np.argsort(-filled[peaks])][:MAX_EXTREME_CANDIDATES]
     dips = dips[np.argsort(filled[dips])][:MAX_EXTREME_CANDIDATES]
     others = [(float(centres[a]), float(centres[b])) for a in peaks for b in dips
-              if (a, b) != (top, bottom)]
+              if (int(a), int(b)) != (int(top), int(bottom))]
     return (float(centres[top]), float(centres[bottom])), others
 
 

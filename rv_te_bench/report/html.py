@@ -205,11 +205,11 @@ def _bag_section(res: AnalysisResult) -> str:
                f'{_stats_cells(res.cumulative)}</tr></table>')
     unc = res.uncertainty
     if unc is not None:
-        parts = [f'{what} <b>{_am(b.value)} &plusmn; {_am_g(b.u95)}</b> arcmin'
+        parts = [f'{what} <b>{_am(bud.value)} &plusmn; {_am_g(bud.u95)}</b> arcmin'
                  for name, what in (('te_pp_revolution_max_rad',
                                      'largest of one output revolution'),
                                     ('te_pp_rad', 'all clean samples'))
-                 if (b := unc.budgets.get(name)) is not None]
+                 if (bud := unc.budgets.get(name)) is not None]
         if parts:
             out.append(f'<p><b>TE p-p</b>: {"; ".join(parts)} (&plusmn; U, about 95 %; the '
                        'budgets below, docs/UNCERTAINTY.md).</p>')

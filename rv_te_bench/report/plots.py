@@ -301,8 +301,9 @@ def spectrum_figure(results: Sequence[AnalysisResult]) -> Figure:
             continue
         amp_by = {ln.label: ln.amplitude_rad for ln in res.spectrum.lines}
         vals = rad_to_arcmin(np.array([amp_by.get(lab, math.nan) for _, lab in chosen]))
+        u_lines = _line_u95_arcmin(res)
         u_by = dict(zip((ln.label for ln in res.spectrum.lines),
-                        _line_u95_arcmin(res) if res.uncertainty is not None
+                        u_lines if u_lines is not None
                         else [math.nan] * len(res.spectrum.lines), strict=True))
         errs = np.array([u_by.get(lab, math.nan) for _, lab in chosen])
         bars = ax_bar.bar(xs + (k - (n_bags - 1) / 2) * width, vals, width,

@@ -128,17 +128,18 @@ def analysis_uncertainty(*, info: BenchInfoData | None, gear_ratio: float,
         big = max(spectrum.lines, key=lambda ln: ln.amplitude_rad)
         dominant = (big.amplitude_rad, big.output_order)
     budgets: dict[str, Budget] = {}
-    common = {'phi_max_rad': ext[0], 'phi_min_rad': ext[1], 'gear_ratio': gear_ratio,
-              'bench': bench, 'samples_per_rev': spr, 'dominant': dominant,
-              'other_extremes': others}
+
+    def pp_budget(name: str, value: float) -> Budget:
+        return te_pp_budget(name, value, phi_max_rad=ext[0], phi_min_rad=ext[1],
+                            gear_ratio=gear_ratio, bench=bench, samples_per_rev=spr,
+                            dominant=dominant, other_extremes=others,
+                            per_revolution_rad=pps if pps.size >= 2 else None)
+
     if math.isfinite(cumulative.pp_rad):
-        budgets['te_pp_rad'] = te_pp_budget(
-            'te_pp_rad', cumulative.pp_rad,
-            per_revolution_rad=pps if pps.size >= 2 else None, **common)
+        budgets['te_pp_rad'] = pp_budget('te_pp_rad', cumulative.pp_rad)
     if pps.size:
-        budgets['te_pp_revolution_max_rad'] = te_pp_budget(
-            'te_pp_revolution_max_rad', float(np.max(pps)),
-            per_revolution_rad=pps if pps.size >= 2 else None, **common)
+        budgets['te_pp_revolution_max_rad'] = pp_budget('te_pp_revolution_max_rad',
+                                                        float(np.max(pps)))
     if spectrum is not None:
         per_window = [w.spectrum for w in complete if w.spectrum is not None]
         grid = per_window[0].samples_per_rev if per_window else math.nan

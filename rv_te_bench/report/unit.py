@@ -106,7 +106,8 @@ def decision_rule_text(report: dict[str, Any]) -> str:
         return ('simple acceptance (ILAC-G8 4.2.1): pass when the value is within the limit; '
                 'the uncertainty is stated, not applied')
     src = rule.get('source') or ''
-    return rule['statement'] + (f' [{src}]' if src else '')
+    statement: str = rule['statement']
+    return statement + (f' [{src}]' if src else '')
 
 
 def human_reason(report: dict[str, Any]) -> str:

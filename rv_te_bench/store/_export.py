@@ -67,8 +67,8 @@ def records_table(rows: list[StoredResult]) -> tuple[list[str], list[dict[str, A
         d['analysed_at'] = r.analysed_at.isoformat()
         for (n, dirn), v in r.metrics.items():
             d[_metric_column(n, dirn)] = v
-        for (n, dirn), u in r.u95.items():
-            d[f'{_metric_column(n, dirn)}_u95'] = u
+        for (n, dirn), u95 in r.u95.items():
+            d[f'{_metric_column(n, dirn)}_u95'] = u95
         for lab, (amp, _phase) in r.lines.items():
             d[_line_column(lab)] = amp
         for lab, (u, _pu) in r.line_u95.items():
