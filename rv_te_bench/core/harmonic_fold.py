@@ -154,18 +154,35 @@ class HarmonicFold:
         return int(np.count_nonzero(self._n == 0))
 
     def _centred(self) -> tuple[np.ndarray, np.ndarray]:
-        """Bin values at the centres (m, M) and the pooled in-bin covariance (m, m)."""
+        """Bin values at the centres (m, M) and the pooled in-bin covariance (m, m).
+
+        A bin's mean is moved to its centre along its own least-squares slope when its
+        samples spread over the bin (standard deviation of their offsets at least half that
+        of a uniform spread, and three or more samples); otherwise (a sparse record: a few
+        samples per bin, often at nearly the same offset revolution after revolution) that
+        slope is noise divided by a tiny spread, and the slope of the curve between the
+        neighbouring bins' means is used instead (every bin holds a sample here).
+        """
         n = self._n
         xbar = self._sx / n
         cxx = self._sxx - self._sx * xbar
         ybar = self._sy / n
         cxy = self._sxy - self._sx * ybar
-        safe = cxx > 0
-        slope = np.where(safe, cxy / np.where(safe, cxx, 1.0), 0.0)
+        own = (n >= 3) & (cxx >= n * self._h**2 / 48.0)
+        slope = np.where(own, cxy / np.where(own, cxx, 1.0), 0.0)
+        if not own.all():
+            # the curve's slope from the neighbours' means, at their sample positions
+            pos = (np.arange(self.n_bins) + 0.5) * self._h + xbar
+            ahead = np.roll(pos, -1)
+            ahead[-1] += _TWO_PI
+            behind = np.roll(pos, 1)
+            behind[0] -= _TWO_PI
+            fd = (np.roll(ybar, -1, axis=1) - np.roll(ybar, 1, axis=1)) / (ahead - behind)
+            slope = np.where(own, slope, fd)
         centred = ybar - slope * xbar
         cyy = self._syy - self._sy[:, None, :] * ybar[None, :, :]
-        cyy -= np.where(safe, cxy[:, None, :] * cxy[None, :, :] / np.where(safe, cxx, 1.0), 0.0)
-        dof = float(np.sum(np.maximum(n - 2.0, 0.0)))
+        cyy -= np.where(own, cxy[:, None, :] * cxy[None, :, :] / np.where(own, cxx, 1.0), 0.0)
+        dof = float(np.sum(np.where(own, n - 2.0, n - 1.0)))
         cov = cyy.sum(axis=2) / dof if dof > 0 else np.full(cyy.shape[:2], np.nan)
         return centred, cov
 
