@@ -157,6 +157,60 @@ def test_calibration_of_another_scale_is_reported_and_the_te_goes_on(graph,
     assert te.drops.total == 0          # every block analysed (averaged, uncalibrated)
 
 
+@pytest.mark.timeout(180)
+def test_a_one_head_bench_with_its_scales_calibration_gives_the_reducers_line(
+        graph, tmp_path: Path) -> None:
+    """The workflow of issue 36 over the middleware: the scale is self-calibrated from its
+    4 heads (the same simulated scale: same seed, offline, the suite's self-calibration),
+    then a one-head session of it runs with that file applied live. The TE node's order-1
+    line is the reducer's (the test's FFT of the model's TE) within 0.3"; the bag records
+    what was applied (te/encoder_heads) and rv-te analyze of it applies the same and gives
+    the same line; without it head 0 is the scale's 20.6" off."""
+    from rv_te_bench.core.encoder_calibration import calibration_from_estimate
+    from rv_te_bench.core.heads import HeadLayout
+    from rv_te_bench.core.selfcal import HeadSelfCalibration
+    from rv_te_bench.nodes.params.bench import BenchParams
+    from rv_te_bench.params import params_record
+
+    four = params_record(BenchParams, bench_values(4))
+    sim = BenchSimulator(bench_config_from_params(four))
+    selfcal = HeadSelfCalibration(HeadLayout.of(np.radians(HEADS[4])))
+    for _ in range(int(2.3 * 79 / 50.0 * RATE_HZ / BLOCK)):
+        selfcal.add(sim.next_block().theta_out_heads_rad)
+    cal_file = write_encoder_calibration(tmp_path / 'RING-9.yaml', calibration_from_estimate(
+        selfcal.result(), scale_serial='RING-9', source='4-head self-calibration'))
+
+    ctx, ex, add = graph
+    probe = add(rclpy.create_node('probe', context=ctx))
+    spectra: list[TeSpectrum] = []
+    probe.create_subscription(TeSpectrum, 'te/spectrum', spectra.append, qos.LATCHED_QOS)
+    recorder = add(RecorderNode(context=ctx, parameter_overrides=[
+        Parameter('output_dir', value=str(tmp_path)), Parameter('bag_name', value='bag'),
+        Parameter('discovery_period_s', value=0.1), Parameter('flush_interval_s', value=0.2)]))
+    te = add(TeNode(context=ctx, parameter_overrides=[
+        Parameter('encoder_out_calibration', value=str(cal_file))]))
+    spin_for(ex, 1.0)
+    one = {k: v for k, v in bench_values(4).items() if k != 'encoder_out_heads_deg'}
+    bench = add(BenchNode(context=ctx, parameter_overrides=[
+        Parameter(k, value=v) for k, v in one.items()]))
+    assert spin_until(ex, lambda: bench.finished, 90.0), 'bench did not finish'
+    assert spin_until(ex, lambda: len(spectra) >= 2, 30.0)
+    spin_for(ex, 1.0)
+    recorder.destroy_node()
+    assert te.heads_problem == ''
+
+    truth = _true_line1_rad(one)
+    assert abs(_line1(spectra) - truth) / ARCSEC_RAD < 0.3, (
+        _line1(spectra) / ARCSEC_RAD, truth / ARCSEC_RAD)
+    res = analyze_bag(tmp_path / 'bag', with_advice=False)
+    line = next(ln.amplitude_rad for ln in res.spectrum.lines if ln.label == 'f_out')
+    assert res.encoder['calibration_source'] == 'session'
+    assert abs(line - truth) / ARCSEC_RAD < 0.3
+    raw = analyze_bag(tmp_path / 'bag', with_advice=False, session_calibration=False)
+    line0 = next(ln.amplitude_rad for ln in raw.spectrum.lines if ln.label == 'f_out')
+    assert abs(line0 - truth) / ARCSEC_RAD > 3.0
+
+
 def test_a_bad_calibration_file_stops_the_te_node_at_start(ros_context, tmp_path: Path) -> None:
     bad = tmp_path / 'bad.yaml'
     bad.write_text('format: rv-te encoder calibration 1\nscale_serial: X\n')
