@@ -147,9 +147,8 @@ def _te_result(step: Step, info: BenchInfoData, segments: list[SegmentData],
                 note = str(exc)
             else:
                 value = d.te_pp_rad
-                if seg.role == 'te':
-                    budget = te_direction_budget('te_pp_rad', th_in[settle:], th_out[settle:],
-                                                 d, gear_ratio=info.gear_ratio, bench=bench)
+                budget = te_direction_budget('te_pp_rad', th_in[settle:], th_out[settle:], d,
+                                             gear_ratio=info.gear_ratio, bench=bench)
                 pos, curve = _decimate(d.position_rad, d.te_by_position_rad)
                 row.update({
                     'revolutions': d.revolutions, 'te_pp_per_rev_rad': list(d.pp_per_rev_rad),
@@ -176,7 +175,8 @@ def _te_result(step: Step, info: BenchInfoData, segments: list[SegmentData],
         else:
             name = (f'te_pp_{seg.label["direction"]}_{seg.label["speed_rpm"]:g}rpm_'
                     f'{seg.label["load_nm"]:g}nm_rad')
-            measured.append(Measured(f'sweep:{name}', step.name, 'rad', value, note_line))
+            measured.append(_measured(f'sweep:{name}', step.name, 'rad', value, note_line,
+                                      budget))
     return measured, {'kind': step.kind, 'rows': rows}
 
 

@@ -3,8 +3,10 @@
 The client of the ``test_sequencer``'s ``run_test_plan`` action: it validates the plan and
 the tolerance profile, sends them with the unit's serial and the operator, shows the
 progress, prints the verdict table and writes the unit report (HTML + JSON + PNG).
-Exit code: 0 the unit passes, 3 it fails, 1 error, cancelled (Ctrl-C cancels the test and
-stops the bench) or not judged (recorded data that lacks what a step needs).
+Exit code: 0 the unit passes, 3 it fails, 4 indeterminate (the tolerance profile's guarded
+decision rule could not prove conformance or non-conformance: a value and its U straddle a
+limit), 1 error, cancelled (Ctrl-C cancels the test and stops the bench) or not judged
+(recorded data that lacks what a step needs).
 
 Without ``--launch`` it talks to a running session (a bench with ``commanded: true``, a
 ``test_sequencer`` and a recorder); with ``--launch PRESET`` it starts a simulated one

@@ -4,8 +4,9 @@ Reads the last ended test in the bag (``test/report``; ``--serial`` picks a unit
 every finished step's metrics again from the recorded encoder blocks (the ``test/step``
 records give each step's block range and blocks per segment), judges them against the
 recorded tolerance profile, checks that the values equal the ones recorded live, and writes
-the unit report. No ROS needed. Exit code as ``rv-te test``: 0 pass, 3 fail, 1 error (also a
-cancelled test, or values that differ from the recorded ones).
+the unit report. No ROS needed. Exit code as ``rv-te test``: 0 pass, 3 fail, 4 indeterminate
+(guarded decision rule), 1 error (also a cancelled test, or values that differ from the
+recorded ones).
 
 Usage examples:
   rv-te unit-report out/tests/RV80E-0042_20261124T092855Z/bag

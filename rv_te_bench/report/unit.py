@@ -480,12 +480,13 @@ def render_unit_html(report: dict[str, Any], images: dict[str, bytes]) -> str:
         if s['kind'] == 'sweep':
             p.append(f"<h2>TE p-p against speed and load ({_e(s['name'])})</h2><table>"
                      '<tr><th>speed [rpm]</th><th>load [N m]</th><th>TE p-p [arcmin]</th>'
-                     '<th>mean [arcmin]</th></tr>')
+                     '<th>U [arcmin]</th><th>mean [arcmin]</th></tr>')
             for r in s['rows']:
                 st = r.get('stats') or {}
                 p.append(f"<tr><td>{r['speed_rpm']:g}</td><td>{r['load_nm']:g}</td>"
                          f"<td>{_fmt((r['te_pp_rad'] or math.nan) * ARCMIN_PER_RAD)}</td>"
-                         f"<td>{_fmt(st.get('te_mean_arcmin') or math.nan)}</td></tr>")
+                         f"<td>{_fmt((r.get('te_pp_rad_u95') or math.nan) * ARCMIN_PER_RAD, 2)}"
+                         f"</td><td>{_fmt(st.get('te_mean_arcmin') or math.nan)}</td></tr>")
             p.append('</table>')
     loss_sections(report, img, p)
     p.append('<h2>Advice</h2><ul>' + ''.join(f'<li>{_e(a)}</li>' for a in _advice(report))

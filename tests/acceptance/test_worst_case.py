@@ -251,3 +251,9 @@ def test_te_step_skips_its_settling_and_reports_lines_at_their_frequencies() -> 
         ('sweep:te_pp_ccw_300rpm_50nm_rad', 'sweep', 'rad')]
     assert [m.value for m in sweep_m] == pytest.approx([2 * a, 2 * a], rel=1e-6)
     assert sweep_details['kind'] == 'sweep'
+    # a sweep point is a TE p-p like the TE step's: the same record after settling has the
+    # same budget, and its U is in the row and on the metric (issue 35: U on every result)
+    assert te_m.u95 > 0 and row['te_pp_rad_u95'] == te_m.u95
+    for m, r in zip(sweep_m, sweep_details['rows'], strict=True):
+        assert m.u95 == pytest.approx(te_m.u95, rel=1e-9)
+        assert r['te_pp_rad_u95'] == m.u95
