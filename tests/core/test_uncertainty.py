@@ -145,8 +145,32 @@ def test_pp_graduation_harmonic_is_an_arcsine_of_2_sin_k_delta_over_2() -> None:
     assert b.distribution == 'arcsine'
     assert b.contribution == pytest.approx(0.5 * AS / math.sqrt(2) * 2 * abs(math.sin(delta)))
     # doubling the amplitude doubles the contribution
-    b2 = _pp(_bench(), ).input('output encoder: graduation, order 2')
-    assert b2.contribution == pytest.approx(b.contribution)
+    enc2 = EncoderErrorModel(model='test', graduation=((2, 1.0 * AS),))
+    b2 = _pp(BenchUncertainty(encoder_in=EncoderErrorModel(model='ideal'), encoder_out=enc2)
+             ).input('output encoder: graduation, order 2')
+    assert b2.contribution == pytest.approx(2 * b.contribution, rel=1e-12)
+
+
+def test_pp_mounting_eccentricity_of_a_scale_is_an_order_1_arcsine() -> None:
+    """A ring scale mounted e off its axis reads 2 e / D sin(theta + rho) (DESIGN.md s.7);
+    its measured value and its uncertainty enter as one order-1 harmonic of amplitude
+    hypot(e, u(e)) (phase unknown): on a p-p with extremes Delta apart, c = 2 |sin(Delta/2)|."""
+    base = BenchUncertainty(encoder_in=EncoderErrorModel(model='ideal'),
+                            encoder_out=EncoderErrorModel(model='ring'))
+    delta = 1.9 - 0.3
+    contrib = []
+    for e_um, u_um in ((2.0, 0.0), (2.0, 1.5), (4.0, 0.0)):
+        bench = bench_uncertainty_from_plain({'encoders': {'output': {
+            'eccentricity_um': e_um, 'eccentricity_u_um': u_um,
+            'scale_diameter_mm': 200.0}}}, base)
+        x = _pp(bench).input('output encoder: mounting eccentricity (order 1)')
+        amp = 2 * math.hypot(e_um, u_um) * 1e-6 / 0.2
+        assert x.distribution == 'arcsine'
+        assert x.contribution == pytest.approx(amp / math.sqrt(2) * 2 * abs(math.sin(delta / 2)),
+                                               rel=1e-12)
+        contrib.append(x.contribution)
+    assert contrib[1] == pytest.approx(contrib[0] * 2.5 / 2.0)     # hypot(2, 1.5) = 2.5
+    assert contrib[2] == pytest.approx(2 * contrib[0])
 
 
 def test_pp_input_encoder_harmonic_turns_i_times_and_is_divided_by_i() -> None:
