@@ -85,6 +85,12 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
                    help='skip the compensation recommendation (the 2K-V assembly-phase '
                         'search takes several seconds)')
     p.add_argument('--quiet', action='store_true', help='no progress lines on stderr')
+    p.add_argument('--monte-carlo', type=int_between(100, 1_000_000), default=None,
+                   metavar='N',
+                   help='also propagate the uncertainty budgets by Monte Carlo (GUM '
+                        'Supplement 1, N draws, 100..1000000) through the measurement model '
+                        'on the TE trace, beside the law of propagation (seconds to minutes; '
+                        'never part of a plain analysis)')
     add_heads_arguments(p)
     add_db_argument(p, mode='also')
     p.add_argument('--serial', default=None,
@@ -184,6 +190,8 @@ def _run(args: argparse.Namespace) -> int:
                   file=sys.stderr)
         if res.recommendation.encoder_flag:
             print(f'FLAG: {bag}: {res.recommendation.encoder_flag}', file=sys.stderr)
+        if args.monte_carlo is not None:
+            res = _with_monte_carlo(res, args.monte_carlo, quiet=args.quiet)
         results.append(res)
 
     doc = report_json(results)
@@ -199,6 +207,25 @@ def _run(args: argparse.Namespace) -> int:
         print(f'recorded in the results store {recorded_in}',
               file=sys.stderr if args.json else sys.stdout)
     return 0
+
+
+def _with_monte_carlo(res: AnalysisResult, draws: int, *, quiet: bool) -> AnalysisResult:
+    """``res`` with the Monte Carlo check of its budgets (report.uncertainty)."""
+    from dataclasses import replace
+
+    from rv_te_bench.report.uncertainty import monte_carlo_check
+
+    if res.uncertainty is None:
+        return res
+    t0 = time.monotonic()
+    if not quiet:
+        print(f'{res.path}: Monte Carlo check of the budgets, {draws} draws ...',
+              file=sys.stderr)
+    check = monte_carlo_check(res.uncertainty, res.trace, res.spectrum,
+                              gear_ratio=res.bench.gear_ratio, draws=draws)
+    if not quiet:
+        print(f'{res.path}: Monte Carlo done in {time.monotonic() - t0:.1f} s', file=sys.stderr)
+    return replace(res, uncertainty=replace(res.uncertainty, monte_carlo=check))
 
 
 def _record(args: argparse.Namespace, doc: dict[str, Any]) -> str | None:
@@ -295,6 +322,16 @@ def _print_te_pp_u95(res: AnalysisResult, out: TextIO) -> None:
         p = next(iter(res.uncertainty.budgets.values())).coverage_probability
         print(f'  TE p-p [arcmin]: {"; ".join(parts)} (+- U, {100 * p:.2f} % coverage; '
               'budgets in --json)', file=out)
+    mc = res.uncertainty.monte_carlo
+    if mc is not None and mc.results:
+        pp = mc.results.get('te_pp_revolution_max_rad')
+        worst = max(mc.results.items(), key=lambda kv: abs(kv[1].difference)
+                    if math.isfinite(kv[1].difference) else -1.0)
+        head = (f'TE p-p U {float(rad_to_arcmin(pp.u_mc)):.2g} (law of propagation '
+                f'{float(rad_to_arcmin(pp.u_gum)):.2g}, {100 * pp.difference:+.1f} %); '
+                if pp is not None else '')
+        print(f'  Monte Carlo (GUM S1, {mc.draws} draws, {len(mc.results)} budgets): {head}'
+              f'largest difference {100 * worst[1].difference:+.1f} % ({worst[0]})', file=out)
 
 
 def _print_identification(rec: Recommendation, out: TextIO) -> None:

@@ -336,6 +336,19 @@ def _budgets_section(res: AnalysisResult) -> str:
              '(output).</p>']
     parts += [budget_html(title, unc.budgets[key]) for title, key in shown
               if key in unc.budgets]
+    if unc.monte_carlo is not None and unc.monte_carlo.results:
+        from rv_te_bench.report.uncertainty import display_of
+
+        mc = unc.monte_carlo
+        parts.append(f'<h4>Monte Carlo check (GUM Supplement 1, {mc.draws} draws)</h4>'
+                     '<table><tr><th class="l">result</th><th>U law of propagation</th>'
+                     '<th>U Monte Carlo</th><th>difference</th><th class="l">unit</th></tr>')
+        for name, r in mc.results.items():
+            sc, unit = display_of(name)
+            parts.append(f'<tr><td class="l">{_e(name)}</td><td>{r.u_gum * sc:.3g}</td>'
+                         f'<td>{r.u_mc * sc:.3g}</td><td>{100 * r.difference:+.1f} %</td>'
+                         f'<td class="l">{unit}</td></tr>')
+        parts.append('</table>')
     parts += [f'<p class="muted">note: {_e(n)}</p>' for n in unc.notes]
     return ''.join(parts)
 

@@ -18,6 +18,8 @@ What the streamed analysis does not keep, and how it is replaced:
 * the samples per revolution: from the sample count and the revolutions.
 
 Cost: a few milliseconds per bag (tens of budgets; benchmarks/README.md, offline analysis).
+A Monte Carlo propagation of the budgets (GUM Supplement 1, :func:`monte_carlo_check`) is
+never part of an analysis: it runs on request (``rv-te analyze --monte-carlo N``).
 """
 
 from __future__ import annotations
@@ -42,11 +44,13 @@ if TYPE_CHECKING:
     from rv_te_bench.core.stream_records import WindowResult
     from rv_te_bench.core.te import TeStats
     from rv_te_bench.core.uncertainty import Budget
+    from rv_te_bench.core.uncertainty_mc import McResult
     from rv_te_bench.report.results import TeTrace
     from sim.bench_info import BenchInfoData
 
-__all__ = ['AnalysisUncertainty', 'analysis_uncertainty', 'bench_uncertainty_of',
-           'budget_html', 'display_of', 'line_budget_key']
+__all__ = ['AnalysisUncertainty', 'MonteCarloCheck', 'analysis_uncertainty',
+           'bench_uncertainty_of', 'budget_html', 'display_of', 'line_budget_key',
+           'monte_carlo_check']
 
 
 
@@ -64,11 +68,13 @@ class AnalysisUncertainty:
         budgets: ``te_pp_rad`` (all clean samples), ``te_pp_revolution_max_rad`` (the
             largest p-p of one whole revolution), ``line <label> amplitude`` / ``phase``.
         notes: What was assumed for the whole analysis.
+        monte_carlo: The Monte Carlo check of the budgets, when requested (None: not run).
     """
 
     bench: BenchUncertainty
     budgets: dict[str, Budget] = field(default_factory=dict)
     notes: tuple[str, ...] = ()
+    monte_carlo: MonteCarloCheck | None = None
 
     def u95(self, name: str) -> float:
         """U of a budget (NaN when there is none)."""
@@ -86,6 +92,8 @@ class AnalysisUncertainty:
         if rev is not None:
             out['te_pp_revolution_max_rad'] = rev.value
             out['te_pp_revolution_max_rad_u95'] = rev.u95
+        if self.monte_carlo is not None:
+            out['monte_carlo'] = self.monte_carlo.to_json_dict()
         return out
 
 
@@ -161,6 +169,81 @@ def analysis_uncertainty(*, info: BenchInfoData | None, gear_ratio: float,
             budgets[line_budget_key(ln.label, 'amplitude')] = a
             budgets[line_budget_key(ln.label, 'phase')] = p
     return AnalysisUncertainty(bench=bench, budgets=budgets, notes=tuple(notes))
+
+
+@dataclass(frozen=True)
+class MonteCarloCheck:
+    """A Monte Carlo propagation (GUM Supplement 1) of an analysis's budgets, on request.
+
+    Attributes:
+        draws: Draws per budget.
+        results: Budget name -> its :class:`~rv_te_bench.core.uncertainty_mc.McResult`.
+        notes: What the check ran on.
+    """
+
+    draws: int
+    results: dict[str, McResult] = field(default_factory=dict)
+    notes: tuple[str, ...] = ()
+
+    def to_json_dict(self) -> dict[str, Any]:
+        """JSON (SI): each budget's U (law of propagation) beside the Monte Carlo one."""
+        return {'draws': self.draws, 'notes': list(self.notes), 'results': {
+            name: {'u95_gum': r.u_gum, 'u95_mc': r.u_mc, 'difference': r.difference,
+                   'low': r.low, 'high': r.high, 'std_mc': r.std_mc, 'u_c': r.u_c}
+            for name, r in self.results.items()}}
+
+
+def monte_carlo_check(unc: AnalysisUncertainty, trace: TeTrace | None,
+                      spectrum: SpectrumSummary | None, *, gear_ratio: float, draws: int,
+                      seed: int = 0) -> MonteCarloCheck:
+    """Propagate the TE p-p (largest of one revolution) and every line's budgets by Monte
+    Carlo through the measurement model (:mod:`rv_te_bench.core.uncertainty_mc`), on the
+    analysis's TE trace (the recorded samples thinned to at most
+    ``report.analysis.MAX_TRACE_POINTS``; rows at gaps dropped): the encoders' error
+    functions drawn at new phases and removed from the record, the p-p and the lines'
+    phasors taken again. For validation or on request (``rv-te analyze --monte-carlo N``),
+    never part of an analysis: it costs seconds to minutes.
+
+    Raises:
+        TeInputError: ``draws`` below 100, or no trace of a whole output revolution.
+    """
+    from rv_te_bench.core.uncertainty_mc import mc_line, mc_te_pp
+    from rv_te_bench.errors import TeInputError
+
+    if draws < 100:
+        msg = f'a Monte Carlo check needs >= 100 draws, got {draws}'
+        raise TeInputError(msg)
+    if trace is None:
+        msg = 'no TE trace in this analysis: nothing to propagate'
+        raise TeInputError(msg)
+    th = np.asarray(trace.theta_out_rad, dtype=np.float64)
+    te = np.asarray(trace.te_rad, dtype=np.float64)
+    ok = np.isfinite(th) & np.isfinite(te)
+    th, te = th[ok], te[ok]
+    phi = th - te
+    if th.size < 16 or abs(float(phi[-1] - phi[0])) < 2 * math.pi:
+        msg = 'the TE trace holds less than one whole output revolution'
+        raise TeInputError(msg)
+    rng = np.random.default_rng(seed)
+    out: dict[str, McResult] = {}
+    pp = unc.budgets.get('te_pp_revolution_max_rad')
+    if pp is not None:
+        out['te_pp_revolution_max_rad'] = mc_te_pp(pp, phi, te, gear_ratio=gear_ratio,
+                                                   bench=unc.bench, draws=draws, rng=rng)
+    travel = np.abs(phi - phi[0])
+    whole = travel < 2 * math.pi * math.floor(float(travel[-1]) / (2 * math.pi))
+    for ln in spectrum.lines if spectrum is not None else ():
+        a = unc.budgets.get(line_budget_key(ln.label, 'amplitude'))
+        p = unc.budgets.get(line_budget_key(ln.label, 'phase'))
+        if a is None or p is None or not (a.u_c > 0 and p.u_c > 0):
+            continue
+        ma, mp = mc_line(a, p, phi[whole], te[whole], ln.output_order, gear_ratio=gear_ratio,
+                         bench=unc.bench, draws=draws, rng=rng)
+        out[line_budget_key(ln.label, 'amplitude')] = ma
+        out[line_budget_key(ln.label, 'phase')] = mp
+    notes = (f'propagated on the analysis TE trace: {th.size} samples (every '
+             f'{trace.stride}th recorded sample), seed {seed}',)
+    return MonteCarloCheck(draws=draws, results=out, notes=notes)
 
 
 def display_of(name: str) -> tuple[float, str]:

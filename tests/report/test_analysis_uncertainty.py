@@ -94,3 +94,44 @@ def test_terminal_and_html_show_u(bag: Path, tmp_path: Path,
     html = (tmp_path / 'rep' / 'report.html').read_text()
     assert 'Uncertainty budgets' in html and '&plusmn; U [arcmin]' in html
     assert 'output encoder: graduation, order 1' in html
+
+
+def test_monte_carlo_on_request_agrees_with_the_arcsine(bag: Path, tmp_path: Path,
+                                                        capsys: pytest.CaptureFixture[str],
+                                                        ) -> None:
+    """``--monte-carlo N`` propagates the budgets through the measurement model (issue 35:
+    on request, never on a plain analysis). The f_out line's amplitude is dominated by the
+    output scale's order-1 harmonic of 0.5" at an unknown phase: removing g cos(rho) from the
+    line gives an arcsine, whose probabilistically symmetric 95.45 % interval has the
+    half-width g sin(0.9545 pi / 2) = 0.9975 g (closed form, not the budget's k)."""
+    assert main(['analyze', str(bag), '--json', '--no-db', '--no-advice', '--quiet']) == 0
+    plain = json.loads(capsys.readouterr().out)
+    b0 = plain['bags'][0] if 'bags' in plain else plain
+    assert 'monte_carlo' not in b0['uncertainty']        # not part of a plain analysis
+    assert main(['analyze', str(bag), '--json', '--no-db', '--no-advice', '--quiet',
+                 '--monte-carlo', '4000', '--report', str(tmp_path / 'rep')]) == 0
+    doc = json.loads(capsys.readouterr().out)
+    b = doc['bags'][0] if 'bags' in doc else doc
+    mc = b['uncertainty']['monte_carlo']
+    assert mc['draws'] == 4000
+    f_out = mc['results']['line f_out amplitude']
+    assert f_out['u95_mc'] == pytest.approx(G1 * math.sin(0.9545 * math.pi / 2), rel=0.01)
+    assert f_out['u95_gum'] == pytest.approx(b['uncertainty']['budgets'][
+        'line f_out amplitude']['expanded'])
+    # the law of propagation and the Monte Carlo agree within 5 % of U (issue 35 s.1)
+    pp = mc['results']['te_pp_revolution_max_rad']
+    assert abs(pp['difference']) < 0.05, pp
+    # every line the data resolves (amplitude > 10 U): the phase of a line at the noise
+    # floor is not a linear function of its inputs, and there the two need not agree
+    budgets = b['uncertainty']['budgets']
+    checked = 0
+    for name, r in mc['results'].items():
+        amp = budgets[name.replace(' phase', ' amplitude')]
+        if name.startswith('line ') and amp['value'] > 10 * amp['u95']:
+            assert abs(r['difference']) < 0.05, (name, r)
+            checked += 1
+    assert checked >= 2            # f_out: amplitude and phase
+    assert 'Monte Carlo check' in (tmp_path / 'rep' / 'report.html').read_text()
+    assert main(['analyze', str(bag), '--no-db', '--no-advice', '--quiet',
+                 '--monte-carlo', '500']) == 0
+    assert 'Monte Carlo (GUM S1, 500 draws' in capsys.readouterr().out
