@@ -56,7 +56,8 @@ def session_heads_record(path: str | Path) -> dict[str, Any] | None:
     from rosbags.typesys import Stores, get_typestore
 
     try:
-        text = get_typestore(Stores.ROS2_JAZZY).deserialize_cdr(last, _STRING).data
+        decoded: Any = get_typestore(Stores.ROS2_JAZZY).deserialize_cdr(last, _STRING)
+        text = decoded.data   # a class the typestore generates at run time
         record = load_yaml(text, origin=f'{bag.path}: {HEADS_TOPIC}', limits=DOCUMENT_LIMITS)
     except YamlInputError as exc:
         raise BagError(str(exc)) from None
