@@ -278,8 +278,13 @@ def bench_info_of(*, bench_id: str, preset: Preset, kinematics: ReducerKinematic
     (``settings['overrides']`` are the preset overrides, which
     :func:`rv_te_bench.io.bench_record.overrides_from_parameters_yaml` reads back).
     """
+    # the simulated encoders read the model's shaft angles: the reducer's zero is theirs
+    # (rv_te_bench.core.te_zero reads this to refer the TE to it)
     record = {'bench': settings,
-              'preset': {'name': preset.name, 'model': preset.model, 'values': preset.to_plain()}}
+              'preset': {'name': preset.name, 'model': preset.model, 'values': preset.to_plain()},
+              'encoder_zero': {'input_rad': 0.0, 'output_rad': 0.0,
+                               'source': "the simulated bench (encoders read the model's "
+                                         "shaft angles)"}}
     return BenchInfoData(
         bench_id=bench_id,
         preset=preset.name,

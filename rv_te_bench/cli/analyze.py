@@ -81,6 +81,11 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
                    default=1, metavar='W',
                    help='whole output revolutions per analysis window, '
                         f'1..{MAX_WINDOW_REVOLUTIONS}')
+    p.add_argument('--te-zero', choices=('auto', 'encoders', 'first-sample'), default='auto',
+                   help="the TE's zero: the encoder zeros the bench declares (bench "
+                        'description encoders.*.zero_offset_deg, a simulated bench), whole '
+                        'output turns removed; the first clean sample; auto = encoders when '
+                        'declared, else the first sample. The report states which')
     p.add_argument('--no-advice', action='store_true',
                    help='skip the compensation recommendation (the 2K-V assembly-phase '
                         'search takes several seconds)')
@@ -177,7 +182,8 @@ def _run(args: argparse.Namespace) -> int:
                           window_revolutions=args.window_revolutions,
                           with_advice=not args.no_advice, progress=progress,
                           heads_mode=args.heads, calibration=calibration,
-                          session_calibration=not args.no_session_calibration)
+                          session_calibration=not args.no_session_calibration,
+                          te_zero=args.te_zero)
         if progress is not None and progress.printed:
             dt_s = time.monotonic() - t0
             print(f'{bag}: done, {res.blocks_read} blocks in {dt_s:.1f} s '
@@ -364,6 +370,8 @@ def _print_one(res: AnalysisResult, out: TextIO) -> None:
     print(f'  preset {b.preset or "(unknown)"} ({b.reducer_type or "-"}), i = {b.gear_ratio:.6g}, '
           f'f_w = {b.crank_per_output:.6g} f_out, ratio from {b.source}; '
           f'{res.blocks_read} blocks', file=out)
+    if res.te_reference is not None:
+        print(f'  zero: {res.te_reference.describe()}', file=out)
     print(f'  {"window":>10} {"start[s]":>9} {"end[s]":>9} {"whole":>5} '
           f'{"TE p-p":>9} {"ampl":>9} {"mean":>9} {"std":>9} {"revs":>6} {"samples":>9}'
           '   (TE in arcmin)', file=out)

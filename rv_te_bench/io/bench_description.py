@@ -22,6 +22,9 @@ The file (``rv_te_bench/launch/bench_description_example.yaml`` is a full exampl
       #   serial: RING-42                          the scale's serial (for its calibration)
       #   heads_deg: [0, 90, 180, 270]             read heads around it, head 0 first
       #   scale: {diameter_mm: 100, runout_um: 4, index_deg: 0}   (or eccentricity_um)
+      # zero_offset_deg: 123.4   the encoder's reading at the reducer's zero (a zeroing
+      #                          step); the TE is then referred to these zeros, else to
+      #                          its first sample (rv_te_bench.core.te_zero)
     torque_sensor: {present: true, model: HBM T40B, scale_nm_per_unit: 1.0, unit: N m}
     unit_under_test: {serial: SN-42, operator: A. Tester, temperature_c: 23.5, notes: ''}
     joints: {input: input_joint, output: output_joint}       # JointState names (optional)
@@ -112,6 +115,9 @@ class EncoderInfo:
         scale_tilt_rad: Stated tilt of the scale plane against the axis, axial run-out (TIR)
             / D [rad] (0: not stated); an order-2 error tau^2 / 4 of every head.
         head_joints: JointState names of the heads, head 0 first (empty: one joint).
+        zero_offset_rad: The encoder's reading at the reducer's zero position [rad] (from a
+            zeroing step), or None when not declared (the TE is then referred to its first
+            sample: :mod:`rv_te_bench.core.te_zero`).
     """
 
     model: str
@@ -124,6 +130,7 @@ class EncoderInfo:
     scale_index_rad: float = 0.0
     scale_tilt_rad: float = 0.0
     head_joints: tuple[str, ...] = ()
+    zero_offset_rad: float | None = None
 
     def __post_init__(self) -> None:
         """Validate (model non-empty, resolution finite >= 0, counts >= 1)."""
@@ -143,6 +150,9 @@ class EncoderInfo:
         if self.head_joints and len(self.head_joints) != max(1, len(self.head_angles_rad)):
             _fail('EncoderInfo', 'head_joints', f'must name one joint per head '
                   f'({len(self.head_angles_rad)})', list(self.head_joints))
+        z = self.zero_offset_rad
+        if z is not None and not _number(z):
+            _fail('EncoderInfo', 'zero_offset_rad', 'must be a finite number or None', z)
 
     def scale_fields(self, side: str) -> dict[str, Any]:
         """The BenchInfo fields of this scale (``side``: 'in' or 'out')."""
@@ -360,6 +370,11 @@ class BenchDescription:
         exact preset).
         """
         record: dict[str, Any] = {'bench': self.to_plain()}
+        zin, zout = self.encoder_in.zero_offset_rad, self.encoder_out.zero_offset_rad
+        if zin is not None or zout is not None:
+            # declared encoder zeros: the TE is referred to them (core.te_zero)
+            record['encoder_zero'] = {'input_rad': zin or 0.0, 'output_rad': zout or 0.0,
+                                      'source': f'{self.origin} (encoders.*.zero_offset_deg)'}
         if self.preset is not None:
             preset = self._preset()
             record['preset'] = {'name': preset.name, 'model': preset.model,
@@ -405,6 +420,8 @@ def _encoder_plain(e: EncoderInfo) -> dict[str, Any]:
                     'scale_eccentricity_m': e.scale_eccentricity_m,
                     'scale_index_rad': e.scale_index_rad, 'scale_tilt_rad': e.scale_tilt_rad,
                     'head_joints': list(e.head_joints)})
+    if e.zero_offset_rad is not None:
+        out['zero_offset_rad'] = e.zero_offset_rad
     return out
 
 
@@ -495,8 +512,13 @@ def _encoder(k: _Keys) -> EncoderInfo:
     index = scale.num('index_deg', default=0.0, positive=False) or 0.0
     tilt = _scale_tilt_rad(scale, dia)
     scale.done()
+    zero = k.num('zero_offset_deg', positive=False)
+    if zero is not None and abs(zero) > 360.0:
+        k.fail('zero_offset_deg', 'must lie within +-360 deg (the reading at the reducer\'s '
+               'zero)', zero)
     k.done()
     return EncoderInfo(model=model, resolution_rad=float(res), counts_per_rev=cpr,
+                       zero_offset_rad=None if zero is None else math.radians(zero),
                        serial=serial, head_angles_rad=tuple(math.radians(a) for a in heads)
                        if len(heads) > 1 else (),
                        scale_diameter_m=dia * 1e-3, scale_eccentricity_m=e_um * 1e-6,

@@ -29,9 +29,10 @@ if TYPE_CHECKING:
     from collections.abc import Sequence
     from pathlib import Path
 
+    from rv_te_bench.core.te_zero import EncoderZero
     from sim.presets import Preset
 
-__all__ = ['PARAMETERS_YAML_LIMITS', 'bench_info_cdr', 'bench_uncertainty_of',
+__all__ = ['PARAMETERS_YAML_LIMITS', 'bench_info_cdr', 'bench_uncertainty_of', 'encoder_zero_of',
            'overrides_from_parameters_yaml',
            'preset_from_bench_info', 'read_bench_info', 'uncertainty_from_parameters_yaml']
 
@@ -98,6 +99,24 @@ def bench_uncertainty_of(info: BenchInfoData | None) -> tuple[BenchUncertainty, 
             section, base, where='BenchInfo parameters_yaml bench.uncertainty'), []
     except TeConfigError as exc:
         return base, [f'the bench description\'s uncertainty section is not used: {exc}']
+
+
+def encoder_zero_of(info: BenchInfoData | None) -> EncoderZero | None:
+    """The encoder zeros a bench record declares (``parameters_yaml``), or None.
+
+    :func:`rv_te_bench.core.te_zero.encoder_zero_from_record` reads the parsed record; an
+    unreadable ``parameters_yaml`` declares nothing.
+    """
+    from rv_te_bench.core.te_zero import encoder_zero_from_record
+
+    if info is None or not info.parameters_yaml:
+        return None
+    try:
+        record = load_yaml(info.parameters_yaml, origin='BenchInfo.parameters_yaml',
+                           limits=PARAMETERS_YAML_LIMITS)
+    except YamlInputError:
+        return None
+    return encoder_zero_from_record(record)
 
 
 def preset_from_bench_info(info: BenchInfoData, extra_overrides: Sequence[str] = ()) -> Preset:

@@ -39,8 +39,14 @@ __all__ = ['ReplayNode', 'main']
 _THROTTLE_S = 5.0
 
 
-def _recorded_qos(offered: Any) -> QoSProfile:
-    """Publisher QoS from a topic's recorded offered profiles (rosbag2 v8 string or v9 list)."""
+#: Types whose topics are latched by the suite's contract (bench/info): a bag written by
+#: another tool that recorded no QoS still replays them transient-local, as subscribers ask.
+_LATCHED_TYPES = frozenset({'rv_te_msgs/msg/BenchInfo'})
+
+
+def _recorded_qos(offered: Any, msgtype: str = '') -> QoSProfile:
+    """Publisher QoS from a topic's recorded offered profiles (rosbag2 v8 string or v9 list);
+    none recorded: latched for the types in :data:`_LATCHED_TYPES`, else reliable volatile."""
     try:   # bounded: the string comes from a file we did not write
         profiles = load_yaml(offered, origin='offered_qos_profiles',
                              limits=SMALL_TEXT_LIMITS) if isinstance(offered, str) else offered
@@ -51,7 +57,7 @@ def _recorded_qos(offered: Any) -> QoSProfile:
         str(p.get('durability', '')).lower() == 'transient_local' for p in profiles)
     best_effort = bool(profiles) and all(
         str(p.get('reliability', '')).lower() == 'best_effort' for p in profiles)
-    if latched:
+    if latched or (not profiles and msgtype in _LATCHED_TYPES):
         return qos.LATCHED_QOS
     return QoSProfile(
         history=HistoryPolicy.KEEP_LAST, depth=qos.ENCODER_QUEUE_DEPTH,
@@ -109,7 +115,7 @@ class ReplayNode(Node):
             except (ImportError, AttributeError, ValueError) as exc:
                 msg = f'Bag {self.bag.path}: cannot publish {topic}, type {msgtype}: {exc}'
                 raise BagError(msg) from None
-            profile = _recorded_qos(qos_by_topic.get(topic))
+            profile = _recorded_qos(qos_by_topic.get(topic), msgtype)
             self._replay_pubs[topic] = self.create_publisher(cls, topic, profile)
             if profile.durability == DurabilityPolicy.TRANSIENT_LOCAL:
                 self._latched_topics.add(topic)

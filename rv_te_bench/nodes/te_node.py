@@ -30,6 +30,7 @@ from rv_te_bench.core.head_combine import HeadCombiner
 from rv_te_bench.core.orders import OrderSet
 from rv_te_bench.core.stream import StreamingTeAnalyzer
 from rv_te_bench.core.stream_records import StreamUpdate, TeAnalysisConfig
+from rv_te_bench.core.te_zero import EncoderZero, TeZero
 from rv_te_bench.errors import EncoderCalibrationError, HeadLayoutError
 from rv_te_bench.nodes import convert, qos
 from rv_te_bench.nodes.common import (
@@ -102,6 +103,8 @@ class TeNode(Node):
         self.add_post_set_parameters_callback(self._on_params_set)
         self.drops = DropCounter(self)
         self.analyzer: StreamingTeAnalyzer | None = None
+        self.zero: TeZero | None = None           # the TE's zero (core.te_zero)
+        self._declared_zero: EncoderZero | None = None
         self.bench_id = ''
         self._gaps_total = 0
         self.last_gap = ''   # the latest gap's detail (when and how long), for diagnostics
@@ -157,6 +160,10 @@ class TeNode(Node):
         config = TeAnalysisConfig(orders=orders,
                                   window_revolutions=float(self.p.window_revolutions),
                                   decimated_rate_hz=self.p.decimated_rate_hz)
+        if self.zero is None or self.zero.reference is None or \
+                self.zero.gear_ratio != orders.gear_ratio:
+            self.zero = TeZero(self.p.te_zero, gear_ratio=orders.gear_ratio,
+                               declared=self._declared_zero)
         if self.analyzer is None:
             self.analyzer = StreamingTeAnalyzer(config)
             pending, self._pending = self._pending, deque()
@@ -176,6 +183,8 @@ class TeNode(Node):
             self.analyzer.set_decimated_rate(self.p.decimated_rate_hz)  # window stays
 
     def _on_info(self, msg: BenchInfo) -> None:
+        from rv_te_bench.io.bench_record import encoder_zero_of
+
         self.bench_id = msg.bench_id
         try:
             info = BenchInfoData.from_message(msg)
@@ -183,6 +192,10 @@ class TeNode(Node):
             self.drops.drop('bad_bench_info', str(exc))
             return
         self._configure_heads(info)
+        self._declared_zero = encoder_zero_of(info)
+        if self.zero is not None and self.zero.reference is None:
+            self.zero = TeZero(self.p.te_zero, gear_ratio=self.zero.gear_ratio,
+                               declared=self._declared_zero)   # no sample referred yet
         if self.p.gear_ratio > 0:
             return  # parameters win (real bench)
         try:
@@ -252,6 +265,11 @@ class TeNode(Node):
                 self._gaps_total += 1
                 self.get_logger().warning(
                     f'joined the stream at seq {block.seq}: blocks 0..{block.seq - 1} not seen')
+        if self.zero is not None:
+            latched = self.zero.reference is not None
+            block = self.zero.apply(block)
+            if not latched and self.zero.reference is not None:
+                self.get_logger().info(self.zero.reference.describe())
         update = self.analyzer.push(block)
         self._blocks += 1
         for gap in update.gaps:
@@ -338,7 +356,9 @@ class TeNode(Node):
                   **{f'dropped_{k}': v for k, v in self.drops.counts.items()},
                   'latency_median_ms': float(np.median(lat)),
                   'latency_max_ms': float(np.max(lat)),
-                  **({'last_gap': self.last_gap} if self.last_gap else {})}
+                  **({'last_gap': self.last_gap} if self.last_gap else {}),
+                  **({'te_zero': self.zero.reference.describe()}
+                     if self.zero is not None and self.zero.reference is not None else {})}
         level = OK if self.drops.total == 0 and self._gaps_total == 0 else WARN
         if self.heads_problem:
             level = ERROR

@@ -142,6 +142,7 @@ def analyze_bag(
     heads_mode: str = 'average',
     calibration: EncoderCalibration | None = None,
     session_calibration: bool = True,
+    te_zero: str = 'auto',
 ) -> AnalysisResult:
     """Analyse one recorded session.
 
@@ -166,6 +167,9 @@ def analyze_bag(
         session_calibration: With no ``calibration``, take off the one the session's TE
             node applied live (its ``te/encoder_heads`` record in the bag), so that the
             offline TE is the live one; the report says where it came from.
+        te_zero: The TE's zero (:mod:`rv_te_bench.core.te_zero`): ``'auto'`` (the encoder
+            zeros the bench declares, else the first clean sample), ``'encoders'`` or
+            ``'first-sample'``; the result's ``te_reference`` states which was used.
 
     Returns:
         The analysis; ``partial`` is set when a read error ended the bag early.
@@ -180,12 +184,14 @@ def analyze_bag(
 
     from rv_te_bench.core.offline import analyze_blocks
     from rv_te_bench.core.stream_records import TeAnalysisConfig
+    from rv_te_bench.core.te_zero import TeZero
     from rv_te_bench.io.bag_reader import (
         helper_threads_allowed,
         open_bag,
         read_encoder_batches,
         summarize_problems,
     )
+    from rv_te_bench.io.bench_record import encoder_zero_of
 
     t_start = time.monotonic()
     path = Path(path)
@@ -200,6 +206,7 @@ def analyze_bag(
     calibration, cal_source, cal_problems = choose_calibration(
         path, info, calibration, from_session=session_calibration, when=when)
     combiner = _combiner(path, info, heads_mode, calibration, when)
+    zero = TeZero(te_zero, gear_ratio=bench.gear_ratio, declared=encoder_zero_of(info))
 
     # one helper thread reads the bag ahead and computes window spectra: with the caller,
     # two runnable threads on two cores (a third preempts the caller: issue 23); where one
@@ -213,8 +220,8 @@ def analyze_bag(
         fold = AngleFold() if with_advice and bench.reducer_type == '2kv' else None
         # the shaft angles formed from the read heads (and the calibration) before anything
         items = stream if combiner is None else combine_stream(stream, combiner)
-        reader = _GuardedBlocks(items, bench.gear_ratio, progress=progress, t_start=t_start,
-                                fold=fold, max_points=MAX_TRACE_POINTS)
+        reader = _GuardedBlocks(zero.stream(items), bench.gear_ratio, progress=progress,
+                                t_start=t_start, fold=fold, max_points=MAX_TRACE_POINTS)
         averager = SpectrumAverager()
         kept: list[WindowResult] = []
 
@@ -285,7 +292,8 @@ def analyze_bag(
         recommendation=recommendation, partial=partial,
         problems=tuple(problems), blocks_read=reader.blocks,
         elapsed_s=time.monotonic() - t_start, read_problems=tuple(read_problems),
-        session=session, encoder=encoder, uncertainty=uncertainty)
+        session=session, encoder=encoder, uncertainty=uncertainty,
+        te_reference=zero.reference)
 
 
 #: Where the output calibration applied offline came from, for people.

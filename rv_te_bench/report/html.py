@@ -185,7 +185,9 @@ def _bag_section(res: AnalysisResult) -> str:
                                       zip(b.mesh_orders_out, b.mesh_labels, strict=False))
              or '-'),
             ('encoders (in / out)', f'{b.encoder_in_model or "-"} / {b.encoder_out_model or "-"}'),
-            ('ratio source', b.source), ('blocks read', str(res.blocks_read))]
+            ('ratio source', b.source), ('blocks read', str(res.blocks_read)),
+            ('TE zero', res.te_reference.describe() if res.te_reference is not None
+             else 'no clean sample')]
     sess = res.session   # the unit under test, from the bag's metadata (bench description)
     rows += [(k, v) for k, v in (('unit serial', sess.unit_serial), ('operator', sess.operator),
                                  ('temperature [degC]', sess.temperature_c),

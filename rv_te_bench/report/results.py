@@ -27,6 +27,7 @@ if TYPE_CHECKING:
     from rv_te_bench.core.spectrum import SpectrumLine
     from rv_te_bench.core.stream_records import GapEvent, WindowResult
     from rv_te_bench.core.te import TeStats
+    from rv_te_bench.core.te_zero import TeReference
     from rv_te_bench.report.uncertainty import AnalysisUncertainty
     from sim.bench_info import BenchInfoData
 
@@ -263,6 +264,8 @@ class AnalysisResult:
             (``once_per_rev``: :class:`~rv_te_bench.core.encoder_attribution.OncePerRevNote`).
         uncertainty: The budgets of the TE p-p and the lines (docs/UNCERTAINTY.md), None
             when not computed.
+        te_reference: The zero the TE was referred to (encoder zeros or the first sample;
+            :mod:`rv_te_bench.core.te_zero`), None when no sample was clean.
     """
 
     path: Path
@@ -284,6 +287,7 @@ class AnalysisResult:
     session: SessionInfo = field(default_factory=lambda: SessionInfo(name=''))
     encoder: dict[str, Any] = field(default_factory=dict)
     uncertainty: AnalysisUncertainty | None = None
+    te_reference: TeReference | None = None
 
     @property
     def complete_windows(self) -> tuple[WindowResult, ...]:
@@ -302,6 +306,8 @@ class AnalysisResult:
             'read_problems': list(self.read_problems),
             'blocks_read': self.blocks_read,
             'bench': self.bench.to_json_dict(),
+            'te_reference': (None if self.te_reference is None
+                             else self.te_reference.to_json_dict()),
             'cumulative': {**stats_json(self.cumulative), **self._u95('te_pp_rad')},
             'windows': [{
                 'index': int(w.index), 'complete': bool(w.complete),

@@ -51,9 +51,9 @@ bench_id: sim-js
 preset: wang2020-2kv
 sample_rate_hz: 1000.0
 block_size: 100
-encoders:
-  input: {model: heidenhain-ron886}
-  output: {model: heidenhain-ron886}
+encoders:       # the simulated encoders read the model's shafts: their zeros are 0
+  input: {model: heidenhain-ron886, zero_offset_deg: 0.0}
+  output: {model: heidenhain-ron886, zero_offset_deg: 0.0}
 torque_sensor: {present: true, scale_nm_per_unit: 1.0}
 joints: {input: input_joint, output: output_joint}
 """

@@ -141,7 +141,10 @@ def write_bag(
                 encoder_in_model='ideal', encoder_out_model='ideal',
                 encoder_in_resolution_rad=0.0, encoder_out_resolution_rad=0.0,
                 sample_rate_hz=sample_rate_hz, block_size=block_size,
-                parameters_yaml='synthetic: true\n', **added_field_defaults(BENCH_INFO))
+                # exact angles: the encoders' zeros are the reducer's (core.te_zero)
+                parameters_yaml='synthetic: true\nencoder_zero: {input_rad: 0.0, '
+                                'output_rad: 0.0, source: synthetic bench}\n',
+                **added_field_defaults(BENCH_INFO))
             writer.write(INFO_TOPIC, t0_ns, store.serialize_cdr(info, BENCH_INFO))
         if not with_blocks:
             return Synth(t_s=t[:0], theta_in_rad=theta_in[:0], theta_out_rad=theta_out[:0],

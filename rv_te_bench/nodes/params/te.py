@@ -66,6 +66,13 @@ class TeParams:
         'readings; its scale serial must be the one bench/info reports; empty: none [path]')
     encoder_in_calibration: str = param(
         '', 'Encoder calibration file of the input scale; empty: none [path]')
+    te_zero: str = param(
+        'auto',
+        "The TE's zero: 'encoders' = the encoder zeros bench/info declares (a bench "
+        "description's zero_offset_deg, a simulated bench), whole output turns removed; "
+        "'first-sample' = the TE at the first clean sample removed; 'auto' = encoders "
+        'when declared, else the first sample [-]',
+        choices=('auto', 'encoders', 'first-sample'))
 
 
 PARAMS = param_specs(TeParams)
