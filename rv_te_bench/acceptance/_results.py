@@ -28,6 +28,7 @@ from rv_te_bench.core.hysteresis_measured import (
 )
 from rv_te_bench.core.orders import OrderSet
 from rv_te_bench.core.te import output_phase_and_te
+from rv_te_bench.core.units import metric_unit
 from rv_te_bench.errors import TeInputError
 
 if TYPE_CHECKING:
@@ -99,7 +100,7 @@ def _measured(name: str, step: str, unit: str, value: float, note: str,
 
 
 def _unit(name: str) -> str:
-    return 'N m/rad' if name.endswith('_nm_per_rad') else ('J' if name.endswith('_j') else 'rad')
+    return metric_unit(name).si
 
 
 def step_result(step: Step, info: BenchInfoData, segments: list[SegmentData],

@@ -29,13 +29,13 @@ __all__ = ['live_rows', 'plan_steps', 'unit_of']
 
 
 def unit_of(name: str) -> str:
-    """SI unit of a metric from its name's suffix."""
-    if name.endswith('_nm_per_rad'):
-        return 'N m/rad'
-    for suffix, unit in (('_rad', 'rad'), ('_j', 'J'), ('_nm', 'N m'), ('_w', 'W')):
-        if name.endswith(suffix):
-            return unit
-    return ''
+    """SI unit of a metric from the one metric unit table ('' when it has none)."""
+    from rv_te_bench.core.units import metric_unit
+
+    try:
+        return metric_unit(name).si
+    except KeyError:
+        return ''
 
 
 def _yaml(text: str, what: str) -> Any:

@@ -18,7 +18,6 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 
 from rv_te_bench.io.files import write_all
-from sim.units import rad_to_arcmin
 
 if TYPE_CHECKING:
     from pathlib import Path
@@ -30,16 +29,18 @@ if TYPE_CHECKING:
 
 __all__ = ['display_unit', 'spc_document', 'spc_figure', 'write_spc_report']
 
-_ARCMIN_PER_RAD = float(rad_to_arcmin(1.0))
-
 
 def display_unit(metric: str) -> tuple[float, str]:
-    """(scale from the stored SI value, unit shown) of a metric name or ``line:LABEL``."""
-    if metric.startswith('line:') or metric.endswith('_rad'):
-        return _ARCMIN_PER_RAD, 'arcmin'
-    if metric.endswith('_nm_per_rad'):
-        return 1.0 / _ARCMIN_PER_RAD, 'N m/arcmin'
-    return 1.0, ''
+    """(scale from the stored SI value, unit shown) of a metric name or ``line:LABEL``,
+    from the one metric unit table (:func:`rv_te_bench.core.units.metric_unit`); a name
+    the table does not know is shown as stored, without a unit."""
+    from rv_te_bench.core.units import metric_unit
+
+    try:
+        unit = metric_unit(metric)
+    except KeyError:
+        return 1.0, ''
+    return unit.per_si, unit.shown
 
 
 def _labels(series: Series, chart: ControlChart) -> list[str]:
