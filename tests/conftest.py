@@ -3,8 +3,11 @@ and a guard that no test leaves files in the repository (issue #15)."""
 
 from __future__ import annotations
 
+import atexit
 import os
+import shutil
 import subprocess
+import tempfile
 from pathlib import Path
 
 import pytest
@@ -62,6 +65,20 @@ if 'RV_TE_TEST_RUN_PID' not in os.environ:        # the run's first pytest proce
     os.environ['RV_TE_TEST_RUN_PID'] = str(os.getpid())
     os.environ['RV_TE_TEST_GIVEN_DOMAIN_ID'] = os.environ.get('ROS_DOMAIN_ID', '')
 os.environ['ROS_DOMAIN_ID'] = str(_ros_domain_id())
+
+# The results store (issue 33): the commands' default is the user's own store under
+# ~/.local/share (XDG_DATA_HOME). Tests never write there: every test process gets a data
+# folder of its own (removed at exit) and a developer's RV_TE_DB is not inherited; a test
+# that checks the default store points XDG_DATA_HOME at its tmp_path. The session also
+# fails when the real default store changed during the run (pytest_sessionfinish).
+REAL_DEFAULT_STORE = Path(os.environ.get('RV_TE_TEST_REAL_XDG_DATA_HOME')
+                          or os.environ.get('XDG_DATA_HOME')
+                          or Path.home() / '.local' / 'share') / 'rv-te' / 'results.sqlite'
+os.environ.setdefault('RV_TE_TEST_REAL_XDG_DATA_HOME', str(REAL_DEFAULT_STORE.parents[1]))
+_TEST_DATA_HOME = tempfile.mkdtemp(prefix='rv-te-test-data-')
+atexit.register(shutil.rmtree, _TEST_DATA_HOME, ignore_errors=True)
+os.environ['XDG_DATA_HOME'] = _TEST_DATA_HOME
+os.environ.pop('RV_TE_DB', None)
 os.environ['ROS_AUTOMATIC_DISCOVERY_RANGE'] = 'LOCALHOST'
 os.environ.pop('ROS_LOCALHOST_ONLY', None)
 
@@ -185,7 +202,27 @@ def repo_litter() -> set[str] | None:
     return found
 
 
+@pytest.fixture(autouse=True)
+def default_store(monkeypatch: pytest.MonkeyPatch,
+                  tmp_path_factory: pytest.TempPathFactory) -> Path:
+    """Every test has a data folder of its own: the commands' default results store
+    (XDG_DATA_HOME/rv-te/results.sqlite, the path returned) starts empty in each test."""
+    home = tmp_path_factory.mktemp('data-home')
+    monkeypatch.setenv('XDG_DATA_HOME', str(home))
+    monkeypatch.delenv('RV_TE_DB', raising=False)
+    return home / 'rv-te' / 'results.sqlite'
+
+
+def _real_store_state() -> tuple[int, int] | None:
+    try:
+        st = REAL_DEFAULT_STORE.stat()
+    except OSError:
+        return None
+    return st.st_size, st.st_mtime_ns
+
+
 def pytest_sessionstart(session: pytest.Session) -> None:
+    session.config.stash[_REAL_STORE_KEY] = _real_store_state()
     # under pytest-xdist the controller checks (a worker would see another's files in flight);
     # a mutation run (mutmut) runs a copy of the tree in mutants/, many sessions a second
     if not os.environ.get('PYTEST_XDIST_WORKER') and 'MUTANT_UNDER_TEST' not in os.environ:
@@ -194,6 +231,13 @@ def pytest_sessionstart(session: pytest.Session) -> None:
 
 def pytest_sessionfinish(session: pytest.Session, exitstatus: int) -> None:
     _store_seconds(session)
+    if session.config.stash.get(_REAL_STORE_KEY, None) != _real_store_state():
+        reporter = session.config.pluginmanager.get_plugin('terminalreporter')
+        if reporter is not None:
+            reporter.write_line(f'ERROR: tests wrote to the real results store '
+                                f'{REAL_DEFAULT_STORE} (use tmp_path, --db or --no-db)',
+                                red=True, bold=True)
+        session.exitstatus = pytest.ExitCode.TESTS_FAILED
     before = session.config.stash.get(_LITTER_KEY, None)
     if before is None:
         return
@@ -212,3 +256,4 @@ def pytest_sessionfinish(session: pytest.Session, exitstatus: int) -> None:
 
 
 _LITTER_KEY = pytest.StashKey[set[str] | None]()
+_REAL_STORE_KEY = pytest.StashKey[tuple[int, int] | None]()

@@ -246,8 +246,8 @@ def test_utf16_parameter_file_is_read(work: Path, capsys: pytest.CaptureFixture[
 
 
 @pytest.mark.timeout(120)
-def test_report_of_a_bag_with_a_non_utf8_name(work: Path,
-                                              capsys: pytest.CaptureFixture[str]) -> None:
+def test_report_of_a_bag_with_a_non_utf8_name(work: Path, capsys: pytest.CaptureFixture[str],
+                                              default_store: Path) -> None:
     """Undecodable bytes in the bag's and the report's path: the report is written."""
     out = work / 'rep\udcff'
     got = main(['analyze', 'bag\udcff', '--no-advice', '--quiet', '--report', str(out)])
@@ -258,7 +258,7 @@ def test_report_of_a_bag_with_a_non_utf8_name(work: Path,
     assert 'bag\ufffd' in (out / 'report.html').read_text(encoding='utf-8')
     assert json.loads((out / 'report.json').read_text(encoding='utf-8'))
     # the results store (UTF-8 only) keeps the bytes as \xNN, so two such bags stay apart
-    assert main(['results', '--db', str(work / 'rv-te-results.sqlite'), '--json']) == 0
+    assert main(['results', '--db', str(default_store), '--json']) == 0
     assert '/bag\\\\xff' in capsys.readouterr().out
 
 

@@ -22,7 +22,12 @@ from pathlib import Path
 from typing import TYPE_CHECKING, Any, TextIO
 
 from rv_te_bench import __version__
-from rv_te_bench.cli._db import add_db_argument, check_record_text, db_for_bags
+from rv_te_bench.cli._db import (
+    add_db_argument,
+    check_record_text,
+    db_for_bags,
+    store_summary,
+)
 from rv_te_bench.cli._heads import add_heads_arguments, load_calibration
 from rv_te_bench.cli.argtypes import int_between, positive_float
 from rv_te_bench.core.orders import MAX_CRANK_HARMONICS
@@ -210,7 +215,7 @@ def _run(args: argparse.Namespace) -> int:
         print(f'report written: {", ".join(str(f) for f in files)}', file=sys.stderr)
     recorded_in = _record(args, doc)
     if recorded_in:
-        print(f'recorded in the results store {recorded_in}',
+        print(f'recorded in the {recorded_in}',
               file=sys.stderr if args.json else sys.stdout)
     return 0
 
@@ -253,7 +258,7 @@ def _record(args: argparse.Namespace, doc: dict[str, Any]) -> str | None:
         with open_store(db) as store:
             for rec in records:
                 store.upsert(rec)
-            return store.url
+            return store_summary(store.url, store.count())
     except StoreError as exc:
         msg = (f'the analysis was not recorded in the results store: {exc} (--db elsewhere, '
                'or --no-db to analyse without recording)')

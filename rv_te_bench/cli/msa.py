@@ -21,7 +21,7 @@ import sys
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
-from rv_te_bench.cli._db import add_db_argument, db_to_read
+from rv_te_bench.cli._db import add_db_argument, db_to_read, store_summary
 from rv_te_bench.cli.argtypes import finite_float, int_between, positive_float
 from rv_te_bench.cli.results import add_filter_arguments, filter_from_args
 from rv_te_bench.errors import MsaError
@@ -113,8 +113,10 @@ def run(args: argparse.Namespace) -> int:
 
     with open_store(db_to_read(args), create=False) as st:   # reading changes nothing
         rows = st.query(filter_from_args(args))
+        where = store_summary(st.url, st.count())
     doc = (_type1(args, rows) if args.study == 'type1' else _grr(args, rows))
     _emit(args, doc)
+    print(f'{where}: {len(rows)} match', file=sys.stderr)
     return 0
 
 

@@ -18,7 +18,7 @@ from datetime import UTC, datetime, timedelta
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
-from rv_te_bench.cli._db import add_db_argument, db_to_read
+from rv_te_bench.cli._db import add_db_argument, db_to_read, store_summary
 from sim.units import rad_to_arcmin
 
 if TYPE_CHECKING:
@@ -30,7 +30,7 @@ __all__ = ['add_filter_arguments', 'filter_from_args', 'register', 'run']
 
 EXAMPLES = """\
 examples:
-  rv-te results                                   every record (./bags/rv-te-results.sqlite)
+  rv-te results                                   every record (of the default store)
   rv-te results --serial SN1042                   one unit's tests
   rv-te results --since 2026-11-01 --until 2026-11-24 --verdict fail
   rv-te results --preset wang2020-2kv --export units.csv        (or units.parquet)
@@ -120,6 +120,7 @@ def run(args: argparse.Namespace) -> int:
     flt = filter_from_args(args)
     with open_store(db_to_read(args), create=False) as st:
         rows = st.query(flt)
+        where = store_summary(st.url, st.count())
     if args.export is not None:
         n = export_records(rows, args.export)
         print(f'{n} record(s) written to {args.export}', file=sys.stderr)
@@ -127,10 +128,11 @@ def run(args: argparse.Namespace) -> int:
         if args.json:
             print(json.dumps([_json(r) for r in rows], indent=2))
         elif args.export is None:
-            _table(rows)
+            _table(rows, where)
     except BrokenPipeError:
         devnull = os.open(os.devnull, os.O_WRONLY)
         os.dup2(devnull, sys.stdout.fileno())
+    print(f'{where}: {len(rows)} match', file=sys.stderr)
     return 0
 
 
@@ -157,14 +159,17 @@ _PP_HEAD = "TE p-p [']"
 _FW_HEAD = "1 f_w [']"
 
 
-def _table(rows: list[Any]) -> None:
+def _table(rows: list[Any], where: str) -> None:
     if not rows:
-        print('no records match')
+        print(f'no records match in the {where}')
         return
     print(f'{"tested (UTC)":<17} {"serial":<14} {"preset":<16} {"status":<8} {"verdict":<13} '
           f'{_PP_HEAD:>9} {_FW_HEAD:>9}  bag')
     for r in rows:
         pp = r.metrics.get(('te_pp_revolution_max_rad', 'all'), r.metrics.get(('te_pp_rad', 'all')))
+        if pp is None:   # a test measures TE per direction: the worse one
+            both = [r.metrics.get(('te_pp_revolution_max_rad', d)) for d in ('ccw', 'cw')]
+            pp = max((v for v in both if v is not None), default=None)
         fw = r.lines.get('1 f_w')
         print(f'{r.tested_at.strftime("%Y-%m-%d %H:%M"):<17} {(r.serial or "-")[:14]:<14} '
               f'{(r.preset or "-")[:16]:<16} {r.status:<8} {r.verdict:<13} {_am(pp)} '

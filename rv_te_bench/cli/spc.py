@@ -11,7 +11,9 @@ points in a row beyond 2 (1) sigma on the same side of the centre line, the othe
 anywhere, a point beyond 3 sigma counting as beyond 2; a hit is reported at the point that
 completes the pattern. METRIC is a stored metric name (``te_pp_revolution_max_rad``,
 ``te_pp_rad``, ``lost_motion_rad``, ...) or ``line:LABEL`` for a spectral line amplitude
-(``line:1 f_w``): ``--list`` shows what the store holds. Angles are shown in arcmin.
+(``line:1 f_w``): ``--list`` shows what the store holds. Every metric is shown in the unit
+of the one metric unit table (``rv_te_bench.core.units.metric_unit``): angles in arcmin,
+rigidities in N m/arcmin, the hysteresis loss in J; limits are given in that unit.
 
 Exit codes: 0 ok (whether or not a rule fires: see the report / JSON), 1 failed (one
 ``ERROR: ...`` line), 2 bad usage.
@@ -26,7 +28,7 @@ import sys
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
-from rv_te_bench.cli._db import add_db_argument, db_to_read
+from rv_te_bench.cli._db import add_db_argument, db_to_read, store_summary
 from rv_te_bench.cli.argtypes import finite_float, int_between
 from rv_te_bench.cli.results import add_filter_arguments, filter_from_args
 from rv_te_bench.errors import SpcError
@@ -76,10 +78,12 @@ def register(subparsers: Subparsers) -> None:
                    help='run rules (default: nelson, rules 1-8; rules 5/6: 2 of 3 / 4 of 5 '
                         'beyond 2 / 1 sigma on one side, the other point anywhere)')
     p.add_argument('--usl', type=finite_float, default=None, metavar='X',
-                   help='upper specification limit in the unit shown (arcmin for angles); '
-                        'Cp/Cpk and Pp/Ppk are of the baseline points')
+                   help='upper specification limit in the unit shown (arcmin for angles, '
+                        'N m/arcmin for rigidities, J for the hysteresis loss); Cp/Cpk and '
+                        'Pp/Ppk are of the baseline points')
     p.add_argument('--lsl', type=finite_float, default=None, metavar='X',
-                   help='lower specification limit in the unit shown')
+                   help='lower specification limit in the unit shown (e.g. --lsl 196 for '
+                        'a rigidity of 196 N m/arcmin)')
     p.add_argument('--measurement-sigma', type=finite_float, default=None, metavar='S',
                    help='standard uncertainty of one measurement in the unit shown, for the '
                         'corrected Cp/Cpk (default: the root mean square of the stored u_c '
@@ -97,10 +101,12 @@ def run(args: argparse.Namespace) -> int:
     from rv_te_bench.store import open_store
 
     with open_store(db_to_read(args), create=False) as st:
+        where = store_summary(st.url, st.count())
         if args.list:
             names = [n if d == 'all' else f'{n} --direction {d}' for n, d in st.metric_names()]
             names += [f'line:{lab}' for lab in st.line_labels()]
             _print_quietly('\n'.join(names))
+            print(where, file=sys.stderr)
             return 0
         if not args.metric:
             msg = 'give a METRIC (rv-te spc --list shows the stored ones)'
@@ -111,7 +117,7 @@ def run(args: argparse.Namespace) -> int:
     if not series.values:
         hint = ', '.join(known[:8]) + (' ...' if len(known) > 8 else '')
         msg = (f'no values of {args.metric[:80]!r} (direction {args.direction}) in the records '
-               f'selected; stored: {hint or "nothing"}')
+               f'selected of the {where}; stored: {hint or "nothing"}')
         raise SpcError(msg)
     scale, unit = display_unit(args.metric)
     if args.by_lot:
@@ -147,7 +153,8 @@ def run(args: argparse.Namespace) -> int:
                              sigma_measurement=_measurement_sigma(args, base_uc, scale))
     title = f'{args.metric}' + ('' if args.direction == 'all' else f' ({args.direction})') \
         + f' across {len(series.values)} units' + (f' [{unit}]' if unit else '')
-    doc = spc_document(chart, series, title=title, capability=cap, baseline_text=base_text)
+    doc = {**spc_document(chart, series, title=title, capability=cap, baseline_text=base_text),
+           'db': where}
     if args.report is not None:
         from rv_te_bench.report.spc import write_spc_report
         files = write_spc_report(args.report, chart, series, title=title, capability=cap,
@@ -157,6 +164,7 @@ def run(args: argparse.Namespace) -> int:
         _print_quietly(json.dumps(doc, indent=2, allow_nan=False))
     else:
         _print_quietly('\n'.join(_summary(doc)))
+    print(f'{where}: {len(series.values)} values of {args.metric[:80]}', file=sys.stderr)
     return 0
 
 

@@ -39,7 +39,12 @@ from typing import TYPE_CHECKING, Any
 import yaml
 
 from rv_te_bench import __version__
-from rv_te_bench.cli._db import add_db_argument, check_record_text, db_for_bags
+from rv_te_bench.cli._db import (
+    add_db_argument,
+    check_record_text,
+    db_for_bags,
+    store_summary,
+)
 from rv_te_bench.cli.argtypes import float_between, nonempty_text
 from rv_te_bench.errors import StoreError
 from rv_te_bench.safe_yaml import SMALL_TEXT_LIMITS, brief, load_yaml
@@ -305,8 +310,8 @@ def verdict_exit(verdict: str, serial: str, reason: str,
 
 def _record(args: argparse.Namespace, report: dict[str, Any], bag: Path, *,
             beside_bag: bool = False) -> None:
-    """The test's record in the results store (next to the session folders by default;
-    ``beside_bag``: next to the bag, as ``rv-te analyze`` does)."""
+    """The test's record in the results store (the user's one store by default, as
+    ``rv-te analyze``; ``beside_bag`` is kept for the callers and changes nothing)."""
     from rv_te_bench.acceptance._store import store_record
     from rv_te_bench.store import open_store
 
@@ -316,7 +321,7 @@ def _record(args: argparse.Namespace, report: dict[str, Any], bag: Path, *,
     try:
         with open_store(db) as store:
             store.upsert(store_record(report, bag, software_version=__version__))
-            print(f'recorded in the results store {store.url}',
+            print(f'recorded in the {store_summary(store.url, store.count())}',
                   file=sys.stderr if args.json else sys.stdout)
     except StoreError as exc:   # a result not stored is an error (issue #32), --no-db to skip
         msg = f'the test was not recorded in the results store: {exc} (--db elsewhere, or --no-db)'

@@ -11,11 +11,13 @@ from __future__ import annotations
 from rv_te_bench.store._export import export_records, records_table
 from rv_te_bench.store._store import (
     DEFAULT_DB_NAME,
+    DEFAULT_STORE_NAME,
     ResultFilter,
     ResultStore,
     Series,
     StoredResult,
     default_db_for,
+    default_store_path,
     open_store,
     redact_url,
     upsert_all,
@@ -30,7 +32,8 @@ from rv_te_bench.store.records import (
     records_from_analysis_json,
 )
 
-__all__ = ['DEFAULT_DB_NAME', 'LineValue', 'MetricValue', 'ResultFilter', 'ResultStore',
-           'Series', 'StoredResult', 'UnitRecord', 'bag_fingerprint', 'bag_stat',
-           'default_db_for', 'export_records', 'failed_record', 'open_store',
-           'records_from_analysis_json', 'records_table', 'redact_url', 'upsert_all']
+__all__ = ['DEFAULT_DB_NAME', 'DEFAULT_STORE_NAME', 'LineValue', 'MetricValue', 'ResultFilter',
+           'ResultStore', 'Series', 'StoredResult', 'UnitRecord', 'bag_fingerprint', 'bag_stat',
+           'default_db_for', 'default_store_path', 'export_records', 'failed_record',
+           'open_store', 'records_from_analysis_json', 'records_table', 'redact_url',
+           'upsert_all']

@@ -35,6 +35,7 @@ from sqlalchemy import (
     Table,
     create_engine,
     event,
+    func,
     inspect,
     select,
     text,
@@ -56,11 +57,13 @@ if TYPE_CHECKING:
 
     from rv_te_bench.store.records import UnitRecord
 
-__all__ = ['DEFAULT_DB_NAME', 'ResultFilter', 'ResultStore', 'Series', 'StoredResult',
-           'open_store', 'redact_url']
+__all__ = ['DEFAULT_DB_NAME', 'DEFAULT_STORE_NAME', 'ResultFilter', 'ResultStore', 'Series',
+           'StoredResult', 'default_store_path', 'open_store', 'redact_url']
 
-#: File name of the embedded (SQLite) store next to the bags.
+#: File name of an embedded (SQLite) store kept next to bags (``default_db_for``).
 DEFAULT_DB_NAME = 'rv-te-results.sqlite'
+#: File name of the user's default store (:func:`default_store_path`).
+DEFAULT_STORE_NAME = 'results.sqlite'
 _MIGRATIONS = Path(__file__).resolve().parent / 'migrations'
 #: The newest schema revision in migrations/versions (a test checks it is alembic's head,
 #: so a new migration must move it): a store at it is opened without alembic.
@@ -509,6 +512,16 @@ class ResultStore:
             ids.append(r.id)
         return Series(metric, direction, vals, serials, lots, when, ids, us, ucs)
 
+    def count(self) -> int:
+        """How many records the store holds."""
+        try:
+            with Session(self._engine) as s:
+                return int(s.scalar(select(func.count()).select_from(ResultRow)) or 0)
+        except SQLAlchemyError as exc:
+            detail = str(getattr(exc, 'orig', None) or exc).strip().splitlines()[0][:300]
+            msg = f'cannot read results store {self.url}: {detail}'
+            raise StoreError(msg) from None
+
     def metric_names(self) -> list[tuple[str, str]]:
         """The (name, direction) pairs present in the store, sorted."""
         with Session(self._engine) as s:
@@ -547,6 +560,17 @@ def upsert_all(store: ResultStore, records: Iterable[UnitRecord]) -> list[int]:
 
 
 def default_db_for(bags: Sequence[Path]) -> Path:
-    """The embedded store next to the bags: their common parent folder."""
+    """An embedded store next to the bags: their common parent folder (not the default:
+    :func:`default_store_path` is; kept for callers that want one store per folder)."""
     parents = [os.fspath(Path(b).resolve().parent) for b in bags]
     return Path(os.path.commonpath(parents)) / DEFAULT_DB_NAME
+
+
+def default_store_path() -> Path:
+    """The user's one results store: ``$XDG_DATA_HOME/rv-te/results.sqlite``, by default
+    ``~/.local/share/rv-te/results.sqlite`` (the XD Base Directory place for a user's data,
+    as platformdirs' ``user_data_path`` gives on Linux). ``$RV_TE_DB`` or ``--db`` choose
+    another (the commands' ``rv_te_bench.cli._db``)."""
+    xdg = os.environ.get('XDG_DATA_HOME', '')
+    base = Path(xdg) if xdg and Path(xdg).is_absolute() else Path.home() / '.local' / 'share'
+    return base / 'rv-te' / DEFAULT_STORE_NAME

@@ -69,7 +69,8 @@ def judge(tmp_path: Path, capsys: pytest.CaptureFixture[str], plan: dict | str, 
 
 
 def test_session_bag_gives_the_live_verdicts(tmp_path: Path, quick: Run,
-                                            capsys: pytest.CaptureFixture[str]) -> None:
+                                            capsys: pytest.CaptureFixture[str],
+                                            default_store: Path) -> None:
     bag = write_session_bag(tmp_path / 'session', quick)
     report, err = judge(tmp_path, capsys, QUICK, '--from', str(bag), code=0)
     assert_same(quick.report, report, rel=1e-6)
@@ -81,10 +82,10 @@ def test_session_bag_gives_the_live_verdicts(tmp_path: Path, quick: Run,
     assert parts[0]['found_speed_rpm'] == pytest.approx(3000, rel=1e-6)
     assert parts[0]['found_load_nm'] == pytest.approx(200, rel=1e-9)
     assert 'judging plan' in err
-    # the results store beside the bag: the test, its verdict and metrics
+    # the user's results store: the test, its verdict and metrics
     from rv_te_bench.store import ResultFilter, open_store
 
-    with open_store(tmp_path / 'rv-te-results.sqlite') as store:
+    with open_store(default_store) as store:
         (rec,) = store.query(ResultFilter(test='test-plan'))
     assert (rec.serial, rec.plan, rec.verdict, rec.status) == ('LI-42', 'quick', 'pass', 'ok')
     assert rec.metrics[('backlash_rad', 'all')] == pytest.approx(

@@ -169,7 +169,8 @@ def test_shipped_plans_and_profiles_are_valid() -> None:
     (['--set', 'torsion.clearance_rad=4e-4'], 3, 'FAIL'),   # 1.37 arcmin of backlash
 ])
 def test_whole_unit_exit_codes(tmp_path: Path, capsys: pytest.CaptureFixture[str],
-                               extra: list[str], code: int, word: str) -> None:
+                               extra: list[str], code: int, word: str,
+                               default_store: Path) -> None:
     plan_file = write(tmp_path, 'plan.yaml', {'plan': 'quick', 'steps': [
         {'kind': 'te', 'name': 'te', 'speed_rpm': 3000, 'settle_s': 0.2},
         {'kind': 'hysteresis', 'name': 'hysteresis', 'rated_torque_nm': 450.0,
@@ -189,10 +190,10 @@ def test_whole_unit_exit_codes(tmp_path: Path, capsys: pytest.CaptureFixture[str
     backlash = next(m for m in report['metrics'] if m['name'] == 'backlash_rad')
     assert backlash['verdict'] == ('pass' if code == 0 else 'fail')
     assert (run / 'bag' / 'metadata.yaml').exists()
-    # the results store next to the sessions has the test, its verdict and metrics
+    # the user's results store has the test, its verdict and metrics
     from rv_te_bench.store import ResultFilter, open_store
 
-    with open_store(tmp_path / 'out' / 'rv-te-results.sqlite') as store:
+    with open_store(default_store) as store:
         (rec,) = store.query(ResultFilter(test='test-plan'))
     assert (rec.serial, rec.plan, rec.verdict) == ('LI-7', 'quick', word.lower())
     assert rec.metrics[('te_pp_revolution_max_rad', 'ccw')] == pytest.approx(next(

@@ -99,9 +99,9 @@ def test_fleet_never_prints_the_password(tmp_path: Path, postgres_url: str) -> N
 
 # -- concurrent first writers; a result not stored -------------------------------------------
 
-def test_concurrent_first_writers_all_recorded(tmp_path: Path) -> None:
-    """Four ``rv-te analyze`` at once into a store that does not exist yet (the default one
-    next to the bags): the schema is created once, under the database's lock, and all four
+def test_concurrent_first_writers_all_recorded(tmp_path: Path, default_store: Path) -> None:
+    """Four ``rv-te analyze`` at once into a store that does not exist yet (the user's
+    default one): the schema is created once, under the database's lock, and all four
     records are there (before: 'table results already exists', a WARNING, exit 0, and as
     few as 1 record of 4)."""
     bags = tmp_path / 'bags'
@@ -113,7 +113,7 @@ def test_concurrent_first_writers_all_recorded(tmp_path: Path) -> None:
     outs = [p.communicate(timeout=300) for p in procs]
     assert [p.returncode for p in procs] == [0] * 4, outs
     assert not any('WARNING' in err or 'ERROR' in err for _, err in outs), outs
-    with open_store(bags / 'rv-te-results.sqlite') as st:
+    with open_store(default_store) as st:
         assert len(st.query()) == 4
 
 
@@ -149,12 +149,13 @@ def test_first_writers_released_together(tmp_path: Path) -> None:
         assert len(st.query()) == 6
 
 
-def test_a_result_that_cannot_be_stored_is_an_error(tmp_path: Path) -> None:
+def test_a_result_that_cannot_be_stored_is_an_error(tmp_path: Path,
+                                                    default_store: Path) -> None:
     """The default store cannot be written (a folder stands where it would be): the analysis
     is still shown, then one ERROR line and exit 1 (before: a WARNING and exit 0)."""
     bags = tmp_path / 'bags'
     _bag(bags / 'u0', 0)
-    (bags / 'rv-te-results.sqlite').mkdir()
+    default_store.mkdir(parents=True)
     p = _run('analyze', str(bags / 'u0'), '--no-advice', '--json')
     assert p.returncode == 1
     assert json.loads(p.stdout)['bags'][0]['bag'] == str(bags / 'u0')
@@ -165,7 +166,8 @@ def test_a_result_that_cannot_be_stored_is_an_error(tmp_path: Path) -> None:
 
 # -- serial and operator ------------------------------------------------------------------------
 
-def test_imported_serial_and_operator_reach_the_store(tmp_path: Path) -> None:
+def test_imported_serial_and_operator_reach_the_store(tmp_path: Path,
+                                                      default_store: Path) -> None:
     """A bag imported with a bench description's unit_under_test: ``rv-te results --serial``
     finds it with its operator (before: nothing found, both None); analysed again without
     --serial, a serial given earlier with --serial is kept (before: erased)."""
@@ -188,7 +190,7 @@ def test_imported_serial_and_operator_reach_the_store(tmp_path: Path) -> None:
                 '--time', 't_s', '--theta-in', 'theta_in_rad', '--theta-out',
                 'theta_out_rad').returncode == 0
     assert _run('analyze', str(bags / 'imp'), '--no-advice').returncode == 0
-    db = bags / 'rv-te-results.sqlite'
+    db = default_store
     got = json.loads(_run('results', '--db', str(db), '--serial', 'SN-IMP-7', '--json').stdout)
     assert [(r['serial'], r['operator']) for r in got] == [('SN-IMP-7', 'kim')]
     # a bag without a serial: given once with --serial, kept when analysed again without
