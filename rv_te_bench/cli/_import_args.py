@@ -48,6 +48,9 @@ def add_file_arguments(g: Any) -> None:
     g.add_argument('--no-header', action='store_true', help='CSV: no header line (columns by '
                    'index)')
     g.add_argument('--delimiter', help='CSV delimiter (default: sniffed from the first line)')
+    g.add_argument('--decimal', choices=('.', ','), default='.',
+                   help="CSV decimal mark: ',' for a decimal-comma export (1,5;2,25: common "
+                        "European locales; columns then by ';' or tab) (default: '.')")
     g.add_argument('--no-unwrap', action='store_true', help='keep both angles as recorded '
                    '(multi-turn counters)')
     g.add_argument('--unwrap-in', action=argparse.BooleanOptionalAction, default=None,
@@ -98,4 +101,5 @@ def import_options(args: argparse.Namespace) -> ImportOptions:
         counts_per_rev_out=args.counts_per_rev_out, turns_in=turns['in'],
         turns_out=turns['out'], start_ns=_start_ns(args.start_utc),
         chunk_samples=args.chunk_samples, delimiter=args.delimiter,
-        theta_out_heads=tuple(c.strip() for c in args.theta_out_heads.split(',') if c.strip()))
+        theta_out_heads=tuple(c.strip() for c in args.theta_out_heads.split(',') if c.strip()),
+        decimal=args.decimal)

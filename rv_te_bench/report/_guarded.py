@@ -52,6 +52,24 @@ class _GuardedBlocks:
         self._last_seq: int | None = None
         self._parts: list[tuple[npt.NDArray[np.int64], FloatArray, FloatArray]] = []
         self._kept = 0
+        #: (input, output) angle of the first and of the last sample read [rad]
+        self.first_angles: tuple[float, float] | None = None
+        self.last_angles: tuple[float, float] | None = None
+
+    def advance(self) -> tuple[float, float]:
+        """How far the input and the output angle advanced from the first to the last
+        sample read [rad] (multi-turn angles: gaps do not matter)."""
+        if self.first_angles is None or self.last_angles is None:
+            return 0.0, 0.0
+        return (self.last_angles[0] - self.first_angles[0],
+                self.last_angles[1] - self.first_angles[1])
+
+    def _ends(self, th_in: npt.ArrayLike, th_out: npt.ArrayLike) -> None:
+        a, b = np.asarray(th_in), np.asarray(th_out)
+        if a.size and a.shape == b.shape:
+            if self.first_angles is None:
+                self.first_angles = (float(a.flat[0]), float(b.flat[0]))
+            self.last_angles = (float(a.flat[-1]), float(b.flat[-1]))
 
     def __iter__(self) -> Iterator[EncoderBlockData | EncoderBatch | WindowBreak]:
         return self
@@ -66,6 +84,7 @@ class _GuardedBlocks:
             raise StopIteration from None
         if not isinstance(item, EncoderBlockData | EncoderBatch):   # a WindowBreak: passed on
             return item
+        self._ends(item.theta_in_rad, item.theta_out_rad)
         if isinstance(item, EncoderBatch):
             self.blocks += item.n_blocks
             self.samples += item.n_samples

@@ -183,6 +183,7 @@ def analyze_bag(
     from concurrent.futures import ThreadPoolExecutor
 
     from rv_te_bench.core.offline import analyze_blocks
+    from rv_te_bench.core.plausibility import check_measured_ratio
     from rv_te_bench.core.stream_records import TeAnalysisConfig
     from rv_te_bench.core.te_zero import TeZero
     from rv_te_bench.io.bag_reader import (
@@ -248,6 +249,11 @@ def analyze_bag(
         msg = f'{path}: no encoder block could be read ({detail})'
         raise BagError(msg)
 
+    wrong = check_measured_ratio(*reader.advance(), bench.gear_ratio,
+                                 names=('theta_in_rad', 'theta_out_rad'))
+    if wrong is not None:     # swapped encoders: a TE of millions of arcmin is no result
+        msg = f'{path}: {wrong}'
+        raise BagError(msg)
     partial = bool(read_problems) or stream.partial
     problems = list(open_bag(path).notes)   # unlisted files ignored, what was not written
     problems.extend(cal_problems)

@@ -161,6 +161,8 @@ class ImportOptions:
             first (issue 36; empty: one head): head 0 is the output angle (``theta_out``
             defaults to it), the others are unwrapped beside it in its unit; a missing value
             of a further head leaves that head out of its block (the block is not dropped).
+        decimal: CSV decimal mark: ``'.'``, or ``','`` for a decimal-comma export (the
+            delimiter is then ``;`` or a tab, never ``,``).
     """
 
     theta_in: str | None = None
@@ -179,9 +181,17 @@ class ImportOptions:
     chunk_samples: int = 100_000
     delimiter: str | None = None
     theta_out_heads: tuple[str, ...] = ()
+    decimal: str = '.'
 
     def __post_init__(self) -> None:
         """Validate (one line naming the option and the rule)."""
+        if self.decimal not in ('.', ','):
+            msg = f"--decimal must be '.' or ',', got {self.decimal!r}"
+            raise DataImportError(msg)
+        if self.decimal == ',' and self.delimiter == ',':
+            msg = ("--decimal , with --delimiter ',': a comma cannot be both; a decimal-comma "
+                   "export separates its columns with ';' or a tab")
+            raise DataImportError(msg)
         heads = tuple(str(h) for h in self.theta_out_heads)
         object.__setattr__(self, 'theta_out_heads', heads)
         if heads:

@@ -33,6 +33,7 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
+from rv_te_bench.core.plausibility import check_measured_ratio, check_sample_rate
 from rv_te_bench.errors import BagExistsError, DataImportError
 from rv_te_bench.io.bag_writer import BagWriter, qos_profile_dict
 from rv_te_bench.io.bench_record import bench_info_cdr
@@ -382,6 +383,7 @@ def write_bag(reader: ImportReader, desc: BenchDescription, options: ImportOptio
         rate_hz = conv.rate_hz or desc.sample_rate_hz
         conv.rate_hz = rate_hz
         rate_from = 'the time column (median step of the first chunk)'
+        _check_rate(reader, options, t_unit, rate_hz, desc)
     if abs(rate_hz - desc.sample_rate_hz) > 0.01 * desc.sample_rate_hz:
         note(f'sample rate {rate_hz:g} Hz (from {rate_from}) differs from the bench '
              f'description\'s {desc.sample_rate_hz:g} Hz; {rate_hz:g} Hz recorded')
@@ -402,15 +404,24 @@ def write_bag(reader: ImportReader, desc: BenchDescription, options: ImportOptio
         msg = f'Cannot create {tmp_dir}: {exc.strerror or exc}.'
         raise DataImportError(msg) from None
     segments: _Segments | None = None
+    advance = _Advance()
     try:
         segments = _Segments(tmp_dir, out, desc, info, meta, rate_hz, start_ns)
         for piece in stitcher.push(first):
+            advance.push(piece)
             segments.push(piece)
         for raw in chunks:
             for piece in stitcher.push(conv(raw)):
+                advance.push(piece)
                 segments.push(piece)
         for piece in stitcher.finish():
+            advance.push(piece)
             segments.push(piece)
+        wrong = check_measured_ratio(*advance.total(), desc.gear_ratio,
+                                     names=(labels['in'], labels['out']))
+        if wrong is not None:    # swapped columns: refused before any bag is in place
+            msg = f'{origin}: {wrong}'
+            raise DataImportError(msg)
         bags = segments.finish()
     except BaseException:
         if segments is not None:
@@ -457,6 +468,51 @@ def _check_heads(reader: ImportReader, desc: BenchDescription,
     if stated > 1 and given == 1:
         note(f'{desc.origin} states {stated} output heads but one column was imported: the '
              'bag holds head 0 only (give --theta-out-heads for all of them)')
+
+
+class _Advance:
+    """How far each angle advanced over the record (unwrapped; a new segment, whose turns
+    are ambiguous against the last, adds its own advance)."""
+
+    def __init__(self) -> None:
+        self._done = [0.0, 0.0]
+        self._first: tuple[float, float] | None = None
+        self._last: tuple[float, float] | None = None
+
+    def push(self, piece: Piece) -> None:
+        if not piece.theta_in_rad.size:
+            return
+        if piece.new_segment:
+            self._close()
+        if self._first is None:
+            self._first = (float(piece.theta_in_rad[0]), float(piece.theta_out_rad[0]))
+        self._last = (float(piece.theta_in_rad[-1]), float(piece.theta_out_rad[-1]))
+
+    def _close(self) -> None:
+        if self._first is not None and self._last is not None:
+            for k in range(2):
+                self._done[k] += self._last[k] - self._first[k]
+        self._first = self._last = None
+
+    def total(self) -> tuple[float, float]:
+        """(input advance, output advance) [rad]."""
+        self._close()
+        return self._done[0], self._done[1]
+
+
+def _check_rate(reader: ImportReader, options: ImportOptions, t_unit: str | None,
+                rate_hz: float, desc: BenchDescription) -> None:
+    """A rate from a time column whose unit the user or the column name gave, absurd for
+    the bench (a wrong time unit): one line, nothing written. A unit the format states
+    (TDMS / JointState stamps) is not doubted."""
+    if reader.time_unit is not None:
+        return
+    source = ('--time-unit' if options.time_unit is not None else
+              f'the column name {reader.labels.get("time", "time")!r}')
+    wrong = check_sample_rate(rate_hz, desc.sample_rate_hz, time_unit=t_unit, source=source)
+    if wrong is not None:
+        msg = f'{reader.origin}: {wrong}'
+        raise DataImportError(msg)
 
 
 def _start(options: ImportOptions, reader: ImportReader, conv: ChunkConverter,

@@ -6,7 +6,9 @@ first line unless given; lines starting with ``#`` are comments. A column's unit
 its name (``theta_in_deg``, ``theta_in [deg]``, ``in (arcsec)``, ``t_ms``, ``time [min]``);
 an option overrides it. An empty cell (how pandas writes NaN) is a missing value: the row is
 a drop-out, as a ``nan`` cell is. A time column in nanoseconds is read as 64-bit integers
-(epoch nanoseconds keep every digit).
+(epoch nanoseconds keep every digit). A decimal-comma export (``1,5;2,25``, as European
+locales write) is read with ``decimal=','``; without it, such a cell is refused with that
+hint.
 """
 
 from __future__ import annotations
@@ -35,6 +37,7 @@ _MAX_HEADER = 1 << 20
 #: Longest line read [characters] (a DAQ row of a few dozen numbers is ~1 kB).
 MAX_LINE_CHARS = 1 << 20
 _MAX_BLOCK_CHARS = 64 << 20
+_DECIMAL_COMMA = re.compile(r'^[+-]?\d*,\d+(?:[eE][+-]?\d+)?$')
 _EMPTY_CELL = {',': re.compile(r'(?<=,)(?=,|\r?$)|^(?=,)', re.MULTILINE),
                ';': re.compile(r'(?<=;)(?=;|\r?$)|^(?=;)', re.MULTILINE),
                '\t': re.compile(r'(?<=\t)(?=\t|\r?$)|^(?=\t)', re.MULTILINE)}
@@ -80,7 +83,9 @@ class CsvReader:
         if not first.strip():
             msg = f'{path}: the file is empty (no header line and no data)'
             raise DataImportError(msg)
-        self.delimiter = options.delimiter or self._sniff(first)
+        self.delimiter = options.delimiter or self._sniff(
+            first, (';', '\t') if options.decimal == ',' else (',', ';', '\t'))
+        self._comma = options.decimal == ','
         cells = [c.strip().strip('"').strip() for c in
                  (first.split(self.delimiter) if self.delimiter else first.split())]
         self.columns = cells if header else [str(j) for j in range(len(cells))]
@@ -109,8 +114,8 @@ class CsvReader:
         self._int_time = self.has_time and unit == 'ns'
 
     @staticmethod
-    def _sniff(line: str) -> str | None:
-        counts = {d: line.count(d) for d in (',', ';', '\t')}
+    def _sniff(line: str, candidates: tuple[str, ...]) -> str | None:
+        counts = {d: line.count(d) for d in candidates}
         best = max(counts, key=lambda d: counts[d])
         return best if counts[best] else None
 
@@ -199,6 +204,8 @@ class CsvReader:
         return cols
 
     def _load(self, text: str) -> dict[str, np.ndarray]:
+        if self._comma:
+            text = text.replace(',', '.')
         if self._int_time:
             fields = [(r, np.int64 if r == 'time' else np.float64) for r in self._roles]
             try:
@@ -229,10 +236,12 @@ class CsvReader:
                 if not cell:
                     continue   # an empty cell is a missing value
                 try:
-                    float(cell)
+                    float(cell.replace(',', '.') if self._comma else cell)
                 except ValueError:
+                    hint = ("; a decimal comma? read it with --decimal , (columns then by ';' "
+                            'or tab)') if not self._comma and _DECIMAL_COMMA.match(cell) else ''
                     msg = (f'{self.origin}: column {self.labels[role]!r}, '
-                           f'{self.locate(first + k)}: {cell!r} is not a number')
+                           f'{self.locate(first + k)}: {cell!r} is not a number{hint}')
                     raise DataImportError(msg) from None
         msg = f'{self.origin}: unreadable rows near {self.locate(first)}'
         raise DataImportError(msg)
