@@ -270,11 +270,14 @@ def analyze_bag(
     uncertainty = analysis_uncertainty(info=bench.info, gear_ratio=bench.gear_ratio,
                                        windows=windows, cumulative=offline.cumulative,
                                        spectrum=spectrum, trace=trace)
+    withheld = _advice_withheld(offline.cumulative, spectrum) if with_advice else None
     recommendation = (
-        _recommend(bench, offline.cumulative, None if fold is None else fold.result(),
-                   advice_search, uncertainty.bench)
-        if with_advice else
-        Recommendation(available=False, reason='not requested (--no-advice)'))
+        Recommendation(available=False, reason='not requested (--no-advice)')
+        if not with_advice else
+        Recommendation(available=False, reason=withheld) if withheld is not None else
+        _agree_with_diagnosis(
+            _recommend(bench, offline.cumulative, None if fold is None else fold.result(),
+                       advice_search, uncertainty.bench), dominant, bench))
     note = _once_per_rev(info, spectrum, combiner, calibration)
     encoder: dict[str, Any] = {'once_per_rev': note.to_plain()}
     if combiner is not None:
@@ -507,6 +510,57 @@ def _recommend(bench: AnalysisBench, cumulative: TeStats, folded: FoldedTe | Non
     return Recommendation(available=False, reason=(
         f'no recommendation available: preset {bench.preset!r} (model {preset.model!r}) has '
         'no compensation model'))
+
+
+def _advice_withheld(cumulative: TeStats, spectrum: SpectrumSummary | None) -> str | None:
+    """Why the data cannot carry advice, or None (issue 33 s.4).
+
+    Both compensations are defined on whole output revolutions: Hu 2020 compensates the TE
+    "value for a period", Wang 2020's phases are identified from the TE folded over whole
+    revolutions. A record without one complete revolution (no gap) gets none.
+    """
+    revs = cumulative.revolutions
+    if spectrum is None:
+        covered = f'{revs:.2f} output revolutions' if math.isfinite(revs) else 'its samples'
+        return (f'advice withheld: the record holds no whole output revolution without a gap '
+                f'({covered}); the compensation is defined on the TE of whole revolutions '
+                '(record at least one output revolution)')
+    return None
+
+
+def _is_mesh_line(output_order: float, orders: OrderSet) -> bool:
+    o = abs(float(output_order))
+    return any(abs(o - mo) <= _ORDER_RTOL * max(1.0, mo) for mo in orders.mesh_orders_out)
+
+
+def _agree_with_diagnosis(rec: Recommendation, dominant: DominantHarmonic | None,
+                          bench: AnalysisBench) -> Recommendation:
+    """The advice and the diagnosis name the same cause, or the advice says why not.
+
+    A tooth-profile modification (Hu 2020) assigns the whole TE peak-to-peak to cycloid-mesh
+    factors (pin radius, shifting modification, circular pitch): when the dominant line is
+    not a mesh line (crank eccentricity at 1 f_w, carrier run-out at f_out, ...), that is
+    not what the data shows, and the profile change is withheld with both named. Assembly
+    phases (Wang 2020) act on the eccentricity lines: when a mesh line dominates, the advice
+    stays and says it does not address that line.
+    """
+    if not rec.available or rec.advice is None or dominant is None:
+        return rec
+    line = dominant.line
+    shown = f'{line.label} ({rad_to_arcmin(line.amplitude_rad):.4g} arcmin)'
+    mesh = _is_mesh_line(line.output_order, bench.orders)
+    if rec.advice.method == 'tooth-profile' and not mesh:
+        return Recommendation(available=False, reason=(
+            f'tooth-profile advice withheld: the dominant line {shown} points to '
+            f'{dominant.likely_source}, not to the tooth profile; a profile change (Hu 2020 '
+            'Eq. 27 assigns the whole TE p-p to cycloid-mesh factors) would not remove it: '
+            'check that cause first'), identification=rec.identification)
+    if rec.advice.method.endswith('assembly-phases') and mesh:
+        return replace(rec, reason=(
+            f'{rec.reason}; note: the dominant line {shown} is a mesh line '
+            f'({dominant.likely_source}): assembly phases act on the eccentricity lines, not '
+            'on it'))
+    return rec
 
 
 def _advice_2kv(preset: Any, folded: FoldedTe | None, search: tuple[float, bool],

@@ -43,6 +43,9 @@ HARMONICS = (
     Harmonic(50.0, float(arcmin_to_rad(0.2)), -1.0),    # 2 f_w
     Harmonic(1.0, float(arcmin_to_rad(0.1)), 0.5),      # f_out
 )
+#: An RV unit whose largest line is a cycloid-pin mesh line (order 936): what a tooth-profile
+#: change acts on (a crank line dominant withholds it: tests/report/test_advice_gate.py).
+RV_HARMONICS = (Harmonic(936.0, float(arcmin_to_rad(0.8)), 0.2), *HARMONICS)
 
 
 def _line(res: analysis.AnalysisResult, label: str) -> object:
@@ -220,8 +223,8 @@ def test_rv_recommendation_wiring(tmp_path, monkeypatch) -> None:
     fake.tooth_profile_advice = tooth_profile_advice
     monkeypatch.setitem(sys.modules, 'rv_te_bench.core.tooth_compensation', fake)
     path = tmp_path / 'bag'
-    synth = write_bag(path, harmonics=HARMONICS, duration_s=2.5, preset='hu2020-rv',
-                      reducer_type='rv')
+    synth = write_bag(path, harmonics=RV_HARMONICS, duration_s=2.5, preset='hu2020-rv',
+                      reducer_type='rv', sample_rate_hz=4000.0, block_size=400)
     res = analyze_bag(path)
     te = synth.te_rad
     assert seen == {'preset': 'hu2020-rv', 'te_metric': 'pp',
@@ -236,8 +239,8 @@ def test_rv_recommendation_wiring(tmp_path, monkeypatch) -> None:
 
 def test_rv_recommendation_from_the_real_compensation_code(tmp_path) -> None:
     path = tmp_path / 'bag'
-    synth = write_bag(path, harmonics=HARMONICS, duration_s=2.5, preset='hu2020-rv',
-                      reducer_type='rv')
+    synth = write_bag(path, harmonics=RV_HARMONICS, duration_s=2.5, preset='hu2020-rv',
+                      reducer_type='rv', sample_rate_hz=4000.0, block_size=400)
     rec = analyze_bag(path).recommendation
     assert rec.available, rec.reason
     assert rec.advice is not None

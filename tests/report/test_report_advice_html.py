@@ -42,8 +42,9 @@ def test_assembly_phase_advice_has_no_nan_column(tmp_path: Path,
 def test_tooth_profile_advice_shows_the_sensitivity(tmp_path: Path,
                                                     capsys: pytest.CaptureFixture[str]) -> None:
     path = tmp_path / 'rv'
-    write_bag(path, harmonics=[Harmonic(25.0, float(arcmin_to_rad(0.6)), 0.3)], duration_s=2.5,
-              preset='hu2020-rv', reducer_type='rv')
+    # a mesh line (order 936) dominant: the tooth-profile change is what the data points to
+    write_bag(path, harmonics=[Harmonic(936.0, float(arcmin_to_rad(0.6)), 0.3)], duration_s=2.5,
+              preset='hu2020-rv', reducer_type='rv', sample_rate_hz=4000.0, block_size=400)
     doc, page = _report(path, tmp_path / 'rep', capsys)
     mods = doc['recommendation']['advice']['modifications']
     table = page[page.index('<h3>Recommendation</h3>'):]
