@@ -28,7 +28,8 @@ if TYPE_CHECKING:
 
 # Order of appearance in --help.
 SUBCOMMAND_MODULES = (
-    'demo', 'launch', 'dashboard', 'bench', 'record', 'replay', 'import_', 'analyze', 'test',
+    'demo', 'launch', 'dashboard', 'bench', 'record', 'replay', 'import_', 'info', 'analyze',
+    'test',
     'unit_report', 'model',
     'optimize_phases', 'compensate', 'identify', 'selfcal', 'presets', 'results', 'spc',
     'msa', 'fleet',
@@ -44,6 +45,7 @@ examples:
   rv-te compensate hu2020-rv --te-arcmin 1.2   tooth-profile compensation (Hu 2020)
   rv-te launch --default                       bench + TE + compensation + recorder
   rv-te launch --default --dashboard           ... with its live page in the browser
+  rv-te info bags/sample                       first look: duration, topics, bench, unit, gaps
   rv-te analyze bags/sample --report out/rep   offline report from a recorded bag
   rv-te replay bags/sample --rate 10           publish a bag with its recorded timing
   rv-te fleet analyze bags/ --workers 2        many bags on Dask into the results store
