@@ -226,6 +226,8 @@ class DashboardBridge(Node):
         last = self.model.last_block_wall_s
         sending = math.isfinite(last) and wall - last < IDLE_FINISHED_S
         for n in self._seen_nodes - present:
+            if n == 'recorder':
+                self.model.on_recorder_gone()
             if sending and n != 'bench':
                 self.model.on_node_status(n, {'gone': True, 'message': 'left the graph while '
                                               'the bench was sending (crashed?)'})

@@ -222,6 +222,19 @@ class DashboardModel:
             self.recorder = dict(r)
             self.recorder_gen = self._bump()
 
+    def on_recorder_gone(self) -> None:
+        """The recorder left the graph: a status still saying 'recording' is not true any
+        more (its final 'closed' status, when it came, stays as it is)."""
+        with self.lock:
+            r = self.recorder
+            if not r or str(r.get('message', '')).startswith('closed'):
+                return
+            self.recorder = {**r, 'level': 2, 'message': 'recorder gone without saying the bag '
+                             f'was closed (its last status: {r.get("message", "")})'}
+            self.recorder_gen = self._bump()
+            self._event('recorder gone', f'recorder: {self.recorder["message"]} '
+                        f'({r.get("bag", "")})', 'error')
+
     def on_node_status(self, name: str, status: dict[str, Any]) -> None:
         """A node's diagnostics (level, message, gaps / drops) or its disappearance."""
         with self.lock:

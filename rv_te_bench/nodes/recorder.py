@@ -49,6 +49,8 @@ from rv_te_bench.safe_yaml import PARAMETER_FILE_LIMITS, brief, load_yaml
 __all__ = ['DEFAULT_TOPICS', 'PARAMS', 'RecorderNode', 'main']
 
 _THROTTLE_S = 5.0
+#: How long a closing recorder waits for its final 'closed' status to be acknowledged [s].
+FINAL_STATUS_ACK_S = 1.0
 #: Messages held while a sim-time recorder waits for its first /clock (10 s at 100 blocks/s
 #: on every suite topic); beyond that they are written at time 0.
 MAX_HELD_MESSAGES = 10_000
@@ -546,6 +548,19 @@ class RecorderNode(Node):
                                     f'{foreign} (topic: most at once): the data mixes sources')
         if self._summary_file:
             self._write_summary_file()
+        self._publish_final_status()
+
+    def _publish_final_status(self) -> None:
+        """The 'closed' status once, waited for until acknowledged (at most
+        :data:`FINAL_STATUS_ACK_S`): a monitor (the live page) would otherwise keep showing
+        the last periodic 'recording' status of a bag that is closed."""
+        from rclpy.duration import Duration
+
+        try:
+            self._publish_diagnostics()
+            self._pub_diag.wait_for_all_acked(Duration(seconds=FINAL_STATUS_ACK_S))
+        except Exception as exc:  # noqa: BLE001 - a context already shut down: nobody listens
+            self.get_logger().debug(f'final status not sent: {exc}')
 
     def summary(self) -> dict[str, Any]:
         """What was recorded: bag, messages on disk, lost (per topic, and each write gap),
