@@ -51,7 +51,8 @@ if TYPE_CHECKING:
     from sim.bench_info import BenchInfoData
     from sim.program import ProgramSimulator
 
-__all__ = ['PROGRAMS', 'StepRunner', 'build_report', 'reanalyse', 'run_plan_offline']
+__all__ = ['PROGRAMS', 'SEGMENT_DECIDED', 'StepRunner', 'build_report', 'reanalyse',
+           'run_plan_offline', 'running_verdicts']
 
 
 def _fin(x: float) -> float | None:
@@ -211,17 +212,26 @@ class StepRunner:
     # -- results ----------------------------------------------------------------------------------
     def segment_data(self) -> list[SegmentData]:
         """The data of every segment, with a note where blocks are missing."""
-        out = []
-        for i, seg in enumerate(self.segments):
-            th_in, th_out, torque = self._cat(seg)
-            t_in, temp = ((np.concatenate([e[0] for e in seg.extra]),
-                           np.concatenate([e[1] for e in seg.extra])) if seg.extra
-                          else (np.zeros(0), np.zeros(0)))
-            out.append(SegmentData(role=seg.role, label=seg.label, theta_in_rad=th_in,
-                                   theta_out_rad=th_out, torque_out_nm=torque,
-                                   torque_in_nm=t_in, temp_case_degc=temp,
-                                   note=self._notes.get(i) or self._incomplete([seg])))
-        return out
+        return [self._segment_data(i) for i in range(len(self.segments))]
+
+    def _segment_data(self, i: int) -> SegmentData:
+        seg = self.segments[i]
+        th_in, th_out, torque = self._cat(seg)
+        t_in, temp = ((np.concatenate([e[0] for e in seg.extra]),
+                       np.concatenate([e[1] for e in seg.extra])) if seg.extra
+                      else (np.zeros(0), np.zeros(0)))
+        return SegmentData(role=seg.role, label=seg.label, theta_in_rad=th_in,
+                           theta_out_rad=th_out, torque_out_nm=torque,
+                           torque_in_nm=t_in, temp_case_degc=temp,
+                           note=self._notes.get(i) or self._incomplete([seg]))
+
+    def segment_metrics(self, i: int) -> list[Measured]:
+        """The metrics segment ``i`` decides once it is complete: a TE step's direction or
+        a sweep point is its own segment (the same value :meth:`result` gives it); a
+        hysteresis step's metrics need its whole cycle, so they come with :meth:`result`."""
+        if self.step.kind not in SEGMENT_DECIDED:
+            return []
+        return step_result(self.step, self.info, [self._segment_data(i)])[0]
 
     def mark(self, segment: int, note: str) -> None:
         """Segment ``segment`` cannot be analysed, for the reason ``note`` (data lost)."""
@@ -254,6 +264,28 @@ def _hysteresis_program(r: StepRunner, step: HysteresisStep) -> None:
 
 def _operator_program(r: StepRunner, _step: OperatorStep) -> None:
     r.live_name = 'waiting_s'   # no bench program: the sequencer waits for the operator
+
+
+#: Step kinds whose segments each decide their own metric (a direction, a sweep point).
+SEGMENT_DECIDED = frozenset({'te', 'sweep'})
+
+
+def running_verdicts(measured: list[Measured], profile: ToleranceProfile,
+                     ) -> tuple[list[dict[str, Any]], str]:
+    """The metrics decided so far against their limits, while a test runs.
+
+    Returns the rows (as the final report's ``metrics``; a limit not measured yet is
+    'pending') and what is decided of the unit's verdict: 'fail' as soon as a metric is out
+    of its limit (later steps cannot undo it), else 'running'. Sweep points are not
+    judged (as in :func:`build_report`).
+    """
+    verdicts, _, _ = evaluate([m for m in measured if not m.name.startswith('sweep:')],
+                              profile)
+    rows = [v.to_json_dict() for v in verdicts]
+    for r in rows:
+        if r['verdict'] == 'not_measured':
+            r['verdict'] = 'pending'
+    return rows, 'fail' if any(r['verdict'] == 'fail' for r in rows) else 'running'
 
 
 #: Step kind -> the builder of its bench program (see plan._KINDS for a new kind).

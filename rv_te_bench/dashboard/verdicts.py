@@ -1,11 +1,16 @@
 """The test panel's metric table while a test runs: each metric against its limit.
 
-A step's measured values arrive on ``test/step`` when it finishes (``result_yaml``, SI); the
-limits are the tolerance profile the goal carried (``test/report`` while running), or the
-one its plan or the bench's preset names. They are judged with the sequencer's own rule
-(:func:`rv_te_bench.acceptance.tolerance.evaluate`) and shown with the unit report's labels
-and display units (:func:`rv_te_bench.report.unit.metric_rows`); a limit whose step has not
-run yet is 'pending'. The final ``test/report`` replaces the table with its own metrics.
+The test sequencer decides each metric as soon as its data is complete (a TE direction, a
+sweep point: when its segment ends; a hysteresis step's metrics: when the step ends) and
+publishes every metric decided so far against its limit on ``test/report`` (verdict
+'running', the limits not measured yet 'pending'); the table shows those rows, with the unit
+report's labels and display units (:func:`rv_te_bench.report.unit.metric_rows`), and the
+final ``test/report`` replaces them with its own.
+
+A sequencer that sends no running metrics (a bag recorded before it did): a step's measured
+values from ``test/step`` when it finishes (``result_yaml``, SI) are judged here against the
+tolerance profile the goal carried, or the one its plan or the bench's preset names, with
+the sequencer's own rule (:func:`rv_te_bench.acceptance.tolerance.evaluate`).
 """
 
 from __future__ import annotations
@@ -73,8 +78,9 @@ def profile_of(report: dict[str, Any], preset: str) -> ToleranceProfile | None:
 
 def live_rows(report: dict[str, Any], steps: list[dict[str, Any]],
               preset: str) -> list[dict[str, str]]:
-    """The metric table: the final report's, or the finished steps' values judged now."""
-    if report.get('final') and report.get('metrics'):
+    """The metric table: the report's (final, or decided so far), or else the finished
+    steps' values judged now."""
+    if report.get('metrics'):   # the final report's, or those decided so far
         return metric_rows({'metrics': [_si(m) for m in report['metrics']]})
     measured = []
     for s in steps:

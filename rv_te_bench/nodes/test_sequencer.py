@@ -11,7 +11,11 @@ and the running test is on the latched ``test/report``, where ``rv-te test`` rea
 
 Recorded for the bag: ``test/step`` (TestStep: started / finished / cancelled, with the
 EncoderBlock seq range of the step) and ``test/report`` (TestReport: the verdict, the
-metrics and the report JSON).
+metrics and the report JSON). While the test runs, ``test/report`` (verdict 'running') is
+sent again each time a metric is decided (a TE direction or sweep point when its segment
+ends, a hysteresis step's metrics when the step ends): every metric decided so far against
+its limit, the others 'pending', and in the reason what is decided of the unit's verdict
+(FAIL as soon as one metric is out of its limit) - the live page shows it as it comes.
 
 Executor: single-threaded, with the goal executed as a coroutine that awaits futures
 completed by the subscription and a 10 Hz timer, so the data keeps flowing while a goal runs.
@@ -40,6 +44,7 @@ from std_srvs.srv import Trigger
 
 from rv_te_bench.acceptance import StepRunner, build_report, parse_plan
 from rv_te_bench.acceptance._files import parse_yaml_text
+from rv_te_bench.acceptance.runner import running_verdicts
 from rv_te_bench.acceptance.tolerance import load_tolerance, parse_tolerance
 from rv_te_bench.errors import AcceptanceError
 from rv_te_bench.io.bench_record import bench_uncertainty_of
@@ -76,6 +81,7 @@ class TestSequencerNode(Node):
         self.busy: dict[str, Any] | None = None
         self._runner: StepRunner | None = None
         self._prog: dict[str, Any] = {}
+        self._live: dict[str, Any] = {}
         self._wake: Future | None = None
         # blocks that arrive between a program's start on the bench and the answer to its
         # service call (the bench publishes at once): replayed when the answer is in
@@ -172,11 +178,14 @@ class TestSequencerNode(Node):
                 profile, _ = load_tolerance(plan.tolerance or info.preset)
             self.busy = {'plan': plan.name, 'serial': req.serial, 'step': 0,
                          'steps': len(plan.steps)}
-            self._publish_report(req, plan.name, 'running', 'started', [], '')
+            self._live = {'plan': plan, 'profile': profile, 'decided': []}
+            self._publish_running(req, -1)
             for j, step in enumerate(plan.steps):
                 self.busy['step'] = j
                 results.append(await self._run_step(goal_handle, req, j, step, info,
                                                     len(plan.steps)))
+                self._live['decided'] = [m for res in results for m in res[0]]
+                self._publish_running(req, j)
             report = build_report(plan=plan, profile=profile, info=info, serial=req.serial,
                                   operator=req.operator_name, results=results,
                                   conditions=conditions, started_utc=_iso(started))
@@ -197,7 +206,7 @@ class TestSequencerNode(Node):
             self._publish_report(req, plan.name if plan else '', 'error', str(exc), [], '')
             goal_handle.abort()
         finally:
-            self._runner, self._prog, self.busy = None, {}, None
+            self._runner, self._prog, self.busy, self._live = None, {}, None, {}
         return result
 
     async def _bench(self) -> BenchInfoData:
@@ -249,7 +258,15 @@ class TestSequencerNode(Node):
         params = yaml.safe_dump(_plain(dataclasses.asdict(step)), default_flow_style=True)
         self._publish_step(req, j, n_steps, step, 'started', params, '')
         last_feedback = 0.0
+        done_segments = 0
+        step_decided: list[Measured] = []
         while self._prog['next'] < self._prog['total']:
+            # a segment is complete once a block of a later one came: its metric is decided
+            while done_segments < self._prog['segment']:
+                step_decided += runner.segment_metrics(done_segments)
+                done_segments += 1
+                if step_decided:
+                    self._publish_running(req, j, step_decided)
             if goal_handle.is_cancel_requested:
                 await self._stop_bench()
                 self._publish_step(req, j, n_steps, step, 'cancelled', params, '')
@@ -306,6 +323,25 @@ class TestSequencerNode(Node):
         msg.header.stamp = self.get_clock().now().to_msg()
         msg.header.frame_id = self.bench_info.bench_id if self.bench_info else ''
         self.pub_step.publish(msg)
+
+    def _publish_running(self, req: RunTestPlan.Goal, j: int,
+                         step_decided: list[Measured] | None = None) -> None:
+        """test/report while the test runs: every metric decided so far (finished steps,
+        and the complete segments of step ``j``) against its limit, 'pending' for the rest;
+        the reason says what is decided of the unit's verdict (FAIL once a metric fails)."""
+        live = self._live
+        rows, decided = running_verdicts([*live['decided'], *(step_decided or [])],
+                                         live['profile'])
+        judged = sum(r['verdict'] in {'pass', 'fail'} for r in rows)
+        limits = sum(r['verdict'] != 'info' for r in rows)
+        n = len(live['plan'].steps)
+        where = 'started' if j < 0 else f'step {j + 1}/{n} {live["plan"].steps[j].name}'
+        reason = f'{where}: {judged} of {limits} limits judged so far'
+        if decided == 'fail':
+            failed = ', '.join(r['name'] for r in rows if r['verdict'] == 'fail')
+            reason += f'; FAIL decided: out of limit: {failed}'
+        self._publish_report(req, live['plan'].name, 'running', reason,
+                             [_metric_msg(r) for r in rows], '')
 
     def _publish_report(self, req: RunTestPlan.Goal, plan_name: str, verdict: str, reason: str,
                         metrics: list[MetricVerdict], report_json: str) -> None:

@@ -198,3 +198,27 @@ def test_port_in_use_is_one_line_and_exit_2():
     lines = r.stderr.strip().splitlines()
     assert len(lines) == 1 and lines[0].startswith('ERROR: dashboard: port') and 'in use' in \
         lines[0], r.stderr
+
+
+def test_metrics_decided_while_the_test_runs_are_shown_against_their_limits():
+    """A running test/report (the sequencer's metrics decided so far): the table shows each
+    against its limit in display units at once, not when a step (or the test) ends."""
+    m = DashboardModel()
+    m.on_bench_info({'gear_ratio': RATIO, 'preset': ''})
+    arcmin = math.pi / 10800
+    nan = math.nan
+    m.on_report({'serial': 'SN', 'verdict': 'running', 'reason': 'step 1/2 te: 1 of 3',
+                 'plan_yaml': '', 'tolerance_yaml': '', 'final': False, 'metrics': [
+                     {'name': 'te_pp_ccw_rad', 'step': 'te', 'unit': 'rad',
+                      'value': 1.25 * arcmin, 'limit_min': nan, 'limit_max': 1.0 * arcmin,
+                      'margin': -0.25 * arcmin, 'verdict': 'fail', 'source': 'catalogue'},
+                     {'name': 'lost_motion_arcmin', 'step': '', 'unit': 'rad', 'value': nan,
+                      'limit_min': nan, 'limit_max': 1.0 * arcmin, 'margin': nan,
+                      'verdict': 'pending', 'source': 'catalogue'}]})
+    rows = m.report['rows']
+    assert [r['verdict'] for r in rows] == ['fail', 'pending']
+    assert rows[0]['label'].endswith('[arcmin]')
+    assert float(rows[0]['value']) == pytest.approx(1.25, abs=1e-3)
+    assert rows[0]['limit'] == '<= 1' or float(rows[0]['limit'].split()[-1]) == 1.0
+    u, _ = m.update(None)
+    assert u['report']['rows'] == rows

@@ -183,3 +183,53 @@ def test_client_notices_a_dead_sequencer(session: Any, tmp_path: Path) -> None:
     lines = [ln for ln in err.splitlines() if ln.startswith('ERROR')]
     assert lines == ['ERROR: the test_sequencer went away during the test (no action server '
                      'for 4 s); the bench may still be running']
+
+
+TE_PLAN = {'plan': 'te-live', 'steps': [
+    {'kind': 'te', 'name': 'te', 'speed_rpm': 1500, 'directions': ['ccw', 'cw'],
+     'revolutions': 1, 'settle_s': 0.2}]}
+
+
+@pytest.mark.timeout(240)
+def test_each_metric_is_judged_on_test_report_as_it_is_decided(session: Any,
+                                                               ros_context: Any) -> None:
+    """A TE direction's metric is decided when its segment ends: the running test/report
+    carries it against its limit before the step (the other direction) has finished, with
+    the value the final report gives it; limits not measured yet are 'pending'."""
+    from rv_te_msgs.msg import TestReport, TestStep
+
+    node = rclpy.create_node('sequencer_live_client', context=ros_context)
+    ex = SingleThreadedExecutor(context=ros_context)
+    ex.add_node(node)
+    seen: list[tuple[str, Any]] = []
+    node.create_subscription(TestReport, 'test/report', lambda m: seen.append(('report', m)),
+                             qos.LATCHED_QOS)
+    node.create_subscription(TestStep, 'test/step', lambda m: seen.append(('step', m)),
+                             qos.TE_SAMPLES_QOS)
+    try:
+        client = ActionClient(node, RunTestPlan, 'run_test_plan')
+        assert spin_until(ex, client.server_is_ready, 30.0), 'no action server'
+        send = client.send_goal_async(RunTestPlan.Goal(plan_yaml=yaml.safe_dump(TE_PLAN),
+                                                       serial='SN-LIVE', operator_name='pt'))
+        assert spin_until(ex, send.done, 20.0) and send.result().accepted
+        res = send.result().get_result_async()
+        assert spin_until(ex, res.done, 120.0)
+        spin_for(ex, 1.0)
+    finally:
+        node.destroy_node()
+    final = res.result().result
+    by_name = {m.name: m for m in final.metrics}
+    ccw = by_name['te_pp_ccw_rad']
+    assert ccw.verdict in {'pass', 'fail'} and ccw.value > 0
+    finished = next(i for i, (k, m) in enumerate(seen) if k == 'step' and
+                    m.state == 'finished')
+    early = [m for k, m in seen[:finished] if k == 'report' and m.verdict == 'running'
+             and any(x.name == 'te_pp_ccw_rad' for x in m.metrics)]
+    assert early, [(k, getattr(m, 'state', getattr(m, 'verdict', ''))) for k, m in seen]
+    first = {x.name: x for x in early[0].metrics}
+    assert 'te_pp_cw_rad' not in first                    # the cw direction still ran
+    got = first['te_pp_ccw_rad']
+    assert (got.value, got.limit_max, got.verdict) == (ccw.value, ccw.limit_max, ccw.verdict)
+    assert {x.verdict for x in early[0].metrics if x.name != 'te_pp_ccw_rad'} == {'pending'}
+    assert early[0].serial == 'SN-LIVE' and '1 of ' in early[0].reason
+    assert seen[-1][0] == 'report' and seen[-1][1].verdict == final.verdict

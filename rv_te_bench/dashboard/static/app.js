@@ -330,10 +330,16 @@
       $('plan-text').textContent = `plan: ${fmt(100 * fb.plan_progress, 1)} %`;
     }
     const verdict = rep.verdict || 'running';
+    // while it runs, a metric out of its limit decides the unit's verdict (FAIL) at once
+    const failedSoFar = (rep.rows || []).filter((m) => m.verdict === 'fail').map((m) => m.label);
+    const decided = verdict === 'running' && failedSoFar.length ? 'fail' : verdict;
     banner.classList.remove('hidden');
-    banner.className = 'banner ' + (['pass', 'fail', 'running'].includes(verdict) ? verdict : 'other');
-    banner.textContent = verdict === 'running' ? `TEST RUNNING: unit ${rep.serial || ''}` : `VERDICT: ${verdict.toUpperCase()}  unit ${rep.serial || ''}: ${rep.reason || ''}`;
+    banner.className = 'banner ' + (['pass', 'fail', 'running'].includes(decided) ? decided : 'other');
+    if (verdict !== 'running') banner.textContent = `VERDICT: ${verdict.toUpperCase()}  unit ${rep.serial || ''}: ${rep.reason || ''}`;
+    else if (decided === 'fail') banner.textContent = `VERDICT: FAIL (decided, the test goes on)  unit ${rep.serial || ''}: out of limit: ${failedSoFar.join(', ')}`;
+    else banner.textContent = `TEST RUNNING: unit ${rep.serial || ''}${rep.reason && rep.reason !== 'started' ? ' · ' + rep.reason : ''}`;
     dash.verdict = verdict;
+    dash.decided = decided;
     const mb = $('metrics').tBodies[0];
     mb.replaceChildren();
     for (const m of (rep.rows || [])) {
