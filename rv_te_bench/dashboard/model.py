@@ -26,6 +26,7 @@ import numpy as np
 
 from rv_te_bench.core.te import output_phase_and_te
 from rv_te_bench.dashboard.envelope import AngleEnvelopes, TimeEnvelopes
+from rv_te_bench.dashboard.loop import HysteresisLoop
 
 __all__ = ['MAX_EVENTS', 'MAX_PENDING_SAMPLES', 'DashboardModel', 'EncoderSamples']
 
@@ -34,9 +35,6 @@ MAX_EVENTS = 2000
 #: Samples waiting for the gear ratio (bench/info) or for the next fold; beyond it the
 #: oldest are dropped and counted as a page-side loss (the session itself loses nothing).
 MAX_PENDING_SAMPLES = 5_000_000
-#: Hysteresis curve points kept (one per 10 ms of session time).
-MAX_CURVE_POINTS = 50_000
-HYSTERESIS_POINT_S = 0.01
 
 
 @dataclass
@@ -109,8 +107,7 @@ class DashboardModel:
         self.feedback_gen = 0
         self.report: dict[str, Any] = {}
         self.report_gen = 0
-        self.curve: list[tuple[float, float]] = []   # (applied torque [N m], angle [rad])
-        self._curve_next_s = -math.inf
+        self.curve = HysteresisLoop()
         self._hysteresis_active = False
 
     def _bump(self) -> int:
@@ -260,7 +257,7 @@ class DashboardModel:
             self.steps.sort(key=lambda x: x['step_index'])
             self._hysteresis_active = s['step_kind'] == 'hysteresis' and s['state'] == 'started'
             if self._hysteresis_active:
-                self.curve = []
+                self.curve.clear()
             self.steps_gen = self._bump()
             if s['state'] == 'finished':
                 self._judge()
@@ -321,23 +318,7 @@ class DashboardModel:
                 self.last_sample_s = float(t[-1])
                 self.last_rx_wall_s = blocks[-1].received_wall_s
             if self._hysteresis_active and torque is not None:
-                self._curve_points(t, te, torque)
-
-    def _curve_points(self, t: np.ndarray, te: np.ndarray, torque: np.ndarray) -> None:
-        """One (applied torque, angle) point per HYSTERESIS_POINT_S of session time."""
-        slot = np.floor(t / HYSTERESIS_POINT_S).astype(np.int64)
-        cuts = np.flatnonzero(np.diff(slot)) + 1
-        starts = np.concatenate(([0], cuts))
-        counts = np.diff(np.concatenate((starts, [len(t)])))
-        tq = np.add.reduceat(-torque, starts) / counts   # applied torque = -reaction
-        ang = np.add.reduceat(te, starts) / counts
-        keep = slot[starts] * HYSTERESIS_POINT_S >= self._curve_next_s
-        pts = [(float(a), float(b)) for a, b in zip(tq[keep], ang[keep], strict=True)
-               if math.isfinite(a) and math.isfinite(b)]
-        room = MAX_CURVE_POINTS - len(self.curve)
-        self.curve.extend(pts[:max(room, 0)])
-        if len(slot):
-            self._curve_next_s = (slot[-1] + 1) * HYSTERESIS_POINT_S
+                self.curve.push(t, te, torque)
 
     # -- output (server thread) -------------------------------------------------------------
     def update(self, cursor: dict[str, Any] | None) -> tuple[dict[str, Any], dict[str, Any]]:
@@ -383,13 +364,11 @@ class DashboardModel:
         new_events = [e for e in self.events if e['gen'] > since]
         if new_events:
             out['events'] = new_events
-        if self.curve and (full or self.gen > since):
-            seen = 0 if full else cursor.get('curve', 0)
-            if seen > len(self.curve):
-                seen = 0
-            out['curve'] = {'from': seen, 'points': _clean(np.asarray(self.curve[seen:]))}
+        curve_cursor = None if full else cursor.get('curve')
+        if len(self.curve) and (full or self.gen > since):
+            out['curve'], curve_cursor = self.curve.since(curve_cursor)
         new_cursor = {'session_id': self.session_id, 'gen': self.gen, 'views': views,
-                      'curve': len(self.curve)}
+                      'curve': curve_cursor}
         return out, new_cursor
 
     def _status(self) -> dict[str, Any]:

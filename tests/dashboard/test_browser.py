@@ -269,10 +269,12 @@ def test_rv_te_test_page_shows_steps_hysteresis_metrics_and_verdict(need_chromiu
     cmd = [sys.executable, '-m', 'rv_te_bench.cli.main', 'test', 'li2023-rv', '--serial',
            'LI-0042', '--operator', 'kim', '--launch', 'li2023-rv', '--out-dir', str(tmp_path),
            '--namespace', f'tst{os.getpid() % 10000}', '--dashboard', '--dashboard-port',
-           str(port), '--no-foxglove']
+           str(port), '--no-foxglove', '--speed-factor', '2']   # the page sees each step
     proc = subprocess.Popen(cmd, env=env(), cwd=REPO, stdout=subprocess.PIPE,
                             stderr=subprocess.PIPE, text=True)
     shot = tmp_path / 'dashboard.png'
+    rows_js = ("return [...document.querySelectorAll('#metrics tbody tr')].map("
+               "tr => [...tr.children].map(td => td.textContent));")
     with chromium(1400, 2400) as tab:
         wait_for(lambda: _try_get(tab, f'http://127.0.0.1:{port}/'), 60, 'the page')
         wait_for(lambda: len(tab.execute_script('return window.rvte.S.curve') or []) > 200,
@@ -282,10 +284,10 @@ def test_rv_te_test_page_shows_steps_hysteresis_metrics_and_verdict(need_chromiu
         time.sleep(0.5)
         tab.save_screenshot(str(shot))
         verdict = page_state(tab)['verdict']
-        rows = tab.execute_script(
-            "return [...document.querySelectorAll('#metrics tbody tr')].map("
-            "tr => [...tr.children].map(td => td.textContent));")
+        rows = tab.execute_script(rows_js)
         steps = text(tab, 'steps')
+        loop = page_state(tab)['drawn']['hyst']
+        log = tab.execute_script('return window.rvte.testLog')
     _, err = proc.communicate(timeout=120)
     assert proc.returncode in (0, 3), err
     report = json.loads(next(tmp_path.glob('LI-0042_*/report/report.json')).read_text())
@@ -299,6 +301,19 @@ def test_rv_te_test_page_shows_steps_hysteresis_metrics_and_verdict(need_chromiu
                    5e-4 * abs(m['value'] * ARCMIN))
         assert row
     assert 'hysteresis' in steps and 'finished' in steps
+    # a metric was on screen against its limit as soon as it was decided: the first TE
+    # direction's, while the TE step (its second direction) still ran
+    early = [e for e in log if ['te', 'started'] in e['steps']
+             and any(r[3] in {'pass', 'fail'} for r in e['rows'])]
+    assert early, log
+    decided = [r for r in early[0]['rows'] if r[3] in {'pass', 'fail'}]
+    assert decided[0][0].startswith('TE p-p, ccw') and decided[0][2].startswith('<='), decided
+    assert 'pending' in {r[3] for r in early[0]['rows']}
+    # the loop drawn as two branches (lines through the torque columns), spanning the
+    # step's torque range (the plan's rated torque, 450 N m, both ways)
+    for name in ('rising', 'falling'):
+        assert loop['branches'][name]['columns'] >= 20, loop
+    assert loop['torque_min'] < -400 and loop['torque_max'] > 400, loop
     if os.environ.get('RV_TE_UPDATE_SCREENSHOT') == '1':
         (REPO / 'docs' / 'dashboard.png').write_bytes(shot.read_bytes())
 

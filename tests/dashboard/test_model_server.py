@@ -222,3 +222,56 @@ def test_metrics_decided_while_the_test_runs_are_shown_against_their_limits():
     assert rows[0]['limit'] == '<= 1' or float(rows[0]['limit'].split()[-1]) == 1.0
     u, _ = m.update(None)
     assert u['report']['rows'] == rows
+
+
+def test_the_hysteresis_curve_comes_as_branches_of_a_loop():
+    """A torque cycle 0 -> +T -> -T -> 0 (ramps, with dwell noise) on a backlash loop: every
+    curve point is labelled with the branch it lies on (torque rising / falling), as the
+    cycle's own slope says, except within the turn tolerance of the two turning points."""
+    from rv_te_bench.dashboard.loop import TURN_FRACTION
+
+    m = DashboardModel()
+    m.on_bench_info({'gear_ratio': RATIO, 'preset': ''})
+    m.on_step({'serial': 'S', 'step_index': 1, 'step_count': 2, 'step_name': 'hyst',
+               'step_kind': 'hysteresis', 'state': 'started', 'first_seq': 0, 'last_seq': 0,
+               'result_yaml': ''})
+    t_nm, k, b = 400.0, 4e5, 2e-4                           # T_R, N m/rad, backlash rad
+    period = 12.0
+    n = 1000
+    rng = np.random.default_rng(3)
+    for seq in range(int(period * FS / n)):
+        t = (seq * n + np.arange(n)) / FS
+        phase = t / period                                    # 0 .. 1 over the cycle
+        applied = t_nm * np.interp(phase, [0, 0.25, 0.75, 1.0], [0, 1, -1, 0])
+        rising = (phase < 0.25) | (phase >= 0.75)
+        angle = applied / k + np.where(rising, b / 2, -b / 2)
+        torque = -applied + rng.normal(0, 0.002 * t_nm, n)    # the reaction, noisy
+        m.on_encoders(EncoderSamples(seq=seq, stamp_s=t[0], time_offset_s=t - t[0],
+                                     theta_in_rad=np.zeros(n), theta_out_rad=angle,
+                                     torque_out_nm=torque))
+        m.fold()
+    u, cur = m.update(None)
+    pts = np.array(u['curve']['points'])
+    assert pts.shape[1] == 3 and len(pts) >= 0.99 * period / 0.01
+    tq, ang, way = pts.T
+    phase = (np.arange(len(pts)) * 0.01 + 0.005) / period   # one point per 10 ms
+    true_way = np.where((phase < 0.25) | (phase >= 0.75), 1, -1)
+    # the branch turns once the torque is back by TURN_FRACTION of T_R from its extreme
+    # (TURN_FRACTION / 4 of the cycle at these ramps); allow twice that, and the start
+    turn = 2 * TURN_FRACTION / 4
+    near_turn = (np.abs(phase - 0.25) < turn) | (np.abs(phase - 0.75) < turn) | (phase < turn)
+    assert np.array_equal(way[~near_turn], true_way[~near_turn])
+    # the two branches are the two flanks of the loop: angle - T/k = +-b/2
+    for w, sign in ((1, 1), (-1, -1)):
+        sel = (way == w) & ~near_turn
+        assert np.allclose(ang[sel] - tq[sel] / k, sign * b / 2, atol=3 * 0.002 * t_nm / k)
+    # an open tab gets only the new points; a new step starts the curve over
+    m.on_step({'serial': 'S', 'step_index': 2, 'step_count': 3, 'step_name': 'hyst2',
+               'step_kind': 'hysteresis', 'state': 'started', 'first_seq': 0, 'last_seq': 0,
+               'result_yaml': ''})
+    m.on_encoders(EncoderSamples(seq=1000, stamp_s=100.0, time_offset_s=np.arange(n) / FS,
+                                 theta_in_rad=np.zeros(n), theta_out_rad=np.zeros(n),
+                                 torque_out_nm=np.zeros(n)))
+    m.fold()
+    u2, _ = m.update(cur)
+    assert u2['curve']['from'] == 0 and len(u2['curve']['points']) == 10

@@ -9,7 +9,8 @@
   let shown = S;            // what is drawn (a finished session stays until new data comes)
   let old = null;
   const dash = window.rvte = { S, draws: 0, updates: 0, drawWall: [], latency: [],
-    rxLatency: [], drawn: {}, connected: false, messages: 0 };
+    rxLatency: [], drawn: {}, connected: false, messages: 0, testLog: [],
+    drawMs: [], applyMs: [], msgWall: [] };
 
   function newSession() {
     return { id: null, status: {}, info: {}, revs: {}, views: {}, windows: new Map(),
@@ -47,6 +48,10 @@
     for (const w of (u.windows || [])) S.windows.set(w.index, w);
     if ('open_window' in u) S.openWindow = u.open_window;
     for (const k of ['spectrum', 'advice', 'recorder', 'nodes', 'steps', 'feedback', 'report']) if (u[k]) S[k] = u[k];
+    if (u.report && dash.testLog.length < 500) {   // what the table said when (for checks)
+      dash.testLog.push({ steps: S.steps.map((x) => [x.step_name, x.state]),
+        rows: (u.report.rows || []).map((m) => [m.label, m.value, m.limit, m.verdict]) });
+    }
     if (u.events) S.events.push(...u.events);
     if (u.curve) { S.curve.length = u.curve.from; for (const p of u.curve.points) S.curve.push(p); }
     const hasData = (S.status.blocks || 0) > 0 || S.windows.size > 0 || S.steps.length > 0;
@@ -145,10 +150,18 @@
       axes: [{ label: 'output order [cycles per output revolution]' }, { label: 'amplitude [arcsec]' }],
       series: [{}, { label: 'line amplitude', stroke: '#b45309', fill: 'rgba(180,83,9,0.5)', paths: uPlot.paths.bars({ size: [0.6, 8] }), points: { show: true, size: 5 } }],
       hooks: { draw: [drawLineLabels] }, data: [[], []] });
+    // the loop: per branch (torque rising / falling) one line through the mean angle of each
+    // torque column, and the band of the column's min..max (a dwell's creep, the cycles)
+    const branch = (label, color, fill) => [
+      { label: label, stroke: color, width: 2, spanGaps: true, points: { show: false } },
+      { label: label + ' max', stroke: fill, width: 1, spanGaps: false, points: { show: false } },
+      { label: label + ' min', stroke: fill, width: 1, spanGaps: false, points: { show: false } }];
     plots.hyst = mkPlot('plot-hyst', {
+      legend: { show: false },   // the caption under the plot says which colour is which
       scales: { x: { time: false } }, axes: [{ label: 'applied output torque [N m]' }, { label: 'torsion angle [arcmin]' }],
-      series: [{}, { label: 'curve', stroke: '#1d4ed8', width: 1, points: { show: true, size: 3 } }],
-      data: [[], []] });
+      series: [{}, ...branch('torque rising', '#1d4ed8', 'rgba(29,78,216,0.45)'), ...branch('torque falling', '#c2410c', 'rgba(194,65,12,0.45)')],
+      bands: [{ series: [2, 3], fill: 'rgba(29,78,216,0.18)' }, { series: [5, 6], fill: 'rgba(194,65,12,0.18)' }],
+      data: [[], [], [], [], [], [], []] });
   }
   function drawLineLabels(u) {
     const lab = u._labels || [];
@@ -312,6 +325,10 @@
     const rep = s.report, fb = s.feedback;
     const active = s.steps.length || rep.plan_name || fb.step_name;
     $('card-test').classList.toggle('hidden', !active);
+    if (active) {   // built while the card was hidden: fit it to its column now
+      const host = $('plot-hyst'), w = Math.max(300, host.clientWidth);
+      if (Math.abs(plots.hyst.width - w) > 2) { plots.hyst.setSize({ width: w, height: plots.hyst.height }); dash.hystDrawn = -1; }
+    }
     const banner = $('verdict-banner');
     if (!active) { banner.classList.add('hidden'); return; }
     $('ident').textContent = `unit ${rep.serial || (s.steps[0] || {}).serial || '-'} · operator ${rep.operator_name || '-'} · plan ${rep.plan_name || '-'}`;
@@ -345,11 +362,38 @@
     for (const m of (rep.rows || [])) {
       row(mb, [m.label, m.value, m.limit, m.margin, el('span', m.verdict, m.verdict), m.source]);
     }
-    if (s.curve.length) {
-      const pts = s.curve.slice().sort((a, b) => a[0] - b[0]);
-      plots.hyst.setData([s.curve.map((p) => p[0]), s.curve.map((p) => p[1] * ARCMIN)]);
-      void pts;
+    if (s.curve.length && s.curve.length !== dash.hystDrawn) drawLoop(s.curve);
+  }
+  // the curve's points [torque, angle, branch +1 rising / -1 falling / 0 not known yet] into
+  // the plot's torque columns, per branch: mean (the line), min and max (the band)
+  function drawLoop(curve) {
+    const u = plots.hyst, ncols = Math.max(16, Math.floor(plotCols(u) / 2));
+    let lo = Infinity, hi = -Infinity;
+    for (const p of curve) { if (p[0] < lo) lo = p[0]; if (p[0] > hi) hi = p[0]; }
+    const span = (hi - lo) || 1, w = span / ncols;
+    const acc = [1, -1].map(() => ({ sum: new Float64Array(ncols), n: new Uint32Array(ncols),
+      min: new Float64Array(ncols).fill(Infinity), max: new Float64Array(ncols).fill(-Infinity) }));
+    for (const [t, a, b] of curve) {
+      const k = b < 0 ? 1 : 0, c = Math.min(ncols - 1, Math.floor((t - lo) / w)), A = acc[k], y = a * ARCMIN;
+      A.sum[c] += y; A.n[c]++;
+      if (y < A.min[c]) A.min[c] = y;
+      if (y > A.max[c]) A.max[c] = y;
     }
+    const xs = Array.from({ length: ncols }, (_, c) => lo + (c + 0.5) * w);
+    const data = [xs];
+    const branches = {};
+    acc.forEach((A, k) => {
+      const mean = [], mn = [], mx = [];
+      for (let c = 0; c < ncols; c++) {
+        const ok = A.n[c] > 0;
+        mean.push(ok ? A.sum[c] / A.n[c] : null); mn.push(ok ? A.min[c] : null); mx.push(ok ? A.max[c] : null);
+      }
+      data.push(mean, mx, mn);
+      branches[k === 0 ? 'rising' : 'falling'] = { columns: mean.filter((v) => v !== null).length, points: A.n.reduce((x, y) => x + y, 0) };
+    });
+    u.setData(data);
+    dash.hystDrawn = curve.length;
+    dash.drawn.hyst = { ncols, torque_min: lo, torque_max: hi, branches };
   }
   function liveValue(fb) {
     if (!isFinite(fb.live_value)) return '-';
@@ -357,12 +401,15 @@
     return `${sig(fb.live_value, 5)}`;
   }
 
+  // how long the page spends per frame and per message [ms] (the benchmark reads them)
+  function keep(a, x) { a.push(x); if (a.length > 5000) a.splice(0, 2500); }
   let dirty = false;
   function frame() {
     if (dirty) {
       dirty = false;
-      const s = shown;
+      const s = shown, t0 = performance.now();
       drawAngle(s); drawTime(s); drawSpectrum(s); drawWindows(s); drawSession(s); drawTest(s);
+      keep(dash.drawMs, performance.now() - t0);
       const now = Date.now() / 1000;
       dash.draws++;
       dash.drawWall.push(now);
@@ -385,7 +432,10 @@
     ws.onopen = () => { dash.connected = true; $('conn').textContent = 'live'; $('conn').className = 'badge running'; };
     ws.onmessage = (ev) => {
       dash.messages++;
+      const t0 = performance.now();
       apply(JSON.parse(ev.data));
+      keep(dash.applyMs, performance.now() - t0);
+      keep(dash.msgWall, Date.now() / 1000);
       dirty = true;
     };
     ws.onclose = () => {
