@@ -10,6 +10,13 @@ envelope column it falls in.
 
     .venv/bin/python benchmarks/bench_dashboard.py --duration-s 600     # the issue's 10 min
     .venv/bin/python benchmarks/bench_dashboard.py --duration-s 60 --json
+    taskset -c 0 .venv/bin/python benchmarks/bench_dashboard.py          # one core for all
+    # 10 minutes of 10 kHz samples in about a minute (simulated time, 10x): the late tab
+    .venv/bin/python benchmarks/bench_dashboard.py --duration-s 600 --speed-factor 10
+
+Besides the targets it reports where the page's time goes: messages received per second
+(what the server sent), the page's time per frame (drawing) and per message (parsing and
+applying), so a shortfall in screen updates can be placed on the server or on the page.
 
 State the machine's load (uptime) and CPU beside the figures; re-measure on a quiet machine.
 """
@@ -43,6 +50,20 @@ def cpu_s(pid: int) -> float:
     return (int(fields[11]) + int(fields[12])) / os.sysconf('SC_CLK_TCK')
 
 
+def server_stats(url: str) -> dict:
+    """The dashboard server's own timing (GET /api/stats)."""
+    import urllib.request
+
+    base = url.split('?')[0].rstrip('/')
+    with urllib.request.urlopen(f'{base}/api/stats', timeout=10) as r:
+        return json.loads(r.read())
+
+
+def uptime() -> str:
+    """``uptime``'s line (the machine's load as people quote it)."""
+    return subprocess.run(['uptime'], capture_output=True, text=True, check=False).stdout.strip()
+
+
 def main() -> int:
     ap = argparse.ArgumentParser(description=__doc__,
                                  formatter_class=argparse.RawDescriptionHelpFormatter)
@@ -51,21 +72,27 @@ def main() -> int:
     ap.add_argument('--block-size', type=int, default=100)
     ap.add_argument('--measure-s', type=float, default=20.0,
                     help='window (while data flows) for CPU, updates/s and latency [s]')
+    ap.add_argument('--speed-factor', type=float, default=0.0,
+                    help='0: the bench in real time (the targets); >0: simulated time this '
+                         'many times faster (the late tab after a long session, quickly)')
     ap.add_argument('--json', action='store_true')
     a = ap.parse_args()
     out = Path(tempfile.mkdtemp(prefix='bench-dash-'))
     ns = 'bdash'
     dash = DashboardProcess('--namespace', ns, '--port', str(free_port()), '--no-foxglove')
     res: dict = {'duration_s': a.duration_s, 'sample_rate_hz': a.sample_rate_hz,
-                 'block_size': a.block_size, 'load_before': os.getloadavg()}
+                 'block_size': a.block_size, 'speed_factor': a.speed_factor,
+                 'cpus_allowed': sorted(os.sched_getaffinity(0)),
+                 'uptime_before': uptime(), 'load_before': os.getloadavg()}
     try:
         with chromium() as t1, chromium() as t2:
             for t in (t1, t2):
                 t.get(dash.url)
                 wait_for(lambda t=t: (page_state(t) or {}).get('connected'), 30, 'a tab')
+            timing = (['--param', 'bench.time_mode=realtime'] if a.speed_factor <= 0 else
+                      ['--param', f'bench.speed_factor={a.speed_factor}'])
             cmd = [sys.executable, '-m', 'rv_te_bench.cli.main', 'launch', '--default',
-                   'use_sim_time:=false', '--namespace', ns,
-                   '--param', 'bench.time_mode=realtime',
+                   'use_sim_time:=false', '--namespace', ns, *timing,
                    '--param', f'bench.sample_rate_hz={a.sample_rate_hz}',
                    '--param', f'bench.block_size={a.block_size}',
                    '--param', f'bench.duration_s={a.duration_s}',
@@ -76,15 +103,36 @@ def main() -> int:
                                       stderr=subprocess.PIPE, text=True)
             wait_for(lambda: (page_state(t1)['status'].get('blocks') or 0) > 0, 60, 'data')
             c0, w0 = cpu_s(dash.proc.pid), time.monotonic()
-            d0 = page_state(t1)['draws']
+            d0, h0 = page_state(t1)['draws'], server_stats(dash.url)
             time.sleep(a.measure_s)
             c1, w1 = cpu_s(dash.proc.pid), time.monotonic()
-            s1 = page_state(t1)
+            s1, h1 = page_state(t1), server_stats(dash.url)
+            res['server_ticks_per_s'] = (h1['ticks'] - h0['ticks']) / (w1 - w0)
+            res['server_work_ms_p50'] = h1['work_ms_p50']
+            res['server_work_ms_p95'] = h1['work_ms_p95']
+            res['server_sent_per_s_per_tab'] = [
+                (b['sent'] - a_['sent']) / (w1 - w0) for a_, b in zip(
+                    sorted(h0['clients'], key=lambda c: c['sent']),
+                    sorted(h1['clients'], key=lambda c: c['sent']), strict=False)]
+            res['server_skipped_per_s_per_tab'] = [
+                (b['skipped'] - a_['skipped']) / (w1 - w0) for a_, b in zip(
+                    sorted(h0['clients'], key=lambda c: c['sent']),
+                    sorted(h1['clients'], key=lambda c: c['sent']), strict=False)]
             res['server_cpu_pct_of_one_core'] = 100 * (c1 - c0) / (w1 - w0)
             res['screen_updates_per_s'] = (s1['draws'] - d0) / (w1 - w0)
-            lat = np.array(s1['latency'][-2000:])
-            res['sample_to_screen_p50_ms'] = float(np.percentile(lat, 50) * 1e3)
-            res['sample_to_screen_p95_ms'] = float(np.percentile(lat, 95) * 1e3)
+            perf = t1.execute_script('const d = window.rvte; return {draw: d.drawMs.slice(-3000),'
+                                     ' apply: d.applyMs.slice(-3000),'
+                                     ' msg: d.msgWall.slice(-3000)};')
+            since = time.time() - (w1 - w0)
+            res['messages_per_s'] = sum(t >= since for t in perf['msg']) / (w1 - w0)
+            res['page_draw_ms_p50'] = float(np.percentile(perf['draw'], 50))
+            res['page_draw_ms_p95'] = float(np.percentile(perf['draw'], 95))
+            res['page_apply_ms_p50'] = float(np.percentile(perf['apply'], 50))
+            res['page_apply_ms_p95'] = float(np.percentile(perf['apply'], 95))
+            if a.speed_factor <= 0:   # stamps are wall time only in real time
+                lat = np.array(s1['latency'][-2000:])
+                res['sample_to_screen_p50_ms'] = float(np.percentile(lat, 50) * 1e3)
+                res['sample_to_screen_p95_ms'] = float(np.percentile(lat, 95) * 1e3)
             _, err = launch.communicate(timeout=a.duration_s + 120)
             res['launch_rc'] = launch.returncode
             res['launch_lines'] = [ln for ln in err.splitlines() if '[launch]' in ln]
@@ -101,6 +149,7 @@ def main() -> int:
     finally:
         dash.stop()
     res['load_after'] = os.getloadavg()
+    res['uptime_after'] = uptime()
     from rosbags.highlevel import AnyReader
 
     bag = next(p for p in out.iterdir() if (p / 'metadata.yaml').exists())

@@ -2,7 +2,8 @@
 
 * ``GET /``: the page (static HTML, JavaScript and uPlot shipped in the package: it works
   with no internet); ``GET /static/...``; ``GET /api/state``: the whole session so far as
-  JSON (what a new tab gets first); ``WS /ws``: the updates.
+  JSON (what a new tab gets first); ``GET /api/stats``: the server's own timing (ticks,
+  work per tick, updates sent and skipped per tab); ``WS /ws``: the updates.
 * Updates are built per client from its cursor (:meth:`DashboardModel.update`), at most
   :data:`UPDATE_HZ` per second, and each client has at most one message in flight: a tab
   that stalls is skipped until its socket drains, then gets the current envelope (the bins
@@ -15,6 +16,7 @@
 from __future__ import annotations
 
 import asyncio
+import collections
 import contextlib
 import errno
 import hmac
@@ -176,10 +178,12 @@ class Hub:
         self.model = model
         self.clients: set[_Client] = set()
         self.ticks = 0
+        self.work_s: collections.deque[float] = collections.deque(maxlen=2000)
 
     async def run(self) -> None:
         """Fold the samples in and update every ready client, UPDATE_HZ times a second."""
         period = 1.0 / UPDATE_HZ
+        due = time.monotonic()
         while True:
             start = time.monotonic()
             self.model.fold()
@@ -194,7 +198,23 @@ class Hub:
                 update, c.cursor = self.model.update(c.cursor)
                 c.queue.put_nowait(dumps(update))
                 c.last_sent = start
-            await asyncio.sleep(max(period - (time.monotonic() - start), 0.002))
+            now = time.monotonic()
+            self.work_s.append(now - start)
+            # on a fixed grid of 1/UPDATE_HZ: a tick that woke late (a busy machine) does not
+            # push the next one later too; ticks missed altogether are not made up in a burst
+            due = max(due + period, now - period / 2)
+            await asyncio.sleep(max(due - now, 0.002))
+
+    def stats(self) -> dict[str, Any]:
+        """Where the server's time goes (the benchmark reads it): ticks so far, the time
+        of a tick's work (fold + every client's update) [ms], per client the updates sent
+        and the ticks skipped because its previous update was still being sent."""
+        work = sorted(self.work_s)
+        pick = (lambda q: 1e3 * work[min(int(q * len(work)), len(work) - 1)]) if work else (
+            lambda _q: None)
+        return {'ticks': self.ticks, 'update_hz': UPDATE_HZ, 'work_ms_p50': pick(0.5),
+                'work_ms_p95': pick(0.95),
+                'clients': [{'sent': c.sent, 'skipped': c.skipped} for c in self.clients]}
 
     async def serve(self, ws: WebSocket) -> None:
         """One tab: send its updates until it goes."""
@@ -234,6 +254,9 @@ def create_app(model: DashboardModel, *, token: str | None = None) -> tuple[ASGI
         update, _ = model.update(None)
         return JSONResponse(jsonable(update))
 
+    async def stats(_request: Request) -> Response:
+        return JSONResponse(hub.stats())
+
     async def ws(websocket: WebSocket) -> None:
         await hub.serve(websocket)
 
@@ -248,6 +271,7 @@ def create_app(model: DashboardModel, *, token: str | None = None) -> tuple[ASGI
                 await task
 
     app = Starlette(routes=[Route('/', index), Route('/api/state', state),
+                            Route('/api/stats', stats),
                             WebSocketRoute('/ws', ws),
                             Mount('/static', app=StaticFiles(directory=root), name='static')],
                     lifespan=lifespan)

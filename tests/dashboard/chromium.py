@@ -79,7 +79,8 @@ def page_state(driver: Any) -> dict[str, Any]:
         'return {draws: d.draws, updates: d.updates, connected: d.connected,'
         ' status: d.S.status, verdict: d.verdict || null, dominant: d.dominant || null,'
         ' drawn: d.drawn, latency: d.latency.slice(-5000), rxLatency: d.rxLatency.slice(-5000),'
-        ' drawWall: d.drawWall.slice(-5000), windows: [...d.S.windows.values()].map('
+        ' drawWall: d.drawWall.slice(-5000), errors: d.errors.slice(),'
+        ' windows: [...d.S.windows.values()].map('
         '   w => ({index: w.index, pp_rad: w.pp_rad}))};')
 
 

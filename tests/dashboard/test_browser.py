@@ -139,6 +139,8 @@ def test_the_page_updates_while_the_session_runs(session):
     assert len({b for _, b in running}) >= 3, seen    # blocks grew on screen, several times
     assert running[-1][0] - running[0][0] >= 3        # and the page redrew meanwhile
     assert session['tab1']['status']['first_seq'] == 0
+    for tab in ('tab1', 'tab2'):
+        assert session[tab]['errors'] == [], session[tab]['errors']   # no panel failed
 
 
 def test_values_on_screen_equal_the_te_nodes_messages(session):
@@ -287,6 +289,7 @@ def test_rv_te_test_page_shows_steps_hysteresis_metrics_and_verdict(need_chromiu
         rows = tab.execute_script(rows_js)
         steps = text(tab, 'steps')
         loop = page_state(tab)['drawn']['hyst']
+        assert page_state(tab)['errors'] == []
         log = tab.execute_script('return window.rvte.testLog')
     _, err = proc.communicate(timeout=120)
     assert proc.returncode in (0, 3), err

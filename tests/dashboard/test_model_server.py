@@ -124,7 +124,7 @@ def server():
 def test_token_is_enforced_on_page_api_static_and_websocket(server):
     _, _, port = server
     base = f'http://127.0.0.1:{port}'
-    for path in ('/', '/api/state', '/static/app.js', '/?token=wrong'):
+    for path in ('/', '/api/state', '/api/stats', '/static/app.js', '/?token=wrong'):
         with pytest.raises(urllib.error.HTTPError) as err:
             urllib.request.urlopen(base + path, timeout=5)
         assert err.value.code == 403, path
@@ -143,6 +143,9 @@ def test_token_is_enforced_on_page_api_static_and_websocket(server):
     with websockets_sync.connect(f'ws://127.0.0.1:{port}/ws?token=s3cret-token',
                                  open_timeout=5) as ws:
         assert json.loads(ws.recv(timeout=5))['type'] == 'full'
+        with urllib.request.urlopen(base + '/api/stats?token=s3cret-token', timeout=5) as r:
+            stats = json.loads(r.read())
+        assert stats['ticks'] > 0 and stats['clients'] and stats['clients'][0]['sent'] >= 1
 
 
 def test_a_stalled_client_never_holds_more_than_one_update_and_others_keep_going(server):

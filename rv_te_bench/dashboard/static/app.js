@@ -10,7 +10,7 @@
   let old = null;
   const dash = window.rvte = { S, draws: 0, updates: 0, drawWall: [], latency: [],
     rxLatency: [], drawn: {}, connected: false, messages: 0, testLog: [],
-    drawMs: [], applyMs: [], msgWall: [] };
+    drawMs: [], applyMs: [], msgWall: [], errors: [] };
 
   function newSession() {
     return { id: null, status: {}, info: {}, revs: {}, views: {}, windows: new Map(),
@@ -55,10 +55,20 @@
     if (u.events) S.events.push(...u.events);
     if (u.curve) { S.curve.length = u.curve.from; for (const p of u.curve.points) S.curve.push(p); }
     const hasData = (S.status.blocks || 0) > 0 || S.windows.size > 0 || S.steps.length > 0;
+    const was = shown;
     shown = (!hasData && old) ? old : S;
     if (hasData) old = null;
+    // what the next frame redraws: only the panels whose data came (a frame is then short)
+    if (u.type === 'full' || shown !== was) for (const k of Object.keys(changed)) changed[k] = true;
+    if (u.revs && u.revs.length) changed.angle = true;
+    if (u.recent || u.overview) changed.time = true;
+    if (u.spectrum) changed.spectrum = true;
+    if (u.windows || 'open_window' in u) changed.windows = true;
+    changed.session = true;   // the status (blocks, session time) comes with every update
+    if (u.steps || u.feedback || u.report || u.curve) changed.test = true;
     dash.updates++;
   }
+  const changed = { angle: true, time: true, spectrum: true, windows: true, session: true, test: true };
   function snapshotOf(s) { return Object.assign(newSession(), s, { windows: new Map(s.windows) }); }
   function applyRev(r) {
     const n = S.status.angle_bins || 2048;
@@ -276,9 +286,18 @@
     const cum = last ? last.cumulative_pp_rad : (s.openWindow ? s.openWindow.cumulative_pp_rad : NaN);
     $('cum-pp').textContent = fmt(cum * ARCMIN, 4);
   }
+  // a small table updated in place: only cells whose text changed are touched (rebuilding
+  // the rows every update made the browser lay the page out again each frame)
   function kv(tbody, pairs) {
-    tbody.replaceChildren();
-    for (const [k, v] of pairs) row(tbody, [k, v]);
+    if (tbody.rows.length !== pairs.length) {
+      tbody.replaceChildren();
+      for (const cells of pairs) row(tbody, cells);
+      return;
+    }
+    pairs.forEach((cells, i) => cells.forEach((text, j) => {
+      const td = tbody.rows[i].cells[j], t = String(text);
+      if (td.textContent !== t) td.textContent = t;
+    }));
   }
   function drawSession(s) {
     const st = s.status, info = s.info;
@@ -297,11 +316,11 @@
       ['size', r.size_bytes === null || r.size_bytes === undefined ? '-' : `${(r.size_bytes / 1e6).toFixed(2)} MB`],
       ['messages', String(r.messages)], ['lost (disk full)', String(r.lost_messages)],
       ['gaps / missing blocks', `${r.gaps} / ${r.missing_blocks}`]] : [['state', 'no recorder seen']]);
+    const nodes = Object.entries(s.nodes).sort();
+    const nodeRows = nodes.map(([name, n]) => [name, n.gone ? 'GONE' : (['ok', 'warn', 'error', 'stale'][n.level] || '-'), n.message || '']);
     const nb = $('nodes').tBodies[0];
-    nb.replaceChildren();
-    for (const [name, n] of Object.entries(s.nodes).sort()) {
-      row(nb, [name, n.gone ? 'GONE' : (['ok', 'warn', 'error', 'stale'][n.level] || '-'), n.message || ''], n.gone || n.level >= 2 ? 'fail' : '');
-    }
+    kv(nb, nodeRows);
+    nodes.forEach(([, n], i) => { nb.rows[i].className = n.gone || n.level >= 2 ? 'fail' : ''; });
     const ev = $('events');
     if (ev.childElementCount !== s.events.length) {
       ev.replaceChildren();
@@ -408,7 +427,12 @@
     if (dirty) {
       dirty = false;
       const s = shown, t0 = performance.now();
-      drawAngle(s); drawTime(s); drawSpectrum(s); drawWindows(s); drawSession(s); drawTest(s);
+      const draw = { angle: drawAngle, time: drawTime, spectrum: drawSpectrum, windows: drawWindows, session: drawSession, test: drawTest };
+      for (const [k, f] of Object.entries(draw)) {
+        if (!changed[k]) continue;
+        changed[k] = false;
+        try { f(s); } catch (e) { keep(dash.errors, `${k}: ${e}`); }   // one panel, not the page
+      }
       keep(dash.drawMs, performance.now() - t0);
       const now = Date.now() / 1000;
       dash.draws++;
@@ -452,6 +476,8 @@
       p.setSize({ width: Math.max(300, host.clientWidth), height: p.height });
       void id;
     }
+    for (const k of Object.keys(changed)) changed[k] = true;
+    dash.hystDrawn = -1;
     dirty = true;
   });
   requestAnimationFrame(frame);
