@@ -89,10 +89,11 @@ def main() -> int:
             for t in (t1, t2):
                 t.get(dash.url)
                 wait_for(lambda t=t: (page_state(t) or {}).get('connected'), 30, 'a tab')
-            timing = (['--param', 'bench.time_mode=realtime'] if a.speed_factor <= 0 else
-                      ['--param', f'bench.speed_factor={a.speed_factor}'])
+            timing = (['use_sim_time:=false', '--param', 'bench.time_mode=realtime']
+                      if a.speed_factor <= 0 else
+                      ['use_sim_time:=true', '--param', f'bench.speed_factor={a.speed_factor}'])
             cmd = [sys.executable, '-m', 'rv_te_bench.cli.main', 'launch', '--default',
-                   'use_sim_time:=false', '--namespace', ns, *timing,
+                   '--namespace', ns, *timing,
                    '--param', f'bench.sample_rate_hz={a.sample_rate_hz}',
                    '--param', f'bench.block_size={a.block_size}',
                    '--param', f'bench.duration_s={a.duration_s}',
@@ -110,6 +111,8 @@ def main() -> int:
             res['server_ticks_per_s'] = (h1['ticks'] - h0['ticks']) / (w1 - w0)
             res['server_work_ms_p50'] = h1['work_ms_p50']
             res['server_work_ms_p95'] = h1['work_ms_p95']
+            res['server_work_ms_max'] = h1['work_ms_max']
+            res['server_tick_gap_ms_max'] = h1['gap_ms_max_last_250']
             res['server_sent_per_s_per_tab'] = [
                 (b['sent'] - a_['sent']) / (w1 - w0) for a_, b in zip(
                     sorted(h0['clients'], key=lambda c: c['sent']),

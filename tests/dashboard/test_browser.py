@@ -271,7 +271,8 @@ def test_rv_te_test_page_shows_steps_hysteresis_metrics_and_verdict(need_chromiu
     cmd = [sys.executable, '-m', 'rv_te_bench.cli.main', 'test', 'li2023-rv', '--serial',
            'LI-0042', '--operator', 'kim', '--launch', 'li2023-rv', '--out-dir', str(tmp_path),
            '--namespace', f'tst{os.getpid() % 10000}', '--dashboard', '--dashboard-port',
-           str(port), '--no-foxglove', '--speed-factor', '2']   # the page sees each step
+           str(port), '--no-foxglove', '--speed-factor', '1']   # real time: the page sees
+    # each step (at 2x, on a machine at load 30, the tab connected after the TE step)
     proc = subprocess.Popen(cmd, env=env(), cwd=REPO, stdout=subprocess.PIPE,
                             stderr=subprocess.PIPE, text=True)
     shot = tmp_path / 'dashboard.png'
