@@ -102,12 +102,14 @@ def _bag_for(args: argparse.Namespace, out_dir: Path) -> tuple[Path, str]:
     return Path(summary.bag), fmt
 
 
-def run_from(args: argparse.Namespace, plan: TestPlan, tol_text: str,
+def run_from(args: argparse.Namespace, plan: TestPlan, plan_text: str, tol_text: str,
              conditions: dict[str, Any]) -> int:
-    """Judge, report, record; 0 pass, 3 fail, 1 error or not judged."""
+    """Judge, report, record (and keep ``judged.json`` for ``rv-te unit-report``); 0 pass,
+    3 fail, 1 error or not judged."""
     from rv_te_bench.acceptance import load_tolerance, parse_tolerance
     from rv_te_bench.acceptance._files import parse_yaml_text
     from rv_te_bench.acceptance.recorded import JudgeSettings, judge_record
+    from rv_te_bench.cli._judged import write_judged
     from rv_te_bench.cli.test import _record, show_report, verdict_exit
     from rv_te_bench.errors import ToleranceError
     from rv_te_bench.io.measured_record import TorqueTopic, read_measured_record
@@ -128,7 +130,7 @@ def run_from(args: argparse.Namespace, plan: TestPlan, tol_text: str,
         profile = parse_tolerance(parse_yaml_text(tol_text, 'tolerance', ToleranceError),
                                   'tolerance')
     elif record.info.preset:
-        profile, _ = load_tolerance(record.info.preset)
+        profile, tol_text = load_tolerance(record.info.preset)
     else:
         msg = ('no tolerance profile: the plan names none and the bench has no preset; give '
                '--tolerance FILE')
@@ -146,6 +148,15 @@ def run_from(args: argparse.Namespace, plan: TestPlan, tol_text: str,
             print(f"step {step['name']!r} not judged: {step['not_judged']}", file=sys.stderr)
     report_dir = Path(args.report) if args.report else out_dir / 'report'
     show_report(report, report_dir, as_json=args.json)
+    judged = write_judged(out_dir, bag=bag, plan_text=plan_text, tolerance_text=tol_text,
+                          torque=None if torque is None else {
+                              'topic': torque.topic, 'axis': torque.axis,
+                              'joint': torque.joint, 'scale': torque.scale},
+                          settings={'speed_tolerance': settings.speed_tolerance,
+                                    'load_tolerance': settings.load_tolerance},
+                          report=report)
+    print(f'judged record: {judged} (rv-te unit-report {out_dir} judges it again)',
+          file=sys.stderr)
     _record(args, report, bag, beside_bag=bag == Path(args.from_path))
     return verdict_exit(report['verdict'], args.serial, report['reason'], report,
                         as_json=args.json)

@@ -2,7 +2,10 @@
 
 Reads the encoder blocks of each bag straight into numpy, runs the TE core (windows of
 whole output revolutions, order spectrum, gaps), names the dominant harmonic and asks the
-compensation code for a recommendation. Results go to stdout (a table, or JSON with
+compensation code for a recommendation. A record with a torque channel and the input locked
+while the output is loaded both ways (a hysteresis test, measured on any bench) also gets
+its lost motion, backlash and torsional rigidity, read as a plan's hysteresis step reads
+them (catalogue definitions, cycles averaged, spread). Results go to stdout (a table, or JSON with
 unit-suffixed keys); progress and diagnostics go to stderr. Several bags give a comparison
 table, the first bag being the reference (before / after a modification).
 
@@ -52,6 +55,9 @@ examples:
   rv-te analyze before/ after/ --report out/cmp    compare two sessions (first = reference)
   rv-te analyze real.mcap --ratio 79 --crank-per-output 25
                                                    a bag without BenchInfo (real bench)
+  rv-te analyze bags/li_session --rated-torque 450   with its hysteresis test: lost
+                                                   motion at +-3 % of 450 N m, backlash,
+                                                   rigidity K (default T_R: the record's)
 
 exit codes: 0 ok (partial results are marked PARTIAL), 1 failed (one ERROR: line on
 stderr), 2 bad usage
@@ -60,6 +66,9 @@ stderr), 2 bad usage
 #: Largest --harmonics and --window-revolutions: the core's limits (one definition for the
 #: TE node's parameters, analyze, fleet and the library).
 MAX_HARMONICS = MAX_CRANK_HARMONICS
+#: Largest record (samples) whose hysteresis is read without --hysteresis: the record is
+#: read whole a second time (a long TE session is not a hysteresis test).
+HYSTERESIS_AUTO_MAX_SAMPLES = 2_000_000
 #: Seconds between two progress lines on stderr.
 PROGRESS_PERIOD_S = 2.0
 
@@ -103,6 +112,13 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
                         'never part of a plain analysis)')
     add_heads_arguments(p)
     add_db_argument(p, mode='also')
+    p.add_argument('--rated-torque', type=positive_float, metavar='NM', default=None,
+                   help='rated torque T_R of a hysteresis record [N m] (lost motion at +-3 %% '
+                        "of it, rigidity K over 0.5-1.0 T_R); default: the record's largest "
+                        'held torque')
+    p.add_argument('--hysteresis', choices=('auto', 'on', 'off'), default='auto',
+                   help='read lost motion, backlash and rigidity of locked-input stretches '
+                        f'(auto: records up to {HYSTERESIS_AUTO_MAX_SAMPLES:,} samples)')
     p.add_argument('--serial', default=None,
                    help='unit serial recorded with the result (default: from the bag)')
     p.add_argument('--lot', default=None, help='production lot recorded with the result')
@@ -178,6 +194,7 @@ def _run(args: argparse.Namespace) -> int:
         raise ReportExistsError(msg)
     calibration = load_calibration(args)
     results: list[AnalysisResult] = []
+    hysteresis: list[dict[str, Any] | None] = []
     for bag in args.bags:
         progress = None if args.quiet else _Progress(str(bag), sys.stderr)
         t0 = time.monotonic()
@@ -204,12 +221,16 @@ def _run(args: argparse.Namespace) -> int:
         if args.monte_carlo is not None:
             res = _with_monte_carlo(res, args.monte_carlo, quiet=args.quiet)
         results.append(res)
+        hysteresis.append(_hysteresis(bag, res, args))
 
     doc = report_json(results)
+    for entry, h in zip(doc['bags'], hysteresis, strict=True):
+        if h is not None:
+            entry['hysteresis'] = h
     if args.json:
         print(json.dumps(doc, indent=2), flush=True)
     else:
-        _print_tables(results, sys.stdout)
+        _print_tables(results, sys.stdout, hysteresis)
     if args.report is not None:
         files = write_report(results, args.report, force=args.force)
         print(f'report written: {", ".join(str(f) for f in files)}', file=sys.stderr)
@@ -237,6 +258,18 @@ def _with_monte_carlo(res: AnalysisResult, draws: int, *, quiet: bool) -> Analys
     if not quiet:
         print(f'{res.path}: Monte Carlo done in {time.monotonic() - t0:.1f} s', file=sys.stderr)
     return replace(res, uncertainty=replace(res.uncertainty, monte_carlo=check))
+
+
+def _hysteresis(bag: Path, res: AnalysisResult, args: argparse.Namespace,
+                ) -> dict[str, Any] | None:
+    """The hysteresis of the record (JSON-ready), or None (none there, or not read)."""
+    if args.hysteresis == 'off' or (args.hysteresis == 'auto' and (
+            res.cumulative.n_samples > HYSTERESIS_AUTO_MAX_SAMPLES or args.topic)):
+        return None
+    from rv_te_bench.cli._analyze_hysteresis import hysteresis_json
+
+    return hysteresis_json(bag, rated_torque_nm=args.rated_torque,
+                           required=args.hysteresis == 'on' or args.rated_torque is not None)
 
 
 def _record(args: argparse.Namespace, doc: dict[str, Any]) -> str | None:
@@ -279,9 +312,10 @@ def _stats_row(st: TeStats) -> str:
             f'{revs} {st.n_samples:>9}')
 
 
-def _print_tables(results: list[AnalysisResult], out: TextIO) -> None:
-    for res in results:
-        _print_one(res, out)
+def _print_tables(results: list[AnalysisResult], out: TextIO,
+                  hysteresis: list[dict[str, Any] | None] | None = None) -> None:
+    for res, h in zip(results, hysteresis or [None] * len(results), strict=True):
+        _print_one(res, out, h)
     if len(results) > 1:
         from rv_te_bench.report.analysis import compare_results
 
@@ -365,7 +399,7 @@ def _print_identification(rec: Recommendation, out: TextIO) -> None:
         print(f'    {line}', file=out)
 
 
-def _print_one(res: AnalysisResult, out: TextIO) -> None:
+def _print_one(res: AnalysisResult, out: TextIO, h: dict[str, Any] | None = None) -> None:
     from rv_te_bench.core.advice import modification_value
     from rv_te_bench.report.analysis import report_title
 
@@ -439,6 +473,10 @@ def _print_one(res: AnalysisResult, out: TextIO) -> None:
             print(f'    {m.factor} ({m.symbol}): {modification_value(m.current_value, m.unit)} -> '
                   f'{modification_value(m.recommended_value, m.unit)}', file=out)
         _print_identification(rec, out)
+    if h is not None:
+        from rv_te_bench.cli._analyze_hysteresis import print_hysteresis
+
+        print_hysteresis(h, out)
     for problem in res.problems:
         print(f'  {"PARTIAL" if res.partial else "note"}: {problem}', file=out)
     print(file=out)

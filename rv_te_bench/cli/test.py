@@ -199,7 +199,7 @@ def run(args: argparse.Namespace) -> int:
                                'bench: give one')
         from rv_te_bench.cli._test_from import run_from
 
-        return run_from(args, plan, tol_text, conditions)
+        return run_from(args, plan, plan_text, tol_text, conditions)
     if getattr(args, 'sim', None):
         if args.launch:
             args._parser.error('--sim runs the simulated bench in this process and --launch '

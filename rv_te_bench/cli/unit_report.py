@@ -8,6 +8,11 @@ the unit report. No ROS needed. Exit code as ``rv-te test``: 0 pass, 3 fail, 4 i
 (guarded decision rule), 1 error (also a cancelled test, or values that differ from the
 recorded ones).
 
+A record judged offline (``rv-te test PLAN --from BAG|FILE``) has no test/report: give the
+output folder of that command (or the imported bag in it). Its ``judged.json`` names the
+bag, the plan, the tolerance and how the record was read; the record is judged again the
+same way and every metric compared with the recorded one.
+
 Usage examples:
   rv-te unit-report out/tests/RV80E-0042_20261124T092855Z/bag
   rv-te unit-report bags/tests/rv_te_20261124_093122 --serial RV-C1 --report out/rv-c1
@@ -40,7 +45,8 @@ def register(subparsers: Subparsers) -> None:
     p = subparsers.add_parser(
         'unit-report', help="a unit's acceptance test again from its session bag (no ROS)",
         description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
-    p.add_argument('bag', help='the session bag folder')
+    p.add_argument('bag', help='the session bag folder (or the output folder of rv-te test '
+                               '--from)')
     p.add_argument('--serial', default=None, help='the unit (default: the last test)')
     p.add_argument('--report', default=None, metavar='DIR',
                    help='where the report goes (default: <bag>/../unit-report)')
@@ -70,9 +76,14 @@ def run(args: argparse.Namespace) -> int:
     from rv_te_bench.acceptance._files import parse_yaml_text
     from rv_te_bench.acceptance.runner import reanalyse
     from rv_te_bench.acceptance.tolerance import parse_tolerance
+    from rv_te_bench.cli._judged import find_judged, rejudge
     from rv_te_bench.io.recorded_test import read_recorded_test
 
     bag = Path(args.bag)
+    judged = find_judged(bag)
+    if judged is not None:
+        return rejudge(judged, report_dir=Path(args.report) if args.report else None,
+                       as_json=args.json, differences=_differences)
     rec = read_recorded_test(bag, serial=args.serial)
     r = rec.report
     plan = parse_plan(parse_yaml_text(r['plan_yaml'], 'recorded plan', AcceptanceError),

@@ -71,7 +71,9 @@ def read_recorded_test(bag: str | Path, *, serial: str | None = None) -> Recorde
                      and (serial is None or r['serial'] == serial)]
             if not ended:
                 who = f' of unit {serial!r}' if serial else ''
-                msg = f'{path}: no ended acceptance test{who} in the bag (topic test/report)'
+                msg = (f'{path}: no ended acceptance test{who} in the bag (topic '
+                       'test/report); a record measured elsewhere is judged with rv-te test '
+                       'PLAN --from BAG|FILE, whose output folder rv-te unit-report reads')
                 raise BagError(msg)
             report = ended[-1]
             mine = [s for s in steps if s['serial'] == report['serial']

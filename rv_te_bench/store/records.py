@@ -259,6 +259,11 @@ def _metrics_of(bag: dict[str, Any]) -> list[MetricValue]:
     v = _f(counters.get('gaps'))
     if v is not None:
         out.append(MetricValue('gaps_count', v))
+    hyst = bag.get('hysteresis') or {}         # a hysteresis record: lost motion, ...
+    for name, value in (hyst.get('metrics') or {}).items():
+        v = _f(value)
+        if v is not None and isinstance(name, str):
+            out.append(MetricValue(name, v))
     for d in bag.get('directions') or []:      # per-direction statistics when present
         direction = d.get('direction')
         if direction in ('cw', 'ccw'):
