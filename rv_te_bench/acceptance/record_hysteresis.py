@@ -124,9 +124,9 @@ def record_hysteresis(record: MeasuredRecord, *, rated_torque_nm: float | None =
         # play that look held, but the angle moves through them.
         ang = _smooth(record.theta_out_rad[r.start:r.stop]
                       - record.theta_in_rad[r.start:r.stop] / record.info.gear_ratio, k)
-        step = np.abs(np.diff(ang))
-        total = float(np.sum(step))
-        inside = sum(float(np.sum(step[a:max(a, b - k)]))
+        dang = np.abs(np.diff(ang))
+        total = float(np.sum(dang))
+        inside = sum(float(np.sum(dang[a:max(a, b - k)]))
                      for a, b in zip(d.start, d.stop, strict=True))
         moving.append(inside / total if total > 0 else 1.0)
     steps = bool(held) and min(share) >= _DWELL_SHARE and max(moving) < _MOVING_SHARE \
