@@ -339,6 +339,16 @@ class JointStateAssembler:
         """Samples in the open block."""
         return len(self._t)
 
+    @property
+    def has_samples(self) -> bool:
+        """True once a sample of both joints was accepted (its joints arrive)."""
+        return bool(self._t) or self.counters['samples'] > 0
+
+    @property
+    def names_seen(self) -> tuple[str, ...]:
+        """The joint names the messages carried (sorted; the last 64 name lists)."""
+        return tuple(sorted({n for key in self._layouts for n in key}))
+
     # -- the per-message path --------------------------------------------------------------
     def push(self, stamp_ns: int, names: Sequence[str], positions: Sequence[float],
              efforts: Sequence[float] = ()) -> tuple[JointStateBlock | JointStateGap, ...]:

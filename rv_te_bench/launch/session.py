@@ -32,6 +32,7 @@ from typing import TYPE_CHECKING, Any
 from rv_te_bench.errors import ParameterFileError, YamlInputError, YamlLimitError
 from rv_te_bench.launch.checks import check_namespace, check_node_config, check_ros_names
 from rv_te_bench.launch.node_specs import NODE_TYPES, node_specs, ros_arguments
+from rv_te_bench.nodes.params import FAILURE_FILE_ENV
 from rv_te_bench.params import (
     ParamSpec,
     check_parameters,
@@ -346,6 +347,7 @@ def child_env() -> dict[str, str]:
     env.pop('_ROS_WHEELS_BOOTSTRAP_COMPLETE', None)
     env.pop('RV_TE_LAUNCHER_PID', None)   # set by Session.start for its own children only
     env.pop('RV_TE_SESSION', None)
+    env.pop(FAILURE_FILE_ENV, None)
     env.setdefault('ROS_AUTOMATIC_DISCOVERY_RANGE', 'LOCALHOST')
     env.setdefault('PYTHONUNBUFFERED', '1')
     return env
@@ -406,6 +408,7 @@ class Session:
             # stops the nodes in data-flow order (recorder last)
             env = child_env()
             env['RV_TE_SESSION'] = self.token
+            env[FAILURE_FILE_ENV] = str(self._failure_path(node))
             if threading.current_thread() is threading.main_thread():
                 # the nodes die with this process (Linux parent-death signal, set by the
                 # node itself: rv_te_bench.nodes.common.die_with_launcher). The signal
@@ -417,6 +420,16 @@ class Session:
             if node == 'recorder':
                 time.sleep(0.5)
 
+    def _failure_path(self, node: str) -> Path:
+        return Path(self._tmp.name) / f'{node}.failure'
+
+    def failure_reason(self, node: str) -> str:
+        """The reason a node that ended with an error left (one line; '' if none)."""
+        try:
+            return self._failure_path(node).read_text(encoding='utf-8').strip()
+        except OSError:
+            return ''
+
     def poll(self) -> dict[str, int | None]:
         """Exit codes so far (None: running). Records unexpected exits as failures."""
         codes: dict[str, int | None] = {}
@@ -427,7 +440,9 @@ class Session:
                 np_.expected_exit = True
                 if code != 0 or name != 'bench':
                     self.crashed.append(name)
-                    self.failures.append(f'node {name!r} exited with code {code}')
+                    reason = self.failure_reason(name)
+                    self.failures.append(f'node {name!r} exited with code {code}'
+                                         + (f': {reason}' if reason else ''))
                     self.log(f'[launch] node {name!r} exited unexpectedly with code {code}')
         return codes
 
@@ -560,6 +575,7 @@ def run_single_process(spec: SessionSpec, *, until: Callable[[], bool] | None = 
     nodes: list[Any] = []
     recorder: Any = None
     executor = make_executor('events', context=ctx)
+    failed: list[str] = []   # nodes that ended with an error (the adapter's joints)
 
     def settle(seconds: float) -> None:
         end = time.monotonic() + seconds
@@ -586,7 +602,12 @@ def run_single_process(spec: SessionSpec, *, until: Callable[[], bool] | None = 
                 break
             if until is not None and until():
                 break
+            if any(getattr(n, 'failure', '') for n in nodes):   # (the adapter's joints)
+                settle(1.0)   # its ERROR diagnostics go out
+                break
     finally:
+        failed += [f'node {n.get_name()!r}: {n.failure}' for n in nodes
+                   if getattr(n, 'failure', '')]
         for n in sorted(nodes, key=lambda n: STOP_ORDER.index(n.get_name())
                         if n.get_name() in STOP_ORDER else 99):
             if getattr(n, 'busy', False):   # the compensation node's search: let it end
@@ -604,12 +625,10 @@ def run_single_process(spec: SessionSpec, *, until: Callable[[], bool] | None = 
         signal.signal(signal.SIGINT, old_int)
         signal.signal(signal.SIGTERM, old_term)
         rclpy.try_shutdown(context=ctx)
-    if recorder is None:
-        return 0
-    lines, lost = recording_report(recorder.summary())
-    for line in lines:
+    lines, lost = recording_report(recorder.summary()) if recorder is not None else ([], False)
+    for line in [*lines, *failed]:
         print(f'[launch] {line}', file=sys.stderr)
-    return 1 if lost or recorder.exit_code else 0
+    return 1 if lost or failed or (recorder is not None and recorder.exit_code) else 0
 
 
 def read_recorder_summary(path: Path) -> dict[str, Any] | None:
@@ -682,11 +701,11 @@ def run_session(spec: SessionSpec, *, log: Callable[[str], None] | None = None,
         signal.signal(signal.SIGINT, old_int)
         signal.signal(signal.SIGTERM, old_term)
     for name, c in codes.items():
-        if c not in (0, None) and not (interrupted and c in (-signal.SIGINT, -signal.SIGTERM,
-                                                             -signal.SIGKILL, 130)):
-            msg = f'node {name!r} ended with code {c}'
-            if msg not in session.failures:
-                session.failures.append(msg)
+        # (a node that exited by itself is named once, by poll(), with its reason)
+        told = any(f.startswith(f'node {name!r} exited with code') for f in session.failures)
+        if c not in (0, None) and not told and not (
+                interrupted and c in (-signal.SIGINT, -signal.SIGTERM, -signal.SIGKILL, 130)):
+            session.failures.append(f'node {name!r} ended with code {c}')
     lines, lost = recording_report(session.recorder_summary)
     for line in lines:
         session.log(f'[launch] {line}')

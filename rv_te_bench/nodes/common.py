@@ -322,6 +322,8 @@ def run_node(factory: Callable[[Context], Node], args: Sequence[str] | None = No
         if node is not None:
             node.destroy_node()   # (a recorder sets its exit code when it closes the bag)
             code = int(getattr(node, 'exit_code', 0) or 0)
+            if code:
+                report_failure(str(getattr(node, 'failure', '') or ''))
         if main_thread:
             signal.signal(signal.SIGINT, old_int)
             signal.signal(signal.SIGTERM, old_term)
@@ -329,6 +331,21 @@ def run_node(factory: Callable[[Context], Node], args: Sequence[str] | None = No
     if launcher_gone():
         _exit_without_waiting_for_workers(code)
     return code
+
+
+def report_failure(reason: str) -> None:
+    """Leave a failing node's reason (one line) where its launcher reads it, if any."""
+    from pathlib import Path
+
+    from rv_te_bench.nodes.params import FAILURE_FILE_ENV
+    from rv_te_bench.safe_yaml import one_line
+
+    path = os.environ.get(FAILURE_FILE_ENV)
+    if reason and path:
+        try:
+            Path(path).write_text(one_line(reason) + '\n', encoding='utf-8')
+        except OSError:
+            pass   # the launcher then names the exit code only
 
 
 def _exit_without_waiting_for_workers(code: int) -> None:

@@ -12,6 +12,11 @@ position closes the block and is reported (log, throttled; diagnostics) and the 
 ``seq`` skips one number, so the TE node and ``rv-te analyze`` see a ``seq_jump`` there,
 never a splice. A malformed message is counted and logged, never fatal.
 
+Joints that never arrive (a name that does not match the broadcaster's): when no sample of
+both joints came ``joints_timeout_s`` after start, the adapter says which names it expected
+and which the messages carry (log, ``/diagnostics`` ERROR) and ends with exit code 1, so the
+session ends non-zero with that line instead of recording an empty bag.
+
 Parameters left at their "from the description" value (empty joint names, 0 rate, 0 block
 size, 0 counts per revolution, 0 effort scale) take the bench description's values.
 """
@@ -40,6 +45,7 @@ from rv_te_bench.core.joint_state import (
 from rv_te_bench.errors import ParameterFileError
 from rv_te_bench.nodes import convert, qos
 from rv_te_bench.nodes.common import (
+    ERROR,
     OK,
     WARN,
     DropCounter,
@@ -160,6 +166,11 @@ class JointStateAdapterNode(Node):
         self.recent_gaps: deque[JointStateGap] = deque(maxlen=64)   # diagnostics and tests
         self._last_msg = time.monotonic()
         self._start = time.monotonic()
+        #: Why the adapter ends with an error (joints that never came); '' while all is well.
+        self.failure = ''
+        self.exit_code = 0
+        self.finished = False
+        self._finish_at: float | None = None
         self._held: deque[EncoderBlock] | None = deque() if self.p.wait_for_nodes else None
         self.pub_blocks = self.create_publisher(EncoderBlock, 'bench/encoders', qos.ENCODER_QOS)
         self.pub_info = self.create_publisher(BenchInfo, 'bench/info', qos.LATCHED_QOS)
@@ -170,6 +181,7 @@ class JointStateAdapterNode(Node):
             qos_overriding_options=QoSOverridingOptions.with_default_policies())
         self.create_timer(self.p.idle_flush_s / 2.0, self._on_idle)
         self.create_timer(self.p.diagnostics_period_s, self._publish_diagnostics)
+        self._joints_timer = self.create_timer(0.2, self._check_joints)
         self._wait_timer = (self.create_timer(0.1, self._check_subscribers)
                             if self._held is not None else None)
         c = self.config
@@ -252,6 +264,46 @@ class JointStateAdapterNode(Node):
             self.pub_blocks.publish(msg)
             self.blocks_published += 1
 
+    def joints_missing(self) -> str:
+        """What is wrong while no sample of both joints has come ('' once one has)."""
+        if self.assembler.has_samples:
+            return ''
+        c = self.config
+        expected = [c.input_joint, c.output_joint]
+        seen = self.assembler.names_seen
+        n = self.assembler.counters['messages']
+        topic = self.resolve_topic_name('joint_states')
+        if not n:
+            return (f'no JointState message on {topic}: expected joints {expected} '
+                    '(is joint_state_broadcaster running, in this namespace and domain?)')
+        missing = [j for j in expected if j not in seen]
+        why = (f'{missing} never in a message' if missing else
+               'both named but never paired (stamps or positions: see the gaps)')
+        return (f'no sample of joints {expected} from {n} JointState message(s) on {topic}: '
+                f'{why}; the messages carry {list(seen)} (set input_joint / output_joint '
+                'or the bench description\'s joints)')
+
+    def _check_joints(self) -> None:
+        """After ``joints_timeout_s`` without a sample of both joints: fail, naming them."""
+        now = time.monotonic()
+        if self._finish_at is not None:
+            if now >= self._finish_at:
+                self.finished = True   # (run_node ends the process with exit_code)
+            return
+        if self.assembler.has_samples:
+            self._joints_timer.cancel()
+            return
+        waited = now - self._start
+        if not self.p.joints_timeout_s or waited < self.p.joints_timeout_s:
+            return
+        self.failure = (f'after {waited:.1f} s (joints_timeout_s '
+                        f'{self.p.joints_timeout_s:g}) {self.joints_missing()}')
+        self.exit_code = 1
+        self.get_logger().error(self.failure)
+        self._publish_diagnostics()
+        # one more diagnostics period so subscribers get the ERROR, then the process ends
+        self._finish_at = now + min(1.0, self.p.diagnostics_period_s)
+
     def _on_idle(self) -> None:
         """The stream paused: publish the open block so the TE node is not kept waiting."""
         if self.assembler.pending_samples and \
@@ -270,8 +322,17 @@ class JointStateAdapterNode(Node):
         bad = counters['gaps'] or self.drops.total
         message = (f'{counters["gaps"]} gaps, {self.drops.total} malformed messages' if bad
                    else f'{self.blocks_published} blocks')
-        self.pub_diag.publish(diagnostic_array(self, 'joint_state_adapter',
-                                               WARN if bad else OK, message, values))
+        level = WARN if bad else OK
+        if not self.assembler.has_samples:
+            c = self.config
+            values.update({'expected_joints': f'{c.input_joint}, {c.output_joint}',
+                           'seen_joints': ', '.join(self.assembler.names_seen)})
+            if self.failure:
+                level, message = ERROR, self.failure
+            elif time.monotonic() - self._start >= min(5.0, self.p.joints_timeout_s or 5.0):
+                level, message = WARN, f'waiting: {self.joints_missing()}'
+        self.pub_diag.publish(diagnostic_array(self, 'joint_state_adapter', level, message,
+                                               values))
 
     def destroy_node(self) -> None:
         """Publish the open block and report an open gap before going."""

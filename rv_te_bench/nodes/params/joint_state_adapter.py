@@ -92,6 +92,11 @@ class JointStateAdapterParams:
     wait_timeout_s: float = param(
         20.0, 'Publish anyway after this long when subscribers are missing [s]', min_value=0.0,
         max_value=3600.0)
+    joints_timeout_s: float = param(
+        20.0,
+        'End with an error (diagnostics ERROR, exit code 1) when no sample of both joints '
+        'came this long after start, naming the joints expected and the names the '
+        'messages carry; 0 = wait forever [s]', min_value=0.0, max_value=86400.0)
     diagnostics_period_s: float = param(
         1.0, 'Diagnostics period [s]', min_value=0.05, max_value=60.0)
 
