@@ -268,8 +268,10 @@ def typed_parameter(name: str, value: Any, specs: tuple[ParamSpec, ...]) -> Any:
 
 
 def session_metadata_yaml(spec: SessionSpec) -> str:
-    """What the recorder stores in the bag's metadata record: every node's parameters."""
-    meta: dict[str, Any] = {'namespace': spec.namespace or '/', 'nodes': list(spec.nodes),
+    """What the recorder stores in the bag's metadata record: every node's parameters, and
+    the unit under test of the adapter's bench description (:func:`unit_metadata`)."""
+    meta: dict[str, Any] = {**unit_metadata(spec),
+                            'namespace': spec.namespace or '/', 'nodes': list(spec.nodes),
                             'parameters': spec.parameters,
                             'remappings': [f'{a}:={b}' for a, b in spec.remappings]}
     if spec.launch_file:
@@ -279,6 +281,26 @@ def session_metadata_yaml(spec: SessionSpec) -> str:
             spec.parameters.get('te_node', {}))):
         meta['encoder_calibration'] = cal
     return dump_ros_yaml(meta)
+
+
+def unit_metadata(spec: SessionSpec) -> dict[str, Any]:
+    """The bench and unit under test of a session's JointState bench, for the bag's metadata.
+
+    A session with the ``joint_state_adapter`` and a bench description records what
+    ``rv-te import`` records from one (``unit_serial``, ``operator``, ``temperature_c``,
+    ``unit_notes``, ``bench_id``, ``preset``, the description): the report and the results
+    store read the unit from there (issue 33: this route dropped it). Empty otherwise.
+
+    Raises:
+        BenchDescriptionError: The description file is invalid (checked at build already).
+    """
+    path = spec.parameters.get('joint_state_adapter', {}).get('bench_description') \
+        if 'joint_state_adapter' in spec.nodes else None
+    if not path:
+        return {}
+    from rv_te_bench.io.bench_description import load_bench_description
+
+    return load_bench_description(path).to_metadata()
 
 
 def encoder_calibrations_metadata(te_params: dict[str, Any]) -> dict[str, Any]:
