@@ -11,6 +11,15 @@ Subscribes ``bench/info`` (preset and ratio), ``te/statistics`` (closed windows)
   compensation of the measured TE.
 
 Long searches run on a worker thread, off the executor; results are published from a timer.
+
+Advice only where the data holds it, gated as ``rv-te analyze`` gates it
+(:mod:`rv_te_bench.core.advice_gate`): advice from the measured TE is asked for on complete
+windows only (whole output revolutions without a gap), and before it is published it must act
+on the cause the spectrum names. The dominant line is the largest of ``te/spectrum``'s lines
+averaged over the windows so far (mean amplitude per order); a tooth-profile change is
+published as withheld (the reason as its summary, no modifications, ``te_after_rad`` NaN) when
+that line is not a mesh line, and identified assembly phases carry a note when it is. A
+finished search waits (at most :data:`SPECTRUM_WAIT_S`) for the spectrum of its window.
 """
 
 from __future__ import annotations
@@ -19,6 +28,7 @@ import math
 import os
 import sys
 import threading
+import time
 from concurrent.futures import Future, ThreadPoolExecutor
 from dataclasses import replace
 from typing import TYPE_CHECKING, Any
@@ -26,10 +36,11 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 from diagnostic_msgs.msg import DiagnosticArray
 from rclpy.node import Node
-from rv_te_msgs.msg import BenchInfo, CompensationAdvice, TransmissionError
+from rv_te_msgs.msg import BenchInfo, CompensationAdvice, TeSpectrum, TransmissionError
 from std_msgs.msg import String
 
 from rv_te_bench.core.advice import advice_kind
+from rv_te_bench.core.advice_gate import check_cause, dominant_line, is_mesh_line, likely_source
 from rv_te_bench.errors import RvTeError, YamlInputError
 from rv_te_bench.nodes import convert, qos
 from rv_te_bench.nodes.common import (
@@ -54,6 +65,10 @@ if TYPE_CHECKING:
 
 
 _MAX_SAMPLES = 2_000_000  # bound on the decimated TE kept for identification
+#: Longest wait of a finished search for the spectrum of the window it was asked for [s].
+SPECTRUM_WAIT_S = 2.0
+#: Advice computed from the measured TE (gated); the preset's optimum is a prediction.
+_MEASURED = ('tooth-profile', 'identified-assembly-phases')
 
 
 def check_config(p: CompensationParams) -> None:
@@ -103,6 +118,15 @@ class CompensationNode(Node):
         self._te: list[np.ndarray] = []
         self._phase: list[np.ndarray] = []
         self._n_buffered = 0
+        #: The spectrum so far: per output order, [sum of the windows' amplitudes, windows,
+        #: label]; and the last window whose spectrum came (-1: none).
+        self._lines: dict[float, list[Any]] = {}
+        self._spectrum_window = -1
+        self._last_window = -1
+        #: Per running search: the window it was asked on, and when it was found done.
+        self._job_window: dict[Future[Advice], int] = {}
+        self._done_at: dict[Future[Advice], float] = {}
+        self.withheld: dict[str, int] = {}
         self.pub_advice = self.create_publisher(CompensationAdvice, 'compensation/advice',
                                                 qos.LATCHED_QOS)
         self.pub_diag = self.create_publisher(DiagnosticArray, '/diagnostics',
@@ -117,6 +141,8 @@ class CompensationNode(Node):
                                  qos.LATCHED_QOS)
         self.create_subscription(TransmissionError, 'te/samples', self._on_samples,
                                  qos.ENCODER_QOS)
+        self.create_subscription(TeSpectrum, 'te/spectrum', self._on_spectrum,
+                                 qos.LATCHED_QOS)
         self.create_timer(0.2, self._collect)
         self.create_timer(self.p.diagnostics_period_s, self._publish_diagnostics)
         if self.p.preset:   # a bad preset parameter stops the node at start-up
@@ -217,9 +243,53 @@ class CompensationNode(Node):
             self._n_buffered -= self._te.pop(0).size
             self._phase.pop(0)
 
+    def _on_spectrum(self, msg: TeSpectrum) -> None:
+        if int(msg.window_index) <= self._spectrum_window:
+            return   # (a latched repeat)
+        for ln in msg.lines:
+            o, a = float(ln.output_order), float(ln.amplitude_rad)
+            if not (math.isfinite(o) and math.isfinite(a)):
+                self.drops.drop('malformed', f'te/spectrum window {msg.window_index}: '
+                                f'non-finite line {ln.label!r}')
+                continue
+            entry = self._lines.setdefault(round(o, 6), [0.0, 0, str(ln.label)])
+            entry[0] += a
+            entry[1] += 1
+        self._spectrum_window = int(msg.window_index)
+
+    def _gate(self, advice: Advice) -> tuple[Advice, bool]:
+        """The advice as the data holds it (core.advice_gate, as rv-te analyze); True when
+        withheld. Unchanged without a spectrum or bench orders (nothing to check against)."""
+        if advice.method not in _MEASURED or not self._lines or self.info is None:
+            return advice, False
+        from rv_te_bench.core.orders import OrderSet
+
+        try:
+            orders = OrderSet.from_bench_info(self.info)
+        except RvTeError as exc:
+            self.drops.drop('bad_bench_info', str(exc))
+            return advice, False
+        keys = list(self._lines)
+        k = dominant_line(keys, [v[0] / v[1] for v in self._lines.values()])
+        if k is None:
+            return advice, False
+        order = keys[k]
+        amp_sum, n, label = self._lines[order]
+        gate = check_cause(advice.method, label=label, amplitude_rad=amp_sum / n,
+                           source=likely_source(order, orders, self.info.reducer_type),
+                           mesh=is_mesh_line(order, orders))
+        if gate.withheld is not None:
+            return replace(advice, summary=gate.withheld, te_after_rad=math.nan,
+                           modifications=(), details={**advice.details,
+                                                      'withheld': gate.withheld}), True
+        if gate.note:
+            return replace(advice, summary=f'{advice.summary}; {gate.note}'), False
+        return advice, False
+
     def _on_window(self, msg: TransmissionError) -> None:
         if self.preset is None or not msg.window_complete:
             return
+        self._last_window = int(msg.window_index)
         measured = msg.window.pp_rad if self.p.te_metric == 'pp' else msg.window.amplitude_rad
         if self.advice == 'assembly-phases' and self.p.identify and self._te:
             self._request('identified-assembly-phases', self._identify_job)
@@ -256,7 +326,9 @@ class CompensationNode(Node):
 
     def _submit(self, name: str, fn: Callable[[], Advice]) -> None:
         self.progress[name] = 0.0
-        self.jobs.append((name, self.pool.submit(fn)))
+        fut = self.pool.submit(fn)
+        self._job_window[fut] = self._last_window
+        self.jobs.append((name, fut))
 
     def _job_phases(self) -> Advice:
         from rv_te_bench.core.phases import optimise_phases
@@ -286,10 +358,15 @@ class CompensationNode(Node):
     # -- outputs (executor thread) --------------------------------------------------------
     def _collect(self) -> None:
         still = []
+        now = time.monotonic()
         for name, fut in self.jobs:
-            if not fut.done():
-                still.append((name, fut))
+            if not fut.done() or (
+                    name in _MEASURED and self._spectrum_window < self._job_window[fut]
+                    and now - self._done_at.setdefault(fut, now) < SPECTRUM_WAIT_S):
+                still.append((name, fut))   # (done: waits for its window's spectrum)
                 continue
+            self._job_window.pop(fut, None)
+            self._done_at.pop(fut, None)
             self.progress[name] = 1.0
             exc = fut.exception()
             if isinstance(exc, _Cancelled):
@@ -301,9 +378,12 @@ class CompensationNode(Node):
             advice = fut.result()
             if name == 'identified-assembly-phases':
                 advice = self._encoder_note(advice)
+            advice, withheld = self._gate(advice)
             self.pub_advice.publish(convert.make_compensation_advice(
                 advice, self.get_clock().now().to_msg(), self.bench_id))
             self.published[name] = self.published.get(name, 0) + 1
+            if withheld:
+                self.withheld[name] = self.withheld.get(name, 0) + 1
             self.get_logger().info(f'advice ({name}): {advice.summary}')
         self.jobs = still
         for name in [n for n in self.pending if all(n != m for m, _ in self.jobs)]:
@@ -312,6 +392,7 @@ class CompensationNode(Node):
     def _publish_diagnostics(self) -> None:
         values: dict[str, Any] = {f'progress_{k}': v for k, v in self.progress.items()}
         values.update({f'published_{k}': v for k, v in self.published.items()})
+        values.update({f'withheld_{k}': v for k, v in self.withheld.items()})
         values['dropped_total'] = self.drops.total
         values.update({f'coalesced_{k}': v for k, v in self.coalesced.items()})
         values['errors'] = len(self.errors)

@@ -37,6 +37,12 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 
 from rv_te_bench.core.advice import advice_kind
+from rv_te_bench.core.advice_gate import (
+    check_cause,
+    is_mesh_line,
+    likely_source,
+    withheld_without_revolution,
+)
 from rv_te_bench.core.angle_fold import AngleFold
 from rv_te_bench.core.encoder_attribution import OncePerRevNote, once_per_rev_note
 from rv_te_bench.core.envelope import MinMaxEnvelope
@@ -102,9 +108,6 @@ MAX_TRACE_POINTS = 40_000
 #: Lines weaker than this fraction of the strongest line show no phase in tables (it is
 #: the phase of noise).
 PHASE_MIN_FRACTION = 1e-3
-
-#: Relative tolerance when matching a line's output order to a known order.
-_ORDER_RTOL = 1e-6
 
 
 def session_info(path: str | Path) -> SessionInfo:
@@ -425,46 +428,6 @@ def dominant_harmonic(spectrum: SpectrumSummary,
         line.output_order, bench.orders, bench.reducer_type))
 
 
-def likely_source(output_order: float, orders: OrderSet, reducer_type: str = '') -> str:
-    """Name the likely physical source of a TE harmonic.
-
-    Args:
-        output_order: Cycles per output revolution of the harmonic.
-        orders: Crank order and mesh orders of the reducer.
-        reducer_type: ``'2kv'``, ``'rv'``, ``'other'`` or '' (unknown).
-
-    Returns:
-        One sentence for people.
-    """
-    o = abs(float(output_order))
-    cpo = orders.crank_per_output
-
-    def near(a: float, b: float) -> bool:
-        return abs(a - b) <= _ORDER_RTOL * max(1.0, abs(b))
-
-    for mo, label in zip(orders.mesh_orders_out, orders.mesh_labels, strict=False):
-        if near(o, mo):
-            return f'tooth profile / pitch error of the {label or "gear mesh"} (mesh order)'
-    crank = 'crankshaft (eccentric) eccentricity or crank bearing clearance'
-    if reducer_type == '2kv' or not reducer_type:
-        crank = 'crank / 2nd-stage planet eccentricity (eccentric error, crank bearing clearance)'
-    if near(o, cpo):
-        return f'{crank} (once per crank revolution, 1 f_w)'
-    if near(o, 1.0):
-        return ('output-wheel (carrier) eccentricity or pin-circle / ring run-out '
-                '(once per output revolution, f_out)')
-    if near(o, cpo - 1.0) or near(o, cpo + 1.0):
-        return ('crank eccentricity modulated by output-wheel eccentricity or pin-circle error '
-                '(f_w +/- f_out sideband)')
-    ratio = o / cpo
-    if ratio > 1.5 and near(ratio, round(ratio)):
-        return (f'{round(ratio)}x per crank revolution: phase mismatch between the crank '
-                'eccentrics, eccentric form error or crank bearing waviness')
-    if near(o, round(o)):
-        return (f'{round(o)}x per output revolution: output bearing / pin-circle form error')
-    return 'not assigned to a known order'
-
-
 def _recommend(bench: AnalysisBench, cumulative: TeStats, folded: FoldedTe | None,
                search: tuple[float, bool] = (10.0, False),
                uncertainty: BenchUncertainty | None = None) -> Recommendation:
@@ -513,53 +476,25 @@ def _recommend(bench: AnalysisBench, cumulative: TeStats, folded: FoldedTe | Non
 
 
 def _advice_withheld(cumulative: TeStats, spectrum: SpectrumSummary | None) -> str | None:
-    """Why the data cannot carry advice, or None (issue 33 s.4).
-
-    Both compensations are defined on whole output revolutions: Hu 2020 compensates the TE
-    "value for a period", Wang 2020's phases are identified from the TE folded over whole
-    revolutions. A record without one complete revolution (no gap) gets none.
-    """
-    revs = cumulative.revolutions
-    if spectrum is None:
-        covered = f'{revs:.2f} output revolutions' if math.isfinite(revs) else 'its samples'
-        return (f'advice withheld: the record holds no whole output revolution without a gap '
-                f'({covered}); the compensation is defined on the TE of whole revolutions '
-                '(record at least one output revolution)')
-    return None
-
-
-def _is_mesh_line(output_order: float, orders: OrderSet) -> bool:
-    o = abs(float(output_order))
-    return any(abs(o - mo) <= _ORDER_RTOL * max(1.0, mo) for mo in orders.mesh_orders_out)
+    """Why the data cannot carry advice, or None (:mod:`rv_te_bench.core.advice_gate`)."""
+    return withheld_without_revolution(cumulative.revolutions, spectrum is not None)
 
 
 def _agree_with_diagnosis(rec: Recommendation, dominant: DominantHarmonic | None,
                           bench: AnalysisBench) -> Recommendation:
-    """The advice and the diagnosis name the same cause, or the advice says why not.
-
-    A tooth-profile modification (Hu 2020) assigns the whole TE peak-to-peak to cycloid-mesh
-    factors (pin radius, shifting modification, circular pitch): when the dominant line is
-    not a mesh line (crank eccentricity at 1 f_w, carrier run-out at f_out, ...), that is
-    not what the data shows, and the profile change is withheld with both named. Assembly
-    phases (Wang 2020) act on the eccentricity lines: when a mesh line dominates, the advice
-    stays and says it does not address that line.
-    """
+    """The advice and the diagnosis name the same cause, or the advice says why not
+    (:func:`rv_te_bench.core.advice_gate.check_cause`, the compensation node's gate too)."""
     if not rec.available or rec.advice is None or dominant is None:
         return rec
     line = dominant.line
-    shown = f'{line.label} ({rad_to_arcmin(line.amplitude_rad):.4g} arcmin)'
-    mesh = _is_mesh_line(line.output_order, bench.orders)
-    if rec.advice.method == 'tooth-profile' and not mesh:
-        return Recommendation(available=False, reason=(
-            f'tooth-profile advice withheld: the dominant line {shown} points to '
-            f'{dominant.likely_source}, not to the tooth profile; a profile change (Hu 2020 '
-            'Eq. 27 assigns the whole TE p-p to cycloid-mesh factors) would not remove it: '
-            'check that cause first'), identification=rec.identification)
-    if rec.advice.method.endswith('assembly-phases') and mesh:
-        return replace(rec, reason=(
-            f'{rec.reason}; note: the dominant line {shown} is a mesh line '
-            f'({dominant.likely_source}): assembly phases act on the eccentricity lines, not '
-            'on it'))
+    gate = check_cause(rec.advice.method, label=line.label, amplitude_rad=line.amplitude_rad,
+                       source=dominant.likely_source,
+                       mesh=is_mesh_line(line.output_order, bench.orders))
+    if gate.withheld is not None:
+        return Recommendation(available=False, reason=gate.withheld,
+                              identification=rec.identification)
+    if gate.note:
+        return replace(rec, reason=f'{rec.reason}; {gate.note}')
     return rec
 
 
