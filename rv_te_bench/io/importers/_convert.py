@@ -194,9 +194,11 @@ class ChunkConverter:
         good = ok & (t_s > before)
         idx = np.flatnonzero(good)
         self.dropped += n - idx.size
+        every = idx.size == n     # all good (the usual chunk): slices, not gathers
         torque = np.zeros(0)
         if raw.torque is not None:
-            torque = np.asarray(raw.torque, dtype=np.float64)[idx] * self.torque_scale_nm
+            torque = (np.asarray(raw.torque, dtype=np.float64) if every else
+                      np.asarray(raw.torque, dtype=np.float64)[idx]) * self.torque_scale_nm
             bad = np.flatnonzero(~np.isfinite(torque))
             if bad.size:
                 self.fail('torque', raw.first + int(idx[bad[0]]),
@@ -220,6 +222,9 @@ class ChunkConverter:
                        f'{self.locate(raw.first)}')
                 raise DataImportError(msg)
             heads = np.asarray(raw.out_heads, dtype=np.float64)[:, idx] * self.k_out
+        if every:
+            return SiChunk(t_s=t_s, theta_in_rad=th_in, theta_out_rad=th_out,
+                           torque_out_nm=torque, breaks=breaks, theta_out_heads_rad=heads)
         return SiChunk(t_s=t_s[idx], theta_in_rad=th_in[idx], theta_out_rad=th_out[idx],
                        torque_out_nm=torque, breaks=breaks, theta_out_heads_rad=heads)
 
@@ -229,11 +234,12 @@ class ChunkConverter:
         if idx.size == 0:
             return ()
         assert self.rate_hz is not None
-        ta = t_s[idx]
+        every = idx.size == t_s.size
+        ta = t_s if every else t_s[idx]
         prev_t = np.concatenate([[self._last_s], ta[:-1]])
-        dropped = np.diff(idx, prepend=-1) - 1
+        dropped = np.zeros(idx.size, dtype=np.int64) if every else np.diff(idx, prepend=-1) - 1
         jump = (ta - prev_t) > STEP_PERIODS / self.rate_hz
-        at = np.flatnonzero(jump | (dropped > 0))
+        at = np.flatnonzero(jump) if every else np.flatnonzero(jump | (dropped > 0))
         out: list[Break] = []
         for j in at.tolist():
             k = int(idx[j - 1]) + 1 if j else 0     # first sample after the last good one

@@ -4,7 +4,8 @@ The bag holds what a live session records: ``/bench/info`` (``rv_te_msgs/BenchIn
 transient-local as the bench publishes it, written first) and ``/bench/encoders``
 (``rv_te_msgs/EncoderBlock``: ``block_size`` samples per message, ``seq`` from 0, header
 stamp = absolute time of the block's first sample, ``time_offset_s`` per sample). Messages
-are serialised to CDR by the rosbags typestore (no rclpy) and written by
+are serialised to CDR as the rosbags typestore does (:mod:`rv_te_bench.io._encoder_cdr_out`,
+no rclpy) and written by
 :class:`rv_te_bench.io.bag_writer.BagWriter`.
 
 A drop-out in the file (:mod:`._convert`) ends the open block early and the next block's
@@ -35,12 +36,14 @@ import numpy as np
 
 from rv_te_bench.core.plausibility import check_measured_ratio, check_sample_rate
 from rv_te_bench.errors import BagExistsError, DataImportError
+from rv_te_bench.io._encoder_cdr_out import encoder_block_cdr
 from rv_te_bench.io.bag_writer import BagWriter, qos_profile_dict
 from rv_te_bench.io.bench_record import bench_info_cdr
+from rv_te_bench.io.importers._ahead import read_ahead
 from rv_te_bench.io.importers._common import TIME_UNITS, angle_unit, time_unit
 from rv_te_bench.io.importers._convert import ChunkConverter, to_rad_factor
 from rv_te_bench.io.importers._turns import TurnStitcher
-from rv_te_bench.io.msgdefs import BENCH_INFO, ENCODER_BLOCK, rv_te_typestore
+from rv_te_bench.io.msgdefs import BENCH_INFO, ENCODER_BLOCK
 
 if TYPE_CHECKING:
     from collections.abc import Callable, Iterator
@@ -58,6 +61,8 @@ _NS = 1_000_000_000
 #: Drop-outs named one by one in the notes (all are in the summary, up to MAX_GAPS_LISTED).
 NOTED_GAPS = 10
 MAX_GAPS_LISTED = 10_000
+_NO_IDS = np.zeros(0, dtype=np.uint8)
+_NO_VALUES = np.zeros(0)
 #: A first time value at least this far from zero [s] is an absolute (epoch) time.
 EPOCH_MIN_S = 1e9
 
@@ -171,8 +176,6 @@ class _Blocks:
         self.frame_id = desc.bench_id
         self.rate_hz = rate_hz
         self.start_ns = start_ns
-        self.store = rv_te_typestore()
-        self.types = self.store.types
         self.seq = 0
         self.written = 0      # blocks written (seq also counts the numbers skipped at gaps)
         self.samples = 0
@@ -218,24 +221,16 @@ class _Blocks:
         stamp_ns = self.start_ns + round(float(t[0]) * _NS)
         torque = c[3][a:b] if c[3].size else np.zeros(0)
         heads = c[4][:, a:b]
-        ids = np.zeros(0, dtype=np.uint8)
+        ids = _NO_IDS
         if heads.shape[0]:   # a head with a missing reading in this block is left out of it
             keep = np.flatnonzero(np.isfinite(heads).all(axis=1))
             ids = keep.astype(np.uint8)
             heads = heads[keep]
             self.head_missing_blocks += int(keep.size < c[4].shape[0])
-        msg = self.types[ENCODER_BLOCK](
-            header=self.types['std_msgs/msg/Header'](
-                stamp=self.types['builtin_interfaces/msg/Time'](
-                    sec=stamp_ns // _NS, nanosec=stamp_ns % _NS),
-                frame_id=self.frame_id),
-            seq=self.seq, sample_rate_hz=self.rate_hz, time_offset_s=t - t[0],
-            theta_in_rad=np.ascontiguousarray(c[1][a:b]),
-            theta_out_rad=np.ascontiguousarray(c[2][a:b]),
-            torque_out_nm=np.ascontiguousarray(torque),
-            in_head_ids=np.zeros(0, dtype=np.uint8), theta_in_heads_rad=np.zeros(0),
-            out_head_ids=ids, theta_out_heads_rad=np.ascontiguousarray(heads).ravel())
-        self.writer.write(ENCODER_TOPIC, stamp_ns, self.store.serialize_cdr(msg, ENCODER_BLOCK))
+        cdr = encoder_block_cdr(stamp_ns, self.frame_id, self.seq, self.rate_hz, t - t[0],
+                                c[1][a:b], c[2][a:b], torque, _NO_IDS, _NO_VALUES, ids,
+                                np.ascontiguousarray(heads).ravel())
+        self.writer.write(ENCODER_TOPIC, stamp_ns, cdr)
         self.seq += 1
         self.written += 1
         self.samples += b - a
@@ -334,8 +329,17 @@ def write_bag(reader: ImportReader, desc: BenchDescription, options: ImportOptio
         DataImportError: A bad value (file, column, row named); nothing is written.
         BagExistsError: ``out`` exists already.
     """
+    chunks = read_ahead(reader.chunks())   # a helper thread reads ahead on a second core
+    try:
+        return _write_bag(reader, desc, options, Path(out), fmt, on_note, chunks)
+    finally:
+        chunks.close()
+
+
+def _write_bag(reader: ImportReader, desc: BenchDescription, options: ImportOptions,
+               out: Path, fmt: str, on_note: Callable[[str], None] | None,
+               chunks: Iterator[Any]) -> ImportSummary:
     note = on_note or (lambda _line: None)
-    out = Path(out)
     try:
         out.name.encode('utf-8')
     except UnicodeEncodeError:
@@ -373,7 +377,6 @@ def write_bag(reader: ImportReader, desc: BenchDescription, options: ImportOptio
                             f'{origin}: column {labels["out"]!r}'),
         time_scale_s=TIME_UNITS[t_unit] if t_unit is not None else None, rate_hz=rate_hz,
         torque_scale_nm=desc.torque_sensor.scale_nm_per_unit)
-    chunks: Iterator[Any] = iter(reader.chunks())
     first_raw = next(chunks, None)
     if first_raw is None:
         msg = f'{origin}: no samples'

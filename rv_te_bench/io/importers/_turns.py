@@ -155,11 +155,15 @@ def _wrap_turns(x: np.ndarray, prev: float) -> np.ndarray:
     numpy.unwrap's rule (a step beyond half a turn), counted in integers so that the
     unwrapped angle, ``x + 2 pi K``, does not depend on where the file was cut in chunks."""
     d = np.diff(x, prepend=prev)
-    dmod = np.mod(d + math.pi, _TWO_PI) - math.pi
-    dmod[(dmod == -math.pi) & (d > 0)] = math.pi
-    k = np.rint((dmod - d) / _TWO_PI).astype(np.int64)
-    k[np.abs(d) < math.pi] = 0
-    return np.cumsum(k)
+    big = np.flatnonzero(np.abs(d) >= math.pi)   # the few steps that can wrap
+    k = np.zeros(x.size, dtype=np.int64)
+    if big.size:
+        db = d[big]
+        dmod = np.mod(db + math.pi, _TWO_PI) - math.pi
+        dmod[(dmod == -math.pi) & (db > 0)] = math.pi
+        k[big] = np.rint((dmod - db) / _TWO_PI).astype(np.int64)
+        np.cumsum(k, out=k)
+    return k
 
 
 class _Channel:
