@@ -1,7 +1,8 @@
 """Measurement files -> rosbag2/MCAP bags of the suite's messages (``rv-te import``), no rclpy.
 
-One module per format: :mod:`.csv_file` (numpy), :mod:`.tdms_file` (NI TDMS, ``nptdms``),
-:mod:`.mdf_file` (ASAM MDF4, ``asammdf``; these two are the optional extra ``daq``), and
+One module per format: :mod:`.csv_file` (pyarrow; numpy as the fallback), :mod:`.tdms_file`
+(NI TDMS, ``nptdms``), :mod:`.mdf_file` (ASAM MDF4, ``asammdf``; these two are the optional
+extra ``daq``), and
 :mod:`.jointstate_bag` (rosbag2 bags of ``sensor_msgs/JointState``, MCAP or sqlite3, rosbags).
 Every reader streams (``chunk_samples`` at a time), :mod:`._common` converts to SI, unwraps
 and checks, :mod:`._to_bag` writes the bag whole or not at all.
