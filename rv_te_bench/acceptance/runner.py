@@ -392,6 +392,7 @@ def reanalyse(*, plan: TestPlan, profile: ToleranceProfile, info: BenchInfoData,
               blocks: dict[int, tuple[np.ndarray, np.ndarray, np.ndarray]],
               serial: str, operator: str, conditions: dict[str, Any] | None = None,
               started_utc: str = '', status: str = 'completed',
+              times: dict[int, np.ndarray] | None = None,
               uncertainty: BenchUncertainty | None = None) -> dict[str, Any]:
     """The unit record computed again from recorded blocks (a session bag).
 
@@ -401,6 +402,8 @@ def reanalyse(*, plan: TestPlan, profile: ToleranceProfile, info: BenchInfoData,
             ``segment_blocks``); only finished ones are analysed, in plan order.
         blocks: seq -> (theta_in_rad, theta_out_rad, torque_out_nm).
         serial, operator, conditions, started_utc: The unit's identity and conditions.
+        times: seq -> sample times [s], for steps recorded with time ranges
+            (``segments_s`` in their result: driven by setpoints).
         status: 'completed', or how the recorded test ended ('cancelled', 'error').
         uncertainty: The bench's error model (default: the data sheets of its encoders).
 
@@ -417,11 +420,16 @@ def reanalyse(*, plan: TestPlan, profile: ToleranceProfile, info: BenchInfoData,
         if plan.steps[n].kind == 'operator':
             results.append(StepRunner(plan.steps[n], info).result())
             continue
-        if not s['segment_blocks']:
-            msg = (f'recorded step {n} has no segment block counts (recorded before they were '
-                   'recorded): it cannot be analysed again')
-            raise AcceptanceError(msg)
         runner = StepRunner(plan.steps[n], info, uncertainty=uncertainty)
+        spans = _recorded_spans(s)
+        if spans:     # driven by setpoints: each segment is a time range on the bench clock
+            _feed_by_time(runner, s, spans, blocks, times or {})
+            results.append(runner.result())
+            continue
+        if not s['segment_blocks']:
+            msg = (f'recorded step {n} has no segment block counts nor time ranges (recorded '
+                   'before they were recorded): it cannot be analysed again')
+            raise AcceptanceError(msg)
         runner.expect(s['segment_blocks'])
         ends = np.cumsum(s['segment_blocks'])
         last = -1
@@ -438,3 +446,46 @@ def reanalyse(*, plan: TestPlan, profile: ToleranceProfile, info: BenchInfoData,
     return build_report(plan=plan, profile=profile, info=info, serial=serial, operator=operator,
                         results=results, conditions=conditions, started_utc=started_utc,
                         status=status)
+
+
+def _recorded_spans(step: dict[str, Any]) -> list[tuple[float, float]]:
+    """The segments' time ranges a setpoint-driven step recorded (empty: none)."""
+    import yaml
+
+    try:
+        res = yaml.safe_load(step.get('result_yaml') or '') or {}
+    except yaml.YAMLError:
+        return []
+    spans = res.get('segments_s') if isinstance(res, dict) else None
+    if not isinstance(spans, list):
+        return []
+    return [(float(a), float(b)) for a, b in spans]
+
+
+def _feed_by_time(runner: StepRunner, step: dict[str, Any], spans: list[tuple[float, float]],
+                  blocks: dict[int, tuple[np.ndarray, np.ndarray, np.ndarray]],
+                  times: dict[int, np.ndarray]) -> None:
+    """The step's blocks cut into its segments by their recorded time ranges, as live."""
+    lo = np.array([a for a, _ in spans])
+    hi = np.array([b for _, b in spans])
+    last = -1
+    prev_end = None
+    for seq in range(int(step['first_seq']), int(step['last_seq']) + 1):
+        block, t = blocks.get(seq), times.get(seq)
+        if block is None or t is None:
+            if prev_end is not None:   # the segments this gap falls into lose data
+                for i in np.flatnonzero(hi > prev_end):
+                    runner.mark(int(i), f'block {seq} of the step is not in the bag')
+                    break
+            continue
+        prev_end = float(t[-1])
+        for i in np.flatnonzero((hi >= t[0]) & (lo <= t[-1])):
+            keep = (t >= lo[i]) & (t <= hi[i])
+            if not keep.any():
+                continue
+            if i != last:
+                runner.next_segment()
+                last = int(i)
+            tq = block[2][keep] if block[2].size else block[2]
+            runner.feed(int(i), block[0][keep], block[1][keep], tq)
+

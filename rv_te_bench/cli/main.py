@@ -29,8 +29,7 @@ if TYPE_CHECKING:
 # Order of appearance in --help.
 SUBCOMMAND_MODULES = (
     'demo', 'launch', 'dashboard', 'bench', 'record', 'replay', 'import_', 'info', 'analyze',
-    'test',
-    'unit_report', 'model',
+    'test', 'ack', 'unit_report', 'model',
     'optimize_phases', 'compensate', 'identify', 'selfcal', 'presets', 'results', 'spc',
     'msa', 'fleet',
 )

@@ -31,6 +31,7 @@ import argparse
 import contextlib
 import json
 import sys
+import threading
 import time
 from datetime import UTC, datetime
 from pathlib import Path
@@ -55,7 +56,7 @@ if TYPE_CHECKING:
     from rv_te_msgs.action import RunTestPlan
 
     from rv_te_bench.cli.argtypes import Subparsers
-    from rv_te_bench.launch.session import Session
+    from rv_te_bench.launch.session import Session, SessionSpec
 
 __all__ = ['EXIT_FAIL', 'EXIT_INDETERMINATE', 'register', 'run']
 
@@ -104,7 +105,10 @@ def register(subparsers: Subparsers) -> None:
     g.add_argument('--encoder', default='heidenhain-ron886', help='encoder preset, both shafts')
     g.add_argument('--sample-rate-hz', type=float_between(1.0, 1e6), default=1000.0,
                    help='encoder sample rate of the simulated bench [Hz], 1..1e6')
-    g.add_argument('--speed-factor', type=float_between(0.0, 1000.0), default=20.0,
+    g.add_argument('--auto-ack', action='store_true',
+                   help="acknowledge the plan's operator steps at once (a simulated bench; "
+                        'without it: Enter in this terminal, or rv-te ack)')
+    g.add_argument('--speed-factor', type=float_between(0.0, 1000.0), default=4.0,
                    help='times faster than real time; 0 = as fast as possible (0..1000)')
     g.add_argument('--seed', type=int, default=1)
     add_from_arguments(p)
@@ -139,7 +143,7 @@ def _conditions(items: list[str]) -> dict[str, Any]:
 
 def _session(args: argparse.Namespace, out_dir: Path) -> Session:
     """Start the simulated session of ``--launch`` (validated first)."""
-    from rv_te_bench.launch.session import Session, SessionSpec
+    from rv_te_bench.launch.session import Session
     from sim.presets import load_preset
 
     preset = load_preset(args.launch, list(args.set))   # a bad preset or --set: one line
@@ -150,23 +154,15 @@ def _session(args: argparse.Namespace, out_dir: Path) -> Session:
                      encoder_in=args.encoder, encoder_out=args.encoder,
                      sample_rate_hz=args.sample_rate_hz)   # the model builds: mode is valid
     # with the live page, a TE node too: the page shows its windows and spectra
-    nodes = ('recorder', 'bench', 'test_sequencer') + (
-        ('te_node',) if getattr(args, 'dashboard', False) else ())
-    spec = SessionSpec(
-        nodes=nodes, namespace=args.namespace_norm,
-        parameters={
-            'bench': {'preset': args.launch, 'overrides': list(args.set), 'te_mode': mode,
-                      'encoder_in': args.encoder, 'encoder_out': args.encoder,
-                      'sample_rate_hz': float(args.sample_rate_hz), 'block_size': 100,
-                      'seed': int(args.seed), 'time_mode': 'fast',
-                      'speed_factor': float(args.speed_factor), 'commanded': True},
-            'recorder': {'output_dir': str(out_dir), 'bag_name': 'bag'},
-            'test_sequencer': {}})
+    spec = simulated_session_spec(
+        out_dir, preset=args.launch, overrides=list(args.set), te_mode=mode,
+        encoder=args.encoder, sample_rate_hz=float(args.sample_rate_hz), seed=int(args.seed),
+        speed_factor=float(args.speed_factor), namespace=args.namespace_norm,
+        extra_nodes=('te_node',) if getattr(args, 'dashboard', False) else ())
     if getattr(args, 'dashboard', False):
         from rv_te_bench.cli.dashboard import wait_for_dashboard
 
         wait_for_dashboard(spec)
-    out_dir.mkdir(parents=True, exist_ok=True)
     log = (out_dir / 'session.log').open('wb')
     session = Session(spec, stdout=log)
     try:
@@ -176,6 +172,50 @@ def _session(args: argparse.Namespace, out_dir: Path) -> Session:
         log.close()
         raise
     return session, log
+
+
+#: Samples per block of the simulated ros2_control bench and of its adapter's blocks (20 ms
+#: at 1 kHz: the sequencer sees a setpoint reached within a block).
+SIM_BLOCK_SIZE = 20
+SIM_JOINTS = ('input_joint', 'output_joint')
+
+
+def simulated_session_spec(out_dir: Path, *, preset: str, overrides: list[str] | None = None,
+                           te_mode: str, encoder: str = 'heidenhain-ron886',
+                           sample_rate_hz: float = 1000.0, seed: int = 1,
+                           speed_factor: float = 4.0, namespace: str = '',
+                           extra_nodes: tuple[str, ...] = ()) -> SessionSpec:
+    """The session of ``--launch``: a simulated ros2_control bench (setpoint topics in,
+    joint_states out), the JointState adapter with the bench's description (written to
+    ``out_dir``), the test_sequencer and the recorder (the bag: ``out_dir/bag``), as on a
+    real bench."""
+    from rv_te_bench.launch.session import SessionSpec
+
+    out_dir.mkdir(parents=True, exist_ok=True)
+    desc = out_dir / 'bench_description.yaml'
+    desc.write_text(yaml.safe_dump({
+        'bench_id': 'bench0', 'preset': preset, 'preset_overrides': list(overrides or []),
+        'sample_rate_hz': float(sample_rate_hz), 'block_size': SIM_BLOCK_SIZE,
+        'encoders': {'input': {'model': encoder}, 'output': {'model': encoder}},
+        # the load joint's effort is the torque applied to the output (the joint's sense,
+        # as its effort setpoint): torque_out_nm (resisting positive rotation) = -effort
+        'torque_sensor': {'present': True, 'model': 'simulated (exact)',
+                          'scale_nm_per_unit': -1.0},
+        'joints': {'input': SIM_JOINTS[0], 'output': SIM_JOINTS[1]},
+        'metadata': {'bench': 'simulated ros2_control bench (rv-te test --launch)'}},
+        sort_keys=False), encoding='utf-8')
+    return SessionSpec(
+        nodes=('recorder', 'bench', 'joint_state_adapter', 'test_sequencer', *extra_nodes),
+        namespace=namespace,
+        parameters={
+            'bench': {'preset': preset, 'overrides': list(overrides or []), 'te_mode': te_mode,
+                      'encoder_in': encoder, 'encoder_out': encoder,
+                      'sample_rate_hz': float(sample_rate_hz), 'block_size': SIM_BLOCK_SIZE,
+                      'seed': int(seed), 'time_mode': 'fast', 'speed_factor': float(speed_factor),
+                      'ros2_control': True, 'joint_state_names': list(SIM_JOINTS)},
+            'joint_state_adapter': {'bench_description': str(desc)},
+            'recorder': {'output_dir': str(out_dir), 'bag_name': 'bag'},
+            'test_sequencer': {'bench_description': str(desc)}})
 
 
 def run(args: argparse.Namespace) -> int:
@@ -349,6 +389,8 @@ class _Progress:
         self.step = -1
         self.last = 0.0
         self.tty = sys.stderr.isatty()
+        #: An operator step waits for an acknowledgement (its instruction), set once per step.
+        self.operator: str | None = None
 
     def __call__(self, fb: RunTestPlan.Feedback) -> None:
         from rv_te_bench.report.unit import format_live
@@ -359,6 +401,11 @@ class _Progress:
             self.step = fb.step_index
             print(f'step {fb.step_index + 1}/{fb.step_count} {fb.step_name} ({fb.step_kind})',
                   file=sys.stderr)
+            if fb.step_kind == 'operator':
+                self.operator = fb.message.removeprefix('waiting for the operator: ')
+                return
+        if fb.step_kind == 'operator':
+            return
         now = time.monotonic()
         line = (f'  {100 * fb.step_progress:5.1f} % of the step, {100 * fb.plan_progress:5.1f} '
                 f'% of the plan, {format_live(fb.live_metric, fb.live_value)}')
@@ -367,6 +414,42 @@ class _Progress:
         elif now - self.last > 2.0:
             self.last = now
             print(line, file=sys.stderr, flush=True)
+
+
+class _OperatorAck:
+    """Operator steps: the instruction on the terminal, the acknowledgement by Enter (a
+    terminal), at once (``--auto-ack``), or from elsewhere (``rv-te ack``)."""
+
+    def __init__(self, args: argparse.Namespace, node: Node, executor: Executor) -> None:
+        self.auto = bool(getattr(args, 'auto_ack', False))
+        self.node, self.executor = node, executor
+        self.entered = threading.Event()
+        self.waiting = False
+
+    def poll(self, progress: _Progress) -> None:
+        from rv_te_bench.cli.ack import acknowledge
+
+        if progress.operator is not None:
+            text, progress.operator = progress.operator, None
+            self.waiting = True
+            if self.auto:
+                print(f'  operator: {text} (acknowledged automatically: --auto-ack)',
+                      file=sys.stderr)
+                self.entered.set()
+            elif sys.stdin.isatty():
+                print(f'  operator: {text}; press Enter when done (or run rv-te ack)',
+                      file=sys.stderr, flush=True)
+                self.entered.clear()
+                threading.Thread(target=lambda: (sys.stdin.readline(), self.entered.set()),
+                                 daemon=True).start()
+            else:
+                print(f'  operator: {text}; acknowledge with rv-te ack', file=sys.stderr,
+                      flush=True)
+        if self.waiting and self.entered.is_set():
+            self.waiting = False
+            self.entered.clear()
+            _ok, message = acknowledge(self.node, self.executor, wait_s=5.0)
+            print(f'  {message}', file=sys.stderr)
 
 
 def _run_goal(args: argparse.Namespace, plan_text: str, tol_text: str,
@@ -408,8 +491,10 @@ def _run_goal(args: argparse.Namespace, plan_text: str, tol_text: str,
         res_future = handle.get_result_async()
         try:
             gone_since: float | None = None
+            operator = _OperatorAck(args, node, executor)
             while not res_future.done():
                 executor.spin_once(timeout_sec=0.1)
+                operator.poll(progress)
                 if client.server_is_ready():
                     gone_since = None
                     continue

@@ -102,7 +102,8 @@ def run(args: argparse.Namespace) -> int:
                     serial=r['serial'], operator=r['operator_name'],
                     uncertainty=bench_uncertainty_of(info)[0],
                     conditions=old.get('conditions'),
-                    started_utc=old.get('unit', {}).get('date_utc', ''), status=status)
+                    started_utc=old.get('unit', {}).get('date_utc', ''), status=status,
+                    times=rec.block_times)
     new['bench']['bag'] = str(bag)
     show_report(new, Path(args.report) if args.report else bag.parent / 'unit-report',
                 as_json=args.json)

@@ -33,12 +33,15 @@ class RecordedTest:
             ``segment_blocks`` as a list).
         bench_info: The bench's record (its first ``bench/info``).
         blocks: EncoderBlock seq -> (theta_in_rad, theta_out_rad, torque_out_nm) of the steps.
+        block_times: EncoderBlock seq -> its sample times [s] (header stamp + offsets), for
+            steps whose segments were recorded as time ranges (a ros2_control bench).
     """
 
     report: dict[str, Any]
     steps: list[dict[str, Any]]
     bench_info: BenchInfoData
     blocks: dict[int, tuple[np.ndarray, np.ndarray, np.ndarray]] = field(repr=False)
+    block_times: dict[int, np.ndarray] = field(repr=False, default_factory=dict)
 
 
 def read_recorded_test(bag: str | Path, *, serial: str | None = None) -> RecordedTest:
@@ -83,6 +86,7 @@ def read_recorded_test(bag: str | Path, *, serial: str | None = None) -> Recorde
             mine = mine[starts[-1]:] if starts else mine
             ranges = [(s['first_seq'], s['last_seq']) for s in mine]
             blocks: dict[int, tuple[np.ndarray, np.ndarray, np.ndarray]] = {}
+            times: dict[int, np.ndarray] = {}
             enc = [c for c in reader.connections if c.topic.endswith('bench/encoders')]
             for conn, _, raw in reader.messages(connections=enc):
                 m: Any = reader.deserialize(raw, conn.msgtype)   # a generated class
@@ -91,6 +95,8 @@ def read_recorded_test(bag: str | Path, *, serial: str | None = None) -> Recorde
                     blocks[seq] = (np.asarray(m.theta_in_rad, dtype=np.float64),
                                    np.asarray(m.theta_out_rad, dtype=np.float64),
                                    np.asarray(m.torque_out_nm, dtype=np.float64))
+                    times[seq] = m.header.stamp.sec + m.header.stamp.nanosec * 1e-9 + \
+                        np.asarray(m.time_offset_s, dtype=np.float64)
     except BagError:
         raise
     except Exception as exc:  # noqa: BLE001 - rosbags raises several types for a bad bag
@@ -99,4 +105,5 @@ def read_recorded_test(bag: str | Path, *, serial: str | None = None) -> Recorde
     if info is None:
         msg = f'{path}: no bench/info in the bag'
         raise BagError(msg)
-    return RecordedTest(report=report, steps=mine, bench_info=info, blocks=blocks)
+    return RecordedTest(report=report, steps=mine, bench_info=info, blocks=blocks,
+                        block_times=times)

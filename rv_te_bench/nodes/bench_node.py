@@ -129,6 +129,10 @@ FINISH_ACK_S = 3.0
 #: Blocks one late timer tick may publish to catch up (fewer for JointStates: their queue).
 _MAX_CATCH_UP_BLOCKS = 100
 
+#: The fastest JointState stream (one per sample) a ros2_control session in fast mode
+#: publishes: its readers (the adapter, the sequencer) keep up with it on a loaded 2-core PC.
+MAX_JOINT_STATE_RATE_HZ = 2000.0
+
 #: Most encoder blocks per second of session time (sample_rate_hz / block_size): rclpy
 #: costs ~1-2 ms per message in each node, so faster block streams never keep up.
 MAX_BLOCK_RATE_HZ = 1000.0
@@ -192,6 +196,17 @@ class BenchNode(Node):
         self.sim, self.duration_s = build_simulator(self.p)
         info = self.sim.info
         self.program: Any = None
+        self.control: Any = None
+        if self.p.ros2_control:
+            if self.p.commanded:
+                msg = ('commanded (bench/run_program) and ros2_control (setpoint topics) '
+                       'exclude each other: set one')
+                raise ParameterFileError(msg)
+            from rv_te_bench.nodes.bench_control import Ros2ControlBench
+
+            self.control = Ros2ControlBench(self, self.p)
+            self.sim = self.control       # next_block() and info, driven by the setpoints
+            info = self.control.info
         if self.p.commanded:
             self._start_commanded()
         self.block_period_s = self.p.block_size / self.p.sample_rate_hz
@@ -199,7 +214,7 @@ class BenchNode(Node):
         self.exit_code = 0
         self.blocks_published = 0
         self.sim_time_s = 0.0
-        self.joint_state = self.p.output == 'joint_state'
+        self.joint_state = self.p.output == 'joint_state' or self.control is not None
         self._max_catch_up_blocks = _MAX_CATCH_UP_BLOCKS
         if self.joint_state:
             from sensor_msgs.msg import JointState
@@ -221,6 +236,14 @@ class BenchNode(Node):
         self.pub_diag = self.create_publisher(DiagnosticArray, '/diagnostics',
                                               qos.DIAGNOSTICS_QOS)
         self.fast = self.p.time_mode == 'fast'
+        self.speed_factor = self.p.speed_factor
+        if self.control is not None and self.fast and self.speed_factor <= 0:
+            # one JointState per sample: "as fast as possible" would flood the readers (the
+            # adapter, the sequencer); go as fast as they are known to keep up
+            factor = max(1.0, MAX_JOINT_STATE_RATE_HZ / self.p.sample_rate_hz)
+            self.get_logger().info(f'ros2_control in fast mode: speed_factor 0 runs at '
+                                   f'{factor:g}x ({MAX_JOINT_STATE_RATE_HZ:g} joint states/s)')
+            self.speed_factor = factor
         self.pub_clock = self.create_publisher(Clock, '/clock', qos.CLOCK_QOS) if self.fast \
             else None
         self.wall_start = time.time()
@@ -236,7 +259,7 @@ class BenchNode(Node):
         self._lag_max_s = 0.0
         self._lag_period_max_s = 0.0   # since the previous diagnostics message
         tick = self.block_period_s if not self.fast else max(
-            1e-3, self.block_period_s / self.p.speed_factor if self.p.speed_factor > 0
+            1e-3, self.block_period_s / self.speed_factor if self.speed_factor > 0
             else 1e-3)
         self.timer = self.create_timer(tick, self._on_tick)
         self.create_timer(self.p.diagnostics_period_s, self._publish_diagnostics)
@@ -329,7 +352,7 @@ class BenchNode(Node):
 
     def _tick_commanded(self) -> None:
         elapsed = time.monotonic() - self.mono_start
-        factor = self.p.speed_factor if self.fast else 1.0
+        factor = self.speed_factor if self.fast else 1.0
         due = 10 if self.fast and factor <= 0 else int(
             elapsed * factor / self.block_period_s) + 1 - self._prog_blocks
         for _ in range(max(0, min(due, 100))):
@@ -346,7 +369,7 @@ class BenchNode(Node):
         """How many blocks the clock says are due now (bounded catch-up)."""
         elapsed = time.monotonic() - self.mono_start
         if self.fast:
-            factor = self.p.speed_factor
+            factor = self.speed_factor
             if factor <= 0:
                 return 10  # as fast as possible: several per tick, still yielding to spin
             elapsed *= factor
@@ -455,7 +478,10 @@ class BenchNode(Node):
         self._publish_block(self.sim.next_block())
 
     def _publish_block(self, b: BenchBlock) -> None:
-        if self.joint_state:
+        if self.control is not None:
+            self.joint_states_published += self.control.publish(self.pub_data, b,
+                                                                self.wall_start)
+        elif self.joint_state:
             self._publish_joint_states(b)
         else:
             stamp_s = self.wall_start + b.t0_s

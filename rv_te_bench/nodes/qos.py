@@ -9,6 +9,11 @@
 | PREVIEW_QOS     | sensor data: best effort, keep last 5   | live plots, previews           |
 | DIAGNOSTICS_QOS | reliable, keep last 10, volatile        | /diagnostics                   |
 | CLOCK_QOS       | best effort, keep last 1 (ClockQoS)     | /clock                         |
+| COMMAND_QOS     | reliable, keep last 10, volatile        | .../commands setpoints         |
+
+Setpoints to a ros2_control bench go to ``forward_command_controller``'s ``~/commands``,
+which subscribes with ``rclcpp::SystemDefaultsQoS()`` (reliable, volatile, keep last 10):
+COMMAND_QOS is that, so the sequencer's publishers match a real controller.
 
 The encoder depth (1000 messages = 10 s at 100 blocks/s) covers the largest burst a
 subscriber can fall behind by on a loaded 2-core machine; depth 10 drops bursts (DESIGN.md).
@@ -43,6 +48,7 @@ from rclpy.qos import (
 
 __all__ = [
     'CLOCK_QOS',
+    'COMMAND_QOS',
     'DIAGNOSTICS_QOS',
     'ENCODER_QOS',
     'ENCODER_QUEUE_DEPTH',
@@ -106,5 +112,12 @@ CLOCK_QOS = QoSProfile(
     history=HistoryPolicy.KEEP_LAST,
     depth=1,
     reliability=ReliabilityPolicy.BEST_EFFORT,
+    durability=DurabilityPolicy.VOLATILE,
+)
+
+COMMAND_QOS = QoSProfile(
+    history=HistoryPolicy.KEEP_LAST,
+    depth=10,
+    reliability=ReliabilityPolicy.RELIABLE,
     durability=DurabilityPolicy.VOLATILE,
 )

@@ -1,29 +1,36 @@
-"""TestSequencerNode: runs an acceptance test plan on the bench, as a ROS 2 action.
+"""TestSequencerNode: runs an acceptance test plan on a ros2_control bench, as a ROS 2 action.
 
 Action ``run_test_plan`` (``rv_te_msgs/action/RunTestPlan``): the goal carries the plan and
-tolerance texts and the unit's identity; the node runs the plan step by step, sending each
-step's bench program to ``bench/run_program`` (the bench in ``commanded`` mode) and feeding
-the blocks of ``bench/encoders`` to the step runner (:mod:`rv_te_bench.acceptance.runner`);
-feedback gives the step, the progress and a live value; the result gives every metric with
-its limit, margin and verdict. A cancel stops the bench (``bench/stop``). A second goal
-while one runs is rejected (ROS goal rejection has no reason field: the node logs the reason
-and the running test is on the latched ``test/report``, where ``rv-te test`` reads it).
+tolerance texts and the unit's identity; the node runs the plan step by step through the
+interfaces a ros2_control bench has (:mod:`rv_te_bench.nodes.sequencer_io`): setpoints on
+the forward command controllers' ``commands`` topics (the drive joint's velocity, the load
+joint's effort or position; topics are parameters), samples read back through
+``joint_states`` and the JointState adapter (``bench/encoders``, ``bench/info``). The
+simulated bench serves the same interfaces (``bench`` with ``ros2_control: true``), so this
+node cannot tell it from a real one. Each step's program is driven by
+:class:`~rv_te_bench.acceptance.driver.ProgramDriver`; its blocks go to the step runner.
 
-Recorded for the bag: ``test/step`` (TestStep: started / finished / cancelled, with the
-EncoderBlock seq range of the step) and ``test/report`` (TestReport: the verdict, the
-metrics and the report JSON). While the test runs, ``test/report`` (verdict 'running') is
-sent again each time a metric is decided (a TE direction or sweep point when its segment
-ends, a hysteresis step's metrics when the step ends): every metric decided so far against
-its limit, the others 'pending', and in the reason what is decided of the unit's verdict
-(FAIL as soon as one metric is out of its limit) - the live page shows it as it comes.
+Safety: every sample read back is checked against the limits of the plan's ``safety`` and
+the bench description's ``limits`` (:func:`~rv_te_bench.acceptance.driver.plan_limits`);
+a limit exceeded, a setpoint not reached, a stale joint state (no message for the plan's
+``stale_joint_state_s``), a cancel (Ctrl-C in ``rv-te test``) or this node's own shutdown
+command zero (drive stopped, load effort 0) and end the step with the reason: the test is
+``aborted`` (or ``cancelled``) and recorded so. Operator steps wait for ``test/acknowledge``
+(``std_srvs/Trigger``; ``rv-te ack``), showing the instruction in the feedback, until their
+timeout. A second goal while one runs is rejected (ROS goal rejection has no reason field:
+the node logs it and the running test is on the latched ``test/report``).
 
-Executor: single-threaded, with the goal executed as a coroutine that awaits futures
-completed by the subscription and a 10 Hz timer, so the data keeps flowing while a goal runs.
+Recorded for the bag: ``test/step`` (TestStep: started / finished / cancelled / aborted,
+the EncoderBlock seq range of the step; its result YAML holds the metrics, each segment's
+time range on the bench's clock and, when it ended early, the reason) and ``test/report``.
+
+Executor: single-threaded, the goal executed as a coroutine that awaits futures completed by
+the subscriptions and a 10 Hz timer, so the data keeps flowing while a goal runs.
 """
 
 from __future__ import annotations
 
-import collections
+import contextlib
 import dataclasses
 import json
 import math
@@ -39,11 +46,13 @@ from rclpy.node import Node
 from rclpy.task import Future
 from rv_te_msgs.action import RunTestPlan
 from rv_te_msgs.msg import BenchInfo, EncoderBlock, MetricVerdict, TestReport, TestStep
-from rv_te_msgs.srv import RunBenchProgram
 from std_srvs.srv import Trigger
 
 from rv_te_bench.acceptance import StepRunner, build_report, parse_plan
 from rv_te_bench.acceptance._files import parse_yaml_text
+from rv_te_bench.acceptance.commanded import feed_parts
+from rv_te_bench.acceptance.driver import DriverSettings, ProgramDriver, plan_limits
+from rv_te_bench.acceptance.plan import OperatorStep
 from rv_te_bench.acceptance.runner import running_verdicts
 from rv_te_bench.acceptance.tolerance import load_tolerance, parse_tolerance
 from rv_te_bench.errors import AcceptanceError
@@ -51,53 +60,88 @@ from rv_te_bench.io.bench_record import bench_uncertainty_of
 from rv_te_bench.nodes import qos
 from rv_te_bench.nodes.common import DropCounter, declare_from_specs, run_node
 from rv_te_bench.nodes.params.test_sequencer import PARAMS, TestSequencerParams
+from rv_te_bench.nodes.sequencer_io import SetpointLink
 from rv_te_bench.params import params_record
 from sim.bench_info import BenchInfoData
 
 if TYPE_CHECKING:
     from rclpy.action.server import ServerGoalHandle
 
-    from rv_te_bench.acceptance.plan import Step
+    from rv_te_bench.acceptance.driver import SafetyLimits
+    from rv_te_bench.acceptance.plan import Step, TestPlan
     from rv_te_bench.acceptance.tolerance import Measured
 
 __all__ = ['PARAMS', 'TestSequencerNode', 'main']
+
+
+#: A stale read-back is confirmed when it lasts this much longer on this node's clock [s].
+_STALE_CONFIRM_S = 0.25
 
 
 class _Cancelled(Exception):  # noqa: N818 - a control-flow signal, not an error
     pass
 
 
+class _Aborted(Exception):  # noqa: N818 - a control-flow signal carrying the reason
+    pass
+
+
 class TestSequencerNode(Node):
-    """Runs test plans on the bench (see the module docstring)."""
+    """Runs test plans on a ros2_control bench (see the module docstring)."""
 
     __test__ = False
 
     def __init__(self, **kwargs: Any) -> None:
-        """Declare parameters, the action server, clients, topics; ``kwargs`` go to Node."""
+        """Declare parameters, the action server, the setpoint link, topics, the ack service."""
         super().__init__('test_sequencer', **kwargs)
         self.p = params_record(TestSequencerParams, declare_from_specs(self, PARAMS))
         self.drops = DropCounter(self)
         self.bench_info: BenchInfoData | None = None
         self.busy: dict[str, Any] | None = None
-        self._runner: StepRunner | None = None
-        self._prog: dict[str, Any] = {}
-        self._live: dict[str, Any] = {}
+        self._drive: dict[str, Any] | None = None     # the running step's loop state
+        self._operator: dict[str, Any] | None = None  # the operator step waiting
+        self._live: dict[str, Any] = {}                # metrics decided so far
         self._wake: Future | None = None
-        # blocks that arrive between a program's start on the bench and the answer to its
-        # service call (the bench publishes at once): replayed when the answer is in
-        self._early: collections.deque[EncoderBlock] = collections.deque(maxlen=5000)
+        self._last_block_wall = math.nan
+        self._bench_limits = self._read_bench_limits()
+        self.link = SetpointLink(
+            self, drive_topic=self.p.drive_command_topic,
+            effort_topic=self.p.load_effort_command_topic,
+            position_topic=self.p.load_position_command_topic,
+            joint_states_topic=self.p.joint_states_topic)
         self.create_subscription(BenchInfo, 'bench/info', self._on_info, qos.LATCHED_QOS)
         self.create_subscription(EncoderBlock, 'bench/encoders', self._on_block,
                                  qos.ENCODER_QOS)
-        self.cli_program = self.create_client(RunBenchProgram, 'bench/run_program')
-        self.cli_stop = self.create_client(Trigger, 'bench/stop')
         self.pub_step = self.create_publisher(TestStep, 'test/step', qos.TE_SAMPLES_QOS)
         self.pub_report = self.create_publisher(TestReport, 'test/report', qos.LATCHED_QOS)
+        self.create_service(Trigger, 'test/acknowledge', self._on_ack)
         self.create_timer(0.1, self._on_timer)
         self.server = ActionServer(
             self, RunTestPlan, 'run_test_plan', execute_callback=self._execute,
             goal_callback=self._on_goal, cancel_callback=lambda _g: CancelResponse.ACCEPT)
-        self.get_logger().info('test_sequencer ready (action run_test_plan)')
+        self.get_logger().info('test_sequencer ready (action run_test_plan; setpoints on '
+                               f'{self.p.drive_command_topic}, '
+                               f'{self.p.load_effort_command_topic}, '
+                               f'{self.p.load_position_command_topic})')
+
+    def _read_bench_limits(self) -> dict[str, Any]:
+        path = self.p.bench_description
+        if not path:
+            return {}
+        from rv_te_bench.io.bench_description import load_bench_description
+
+        d = load_bench_description(path)
+        return {'bench_max_input_speed_rpm': d.max_input_speed_rpm,
+                'bench_max_output_torque_nm': d.max_output_torque_nm,
+                'bench_origin': d.origin}
+
+    def destroy_node(self) -> None:
+        """The zero setpoint before going (a stop of this node stops the bench)."""
+        with contextlib.suppress(Exception):   # the context may be going already
+            if self.busy is not None or self._drive is not None:
+                self.get_logger().warning('stopping during a test: zero setpoint sent')
+            self.link.zero(wait_s=1.0)
+        super().destroy_node()
 
     # -- callbacks ------------------------------------------------------------------------------
     def _on_info(self, msg: BenchInfo) -> None:
@@ -111,37 +155,58 @@ class TestSequencerNode(Node):
                 f'unit {b["serial"]!r} (step {b["step"] + 1} of {b["steps"]})')
             return GoalResponse.REJECT
         self.busy = {'plan': '?', 'serial': goal.serial, 'step': -1, 'steps': 0}
-        self._early.clear()
         return GoalResponse.ACCEPT
 
-    def _on_block(self, msg: EncoderBlock) -> None:
-        runner, prog = self._runner, self._prog
-        if runner is None or not prog:
-            if self.busy is not None:
-                self._early.append(msg)
-            return
-        k = int(msg.seq) - prog['first_seq']
-        if k < 0 or k >= prog['total'] or k < prog['next']:
-            return
-        if k > prog['next']:
-            prog['missing'] += k - prog['next']
-            self.drops.drop('gap', f'blocks {prog["next"]}..{k - 1} of the step missing')
-        seg = int(np.searchsorted(prog['ends'], k, side='right'))
-        if seg != prog['segment']:
-            runner.next_segment()
-            prog['segment'] = seg
-        try:
-            prog['live'] = runner.feed(seg, np.asarray(msg.theta_in_rad),
-                                       np.asarray(msg.theta_out_rad),
-                                       np.asarray(msg.torque_out_nm))
-        except (ValueError, IndexError) as exc:
-            self.drops.drop('malformed', str(exc))
-        prog['next'] = k + 1
-        prog['last_wall'] = time.monotonic()
-        if prog['next'] >= prog['total']:
+    def _on_ack(self, _req: Trigger.Request, res: Trigger.Response) -> Trigger.Response:
+        op = self._operator
+        if op is None or op['acked']:
+            res.success, res.message = False, 'no operator step is waiting'
+        else:
+            op['acked'] = True
+            res.success, res.message = True, f'acknowledged: {op["instruction"]}'
+            self.get_logger().info(res.message)
             self._poke()
+        return res
+
+    def _on_block(self, msg: EncoderBlock) -> None:
+        self._last_block_wall = time.monotonic()
+        d = self._drive
+        if d is None or d['done'] or d['abort']:
+            return
+        try:
+            th_in = np.asarray(msg.theta_in_rad, dtype=np.float64)
+            th_out = np.asarray(msg.theta_out_rad, dtype=np.float64)
+            tq = np.asarray(msg.torque_out_nm, dtype=np.float64)
+            if th_in.size == 0 or th_out.size != th_in.size or tq.size not in (0, th_in.size):
+                msg_ = f'block {msg.seq}: arrays of unequal length or empty'
+                raise ValueError(msg_)
+            t = msg.header.stamp.sec + msg.header.stamp.nanosec * 1e-9 + np.asarray(
+                msg.time_offset_s, dtype=np.float64)
+        except (ValueError, TypeError) as exc:
+            self.drops.drop('malformed', str(exc))
+            return
+        seq = int(msg.seq)
+        if d['first_seq'] < 0:
+            d['first_seq'] = seq
+        elif seq != d['last_seq'] + 1 and d['driver'].index >= 0:
+            lost = seq - d['last_seq'] - 1
+            d['runner'].mark(d['driver'].index, f'{lost} block(s) lost before block {seq} '
+                                                '(a gap in the data read back)')
+            self.drops.drop('gap', f'{lost} block(s) lost before block {seq}')
+        d['last_seq'] = seq
+        upd = d['driver'].push(t, th_in, th_out, -tq if tq.size else None)
+        d['live'] = feed_parts(d['runner'], upd.parts, th_in, th_out, tq, d['last_segment'])
+        if upd.setpoint is not None:
+            self.link.send(upd.setpoint)
+        if upd.abort:
+            d['abort'] = upd.abort
+        if upd.finished:
+            d['done'] = True
+        self._poke()
 
     def _on_timer(self) -> None:
+        if self._drive is not None:
+            self.link.refresh(self.p.setpoint_period_s)
         self._poke()
 
     def _poke(self) -> None:
@@ -170,7 +235,8 @@ class TestSequencerNode(Node):
             if not isinstance(conditions, dict):
                 msg = 'conditions_yaml must be a mapping'
                 raise AcceptanceError(msg)
-            info = await self._bench()
+            limits = plan_limits(plan, **self._bench_limits)   # before anything moves
+            info = await self._bench(plan)
             if req.tolerance_yaml.strip():
                 profile = parse_tolerance(parse_yaml_text(
                     req.tolerance_yaml, 'tolerance (goal)', AcceptanceError), 'tolerance (goal)')
@@ -182,22 +248,33 @@ class TestSequencerNode(Node):
             self._publish_running(req, -1)
             for j, step in enumerate(plan.steps):
                 self.busy['step'] = j
-                results.append(await self._run_step(goal_handle, req, j, step, info,
-                                                    len(plan.steps)))
+                if isinstance(step, OperatorStep):
+                    results.append(await self._wait_for_operator(goal_handle, req, j, step,
+                                                                 len(plan.steps)))
+                else:
+                    results.append(await self._run_step(goal_handle, req, j, step, info,
+                                                        len(plan.steps), plan, limits))
                 self._live['decided'] = [m for res in results for m in res[0]]
                 self._publish_running(req, j)
+            self.link.zero()
             report = build_report(plan=plan, profile=profile, info=info, serial=req.serial,
                                   operator=req.operator_name, results=results,
                                   conditions=conditions, started_utc=_iso(started))
             self._finish(result, req, plan.name, report)
             goal_handle.succeed()
-        except _Cancelled:
+        except (_Cancelled, _Aborted) as exc:
+            self.link.zero()
+            status = 'cancelled' if isinstance(exc, _Cancelled) else 'aborted'
             report = build_report(plan=plan, profile=profile, info=self.bench_info,
                                   serial=req.serial, operator=req.operator_name, results=results,
-                                  started_utc=_iso(started), status='cancelled')
+                                  started_utc=_iso(started), status=status, why=str(exc))
             self._finish(result, req, plan.name, report)
-            goal_handle.canceled()
+            if status == 'cancelled':
+                goal_handle.canceled()
+            else:
+                goal_handle.abort()
         except Exception as exc:  # noqa: BLE001 - every failure ends the goal with its reason
+            self.link.zero()
             result.verdict, result.reason = 'error', str(exc)
             if not isinstance(exc, AcceptanceError):
                 result.reason = f'internal error: {type(exc).__name__}: {exc}'
@@ -206,16 +283,27 @@ class TestSequencerNode(Node):
             self._publish_report(req, plan.name if plan else '', 'error', str(exc), [], '')
             goal_handle.abort()
         finally:
-            self._runner, self._prog, self.busy, self._live = None, {}, None, {}
+            self._drive, self._operator, self.busy, self._live = None, None, None, {}
         return result
 
-    async def _bench(self) -> BenchInfoData:
+    async def _bench(self, plan: TestPlan) -> BenchInfoData:
+        """Wait for bench/info (the adapter), joint states and the controllers' topics."""
+        modes = {'effort'} | ({'position'} if any(
+            getattr(s, 'method', '') == 'constant_speed' for s in plan.steps) else set())
         deadline = time.monotonic() + self.p.bench_timeout_s
-        while self.bench_info is None or not self.cli_program.service_is_ready():
+        while True:
+            missing = []
+            if self.bench_info is None:
+                missing.append('bench/info (is the joint_state_adapter running with a bench '
+                               'description?)')
+            if self.link.stale_s() > plan.safety.stale_joint_state_s:
+                missing.append(f'{self.p.joint_states_topic} (no joint state)')
+            missing += [f'a controller on {t}' for t in self.link.missing(modes)]
+            if not missing:
+                break
             if time.monotonic() > deadline:
-                what = 'bench/info' if self.bench_info is None else 'the bench/run_program service'
-                msg = (f'no bench: {what} not seen in {self.p.bench_timeout_s:g} s (is the '
-                       'bench running with commanded: true?)')
+                msg = (f'no bench: {"; ".join(missing)} not seen in '
+                       f'{self.p.bench_timeout_s:g} s')
                 raise AcceptanceError(msg)
             await self._sleep()
         wanted = set(self.p.wait_for_nodes)
@@ -232,51 +320,110 @@ class TestSequencerNode(Node):
                     'are not recorded by them')
                 break
             await self._sleep()
+        assert self.bench_info is not None
         return self.bench_info
 
+    async def _wait_for_operator(self, goal_handle: ServerGoalHandle, req: RunTestPlan.Goal,
+                                 j: int, step: OperatorStep,
+                                 n_steps: int) -> tuple[list[Measured], dict[str, Any]]:
+        self.link.zero()
+        self._operator = op = {'instruction': step.instruction, 'acked': False}
+        start = time.monotonic()
+        self._publish_step(req, j, n_steps, step, 'started', '', '')
+        self.get_logger().info(f'waiting for the operator: {step.instruction} (rv-te ack, or '
+                               'the test/acknowledge service)')
+        last = 0.0
+        try:
+            while not op['acked']:
+                waited = time.monotonic() - start
+                if goal_handle.is_cancel_requested:
+                    self._publish_step(req, j, n_steps, step, 'cancelled', '', yaml.safe_dump(
+                        {'reason': 'cancelled by the operator'}))
+                    msg = f'cancelled by the operator (operator step {step.name!r})'
+                    raise _Cancelled(msg)
+                if waited > step.timeout_s:
+                    why = (f'operator step {step.name!r}: no acknowledgement of '
+                           f'{step.instruction!r} within {step.timeout_s:g} s')
+                    self._publish_step(req, j, n_steps, step, 'aborted', '',
+                                       yaml.safe_dump({'reason': why}))
+                    raise _Aborted(why)
+                if time.monotonic() - last >= self.p.feedback_period_s:
+                    last = time.monotonic()
+                    goal_handle.publish_feedback(RunTestPlan.Feedback(
+                        step_index=j, step_count=n_steps, step_name=step.name,
+                        step_kind='operator', step_progress=min(1.0, waited / step.timeout_s),
+                        plan_progress=j / n_steps, live_metric='waiting_s',
+                        live_value=waited,
+                        message=f'waiting for the operator: {step.instruction}'))
+                await self._sleep()
+        finally:
+            self._operator = None
+        waited = time.monotonic() - start
+        self._publish_step(req, j, n_steps, step, 'finished', '',
+                           yaml.safe_dump({'acknowledged_after_s': round(waited, 3)}))
+        measured, details = StepRunner(step, self.bench_info).result()  # type: ignore[arg-type]
+        return measured, {**details, 'acknowledged_after_s': waited}
+
     async def _run_step(self, goal_handle: ServerGoalHandle, req: RunTestPlan.Goal, j: int,
-                        step: Step, info: BenchInfoData,
-                        n_steps: int) -> tuple[list[Measured], dict[str, Any]]:
+                        step: Step, info: BenchInfoData, n_steps: int, plan: TestPlan,
+                        limits: SafetyLimits) -> tuple[list[Measured], dict[str, Any]]:
         runner = StepRunner(step, info, uncertainty=bench_uncertainty_of(info)[0])
-        call = RunBenchProgram.Request(program_yaml=yaml.safe_dump(runner.program()))
-        future = self.cli_program.call_async(call)
-        while not future.done():
-            await self._sleep()
-        resp = future.result()
-        if not resp.accepted:
-            msg = f'step {step.name!r}: the bench refused its program: {resp.reason}'
-            raise AcceptanceError(msg)
-        runner.expect(list(resp.segment_blocks))
-        self._runner = runner
-        self._prog = {'first_seq': int(resp.first_seq), 'total': int(resp.block_count),
-                      'ends': np.cumsum(list(resp.segment_blocks)), 'next': 0, 'segment': 0,
-                      'segment_blocks': list(resp.segment_blocks),
-                      'missing': 0, 'live': math.nan, 'last_wall': time.monotonic()}
-        early, self._early = list(self._early), collections.deque(maxlen=5000)
-        for msg in early:
-            self._on_block(msg)
+        program = runner.program()
+        torques = [abs(float(s.get('torque_nm', s.get('load_nm', 0.0)))) for s in program]
+        settings = DriverSettings(torque_tolerance_nm=max(0.005 * max(torques, default=0.0),
+                                                          0.2),
+                                  reach_timeout_s=plan.safety.reach_timeout_s)
+        driver = ProgramDriver(program, limits=limits, settings=settings,
+                               sample_rate_hz=info.sample_rate_hz)
+        self._drive = d = {'runner': runner, 'driver': driver, 'first_seq': -1, 'last_seq': -1,
+                           'live': math.nan, 'done': False, 'abort': '', 'last_segment': [-1]}
         params = yaml.safe_dump(_plain(dataclasses.asdict(step)), default_flow_style=True)
         self._publish_step(req, j, n_steps, step, 'started', params, '')
+        self.link.send(driver.start())
+        self.get_logger().info(f'step {j + 1}/{n_steps} {step.name!r}: {len(program)} '
+                               'segments, driven through setpoints')
+        stale = plan.safety.stale_joint_state_s
+        block_s = info.block_size / info.sample_rate_hz
         last_feedback = 0.0
+        self._last_block_wall = time.monotonic()
+        suspect = math.inf      # when the read-back first looked stale
         done_segments = 0
         step_decided: list[Measured] = []
-        while self._prog['next'] < self._prog['total']:
+        while not d['done']:
+            why = ''
             # a segment is complete once a block of a later one came: its metric is decided
-            while done_segments < self._prog['segment']:
+            while done_segments < d['last_segment'][0]:
                 step_decided += runner.segment_metrics(done_segments)
                 done_segments += 1
                 if step_decided:
                     self._publish_running(req, j, step_decided)
             if goal_handle.is_cancel_requested:
-                await self._stop_bench()
-                self._publish_step(req, j, n_steps, step, 'cancelled', params, '')
-                raise _Cancelled
-            if time.monotonic() - self._prog['last_wall'] > self.p.bench_timeout_s:
-                await self._stop_bench()
-                self._publish_step(req, j, n_steps, step, 'aborted', params, '')
-                msg = (f'step {step.name!r}: no block from the bench for '
-                       f'{self.p.bench_timeout_s:g} s')
-                raise AcceptanceError(msg)
+                self._end_step(req, j, n_steps, step, params, 'cancelled',
+                               'cancelled by the operator')
+                msg = f'cancelled by the operator (step {step.name!r})'
+                raise _Cancelled(msg)
+            stale_why = ''
+            if self.link.stale_s() > stale:
+                stale_why = (f'no joint state on {self.p.joint_states_topic} for '
+                             f'{min(self.link.stale_s(), 1e6):.3g} s (limit {stale:g} s)')
+            elif time.monotonic() - self._last_block_wall > max(stale, 10 * block_s) + 1.0:
+                stale_why = ('no sample read back through the JointState adapter '
+                             f'(bench/encoders) for '
+                             f'{time.monotonic() - self._last_block_wall:.3g} s')
+            # stale only when it still is after this node has had the CPU for a moment: a
+            # node that was itself held up finds the messages waiting, not missing
+            if not stale_why:
+                suspect = math.inf
+            elif suspect == math.inf:
+                suspect = time.monotonic()
+            elif time.monotonic() - suspect >= _STALE_CONFIRM_S:
+                why = stale_why
+            if d['abort']:
+                why = d['abort']
+            if why:
+                self._end_step(req, j, n_steps, step, params, 'aborted', why)
+                msg = f'step {step.name!r}: {why}'
+                raise _Aborted(msg)
             now = time.monotonic()
             if now - last_feedback >= self.p.feedback_period_s:
                 last_feedback = now
@@ -284,42 +431,42 @@ class TestSequencerNode(Node):
             await self._sleep()
         self._feedback(goal_handle, j, n_steps, step, runner)
         measured, details = runner.result()
-        details['blocks_missing'] = self._prog['missing']
+        details['segments_s'] = [list(b) for b in driver.boundaries]
         self._publish_step(req, j, n_steps, step, 'finished', params, yaml.safe_dump(
-            {m.name: (None if not math.isfinite(m.value) else m.value) for m in measured}))
-        self._runner, self._prog = None, {}
+            {**{m.name: (None if not math.isfinite(m.value) else m.value) for m in measured},
+             'segments_s': details['segments_s']}))
+        self._drive = None
         return measured, details
 
-    async def _stop_bench(self) -> None:
-        if not self.cli_stop.service_is_ready():
-            self.get_logger().error('bench/stop not available: the bench may still run')
-            return
-        future = self.cli_stop.call_async(Trigger.Request())
-        deadline = time.monotonic() + 5.0
-        while not future.done() and time.monotonic() < deadline:
-            await self._sleep()
+    def _end_step(self, req: RunTestPlan.Goal, j: int, n: int, step: Step, params: str,
+                  state: str, why: str) -> None:
+        self.link.zero()
+        self._publish_step(req, j, n, step, state, params, yaml.safe_dump({'reason': why}))
+        self.get_logger().error(f'step {step.name!r} {state}: {why} (zero setpoint sent)')
+        self._drive = None
 
     # -- messages -------------------------------------------------------------------------
     def _feedback(self, goal_handle: ServerGoalHandle, j: int, n: int, step: Step,
                   runner: StepRunner) -> None:
-        prog = self._prog
-        frac = prog['next'] / prog['total'] if prog.get('total') else 0.0
+        d = self._drive or {}
+        driver = d.get('driver')
+        frac = 0.0
+        if driver is not None and driver.program:
+            frac = min(1.0, max(0, driver.index) / len(driver.program))
         fb = RunTestPlan.Feedback(step_index=j, step_count=n, step_name=step.name,
                                   step_kind=step.kind, step_progress=frac,
                                   plan_progress=(j + frac) / n, live_metric=runner.live_name,
-                                  live_value=float(prog.get('live', math.nan)),
+                                  live_value=float(d.get('live', math.nan)),
                                   message=f'step {j + 1}/{n} {step.name}: {100 * frac:.0f} %')
         goal_handle.publish_feedback(fb)
 
     def _publish_step(self, req: RunTestPlan.Goal, j: int, n: int, step: Step, state: str,
                       params: str, result: str) -> None:
+        d = self._drive or {}
+        first, last = max(0, d.get('first_seq', 0)), max(0, d.get('last_seq', 0))
         msg = TestStep(serial=req.serial, step_index=j, step_count=n, step_name=step.name,
-                       step_kind=step.kind, state=state,
-                       first_seq=self._prog.get('first_seq', 0),
-                       last_seq=self._prog.get('first_seq', 0) + max(
-                           self._prog.get('next', 0) - 1, 0),
-                       segment_blocks=[int(n) for n in self._prog.get('segment_blocks', ())],
-                       parameters_yaml=params, result_yaml=result)
+                       step_kind=step.kind, state=state, first_seq=first, last_seq=last,
+                       segment_blocks=[], parameters_yaml=params, result_yaml=result)
         msg.header.stamp = self.get_clock().now().to_msg()
         msg.header.frame_id = self.bench_info.bench_id if self.bench_info else ''
         self.pub_step.publish(msg)

@@ -304,6 +304,8 @@ def _conditions(report: dict[str, Any]) -> list[tuple[str, str]]:
             out.append((f"sweep {step['name']!r}",
                         f"speeds {step['speeds_rpm']} rpm x loads {step['loads_nm']} N m, "
                         f"{step['direction']}"))
+        elif step['kind'] == 'operator':
+            out.append((f"operator step {step['name']!r}", step['instruction']))
     cond = report.get('conditions') or {}
     out.append(('temperature', f"{cond['ambient_temperature_c']} degC ambient"
                 if 'ambient_temperature_c' in cond else 'not recorded'))

@@ -193,6 +193,10 @@ def _stop_at_start(mp: pytest.MonkeyPatch, command: str) -> None:
 
         mp.setattr(session.Session, 'start', started)
         mp.setattr(test, '_run_goal', started)
+    elif command == 'ack':    # it would call a running sequencer's test/acknowledge
+        from rv_te_bench.cli import ack
+
+        mp.setattr(ack, 'acknowledge', started)
     elif command == 'demo':   # the demo starts its own session right after building it
         real_build = session.build_session
 

@@ -265,14 +265,26 @@ def test_ctrl_c_cancels_the_test_stops_the_bench_and_keeps_the_bag(
     text = ''.join(err)
     assert 'cancelling the test (the bench stops)' in text
     errors = [ln for ln in err if ln.startswith('ERROR')]
-    assert errors == ['ERROR: test of unit SN-C cancelled: cancelled after 0 of 3 steps\n'], text
+    assert errors == ['ERROR: test of unit SN-C cancelled: cancelled after 0 of 3 steps: '
+                      "cancelled by the operator (step 'te')\n"], text
     assert not any(alive(pid) for pid in nodes), 'a node outlived the test'
     (run,) = [d for d in (tmp_path / 'out').iterdir() if d.is_dir()]
     report = json.loads((run / 'report' / 'report.json').read_text())
     assert report['verdict'] == 'cancelled'
+    assert report['reason'].endswith("cancelled by the operator (step 'te')")
     assert 'report:' in out
+    # the record in the results store: not judged, with the reason
+    from rv_te_bench.store import ResultFilter, open_store
+
+    with open_store(tmp_path / 'out' / 'rv-te-results.sqlite') as store:
+        (rec,) = store.query(ResultFilter(test='test-plan'))
+    assert (rec.serial, rec.verdict, rec.status) == ('SN-C', 'not-judged', 'failed')
+    assert "cancelled by the operator (step 'te')" in rec.failure
     with AnyReader([run / 'bag'], default_typestore=rv_te_typestore()) as bag:
         conns = [c for c in bag.connections if c.topic.endswith('bench/encoders')]
         seqs = [bag.deserialize(raw, c.msgtype).seq for c, _t, raw in bag.messages(conns)]
+        reps = [bag.deserialize(raw, c.msgtype) for c, _t, raw in bag.messages(
+            [c for c in bag.connections if c.topic.endswith('test/report')])]
     assert len(seqs) > 10
     assert seqs == list(range(seqs[0], seqs[0] + len(seqs)))   # no gap in what was measured
+    assert reps[-1].verdict == 'cancelled' and 'cancelled by the operator' in reps[-1].reason

@@ -165,6 +165,24 @@ class BenchParams:
         False,
         'Idle until a program arrives on bench/run_program (test_sequencer), instead '
         'of running the drive profile from the start')
+    ros2_control: bool = param(
+        False, "Serve a ros2_control bench's interfaces: setpoints on the forward command "
+        "controllers' topics (drive velocity, load effort or position), joint_states out "
+        '(with velocities and efforts); runs until stopped (docs/ACCEPTANCE.md)')
+    drive_command_topic: str = param(
+        'drive_velocity_controller/commands',
+        "ros2_control: the drive (input) joint's velocity setpoint topic "
+        '(std_msgs/Float64MultiArray, [rad/s]) [-]')
+    load_effort_command_topic: str = param(
+        'load_effort_controller/commands',
+        "ros2_control: the load (output) joint's effort setpoint topic ([N m], the torque "
+        'applied to the output) [-]')
+    load_position_command_topic: str = param(
+        'load_position_controller/commands',
+        "ros2_control: the load (output) joint's position setpoint topic ([rad]) [-]")
+    max_input_speed_rpm: float = param(
+        10000.0, "ros2_control: the drive's own speed limit (faster setpoints are clipped) "
+        '[rpm]', min_value=1.0, max_value=1e5)
     realtime_priority: int = param(
         0,
         'realtime time mode: SCHED_FIFO priority of the thread that paces and '
