@@ -108,8 +108,9 @@ def register(subparsers: Subparsers) -> None:
     g.add_argument('--auto-ack', action='store_true',
                    help="acknowledge the plan's operator steps at once (a simulated bench; "
                         'without it: Enter in this terminal, or rv-te ack)')
-    g.add_argument('--speed-factor', type=float_between(0.0, 1000.0), default=4.0,
-                   help='times faster than real time; 0 = as fast as possible (0..1000)')
+    g.add_argument('--speed-factor', type=float_between(0.0, 1000.0), default=2.0,
+                   help='times faster than real time; 0 = as fast as the joint_states '
+                        'readers keep up (2000 samples/s) (0..1000)')
     g.add_argument('--seed', type=int, default=1)
     add_from_arguments(p)
     from rv_te_bench.cli._test_offline import add_offline_arguments
@@ -183,7 +184,7 @@ SIM_JOINTS = ('input_joint', 'output_joint')
 def simulated_session_spec(out_dir: Path, *, preset: str, overrides: list[str] | None = None,
                            te_mode: str, encoder: str = 'heidenhain-ron886',
                            sample_rate_hz: float = 1000.0, seed: int = 1,
-                           speed_factor: float = 4.0, namespace: str = '',
+                           speed_factor: float = 2.0, namespace: str = '',
                            extra_nodes: tuple[str, ...] = ()) -> SessionSpec:
     """The session of ``--launch``: a simulated ros2_control bench (setpoint topics in,
     joint_states out), the JointState adapter with the bench's description (written to

@@ -1,21 +1,25 @@
-"""The test sequencer's side of a ros2_control bench: setpoints out, joint states watched.
+"""The test sequencer's side of a ros2_control bench: the setpoints.
 
 Setpoints go to the forward command controllers' ``commands`` topics
 (``std_msgs/Float64MultiArray``, one value each, :data:`~rv_te_bench.nodes.qos.COMMAND_QOS`):
 the drive joint's velocity, the load joint's effort or position. The last setpoint is sent
 again every ``period_s`` (a controller started late, or one that missed a message, gets it)
 and the zero setpoint (drive stopped, load effort 0) on every end, abort, cancel and
-shutdown. ``joint_states`` is watched raw (no deserialisation: only the arrival matters)
-so that a stale stream is noticed on the sequencer's own clock.
+shutdown.
+
+The joint states come back through the JointState adapter (``bench/encoders``): the
+sequencer does not subscribe to ``joint_states`` itself. One message per sample costs a
+Python node ~0.3-0.5 ms in a single-threaded executor; at 2000 samples/s that alone kept the
+sequencer seconds behind its data on a loaded 2-core machine, so that setpoints reached the
+bench late and looked "not reached". A stale joint_states stream stops the adapter's blocks:
+the sequencer times those.
 """
 
 from __future__ import annotations
 
-import math
 import time
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING
 
-from sensor_msgs.msg import JointState
 from std_msgs.msg import Float64MultiArray
 
 from rv_te_bench.acceptance.driver import ZERO, Setpoint
@@ -28,17 +32,16 @@ __all__ = ['SetpointLink']
 
 
 class SetpointLink:
-    """Publishers of the three setpoint topics and the joint_states watch.
+    """Publishers of the three setpoint topics.
 
     Args:
         node: The sequencer node.
         drive_topic, effort_topic, position_topic: The controllers' command topics.
-        joint_states_topic: The joint state topic.
     """
 
-    def __init__(self, node: Node, *, drive_topic: str, effort_topic: str, position_topic: str,
-                 joint_states_topic: str) -> None:
-        """Create the publishers and the raw joint_states subscription."""
+    def __init__(self, node: Node, *, drive_topic: str, effort_topic: str,
+                 position_topic: str) -> None:
+        """Create the publishers."""
         self.node = node
         self.pubs = {
             'drive': node.create_publisher(Float64MultiArray, drive_topic, qos.COMMAND_QOS),
@@ -47,25 +50,12 @@ class SetpointLink:
                                               qos.COMMAND_QOS)}
         self.last: Setpoint | None = None
         self.last_sent = 0.0
-        self.joint_state_at = math.nan     # monotonic time of the last JointState
-        self.joint_states = 0
-        node.create_subscription(JointState, joint_states_topic, self._on_joint_state,
-                                 qos.JOINT_STATE_QOS, raw=True)
-
-    def _on_joint_state(self, _raw: Any) -> None:
-        self.joint_state_at = time.monotonic()
-        self.joint_states += 1
 
     def missing(self, load_modes: set[str]) -> list[str]:
         """The command topics nobody subscribes to (no controller there)."""
         want = {'drive', *load_modes}
         return [self.pubs[k].topic_name for k in sorted(want)
                 if self.pubs[k].get_subscription_count() == 0]
-
-    def stale_s(self) -> float:
-        """Seconds since the last JointState (inf before the first)."""
-        return math.inf if math.isnan(self.joint_state_at) else \
-            time.monotonic() - self.joint_state_at
 
     def send(self, sp: Setpoint) -> None:
         """Publish a setpoint (the drive's and the load interface's)."""

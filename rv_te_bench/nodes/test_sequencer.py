@@ -12,10 +12,11 @@ node cannot tell it from a real one. Each step's program is driven by
 
 Safety: every sample read back is checked against the limits of the plan's ``safety`` and
 the bench description's ``limits`` (:func:`~rv_te_bench.acceptance.driver.plan_limits`);
-a limit exceeded, a setpoint not reached, a stale joint state (no message for the plan's
-``stale_joint_state_s``), a cancel (Ctrl-C in ``rv-te test``) or this node's own shutdown
-command zero (drive stopped, load effort 0) and end the step with the reason: the test is
-``aborted`` (or ``cancelled``) and recorded so. Operator steps wait for ``test/acknowledge``
+a limit exceeded, a setpoint not reached, a stale joint state (no sample read back for the
+plan's ``stale_joint_state_s``, or three of the adapter's block periods if longer), a
+cancel (Ctrl-C in ``rv-te test``) or this node's own shutdown command zero (drive stopped,
+load effort 0) and end the step with the reason: the test is ``aborted`` (or
+``cancelled``) and recorded so. Operator steps wait for ``test/acknowledge``
 (``std_srvs/Trigger``; ``rv-te ack``), showing the instruction in the feedback, until their
 timeout. A second goal while one runs is rejected (ROS goal rejection has no reason field:
 the node logs it and the running test is on the latched ``test/report``).
@@ -107,8 +108,7 @@ class TestSequencerNode(Node):
         self.link = SetpointLink(
             self, drive_topic=self.p.drive_command_topic,
             effort_topic=self.p.load_effort_command_topic,
-            position_topic=self.p.load_position_command_topic,
-            joint_states_topic=self.p.joint_states_topic)
+            position_topic=self.p.load_position_command_topic)
         self.create_subscription(BenchInfo, 'bench/info', self._on_info, qos.LATCHED_QOS)
         self.create_subscription(EncoderBlock, 'bench/encoders', self._on_block,
                                  qos.ENCODER_QOS)
@@ -195,7 +195,9 @@ class TestSequencerNode(Node):
             self.drops.drop('gap', f'{lost} block(s) lost before block {seq}')
         d['last_seq'] = seq
         upd = d['driver'].push(t, th_in, th_out, -tq if tq.size else None)
-        d['live'] = feed_parts(d['runner'], upd.parts, th_in, th_out, tq, d['last_segment'])
+        if upd.parts:
+            d['live'] = feed_parts(d['runner'], upd.parts, th_in, th_out, tq,
+                                   d['last_segment'])
         if upd.setpoint is not None:
             self.link.send(upd.setpoint)
         if upd.abort:
@@ -296,8 +298,10 @@ class TestSequencerNode(Node):
             if self.bench_info is None:
                 missing.append('bench/info (is the joint_state_adapter running with a bench '
                                'description?)')
-            if self.link.stale_s() > plan.safety.stale_joint_state_s:
-                missing.append(f'{self.p.joint_states_topic} (no joint state)')
+            if time.monotonic() - self._last_block_wall > plan.safety.stale_joint_state_s \
+                    or math.isnan(self._last_block_wall):
+                missing.append('joint states (no sample on bench/encoders from the '
+                               'JointState adapter)')
             missing += [f'a controller on {t}' for t in self.link.missing(modes)]
             if not missing:
                 break
@@ -403,13 +407,10 @@ class TestSequencerNode(Node):
                 msg = f'cancelled by the operator (step {step.name!r})'
                 raise _Cancelled(msg)
             stale_why = ''
-            if self.link.stale_s() > stale:
-                stale_why = (f'no joint state on {self.p.joint_states_topic} for '
-                             f'{min(self.link.stale_s(), 1e6):.3g} s (limit {stale:g} s)')
-            elif time.monotonic() - self._last_block_wall > max(stale, 10 * block_s) + 1.0:
-                stale_why = ('no sample read back through the JointState adapter '
-                             f'(bench/encoders) for '
-                             f'{time.monotonic() - self._last_block_wall:.3g} s')
+            quiet = time.monotonic() - self._last_block_wall
+            if quiet > max(stale, 3 * block_s):
+                stale_why = (f'no joint state read back for {quiet:.3g} s (limit {stale:g} s; '
+                             'joint_states through the JointState adapter)')
             # stale only when it still is after this node has had the CPU for a moment: a
             # node that was itself held up finds the messages waiting, not missing
             if not stale_why:

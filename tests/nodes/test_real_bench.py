@@ -235,8 +235,8 @@ def test_stale_joint_state_commands_zero_and_aborts(session: Any, rig_factory: A
     spin_for(rig.ex, 0.5)
     assert rig.bench.velocity == 0.0 and rig.bench.effort == 0.0
     sess.stop()
-    _aborted(bag, 'STAND-STALE', result, "step 'te': no joint state on joint_states for")
-    assert '(limit 1 s)' in result.reason
+    _aborted(bag, 'STAND-STALE', result, "step 'te': no joint state read back for")
+    assert '(limit 1 s; joint_states through the JointState adapter)' in result.reason
 
 
 @pytest.mark.timeout(300)

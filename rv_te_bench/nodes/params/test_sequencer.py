@@ -46,8 +46,6 @@ class TestSequencerParams:
     load_position_command_topic: str = param(
         'load_position_controller/commands',
         "The load joint's position controller topic ([rad]; constant-speed loading) [-]")
-    joint_states_topic: str = param(
-        'joint_states', "The bench's joint states (watched for staleness) [-]")
     bench_description: str = param(
         '', 'Bench description YAML whose limits (max_input_speed_rpm, max_output_torque_nm) '
         "bound every step besides the plan's safety [path]")
