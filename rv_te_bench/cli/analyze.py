@@ -71,6 +71,10 @@ MAX_HARMONICS = MAX_CRANK_HARMONICS
 HYSTERESIS_AUTO_MAX_SAMPLES = 2_000_000
 #: Seconds between two progress lines on stderr.
 PROGRESS_PERIOD_S = 2.0
+#: What the TE section of a hysteresis record says instead of TE figures.
+NOT_TE_RECORD = ('not a TE record: the input is held while the output is loaded both ways '
+                 'and turns through no whole revolution (a hysteresis test; its TE would be '
+                 'the torsion under load); no TE is reported')
 
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
@@ -194,7 +198,6 @@ def _run(args: argparse.Namespace) -> int:
         raise ReportExistsError(msg)
     calibration = load_calibration(args)
     results: list[AnalysisResult] = []
-    hysteresis: list[dict[str, Any] | None] = []
     for bag in args.bags:
         progress = None if args.quiet else _Progress(str(bag), sys.stderr)
         t0 = time.monotonic()
@@ -210,27 +213,24 @@ def _run(args: argparse.Namespace) -> int:
             dt_s = time.monotonic() - t0
             print(f'{bag}: done, {res.blocks_read} blocks in {dt_s:.1f} s '
                   f'({res.blocks_read / dt_s:.0f} blocks/s)', file=sys.stderr)
+        res = _with_hysteresis(res, _hysteresis(bag, res, args))
         for problem in res.problems:
             kind = 'PARTIAL' if res.partial else 'WARNING'
             print(f'{kind}: {bag}: {problem}', file=sys.stderr)
         if res.gaps:
             print(f'WARNING: {bag}: {len(res.gaps)} gap(s) in the encoder stream',
                   file=sys.stderr)
-        if res.recommendation.encoder_flag:
+        if res.recommendation.encoder_flag and not res.not_te_record:
             print(f'FLAG: {bag}: {res.recommendation.encoder_flag}', file=sys.stderr)
-        if args.monte_carlo is not None:
+        if args.monte_carlo is not None and not res.not_te_record:
             res = _with_monte_carlo(res, args.monte_carlo, quiet=args.quiet)
         results.append(res)
-        hysteresis.append(_hysteresis(bag, res, args))
 
     doc = report_json(results)
-    for entry, h in zip(doc['bags'], hysteresis, strict=True):
-        if h is not None:
-            entry['hysteresis'] = h
     if args.json:
         print(json.dumps(doc, indent=2), flush=True)
     else:
-        _print_tables(results, sys.stdout, hysteresis)
+        _print_tables(results, sys.stdout)
     if args.report is not None:
         files = write_report(results, args.report, force=args.force)
         print(f'report written: {", ".join(str(f) for f in files)}', file=sys.stderr)
@@ -270,6 +270,22 @@ def _hysteresis(bag: Path, res: AnalysisResult, args: argparse.Namespace,
 
     return hysteresis_json(bag, rated_torque_nm=args.rated_torque,
                            required=args.hysteresis == 'on' or args.rated_torque is not None)
+
+
+def _with_hysteresis(res: AnalysisResult, h: dict[str, Any] | None) -> AnalysisResult:
+    """``res`` with the record's hysteresis; a record whose input is locked while the output
+    is loaded both ways and that turns through no whole output revolution is a hysteresis
+    test, not a TE record: its TE (the output's torsion under load) is not reported."""
+    from dataclasses import replace
+
+    from rv_te_bench.report.analysis import NO_WHOLE_REVOLUTION
+
+    if h is None:
+        return res
+    if 'error' in h or res.complete_windows:
+        return replace(res, hysteresis=h)
+    return replace(res, hysteresis=h, not_te_record=NOT_TE_RECORD,
+                   problems=tuple(p for p in res.problems if p != NO_WHOLE_REVOLUTION))
 
 
 def _record(args: argparse.Namespace, doc: dict[str, Any]) -> str | None:
@@ -312,10 +328,9 @@ def _stats_row(st: TeStats) -> str:
             f'{revs} {st.n_samples:>9}')
 
 
-def _print_tables(results: list[AnalysisResult], out: TextIO,
-                  hysteresis: list[dict[str, Any] | None] | None = None) -> None:
-    for res, h in zip(results, hysteresis or [None] * len(results), strict=True):
-        _print_one(res, out, h)
+def _print_tables(results: list[AnalysisResult], out: TextIO) -> None:
+    for res in results:
+        _print_one(res, out)
     if len(results) > 1:
         from rv_te_bench.report.analysis import compare_results
 
@@ -399,8 +414,7 @@ def _print_identification(rec: Recommendation, out: TextIO) -> None:
         print(f'    {line}', file=out)
 
 
-def _print_one(res: AnalysisResult, out: TextIO, h: dict[str, Any] | None = None) -> None:
-    from rv_te_bench.core.advice import modification_value
+def _print_one(res: AnalysisResult, out: TextIO) -> None:
     from rv_te_bench.report.analysis import report_title
 
     b = res.bench
@@ -409,6 +423,24 @@ def _print_one(res: AnalysisResult, out: TextIO, h: dict[str, Any] | None = None
     print(f'  preset {b.preset or "(unknown)"} ({b.reducer_type or "-"}), i = {b.gear_ratio:.6g}, '
           f'f_w = {b.crank_per_output:.6g} f_out, ratio from {b.source}; '
           f'{res.blocks_read} blocks', file=out)
+    if res.not_te_record:
+        print(f'  TE: {res.not_te_record}', file=out)
+    else:
+        _print_te(res, out)
+    _print_gaps(res, out)
+    if not res.not_te_record:
+        _print_recommendation(res, out)
+    if res.hysteresis is not None:
+        from rv_te_bench.cli._analyze_hysteresis import print_hysteresis
+
+        print_hysteresis(res.hysteresis, out)
+    for problem in res.problems:
+        print(f'  {"PARTIAL" if res.partial else "note"}: {problem}', file=out)
+    print(file=out)
+
+
+def _print_te(res: AnalysisResult, out: TextIO) -> None:
+    """The TE lines: zero, windows, p-p with U, spectrum, dominant line, encoders."""
     if res.te_reference is not None:
         print(f'  zero: {res.te_reference.describe()}', file=out)
     print(f'  {"window":>10} {"start[s]":>9} {"end[s]":>9} {"whole":>5} '
@@ -453,6 +485,9 @@ def _print_one(res: AnalysisResult, out: TextIO, h: dict[str, Any] | None = None
     note = (res.encoder or {}).get('once_per_rev') or {}
     if note and (res.dominant is None or abs(res.dominant.line.output_order - 1) > 1e-6):
         print(f'  {note["text"]}', file=out)
+
+
+def _print_gaps(res: AnalysisResult, out: TextIO) -> None:
     if res.gaps:
         print(f'  gaps: {len(res.gaps)}', file=out)
         for g in res.gaps[:10]:
@@ -461,6 +496,11 @@ def _print_one(res: AnalysisResult, out: TextIO, h: dict[str, Any] | None = None
             print(f'    ... {len(res.gaps) - 10} more (see --json)', file=out)
     else:
         print('  gaps: none', file=out)
+
+
+def _print_recommendation(res: AnalysisResult, out: TextIO) -> None:
+    from rv_te_bench.core.advice import modification_value
+
     rec = res.recommendation
     if rec.advice is None:
         print(f'  recommendation: {rec.reason}', file=out)
@@ -473,10 +513,3 @@ def _print_one(res: AnalysisResult, out: TextIO, h: dict[str, Any] | None = None
             print(f'    {m.factor} ({m.symbol}): {modification_value(m.current_value, m.unit)} -> '
                   f'{modification_value(m.recommended_value, m.unit)}', file=out)
         _print_identification(rec, out)
-    if h is not None:
-        from rv_te_bench.cli._analyze_hysteresis import print_hysteresis
-
-        print_hysteresis(h, out)
-    for problem in res.problems:
-        print(f'  {"PARTIAL" if res.partial else "note"}: {problem}', file=out)
-    print(file=out)

@@ -109,6 +109,10 @@ MAX_TRACE_POINTS = 40_000
 #: the phase of noise).
 PHASE_MIN_FRACTION = 1e-3
 
+#: The problem of a record without a complete output revolution (no spectrum).
+NO_WHOLE_REVOLUTION = ('no complete output revolution without a gap: no spectrum, and the '
+                       'statistics do not cover whole revolutions')
+
 
 def session_info(path: str | Path) -> SessionInfo:
     """The session of a bag from its metadata (never raises: falls back to the path)."""
@@ -266,8 +270,7 @@ def analyze_bag(
     windows = tuple(kept)
     spectrum = averager.result()
     if spectrum is None:
-        problems.append('no complete output revolution without a gap: no spectrum, and the '
-                        'statistics do not cover whole revolutions')
+        problems.append(NO_WHOLE_REVOLUTION)
     dominant = None if spectrum is None else dominant_harmonic(spectrum, bench)
     trace = replace(reader.trace(), envelope=envelope.data())
     uncertainty = analysis_uncertainty(info=bench.info, gear_ratio=bench.gear_ratio,
@@ -565,12 +568,19 @@ def compare_results(results: list[AnalysisResult]) -> list[dict[str, Any]]:
         of p-p and amplitude relative to the first bag (``*_change_pct``).
     """
     rows: list[dict[str, Any]] = []
-    ref = results[0].cumulative if results else None
+    ref = results[0].cumulative if results and not results[0].not_te_record else None
     for res in results:
         st = res.cumulative
         row: dict[str, Any] = {'bag': str(res.path), 'partial': res.partial,
                                **{k: v for k, v in stats_json(st).items()
                                   if k.endswith('_arcmin') or k in ('revolutions', 'n_samples')}}
+        if res.not_te_record:       # no TE to compare: its row says so, no numbers
+            row.update({k: None for k in row if k.endswith('_arcmin')},
+                       dominant_label=None, dominant_amplitude_arcmin=None,
+                       te_pp_change_pct=None, te_amplitude_change_pct=None,
+                       not_te_record=res.not_te_record)
+            rows.append(row)
+            continue
         if res.dominant is not None:
             row['dominant_label'] = res.dominant.line.label
             row['dominant_amplitude_arcmin'] = json_float(
@@ -581,6 +591,8 @@ def compare_results(results: list[AnalysisResult]) -> list[dict[str, Any]]:
         if ref is not None:
             row['te_pp_change_pct'] = _pct(st.pp_rad, ref.pp_rad)
             row['te_amplitude_change_pct'] = _pct(st.amplitude_rad, ref.amplitude_rad)
+        else:               # the reference is not a TE record: nothing to refer to
+            row['te_pp_change_pct'] = row['te_amplitude_change_pct'] = None
         rows.append(row)
     return rows
 

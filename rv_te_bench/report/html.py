@@ -92,10 +92,13 @@ def write_report(results: Sequence[AnalysisResult], directory: Path, *,
         te_figure,
     )
 
-    images = {'te.png': png_bytes(te_figure(results)),
-              'spectrum.png': png_bytes(spectrum_figure(results))}
-    if len(results) > 1:
-        images['comparison.png'] = png_bytes(comparison_figure(results))
+    te = [r for r in results if not r.not_te_record]   # a hysteresis record has no TE
+    images = {}
+    if te:
+        images = {'te.png': png_bytes(te_figure(te)),
+                  'spectrum.png': png_bytes(spectrum_figure(te))}
+    if len(te) > 1:
+        images['comparison.png'] = png_bytes(comparison_figure(te))
     doc = report_json(results)
     files: dict[Path, bytes | str] = {directory / name: data for name, data in images.items()}
     files[directory / 'report.json'] = json.dumps(doc, indent=2) + '\n'
@@ -185,9 +188,10 @@ def _bag_section(res: AnalysisResult) -> str:
                                       zip(b.mesh_orders_out, b.mesh_labels, strict=False))
              or '-'),
             ('encoders (in / out)', f'{b.encoder_in_model or "-"} / {b.encoder_out_model or "-"}'),
-            ('ratio source', b.source), ('blocks read', str(res.blocks_read)),
-            ('TE zero', res.te_reference.describe() if res.te_reference is not None
-             else 'no clean sample')]
+            ('ratio source', b.source), ('blocks read', str(res.blocks_read))]
+    if not res.not_te_record:
+        rows.append(('TE zero', res.te_reference.describe() if res.te_reference is not None
+                     else 'no clean sample'))
     sess = res.session   # the unit under test, from the bag's metadata (bench description)
     rows += [(k, v) for k, v in (('unit serial', sess.unit_serial), ('operator', sess.operator),
                                  ('temperature [degC]', sess.temperature_c),
@@ -195,7 +199,22 @@ def _bag_section(res: AnalysisResult) -> str:
                                  ('imported from', sess.imported_from)) if v]
     out += [f'<tr><th class="l">{_e(k)}</th><td class="l">{_e(v)}</td></tr>' for k, v in rows]
     out.append('</table>')
+    if res.not_te_record:
+        out.append(f'<h3>TE</h3><p class="warn">{_e(res.not_te_record[0].upper())}'
+                   f'{_e(res.not_te_record[1:])}.</p>')
+    else:
+        out.append(_te_section(res))
+    if res.hysteresis is not None:
+        out.append(_hysteresis_section(res.hysteresis))
+    out.append(_gaps_section(res))
+    if not res.not_te_record:
+        out.append(_recommendation_section(res))
+    return '\n'.join(out)
 
+
+def _te_section(res: AnalysisResult) -> str:
+    """Statistics, TE p-p with U, spectrum, budgets, dominant line, encoders."""
+    out = []
     out.append('<h3>Statistics</h3><table><tr><th class="l">window</th><th>start [s]</th>'
                f'<th>end [s]</th><th class="l">complete</th>{_STATS_HEAD}</tr>')
     t0 = res.windows[0].start_stamp_s if res.windows else 0.0
@@ -249,7 +268,11 @@ def _bag_section(res: AnalysisResult) -> str:
                    f'arcmin). Likely source: {_e(d.likely_source)}.</p>')
 
     out.append(_encoder_section(res))
-    out.append('<h3>Gaps</h3>')
+    return '\n'.join(out)
+
+
+def _gaps_section(res: AnalysisResult) -> str:
+    out = ['<h3>Gaps</h3>']
     if res.gaps:
         out.append('<table><tr><th class="l">kind</th><th>seq</th><th>at [s]</th>'
                    '<th>no data for [s]</th><th class="l">detail</th></tr>')
@@ -259,8 +282,11 @@ def _bag_section(res: AnalysisResult) -> str:
         out.append('</table>')
     else:
         out.append('<p>None.</p>')
+    return '\n'.join(out)
 
-    out.append('<h3>Recommendation</h3>')
+
+def _recommendation_section(res: AnalysisResult) -> str:
+    out = ['<h3>Recommendation</h3>']
     rec = res.recommendation
     ident = ('' if rec.identification is None else
              '<p class="muted">' + '<br>'.join(
@@ -289,6 +315,38 @@ def _bag_section(res: AnalysisResult) -> str:
                     for m in a.modifications]
             out.append('</table>')
         out.append(ident)
+    return '\n'.join(out)
+
+
+def _hysteresis_section(h: dict[str, Any]) -> str:
+    """Lost motion, backlash, rigidity and loss of a locked-input record (rv-te analyze)."""
+    if 'error' in h:
+        return f'<h3>Hysteresis</h3><p>None ({_e(h["error"])}).</p>'
+    per_arcmin = float(rad_to_arcmin(1.0))
+    method = 'torque steps' if h.get('method') == 'torque_steps' else 'constant speed'
+    out = ['<h3>Hysteresis (input locked)</h3>',
+           f'<p class="muted">{_e(h.get("positions"))} stretch(es), cycles '
+           f'{_e(", ".join(str(c) for c in h.get("cycles", [])))}; {_e(method)}; T<sub>R</sub> '
+           f'= {h["rated_torque_nm"]:.5g} N m ({_e(h.get("rated_from", ""))}); torque noise '
+           f'{h["torque_noise_nm"]:.3g} N m. Catalogue definitions; the spread is the sample '
+           'standard deviation over the cycles.</p>',
+           '<table><tr><th class="l">metric</th><th>value</th><th>spread</th>'
+           '<th class="l">unit</th></tr>']
+    m, sd = h.get('metrics') or {}, h.get('spread') or {}
+    for name, v in m.items():
+        if name.endswith('_rad'):
+            scale, unit = per_arcmin, 'arcmin'
+        elif name.endswith('_nm_per_rad'):
+            scale, unit = 1 / per_arcmin, 'N m/arcmin'
+        else:
+            scale, unit = 1.0, 'J' if name.endswith('_j') else ''
+        val = '-' if v is None else f'{v * scale:.5g}'
+        spr = '-' if sd.get(name) is None else f'{sd[name] * scale:.2g}'
+        out.append(f'<tr><td class="l">{_e(name)}</td><td>{val}</td><td>{spr}</td>'
+                   f'<td class="l">{_e(unit)}</td></tr>')
+    out.append('</table>')
+    if h.get('note'):
+        out.append(f'<p class="muted">Not read: {_e(h["note"])}</p>')
     return '\n'.join(out)
 
 
@@ -369,8 +427,9 @@ def render_html(results: Sequence[AnalysisResult], images: dict[str, bytes],
     """
     doc = report_json(results) if doc is None else doc
     # what the bags are (preset, bench, session, unit), not their folder names ("bag")
-    title = ('TE report: ' + report_title(results[0]) if len(results) == 1 else
-             f'TE report: comparison of {len(results)} sessions ('
+    kind = 'Record report' if all(r.not_te_record for r in results) else 'TE report'
+    title = (f'{kind}: ' + report_title(results[0]) if len(results) == 1 else
+             f'{kind}: comparison of {len(results)} sessions ('
              + '; '.join(report_title(r) for r in results) + ')')
     parts = [f'<!DOCTYPE html><html lang="en"><head><meta charset="utf-8">'
              f'<title>{_e(title)}</title><style>{_CSS}</style></head><body>',

@@ -266,6 +266,12 @@ class AnalysisResult:
             when not computed.
         te_reference: The zero the TE was referred to (encoder zeros or the first sample;
             :mod:`rv_te_bench.core.te_zero`), None when no sample was clean.
+        not_te_record: Why the record is not a TE record (a locked-input hysteresis test:
+            ``rv-te analyze`` finds its load cycles and no whole output revolution), one
+            line; '' for a TE record. When set, no TE result is reported (JSON, text,
+            report): the TE of a locked input is the output's torsion, not a TE.
+        hysteresis: The record's lost motion, backlash and rigidity as ``rv-te analyze``
+            read them (JSON-ready, SI keys), or None.
     """
 
     path: Path
@@ -288,6 +294,8 @@ class AnalysisResult:
     encoder: dict[str, Any] = field(default_factory=dict)
     uncertainty: AnalysisUncertainty | None = None
     te_reference: TeReference | None = None
+    not_te_record: str = ''
+    hysteresis: dict[str, Any] | None = None
 
     @property
     def complete_windows(self) -> tuple[WindowResult, ...]:
@@ -295,7 +303,22 @@ class AnalysisResult:
         return tuple(w for w in self.windows if w.complete)
 
     def to_json_dict(self) -> dict[str, Any]:
-        """JSON-friendly dict with unit-suffixed keys (``te_pp_arcmin``, ``frequency_hz``)."""
+        """JSON-friendly dict with unit-suffixed keys (``te_pp_arcmin``, ``frequency_hz``).
+
+        A record that is not a TE record has ``not_te_record`` (the reason) and no TE
+        result: ``cumulative``, ``spectrum``, ``dominant``, ``te_reference`` and
+        ``recommendation`` are null, ``windows`` is empty, no ``uncertainty``.
+        """
+        doc = self._json_dict()
+        if self.not_te_record:
+            doc.update(not_te_record=self.not_te_record, cumulative=None, windows=[],
+                       spectrum=None, dominant=None, te_reference=None, recommendation=None)
+            doc.pop('uncertainty', None)
+        if self.hysteresis is not None:
+            doc['hysteresis'] = self.hysteresis
+        return doc
+
+    def _json_dict(self) -> dict[str, Any]:
         return {
             'bag': str(self.path),
             'title': report_title(self),
