@@ -1,7 +1,8 @@
 """Running a plan step by step: bench programs out, encoder data in, metrics and verdicts.
 
-No ROS here: the ``test_sequencer`` node feeds :class:`StepRunner` from ``bench/encoders``
-and sends its program with ``bench/run_program``; :func:`run_plan_offline` feeds it straight
+No ROS here: the ``test_sequencer`` node drives each step's program through a bench's
+setpoints (:mod:`rv_te_bench.acceptance.driver`) and feeds :class:`StepRunner` from
+``bench/encoders``; :func:`run_plan_offline` feeds it straight
 from :class:`sim.program.ProgramSimulator` (same numbers, no middleware).
 
 Programs per step (SI units; docs/ACCEPTANCE.md):

@@ -8,8 +8,9 @@ decision rule could not prove conformance or non-conformance: a value and its U 
 limit), 1 error, cancelled (Ctrl-C cancels the test and stops the bench) or not judged
 (recorded data that lacks what a step needs).
 
-Without ``--launch`` it talks to a running session (a bench with ``commanded: true``, a
-``test_sequencer`` and a recorder); with ``--launch PRESET`` it starts a simulated one
+Without ``--launch`` it talks to a running session (a ros2_control bench's forward command
+controllers and ``joint_states``, the ``joint_state_adapter``, a ``test_sequencer`` and a
+recorder); with ``--launch PRESET`` it starts a simulated one
 itself (bench, test_sequencer, recorder; the bag lands in ``--out-dir``). With ``--from
 BAG|FILE`` nothing runs: the plan is judged from a recorded session, a JointState bag or a
 DAQ file imported with its bench description (``--bench``), the steps found in the data.
