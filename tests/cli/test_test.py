@@ -211,7 +211,7 @@ def test_whole_unit_exit_codes(tmp_path: Path, capsys: pytest.CaptureFixture[str
 @pytest.mark.ros
 @pytest.mark.timeout(300)
 def test_ctrl_c_cancels_the_test_stops_the_bench_and_keeps_the_bag(
-        tmp_path: Path, ros_domain_id: int) -> None:
+        tmp_path: Path, ros_domain_id: int, default_store: Path) -> None:
     """Ctrl-C in the terminal (SIGINT to the command's process group) during a step of
     ``rv-te test --launch``: the test is cancelled, the bench and the other nodes stop, the
     exit code is 1 with one ERROR line, the report says 'cancelled', and the bag of what was
@@ -273,10 +273,11 @@ def test_ctrl_c_cancels_the_test_stops_the_bench_and_keeps_the_bag(
     assert report['verdict'] == 'cancelled'
     assert report['reason'].endswith("cancelled by the operator (step 'te')")
     assert 'report:' in out
-    # the record in the results store: not judged, with the reason
+    # the record in the user's results store (the command's environment): not judged,
+    # with the reason
     from rv_te_bench.store import ResultFilter, open_store
 
-    with open_store(tmp_path / 'out' / 'rv-te-results.sqlite') as store:
+    with open_store(default_store) as store:
         (rec,) = store.query(ResultFilter(test='test-plan'))
     assert (rec.serial, rec.verdict, rec.status) == ('SN-C', 'not-judged', 'failed')
     assert "cancelled by the operator (step 'te')" in rec.failure
