@@ -73,8 +73,10 @@ def register(subparsers: Subparsers) -> None:
         description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     p.add_argument('plan', help='test plan: a YAML file or a shipped plan name '
                                 '(rv-80e, li2023-rv, wang2020-2kv)')
-    p.add_argument('--serial', required=True, type=nonempty_text,
-                   help='serial number of the unit under test')
+    p.add_argument('--serial', default=None, type=nonempty_text,
+                   help='serial number of the unit under test (required, except with --from: '
+                        "then by default the bench description's unit_under_test.serial, "
+                        "the bag's, else the file name's, see --serial-pattern)")
     p.add_argument('--operator', required=True, type=nonempty_text, help='who runs the test')
     p.add_argument('--tolerance', default=None, metavar='FILE|NAME',
                    help="tolerance profile (default: the plan's, else the one shipped for "
@@ -193,6 +195,8 @@ def run(args: argparse.Namespace) -> int:
         _, tol_text = load_tolerance(plan.tolerance, relative_to=base)
 
     conditions = _conditions(args.condition)
+    if args.serial is None and args.from_path is None:
+        args._parser.error('the following arguments are required: --serial')
     if args.from_path is not None:
         if args.launch:
             args._parser.error('--from judges recorded data and --launch runs a simulated '

@@ -194,6 +194,9 @@ class UnitUnderTest:
     operator: str = ''
     temperature_c: float | None = None
     notes: str = ''
+    #: Where the serial came from when not from the file ('' = the description itself):
+    #: ``rv-te import --serial``, the file name (:mod:`rv_te_bench.io.unit_serial`).
+    serial_source: str = field(default='', compare=False)
 
     def __post_init__(self) -> None:
         """Validate (temperature finite, in -100..300 degC)."""
@@ -402,6 +405,9 @@ class BenchDescription:
             'bench_id': self.bench_id,
             'preset': self.preset or '',
             'unit_serial': uut.serial,
+            'unit_serial_source': uut.serial_source or (
+                f'bench description {self.origin} (unit_under_test.serial)' if uut.serial
+                else ''),
             'operator': uut.operator,
             'temperature_c': '' if uut.temperature_c is None else f'{uut.temperature_c:g}',
             'unit_notes': uut.notes,
