@@ -391,7 +391,8 @@ def run_plan_offline(plan: TestPlan, profile: ToleranceProfile, *, serial: str, 
 
 def reanalyse(*, plan: TestPlan, profile: ToleranceProfile, info: BenchInfoData,
               steps: list[dict[str, Any]],
-              blocks: dict[int, tuple[np.ndarray, np.ndarray, np.ndarray]],
+              blocks: dict[int, tuple[np.ndarray, np.ndarray, np.ndarray,
+                                      np.ndarray | None, np.ndarray | None]],
               serial: str, operator: str, conditions: dict[str, Any] | None = None,
               started_utc: str = '', status: str = 'completed',
               uncertainty: BenchUncertainty | None = None) -> dict[str, Any]:
@@ -401,7 +402,8 @@ def reanalyse(*, plan: TestPlan, profile: ToleranceProfile, info: BenchInfoData,
         plan, profile, info: As in the live run.
         steps: The recorded steps (``step_index``, ``state``, ``first_seq``,
             ``segment_blocks``); only finished ones are analysed, in plan order.
-        blocks: seq -> (theta_in_rad, theta_out_rad, torque_out_nm).
+        blocks: seq -> (theta_in_rad, theta_out_rad, torque_out_nm, torque_in_nm,
+            temp_case_degc); the last two None where the bench had no such channel.
         serial, operator, conditions, started_utc: The unit's identity and conditions.
         status: 'completed', or how the recorded test ended ('cancelled', 'error').
         uncertainty: The bench's error model (default: the data sheets of its encoders).

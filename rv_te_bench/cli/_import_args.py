@@ -33,6 +33,10 @@ def add_file_arguments(g: Any) -> None:
                    'angle')
     g.add_argument('--torque', metavar='COL', help='output-torque column / channel (x the '
                    "bench's torque_sensor.scale_nm_per_unit = N m)")
+    g.add_argument('--torque-in', metavar='COL', help='input-torque column / channel (x the '
+                   "bench's loss_channels.torque_in.scale_nm_per_unit = N m; issue 38)")
+    g.add_argument('--temperature', metavar='COL', help='case-temperature column / channel '
+                   '[degC] (issue 38)')
     g.add_argument('--time', metavar='COL', help='time column / channel (default: the '
                    "file's own time base, else --rate, else the bench's sample_rate_hz); for a "
                    'JointState bag: the topic, when it has several')
@@ -125,6 +129,8 @@ def import_options(args: argparse.Namespace) -> ImportOptions:
                        'single' if flag else 'auto')
     return ImportOptions(
         theta_in=args.theta_in, theta_out=args.theta_out, torque=args.torque, time=args.time,
+        torque_in=getattr(args, 'torque_in', None),
+        temperature=getattr(args, 'temperature', None),
         rate_hz=args.rate, time_unit=args.time_unit, unit_in=args.unit_in,
         unit_out=args.unit_out, counts_per_rev_in=args.counts_per_rev_in,
         counts_per_rev_out=args.counts_per_rev_out, turns_in=turns['in'],

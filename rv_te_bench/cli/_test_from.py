@@ -52,6 +52,16 @@ def add_from_arguments(p: argparse.ArgumentParser) -> None:
     g.add_argument('--torque-scale', type=float, default=1.0, metavar='X',
                    help='torque topic value x X = torque_out_nm [N m] (bench convention: '
                         'positive resists positive rotation)')
+    g.add_argument('--torque-in-topic', metavar='TOPIC', default=None,
+                   help="the bench's input-torque topic in the bag (WrenchStamped, Float64 or "
+                        'JointState; --torque-axis, x --torque-in-scale), instead of '
+                        'bench/channels')
+    g.add_argument('--torque-in-scale', type=float, default=1.0, metavar='X',
+                   help='input-torque topic value x X = torque_in_nm [N m] (positive drives '
+                        'the input positively)')
+    g.add_argument('--temperature-topic', metavar='TOPIC', default=None,
+                   help="the bench's case-temperature topic in the bag (sensor_msgs/"
+                        'Temperature or Float64, degC), instead of bench/channels')
     g.add_argument('--speed-tolerance', type=float, default=0.02, metavar='FRACTION',
                    help="a run's input speed may differ from the step's by this much")
     g.add_argument('--load-tolerance', type=float, default=0.05, metavar='FRACTION',
@@ -164,7 +174,14 @@ def run_from(args: argparse.Namespace, plan: TestPlan, plan_text: str, tol_text:
     if args.torque_topic:
         torque = TorqueTopic(topic=args.torque_topic, axis=args.torque_axis,
                              joint=args.torque_joint, scale=args.torque_scale)
-    record = read_measured_record(bag, torque=torque)
+    torque_in = temperature = None
+    if args.torque_in_topic:
+        torque_in = TorqueTopic(topic=args.torque_in_topic, axis=args.torque_axis,
+                                joint=args.torque_joint, scale=args.torque_in_scale)
+    if args.temperature_topic:   # a case sensor is read at a few Hz: 10 s between readings
+        temperature = TorqueTopic(topic=args.temperature_topic, max_gap_s=10.0)
+    record = read_measured_record(bag, torque=torque, torque_in=torque_in,
+                                  temperature=temperature)
     profile: ToleranceProfile
     if tol_text:
         profile = parse_tolerance(parse_yaml_text(tol_text, 'tolerance', ToleranceError),
@@ -177,7 +194,8 @@ def run_from(args: argparse.Namespace, plan: TestPlan, plan_text: str, tol_text:
         raise AcceptanceError(msg)
     print(f'judging plan {plan.name!r} from {bag} ({record.samples} samples, '
           f'{float(record.time_s[-1]):.3f} s, {record.breaks.size} break(s); torque: '
-          f'{record.torque_from})', file=sys.stderr)
+          f'{record.torque_from}; input torque and case temperature: '
+          f'{record.channels_from})', file=sys.stderr)
     report = judge_record(plan, profile, record, serial=args.serial, operator=args.operator,
                           conditions=conditions, settings=settings)
     report['source']['imported_from'] = str(args.from_path) if fmt != 'bag' or \
