@@ -161,7 +161,8 @@ def _session(args: argparse.Namespace, out_dir: Path) -> Session:
                       'encoder_in': args.encoder, 'encoder_out': args.encoder,
                       'sample_rate_hz': float(args.sample_rate_hz), 'block_size': 100,
                       'seed': int(args.seed), 'time_mode': 'fast',
-                      'speed_factor': float(args.speed_factor), 'commanded': True},
+                      'speed_factor': float(args.speed_factor), 'commanded': True,
+                      'losses': bool(getattr(args, 'losses', False))},
             'recorder': {'output_dir': str(out_dir), 'bag_name': 'bag'},
             'test_sequencer': {}})
     if getattr(args, 'dashboard', False):
@@ -213,17 +214,12 @@ def run(args: argparse.Namespace) -> int:
         return run_offline(args, plan, tol_text, conditions)
     from rv_te_bench.cli._test_offline import loss_steps_in
 
-    if loss_steps_in(plan):
-        from rv_te_bench.errors import AcceptanceError
-
-        msg = (f'step {loss_steps_in(plan)[0]!r} needs the input torque and case temperature, '
-               'which the ROS bench/encoders topic does not carry yet: run the plan with '
-               '--sim PRESET (simulated bench in this process); nothing was run')
-        raise AcceptanceError(msg)
-    if args.launch:
+    args.losses = bool(loss_steps_in(plan))
+    if args.launch:   # the simulated bench has the loss channels when the plan needs them
         from rv_te_bench.cli._test_offline import sim_preflight
 
-        sim_preflight(plan, args.launch, list(args.set), {'torque_out'})
+        sim_preflight(plan, args.launch, list(args.set), {'torque_out'} | (
+            {'torque_in', 'temperature'} if args.losses else set()))
     args.namespace_norm = normalise_namespace(args.namespace)
     stamp = datetime.now(UTC).strftime('%Y%m%dT%H%M%SZ')
     safe_serial = ''.join(c if c.isalnum() or c in '-_.' else '_' for c in args.serial)

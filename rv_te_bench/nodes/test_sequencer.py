@@ -38,12 +38,21 @@ from rclpy.action import ActionServer, CancelResponse, GoalResponse
 from rclpy.node import Node
 from rclpy.task import Future
 from rv_te_msgs.action import RunTestPlan
-from rv_te_msgs.msg import BenchInfo, EncoderBlock, MetricVerdict, TestReport, TestStep
+from rv_te_msgs.msg import (
+    BenchChannels,
+    BenchInfo,
+    EncoderBlock,
+    MetricVerdict,
+    TestReport,
+    TestStep,
+)
 from rv_te_msgs.srv import RunBenchProgram
 from std_srvs.srv import Trigger
 
 from rv_te_bench.acceptance import StepRunner, build_report, parse_plan
 from rv_te_bench.acceptance._files import parse_yaml_text
+from rv_te_bench.acceptance._loss_results import bench_channels
+from rv_te_bench.acceptance.preflight import NEEDS, check_plan
 from rv_te_bench.acceptance.runner import running_verdicts
 from rv_te_bench.acceptance.tolerance import load_tolerance, parse_tolerance
 from rv_te_bench.errors import AcceptanceError
@@ -61,6 +70,11 @@ if TYPE_CHECKING:
     from rv_te_bench.acceptance.tolerance import Measured
 
 __all__ = ['PARAMS', 'TestSequencerNode', 'main']
+
+#: Blocks held waiting for their bench/channels before one goes without.
+_HOLD_BLOCKS = 50
+#: bench/channels messages kept for blocks still to come.
+_KEEP_CHANNELS = 5000
 
 
 class _Cancelled(Exception):  # noqa: N818 - a control-flow signal, not an error
@@ -89,6 +103,13 @@ class TestSequencerNode(Node):
         self.create_subscription(BenchInfo, 'bench/info', self._on_info, qos.LATCHED_QOS)
         self.create_subscription(EncoderBlock, 'bench/encoders', self._on_block,
                                  qos.ENCODER_QOS)
+        # a bench with loss channels (issue 38) sends a BenchChannels per EncoderBlock: a
+        # block is fed with its channels, held until they come (or _HOLD_BLOCKS later)
+        self.create_subscription(BenchChannels, 'bench/channels', self._on_channels,
+                                 qos.ENCODER_QOS)
+        self._want_channels = False
+        self._channels: dict[int, BenchChannels] = {}
+        self._held: dict[int, EncoderBlock] = {}
         self.cli_program = self.create_client(RunBenchProgram, 'bench/run_program')
         self.cli_stop = self.create_client(Trigger, 'bench/stop')
         self.pub_step = self.create_publisher(TestStep, 'test/step', qos.TE_SAMPLES_QOS)
@@ -112,13 +133,45 @@ class TestSequencerNode(Node):
             return GoalResponse.REJECT
         self.busy = {'plan': '?', 'serial': goal.serial, 'step': -1, 'steps': 0}
         self._early.clear()
+        self._channels.clear()
+        self._held.clear()
         return GoalResponse.ACCEPT
+
+    def _on_channels(self, msg: BenchChannels) -> None:
+        if self.busy is None:
+            return
+        self._channels[int(msg.seq)] = msg
+        if len(self._channels) > _KEEP_CHANNELS:   # those of blocks not in a step
+            for seq in sorted(self._channels)[:len(self._channels) - _KEEP_CHANNELS]:
+                del self._channels[seq]
+        if self._held:
+            self._release_held()
+
+    def _release_held(self) -> None:
+        """Feed the held blocks whose channels came, in order; a block held longer than
+        _HOLD_BLOCKS blocks goes without (its segment is then not analysed)."""
+        while self._held:
+            seq = min(self._held)
+            ch = self._channels.pop(seq, None)
+            if ch is None and len(self._held) <= _HOLD_BLOCKS:
+                return
+            self._take(self._held.pop(seq), ch, lost=ch is None)
 
     def _on_block(self, msg: EncoderBlock) -> None:
         runner, prog = self._runner, self._prog
         if runner is None or not prog:
             if self.busy is not None:
                 self._early.append(msg)
+            return
+        if not self._want_channels:
+            self._take(msg, None)
+            return
+        self._held[int(msg.seq)] = msg
+        self._release_held()
+
+    def _take(self, msg: EncoderBlock, ch: BenchChannels | None, *, lost: bool = False) -> None:
+        runner, prog = self._runner, self._prog
+        if runner is None or not prog:
             return
         k = int(msg.seq) - prog['first_seq']
         if k < 0 or k >= prog['total'] or k < prog['next']:
@@ -130,10 +183,16 @@ class TestSequencerNode(Node):
         if seg != prog['segment']:
             runner.next_segment()
             prog['segment'] = seg
+        if lost:
+            self.drops.drop('channels', f'no bench/channels for block {int(msg.seq)}')
+            runner.mark(seg, f'the input torque / case temperature of block {int(msg.seq)} '
+                             'never came (bench/channels); not analysed')
         try:
-            prog['live'] = runner.feed(seg, np.asarray(msg.theta_in_rad),
-                                       np.asarray(msg.theta_out_rad),
-                                       np.asarray(msg.torque_out_nm))
+            prog['live'] = runner.feed(
+                seg, np.asarray(msg.theta_in_rad), np.asarray(msg.theta_out_rad),
+                np.asarray(msg.torque_out_nm),
+                None if ch is None else np.asarray(ch.torque_in_nm),
+                None if ch is None else np.asarray(ch.temp_case_degc))
         except (ValueError, IndexError) as exc:
             self.drops.drop('malformed', str(exc))
         prog['next'] = k + 1
@@ -171,6 +230,10 @@ class TestSequencerNode(Node):
                 msg = 'conditions_yaml must be a mapping'
                 raise AcceptanceError(msg)
             info = await self._bench()
+            if any(st.kind in NEEDS and st.kind != 'hysteresis' for st in plan.steps):
+                # before anything moves: the channels the whole-reducer steps need
+                check_plan(plan, channels={'torque_out', *bench_channels(info)},
+                           bench=f'the bench {info.bench_id!r}')
             if req.tolerance_yaml.strip():
                 profile = parse_tolerance(parse_yaml_text(
                     req.tolerance_yaml, 'tolerance (goal)', AcceptanceError), 'tolerance (goal)')
@@ -247,6 +310,7 @@ class TestSequencerNode(Node):
             msg = f'step {step.name!r}: the bench refused its program: {resp.reason}'
             raise AcceptanceError(msg)
         runner.expect(list(resp.segment_blocks))
+        self._want_channels = bool(bench_channels(info))
         self._runner = runner
         self._prog = {'first_seq': int(resp.first_seq), 'total': int(resp.block_count),
                       'ends': np.cumsum(list(resp.segment_blocks)), 'next': 0, 'segment': 0,
@@ -288,6 +352,7 @@ class TestSequencerNode(Node):
         self._publish_step(req, j, n_steps, step, 'finished', params, yaml.safe_dump(
             {m.name: (None if not math.isfinite(m.value) else m.value) for m in measured}))
         self._runner, self._prog = None, {}
+        self._held.clear()
         return measured, details
 
     async def _stop_bench(self) -> None:
