@@ -19,6 +19,11 @@
    a unit is covered when the true value lies in the budget's interval
    [y - U - b, y + U]. Target: >= 94 % per metric.
 
+1b. **A short record** (bags/sample, two output revolutions): every line's repeatability
+   rests on two windows, one dof. The same comparison through ``rv-te analyze
+   --monte-carlo``'s path, beside the U that Welch-Satterthwaite's k gave before a few-dof
+   type A was convolved as the t it is (``--sample-only`` runs just this part).
+
 Run: ``.venv/bin/python benchmarks/bench_uncertainty.py --units 1000 --draws 20000``
 (about 25 minutes on a busy 2-core VM); ``--units 50 --draws 2000`` for a quick look. Prints one
 markdown table per part (benchmarks/README.md keeps the last run).
@@ -66,6 +71,7 @@ SPEED_RPM = 3000.0
 RATED_NM = 784.0
 ENCODER = 'heidenhain-ron886'
 AS = 206264.806           # arcsec per rad
+SAMPLE_BAG = Path(__file__).resolve().parents[1] / 'bags' / 'sample'
 IDENT_LABELS = {'e_ot_m': ('e_ot [um]', 1e6), 'pair1_m': ('|Q1| [um]', 1e6),
                 'pair2_m': ('|Q2| [um]', 1e6), 'theta_ot_rad': ('theta_ot [deg]', 180 / math.pi),
                 'pair1_phase_rad': ('arg Q1 [deg]', 180 / math.pi),
@@ -254,6 +260,38 @@ def hyst_run(rng: np.random.Generator, bench: BenchUncertainty) -> dict:
             'theta_out': theta_out, 'cfg': cfg}
 
 
+def _ws_k(b) -> float:
+    """k as it was before the few-dof type A inputs were convolved: t_p(nu_eff) by
+    Welch-Satterthwaite where the bounded inputs make < 10 % of u_c^2, else the budget's."""
+    from rv_te_bench.core.uncertainty import t_quantile
+
+    if not b.k_basis.startswith('t (nu_i'):
+        return b.k
+    return t_quantile(b.coverage_probability, round(b.nu_eff, 2)) if math.isfinite(
+        b.nu_eff) else 2.0
+
+
+def sample_bag_check(draws: int, bag: Path = SAMPLE_BAG) -> list[tuple[str, object, float]]:
+    """``rv-te analyze BAG --monte-carlo N`` on a short record (bags/sample: two output
+    revolutions, so every line's repeatability rests on two windows, one dof): each
+    result's MC result and the U that Welch-Satterthwaite's k would give."""
+    from rv_te_bench.report.analysis import analyze_bag
+    from rv_te_bench.report.uncertainty import monte_carlo_check
+
+    res = analyze_bag(bag, with_advice=False)
+    unc = res.uncertainty
+    check = monte_carlo_check(unc, res.trace, res.spectrum, gear_ratio=res.bench.gear_ratio,
+                              draws=draws)
+    rows = []
+    for name, r in check.results.items():
+        b = unc.budgets[name]
+        amp = unc.budgets.get(name.replace(' phase', ' amplitude'))
+        if name.startswith('line ') and not (amp is not None and amp.value > 10 * amp.u95):
+            continue              # at the noise floor: a phase is not linear in its inputs
+        rows.append((name, r, _ws_k(b) * b.u_c))
+    return rows
+
+
 def _covered(b, true: float, *, phase: bool = False) -> bool:
     if phase:
         return abs(math.remainder(true - b.value, 2 * math.pi)) <= b.u95
@@ -261,16 +299,38 @@ def _covered(b, true: float, *, phase: bool = False) -> bool:
     return lo <= true <= hi
 
 
+def _sample_table(draws: int) -> None:
+    """Part 1b: a short record (bags/sample), every line's type A from two windows (1 dof)."""
+    print(f'## bags/sample (two output revolutions): GUM vs Monte Carlo, {draws} draws\n')
+    print('| result | k | U (GUM) | U (MC) | MC - GUM | U with WS k (before) | MC - WS |')
+    print('|---|---:|---:|---:|---:|---:|---:|')
+    worst_s = worst_ws = 0.0
+    for name, r, u_ws in sample_bag_check(draws):
+        sc = 180 / math.pi if name.endswith('phase') else AS
+        d_ws = r.u_mc / u_ws - 1.0
+        worst_s, worst_ws = max(worst_s, abs(r.difference)), max(worst_ws, abs(d_ws))
+        k = r.u_gum / r.u_c if r.u_c > 0 else math.nan
+        print(f'| {name} | {k:.3f} | {r.u_gum * sc:.4g} | {r.u_mc * sc:.4g} | '
+              f'{100 * r.difference:+.1f} % | {u_ws * sc:.4g} | {100 * d_ws:+.1f} % |')
+    print(f'\nlargest |U_MC - U_GUM| / U_GUM: {100 * worst_s:.2f} % (with the WS k: '
+          f'{100 * worst_ws:.2f} %)\n')
+
+
 def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.split('\n')[0])
     ap.add_argument('--units', type=int, default=1000, help='simulated units for coverage')
     ap.add_argument('--draws', type=int, default=20000, help='Monte Carlo draws per budget')
     ap.add_argument('--seed', type=int, default=35)
+    ap.add_argument('--sample-only', action='store_true',
+                    help='only the short-record check on bags/sample (part 1b)')
     args = ap.parse_args(argv)
     rng = np.random.default_rng(args.seed)
     bench = BenchUncertainty.defaults(ENCODER, ENCODER)
     t0 = time.monotonic()
 
+    if args.sample_only:
+        _sample_table(args.draws)
+        return 0
     # ---- 1. GUM vs Monte Carlo on one measurement of each kind
     rows = []
     r = te_run(rng, bench, unit_phases=False)
@@ -318,6 +378,8 @@ def main(argv: list[str] | None = None) -> int:
               f'{res.u_gum * sc:.3g} | {res.u_mc * sc:.3g} | {100 * res.difference:+.2f} % | '
               f'{res.draws} |')
     print(f'\nlargest |U_MC - U_GUM| / U_GUM: {100 * worst:.2f} %\n')
+
+    _sample_table(args.draws)
 
     # ---- 2. coverage
     hits: dict[str, list[bool]] = {}

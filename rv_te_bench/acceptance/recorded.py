@@ -28,6 +28,7 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
+from rv_te_bench.acceptance._loss_finders import LOSS_FINDERS
 from rv_te_bench.acceptance._results import SegmentData, step_result
 from rv_te_bench.acceptance.plan import DIRECTIONS, HysteresisStep, SweepStep, TeStep
 from rv_te_bench.acceptance.runner import build_report
@@ -43,6 +44,10 @@ if TYPE_CHECKING:
     from rv_te_bench.core.segments import MeasuredRecord
 
 __all__ = ['FINDERS', 'JudgeSettings', 'judge_record']
+
+
+#: Samples a cut part keeps off its run's end (the run finder's edges are good to ~2).
+_EDGE = 3
 
 
 @dataclass(frozen=True)
@@ -71,11 +76,13 @@ class JudgeSettings:
 
 def _plan_loads(plan: TestPlan) -> list[float]:
     loads = {0.0}
-    for s in plan.steps:
-        if isinstance(s, TeStep):
-            loads.add(s.load_nm)
-        elif isinstance(s, SweepStep):
-            loads.update(s.loads_nm)
+    for s in plan.steps:   # TE, sweep and the whole-reducer steps' loads
+        if isinstance(s, HysteresisStep):
+            continue
+        load = getattr(s, 'load_nm', None)
+        if isinstance(load, float):
+            loads.add(load)
+        loads.update(getattr(s, 'loads_nm', ()))
     return sorted(loads)
 
 
@@ -103,6 +110,16 @@ class _Finder:
                               breaks=record.breaks)
         self.used: set[int] = set()
         self.cursor_s = -math.inf
+        self.cut_at: dict[int, int] = {}   # run -> its first sample not yet taken
+        self.used_ramps: set[int] = set()   # first samples of the torque ramps taken
+        self._ramps: dict[str, list[tuple[int, int, int]]] = {}
+
+    def ramp_episodes(self, channel: str, find: Callable[[], list[tuple[int, int, int]]],
+                      ) -> list[tuple[int, int, int]]:
+        """The torque ramps of ``channel`` in the record (found once by ``find``)."""
+        if channel not in self._ramps:
+            self._ramps[channel] = find()
+        return self._ramps[channel]
 
     # -- helpers ----------------------------------------------------------------------
     def _data(self, start: int, stop: int, role: str, label: dict[str, Any], note: str = '',
@@ -112,9 +129,14 @@ class _Finder:
         if note == '' and tq.size and not np.all(np.isfinite(tq)):
             note = (f'{int(np.count_nonzero(~np.isfinite(tq)))} samples of this part have '
                     'no torque value')
+        t_in, temp = (np.zeros(0) if a is None else a[start:stop]
+                      for a in (r.torque_in_nm, r.temp_case_degc))
         return SegmentData(role=role, label=label, theta_in_rad=r.theta_in_rad[start:stop],
                            theta_out_rad=r.theta_out_rad[start:stop], torque_out_nm=tq,
+                           torque_in_nm=t_in, temp_case_degc=temp,
                            time_s=r.time_s[start:stop], note=note, found=found or {})
+
+    data = _data
 
     def _take(self, k: int) -> Run:
         self.used.add(k)
@@ -158,9 +180,27 @@ class _Finder:
         if span is not None:
             a, b, note = self._range(*span)
             return self._data(a, b, role, label, note, {'from_plan_time_range_s': list(span)})
-        sign = DIRECTIONS[direction]
         rev_s = self.info.gear_ratio * 60.0 / speed_rpm
         need_s = step.settle_s + step.revolutions * rev_s
+        return self.run_for(direction, speed_rpm, load_nm, need_s, role, label,
+                            f'settle {step.settle_s:g} s + {step.revolutions} output '
+                            'revolution(s)')
+
+    def run_for(self, direction: str, speed_rpm: float, load_nm: float, need_s: float,
+                role: str, label: dict[str, Any], what: str, *,
+                cut_s: float | None = None) -> SegmentData:
+        """The first unused run at or after the previous part (else anywhere) in
+        ``direction`` at ``speed_rpm`` against ``load_nm`` (the settings' tolerances)
+        lasting ``need_s`` (``what`` says of what); its data cut to ``cut_s`` from its start
+        (None: the whole run), or a part with the note of what the record has instead. A
+        run cut is left to later parts from where the cut ended (a warm-up run straight
+        into a life test's run at the same speed and load is one run in the data). A cut
+        part may be a few samples shorter than ``need_s`` and ends _EDGE samples before the
+        run's end: the run's edges are found to a few samples (the finder's window), and
+        its last samples may belong to what follows."""
+        slack = 1.5 if cut_s is None else 1.5 + 2 * _EDGE
+        sign = DIRECTIONS[direction]
+        t = self.record.time_s
         if load_nm > 0 and not self.torque_ok:
             return self._data(0, 0, role, label, f'the step runs against {load_nm:g} N m but '
                               'the record has no torque channel to find or check the load')
@@ -172,23 +212,32 @@ class _Finder:
                 continue
             if self.torque_ok and not self._load_ok(r, load_nm):
                 continue
-            if r.duration_s + 1.5 / self.info.sample_rate_hz < need_s:
+            a = self.cut_at.get(k, r.start)
+            if r.t_end_s - float(t[a]) + slack / self.info.sample_rate_hz < need_s:
                 continue
             cands.append(k)
-        after = [k for k in cands if self.runs[k].t_start_s >= self.cursor_s]
+        after = [k for k in cands if float(t[self.cut_at.get(k, self.runs[k].start)])
+                 >= self.cursor_s]
         best = after[0] if after else cands[0] if cands else None
         if best is None:
             load = f' against {load_nm:g} N m' if self.torque_ok else ''
             note = (f'no {direction} run at {speed_rpm:g} rpm (+-'
                     f'{100 * self.settings.speed_tolerance:g} %){load} of at least '
-                    f'{need_s:.4g} s (settle {step.settle_s:g} s + {step.revolutions} output '
-                    f'revolution(s)) in the record: {self._describe(False)}')
+                    f'{need_s:.4g} s ({what}) in the record: {self._describe(False)}')
             return self._data(0, 0, role, label, note)
-        r = self._take(best)
-        found = {'found_t_start_s': r.t_start_s, 'found_t_end_s': r.t_end_s,
+        r = self.runs[best]
+        a = self.cut_at.get(best, r.start)
+        stop = r.stop if cut_s is None else min(
+            r.stop - _EDGE, a + round(cut_s * self.info.sample_rate_hz))
+        if stop >= r.stop - round(0.05 * self.info.sample_rate_hz):
+            self._take(best)          # what is left is too short to be a part
+        else:
+            self.cut_at[best] = stop
+            self.cursor_s = max(self.cursor_s, float(t[stop - 1]))
+        found = {'found_t_start_s': float(t[a]), 'found_t_end_s': float(t[stop - 1]),
                  'found_speed_rpm': abs(r.speed_rpm),
                  'found_load_nm': abs(r.load_nm) if math.isfinite(r.load_nm) else None}
-        return self._data(r.start, r.stop, role, label, found=found)
+        return self._data(a, stop, role, label, found=found)
 
     # -- hysteresis --------------------------------------------------------------------------
     def locked(self, step: HysteresisStep) -> list[SegmentData]:
@@ -271,23 +320,10 @@ def _no_parts(_finder: _Finder, _step: Step) -> list[SegmentData]:
     return []   # an operator step leaves no data to find
 
 
-def _loss_parts(_finder: _Finder, step: Step) -> list[SegmentData]:
-    """Not found in recorded data yet: the records read here carry no input torque or
-    case temperature channel (issue 38 leaves this route open); judged 'not_judged'."""
-    note = (f'a {step.kind} step is not yet judged from recorded or imported data (the '
-            'record route reads no input torque or case temperature channel)')
-    roles = {'efficiency': 'efficiency', 'no_load': 'no_load', 'starting_torque': 'ramp',
-             'back_driving': 'ramp', 'temperature_rise': 'temperature', 'life': 'life_te'}
-    label = {'direction': 'ccw', 'speed_rpm': 0.0, 'load_nm': 0.0, 'checkpoint': 0}
-    return [SegmentData(role=roles[step.kind], label=label, note=note)]
-
-
 #: Step kind -> how its parts are found in a measured record (see plan._KINDS).
 FINDERS: dict[str, Callable[[_Finder, Any], list[SegmentData]]] = {
     'te': _te_parts, 'sweep': _sweep_parts, 'hysteresis': _hysteresis_parts,
-    'operator': _no_parts, 'efficiency': _loss_parts, 'no_load': _loss_parts,
-    'starting_torque': _loss_parts, 'back_driving': _loss_parts,
-    'temperature_rise': _loss_parts, 'life': _loss_parts}
+    'operator': _no_parts, **LOSS_FINDERS}
 
 
 def _step_segments(finder: _Finder, step: Step) -> list[SegmentData]:
@@ -329,5 +365,6 @@ def judge_record(plan: TestPlan, profile: ToleranceProfile, record: MeasuredReco
                         'samples': record.samples,
                         'duration_s': float(record.time_s[-1]) if record.samples else 0.0,
                         'breaks': int(record.breaks.size), 'torque_from': record.torque_from,
+                        'channels_from': record.channels_from,
                         'steps': found}
     return report

@@ -1,7 +1,8 @@
 """Running a plan step by step: bench programs out, encoder data in, metrics and verdicts.
 
 No ROS here: the ``test_sequencer`` node drives each step's program through a bench's
-setpoints (:mod:`rv_te_bench.acceptance.driver`) and feeds :class:`StepRunner` from
+setpoints (:mod:`rv_te_bench.acceptance.driver`; a plan with whole-reducer steps: sends it
+to the simulated bench's ``bench/run_program``) and feeds :class:`StepRunner` from
 ``bench/encoders``; :func:`run_plan_offline` feeds it straight
 from :class:`sim.program.ProgramSimulator` (same numbers, no middleware).
 
@@ -323,7 +324,9 @@ def build_report(*, plan: TestPlan, profile: ToleranceProfile, info: BenchInfoDa
                   'encoder_out': info.encoder_out_model,
                   'encoder_out_resolution_rad': info.encoder_out_resolution_rad,
                   'reducer_type': info.reducer_type, 'crank_per_input': info.crank_per_input,
-                  'mesh_orders': list(info.mesh_orders), 'mesh_labels': list(info.mesh_labels)},
+                  'mesh_orders': list(info.mesh_orders), 'mesh_labels': list(info.mesh_labels),
+                  'encoder_in_scale_serial': info.encoder_in_scale_serial,
+                  'encoder_out_scale_serial': info.encoder_out_scale_serial},
         'conditions': dict(conditions or {}),
         'plan': plan.to_plain(), 'tolerance': profile.to_plain(),
         'verdict': verdict, 'reason': reason,
@@ -390,7 +393,8 @@ def run_plan_offline(plan: TestPlan, profile: ToleranceProfile, *, serial: str, 
 
 def reanalyse(*, plan: TestPlan, profile: ToleranceProfile, info: BenchInfoData,
               steps: list[dict[str, Any]],
-              blocks: dict[int, tuple[np.ndarray, np.ndarray, np.ndarray]],
+              blocks: dict[int, tuple[np.ndarray, np.ndarray, np.ndarray,
+                                      np.ndarray | None, np.ndarray | None]],
               serial: str, operator: str, conditions: dict[str, Any] | None = None,
               started_utc: str = '', status: str = 'completed',
               times: dict[int, np.ndarray] | None = None,
@@ -401,7 +405,8 @@ def reanalyse(*, plan: TestPlan, profile: ToleranceProfile, info: BenchInfoData,
         plan, profile, info: As in the live run.
         steps: The recorded steps (``step_index``, ``state``, ``first_seq``,
             ``segment_blocks``); only finished ones are analysed, in plan order.
-        blocks: seq -> (theta_in_rad, theta_out_rad, torque_out_nm).
+        blocks: seq -> (theta_in_rad, theta_out_rad, torque_out_nm, torque_in_nm,
+            temp_case_degc); the last two None where the bench had no such channel.
         serial, operator, conditions, started_utc: The unit's identity and conditions.
         times: seq -> sample times [s], for steps recorded with time ranges
             (``segments_s`` in their result: driven by setpoints).
@@ -464,7 +469,8 @@ def _recorded_spans(step: dict[str, Any]) -> list[tuple[float, float]]:
 
 
 def _feed_by_time(runner: StepRunner, step: dict[str, Any], spans: list[tuple[float, float]],
-                  blocks: dict[int, tuple[np.ndarray, np.ndarray, np.ndarray]],
+                  blocks: dict[int, tuple[np.ndarray, np.ndarray, np.ndarray,
+                                          np.ndarray | None, np.ndarray | None]],
                   times: dict[int, np.ndarray]) -> None:
     """The step's blocks cut into its segments by their recorded time ranges, as live."""
     lo = np.array([a for a, _ in spans])

@@ -9,9 +9,13 @@ from typing import TYPE_CHECKING, Any
 from rv_te_bench.errors import DataImportError
 
 if TYPE_CHECKING:
-    from rv_te_bench.io.importers import ImportOptions
+    from pathlib import Path
 
-__all__ = ['add_file_arguments', 'import_options']
+    from rv_te_bench.io.bench_description import BenchDescription
+    from rv_te_bench.io.importers import ImportOptions
+    from rv_te_bench.io.unit_serial import SerialChoice
+
+__all__ = ['add_file_arguments', 'import_options', 'with_unit_serial']
 
 
 def add_file_arguments(g: Any) -> None:
@@ -29,6 +33,10 @@ def add_file_arguments(g: Any) -> None:
                    'angle')
     g.add_argument('--torque', metavar='COL', help='output-torque column / channel (x the '
                    "bench's torque_sensor.scale_nm_per_unit = N m)")
+    g.add_argument('--torque-in', metavar='COL', help='input-torque column / channel (x the '
+                   "bench's loss_channels.torque_in.scale_nm_per_unit = N m; issue 38)")
+    g.add_argument('--temperature', metavar='COL', help='case-temperature column / channel '
+                   '[degC] (issue 38)')
     g.add_argument('--time', metavar='COL', help='time column / channel (default: the '
                    "file's own time base, else --rate, else the bench's sample_rate_hz); for a "
                    'JointState bag: the topic, when it has several')
@@ -64,6 +72,31 @@ def add_file_arguments(g: Any) -> None:
                    'time)')
     g.add_argument('--chunk-samples', type=int, default=100_000, metavar='N',
                    help='samples read at a time (memory is proportional)')
+    g.add_argument('--serial-pattern', metavar='REGEX', default=None,
+                   help='where the unit serial is in the file name when neither --serial nor '
+                        'the bench description gives it: the group named serial, else the '
+                        "first group (default: 'SN' + letters, digits, dashes with a digit: "
+                        'SN-2026-0042_cw.csv -> SN-2026-0042)')
+
+
+def with_unit_serial(desc: BenchDescription, args: argparse.Namespace, path: Path, *,
+                     choice: SerialChoice | None = None,
+                     ) -> tuple[BenchDescription, SerialChoice]:
+    """The description with the unit's serial: ``choice`` when given, else ``--serial``, its
+    own, else the file name's (:func:`rv_te_bench.io.unit_serial.choose_serial`); and where
+    the serial came from (stated in the bag's metadata as ``unit_serial_source``)."""
+    from dataclasses import replace
+
+    from rv_te_bench.io.unit_serial import choose_serial
+
+    uut = desc.unit_under_test
+    if choice is None:
+        choice = choose_serial(getattr(args, 'serial', None), bench_serial=uut.serial,
+                               bench_origin=desc.origin, path=path,
+                               pattern=args.serial_pattern)
+    uut = replace(uut, serial=choice.serial, serial_source=choice.source if choice.serial
+                  else '')
+    return replace(desc, unit_under_test=uut), choice
 
 
 def _start_ns(text: str | None) -> int | None:
@@ -96,6 +129,8 @@ def import_options(args: argparse.Namespace) -> ImportOptions:
                        'single' if flag else 'auto')
     return ImportOptions(
         theta_in=args.theta_in, theta_out=args.theta_out, torque=args.torque, time=args.time,
+        torque_in=getattr(args, 'torque_in', None),
+        temperature=getattr(args, 'temperature', None),
         rate_hz=args.rate, time_unit=args.time_unit, unit_in=args.unit_in,
         unit_out=args.unit_out, counts_per_rev_in=args.counts_per_rev_in,
         counts_per_rev_out=args.counts_per_rev_out, turns_in=turns['in'],

@@ -20,11 +20,12 @@ from datetime import UTC, datetime
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
-from rv_te_bench.cli._import_args import add_file_arguments, import_options
+from rv_te_bench.cli._import_args import add_file_arguments, import_options, with_unit_serial
 from rv_te_bench.errors import AcceptanceError, BagError
 
 if TYPE_CHECKING:
     from rv_te_bench.acceptance import TestPlan, ToleranceProfile
+    from rv_te_bench.io.unit_serial import SerialChoice
 
 __all__ = ['add_from_arguments', 'run_from']
 
@@ -51,6 +52,16 @@ def add_from_arguments(p: argparse.ArgumentParser) -> None:
     g.add_argument('--torque-scale', type=float, default=1.0, metavar='X',
                    help='torque topic value x X = torque_out_nm [N m] (bench convention: '
                         'positive resists positive rotation)')
+    g.add_argument('--torque-in-topic', metavar='TOPIC', default=None,
+                   help="the bench's input-torque topic in the bag (WrenchStamped, Float64 or "
+                        'JointState; --torque-axis, x --torque-in-scale), instead of '
+                        'bench/channels')
+    g.add_argument('--torque-in-scale', type=float, default=1.0, metavar='X',
+                   help='input-torque topic value x X = torque_in_nm [N m] (positive drives '
+                        'the input positively)')
+    g.add_argument('--temperature-topic', metavar='TOPIC', default=None,
+                   help="the bench's case-temperature topic in the bag (sensor_msgs/"
+                        'Temperature or Float64, degC), instead of bench/channels')
     g.add_argument('--speed-tolerance', type=float, default=0.02, metavar='FRACTION',
                    help="a run's input speed may differ from the step's by this much")
     g.add_argument('--load-tolerance', type=float, default=0.05, metavar='FRACTION',
@@ -66,6 +77,39 @@ def _has_encoder_blocks(path: Path) -> bool:
     except BagError:
         return False
     return any(t.get('type') == ENCODER_BLOCK for t in topics.values())
+
+
+def _serial(args: argparse.Namespace) -> SerialChoice:
+    """The unit's serial: --serial, the bench description's, a suite bag's own (its metadata),
+    else the file name's; where it came from.
+
+    Raises:
+        AcceptanceError: None of them gives one.
+    """
+    from rv_te_bench.io.unit_serial import choose_serial
+
+    src = Path(args.from_path)
+    bench_serial, origin = '', ''
+    if not args.serial and args.bench is not None:
+        from rv_te_bench.io.bench_description import load_bench_description
+
+        desc = load_bench_description(args.bench)
+        bench_serial, origin = desc.unit_under_test.serial, desc.origin
+    choice = choose_serial(args.serial, bench_serial=bench_serial, bench_origin=origin)
+    if not choice.serial and src.exists() and _has_encoder_blocks(src):
+        from rv_te_bench.io.unit_serial import SerialChoice
+        from rv_te_bench.report.analysis import session_info
+
+        in_bag = session_info(src).unit_serial
+        if in_bag:
+            choice = SerialChoice(in_bag, f"the bag's metadata ({src})")
+    if not choice.serial:
+        choice = choose_serial(None, path=src, pattern=args.serial_pattern)
+    if not choice.serial:
+        msg = (f'no unit serial: give --serial ({choice.source}; --serial-pattern REGEX '
+               'finds it in another file name)')
+        raise AcceptanceError(msg)
+    return choice
 
 
 def _bag_for(args: argparse.Namespace, out_dir: Path) -> tuple[Path, str]:
@@ -86,7 +130,8 @@ def _bag_for(args: argparse.Namespace, out_dir: Path) -> tuple[Path, str]:
         raise AcceptanceError(msg)
     from rv_te_bench.io.bench_description import load_bench_description
 
-    desc = load_bench_description(args.bench)
+    desc, _ = with_unit_serial(load_bench_description(args.bench), args, src,
+                               choice=args.serial_choice)
     out_dir.mkdir(parents=True, exist_ok=True)
     summary = import_file(src, desc, out_dir / 'bag', options=import_options(args), fmt=fmt,
                           header=not args.no_header,
@@ -117,14 +162,26 @@ def run_from(args: argparse.Namespace, plan: TestPlan, plan_text: str, tol_text:
     settings = JudgeSettings(speed_tolerance=args.speed_tolerance,
                              load_tolerance=args.load_tolerance)
     stamp = datetime.now(UTC).strftime('%Y%m%dT%H%M%SZ')
+    given = args.serial
+    args.serial_choice = _serial(args)
+    args.serial = args.serial_choice.serial
     safe_serial = ''.join(c if c.isalnum() or c in '-_.' else '_' for c in args.serial)
     out_dir = Path(args.out_dir) / f'{safe_serial}_{stamp}'
     bag, fmt = _bag_for(args, out_dir)
+    if not given:   # where the serial came from (--serial needs no word)
+        print(args.serial_choice.describe(), file=sys.stderr)
     torque = None
     if args.torque_topic:
         torque = TorqueTopic(topic=args.torque_topic, axis=args.torque_axis,
                              joint=args.torque_joint, scale=args.torque_scale)
-    record = read_measured_record(bag, torque=torque)
+    torque_in = temperature = None
+    if args.torque_in_topic:
+        torque_in = TorqueTopic(topic=args.torque_in_topic, axis=args.torque_axis,
+                                joint=args.torque_joint, scale=args.torque_in_scale)
+    if args.temperature_topic:   # a case sensor is read at a few Hz: 10 s between readings
+        temperature = TorqueTopic(topic=args.temperature_topic, max_gap_s=10.0)
+    record = read_measured_record(bag, torque=torque, torque_in=torque_in,
+                                  temperature=temperature)
     profile: ToleranceProfile
     if tol_text:
         profile = parse_tolerance(parse_yaml_text(tol_text, 'tolerance', ToleranceError),
@@ -137,7 +194,8 @@ def run_from(args: argparse.Namespace, plan: TestPlan, plan_text: str, tol_text:
         raise AcceptanceError(msg)
     print(f'judging plan {plan.name!r} from {bag} ({record.samples} samples, '
           f'{float(record.time_s[-1]):.3f} s, {record.breaks.size} break(s); torque: '
-          f'{record.torque_from})', file=sys.stderr)
+          f'{record.torque_from}; input torque and case temperature: '
+          f'{record.channels_from})', file=sys.stderr)
     report = judge_record(plan, profile, record, serial=args.serial, operator=args.operator,
                           conditions=conditions, settings=settings)
     report['source']['imported_from'] = str(args.from_path) if fmt != 'bag' or \

@@ -124,7 +124,13 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
                    help='read lost motion, backlash and rigidity of locked-input stretches '
                         f'(auto: records up to {HYSTERESIS_AUTO_MAX_SAMPLES:,} samples)')
     p.add_argument('--serial', default=None,
-                   help='unit serial recorded with the result (default: from the bag)')
+                   help="unit serial recorded with the result (default: the bag's, else "
+                        "the bag's name, see --serial-pattern)")
+    p.add_argument('--serial-pattern', metavar='REGEX', default=None,
+                   help="where the serial is in the bag's name when the bag states none: "
+                        "the group named serial, else the first group (default: 'SN' + "
+                        'letters, digits, dashes with a digit: bags/SN-2026-0042_cw -> '
+                        'SN-2026-0042)')
     p.add_argument('--lot', default=None, help='production lot recorded with the result')
 
 
@@ -226,6 +232,7 @@ def _run(args: argparse.Namespace) -> int:
             res = _with_monte_carlo(res, args.monte_carlo, quiet=args.quiet)
         results.append(res)
 
+    results = [_with_serial(res, args) for res in results]
     doc = report_json(results)
     if args.json:
         print(json.dumps(doc, indent=2), flush=True)
@@ -239,6 +246,25 @@ def _run(args: argparse.Namespace) -> int:
         print(f'recorded in the {recorded_in}',
               file=sys.stderr if args.json else sys.stdout)
     return 0
+
+
+def _with_serial(res: AnalysisResult, args: argparse.Namespace) -> AnalysisResult:
+    """The result with its unit's serial: --serial, the bag's, else the bag's name
+    (:mod:`rv_te_bench.io.unit_serial`); where it came from goes to stderr."""
+    from dataclasses import replace
+
+    from rv_te_bench.io.unit_serial import SerialChoice, choose_serial
+
+    bag = res.path
+    if not args.serial and res.session.unit_serial:
+        choice = SerialChoice(res.session.unit_serial, "the bag's metadata")
+    else:
+        named = bag.parent if bag.name in {'bag', 'bag_0'} and bag.parent.name else bag
+        choice = choose_serial(args.serial, path=named, pattern=args.serial_pattern)
+    print(f'{bag}: {choice.describe()}', file=sys.stderr)
+    if choice.serial == res.session.unit_serial:
+        return res
+    return replace(res, session=replace(res.session, unit_serial=choice.serial))
 
 
 def _with_monte_carlo(res: AnalysisResult, draws: int, *, quiet: bool) -> AnalysisResult:

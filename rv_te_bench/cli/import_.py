@@ -9,7 +9,7 @@ from importlib import resources
 from pathlib import Path
 from typing import TYPE_CHECKING
 
-from rv_te_bench.cli._import_args import add_file_arguments, import_options
+from rv_te_bench.cli._import_args import add_file_arguments, import_options, with_unit_serial
 from rv_te_bench.errors import DataImportError
 
 if TYPE_CHECKING:
@@ -75,6 +75,9 @@ def register(subparsers: Subparsers) -> None:
     p.add_argument('--bench', type=Path, metavar='BENCH.yaml',
                    help='bench description (rv-te import --write-bench-example bench.yaml)')
     p.add_argument('--out', type=Path, metavar='BAG', help='bag folder to create (must not exist)')
+    p.add_argument('--serial', default=None, metavar='SERIAL',
+                   help="the unit's serial (default: the bench description's "
+                        'unit_under_test.serial, else the file name, see --serial-pattern)')
     add_file_arguments(p)
     p.add_argument('--json', action='store_true', help='summary as JSON on stdout')
     p.add_argument('--write-bench-example', type=Path, metavar='FILE',
@@ -106,7 +109,7 @@ def run(args: argparse.Namespace) -> int:
     from rv_te_bench.io.bench_description import load_bench_description
     from rv_te_bench.io.importers import import_file
 
-    desc = load_bench_description(args.bench)
+    desc, serial = with_unit_serial(load_bench_description(args.bench), args, args.file)
     options = import_options(args)
     try:
         summary = import_file(args.file, desc, args.out, options=options, fmt=args.format,
@@ -115,7 +118,8 @@ def run(args: argparse.Namespace) -> int:
     except DataImportError as exc:
         raise DataImportError(f'{exc}; nothing written') from None
     if args.json:
-        print(json.dumps(summary.to_json_dict(), indent=2))
+        print(json.dumps({**summary.to_json_dict(), 'unit_serial': serial.serial,
+                          'unit_serial_source': serial.source}, indent=2))
         return 0
     s = summary
     print(f'{s.bag}: {s.samples} samples in {s.blocks} blocks, {s.duration_s:.3f} s at '
@@ -128,5 +132,6 @@ def run(args: argparse.Namespace) -> int:
               'in the bag (listed above)')
     if len(s.segments) > 1:
         print(f'  segments: {len(s.segments)} bags: {", ".join(s.segments)}')
+    print(f'  {serial.describe()}')
     print(f'  next: rv-te analyze {" ".join(s.segments) if s.segments else s.bag}')
     return 0

@@ -75,8 +75,10 @@ def register(subparsers: Subparsers) -> None:
         description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     p.add_argument('plan', help='test plan: a YAML file or a shipped plan name '
                                 '(rv-80e, li2023-rv, wang2020-2kv)')
-    p.add_argument('--serial', required=True, type=nonempty_text,
-                   help='serial number of the unit under test')
+    p.add_argument('--serial', default=None, type=nonempty_text,
+                   help='serial number of the unit under test (required, except with --from: '
+                        "then by default the bench description's unit_under_test.serial, "
+                        "the bag's, else the file name's, see --serial-pattern)")
     p.add_argument('--operator', required=True, type=nonempty_text, help='who runs the test')
     p.add_argument('--tolerance', default=None, metavar='FILE|NAME',
                    help="tolerance profile (default: the plan's, else the one shipped for "
@@ -145,7 +147,7 @@ def _conditions(items: list[str]) -> dict[str, Any]:
 
 def _session(args: argparse.Namespace, out_dir: Path) -> Session:
     """Start the simulated session of ``--launch`` (validated first)."""
-    from rv_te_bench.launch.session import Session
+    from rv_te_bench.launch.session import Session, SessionSpec
     from sim.presets import load_preset
 
     preset = load_preset(args.launch, list(args.set))   # a bad preset or --set: one line
@@ -156,11 +158,30 @@ def _session(args: argparse.Namespace, out_dir: Path) -> Session:
                      encoder_in=args.encoder, encoder_out=args.encoder,
                      sample_rate_hz=args.sample_rate_hz)   # the model builds: mode is valid
     # with the live page, a TE node too: the page shows its windows and spectra
-    spec = simulated_session_spec(
-        out_dir, preset=args.launch, overrides=list(args.set), te_mode=mode,
-        encoder=args.encoder, sample_rate_hz=float(args.sample_rate_hz), seed=int(args.seed),
-        speed_factor=float(args.speed_factor), namespace=args.namespace_norm,
-        extra_nodes=('te_node',) if getattr(args, 'dashboard', False) else ())
+    if getattr(args, 'losses', False):
+        # the whole-reducer steps (issue 38) need the input torque, the case temperature and
+        # torque ramps, which a bench's ros2_control forward command controllers do not
+        # carry: the simulated bench runs such a plan's programs itself (bench/run_program),
+        # publishing bench/encoders and bench/channels
+        nodes = ('recorder', 'bench', 'test_sequencer') + (
+            ('te_node',) if getattr(args, 'dashboard', False) else ())
+        spec = SessionSpec(
+            nodes=nodes, namespace=args.namespace_norm,
+            parameters={
+                'bench': {'preset': args.launch, 'overrides': list(args.set), 'te_mode': mode,
+                          'encoder_in': args.encoder, 'encoder_out': args.encoder,
+                          'sample_rate_hz': float(args.sample_rate_hz), 'block_size': 100,
+                          'seed': int(args.seed), 'time_mode': 'fast',
+                          'speed_factor': float(args.speed_factor), 'commanded': True,
+                          'losses': True},
+                'recorder': {'output_dir': str(out_dir), 'bag_name': 'bag'},
+                'test_sequencer': {}})
+    else:
+        spec = simulated_session_spec(
+            out_dir, preset=args.launch, overrides=list(args.set), te_mode=mode,
+            encoder=args.encoder, sample_rate_hz=float(args.sample_rate_hz), seed=int(args.seed),
+            speed_factor=float(args.speed_factor), namespace=args.namespace_norm,
+            extra_nodes=('te_node',) if getattr(args, 'dashboard', False) else ())
     if getattr(args, 'dashboard', False):
         from rv_te_bench.cli.dashboard import wait_for_dashboard
 
@@ -235,6 +256,8 @@ def run(args: argparse.Namespace) -> int:
         _, tol_text = load_tolerance(plan.tolerance, relative_to=base)
 
     conditions = _conditions(args.condition)
+    if args.serial is None and args.from_path is None:
+        args._parser.error('the following arguments are required: --serial')
     if args.from_path is not None:
         if args.launch:
             args._parser.error('--from judges recorded data and --launch runs a simulated '
@@ -251,17 +274,12 @@ def run(args: argparse.Namespace) -> int:
         return run_offline(args, plan, tol_text, conditions)
     from rv_te_bench.cli._test_offline import loss_steps_in
 
-    if loss_steps_in(plan):
-        from rv_te_bench.errors import AcceptanceError
-
-        msg = (f'step {loss_steps_in(plan)[0]!r} needs the input torque and case temperature, '
-               'which the ROS bench/encoders topic does not carry yet: run the plan with '
-               '--sim PRESET (simulated bench in this process); nothing was run')
-        raise AcceptanceError(msg)
-    if args.launch:
+    args.losses = bool(loss_steps_in(plan))
+    if args.launch:   # the simulated bench has the loss channels when the plan needs them
         from rv_te_bench.cli._test_offline import sim_preflight
 
-        sim_preflight(plan, args.launch, list(args.set), {'torque_out'})
+        sim_preflight(plan, args.launch, list(args.set), {'torque_out'} | (
+            {'torque_in', 'temperature'} if args.losses else set()))
     args.namespace_norm = normalise_namespace(args.namespace)
     stamp = datetime.now(UTC).strftime('%Y%m%dT%H%M%SZ')
     safe_serial = ''.join(c if c.isalnum() or c in '-_.' else '_' for c in args.serial)

@@ -55,6 +55,9 @@ class MeasuredRecord:
         source: Where it was read from (the bag).
         torque_from: What gave the torque ('encoder blocks', 'topic /x (WrenchStamped.z)',
             or why there is none).
+        torque_in_nm: Input-shaft torque [N m]; None without that channel (issue 38).
+        temp_case_degc: Case temperature [degC]; None without that channel.
+        channels_from: What gave those two (or why there are none).
     """
 
     info: BenchInfoData
@@ -66,6 +69,9 @@ class MeasuredRecord:
     start_utc: str
     source: str
     torque_from: str
+    torque_in_nm: np.ndarray | None = field(default=None, repr=False)
+    temp_case_degc: np.ndarray | None = field(default=None, repr=False)
+    channels_from: str = 'none'
 
     @property
     def samples(self) -> int:

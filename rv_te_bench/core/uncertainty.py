@@ -26,8 +26,12 @@ the distribution of the linearised model ``sum c_i X_i``, the inputs with their 
 shapes (type A inputs as Student t with their degrees of freedom, as GUM G.3 and
 Supplement 1 6.4.9 treat them): the numerical convolution of their distributions
 (:func:`coverage_factor`). It is k = 2 for a normal budget, t_p(nu_eff) (to the
-Welch-Satterthwaite approximation) for normal and type A inputs, 1.65 x 1.0 for one
-dominant rectangular input at 95 %. ``k_basis`` in each budget says which.
+Welch-Satterthwaite approximation) for normal and type A inputs with >= 30 dof each,
+1.65 x 1.0 for one dominant rectangular input at 95 %. A type A input with fewer dof
+(two windows of a short record: one dof) is convolved as the t it is: Welch-Satterthwaite
+would turn a 0.6 % share of a one-dof t into nu_eff = 28,000 and k = 2.00 where the
+distribution's is 2.34 (Supplement 1's Monte Carlo samples that t and finds the latter).
+``k_basis`` in each budget says which.
 
 Supplement 1 (JCGM 101:2008) propagates the distributions themselves by Monte Carlo; the
 coverage interval it gives checks the linearisation (:func:`monte_carlo_interval`). A
@@ -84,6 +88,17 @@ _U_PER_HALF_WIDTH = {'rectangular': 1.0 / math.sqrt(3.0), 'triangular': 1.0 / ma
 _GRID_BINS = 1024
 #: Below this share of u_c^2 for all non-normal inputs together, k = t_p(nu_eff).
 _NEAR_NORMAL_SHARE = 0.1
+#: A type A input with fewer degrees of freedom than this is convolved as the Student t
+#: it is (GUM Supplement 1, 6.4.9), never summarised by Welch-Satterthwaite nor lumped into
+#: the normal remainder: WS replaces a small share of a t with few dof by a t with very
+#: many (nu_eff = nu / share^2) and drops its heavy tails. Measured against the exact
+#: convolution (scipy quadrature; docs/UNCERTAINTY.md): a share of 0.6 % of u_c^2 with
+#: nu = 1 makes WS's k 14.5 % short, nu = 2: 1.8 %; at nu >= 30 WS is within 1 % for every
+#: share.
+_WS_MIN_DOF = 30.0
+#: A type A input with fewer dof than this (n < 4: the t's variance is not finite, GUM
+#: Supplement 1 6.4.9.4) gets a note in its budget saying what it does to k.
+_FEW_REPEATS_DOF = 3.0
 
 
 @dataclass(frozen=True)
@@ -266,6 +281,14 @@ def _bin_masses(shape: str, sigma: float, dof: float, edges: np.ndarray,
         vals = tab / float(np.std(tab)) * sigma
         m, _ = np.histogram(np.clip(vals, edges[0], edges[-1]), bins=edges)
         return m / float(m.sum())
+    if shape == 't' and math.isfinite(dof):
+        # the t's own CDF at the bin edges (its tails beyond the grid in the end bins): a
+        # t narrower than a bin keeps the tails that a point mass would lose
+        from scipy.special import stdtr
+
+        cdf = np.asarray(stdtr(dof, edges / sigma), dtype=np.float64)
+        cdf[0], cdf[-1] = 0.0, 1.0
+        return np.diff(cdf)
     if sigma <= 0.25 * h:                       # narrower than a bin: a point mass at 0
         m = np.zeros(n)
         m[int(np.searchsorted(edges, 0.0, side='right')) - 1] = 1.0
@@ -281,12 +304,8 @@ def _bin_masses(shape: str, sigma: float, dof: float, edges: np.ndarray,
             cdf = 0.5 + np.arcsin(x) / math.pi
         return np.diff(cdf)
     z = centres / sigma
-    if shape == 't' and math.isfinite(dof):
-        pdf = (1.0 + z * z / dof) ** (-(dof + 1.0) / 2.0)
-        tail = _t_tail(float(edges[-1]) / sigma, dof)
-    else:
-        pdf = np.exp(-0.5 * z * z)
-        tail = 0.5 * math.erfc(float(edges[-1]) / sigma / math.sqrt(2.0))
+    pdf = np.exp(-0.5 * z * z)
+    tail = 0.5 * math.erfc(float(edges[-1]) / sigma / math.sqrt(2.0))
     m = np.asarray(pdf / pdf.sum() * (1.0 - 2.0 * tail), dtype=np.float64)
     m[0] += tail
     m[-1] += tail
@@ -311,16 +330,21 @@ def coverage_factor(inputs: Sequence[UncertaintyInput], p: float = COVERAGE_PROB
                     ) -> tuple[float, str]:
     """k such that P(|sum c_i X_i| <= k u_c) = p, the inputs with their stated shapes.
 
-    Inputs contributing less than 1 % of u_c each are lumped into one normal input. The
+    Inputs contributing less than 1 % of u_c each are lumped into one normal input, except
+    a type A input with fewer than 30 degrees of freedom: its heavy tails reach the 95 %
+    quantile from far below 1 % (a t with one dof at 0.3 % of u_c moves k by 0.6 %). The
     distributions are discretised on one grid (bin probabilities from the exact CDF for
-    the bounded shapes, the density for normal and t) and convolved by FFT.
+    the bounded shapes and the t, the density for the normal) and convolved by FFT.
 
     Returns:
         (k, basis): basis ``'normal'`` (k = z_p exactly: every input normal with infinite
         dof), ``'t (nu_eff = ...)'`` (k = t_p(nu_eff) when the bounded, non-normal inputs
-        together make less than 10 % of u_c^2: the sum is then normal or t to within the
-        Welch-Satterthwaite approximation), otherwise ``'distribution'`` (convolution).
-        k is NaN when u_c = 0.
+        together make less than 10 % of u_c^2 and every type A input has >= 30 dof: the sum
+        is then normal or t to within 1 % of the Welch-Satterthwaite approximation),
+        ``'t (nu_i = ...; convolved)'`` (the same, but a type A input has fewer dof: WS
+        drops a few-dof t's heavy tails, 14 % of k for one dof at 0.6 % of u_c^2, so the
+        t is convolved as it is, as GUM Supplement 1 6.4.9 propagates it), otherwise
+        ``'distribution'`` (convolution). k is NaN when u_c = 0.
 
     Examples:
         >>> x = type_b('r', sensitivity=1.0, distribution='rectangular', half_width=1.0)
@@ -341,12 +365,18 @@ def coverage_factor(inputs: Sequence[UncertaintyInput], p: float = COVERAGE_PROB
         return _normal_quantile(0.5 + p / 2.0), 'normal'
     bounded = sum(float(g) ** 2 for s, g in zip(shapes, sig, strict=True)
                   if s not in ('normal', 't'))
-    if bounded < _NEAR_NORMAL_SHARE * uc * uc:
+    few_dof = np.array([s == 't' and x.dof < _WS_MIN_DOF for s, x in
+                        zip(shapes, inputs, strict=True)], dtype=bool) & (sig > 0)
+    if bounded < _NEAR_NORMAL_SHARE * uc * uc and not few_dof.any():
         nu = welch_satterthwaite(sig, [x.dof for x in inputs])
         if math.isinf(nu):
             return _normal_quantile(0.5 + p / 2.0), 'normal'
         return t_quantile(p, round(nu, 2)), f't (nu_eff = {nu:.3g})'
-    big = sig >= 0.01 * uc
+    basis = 'distribution'
+    if bounded < _NEAR_NORMAL_SHARE * uc * uc:
+        nus = sorted({float(x.dof) for x, f in zip(inputs, few_dof, strict=True) if f})
+        basis = f't (nu_i = {", ".join(f"{v:g}" for v in nus)}; convolved)'
+    big = (sig >= 0.01 * uc) | few_dof
     small_var = float(np.sum(sig[~big] ** 2))
     parts = [(s, float(g), x.dof, x.shape) for s, g, x, b in zip(shapes, sig, inputs, big,
                                                                   strict=True) if b]
@@ -356,9 +386,9 @@ def coverage_factor(inputs: Sequence[UncertaintyInput], p: float = COVERAGE_PROB
     for _ in range(6):
         k, ok = _convolved_quantile(parts, span, uc, p)
         if ok:
-            return k, 'distribution'
+            return k, basis
         span *= 3.0
-    return k, 'distribution'
+    return k, basis
 
 
 def _convolved_quantile(parts: list[tuple[Distribution, float, float, tuple[float, ...]]],
@@ -543,6 +573,13 @@ def combine(measurand: str, value: float, inputs: Sequence[UncertaintyInput | No
     nu = welch_satterthwaite(contrib, [x.dof for x in xs]) if xs else math.inf
     k, basis = coverage_factor(xs, p) if uc > 0 else (math.nan, 'normal')
     expanded = k * uc if uc > 0 else 0.0
+    few = [x for x in xs if x.kind == 'A' and x.dof < _FEW_REPEATS_DOF and x.contribution > 0]
+    if few and uc > 0:
+        notes = [*notes, *(f'{x.name}: {x.dof + 1:g} observations ({x.dof:g} dof, '
+                           f'{100 * (x.contribution / uc) ** 2:.2g} % of u_c^2), taken as '
+                           f'the Student t it is (GUM Supplement 1, 6.4.9): its tails make '
+                           f'k = {k:.3g}; more repeats (revolutions, windows) lower it'
+                           for x in few)]
     return Budget(measurand=measurand, unit=unit, value=float(value), inputs=tuple(xs),
                   u_c=uc, nu_eff=nu, k=k, expanded=expanded, coverage_probability=p,
                   k_basis=basis, notes=tuple(notes), bias_bound=float(bias_bound),

@@ -33,6 +33,11 @@ The file (``rv_te_bench/launch/bench_description_example.yaml`` is a full exampl
                                                              #   (optional; rv-te test checks
                                                              #   every sample read back)
     metadata: {daq: NI PXIe-4492}                            # free strings, into the bag
+    loss_channels:                   # optional (issue 38): the whole-reducer steps' channels
+      torque_in: {model: HBM T40B, full_scale: 50, accuracy_class_pct: 0.05,
+                  scale_nm_per_unit: 1.0}      # --torque-in column x scale = N m
+      torque_out: {model: HBM T40B, full_scale: 1000, accuracy_class_pct: 0.05}
+      temperature: {model: Pt100 class A}      # --temperature column in degC
     uncertainty:                     # optional: the bench's own error values (the budgets'
       daq_skew_ns: 25                #   inputs; docs/UNCERTAINTY.md); keys in
       encoders:                      #   core.bench_uncertainty.bench_uncertainty_from_plain
@@ -194,6 +199,9 @@ class UnitUnderTest:
     operator: str = ''
     temperature_c: float | None = None
     notes: str = ''
+    #: Where the serial came from when not from the file ('' = the description itself):
+    #: ``rv-te import --serial``, the file name (:mod:`rv_te_bench.io.unit_serial`).
+    serial_source: str = field(default='', compare=False)
 
     def __post_init__(self) -> None:
         """Validate (temperature finite, in -100..300 degC)."""
@@ -251,6 +259,7 @@ class BenchDescription:
     max_output_torque_nm: float = math.nan
     metadata: Mapping[str, str] = field(default_factory=dict, hash=False)
     uncertainty: Mapping[str, Any] | None = field(default=None, hash=False)
+    loss_channels: Mapping[str, Any] | None = field(default=None, hash=False)
     origin: str = field(default='<bench description>', compare=False)
 
     def __post_init__(self) -> None:
@@ -358,6 +367,8 @@ class BenchDescription:
                 ('max_output_torque_nm', self.max_output_torque_nm))},
             'metadata': dict(self.metadata),
             **({'uncertainty': dict(self.uncertainty)} if self.uncertainty else {}),
+            **({'loss_channels': {k: dict(v) for k, v in self.loss_channels.items()}}
+               if self.loss_channels else {}),
             'source': 'bench description',
         }
 
@@ -402,6 +413,9 @@ class BenchDescription:
             'bench_id': self.bench_id,
             'preset': self.preset or '',
             'unit_serial': uut.serial,
+            'unit_serial_source': uut.serial_source or (
+                f'bench description {self.origin} (unit_under_test.serial)' if uut.serial
+                else ''),
             'operator': uut.operator,
             'temperature_c': '' if uut.temperature_c is None else f'{uut.temperature_c:g}',
             'unit_notes': uut.notes,
@@ -661,6 +675,7 @@ def parse_bench_description(data: Any, origin: str = '<bench description>',
                      'characters', value)
         meta[key] = str(value)
     unc = _uncertainty(top, enc_in, enc_out)
+    loss = _loss_channels(top.sub('loss_channels')) if 'loss_channels' in top.data else None
     top.done()
     return BenchDescription(
         bench_id=str(bench_id), preset=preset, preset_overrides=tuple(ov),
@@ -669,7 +684,32 @@ def parse_bench_description(data: Any, origin: str = '<bench description>',
         joint_in_name=joint_in, joint_out_name=joint_out,
         max_input_speed_rpm=math.nan if max_speed is None else float(max_speed),
         max_output_torque_nm=math.nan if max_torque is None else float(max_torque),
-        metadata=meta, uncertainty=unc, origin=origin, **kin)
+        metadata=meta, uncertainty=unc, loss_channels=loss, origin=origin, **kin)
+
+
+def _loss_channels(k: _Keys) -> dict[str, dict[str, Any]]:
+    """The ``loss_channels:`` section: per channel (``torque_in``, ``torque_out``,
+    ``temperature``) its model, range and class (the efficiency budget reads them) and, for
+    the input torque, the scale of its column."""
+    out: dict[str, dict[str, Any]] = {}
+    for name in ('torque_in', 'torque_out', 'temperature'):
+        if name not in k.data:
+            continue
+        c = k.sub(name)
+        spec: dict[str, Any] = {'model': c.text('model', '', allow_empty=True) or ''}
+        for key in ('full_scale', 'accuracy_class_pct'):
+            v = c.num(key)
+            if v is not None:
+                spec[key] = float(v)
+        if name == 'torque_in':
+            scale = c.num('scale_nm_per_unit', default=1.0, positive=False)
+            if scale == 0:
+                c.fail('scale_nm_per_unit', 'must be non-zero', scale)
+            spec['scale_nm_per_unit'] = float(scale or 1.0)
+        c.done()
+        out[name] = spec
+    k.done()
+    return out
 
 
 def _uncertainty(top: _Keys, enc_in: EncoderInfo, enc_out: EncoderInfo,

@@ -30,6 +30,7 @@ import numpy as np
 from rv_te_bench.core.segments import MeasuredRecord
 from rv_te_bench.errors import BagError
 from rv_te_bench.io.bag_reader import read_encoder_blocks
+from rv_te_bench.io.bench_channels import read_bench_channels
 from rv_te_bench.io.bench_record import read_bench_info
 
 __all__ = ['MeasuredRecord', 'TorqueTopic', 'read_measured_record']
@@ -59,8 +60,14 @@ class TorqueTopic:
 
 
 def read_measured_record(bag: str | Path, *, torque: TorqueTopic | None = None,
-                         ) -> MeasuredRecord:
+                         torque_in: TorqueTopic | None = None,
+                         temperature: TorqueTopic | None = None) -> MeasuredRecord:
     """Read ``bag`` whole into a :class:`MeasuredRecord`.
+
+    The input torque and case temperature (issue 38) come from ``bench/channels``
+    (BenchChannels, sample by sample) or, with ``torque_in`` / ``temperature``, from the
+    bench's own topics (WrenchStamped / Float64 / JointState; ``sensor_msgs/Temperature``
+    or Float64 in degC), interpolated onto the samples like the torque topic.
 
     Raises:
         BagError: Not a readable bag, no ``bench/info``, no encoder blocks, more than
@@ -114,12 +121,21 @@ def read_measured_record(bag: str | Path, *, torque: TorqueTopic | None = None,
         bad = int(np.count_nonzero(~np.isfinite(torque_arr)))
         torque_from += f' ({bad} samples without a torque value)'
     start = dt.datetime.fromtimestamp(t0, dt.UTC).isoformat(timespec='seconds')
+    ch = read_bench_channels(path, seqs, [int(n) for n in sizes])
+    t_in_nm, temp, what = ch.torque_in_nm, ch.temp_case_degc, [f'bench/channels: {ch.what}']
+    if torque_in is not None:
+        t_in_nm, line = _torque_from_topic(path, torque_in, t0 + time)
+        what.append(f'input torque: {line}')
+    if temperature is not None:
+        temp, line = _torque_from_topic(path, temperature, t0 + time)
+        what.append(f'case temperature: {line}')
     for arr in (time, breaks):
         arr.setflags(write=False)
     return MeasuredRecord(info=info, time_s=time, theta_in_rad=np.concatenate(t_in),
                           theta_out_rad=np.concatenate(t_out), torque_out_nm=torque_arr,
                           breaks=breaks, start_utc=start, source=str(path),
-                          torque_from=torque_from)
+                          torque_from=torque_from, torque_in_nm=t_in_nm, temp_case_degc=temp,
+                          channels_from='; '.join(what))
 
 
 def _value(msg: Any, msgtype: str, spec: TorqueTopic) -> float | None:
@@ -127,14 +143,16 @@ def _value(msg: Any, msgtype: str, spec: TorqueTopic) -> float | None:
         return float(getattr(msg.wrench.torque, spec.axis))
     if msgtype in {'std_msgs/msg/Float64', 'std_msgs/msg/Float32'}:
         return float(msg.data)
+    if msgtype == 'sensor_msgs/msg/Temperature':   # degC by its definition
+        return float(msg.temperature)
     if msgtype == 'sensor_msgs/msg/JointState':
         names = list(msg.name)
         if spec.joint in names:
             k = names.index(spec.joint)
             return float(msg.effort[k]) if k < len(msg.effort) else None
         return None
-    msg_ = (f'torque topic {spec.topic}: type {msgtype} not supported (WrenchStamped, '
-            'Float64, JointState)')
+    msg_ = (f'topic {spec.topic}: type {msgtype} not supported (WrenchStamped, '
+            'Float64, JointState, Temperature)')
     raise BagError(msg_)
 
 

@@ -26,6 +26,7 @@ if TYPE_CHECKING:
     from rosbags.typesys.store import Typestore
 
 __all__ = [
+    'BENCH_CHANNELS',
     'BENCH_INFO',
     'ENCODER_BLOCK',
     'MSG_PACKAGE',
@@ -40,6 +41,7 @@ __all__ = [
 MSG_PACKAGE = 'rv_te_msgs'
 ENCODER_BLOCK = 'rv_te_msgs/msg/EncoderBlock'
 BENCH_INFO = 'rv_te_msgs/msg/BenchInfo'
+BENCH_CHANNELS = 'rv_te_msgs/msg/BenchChannels'
 
 SEPARATOR = '=' * 80
 

@@ -15,7 +15,11 @@ import numpy as np
 from rv_te_bench.errors import BagError
 from sim.bench_info import BenchInfoData
 
-__all__ = ['RecordedTest', 'read_recorded_test']
+__all__ = ['Block', 'RecordedTest', 'read_recorded_test']
+
+#: One block's arrays: theta_in_rad, theta_out_rad, torque_out_nm, torque_in_nm (None: no
+#: BenchChannels for it), temp_case_degc (likewise).
+Block = tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray | None, np.ndarray | None]
 
 _FIELDS_REPORT = ('serial', 'operator_name', 'plan_name', 'verdict', 'reason', 'plan_yaml',
                   'tolerance_yaml', 'report_json')
@@ -32,7 +36,9 @@ class RecordedTest:
         steps: The finished or ended TestStep records of that test, in order (dicts, with
             ``segment_blocks`` as a list).
         bench_info: The bench's record (its first ``bench/info``).
-        blocks: EncoderBlock seq -> (theta_in_rad, theta_out_rad, torque_out_nm) of the steps.
+        blocks: EncoderBlock seq -> (theta_in_rad, theta_out_rad, torque_out_nm,
+            torque_in_nm, temp_case_degc) of the steps; the last two from the BenchChannels
+            of the same seq (issue 38), None without.
         block_times: EncoderBlock seq -> its sample times [s] (header stamp + offsets), for
             steps whose segments were recorded as time ranges (a ros2_control bench).
     """
@@ -40,7 +46,7 @@ class RecordedTest:
     report: dict[str, Any]
     steps: list[dict[str, Any]]
     bench_info: BenchInfoData
-    blocks: dict[int, tuple[np.ndarray, np.ndarray, np.ndarray]] = field(repr=False)
+    blocks: dict[int, Block] = field(repr=False)
     block_times: dict[int, np.ndarray] = field(repr=False, default_factory=dict)
 
 
@@ -85,7 +91,7 @@ def read_recorded_test(bag: str | Path, *, serial: str | None = None) -> Recorde
             starts = [i for i, s in enumerate(mine) if s['step_index'] == 0]
             mine = mine[starts[-1]:] if starts else mine
             ranges = [(s['first_seq'], s['last_seq']) for s in mine]
-            blocks: dict[int, tuple[np.ndarray, np.ndarray, np.ndarray]] = {}
+            blocks: dict[int, Block] = {}
             times: dict[int, np.ndarray] = {}
             enc = [c for c in reader.connections if c.topic.endswith('bench/encoders')]
             for conn, _, raw in reader.messages(connections=enc):
@@ -94,9 +100,17 @@ def read_recorded_test(bag: str | Path, *, serial: str | None = None) -> Recorde
                 if any(a <= seq <= b for a, b in ranges):
                     blocks[seq] = (np.asarray(m.theta_in_rad, dtype=np.float64),
                                    np.asarray(m.theta_out_rad, dtype=np.float64),
-                                   np.asarray(m.torque_out_nm, dtype=np.float64))
+                                   np.asarray(m.torque_out_nm, dtype=np.float64), None, None)
                     times[seq] = m.header.stamp.sec + m.header.stamp.nanosec * 1e-9 + \
                         np.asarray(m.time_offset_s, dtype=np.float64)
+            chans = [c for c in reader.connections if c.topic.endswith('bench/channels')]
+            for conn, _, raw in reader.messages(connections=chans) if chans else ():
+                m = reader.deserialize(raw, conn.msgtype)
+                seq = int(m.seq)
+                if seq in blocks:
+                    blocks[seq] = (*blocks[seq][:3],
+                                   np.asarray(m.torque_in_nm, dtype=np.float64),
+                                   np.asarray(m.temp_case_degc, dtype=np.float64))
     except BagError:
         raise
     except Exception as exc:  # noqa: BLE001 - rosbags raises several types for a bad bag

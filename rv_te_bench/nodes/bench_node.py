@@ -31,7 +31,7 @@ from builtin_interfaces.msg import Time
 from diagnostic_msgs.msg import DiagnosticArray
 from rclpy.node import Node
 from rosgraph_msgs.msg import Clock
-from rv_te_msgs.msg import BenchInfo, EncoderBlock
+from rv_te_msgs.msg import BenchChannels, BenchInfo, EncoderBlock
 
 from rv_te_bench.errors import ParameterFileError, YamlInputError
 from rv_te_bench.nodes import convert, qos
@@ -54,6 +54,7 @@ if TYPE_CHECKING:  # annotations only: the sim and the services load when the no
     from std_srvs.srv import Trigger
 
     from sim.bench import BenchBlock, BenchConfig, BenchSimulator
+    from sim.bench_info import BenchInfoData
 
 
 def bench_config_from_params(p: BenchParams) -> BenchConfig:
@@ -139,6 +140,23 @@ MAX_JOINT_STATE_RATE_HZ = 2000.0
 #: Most encoder blocks per second of session time (sample_rate_hz / block_size): rclpy
 #: costs ~1-2 ms per message in each node, so faster block streams never keep up.
 MAX_BLOCK_RATE_HZ = 1000.0
+
+
+def with_loss_channels(info: BenchInfoData, program_info: BenchInfoData) -> BenchInfoData:
+    """``info`` with the loss channels (``bench.loss_channels``, ``bench.losses``) of the
+    program simulator's record in its ``parameters_yaml``."""
+    import dataclasses
+
+    import yaml
+
+    rec = yaml.safe_load(info.parameters_yaml or '') or {}
+    extra = (yaml.safe_load(program_info.parameters_yaml or '') or {}).get('bench') or {}
+    bench = dict(rec.get('bench') or {})
+    for key in ('loss_channels', 'losses'):
+        if key in extra:
+            bench[key] = extra[key]
+    rec['bench'] = bench
+    return dataclasses.replace(info, parameters_yaml=yaml.safe_dump(rec, sort_keys=False))
 
 
 def build_simulator(p: BenchParams) -> tuple[BenchSimulator, float]:
@@ -261,6 +279,12 @@ class BenchNode(Node):
         self.started = not self.p.wait_for_nodes
         if self.started and self.pub_clock is not None:   # the session clock starts here
             self.pub_clock.publish(Clock(clock=convert.s_to_stamp(self.wall_start)))
+        self.pub_channels = None
+        if self.program is not None and self.program.losses is not None:
+            # the transducers' ranges and classes go in the record (bench.loss_channels)
+            info = with_loss_channels(info, self.program.info)
+            self.pub_channels = self.create_publisher(BenchChannels, 'bench/channels',
+                                                      qos.ENCODER_QOS)
         if not self.joint_state:
             self.pub_info.publish(convert.make_bench_info(info,
                                                           convert.s_to_stamp(self.wall_start)))
@@ -311,10 +335,16 @@ class BenchNode(Node):
         from sim.program import ProgramSimulator
 
         cfg = self.sim.config
+        losses = None
+        if self.p.losses:
+            from sim.loss_bench import LossConfig
+
+            losses = LossConfig()
         self.program = ProgramSimulator(
             preset=cfg.preset, overrides=cfg.overrides, te_mode=cfg.te_mode,
             encoder_in=cfg.encoder_in, encoder_out=cfg.encoder_out,
-            sample_rate_hz=cfg.sample_rate_hz, block_size=cfg.block_size, seed=cfg.seed)
+            sample_rate_hz=cfg.sample_rate_hz, block_size=cfg.block_size, seed=cfg.seed,
+            losses=losses)
         self._prog_blocks = 0
         self.create_service(RunBenchProgram, 'bench/run_program', self._on_run_program)
         self.create_service(Trigger, 'bench/stop', self._on_stop)
@@ -505,6 +535,10 @@ class BenchNode(Node):
                 theta_in_rad=b.theta_in_rad, theta_out_rad=b.theta_out_rad,
                 torque_out_nm=b.torque_out_nm, theta_in_heads_rad=b.theta_in_heads_rad,
                 theta_out_heads_rad=b.theta_out_heads_rad)
+            if self.pub_channels is not None:   # first: a reader holds the block for it
+                self.pub_channels.publish(convert.make_bench_channels(
+                    bench_id=self.sim.info.bench_id, seq=b.seq, stamp_s=stamp_s,
+                    torque_in_nm=b.torque_in_nm, temp_case_degc=b.temp_case_degc))
             self.pub_blocks.publish(msg)
         self.blocks_published += 1
         self.sim_time_s = b.t0_s + len(b.time_offset_s) / self.p.sample_rate_hz

@@ -10,6 +10,7 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 from builtin_interfaces.msg import Time
 from rv_te_msgs.msg import (
+    BenchChannels,
     BenchInfo,
     CompensationAdvice,
     EncoderBlock,
@@ -107,6 +108,22 @@ def make_encoder_block(*, bench_id: str, seq: int, stamp_s: float, sample_rate_h
             numbers = np.arange(rows.shape[0]) if ids is None else np.asarray(ids)
             setattr(msg, f'{side}_head_ids', numbers.astype(np.uint8).tobytes())
             setattr(msg, f'theta_{side}_heads_rad', float64_field(rows.ravel()))
+    return msg
+
+
+def make_bench_channels(*, bench_id: str, seq: int, stamp_s: float,
+                        torque_in_nm: np.ndarray | None,
+                        temp_case_degc: np.ndarray | None) -> BenchChannels:
+    """Build the BenchChannels message that goes with EncoderBlock ``seq`` (None or empty:
+    the bench has no such channel)."""
+    msg = BenchChannels()
+    msg.header.stamp = s_to_stamp(stamp_s)
+    msg.header.frame_id = bench_id
+    msg.seq = int(seq)
+    if torque_in_nm is not None and len(torque_in_nm):
+        msg.torque_in_nm = float64_field(torque_in_nm)
+    if temp_case_degc is not None and len(temp_case_degc):
+        msg.temp_case_degc = float64_field(temp_case_degc)
     return msg
 
 

@@ -9,6 +9,9 @@ joint's effort or position; topics are parameters), samples read back through
 simulated bench serves the same interfaces (``bench`` with ``ros2_control: true``), so this
 node cannot tell it from a real one. Each step's program is driven by
 :class:`~rv_te_bench.acceptance.driver.ProgramDriver`; its blocks go to the step runner.
+A plan with whole-reducer steps (efficiency, losses, life: they need the input torque, the
+case temperature and torque ramps) runs as the simulated bench's programs instead
+(:mod:`rv_te_bench.nodes.sequencer_program`).
 
 Safety: every sample read back is checked against the limits of the plan's ``safety`` and
 the bench description's ``limits`` (:func:`~rv_te_bench.acceptance.driver.plan_limits`);
@@ -51,9 +54,11 @@ from std_srvs.srv import Trigger
 
 from rv_te_bench.acceptance import StepRunner, build_report, parse_plan
 from rv_te_bench.acceptance._files import parse_yaml_text
+from rv_te_bench.acceptance._loss_results import bench_channels
 from rv_te_bench.acceptance.commanded import feed_parts
 from rv_te_bench.acceptance.driver import DriverSettings, ProgramDriver, plan_limits
 from rv_te_bench.acceptance.plan import OperatorStep
+from rv_te_bench.acceptance.preflight import check_plan
 from rv_te_bench.acceptance.runner import running_verdicts
 from rv_te_bench.acceptance.tolerance import load_tolerance, parse_tolerance
 from rv_te_bench.errors import AcceptanceError
@@ -62,6 +67,9 @@ from rv_te_bench.nodes import qos
 from rv_te_bench.nodes.common import DropCounter, declare_from_specs, run_node
 from rv_te_bench.nodes.params.test_sequencer import PARAMS, TestSequencerParams
 from rv_te_bench.nodes.sequencer_io import SetpointLink
+from rv_te_bench.nodes.sequencer_program import Aborted as _Aborted
+from rv_te_bench.nodes.sequencer_program import Cancelled as _Cancelled
+from rv_te_bench.nodes.sequencer_program import ProgramSteps, needs_programs
 from rv_te_bench.params import params_record
 from sim.bench_info import BenchInfoData
 
@@ -79,15 +87,7 @@ __all__ = ['PARAMS', 'TestSequencerNode', 'main']
 _STALE_CONFIRM_S = 0.25
 
 
-class _Cancelled(Exception):  # noqa: N818 - a control-flow signal, not an error
-    pass
-
-
-class _Aborted(Exception):  # noqa: N818 - a control-flow signal carrying the reason
-    pass
-
-
-class TestSequencerNode(Node):
+class TestSequencerNode(ProgramSteps, Node):
     """Runs test plans on a ros2_control bench (see the module docstring)."""
 
     __test__ = False
@@ -105,6 +105,7 @@ class TestSequencerNode(Node):
         self._wake: Future | None = None
         self._last_block_wall = math.nan
         self._bench_limits = self._read_bench_limits()
+        self._init_programs()     # a plan with whole-reducer steps (sequencer_program)
         self.link = SetpointLink(
             self, drive_topic=self.p.drive_command_topic,
             effort_topic=self.p.load_effort_command_topic,
@@ -155,6 +156,7 @@ class TestSequencerNode(Node):
                 f'unit {b["serial"]!r} (step {b["step"] + 1} of {b["steps"]})')
             return GoalResponse.REJECT
         self.busy = {'plan': '?', 'serial': goal.serial, 'step': -1, 'steps': 0}
+        self._reset_programs()
         return GoalResponse.ACCEPT
 
     def _on_ack(self, _req: Trigger.Request, res: Trigger.Response) -> Trigger.Response:
@@ -171,7 +173,10 @@ class TestSequencerNode(Node):
     def _on_block(self, msg: EncoderBlock) -> None:
         self._last_block_wall = time.monotonic()
         d = self._drive
-        if d is None or d['done'] or d['abort']:
+        if d is None:
+            self._on_program_block(msg)   # a bench program's block, or none runs
+            return
+        if d['done'] or d['abort']:
             return
         try:
             th_in = np.asarray(msg.theta_in_rad, dtype=np.float64)
@@ -238,7 +243,14 @@ class TestSequencerNode(Node):
                 msg = 'conditions_yaml must be a mapping'
                 raise AcceptanceError(msg)
             limits = plan_limits(plan, **self._bench_limits)   # before anything moves
-            info = await self._bench(plan)
+            programs = needs_programs(plan)
+            if programs:
+                info = await self._program_bench()
+                # before anything moves: the channels the whole-reducer steps need
+                check_plan(plan, channels={'torque_out', *bench_channels(info)},
+                           bench=f'the bench {info.bench_id!r}')
+            else:
+                info = await self._bench(plan)
             if req.tolerance_yaml.strip():
                 profile = parse_tolerance(parse_yaml_text(
                     req.tolerance_yaml, 'tolerance (goal)', AcceptanceError), 'tolerance (goal)')
@@ -253,6 +265,9 @@ class TestSequencerNode(Node):
                 if isinstance(step, OperatorStep):
                     results.append(await self._wait_for_operator(goal_handle, req, j, step,
                                                                  len(plan.steps)))
+                elif programs:
+                    results.append(await self._run_program_step(goal_handle, req, j, step,
+                                                                info, len(plan.steps)))
                 else:
                     results.append(await self._run_step(goal_handle, req, j, step, info,
                                                         len(plan.steps), plan, limits))
@@ -286,6 +301,7 @@ class TestSequencerNode(Node):
             goal_handle.abort()
         finally:
             self._drive, self._operator, self.busy, self._live = None, None, None, {}
+            self._runner, self._prog = None, {}
         return result
 
     async def _bench(self, plan: TestPlan) -> BenchInfoData:
@@ -451,13 +467,16 @@ class TestSequencerNode(Node):
                   runner: StepRunner) -> None:
         d = self._drive or {}
         driver = d.get('driver')
-        frac = 0.0
+        frac, live = 0.0, float(d.get('live', math.nan))
         if driver is not None and driver.program:
             frac = min(1.0, max(0, driver.index) / len(driver.program))
+        prog = self.program_step_fields()
+        if prog is not None:
+            frac, live = prog['frac'], prog['live']
         fb = RunTestPlan.Feedback(step_index=j, step_count=n, step_name=step.name,
                                   step_kind=step.kind, step_progress=frac,
                                   plan_progress=(j + frac) / n, live_metric=runner.live_name,
-                                  live_value=float(d.get('live', math.nan)),
+                                  live_value=live,
                                   message=f'step {j + 1}/{n} {step.name}: {100 * frac:.0f} %')
         goal_handle.publish_feedback(fb)
 
@@ -465,9 +484,13 @@ class TestSequencerNode(Node):
                       params: str, result: str) -> None:
         d = self._drive or {}
         first, last = max(0, d.get('first_seq', 0)), max(0, d.get('last_seq', 0))
+        blocks: list[int] = []
+        prog = self.program_step_fields()
+        if prog is not None:    # a bench program: its blocks per segment
+            first, last, blocks = prog['first_seq'], prog['last_seq'], prog['segment_blocks']
         msg = TestStep(serial=req.serial, step_index=j, step_count=n, step_name=step.name,
                        step_kind=step.kind, state=state, first_seq=first, last_seq=last,
-                       segment_blocks=[], parameters_yaml=params, result_yaml=result)
+                       segment_blocks=blocks, parameters_yaml=params, result_yaml=result)
         msg.header.stamp = self.get_clock().now().to_msg()
         msg.header.frame_id = self.bench_info.bench_id if self.bench_info else ''
         self.pub_step.publish(msg)

@@ -17,6 +17,7 @@ from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 from rv_te_bench.core.advice import modification_value
+from rv_te_bench.core.spectrum_lines import threshold_rule_text, unassigned_lines
 from rv_te_bench.errors import RvTeError
 from rv_te_bench.io.files import write_all
 from rv_te_bench.report.analysis import (
@@ -258,7 +259,15 @@ def _te_section(res: AnalysisResult) -> str:
                        f'<td>{ln.crank_order:.4g}</td><td>{ln.frequency_hz:.5g}</td>'
                        f'<td>{_am(ln.amplitude_rad)}</td><td>{_am_g(u_a)}</td>'
                        f'<td>{_am(spread, 5)}</td><td>{phase}</td><td>{u_p_text}</td></tr>')
-        out.append('</table>')
+        lost = unassigned_lines(spec.orders, spec.amplitude_rad,
+                                [ln.output_order for ln in spec.lines])
+        out += [f'<tr class="unassigned"><td class="l">unassigned</td><td>{u.output_order:.6g}'
+                f'</td><td>-</td><td>{u.output_order * spec.output_hz:.5g}</td>'
+                f'<td>{_am(u.amplitude_rad)}</td><td>-</td><td>-</td><td>-</td><td>-</td></tr>'
+                for u in lost]
+        out.append(f'</table><p class="muted">Unassigned: a line at an order no part of the '
+                   f'reducer explains ({_e(threshold_rule_text())}); {len(lost)} in this '
+                   'spectrum.</p>')
     if unc is not None:
         out.append(_budgets_section(res))
     if res.dominant is not None:

@@ -10,7 +10,7 @@ import math
 from typing import TYPE_CHECKING, Any
 
 from rv_te_bench.report.plots import _new_figure, png_bytes
-from sim.units import ARCMIN_PER_RAD
+from rv_te_bench.report.unit_doc import angle_unit
 
 if TYPE_CHECKING:
     from collections.abc import Callable
@@ -187,10 +187,11 @@ def loss_sections(report: dict[str, Any], img: Callable[[str, str], None],
                      f"{_f(s['u_rate_k_per_min'], 2)} K/min).</p>")
         elif k == 'life':
             rows = s['checkpoints']
-            p.append('<table><tr><th>checkpoint</th><th>TE p-p [arcmin]</th>'
+            au = angle_unit(report)
+            p.append(f'<table><tr><th>checkpoint</th><th>TE p-p [{au.name}]</th>'
                      '<th>no-load torque [N m]</th><th>case [degC]</th></tr>' + ''.join(
                          f"<tr><td>{r['checkpoint'] + 1}</td>"
-                         f"<td>{_f((r.get('te_pp_rad') or math.nan) * ARCMIN_PER_RAD)}</td>"
+                         f"<td>{_f((r.get('te_pp_rad') or math.nan) * au.per_rad)}</td>"
                          f"<td>{_f(r.get('no_load_torque_nm'))}</td>"
                          f"<td>{_f(r.get('temp_case_degc'))}</td></tr>" for r in rows)
                      + '</table>')

@@ -4,7 +4,9 @@ Input: the unit record of :func:`rv_te_bench.acceptance.build_report` (SI units)
 top: serial, operator, date, bench, test conditions and the verdict table (metric, value,
 limit, margin, pass/fail, where the limit comes from); then the TE per direction, the
 hysteresis curve with lost motion, backlash and rigidity marked, the spectrum, the sweep
-table and the advice. Arcmin and N m/arcmin appear here only, at the edge.
+table and the advice; at the end the sign-off block. One angle unit throughout (the
+tolerance profile's, :func:`rv_te_bench.report.unit_doc.angle_unit`), here only, at the
+edge. Figures: :mod:`rv_te_bench.report.unit_figures`.
 """
 
 from __future__ import annotations
@@ -14,19 +16,24 @@ import html
 import json
 import math
 from pathlib import Path
-from typing import TYPE_CHECKING, Any
+from typing import Any
 
-import numpy as np
+from rv_te_bench.core.spectrum_lines import threshold_rule_text
+from rv_te_bench.report.loss_report import loss_condition, loss_sections
+from rv_te_bench.report.unit_doc import (
+    ARCMIN,
+    PRINT_CSS,
+    AngleUnit,
+    angle_unit,
+    calibration_references,
+    report_number,
+    sign_off_html,
+    software_identity,
+)
+from rv_te_bench.report.unit_figures import DIRECTION_STYLE, spectrum_table, unit_figures
+from sim.units import ARCMIN_PER_RAD
 
-from rv_te_bench.report.loss_report import loss_condition, loss_figures, loss_sections
-from rv_te_bench.report.plots import _new_figure, _short, png_bytes
-from sim.units import ARCMIN_PER_RAD, ARCSEC_PER_RAD
-
-if TYPE_CHECKING:
-    import numpy.typing as npt
-    from matplotlib.figure import Figure
-
-__all__ = ['decision_rule_text', 'format_live', 'human_reason', 'metric_rows',
+__all__ = ['decision_rule_text', 'document_of', 'format_live', 'human_reason', 'metric_rows',
            'render_unit_html', 'unit_figures', 'write_unit_report']
 
 _LABELS = {
@@ -45,15 +52,16 @@ _VERDICT_COLOUR = {'pass': '#1b7f3b', 'fail': '#b00020', 'not_measured': '#9a670
                    'cancelled': '#9a6700', 'aborted': '#b00020', 'error': '#b00020'}
 
 
-def _display(unit: str, x: float | None) -> tuple[float, str]:
-    """SI value -> (display value, display unit)."""
+def _display(unit: str, x: float | None, au: AngleUnit = ARCMIN) -> tuple[float, str]:
+    """SI value -> (display value, display unit) in the report's angle unit ``au``."""
+    shown = {'rad': au.name, 'N m/rad': f'N m/{au.name}'}.get(unit, unit)
     if x is None or not math.isfinite(x):
-        return math.nan, {'rad': 'arcmin', 'N m/rad': 'N m/arcmin'}.get(unit, unit)
+        return math.nan, shown
     if unit == 'rad':
-        return x * ARCMIN_PER_RAD, 'arcmin'
+        return x * au.per_rad, shown
     if unit == 'N m/rad':
-        return x / ARCMIN_PER_RAD, 'N m/arcmin'
-    return x, unit
+        return x / au.per_rad, shown
+    return x, shown
 
 
 def _fmt(x: float, digits: int = 4) -> str:
@@ -71,14 +79,16 @@ def _label(name: str) -> str:
 
 
 def metric_rows(report: dict[str, Any]) -> list[dict[str, str]]:
-    """The verdict table in display units (one dict of strings per metric)."""
+    """The verdict table in display units (one dict of strings per metric; angles in the
+    report's one unit, :func:`~rv_te_bench.report.unit_doc.angle_unit`)."""
     rows = []
+    au = angle_unit(report)
     for m in report['metrics']:
-        v, unit = _display(m['unit'], m['value'])
-        lo, _ = _display(m['unit'], m['limit_min'])
-        hi, _ = _display(m['unit'], m['limit_max'])
-        mg, _ = _display(m['unit'], m['margin'])
-        u, _ = _display(m['unit'], m.get('u95'))
+        v, unit = _display(m['unit'], m['value'], au)
+        lo, _ = _display(m['unit'], m['limit_min'], au)
+        hi, _ = _display(m['unit'], m['limit_max'], au)
+        mg, _ = _display(m['unit'], m['margin'], au)
+        u, _ = _display(m['unit'], m.get('u95'), au)
         limit = ('<= ' + _fmt(hi) if math.isfinite(hi) else '') + (
             (' and ' if math.isfinite(hi) and math.isfinite(lo) else '')
             + ('>= ' + _fmt(lo) if math.isfinite(lo) else ''))
@@ -141,121 +151,6 @@ def format_live(name: str, value: float) -> str:
     if name.endswith('_nm'):
         return f'{name[:-3]} {value:.1f} N m'
     return f'{name} {value:.6g}'
-
-
-# ----------------------------------------------------------------------------- figures
-
-
-def _te_figure(rows: list[dict[str, Any]]) -> Figure:
-    fig = _new_figure(9.0, 3.6, left=0.09, bottom=0.15)
-    ax = fig.add_subplot(1, 1, 1)
-    for r in rows:
-        if not r.get('position_rad'):
-            continue
-        te = np.array([np.nan if x is None else x for x in r['te_by_position_rad']])
-        ax.plot(np.degrees(r['position_rad']), (te - np.nanmean(te)) * ARCMIN_PER_RAD,
-                lw=1.0, label=f"{r['direction']} ({r['speed_rpm']:g} rpm, {r['load_nm']:g} N m)")
-    ax.set_xlabel('output position [deg] (one revolution, mean over the revolutions)')
-    ax.set_ylabel('TE - mean [arcmin]')
-    ax.set_xlim(0, 360)
-    ax.grid(alpha=0.3)
-    ax.legend(fontsize=8, loc='upper right')
-    ax.set_title('Transmission error per direction of rotation', fontsize=10)
-    return fig
-
-
-def _hysteresis_figure(h: dict[str, Any]) -> Figure:
-    """The whole curve (left) and its middle, |T| <= 4 x the lost-motion torque (right)."""
-    fig = _new_figure(10.0, 4.8, left=0.07, bottom=0.12, wspace=0.22)
-    grid = fig.add_gridspec(1, 3)
-    ax_all, ax_mid = fig.add_subplot(grid[0, :2]), fig.add_subplot(grid[0, 2])
-    c = h['centre_rad'] or 0.0
-
-    def am(x: npt.ArrayLike) -> np.ndarray:
-        return (np.asarray(x, dtype=float) - c) * ARCMIN_PER_RAD
-
-    t = h['lost_motion_torque_nm']
-    for ax in (ax_all, ax_mid):
-        ax.plot(am(h['ascending_angle_rad']), h['ascending_torque_nm'], '.-', ms=3, lw=0.9,
-                color='tab:blue', label='loading upwards (-T_R -> 0, 0 -> +T_R)')
-        ax.plot(am(h['descending_angle_rad']), h['descending_torque_nm'], '.-', ms=3, lw=0.9,
-                color='tab:orange', label='loading downwards (+T_R -> -T_R)')
-        z = [x for x in h['zero_width_rad'] if x is not None]
-        if len(z) == 2:
-            ax.annotate('', xy=(am(z[1]), 0), xytext=(am(z[0]), 0),
-                        arrowprops={'arrowstyle': '<->', 'color': 'tab:red', 'lw': 1.5})
-            ax.plot([], [], color='tab:red', label='backlash: width at zero torque')
-        mids = [x for x in h['lost_motion_mid_rad'] if x is not None]
-        if len(mids) == 2:
-            ax.plot(am(mids), [-t, t], 's--', color='tab:green', ms=6,
-                    label=f'lost motion: mid-points at +-{t:.4g} N m')
-        for name, sides in h['rigidity_points'].items():
-            for side in sides:
-                if None not in side:
-                    t1, p1, t2, p2 = side
-                    ax.plot(am([p1, p2]), [t1, t2], 'o-', color='tab:purple', lw=2, ms=5)
-            ax.plot([], [], 'o-', color='tab:purple', lw=2, label=f'rigidity {name}: secant')
-        ax.axhline(0, color='k', lw=0.5)
-        ax.axvline(0, color='k', lw=0.5)
-        ax.grid(alpha=0.3)
-        ax.set_xlabel('output torsion angle [arcmin]')
-    ax_all.set_ylabel('torque on the output [N m]')
-    ax_all.legend(fontsize=7.5, loc='upper left')
-    ax_all.set_title(f"Hysteresis curve (input locked, {h['method'].replace('_', ' ')}, "
-                     f"T_R = {h['rated_torque_nm']:g} N m; 0 = middle of the backlash)",
-                     fontsize=10)
-    lim = 4.0 * t
-    ax_mid.set_ylim(-lim, lim)
-    near = [am(a)[np.abs(np.asarray(tq)) <= lim] for a, tq in (
-        (h['ascending_angle_rad'], h['ascending_torque_nm']),
-        (h['descending_angle_rad'], h['descending_torque_nm']))]
-    xs = np.concatenate(near) if near else np.zeros(1)
-    if xs.size:
-        pad = 0.15 * max(float(np.ptp(xs)), 1e-3)
-        ax_mid.set_xlim(float(xs.min()) - pad, float(xs.max()) + pad)
-    ax_mid.set_title('middle (lost motion, backlash)', fontsize=10)
-    return fig
-
-
-def _spectrum_figure(rows: list[dict[str, Any]]) -> Figure:
-    fig = _new_figure(9.0, 3.6, left=0.09, bottom=0.3)
-    ax = fig.add_subplot(1, 1, 1)
-    labels = []
-    for r in rows:
-        for ln in r.get('spectrum', []):
-            if ln['label'] not in labels:
-                labels.append(ln['label'])
-    labels = labels[:16]
-    width = 0.8 / max(1, len(rows))
-    for j, r in enumerate(rows):
-        amp = {ln['label']: ln['amplitude_rad'] for ln in r.get('spectrum', [])}
-        ax.bar(np.arange(len(labels)) + j * width,
-               [amp.get(lab, 0.0) * ARCSEC_PER_RAD for lab in labels], width,
-               label=r['direction'])
-    ax.set_xticks(np.arange(len(labels)) + 0.4 - width / 2)
-    # long labels ('15 x crank rel. (1800 f_out)') cut to their name: the tick has no room
-    ax.set_xticklabels([_short(lab) for lab in labels], rotation=40, ha='right', fontsize=8)
-    ax.set_ylabel('amplitude [arcsec]')
-    ax.legend(fontsize=8)
-    ax.grid(alpha=0.3, axis='y')
-    ax.set_title('TE order spectrum: labelled lines (peak amplitude)', fontsize=10)
-    return fig
-
-
-def unit_figures(report: dict[str, Any]) -> dict[str, bytes]:
-    """PNG bytes by file name: te.png, hysteresis.png, spectrum.png (what was measured)."""
-    out: dict[str, bytes] = {}
-    te_rows = [r for s in report['steps'] if s['kind'] == 'te' for r in s.get('rows', [])]
-    if any(r.get('position_rad') for r in te_rows):
-        out['te.png'] = png_bytes(_te_figure(te_rows))
-        if any(r.get('spectrum') for r in te_rows):
-            out['spectrum.png'] = png_bytes(_spectrum_figure(te_rows))
-    for s in report['steps']:
-        if s['kind'] == 'hysteresis' and s.get('ascending_torque_nm'):
-            out['hysteresis.png'] = png_bytes(_hysteresis_figure(s))
-            break
-    out.update(loss_figures(report))
-    return out
 
 
 # ----------------------------------------------------------------------------- HTML
@@ -327,14 +222,18 @@ def _advice(report: dict[str, Any]) -> list[str]:
                       mesh_labels=tuple(b.get('mesh_labels', ())))
     reducer_type = b.get('reducer_type', '')
     out = []
+    au = angle_unit(report)
     failed = {m['name'] for m in report['metrics'] if m['verdict'] == 'fail'}
     for s in report['steps']:
         for r in s.get('rows', []) if s['kind'] == 'te' else []:
             if r.get('spectrum'):
-                top = max(r['spectrum'], key=lambda ln: ln['amplitude_rad'])
-                out.append(f"{r['direction']}: the strongest line is {top['label']} "
-                           f"({top['amplitude_rad'] * ARCSEC_PER_RAD:.1f} arcsec): "
-                           f"{likely_source(top['output_order'], orders, reducer_type)}.")
+                top = max(spectrum_table(r), key=lambda ln: ln['amplitude_rad'])
+                what = (likely_source(top['output_order'], orders, reducer_type)
+                        if top['assigned'] else 'no part of the reducer has a line at this '
+                        'order: look at the bench (encoder mounting, coupling, motor)')
+                out.append(f"{r['direction']}: the strongest line is {top['label']} (order "
+                           f"{top['output_order']:g}, {top['amplitude_rad'] * au.per_rad:.3g} "
+                           f"{au.name}): {what}.")
     if {'te_pp_ccw_rad', 'te_pp_cw_rad'} & failed:
         out.append('TE out of limit: see the strongest line above; for a 2K-V, rv-te identify '
                    'and the Wang 2020 Eq. 21 re-assembly phases; for an RV, the Hu 2020 '
@@ -358,7 +257,7 @@ def _budget_html(report: dict[str, Any]) -> list[str]:
         b = m.get('budget')
         if not b or m['verdict'] == 'info':
             continue
-        v, unit = _display(m['unit'], 1.0)
+        v, unit = _display(m['unit'], 1.0, angle_unit(report))
         rows = ''.join(
             f"<tr><td class='l'>{_e(x['name'])}</td><td class='l'>{_e(x['distribution'])}</td>"
             f"<td>{_fmt((x['contribution'] or 0.0) * v, 3)}</td>"
@@ -375,36 +274,130 @@ def _budget_html(report: dict[str, Any]) -> list[str]:
     return out
 
 
-def render_unit_html(report: dict[str, Any], images: dict[str, bytes]) -> str:
-    """One self-contained page (PNGs embedded)."""
-    u, b = report['unit'], report['bench']
+def _identity(report: dict[str, Any], doc: dict[str, Any]) -> list[tuple[str, str]]:
+    u, b, sw = report['unit'], report['bench'], doc['software']
+    au = angle_unit(report)
+    out = [('report number', doc['number']), ('unit serial', u['serial']),
+           ('operator', u['operator']), ('date of the test (UTC)', u['date_utc']),
+           ('report issued (UTC)', doc['issued_utc']),
+           ('bench', f"{b['bench_id']} ({b['preset']}, ratio {b['gear_ratio']:.6g})"),
+           ('encoders', f"input {b['encoder_in']}, output {b['encoder_out']}"),
+           ('calibration references', calibration_references(report)),
+           ('software', f"{sw['name']} {sw['version']}, commit {sw['commit']}"),
+           ('plan', report['plan']['plan']),
+           ('tolerance profile', report['tolerance']['profile']),
+           ('angles', f'in {au.name} throughout this report ({au.why}); rigidity in '
+                      f'N m/{au.name}; SI values in report.json')]
+    if b.get('bag'):
+        out.append(('bag', b['bag']))
+    return out
+
+
+def _table(rows: list[tuple[str, str]], cls: str) -> str:
+    return (f'<table class="{cls}">' + ''.join(
+        f'<tr><th class="l">{_e(k)}</th><td class="l">{_e(v)}</td></tr>' for k, v in rows)
+        + '</table>')
+
+
+def _dir(direction: str) -> str:
+    colour, ls, _, words = DIRECTION_STYLE.get(direction, ('gray', ':', '', direction))
+    border = 'dashed' if ls == '--' else 'solid'
+    return (f'<span class="dir" style="border-bottom:3px {border} {colour.removeprefix("tab:")}">'
+            f'{_e(words)}</span>')
+
+
+def _te_rows_html(te_rows: list[dict[str, Any]], au: AngleUnit) -> list[str]:
+    a = au.name
+    p = ['<table class="te"><tr><th class="l">direction</th><th>speed [rpm]</th>'
+         f'<th>load [N m]</th><th>revolutions</th><th>p-p per revolution [{a}]</th>'
+         f'<th>mean [{a}]</th><th>std [{a}]</th></tr>']
+    for r in te_rows:
+        st = r.get('stats') or {}
+        pps = ', '.join(f'{x * au.per_rad:.4g}' for x in r.get('te_pp_per_rev_rad', []))
+        mean, std = (math.nan if st.get(k) is None else float(st[k])
+                     for k in ('te_mean_rad', 'te_std_rad'))
+        p.append(f"<tr><td class='l'>{_dir(r['direction'])}</td><td>{r['speed_rpm']:g}</td>"
+                 f"<td>{r['load_nm']:g}</td><td>{r.get('revolutions', '-')}</td>"
+                 f"<td>{_e(pps or r.get('error', '-'))}</td><td>{_fmt(mean * au.per_rad)}</td>"
+                 f"<td>{_fmt(std * au.per_rad)}</td></tr>")
+    p.append('</table>')
+    return p
+
+
+def _spectrum_html(te_rows: list[dict[str, Any]], au: AngleUnit) -> list[str]:
+    p = [f'<p class="muted">Every labelled line of the reducer, and every line no part explains '
+         f'("unassigned"; {_e(threshold_rule_text())}). Peak amplitude in {au.name}.</p>'
+         '<table class="lines"><tr><th class="l">direction</th><th class="l">line</th>'
+         f'<th>output order</th><th>amplitude [{au.name}]</th><th class="l">status</th></tr>']
+    for r in te_rows:
+        for ln in spectrum_table(r):
+            status = ('unassigned: no part of the reducer at this order' if not ln['assigned']
+                      else 'labelled' if ln['above'] else 'labelled, below the threshold')
+            p.append(f"<tr><td class='l'>{_dir(r['direction'])}</td>"
+                     f"<td class='l'>{_e(ln['label'])}</td><td>{ln['output_order']:.6g}</td>"
+                     f"<td>{_fmt(ln['amplitude_rad'] * au.per_rad, 3)}</td>"
+                     f"<td class='l'>{status}</td></tr>")
+    p.append('</table>')
+    return p
+
+
+def _hysteresis_html(s: dict[str, Any], au: AngleUnit) -> list[str]:
+    p = [f"<h2>Hysteresis curve ({_e(s['name'])})</h2>"]
+    if s.get('error'):
+        p.append(f"<p>{_e(s['error'])}</p>")
+    else:
+        rig = '; '.join(f'{k}: {_fmt((v[0] or math.nan) / au.per_rad)} under positive torque, '
+                        f'{_fmt((v[1] or math.nan) / au.per_rad)} under negative torque '
+                        f'[N m/{au.name}]' for k, v in s['rigidity_nm_per_rad'].items())
+        p.append(f"<p>Torsional rigidity per side: {_e(rig)}; the verdict uses the smaller.</p>")
+        if s.get('cycles'):
+            spread = s.get('spread') or {}
+            sd = [f'{k.removesuffix("_rad")}: {_fmt(_display("rad", spread.get(k), au)[0])} '
+                  f'{au.name}' for k in ('lost_motion_rad', 'backlash_rad')]
+            p.append(f"<p>Read from {_e(s.get('reading', ''))}: {s['cycles']} load cycle(s) "
+                     f"averaged (standard deviation over the cycles: {_e('; '.join(sd))}); "
+                     f"torque noise {_fmt(s.get('torque_noise_nm') or 0.0)} N m.</p>")
+    if len(s.get('positions', [])) > 1:
+        p.append(f'<table><tr><th>position</th><th>output angle [deg]</th><th>lost motion '
+                 f'[{au.name}]</th><th>backlash [{au.name}]</th></tr>')
+        for j, c in enumerate(s['positions']):
+            lm, bl = (_display('rad', c.get(k), au)[0] for k in ('lost_motion_rad',
+                                                                  'backlash_rad'))
+            shown = ' (curve below)' if j == s['shown_position'] else ''
+            p.append(f"<tr><td>{j + 1}{shown}</td><td>{_deg(c.get('output_position_deg'))}</td>"
+                     f"<td>{_fmt(lm)}</td><td>{_fmt(bl)}</td></tr>")
+        p.append('</table><p class="muted">The unit\'s lost motion and backlash are the largest '
+                 'of the positions, its rigidity the smallest; the curve is the position with '
+                 'the largest lost motion.</p>')
+    return p
+
+
+def render_unit_html(report: dict[str, Any], images: dict[str, bytes],
+                     doc: dict[str, Any] | None = None) -> str:
+    """One self-contained page (PNGs embedded); ``doc``: the document's number, software
+    and issue time (:func:`document_of`, made here when not given)."""
+    doc = doc or document_of(report)
+    u, au = report['unit'], angle_unit(report)
     title = f"Acceptance test of unit {u['serial']}: {report['verdict'].upper()}"
     p = [f'<!DOCTYPE html><html lang="en"><head><meta charset="utf-8"><title>{_e(title)}'
-         f'</title><style>{_CSS}</style></head><body>',
+         f'</title><style>{_CSS}{PRINT_CSS}</style></head><body>',
+         f"<p class='muted'>Acceptance test report {_e(doc['number'])}</p>",
          f"<h1>Unit {_e(u['serial'])} {_badge(report['verdict'])}</h1>",
-         f"<p>{_e(human_reason(report))}</p>", '<table>']
-    head = [('serial', u['serial']), ('operator', u['operator']), ('date (UTC)', u['date_utc']),
-            ('bench', f"{b['bench_id']} ({b['preset']}, ratio {b['gear_ratio']:.6g}; "
-                      f"encoders {b['encoder_in']} / {b['encoder_out']})"),
-            ('plan', report['plan']['plan']),
-            ('tolerance profile', report['tolerance']['profile'])]
-    if b.get('bag'):
-        head.append(('bag', b['bag']))
-    p += [f'<tr><th class="l">{_e(k)}</th><td class="l">{_e(v)}</td></tr>'
-          for k, v in head + _conditions(report)]
-    p.append('</table><h2>Verdict</h2>'
+         f"<p>{_e(human_reason(report))}</p>", _table(_identity(report, doc), 'ident'),
+         '<h2 id="conditions">Test conditions</h2>', _table(_conditions(report), 'cond')]
+    p.append('<section class="keep"><h2 id="verdict">Verdict</h2>'
              f'<p><b>Decision rule:</b> {_e(decision_rule_text(report))}. U: expanded '
              'uncertainty, about 95 % (docs/UNCERTAINTY.md); P(false accept): the probability '
              'that the true value lies outside the limit, shown for results within 2 U of it.'
-             '</p><table><tr><th class="l">metric</th><th>value</th><th>&plusmn; U</th>'
-             '<th>limit</th><th>margin</th><th>verdict</th><th>P(false accept)</th>'
-             '<th class="l">limit source</th></tr>')
+             '</p><table class="verdict"><tr><th class="l">metric</th><th>value</th>'
+             '<th>&plusmn; U</th><th>limit</th><th>margin</th><th>verdict</th>'
+             '<th>P(false accept)</th><th class="l">limit source</th></tr>')
     for r in metric_rows(report):
         p.append(f"<tr><td class='l'>{_e(r['label'])}</td><td>{_e(r['value'])}</td>"
                  f"<td>{_e(r['u95'])}</td><td>{_e(r['limit'])}</td><td>{_e(r['margin'])}</td>"
                  f"<td>{_badge(r['verdict'])}</td><td>{_e(r['pfa'])}</td>"
                  f"<td class='l muted'>{_e(r['source'])}</td></tr>")
-    p.append('</table>')
+    p.append('</table></section>')
     p += _budget_html(report)
     unjudged = [(st['name'], st['not_judged']) for st in report['steps']
                 if st.get('not_judged')]
@@ -423,91 +416,69 @@ def render_unit_html(report: dict[str, Any], images: dict[str, bytes]) -> str:
     def img(name: str, alt: str) -> None:
         if name in images:
             b64 = base64.b64encode(images[name]).decode('ascii')
-            p.append(f'<p><img alt="{_e(alt)}" src="data:image/png;base64,{b64}"></p>')
+            p.append(f'<figure><img id="fig-{_e(name[:-4])}" alt="{_e(alt)}" '
+                     f'src="data:image/png;base64,{b64}"></figure>')
 
     te_rows = [r for s in report['steps'] if s['kind'] == 'te' for r in s.get('rows', [])]
     if te_rows:
-        p.append('<h2>Transmission error per direction</h2><table><tr><th class="l">direction'
-                 '</th><th>speed [rpm]</th><th>load [N m]</th><th>revolutions</th>'
-                 '<th>p-p per revolution [arcmin]</th><th>mean [arcmin]</th><th>std [arcmin]'
-                 '</th></tr>')
-        for r in te_rows:
-            st = r.get('stats') or {}
-            pps = ', '.join(f'{x * ARCMIN_PER_RAD:.4f}' for x in r.get('te_pp_per_rev_rad', []))
-            p.append(f"<tr><td class='l'>{_e(r['direction'])}</td><td>{r['speed_rpm']:g}</td>"
-                     f"<td>{r['load_nm']:g}</td><td>{r.get('revolutions', '-')}</td>"
-                     f"<td>{_e(pps or r.get('error', '-'))}</td>"
-                     f"<td>{_fmt(st.get('te_mean_arcmin') or math.nan)}</td>"
-                     f"<td>{_fmt(st.get('te_std_arcmin') or math.nan)}</td></tr>")
-        p.append('</table>')
-        img('te.png', 'TE against output position per direction')
+        p.append('<h2 id="te">Transmission error per direction</h2>')
+        p += _te_rows_html(te_rows, au)
+        img('te.png', 'TE against output position, one panel per direction, limit band')
     for s in report['steps']:
         if s['kind'] == 'hysteresis':
-            p.append(f"<h2>Hysteresis curve ({_e(s['name'])})</h2>")
-            if s.get('error'):
-                p.append(f"<p>{_e(s['error'])}</p>")
-            else:
-                rig = '; '.join(f'{k}: {_fmt((v[0] or math.nan) / ARCMIN_PER_RAD)} under '
-                                f'positive torque, {_fmt((v[1] or math.nan) / ARCMIN_PER_RAD)} '
-                                'under negative torque [N m/arcmin]'
-                                for k, v in s['rigidity_nm_per_rad'].items())
-                p.append(f"<p>Torsional rigidity per side: {_e(rig)}; the verdict uses the "
-                         "smaller.</p>")
-                if s.get('cycles'):
-                    spread = s.get('spread') or {}
-                    sd = [f'{k.removesuffix("_rad")}: {_fmt(_display("rad", spread.get(k))[0])}'
-                          ' arcmin' for k in ('lost_motion_rad', 'backlash_rad')]
-                    p.append(f"<p>Read from {_e(s.get('reading', ''))}: {s['cycles']} load "
-                             f"cycle(s) averaged (standard deviation over the cycles: "
-                             f"{_e('; '.join(sd))}); torque noise "
-                             f"{_fmt(s.get('torque_noise_nm') or 0.0)} N m.</p>")
-            if len(s.get('positions', [])) > 1:
-                p.append('<table><tr><th>position</th><th>output angle [deg]</th>'
-                         '<th>lost motion [arcmin]</th><th>backlash [arcmin]</th></tr>')
-                for j, c in enumerate(s['positions']):
-                    lm, bl = (_display('rad', c.get(k))[0] for k in ('lost_motion_rad',
-                                                                      'backlash_rad'))
-                    shown = ' (curve below)' if j == s['shown_position'] else ''
-                    p.append(f"<tr><td>{j + 1}{shown}</td>"
-                             f"<td>{_deg(c.get('output_position_deg'))}</td>"
-                             f"<td>{_fmt(lm)}</td><td>{_fmt(bl)}</td></tr>")
-                p.append('</table><p class="muted">The unit\'s lost motion and backlash are the '
-                         'largest of the positions, its rigidity the smallest; the curve is the '
-                         'position with the largest lost motion.</p>')
-            img('hysteresis.png', 'hysteresis curve with lost motion, backlash, rigidity')
+            p += _hysteresis_html(s, au)
+            img('hysteresis.png', 'hysteresis curve with lost motion, backlash, rigidity and '
+                'their limits')
     if te_rows:
-        p.append('<h2>Spectrum</h2>')
-        img('spectrum.png', 'labelled lines of the TE order spectrum')
+        p.append('<h2 id="spectrum">Spectrum</h2>')
+        p += _spectrum_html([r for r in te_rows if r.get('spectrum')], au)
+        img('spectrum.png', 'labelled and unassigned lines of the TE order spectrum')
     for s in report['steps']:
         if s['kind'] == 'sweep':
             p.append(f"<h2>TE p-p against speed and load ({_e(s['name'])})</h2><table>"
-                     '<tr><th>speed [rpm]</th><th>load [N m]</th><th>TE p-p [arcmin]</th>'
-                     '<th>U [arcmin]</th><th>mean [arcmin]</th></tr>')
+                     f'<tr><th>speed [rpm]</th><th>load [N m]</th><th>TE p-p [{au.name}]</th>'
+                     f'<th>U [{au.name}]</th><th>mean [{au.name}]</th></tr>')
             for r in s['rows']:
-                st = r.get('stats') or {}
+                mean = (r.get('stats') or {}).get('te_mean_rad')
                 p.append(f"<tr><td>{r['speed_rpm']:g}</td><td>{r['load_nm']:g}</td>"
-                         f"<td>{_fmt((r['te_pp_rad'] or math.nan) * ARCMIN_PER_RAD)}</td>"
-                         f"<td>{_fmt((r.get('te_pp_rad_u95') or math.nan) * ARCMIN_PER_RAD, 2)}"
-                         f"</td><td>{_fmt(st.get('te_mean_arcmin') or math.nan)}</td></tr>")
+                         f"<td>{_fmt((r['te_pp_rad'] or math.nan) * au.per_rad)}</td>"
+                         f"<td>{_fmt((r.get('te_pp_rad_u95') or math.nan) * au.per_rad, 2)}"
+                         f"</td><td>{_fmt((mean if mean is not None else math.nan) * au.per_rad)}"
+                         '</td></tr>')
             p.append('</table>')
     loss_sections(report, img, p)
-    p.append('<h2>Advice</h2><ul>' + ''.join(f'<li>{_e(a)}</li>' for a in _advice(report))
-             + '</ul>')
-    p.append('<p class="muted">Definitions and limit sources: docs/ACCEPTANCE.md. TE = '
+    p.append('<h2 id="advice">Advice</h2><ul>'
+             + ''.join(f'<li>{_e(a)}</li>' for a in _advice(report)) + '</ul>')
+    p.append(f'<section class="keep">{sign_off_html(u["operator"])}</section>')
+    p.append(f'<p class="muted">Report {_e(doc["number"])}. Definitions and limit sources: '
+             'docs/ACCEPTANCE.md (in the rv-te-bench repository). TE = '
              '&theta;<sub>out</sub> &minus; &theta;<sub>in</sub>/i; torsion angles with the '
              'input locked; values in SI in report.json.</p></body></html>\n')
     return '\n'.join(p)
 
 
+def document_of(report: dict[str, Any]) -> dict[str, Any]:
+    """The report as a document: number, software, issue time (UTC)."""
+    import datetime as dt
+
+    sw = software_identity()
+    return {'number': report_number(report, sw), 'software': sw,
+            'issued_utc': dt.datetime.now(dt.UTC).isoformat(timespec='seconds'),
+            'angle_unit': angle_unit(report).name}
+
+
 def write_unit_report(report: dict[str, Any], directory: Path) -> dict[str, Path]:
-    """Write report.html, report.json and the PNGs; returns their paths by kind."""
+    """Write report.html, report.json (with ``document``: number, software, issue time) and
+    the PNGs; returns their paths by kind."""
     directory.mkdir(parents=True, exist_ok=True)
     images = unit_figures(report)
     for name, data in images.items():
         (directory / name).write_bytes(data)
-    doc = {**report, 'advice': _advice(report)}
-    (directory / 'report.json').write_text(json.dumps(doc, indent=1, allow_nan=False),
+    doc = document_of(report)
+    record = {**report, 'advice': _advice(report), 'document': doc}
+    (directory / 'report.json').write_text(json.dumps(record, indent=1, allow_nan=False),
                                            encoding='utf-8')
-    (directory / 'report.html').write_text(render_unit_html(report, images), encoding='utf-8')
+    (directory / 'report.html').write_text(render_unit_html(report, images, doc),
+                                           encoding='utf-8')
     return {'html': directory / 'report.html', 'json': directory / 'report.json',
             **{n[:-4]: directory / n for n in images}}

@@ -18,7 +18,7 @@ from rv_te_bench.acceptance import (
     run_plan_offline,
 )
 from rv_te_bench.io._legacy_msgs import added_field_defaults
-from rv_te_bench.io.msgdefs import BENCH_INFO, ENCODER_BLOCK, rv_te_typestore
+from rv_te_bench.io.msgdefs import BENCH_CHANNELS, BENCH_INFO, ENCODER_BLOCK, rv_te_typestore
 from sim.program import ProgramSimulator
 
 if TYPE_CHECKING:
@@ -47,16 +47,24 @@ class Run:
 
     def arrays(self) -> dict[str, np.ndarray]:
         b = self.blocks
-        return {'t_s': np.concatenate([x.t0_s + x.time_offset_s for x in b]),
-                'theta_in_rad': np.concatenate([x.theta_in_rad for x in b]),
-                'theta_out_rad': np.concatenate([x.theta_out_rad for x in b]),
-                'torque_nm': np.concatenate([x.torque_out_nm for x in b])}
+        out = {'t_s': np.concatenate([x.t0_s + x.time_offset_s for x in b]),
+               'theta_in_rad': np.concatenate([x.theta_in_rad for x in b]),
+               'theta_out_rad': np.concatenate([x.theta_out_rad for x in b]),
+               'torque_nm': np.concatenate([x.torque_out_nm for x in b])}
+        if b and b[0].torque_in_nm is not None:   # the loss channels (issue 38)
+            out['torque_in_nm'] = np.concatenate([x.torque_in_nm for x in b])
+            out['temp_case_degc'] = np.concatenate([x.temp_case_degc for x in b])
+        return out
 
 
 def run_plan(plan: dict, preset: str = 'li2023-rv', *, seed: int = 3,
-             overrides: tuple[str, ...] = (), limits: dict | None = None) -> Run:
+             overrides: tuple[str, ...] = (), limits: dict | None = None,
+             losses: bool = False) -> Run:
+    from sim.loss_bench import LossConfig
+
     sim = ProgramSimulator(preset=preset, overrides=overrides, te_mode=MODES[preset],
-                           sample_rate_hz=1000.0, block_size=100, seed=seed)
+                           sample_rate_hz=1000.0, block_size=100, seed=seed,
+                           losses=LossConfig() if losses else None)
     p = parse_plan(plan)
     profile = parse_tolerance(limits) if limits else load_tolerance(preset)[0]
     blocks: list[BenchBlock] = []
@@ -66,8 +74,9 @@ def run_plan(plan: dict, preset: str = 'li2023-rv', *, seed: int = 3,
 
 
 def write_session_bag(path: Path, run: Run, *, torque: bool = True,
-                      drop_seqs: tuple[int, ...] = ()) -> Path:
-    """bench/info + bench/encoders as a live session records them, by rosbags' writer."""
+                      drop_seqs: tuple[int, ...] = (), channels: bool = False) -> Path:
+    """bench/info + bench/encoders as a live session records them, by rosbags' writer;
+    with ``channels`` bench/channels too (BenchChannels: input torque, case temperature)."""
     from rosbags.rosbag2 import StoragePlugin, Writer
 
     store = rv_te_typestore()
@@ -82,6 +91,8 @@ def write_session_bag(path: Path, run: Run, *, torque: bool = True,
     with Writer(path, version=9, storage_plugin=StoragePlugin.MCAP) as w:
         ci = w.add_connection('/bench/info', BENCH_INFO, typestore=store)
         ce = w.add_connection('/bench/encoders', ENCODER_BLOCK, typestore=store)
+        cc = w.add_connection('/bench/channels', BENCH_CHANNELS, typestore=store) \
+            if channels else None
         msg = types[BENCH_INFO](
             header=header(T0_NS), bench_id=info.bench_id, preset=info.preset,
             reducer_type=info.reducer_type, gear_ratio=info.gear_ratio,
@@ -105,11 +116,17 @@ def write_session_bag(path: Path, run: Run, *, torque: bool = True,
                 torque_out_nm=np.asarray(b.torque_out_nm) if torque else np.zeros(0),
                 **added_field_defaults(ENCODER_BLOCK))
             w.write(ce, t_ns + 1000, bytes(store.serialize_cdr(m, ENCODER_BLOCK)))
+            if cc is not None:
+                c = types[BENCH_CHANNELS](header=header(t_ns), seq=b.seq,
+                                          torque_in_nm=np.asarray(b.torque_in_nm),
+                                          temp_case_degc=np.asarray(b.temp_case_degc))
+                w.write(cc, t_ns + 900, bytes(store.serialize_cdr(c, BENCH_CHANNELS)))
     return path
 
 
-def write_csv(path: Path, run: Run, *, torque: bool = True) -> Path:
-    """The record as a DAQ's CSV export, written by pandas (full float precision)."""
+def write_csv(path: Path, run: Run, *, torque: bool = True, loss: bool = False) -> Path:
+    """The record as a DAQ's CSV export, written by pandas (full float precision); with
+    ``loss`` the input-torque and case-temperature columns too."""
     import pandas as pd
 
     a = run.arrays()
@@ -117,6 +134,9 @@ def write_csv(path: Path, run: Run, *, torque: bool = True) -> Path:
             'theta_out_rad': a['theta_out_rad']}
     if torque:
         cols['torque_nm'] = a['torque_nm']
+    if loss:
+        cols['torque_in_nm'] = a['torque_in_nm']
+        cols['case_temp_degc'] = a['temp_case_degc']
     pd.DataFrame(cols).to_csv(path, index=False, float_format='%.17g')
     return path
 

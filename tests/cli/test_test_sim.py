@@ -1,9 +1,9 @@
 """``rv-te test PLAN --sim PRESET``: the whole-reducer steps on the simulated bench in this
 process. Bad input (issue 38): an efficiency map on a bench without torque transducers, a
-temperature step without a temperature channel, a speed above the preset's rating, a plan
-with these steps sent to the ROS route: one clear line each, exit 1, nothing run (no report
-folder). The shipped ``full`` plans run end to end (slow) and their unit report is read in
-a real browser."""
+temperature step without a temperature channel, a speed above the preset's rating: one
+clear line each, exit 1, nothing run (no report folder); the ROS route runs these steps
+(tests/cli/test_test_loss_ros.py). The shipped ``full`` plans run end to end (slow) and
+their unit report is read in a real browser."""
 
 from __future__ import annotations
 
@@ -63,16 +63,6 @@ def test_speed_above_rating_refused_on_the_ros_route_too(
     assert code == 1
     assert 'above the unit\'s rating of 7070 rpm' in _one_line(capsys)
     assert not out.exists()
-
-
-def test_loss_steps_refused_on_the_ros_route(tmp_path: Path,
-                                             capsys: pytest.CaptureFixture[str]) -> None:
-    code = main(['test', 'full-rv-80e', '--serial', 'S', '--operator', 'o', '--wait-s', '0.1',
-                 '--out-dir', str(tmp_path / 'out')])
-    assert code == 1
-    line = _one_line(capsys)
-    assert "step 'no-load' needs the input torque and case temperature" in line
-    assert '--sim PRESET' in line
 
 
 def test_small_plan_runs_and_reports(tmp_path: Path, capsys: pytest.CaptureFixture[str]

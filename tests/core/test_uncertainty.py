@@ -23,6 +23,7 @@ from rv_te_bench.core.hysteresis import HysteresisConfig
 from rv_te_bench.core.hysteresis_uncertainty import hysteresis_budgets
 from rv_te_bench.core.te_uncertainty import line_budgets, te_pp_budget
 from rv_te_bench.core.uncertainty import (
+    UncertaintyInput,
     combine,
     coverage_factor,
     t_quantile,
@@ -59,6 +60,63 @@ def test_t_factor_matches_gum_table_g2(dof: int, t_ref: float) -> None:
     obs = np.arange(dof + 1, dtype=float) ** 1.3
     k, basis = coverage_factor([type_a('a', obs)])
     assert basis.startswith('t') and k == pytest.approx(t_ref, abs=0.01)
+
+
+def _k_normal_plus_t(share: float, nu: float) -> float:
+    """The 95.45 % coverage factor of Y = N(0, 1 - share) + sqrt(share) T_nu (unit u_c), by
+    scipy quadrature of P(|Y| <= y) = int f_t(t) [Phi((y - a t)/b) - Phi((-y - a t)/b)] dt
+    and a root finder: independent of the code's FFT convolution."""
+    from scipy import integrate, optimize
+    from scipy.special import gammaln, ndtr
+
+    a, b = math.sqrt(share), math.sqrt(1.0 - share)
+    c = math.exp(gammaln((nu + 1) / 2) - gammaln(nu / 2)) / math.sqrt(nu * math.pi)
+
+    def inside(y: float) -> float:
+        def f(t: float) -> float:         # Student's t density times P(|Y| <= y | T = t)
+            return float(c * (1 + t * t / nu) ** (-(nu + 1) / 2)
+                         * (ndtr((y - a * t) / b) - ndtr((-y - a * t) / b)))
+        return float(integrate.quad(f, -np.inf, np.inf, limit=400)[0])
+
+    return float(optimize.brentq(lambda y: inside(y) - math.erf(math.sqrt(2.0)), 0.5, 100.0))
+
+
+@pytest.mark.parametrize(('share', 'nu'), [(0.006, 1.0), (0.0027, 1.0), (0.1, 1.0),
+                                           (0.3, 2.0), (0.6, 5.0), (0.0001, 1.0)])
+def test_a_type_a_with_few_dof_keeps_its_tails(share: float, nu: float) -> None:
+    """Two windows (one dof) with a small share: Welch-Satterthwaite's nu_eff = nu / share^2
+    gives k = 2.00; the distribution (what Supplement 1's Monte Carlo samples) needs more,
+    e.g. 2.338 at 0.6 % (scipy quadrature). The old k failed this by 14.5 %."""
+    from scipy import stats
+
+    xs = [type_b('n', sensitivity=1.0, distribution='normal', u=math.sqrt(1 - share)),
+          UncertaintyInput(name='a', kind='A', u=math.sqrt(share), sensitivity=1.0,
+                           distribution='t', dof=nu)]
+    k, basis = coverage_factor(xs)
+    assert k == pytest.approx(_k_normal_plus_t(share, nu), rel=2e-3)
+    assert basis.startswith('t (nu_i =')
+    ws = stats.t.ppf(0.5 + 0.9545 / 2, nu / share ** 2)
+    if share * nu ** -0.5 > 0.002:          # where WS is wrong by more than the tolerance
+        assert k > ws * 1.01
+    # a lone one-dof type A: GUM Table G.2's t_95.45(1) = 13.97
+    one = UncertaintyInput(name='a', kind='A', u=2.0, sensitivity=0.5, distribution='t',
+                           dof=1.0)
+    assert coverage_factor([one])[0] == pytest.approx(stats.t.ppf(0.5 + 0.9545 / 2, 1),
+                                                      rel=2e-3)
+
+
+def test_many_dof_still_take_welch_satterthwaite() -> None:
+    """nu_i >= 30: WS is within 1 % of the distribution; k = t_p(nu_eff) as GUM G.4."""
+    from scipy import stats
+
+    xs = [type_b('n', sensitivity=1.0, distribution='normal', u=0.8),
+          UncertaintyInput(name='a', kind='A', u=0.6, sensitivity=1.0, distribution='t',
+                           dof=40.0)]
+    k, basis = coverage_factor(xs)
+    nu = 40.0 / 0.36 ** 2
+    assert basis.startswith('t (nu_eff')
+    assert k == pytest.approx(stats.t.ppf(0.5 + 0.9545 / 2, nu), rel=1e-4)
+    assert k == pytest.approx(_k_normal_plus_t(0.36, 40.0), rel=0.01)
 
 
 def test_two_equal_rectangulars_give_the_triangular_factor() -> None:

@@ -103,8 +103,24 @@ def channel_roles(path: Path, options: ImportOptions,
                f'(channels: {", ".join(names()[:20])})')
         raise DataImportError(msg)
     roles = {'in': options.theta_in, 'out': options.theta_out, 'torque': options.torque,
-             'time': options.time, **head_roles(options)}
+             'time': options.time, **head_roles(options), **loss_roles(options)}
     return {r: spec for r, spec in roles.items() if spec is not None}
+
+
+def loss_roles(options: ImportOptions) -> dict[str, str]:
+    """The loss channels' roles (``torque_in``, ``temperature``) and their columns."""
+    roles = {'torque_in': options.torque_in, 'temperature': options.temperature}
+    return {r: spec for r, spec in roles.items() if spec is not None}
+
+
+def stack_loss(cols: dict[str, np.ndarray], options: ImportOptions) -> np.ndarray | None:
+    """The loss columns of a chunk as one (2, n) array (rows torque_in, temperature; NaN
+    for a channel not given), or None when neither is."""
+    if not loss_roles(options):
+        return None
+    n = cols['in'].size
+    return np.vstack([np.asarray(cols[r], dtype=np.float64) if r in cols
+                      else np.full(n, np.nan) for r in ('torque_in', 'temperature')])
 
 
 def head_roles(options: ImportOptions) -> dict[str, str]:
@@ -163,6 +179,9 @@ class ImportOptions:
             of a further head leaves that head out of its block (the block is not dropped).
         decimal: CSV decimal mark: ``'.'``, or ``','`` for a decimal-comma export (the
             delimiter is then ``;`` or a tab, never ``,``).
+        torque_in: Input-torque column / channel (recorded unit x the bench's
+            ``loss_channels.torque_in.scale_nm_per_unit`` = N m; issue 38).
+        temperature: Case-temperature column / channel [degC].
     """
 
     theta_in: str | None = None
@@ -182,6 +201,8 @@ class ImportOptions:
     delimiter: str | None = None
     theta_out_heads: tuple[str, ...] = ()
     decimal: str = '.'
+    torque_in: str | None = None
+    temperature: str | None = None
 
     def __post_init__(self) -> None:
         """Validate (one line naming the option and the rule)."""
@@ -248,6 +269,8 @@ class RawChunk:
         torque: Torque in the recorded unit, or None.
         out_heads: The output scale's further heads (1..N-1) in the output's unit, shape
             (N-1, n), or None.
+        loss: Input torque (recorded unit) and case temperature [degC], shape (2, n), NaN
+            rows for a channel not given, or None (issue 38).
     """
 
     first: int
@@ -256,6 +279,7 @@ class RawChunk:
     theta_out: np.ndarray
     torque: np.ndarray | None = None
     out_heads: np.ndarray | None = None
+    loss: np.ndarray | None = None
 
 
 class ImportReader(Protocol):

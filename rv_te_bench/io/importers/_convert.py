@@ -79,6 +79,8 @@ class SiChunk:
             ended in one), in order.
         theta_out_heads_rad: The output scale's further heads [rad], (N-1, n), NaN where a
             head has no reading (the sample is kept), or None.
+        loss: Input torque [N m] and case temperature [degC], (2, n), NaN where there is
+            no reading, or None (issue 38).
     """
 
     t_s: np.ndarray
@@ -87,6 +89,7 @@ class SiChunk:
     torque_out_nm: np.ndarray
     breaks: tuple[Break, ...] = ()
     theta_out_heads_rad: np.ndarray | None = None
+    loss: np.ndarray | None = None
 
 
 def to_rad_factor(unit: str, counts_per_rev: int | None, where: str) -> float:
@@ -123,12 +126,13 @@ class ChunkConverter:
         rate_hz: Sample rate [Hz]: the fixed rate without a time column, and the period
             that drop-outs are measured against; None: the median step of the first chunk.
         torque_scale_nm: Recorded torque x this = N m.
+        torque_in_scale_nm: Recorded input torque x this = N m.
     """
 
     def __init__(self, *, origin: str, labels: dict[str, str],
                  locate: Callable[[int], str], k_in: float, k_out: float,
                  time_scale_s: float | None, rate_hz: float | None,
-                 torque_scale_nm: float) -> None:
+                 torque_scale_nm: float, torque_in_scale_nm: float = 1.0) -> None:
         self.origin = origin
         self.labels = labels
         self.locate = locate
@@ -137,6 +141,7 @@ class ChunkConverter:
         self.time_scale_s = time_scale_s
         self.rate_hz = rate_hz
         self.torque_scale_nm = torque_scale_nm
+        self.torque_in_scale_nm = torque_in_scale_nm
         self.t0: int | float | None = None     # first good time value (file unit)
         self.t0_s = math.nan                   # ... in s (absolute when the column is)
         self._last_s = -math.inf               # last good sample's time [s since t0]
@@ -222,11 +227,17 @@ class ChunkConverter:
                        f'{self.locate(raw.first)}')
                 raise DataImportError(msg)
             heads = np.asarray(raw.out_heads, dtype=np.float64)[:, idx] * self.k_out
+        loss = None
+        if raw.loss is not None:
+            loss = np.asarray(raw.loss, dtype=np.float64)[:, idx] * np.array(
+                [[self.torque_in_scale_nm], [1.0]])
         if every:
             return SiChunk(t_s=t_s, theta_in_rad=th_in, theta_out_rad=th_out,
-                           torque_out_nm=torque, breaks=breaks, theta_out_heads_rad=heads)
+                           torque_out_nm=torque, breaks=breaks, theta_out_heads_rad=heads,
+                           loss=loss)
         return SiChunk(t_s=t_s[idx], theta_in_rad=th_in[idx], theta_out_rad=th_out[idx],
-                       torque_out_nm=torque, breaks=breaks, theta_out_heads_rad=heads)
+                       torque_out_nm=torque, breaks=breaks, theta_out_heads_rad=heads,
+                       loss=loss)
 
     def _breaks(self, raw: RawChunk, ok: np.ndarray, idx: np.ndarray,
                 t_s: np.ndarray) -> tuple[Break, ...]:

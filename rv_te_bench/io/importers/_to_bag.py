@@ -43,10 +43,12 @@ from rv_te_bench.io.importers._ahead import read_ahead
 from rv_te_bench.io.importers._common import TIME_UNITS, angle_unit, time_unit
 from rv_te_bench.io.importers._convert import ChunkConverter, to_rad_factor
 from rv_te_bench.io.importers._turns import TurnStitcher
-from rv_te_bench.io.msgdefs import BENCH_INFO, ENCODER_BLOCK
+from rv_te_bench.io.msgdefs import BENCH_CHANNELS, BENCH_INFO, ENCODER_BLOCK, rv_te_typestore
 
 if TYPE_CHECKING:
     from collections.abc import Callable, Iterator
+
+    from rosbags.typesys.store import Typestore
 
     from rv_te_bench.io.bench_description import BenchDescription
     from rv_te_bench.io.importers._common import ImportOptions, ImportReader
@@ -56,6 +58,7 @@ if TYPE_CHECKING:
 __all__ = ['ENCODER_TOPIC', 'INFO_TOPIC', 'ImportSummary', 'write_bag']
 
 ENCODER_TOPIC = '/bench/encoders'
+CHANNELS_TOPIC = '/bench/channels'
 INFO_TOPIC = '/bench/info'
 _NS = 1_000_000_000
 #: Drop-outs named one by one in the notes (all are in the summary, up to MAX_GAPS_LISTED).
@@ -181,6 +184,7 @@ class _Blocks:
         self.samples = 0
         self.last_t_s = 0.0
         self.head_missing_blocks = 0   # blocks written without some of the output heads
+        self._store: Typestore | None = None   # for BenchChannels (issue 38), when needed
         self._rest: tuple[np.ndarray, ...] | None = None
 
     def push(self, piece: Piece) -> None:
@@ -189,8 +193,9 @@ class _Blocks:
         extra = piece.theta_out_heads_rad
         heads = (np.vstack([piece.theta_out_rad[None, :], extra]) if extra is not None
                  else np.empty((0, piece.t_s.size)))
+        loss = piece.loss if piece.loss is not None else np.empty((0, piece.t_s.size))
         arrays: tuple[np.ndarray, ...] = (piece.t_s, piece.theta_in_rad, piece.theta_out_rad,
-                                          piece.torque_out_nm, heads)
+                                          piece.torque_out_nm, heads, loss)
         if piece.gap is not None and self.samples + (0 if self._rest is None
                                                      else self._rest[0].size):
             self.finish()
@@ -210,6 +215,20 @@ class _Blocks:
         if self._rest is not None and self._rest[0].size:
             self._write(self._rest, 0, self._rest[0].size)
         self._rest = None
+
+    def _write_channels(self, loss: np.ndarray, stamp_ns: int) -> None:
+        """The BenchChannels of the block about to be written (rows: input torque, case
+        temperature; an all-NaN row is a channel not imported)."""
+        if self._store is None:
+            self._store = rv_te_typestore()
+        ty = self._store.types
+        header = ty['std_msgs/msg/Header'](stamp=ty['builtin_interfaces/msg/Time'](
+            sec=stamp_ns // _NS, nanosec=stamp_ns % _NS), frame_id=self.frame_id)
+        rows = [np.ascontiguousarray(r) if np.any(np.isfinite(r)) else np.zeros(0)
+                for r in loss]
+        ch = ty[BENCH_CHANNELS](header=header, seq=self.seq, torque_in_nm=rows[0],
+                                temp_case_degc=rows[1])
+        self.writer.write(CHANNELS_TOPIC, stamp_ns, self._store.serialize_cdr(ch, BENCH_CHANNELS))
 
     def _write(self, c: tuple[np.ndarray, ...], a: int, b: int) -> None:
         t = c[0][a:b]
@@ -231,6 +250,8 @@ class _Blocks:
                                 c[1][a:b], c[2][a:b], torque, _NO_IDS, _NO_VALUES, ids,
                                 np.ascontiguousarray(heads).ravel())
         self.writer.write(ENCODER_TOPIC, stamp_ns, cdr)
+        if c[5].shape[0]:   # the loss channels (issue 38), one BenchChannels per block
+            self._write_channels(c[5][:, a:b], stamp_ns)
         self.seq += 1
         self.written += 1
         self.samples += b - a
@@ -246,7 +267,9 @@ class _Segments:
     """The bags of one import in a hidden work folder: one per segment of the record."""
 
     def __init__(self, tmp_dir: Path, out: Path, desc: BenchDescription, info: BenchInfoData,
-                 meta: dict[str, Any], rate_hz: float, start_ns: int) -> None:
+                 meta: dict[str, Any], rate_hz: float, start_ns: int, *,
+                 channels: bool = False) -> None:
+        self.channels = channels     # loss columns: a bench/channels topic (issue 38)
         self.tmp_dir = tmp_dir
         self.out = out
         self.desc = desc
@@ -270,6 +293,9 @@ class _Segments:
             qos_profile_dict(durability='transient_local', depth=1)])
         self.writer.add_topic(ENCODER_TOPIC, ENCODER_BLOCK,
                               offered_qos_profiles=[qos_profile_dict(depth=1000)])
+        if self.channels:
+            self.writer.add_topic(CHANNELS_TOPIC, BENCH_CHANNELS,
+                                  offered_qos_profiles=[qos_profile_dict(depth=1000)])
         self.writer.write(INFO_TOPIC, self.start_ns, bench_info_cdr(self.info, self.start_ns))
         self.blocks = _Blocks(self.writer, self.desc, self.rate_hz, self.start_ns)
         self.done.append((tmp_bag, self.blocks))
@@ -376,7 +402,13 @@ def _write_bag(reader: ImportReader, desc: BenchDescription, options: ImportOpti
                             options.counts_per_rev_out or desc.encoder_out.counts_per_rev,
                             f'{origin}: column {labels["out"]!r}'),
         time_scale_s=TIME_UNITS[t_unit] if t_unit is not None else None, rate_hz=rate_hz,
-        torque_scale_nm=desc.torque_sensor.scale_nm_per_unit)
+        torque_scale_nm=desc.torque_sensor.scale_nm_per_unit,
+        torque_in_scale_nm=float(((desc.loss_channels or {}).get('torque_in') or {}).get(
+            'scale_nm_per_unit', 1.0)))
+    for role in ('torque_in', 'temperature'):
+        if role in labels and role not in (desc.loss_channels or {}):
+            note(f'the bench description states no loss_channels.{role}; column '
+                 f'{labels[role]!r} imported as N m / degC, its class unknown')
     first_raw = next(chunks, None)
     if first_raw is None:
         msg = f'{origin}: no samples'
@@ -409,7 +441,8 @@ def _write_bag(reader: ImportReader, desc: BenchDescription, options: ImportOpti
     segments: _Segments | None = None
     advance = _Advance()
     try:
-        segments = _Segments(tmp_dir, out, desc, info, meta, rate_hz, start_ns)
+        segments = _Segments(tmp_dir, out, desc, info, meta, rate_hz, start_ns,
+                             channels=bool({'torque_in', 'temperature'} & set(labels)))
         for piece in stitcher.push(first):
             advance.push(piece)
             segments.push(piece)

@@ -120,6 +120,7 @@ class Piece:
     gap: ImportGap | None = None
     new_segment: bool = False
     theta_out_heads_rad: np.ndarray | None = None
+    loss: np.ndarray | None = None     # (2, n): input torque [N m], case temperature [degC]
 
 
 def heads_beside(raw_heads: np.ndarray, raw_out: np.ndarray, out_rad: np.ndarray,
@@ -290,11 +291,13 @@ class TurnStitcher:
         bounds = [0, *brk_at, chunk.t_s.size]
         heads = (chunk.theta_out_heads_rad if chunk.theta_out_heads_rad is not None
                  else np.empty((0, chunk.t_s.size)))
+        loss = chunk.loss if chunk.loss is not None else np.empty((0, chunk.t_s.size))
         arrays = (chunk.t_s, chunk.theta_in_rad, chunk.theta_out_rad, chunk.torque_out_nm)
         for a, b in itertools.pairwise(bounds):
             if a == b:
                 continue
-            part = (*(arr[a:b] if arr.size else arr for arr in arrays), heads[:, a:b])
+            part = (*(arr[a:b] if arr.size else arr for arr in arrays), heads[:, a:b],
+                    loss[:, a:b])
             brk = brk_at.get(a)
             if brk is not None:
                 if self._pending_break is not None:
@@ -315,11 +318,11 @@ class TurnStitcher:
         return [self._resolve()] if self._pending_break is not None else []
 
     def _continue(self, part: tuple[np.ndarray, ...]) -> Piece:
-        t, th_in, th_out, tq, heads = part
+        t, th_in, th_out, tq, heads, loss = part
         x_out = self.ch_out.continue_(t, th_out)
         return Piece(t, self.ch_in.continue_(t, th_in), x_out, tq,
                      theta_out_heads_rad=heads_beside(heads, th_out, x_out) if heads.size
-                     else None)
+                     else None, loss=loss if loss.shape[0] else None)
 
     def _resolve(self) -> Piece:
         brk, parts = self._pending_break, self._pending
@@ -327,6 +330,7 @@ class TurnStitcher:
         self._pending_break, self._pending = None, []
         t, th_in, th_out, tq = (np.concatenate([p[i] for p in parts]) for i in range(4))
         heads = np.concatenate([p[4] for p in parts], axis=1)
+        loss = np.concatenate([p[5] for p in parts], axis=1)
         x_in, adv_in, how_in = self.ch_in.across(t, th_in)
         x_out, adv_out, how_out = self.ch_out.across(t, th_out)
         split = 'ambiguous' in (how_in, how_out)
@@ -342,4 +346,4 @@ class TurnStitcher:
                 ch.tail_t, ch.tail_x = t[-self.window:].copy(), x[-self.window:].copy()
         return Piece(t, x_in, x_out, tq, gap=gap, new_segment=split,
                      theta_out_heads_rad=heads_beside(heads, th_out, x_out) if heads.size
-                     else None)
+                     else None, loss=loss if loss.shape[0] else None)

@@ -29,7 +29,14 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 
 from rv_te_bench.errors import DataImportError
-from rv_te_bench.io.importers._common import RawChunk, head_roles, stack_heads, time_unit
+from rv_te_bench.io.importers._common import (
+    RawChunk,
+    head_roles,
+    loss_roles,
+    stack_heads,
+    stack_loss,
+    time_unit,
+)
 
 if TYPE_CHECKING:
     from collections.abc import Iterator
@@ -110,7 +117,7 @@ class CsvReader:
         self._line_shifts: list[tuple[int, int]] = []   # (first sample, lines skipped)
         self._line_chars = max(16, 2 * len(first))   # block size estimate per row
         roles = {'in': options.theta_in, 'out': options.theta_out, 'torque': options.torque,
-                 'time': options.time, **head_roles(options)}
+                 'time': options.time, **head_roles(options), **loss_roles(options)}
         if roles['in'] is None or roles['out'] is None:
             msg = (f'{path}: name the angle columns with --theta-in and --theta-out '
                    f'(columns: {", ".join(self.columns[:20])})')
@@ -192,7 +199,8 @@ class CsvReader:
             if n:
                 yield RawChunk(first=first, time=cols.get('time'), theta_in=cols['in'],
                                theta_out=cols['out'], torque=cols.get('torque'),
-                               out_heads=stack_heads(cols, self.options))
+                               out_heads=stack_heads(cols, self.options),
+                               loss=stack_loss(cols, self.options))
                 first += n
         if first == 0:
             msg = f'{self.origin}: no data rows after the header'

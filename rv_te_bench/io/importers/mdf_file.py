@@ -25,6 +25,7 @@ from rv_te_bench.io.importers._common import (
     refuse_empty,
     require_reader,
     stack_heads,
+    stack_loss,
 )
 
 if TYPE_CHECKING:
@@ -158,7 +159,8 @@ class MdfReader:
             n = cols['in'].size
             yield RawChunk(first=first, time=cols.get('time', master), theta_in=cols['in'],
                            theta_out=cols['out'], torque=cols.get('torque'),
-                           out_heads=stack_heads(cols, self.options))
+                           out_heads=stack_heads(cols, self.options),
+                               loss=stack_loss(cols, self.options))
             first += n
         if first != self.n:
             msg = (f'{self.origin}: channel {self.labels["in"]!r}, sample {first}: the data '

@@ -26,6 +26,7 @@ from rv_te_bench.io.importers._common import (
     refuse_empty,
     require_reader,
     stack_heads,
+    stack_loss,
 )
 
 if TYPE_CHECKING:
@@ -212,7 +213,8 @@ class TdmsReader:
                 cols[role] = data
             yield RawChunk(first=first, time=cols.get('time'), theta_in=cols['in'],
                            theta_out=cols['out'], torque=cols.get('torque'),
-                           out_heads=stack_heads(cols, self.options))
+                           out_heads=stack_heads(cols, self.options),
+                               loss=stack_loss(cols, self.options))
 
     def close(self) -> None:
         """Close the file."""

@@ -165,6 +165,11 @@ class BenchParams:
         False,
         'Idle until a program arrives on bench/run_program (test_sequencer), instead '
         'of running the drive profile from the start')
+    losses: bool = param(
+        False,
+        'commanded: simulate the reducer\'s losses, the input/output torque transducers '
+        'and the case temperature sensor (issue 38), and publish the input torque and case '
+        'temperature on bench/channels (BenchChannels, one per EncoderBlock) [-]')
     ros2_control: bool = param(
         False, "Serve a ros2_control bench's interfaces: setpoints on the forward command "
         "controllers' topics (drive velocity, load effort or position), joint_states out "

@@ -17,8 +17,9 @@ __all__ = ['DEFAULT_TOPICS', 'PARAMS', 'RecorderParams']
 
 #: What a session records when the recorder is given no topics.
 DEFAULT_TOPICS = (
-    'bench/encoders', 'bench/info', 'te/samples', 'te/plot', 'te/statistics', 'te/spectrum',
-    'compensation/advice', 'test/step', 'test/report', '/diagnostics', '/clock',
+    'bench/encoders', 'bench/channels', 'bench/info', 'te/samples', 'te/plot',
+    'te/statistics', 'te/spectrum', 'compensation/advice', 'test/step', 'test/report',
+    '/diagnostics', '/clock',
     'te/encoder_heads',
 )
 

@@ -1,0 +1,129 @@
+"""``rv-te test PLAN --launch PRESET`` runs the whole-reducer steps (issue 38) over the
+middleware: the simulated bench node publishes the input torque and case temperature on
+``bench/channels`` (BenchChannels, one per EncoderBlock), the test_sequencer feeds them to
+the steps, the recorder records them. Real rclpy nodes in their own processes.
+
+* The verdicts and metrics equal ``--sim`` (the same simulator and seed in this process):
+  the channels cross the middleware sample for sample (rel 1e-12).
+* The bag holds one BenchChannels per EncoderBlock (same seq, same sample count), read
+  back by rosbags' AnyReader from the bag's own definitions; the case warms.
+* The life run's checkpoints are rows of the results store, listed by ``rv-te results``;
+  ``rv-te unit-report BAG`` computes every metric again from the bag alone.
+* A plan with these steps sent to a session whose bench has no such channels is refused
+  by the test_sequencer in one line before anything moves.
+"""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+from typing import Any
+
+import pytest
+import yaml
+
+from rv_te_bench.cli.main import main
+from tests.acceptance.test_recorded_loss import LIMITS, LOSS_PLAN
+
+pytestmark = pytest.mark.ros
+
+
+def _write_plan(tmp_path: Path) -> str:
+    (tmp_path / 'loss-limits.yaml').write_text(yaml.safe_dump(LIMITS), encoding='utf-8')
+    path = tmp_path / 'plan.yaml'
+    path.write_text(yaml.safe_dump(LOSS_PLAN), encoding='utf-8')
+    return str(path)
+
+
+def _json(capsys: pytest.CaptureFixture[str]) -> dict[str, Any]:
+    out = capsys.readouterr().out
+    return json.loads(out[:out.rindex('}') + 1])
+
+
+@pytest.mark.timeout(600)
+def test_launch_gives_the_sim_verdicts_and_records_the_channels(
+        tmp_path: Path, capsys: pytest.CaptureFixture[str], default_store: Path) -> None:
+    from rosbags.highlevel import AnyReader
+
+    plan = _write_plan(tmp_path)
+    common = ['--serial', 'RV-38', '--operator', 'pytest', '--json', '--seed', '5']
+    assert main(['test', plan, *common, '--sim', 'rv-80e-101', '--report',
+                 str(tmp_path / 'sim'), '--no-db']) == 0
+    sim = _json(capsys)
+    assert main(['test', plan, *common, '--launch', 'rv-80e-101', '--speed-factor', '0',
+                 '--out-dir', str(tmp_path / 'out')]) == 0
+    ros = _json(capsys)
+    assert ros['verdict'] == sim['verdict'] == 'pass'
+    assert [m['name'] for m in ros['metrics']] == [m['name'] for m in sim['metrics']]
+    for a, b in zip(sim['metrics'], ros['metrics'], strict=True):
+        assert b['verdict'] == a['verdict'], b
+        assert b['value'] == pytest.approx(a['value'], rel=1e-12), b['name']
+    assert [s['checkpoints'] for s in ros['steps'] if s['kind'] == 'life'] == \
+        [s['checkpoints'] for s in sim['steps'] if s['kind'] == 'life']
+    # the bag: one BenchChannels per EncoderBlock, read by rosbags from its own definitions
+    (run,) = [p for p in (tmp_path / 'out').iterdir() if p.is_dir()]
+    bag = run / 'bag'
+    enc: dict[int, int] = {}
+    chans: dict[int, tuple[int, int, float]] = {}
+    with AnyReader([bag]) as reader:
+        for conn, _, raw in reader.messages(connections=[
+                c for c in reader.connections if c.topic in ('/bench/encoders',
+                                                             '/bench/channels')]):
+            m = reader.deserialize(raw, conn.msgtype)
+            if conn.topic == '/bench/encoders':
+                enc[int(m.seq)] = len(m.theta_in_rad)
+            else:
+                assert conn.msgtype == 'rv_te_msgs/msg/BenchChannels'
+                chans[int(m.seq)] = (len(m.torque_in_nm), len(m.temp_case_degc),
+                                     float(m.temp_case_degc[-1]))
+    assert enc and set(chans) == set(enc)
+    assert all(chans[s][:2] == (n, n) for s, n in enc.items())
+    first, last = min(chans), max(chans)
+    assert chans[last][2] > chans[first][2] + 0.5     # the case warmed under load [degC]
+    # the life checkpoints are rows of the results store, listed by rv-te results
+    from rv_te_bench.store import ResultFilter, open_store
+
+    with open_store(default_store) as store:
+        (rec,) = store.query(ResultFilter(test='test-plan'))
+    life = next(s for s in ros['steps'] if s['kind'] == 'life')
+    for cp in life['checkpoints']:
+        k = cp['checkpoint']
+        assert rec.metrics[(f'life_cp{k:02d}_te_pp_rad', 'all')] == cp['te_pp_rad']
+        assert rec.metrics[(f'life_cp{k:02d}_no_load_torque_nm', 'all')] == \
+            cp['no_load_torque_nm']
+        assert rec.metrics[(f'life_cp{k:02d}_temp_case_degc', 'all')] == cp['temp_case_degc']
+    assert main(['results', '--serial', 'RV-38', '--json']) == 0
+    listed = json.loads(capsys.readouterr().out)
+    names = {r['name'] for r in listed[0]['metrics']}
+    assert {f'life_cp{k:02d}_te_pp_rad' for k in range(4)} <= names
+    # the same test again from the bag alone
+    assert main(['unit-report', str(bag), '--report', str(tmp_path / 'again')]) == 0
+    assert 'every metric equals the recorded result' in capsys.readouterr().err
+
+
+@pytest.mark.timeout(300)
+def test_bench_without_channels_refuses_the_plan_before_anything_moves(
+        tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    from rv_te_bench.launch.session import Session, SessionSpec
+
+    spec = SessionSpec(
+        nodes=('bench', 'test_sequencer'),
+        parameters={'bench': {'preset': 'rv-80e-101', 'te_mode': 'elastic',
+                              'time_mode': 'fast', 'speed_factor': 0.0, 'commanded': True,
+                              'sample_rate_hz': 1000.0, 'block_size': 100},
+                    'test_sequencer': {}})
+    log = (tmp_path / 'session.log').open('wb')
+    session = Session(spec, stdout=log)
+    session.start()
+    try:
+        rc = main(['test', _write_plan(tmp_path), '--serial', 'S', '--operator', 'o',
+                   '--wait-s', '60', '--no-db'])
+    finally:
+        session.stop()
+        log.close()
+    assert rc == 1
+    err = capsys.readouterr().err.strip().splitlines()
+    assert err[-1] == (
+        "ERROR: test of unit S error: step 0 ('no-load', no_load) needs an input torque "
+        "transducer, which the bench 'bench0' does not have; nothing was run"), err
+    assert 'program:' not in (tmp_path / 'session.log').read_text()   # the bench never ran
