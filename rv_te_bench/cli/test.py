@@ -163,6 +163,7 @@ def _session(args: argparse.Namespace, out_dir: Path) -> Session:
         # torque ramps, which a bench's ros2_control forward command controllers do not
         # carry: the simulated bench runs such a plan's programs itself (bench/run_program),
         # publishing bench/encoders and bench/channels
+        out_dir.mkdir(parents=True, exist_ok=True)
         nodes = ('recorder', 'bench', 'test_sequencer') + (
             ('te_node',) if getattr(args, 'dashboard', False) else ())
         spec = SessionSpec(
