@@ -27,12 +27,15 @@ _KIND = 'rv-te judged record'
 
 def write_judged(out_dir: Path, *, bag: Path, plan_text: str, tolerance_text: str,
                  torque: dict[str, Any] | None, settings: dict[str, float],
-                 report: dict[str, Any]) -> Path:
-    """Write ``out_dir/judged.json`` (see the module docstring); its path."""
+                 report: dict[str, Any],
+                 channel_topics: dict[str, dict[str, Any]] | None = None) -> Path:
+    """Write ``out_dir/judged.json`` (see the module docstring); its path.
+    ``channel_topics``: the input-torque / case-temperature topics read (``torque_in``,
+    ``temperature`` -> TorqueTopic fields), when not bench/channels."""
     out_dir.mkdir(parents=True, exist_ok=True)
     doc = {'kind': _KIND, 'version': 1, 'bag': str(Path(bag).resolve()),
            'plan_yaml': plan_text, 'tolerance_yaml': tolerance_text, 'torque_topic': torque,
-           'settings': settings, 'report': report}
+           'channel_topics': channel_topics or {}, 'settings': settings, 'report': report}
     path = out_dir / JUDGED_FILE
     tmp = path.with_suffix('.json.tmp')
     tmp.write_text(json.dumps(doc, indent=1), encoding='utf-8')
@@ -91,7 +94,9 @@ def rejudge(judged: Path, *, report_dir: Path | None, as_json: bool,
     profile = parse_tolerance(parse_yaml_text(doc['tolerance_yaml'], 'judged tolerance',
                                               ToleranceError), 'judged tolerance')
     torque = TorqueTopic(**doc['torque_topic']) if doc.get('torque_topic') else None
-    record = read_measured_record(bag, torque=torque)
+    topics = {k: TorqueTopic(**v) for k, v in (doc.get('channel_topics') or {}).items()
+              if k in ('torque_in', 'temperature')}
+    record = read_measured_record(bag, torque=torque, **topics)
     new = judge_record(plan, profile, record, serial=old['unit']['serial'],
                        operator=old['unit']['operator'], conditions=old.get('conditions'),
                        settings=JudgeSettings(**doc['settings']))

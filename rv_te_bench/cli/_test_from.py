@@ -15,6 +15,7 @@ table, the unit report, the JSON and the results-store record are the live test'
 from __future__ import annotations
 
 import argparse
+import dataclasses
 import sys
 from datetime import UTC, datetime
 from pathlib import Path
@@ -212,7 +213,10 @@ def run_from(args: argparse.Namespace, plan: TestPlan, plan_text: str, tol_text:
                               'joint': torque.joint, 'scale': torque.scale},
                           settings={'speed_tolerance': settings.speed_tolerance,
                                     'load_tolerance': settings.load_tolerance},
-                          report=report)
+                          report=report, channel_topics={
+                              k: dataclasses.asdict(v) for k, v in (('torque_in', torque_in),
+                                                                    ('temperature', temperature))
+                              if v is not None})
     print(f'judged record: {judged} (rv-te unit-report {out_dir} judges it again)',
           file=sys.stderr)
     _record(args, report, bag, beside_bag=bag == Path(args.from_path))

@@ -215,3 +215,9 @@ def test_standard_topics_of_a_ros2_control_bench(tmp_path: Path, live: Run, plan
     assert 'input torque: topic /bench/torque_in (WrenchStamped.torque.z' in \
         report['source']['channels_from']
     assert np.isfinite(metric(report, 'trend_alarms')['value'])
+    # rv-te unit-report judges the record again with the same topics (judged.json)
+    from rv_te_bench.cli.main import main
+
+    (run,) = [d for d in (tmp_path / 'out').iterdir() if d.is_dir()]
+    assert main(['unit-report', str(run), '--report', str(tmp_path / 'again')]) == 0
+    assert 'every metric equals the recorded result' in capsys.readouterr().err
