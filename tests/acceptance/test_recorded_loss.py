@@ -19,6 +19,7 @@ expanded uncertainty is ~0.01), temperature rise within 0.01 K, the life run's T
 
 from __future__ import annotations
 
+import json
 import math
 from pathlib import Path
 from typing import Any
@@ -94,9 +95,10 @@ def assert_close(live: dict[str, Any], judged: dict[str, Any]) -> None:
 
 
 def test_session_bag_with_bench_channels(tmp_path: Path, live: Run, plan: dict,
-                                         capsys: pytest.CaptureFixture[str]) -> None:
+                                         capsys: pytest.CaptureFixture[str],
+                                         default_store: Path) -> None:
     bag = write_session_bag(tmp_path / 'session', live, channels=True)
-    report, err = judge(tmp_path, capsys, plan, '--from', str(bag), '--no-db', code=0)
+    report, err = judge(tmp_path, capsys, plan, '--from', str(bag), code=0)
     assert_close(live.report, report)
     assert 'not judged' not in err
     assert report['source']['channels_from'].startswith(
@@ -105,6 +107,21 @@ def test_session_bag_with_bench_channels(tmp_path: Path, live: Run, plan: dict,
     parts = report['source']['steps'][1]['parts']
     assert [p['direction'] for p in parts] == ['ccw', 'cw']
     assert parts[0]['found_t_start_s'] < parts[1]['found_t_start_s']
+    # the life run's checkpoints are rows of the results store: rv-te results lists them
+    from rv_te_bench.cli.main import main
+
+    life = next(s for s in report['steps'] if s['kind'] == 'life')['checkpoints']
+    assert main(['results', '--serial', 'LI-42', '--metrics', 'life_cp*', '--json']) == 0
+    (doc,) = json.loads(capsys.readouterr().out)
+    got = {m['name']: m['value'] for m in doc['metrics']}
+    want = {f'life_cp{c["checkpoint"]:02d}_{q}': c[q] for c in life
+            for q in ('te_pp_rad', 'no_load_torque_nm', 'temp_case_degc')}
+    assert want.items() <= got.items()
+    assert set(got) - set(want) == {f'life_cp{k:02d}_line_1_f_w_rad' for k in range(4)} | {
+        f'life_cp{k:02d}_line_pin_mesh_40_f_w_1560_f_out_rad' for k in range(4)}
+    assert all(n.startswith('life_cp') for n in got)
+    assert main(['results', '--serial', 'LI-42', '--metrics', 'life_cp03_te_pp_rad']) == 0
+    assert f'life_cp03_te_pp_rad = {life[3]["te_pp_rad"]:.6g}' in capsys.readouterr().out
 
 
 def test_session_bag_without_channels_is_not_judged(tmp_path: Path, live: Run, plan: dict,
