@@ -148,7 +148,7 @@ def sign_off_html(operator: str) -> str:
 #: on one page, the identity block repeated nowhere but at the top.
 PRINT_CSS = """
 .signoff td.sign{min-width:12em;height:2.6em;border-bottom:1px solid #222}
-.ident td,.ident th{text-align:left}.dir{white-space:nowrap}
+.ident td,.ident th,.signoff th{text-align:left}.dir{white-space:nowrap}
 @page{size:A4;margin:12mm}
 @media print{body{max-width:none;margin:0;font-size:9.5pt}
 section.keep,table.verdict,table.signoff,.ident,figure,img{break-inside:avoid;
