@@ -28,14 +28,18 @@ _KIND = 'rv-te judged record'
 def write_judged(out_dir: Path, *, bag: Path, plan_text: str, tolerance_text: str,
                  torque: dict[str, Any] | None, settings: dict[str, float],
                  report: dict[str, Any],
-                 channel_topics: dict[str, dict[str, Any]] | None = None) -> Path:
+                 channel_topics: dict[str, dict[str, Any]] | None = None,
+                 topics_bag: Path | None = None) -> Path:
     """Write ``out_dir/judged.json`` (see the module docstring); its path.
     ``channel_topics``: the input-torque / case-temperature topics read (``torque_in``,
-    ``temperature`` -> TorqueTopic fields), when not bench/channels."""
+    ``temperature`` -> TorqueTopic fields), when not bench/channels; ``topics_bag``: the bag
+    holding the topics when it is not ``bag`` (an imported JointState bag's original)."""
     out_dir.mkdir(parents=True, exist_ok=True)
     doc = {'kind': _KIND, 'version': 1, 'bag': str(Path(bag).resolve()),
            'plan_yaml': plan_text, 'tolerance_yaml': tolerance_text, 'torque_topic': torque,
-           'channel_topics': channel_topics or {}, 'settings': settings, 'report': report}
+           'channel_topics': channel_topics or {},
+           'topics_bag': str(Path(topics_bag).resolve()) if topics_bag else '',
+           'settings': settings, 'report': report}
     path = out_dir / JUDGED_FILE
     tmp = path.with_suffix('.json.tmp')
     tmp.write_text(json.dumps(doc, indent=1), encoding='utf-8')
@@ -96,7 +100,8 @@ def rejudge(judged: Path, *, report_dir: Path | None, as_json: bool,
     torque = TorqueTopic(**doc['torque_topic']) if doc.get('torque_topic') else None
     topics = {k: TorqueTopic(**v) for k, v in (doc.get('channel_topics') or {}).items()
               if k in ('torque_in', 'temperature')}
-    record = read_measured_record(bag, torque=torque, **topics)
+    record = read_measured_record(bag, torque=torque, **topics,
+                                  topics_from=doc.get('topics_bag') or None)
     new = judge_record(plan, profile, record, serial=old['unit']['serial'],
                        operator=old['unit']['operator'], conditions=old.get('conditions'),
                        settings=JudgeSettings(**doc['settings']))

@@ -181,8 +181,11 @@ def run_from(args: argparse.Namespace, plan: TestPlan, plan_text: str, tol_text:
                                 joint=args.torque_joint, scale=args.torque_in_scale)
     if args.temperature_topic:   # a case sensor is read at a few Hz: 10 s between readings
         temperature = TorqueTopic(topic=args.temperature_topic, max_gap_s=10.0)
+    # a JointState bag imported: the bench's other topics stay in the original bag
+    topics_from = Path(args.from_path) if fmt == 'bag' and bag != Path(args.from_path) \
+        else None
     record = read_measured_record(bag, torque=torque, torque_in=torque_in,
-                                  temperature=temperature)
+                                  temperature=temperature, topics_from=topics_from)
     profile: ToleranceProfile
     if tol_text:
         profile = parse_tolerance(parse_yaml_text(tol_text, 'tolerance', ToleranceError),
@@ -216,7 +219,7 @@ def run_from(args: argparse.Namespace, plan: TestPlan, plan_text: str, tol_text:
                           report=report, channel_topics={
                               k: dataclasses.asdict(v) for k, v in (('torque_in', torque_in),
                                                                     ('temperature', temperature))
-                              if v is not None})
+                              if v is not None}, topics_bag=topics_from)
     print(f'judged record: {judged} (rv-te unit-report {out_dir} judges it again)',
           file=sys.stderr)
     _record(args, report, bag, beside_bag=bag == Path(args.from_path))

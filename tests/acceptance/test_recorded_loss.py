@@ -238,3 +238,75 @@ def test_standard_topics_of_a_ros2_control_bench(tmp_path: Path, live: Run, plan
     (run,) = [d for d in (tmp_path / 'out').iterdir() if d.is_dir()]
     assert main(['unit-report', str(run), '--report', str(tmp_path / 'again')]) == 0
     assert 'every metric equals the recorded result' in capsys.readouterr().err
+
+
+#: A short plan for a JointState bag (one message per sample): no-load, breakaway, one
+#: efficiency point.
+JS_PLAN = {'plan': 'js', 'tolerance': 'js-limits.yaml', 'steps': [
+    LOSS_PLAN['steps'][0], LOSS_PLAN['steps'][1],
+    {**LOSS_PLAN['steps'][3], 'loads_nm': [784]}]}
+JS_LIMITS = {'profile': 'js-limits', 'limits': {
+    k: v for k, v in LIMITS['limits'].items()
+    if k in {'efficiency_pct', 'no_load_torque_nm', 'starting_torque_nm'}}}
+
+
+def test_joint_state_bag_with_wrench_and_temperature_topics(
+        tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    """What a ros2_control bench records: sensor_msgs/JointState per sample (the output
+    joint's effort the output torque), the input torque transducer as WrenchStamped at
+    100 Hz and the case sensor as sensor_msgs/Temperature at 10 Hz, in one bag written by
+    rosbags: imported with the bench description, the topics read from the original bag."""
+    from rosbags.rosbag2 import Writer
+    from rosbags.typesys import Stores, get_typestore
+
+    (tmp_path / 'js-limits.yaml').write_text(yaml.safe_dump(JS_LIMITS), encoding='utf-8')
+    live = run_plan(JS_PLAN, 'rv-80e-101', limits=JS_LIMITS, losses=True)
+    a = live.arrays()
+    store = get_typestore(Stores.ROS2_JAZZY)
+    ty = store.types
+    js, ws, tm = ('sensor_msgs/msg/JointState', 'geometry_msgs/msg/WrenchStamped',
+                  'sensor_msgs/msg/Temperature')
+
+    def header(k: int) -> Any:
+        ns = T0_NS + round(float(a['t_s'][k]) * 1e9)
+        return ns, ty['std_msgs/msg/Header'](stamp=ty['builtin_interfaces/msg/Time'](
+            sec=ns // 10**9, nanosec=ns % 10**9), frame_id='')
+
+    bag = tmp_path / 'bench_record'
+    vec = ty['geometry_msgs/msg/Vector3']
+    with Writer(bag, version=9) as w:
+        cj = w.add_connection('/joint_states', js, typestore=store)
+        cw = w.add_connection('/torque_in_sensor/wrench', ws, typestore=store)
+        ct = w.add_connection('/case_temperature', tm, typestore=store)
+        for k in range(a['t_s'].size):
+            ns, h = header(k)
+            w.write(cj, ns + 50_000, bytes(store.serialize_cdr(ty[js](
+                header=h, name=['input_joint', 'output_joint'],
+                position=np.array([a['theta_in_rad'][k], a['theta_out_rad'][k]]),
+                velocity=np.zeros(0), effort=np.array([math.nan, a['torque_nm'][k]])), js)))
+            if k % 10 == 0:
+                w.write(cw, ns + 60_000, bytes(store.serialize_cdr(ty[ws](
+                    header=h, wrench=ty['geometry_msgs/msg/Wrench'](
+                        force=vec(x=0.0, y=0.0, z=0.0),
+                        torque=vec(x=0.0, y=0.0, z=float(a['torque_in_nm'][k])))), ws)))
+            if k % 100 == 0:
+                w.write(ct, ns + 70_000, bytes(store.serialize_cdr(ty[tm](
+                    header=h, temperature=float(a['temp_case_degc'][k]), variance=0.0), tm)))
+    bench = _loss_bench(tmp_path / 'bench.yaml', live)
+    report, err = judge(tmp_path, capsys, JS_PLAN, '--from', str(bag), '--bench', str(bench),
+                        '--torque', 'output_joint', '--no-unwrap', '--torque-in-topic',
+                        '/torque_in_sensor/wrench', '--temperature-topic', '/case_temperature',
+                        '--no-db', code=0)
+    assert 'not judged' not in err
+    for name, ab in (('no_load_torque_max_nm', 0.01), ('starting_torque_nm', 0.006),
+                     ('efficiency_at_max_load', 0.005)):
+        assert metric(report, name)['value'] == pytest.approx(
+            metric(live.report, name)['value'], abs=ab), name
+    assert 'case temperature: topic /case_temperature (Temperature' in \
+        report['source']['channels_from']
+    # judged again from the imported bag and the original's topics
+    from rv_te_bench.cli.main import main
+
+    (run,) = [d for d in (tmp_path / 'out').iterdir() if d.is_dir()]
+    assert main(['unit-report', str(run), '--report', str(tmp_path / 'again')]) == 0
+    assert 'every metric equals the recorded result' in capsys.readouterr().err
