@@ -78,7 +78,7 @@ def _load(path: Path) -> dict[str, Any]:
 
 
 def rejudge(judged: Path, *, report_dir: Path | None, as_json: bool,
-            differences: Any) -> int:
+            differences: Any, pdf: bool = False) -> int:
     """Judge the record again from its bag, compare, write the unit report; exit code."""
     from rv_te_bench.acceptance import parse_plan, parse_tolerance
     from rv_te_bench.acceptance._files import parse_yaml_text
@@ -107,7 +107,7 @@ def rejudge(judged: Path, *, report_dir: Path | None, as_json: bool,
                        settings=JudgeSettings(**doc['settings']))
     new['source']['imported_from'] = old.get('source', {}).get('imported_from', '')
     new['bench']['bag'] = str(bag)
-    show_report(new, report_dir or judged.parent / 'unit-report', as_json=as_json)
+    show_report(new, report_dir or judged.parent / 'unit-report', as_json=as_json, pdf=pdf)
     diffs = differences(new, old)
     if diffs:
         print(f'ERROR: judged again from {bag}, {len(diffs)} metric(s) differ from the '

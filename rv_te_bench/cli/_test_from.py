@@ -209,7 +209,7 @@ def run_from(args: argparse.Namespace, plan: TestPlan, plan_text: str, tol_text:
         if step.get('not_judged'):
             print(f"step {step['name']!r} not judged: {step['not_judged']}", file=sys.stderr)
     report_dir = Path(args.report) if args.report else out_dir / 'report'
-    show_report(report, report_dir, as_json=args.json)
+    show_report(report, report_dir, as_json=args.json, pdf=args.pdf)
     judged = write_judged(out_dir, bag=bag, plan_text=plan_text, tolerance_text=tol_text,
                           torque=None if torque is None else {
                               'topic': torque.topic, 'axis': torque.axis,

@@ -169,3 +169,20 @@ def test_calibration_references_from_the_bench_description(tmp_path: Path,
     text = visible_text((run_dir / 'report' / 'report.html').read_text())
     assert ('bench_calibration: QP-12/2026-10; encoder_out_calibration: DKD-K-12345 '
             '2026-03-02') in text
+
+
+def test_pdf_without_chromium_is_one_warning_and_the_report_stays(
+        report, tmp_path: Path, monkeypatch: pytest.MonkeyPatch,
+        capsys: pytest.CaptureFixture[str]) -> None:
+    from rv_te_bench.cli.test import show_report
+    from rv_te_bench.report.unit_doc import software_identity
+
+    software_identity()   # the commit read (and kept) while git is on the PATH
+    monkeypatch.setenv('PATH', str(tmp_path / 'empty'))
+    show_report(report, tmp_path / 'r', as_json=False, pdf=True)
+    err = capsys.readouterr().err.strip().splitlines()
+    assert err == ['WARNING: no report.pdf: no Chromium to print report.pdf (looked for '
+                   'chromium, chromium-browser, google-chrome on the PATH; Debian: apt-get '
+                   'install chromium)']
+    assert (tmp_path / 'r' / 'report.html').exists()
+    assert not (tmp_path / 'r' / 'report.pdf').exists()
