@@ -58,7 +58,8 @@ clean-venv:
 
 # System packages the full test suite uses beyond Python: a PostgreSQL server for the results
 # store tests (they start their own server), Debian's chromium + chromium-driver for the live
-# page's browser tests (without them those tests are skipped with the reason, except in CI).
+# page's and the unit report's browser tests (screen and print to PDF; without them those
+# tests are skipped with the reason, except in CI).
 # Needs root (or sudo); .ci/run calls it on the fresh CI machine.
 APT_INSTALL = DEBIAN_FRONTEND=noninteractive apt-get install -y -qq --no-install-recommends
 system-deps:

@@ -27,11 +27,18 @@ _KIND = 'rv-te judged record'
 
 def write_judged(out_dir: Path, *, bag: Path, plan_text: str, tolerance_text: str,
                  torque: dict[str, Any] | None, settings: dict[str, float],
-                 report: dict[str, Any]) -> Path:
-    """Write ``out_dir/judged.json`` (see the module docstring); its path."""
+                 report: dict[str, Any],
+                 channel_topics: dict[str, dict[str, Any]] | None = None,
+                 topics_bag: Path | None = None) -> Path:
+    """Write ``out_dir/judged.json`` (see the module docstring); its path.
+    ``channel_topics``: the input-torque / case-temperature topics read (``torque_in``,
+    ``temperature`` -> TorqueTopic fields), when not bench/channels; ``topics_bag``: the bag
+    holding the topics when it is not ``bag`` (an imported JointState bag's original)."""
     out_dir.mkdir(parents=True, exist_ok=True)
     doc = {'kind': _KIND, 'version': 1, 'bag': str(Path(bag).resolve()),
            'plan_yaml': plan_text, 'tolerance_yaml': tolerance_text, 'torque_topic': torque,
+           'channel_topics': channel_topics or {},
+           'topics_bag': str(Path(topics_bag).resolve()) if topics_bag else '',
            'settings': settings, 'report': report}
     path = out_dir / JUDGED_FILE
     tmp = path.with_suffix('.json.tmp')
@@ -71,7 +78,7 @@ def _load(path: Path) -> dict[str, Any]:
 
 
 def rejudge(judged: Path, *, report_dir: Path | None, as_json: bool,
-            differences: Any) -> int:
+            differences: Any, pdf: bool = False) -> int:
     """Judge the record again from its bag, compare, write the unit report; exit code."""
     from rv_te_bench.acceptance import parse_plan, parse_tolerance
     from rv_te_bench.acceptance._files import parse_yaml_text
@@ -91,13 +98,16 @@ def rejudge(judged: Path, *, report_dir: Path | None, as_json: bool,
     profile = parse_tolerance(parse_yaml_text(doc['tolerance_yaml'], 'judged tolerance',
                                               ToleranceError), 'judged tolerance')
     torque = TorqueTopic(**doc['torque_topic']) if doc.get('torque_topic') else None
-    record = read_measured_record(bag, torque=torque)
+    topics = {k: TorqueTopic(**v) for k, v in (doc.get('channel_topics') or {}).items()
+              if k in ('torque_in', 'temperature')}
+    record = read_measured_record(bag, torque=torque, **topics,
+                                  topics_from=doc.get('topics_bag') or None)
     new = judge_record(plan, profile, record, serial=old['unit']['serial'],
                        operator=old['unit']['operator'], conditions=old.get('conditions'),
                        settings=JudgeSettings(**doc['settings']))
     new['source']['imported_from'] = old.get('source', {}).get('imported_from', '')
     new['bench']['bag'] = str(bag)
-    show_report(new, report_dir or judged.parent / 'unit-report', as_json=as_json)
+    show_report(new, report_dir or judged.parent / 'unit-report', as_json=as_json, pdf=pdf)
     diffs = differences(new, old)
     if diffs:
         print(f'ERROR: judged again from {bag}, {len(diffs)} metric(s) differ from the '

@@ -15,6 +15,7 @@ table, the unit report, the JSON and the results-store record are the live test'
 from __future__ import annotations
 
 import argparse
+import dataclasses
 import sys
 from datetime import UTC, datetime
 from pathlib import Path
@@ -180,8 +181,11 @@ def run_from(args: argparse.Namespace, plan: TestPlan, plan_text: str, tol_text:
                                 joint=args.torque_joint, scale=args.torque_in_scale)
     if args.temperature_topic:   # a case sensor is read at a few Hz: 10 s between readings
         temperature = TorqueTopic(topic=args.temperature_topic, max_gap_s=10.0)
+    # a JointState bag imported: the bench's other topics stay in the original bag
+    topics_from = Path(args.from_path) if fmt == 'bag' and bag != Path(args.from_path) \
+        else None
     record = read_measured_record(bag, torque=torque, torque_in=torque_in,
-                                  temperature=temperature)
+                                  temperature=temperature, topics_from=topics_from)
     profile: ToleranceProfile
     if tol_text:
         profile = parse_tolerance(parse_yaml_text(tol_text, 'tolerance', ToleranceError),
@@ -205,14 +209,17 @@ def run_from(args: argparse.Namespace, plan: TestPlan, plan_text: str, tol_text:
         if step.get('not_judged'):
             print(f"step {step['name']!r} not judged: {step['not_judged']}", file=sys.stderr)
     report_dir = Path(args.report) if args.report else out_dir / 'report'
-    show_report(report, report_dir, as_json=args.json)
+    show_report(report, report_dir, as_json=args.json, pdf=args.pdf)
     judged = write_judged(out_dir, bag=bag, plan_text=plan_text, tolerance_text=tol_text,
                           torque=None if torque is None else {
                               'topic': torque.topic, 'axis': torque.axis,
                               'joint': torque.joint, 'scale': torque.scale},
                           settings={'speed_tolerance': settings.speed_tolerance,
                                     'load_tolerance': settings.load_tolerance},
-                          report=report)
+                          report=report, channel_topics={
+                              k: dataclasses.asdict(v) for k, v in (('torque_in', torque_in),
+                                                                    ('temperature', temperature))
+                              if v is not None}, topics_bag=topics_from)
     print(f'judged record: {judged} (rv-te unit-report {out_dir} judges it again)',
           file=sys.stderr)
     _record(args, report, bag, beside_bag=bag == Path(args.from_path))

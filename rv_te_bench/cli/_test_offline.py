@@ -97,6 +97,6 @@ def run_offline(args: argparse.Namespace, plan: TestPlan, tol_text: str,
     report = run_plan_offline(plan, profile, serial=args.serial, operator=args.operator,
                               sim=sim, conditions={**conditions, 'route': 'offline simulated '
                                                    'bench (--sim)'}, on_feedback=progress)
-    show_report(report, report_dir, as_json=args.json)
+    show_report(report, report_dir, as_json=args.json, pdf=args.pdf)
     return verdict_exit(report['verdict'], args.serial, report['reason'], report,
                         as_json=args.json)

@@ -11,6 +11,7 @@ Exit codes: 0 ok (also when nothing matches), 1 failed (one ``ERROR: ...`` line)
 from __future__ import annotations
 
 import argparse
+import fnmatch
 import json
 import os
 import sys
@@ -35,6 +36,7 @@ examples:
   rv-te results --since 2026-11-01 --until 2026-11-24 --verdict fail
   rv-te results --preset wang2020-2kv --export units.csv        (or units.parquet)
   rv-te results --db postgresql://qa@db-host/line3 --json
+  rv-te results --serial RV80E-0042 --metrics 'life_cp*'    a run-in's checkpoints (SI)
 
 exit codes: 0 ok, 1 failed (one ERROR: line on stderr), 2 bad usage
 """
@@ -107,6 +109,10 @@ def register(subparsers: Subparsers) -> None:
     p.add_argument('--export', type=Path, metavar='FILE', default=None,
                    help='write the records to FILE (.csv or .parquet)')
     p.add_argument('--json', action='store_true', help='print the records as JSON')
+    p.add_argument('--metrics', metavar='GLOB', default=None,
+                   help="also list each record's metrics whose name matches GLOB (SI "
+                        "values), e.g. 'life_cp*' for a run-in's checkpoints; with --json "
+                        'only those metrics')
     p.set_defaults(func=run)
 
 
@@ -125,10 +131,16 @@ def run(args: argparse.Namespace) -> int:
         n = export_records(rows, args.export)
         print(f'{n} record(s) written to {args.export}', file=sys.stderr)
     try:
+        glob = getattr(args, 'metrics', None)
         if args.json:
-            print(json.dumps([_json(r) for r in rows], indent=2))
+            docs = [_json(r) for r in rows]
+            if glob:
+                for d in docs:
+                    d['metrics'] = [m for m in d['metrics'] if fnmatch.fnmatchcase(m['name'],
+                                                                                    glob)]
+            print(json.dumps(docs, indent=2))
         elif args.export is None:
-            _table(rows, where)
+            _table(rows, where, glob)
     except BrokenPipeError:
         devnull = os.open(os.devnull, os.O_WRONLY)
         os.dup2(devnull, sys.stdout.fileno())
@@ -159,7 +171,7 @@ _PP_HEAD = "TE p-p [']"
 _FW_HEAD = "1 f_w [']"
 
 
-def _table(rows: list[Any], where: str) -> None:
+def _table(rows: list[Any], where: str, glob: str | None = None) -> None:
     if not rows:
         print(f'no records match in the {where}')
         return
@@ -175,4 +187,8 @@ def _table(rows: list[Any], where: str) -> None:
               f'{(r.preset or "-")[:16]:<16} {r.status:<8} {r.verdict:<13} {_am(pp)} '
               f'{_am(fw[0] if fw else None)}  {r.bag_path}'
               + (f'\n{"":<17} failed: {r.failure}' if r.failure else ''))
+        if glob:
+            for (name, d), v in sorted(r.metrics.items()):
+                if fnmatch.fnmatchcase(name, glob):
+                    print(f'{"":<17} {name}{"" if d == "all" else f" ({d})"} = {v:.6g}')
     print(f'{len(rows)} record(s)')

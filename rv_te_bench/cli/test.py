@@ -88,6 +88,8 @@ def register(subparsers: Subparsers) -> None:
     p.add_argument('--namespace', default='/', help='namespace of the session')
     p.add_argument('--report', default=None, metavar='DIR',
                    help='where the unit report goes (default: <out-dir>/<serial>_<time>/)')
+    p.add_argument('--pdf', action='store_true',
+                   help='also print the report to report.pdf with headless Chromium (A4, to sign)')
     p.add_argument('--out-dir', default='out/tests', help='folder for sessions and reports')
     p.add_argument('--wait-s', type=float_between(0.1, 3600.0), default=20.0,
                    help='how long to wait for the test_sequencer [s], 0.1..3600')
@@ -316,7 +318,7 @@ def run(args: argparse.Namespace) -> int:
     if report is not None:
         if args.launch:
             report['bench']['bag'] = str(out_dir / 'bag')
-        show_report(report, report_dir, as_json=args.json)
+        show_report(report, report_dir, as_json=args.json, pdf=args.pdf)
         if args.launch:
             _record(args, report, out_dir / 'bag')
     return verdict_exit(verdict, args.serial, reason, report, as_json=args.json)
@@ -329,12 +331,22 @@ def _linger(dash: Any, args: argparse.Namespace) -> None:
         time.sleep(0.05)
 
 
-def show_report(report: dict[str, Any], directory: Path, *, as_json: bool) -> None:
-    """Write the unit report; print the record as JSON (the one document on stdout; the
-    report's path on stderr) or the verdict table and its path."""
+def show_report(report: dict[str, Any], directory: Path, *, as_json: bool,
+                pdf: bool = False) -> None:
+    """Write the unit report (and ``pdf``: report.pdf printed by Chromium; a failure to print
+    is a warning, the test's record and verdict go on); print the record as JSON (the one
+    document on stdout; the report's path on stderr) or the verdict table and its path."""
+    from rv_te_bench.errors import RvTeError
+    from rv_te_bench.report.print_pdf import print_to_pdf
     from rv_te_bench.report.unit import write_unit_report
 
     paths = write_unit_report(report, directory)
+    if pdf:
+        try:
+            print(f'report PDF: {print_to_pdf(paths["html"], directory / "report.pdf")}',
+                  file=sys.stderr)
+        except RvTeError as exc:
+            print(f'WARNING: no report.pdf: {exc}', file=sys.stderr)
     if as_json:
         print(json.dumps(report, indent=1), flush=True)
         print(f'report: {paths["html"]}', file=sys.stderr)

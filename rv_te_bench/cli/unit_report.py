@@ -50,6 +50,8 @@ def register(subparsers: Subparsers) -> None:
     p.add_argument('--serial', default=None, help='the unit (default: the last test)')
     p.add_argument('--report', default=None, metavar='DIR',
                    help='where the report goes (default: <bag>/../unit-report)')
+    p.add_argument('--pdf', action='store_true',
+                   help='also print the report to report.pdf with headless Chromium (A4, to sign)')
     p.add_argument('--json', action='store_true', help='print the record as JSON on stdout')
     p.set_defaults(func=run)
 
@@ -83,7 +85,7 @@ def run(args: argparse.Namespace) -> int:
     judged = find_judged(bag)
     if judged is not None:
         return rejudge(judged, report_dir=Path(args.report) if args.report else None,
-                       as_json=args.json, differences=_differences)
+                       as_json=args.json, differences=_differences, pdf=args.pdf)
     rec = read_recorded_test(bag, serial=args.serial)
     r = rec.report
     plan = parse_plan(parse_yaml_text(r['plan_yaml'], 'recorded plan', AcceptanceError),
@@ -106,7 +108,7 @@ def run(args: argparse.Namespace) -> int:
                     times=rec.block_times)
     new['bench']['bag'] = str(bag)
     show_report(new, Path(args.report) if args.report else bag.parent / 'unit-report',
-                as_json=args.json)
+                as_json=args.json, pdf=args.pdf)
     diffs = _differences(new, old) if old else []
     if diffs:
         print(f'ERROR: recomputed from the bag, {len(diffs)} metric(s) differ from the '

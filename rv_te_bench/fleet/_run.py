@@ -6,6 +6,12 @@ the client writes it the moment it arrives. A worker that dies mid-task loses no
 scheduler runs its task again on another worker (up to Dask's ``allowed-failures``, then
 the bag is recorded as failed with that reason); results already handed back are already
 in the store. A bag that cannot be analysed is recorded as failed with its one-line reason.
+
+Hand-over costs are kept off the bags (issue 41): bags go to the workers in batches (several
+per task while many remain, one per task at the end so that the workers finish together),
+a batch whose worker died is split into single bags (only a bag that kills its worker every
+time is recorded failed), and a local cluster's workers are forked warm from a fork server
+that imported the analysis once (:mod:`._warm`).
 """
 
 from __future__ import annotations
@@ -16,7 +22,7 @@ import time
 from collections import Counter
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING, Any, TypeVar
 
 from rv_te_bench import __version__
 from rv_te_bench.errors import RvTeError, StoreError
@@ -33,7 +39,8 @@ if TYPE_CHECKING:
 
     from rv_te_bench.store import ResultStore, UnitRecord
 
-__all__ = ['FleetOptions', 'FleetSummary', 'analyse_one', 'run_fleet']
+__all__ = ['FleetOptions', 'FleetSummary', 'analyse_batch', 'analyse_one', 'batches',
+           'run_fleet']
 
 @dataclass(frozen=True)
 class FleetOptions:
@@ -108,6 +115,29 @@ def analyse_one(path: str, options: FleetOptions) -> UnitRecord:
     return rec
 
 
+def analyse_batch(paths: Sequence[str], options: FleetOptions) -> list[UnitRecord]:
+    """Analyse several bags in one task (run on a worker; never raises for a bad bag)."""
+    return [analyse_one(p, options) for p in paths]
+
+
+_P = TypeVar('_P')
+
+#: Most bags in one task: ~2-3 s of work at 2 output revolutions and 10 kHz.
+MAX_BATCH = 8
+
+
+def batches(paths: Sequence[_P], workers: int) -> list[list[_P]]:
+    """Cut ``paths`` into tasks: about a third of each worker's share of what is left per
+    task (at most MAX_BATCH), shrinking to single bags at the end (guided scheduling)."""
+    out: list[list[_P]] = []
+    k = 0
+    while k < len(paths):
+        size = max(1, min(MAX_BATCH, (len(paths) - k) // (3 * max(1, workers))))
+        out.append(list(paths[k:k + size]))
+        k += size
+    return out
+
+
 def _todo(bags: Sequence[Path], store: ResultStore, force: bool,
           ) -> tuple[list[Path], int, list[list[str]]]:
     """Bags to analyse, how many are skipped, and the groups of paths holding the same bag.
@@ -157,6 +187,8 @@ def _todo(bags: Sequence[Path], store: ResultStore, force: bool,
         todo.append(b)
     return todo, skipped, duplicates
 
+
+_WARM = 'rv_te_bench.fleet._warm'
 
 #: How long the scheduler has to accept a connection and answer its handshake [s].
 SCHEDULER_TIMEOUT_S = 20.0
@@ -225,8 +257,17 @@ def _client(workers: int, scheduler: str | None) -> tuple[Any, Any]:
     # helper threads (read-ahead and window spectra: one analysis takes ~1.6 cores): off in
     # the workers
     env = {READ_AHEAD_ENV: '0'} if workers >= (os.cpu_count() or 1) else {}
-    cluster = LocalCluster(n_workers=workers, threads_per_worker=1, processes=True,
-                           dashboard_address=':0', silence_logs=logging.ERROR, env=env)
+    # warm workers: forked from a fork server that imported the analysis once (._warm)
+    # instead of each spawned cold and importing it with its first bag
+    import multiprocessing
+
+    import dask
+
+    multiprocessing.get_context('forkserver').set_forkserver_preload([_WARM])
+    with dask.config.set({'distributed.worker.multiprocessing-method': 'forkserver'}):
+        cluster = LocalCluster(n_workers=workers, threads_per_worker=1, processes=True,
+                               dashboard_address=':0', silence_logs=logging.ERROR, env=env,
+                               preload=[_WARM])
     return Client(cluster), cluster
 
 
@@ -262,30 +303,46 @@ def run_fleet(bags: Sequence[Path], store: ResultStore, *, options: FleetOptions
         if on_client is not None:
             on_client(client)
         summary.workers = len(client.scheduler_info().get('workers', {}))
-        futures = client.map(analyse_one, [str(b) for b in todo], options=options,
-                             pure=False)
-        path_of = {f.key: b for f, b in zip(futures, todo, strict=True)}
-        for done, fut in enumerate(as_completed(futures), start=1):
-            bag = path_of[fut.key]
+        n_workers = max(1, summary.workers if scheduler else workers)
+        ac = as_completed()
+        batch_of: dict[str, list[Path]] = {}
+
+        def submit(group: list[Path]) -> None:
+            fut = client.submit(analyse_batch, [str(b) for b in group], options, pure=False)
+            batch_of[fut.key] = group
+            ac.add(fut)
+
+        for group in batches(todo, n_workers):
+            submit(group)
+        done = 0
+        for fut in ac:
+            group = batch_of.pop(fut.key)
             try:
-                rec = fut.result()
+                recs = fut.result()
             except KilledWorker:
-                rec = failed_record(bag, 'the worker analysing this bag died every time it '
-                                    'was tried (Dask allowed-failures)', command='fleet',
-                                    software_version=__version__)
+                if len(group) > 1:     # one of them may kill its worker: each on its own
+                    for b in group:
+                        submit([b])
+                    continue
+                recs = [failed_record(group[0], 'the worker analysing this bag died every '
+                                      'time it was tried (Dask allowed-failures)',
+                                      command='fleet', software_version=__version__)]
             except Exception as exc:  # noqa: BLE001 - recorded with its reason, not lost
-                rec = failed_record(bag, f'{type(exc).__name__}: {_one_line(exc)}',
-                                    command='fleet', software_version=__version__)
-            store.upsert(rec)
-            if rec.status == 'failed':
-                summary.failed += 1
-                summary.failures.append((str(bag), rec.failure or ''))
-            elif rec.status == 'partial':
-                summary.partial += 1
-            else:
-                summary.ok += 1
-            if progress is not None:
-                progress(done, len(todo), summary.failed)
+                recs = [failed_record(b, f'{type(exc).__name__}: {_one_line(exc)}',
+                                      command='fleet', software_version=__version__)
+                        for b in group]
+            for bag, rec in zip(group, recs, strict=True):
+                store.upsert(rec)
+                done += 1
+                if rec.status == 'failed':
+                    summary.failed += 1
+                    summary.failures.append((str(bag), rec.failure or ''))
+                elif rec.status == 'partial':
+                    summary.partial += 1
+                else:
+                    summary.ok += 1
+                if progress is not None:
+                    progress(done, len(todo), summary.failed)
     finally:
         client.close()
         if cluster is not None:

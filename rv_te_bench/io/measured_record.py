@@ -61,13 +61,16 @@ class TorqueTopic:
 
 def read_measured_record(bag: str | Path, *, torque: TorqueTopic | None = None,
                          torque_in: TorqueTopic | None = None,
-                         temperature: TorqueTopic | None = None) -> MeasuredRecord:
+                         temperature: TorqueTopic | None = None,
+                         topics_from: str | Path | None = None) -> MeasuredRecord:
     """Read ``bag`` whole into a :class:`MeasuredRecord`.
 
     The input torque and case temperature (issue 38) come from ``bench/channels``
     (BenchChannels, sample by sample) or, with ``torque_in`` / ``temperature``, from the
     bench's own topics (WrenchStamped / Float64 / JointState; ``sensor_msgs/Temperature``
     or Float64 in degC), interpolated onto the samples like the torque topic.
+    ``topics_from``: the bag holding those topics when it is not ``bag`` (a JointState bag
+    imported into ``bag``: the stamps of both are the bench's, so the times line up).
 
     Raises:
         BagError: Not a readable bag, no ``bench/info``, no encoder blocks, more than
@@ -115,8 +118,9 @@ def read_measured_record(bag: str | Path, *, torque: TorqueTopic | None = None,
     torque_arr = np.concatenate(tq) if has_torque and tq else None
     torque_from = 'encoder blocks (torque_out_nm)' if torque_arr is not None else \
         'none: the encoder blocks carry no torque'
+    src = Path(topics_from) if topics_from is not None else path
     if torque is not None:
-        torque_arr, torque_from = _torque_from_topic(path, torque, t0 + time)
+        torque_arr, torque_from = _torque_from_topic(src, torque, t0 + time)
     if torque_arr is not None and not np.all(np.isfinite(torque_arr)):
         bad = int(np.count_nonzero(~np.isfinite(torque_arr)))
         torque_from += f' ({bad} samples without a torque value)'
@@ -124,10 +128,10 @@ def read_measured_record(bag: str | Path, *, torque: TorqueTopic | None = None,
     ch = read_bench_channels(path, seqs, [int(n) for n in sizes])
     t_in_nm, temp, what = ch.torque_in_nm, ch.temp_case_degc, [f'bench/channels: {ch.what}']
     if torque_in is not None:
-        t_in_nm, line = _torque_from_topic(path, torque_in, t0 + time)
+        t_in_nm, line = _torque_from_topic(src, torque_in, t0 + time)
         what.append(f'input torque: {line}')
     if temperature is not None:
-        temp, line = _torque_from_topic(path, temperature, t0 + time)
+        temp, line = _torque_from_topic(src, temperature, t0 + time)
         what.append(f'case temperature: {line}')
     for arr in (time, breaks):
         arr.setflags(write=False)

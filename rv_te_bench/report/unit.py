@@ -12,25 +12,30 @@ edge. Figures: :mod:`rv_te_bench.report.unit_figures`.
 from __future__ import annotations
 
 import base64
-import html
 import json
 import math
 from pathlib import Path
 from typing import Any
 
-from rv_te_bench.core.spectrum_lines import threshold_rule_text
 from rv_te_bench.report.loss_report import loss_condition, loss_sections
 from rv_te_bench.report.unit_doc import (
-    ARCMIN,
     PRINT_CSS,
-    AngleUnit,
     angle_unit,
     calibration_references,
+    calibrations_of,
     report_number,
     sign_off_html,
     software_identity,
 )
-from rv_te_bench.report.unit_figures import DIRECTION_STYLE, spectrum_table, unit_figures
+from rv_te_bench.report.unit_figures import spectrum_table, unit_figures
+from rv_te_bench.report.unit_sections import display as _display
+from rv_te_bench.report.unit_sections import esc as _e
+from rv_te_bench.report.unit_sections import fmt as _fmt
+from rv_te_bench.report.unit_sections import (
+    hysteresis_html,
+    spectrum_html,
+    te_rows_html,
+)
 from sim.units import ARCMIN_PER_RAD
 
 __all__ = ['decision_rule_text', 'document_of', 'format_live', 'human_reason', 'metric_rows',
@@ -50,26 +55,6 @@ _LABELS = {
 _VERDICT_COLOUR = {'pass': '#1b7f3b', 'fail': '#b00020', 'not_measured': '#9a6700',
                    'indeterminate': '#b35c00', 'not_judged': '#9a6700', 'info': '#555',
                    'cancelled': '#9a6700', 'aborted': '#b00020', 'error': '#b00020'}
-
-
-def _display(unit: str, x: float | None, au: AngleUnit = ARCMIN) -> tuple[float, str]:
-    """SI value -> (display value, display unit) in the report's angle unit ``au``."""
-    shown = {'rad': au.name, 'N m/rad': f'N m/{au.name}'}.get(unit, unit)
-    if x is None or not math.isfinite(x):
-        return math.nan, shown
-    if unit == 'rad':
-        return x * au.per_rad, shown
-    if unit == 'N m/rad':
-        return x / au.per_rad, shown
-    return x, shown
-
-
-def _fmt(x: float, digits: int = 4) -> str:
-    return '-' if not math.isfinite(x) else f'{x:.{digits}g}'
-
-
-def _deg(x: float | None) -> str:
-    return '-' if x is None or not math.isfinite(x) else f'{x:.1f}'
 
 
 def _label(name: str) -> str:
@@ -164,10 +149,6 @@ padding:.25em .6em;text-align:right}th{background:#f0f0f0}td.l,th.l{text-align:l
 img{max-width:100%;border:1px solid #ddd}.muted{color:#666}
 .badge{display:inline-block;padding:.15em .7em;border-radius:.3em;color:#fff;font-weight:bold}
 """
-
-
-def _e(x: Any) -> str:
-    return html.escape(str(x))
 
 
 def _badge(verdict: str) -> str:
@@ -282,7 +263,7 @@ def _identity(report: dict[str, Any], doc: dict[str, Any]) -> list[tuple[str, st
            ('report issued (UTC)', doc['issued_utc']),
            ('bench', f"{b['bench_id']} ({b['preset']}, ratio {b['gear_ratio']:.6g})"),
            ('encoders', f"input {b['encoder_in']}, output {b['encoder_out']}"),
-           ('calibration references', calibration_references(report)),
+           ('calibration references', calibration_references(doc['calibrations'])),
            ('software', f"{sw['name']} {sw['version']}, commit {sw['commit']}"),
            ('plan', report['plan']['plan']),
            ('tolerance profile', report['tolerance']['profile']),
@@ -297,79 +278,6 @@ def _table(rows: list[tuple[str, str]], cls: str) -> str:
     return (f'<table class="{cls}">' + ''.join(
         f'<tr><th class="l">{_e(k)}</th><td class="l">{_e(v)}</td></tr>' for k, v in rows)
         + '</table>')
-
-
-def _dir(direction: str) -> str:
-    colour, ls, _, words = DIRECTION_STYLE.get(direction, ('gray', ':', '', direction))
-    border = 'dashed' if ls == '--' else 'solid'
-    return (f'<span class="dir" style="border-bottom:3px {border} {colour.removeprefix("tab:")}">'
-            f'{_e(words)}</span>')
-
-
-def _te_rows_html(te_rows: list[dict[str, Any]], au: AngleUnit) -> list[str]:
-    a = au.name
-    p = ['<table class="te"><tr><th class="l">direction</th><th>speed [rpm]</th>'
-         f'<th>load [N m]</th><th>revolutions</th><th>p-p per revolution [{a}]</th>'
-         f'<th>mean [{a}]</th><th>std [{a}]</th></tr>']
-    for r in te_rows:
-        st = r.get('stats') or {}
-        pps = ', '.join(f'{x * au.per_rad:.4g}' for x in r.get('te_pp_per_rev_rad', []))
-        mean, std = (math.nan if st.get(k) is None else float(st[k])
-                     for k in ('te_mean_rad', 'te_std_rad'))
-        p.append(f"<tr><td class='l'>{_dir(r['direction'])}</td><td>{r['speed_rpm']:g}</td>"
-                 f"<td>{r['load_nm']:g}</td><td>{r.get('revolutions', '-')}</td>"
-                 f"<td>{_e(pps or r.get('error', '-'))}</td><td>{_fmt(mean * au.per_rad)}</td>"
-                 f"<td>{_fmt(std * au.per_rad)}</td></tr>")
-    p.append('</table>')
-    return p
-
-
-def _spectrum_html(te_rows: list[dict[str, Any]], au: AngleUnit) -> list[str]:
-    p = [f'<p class="muted">Every labelled line of the reducer, and every line no part explains '
-         f'("unassigned"; {_e(threshold_rule_text())}). Peak amplitude in {au.name}.</p>'
-         '<table class="lines"><tr><th class="l">direction</th><th class="l">line</th>'
-         f'<th>output order</th><th>amplitude [{au.name}]</th><th class="l">status</th></tr>']
-    for r in te_rows:
-        for ln in spectrum_table(r):
-            status = ('unassigned: no part of the reducer at this order' if not ln['assigned']
-                      else 'labelled' if ln['above'] else 'labelled, below the threshold')
-            p.append(f"<tr><td class='l'>{_dir(r['direction'])}</td>"
-                     f"<td class='l'>{_e(ln['label'])}</td><td>{ln['output_order']:.6g}</td>"
-                     f"<td>{_fmt(ln['amplitude_rad'] * au.per_rad, 3)}</td>"
-                     f"<td class='l'>{status}</td></tr>")
-    p.append('</table>')
-    return p
-
-
-def _hysteresis_html(s: dict[str, Any], au: AngleUnit) -> list[str]:
-    p = [f"<h2>Hysteresis curve ({_e(s['name'])})</h2>"]
-    if s.get('error'):
-        p.append(f"<p>{_e(s['error'])}</p>")
-    else:
-        rig = '; '.join(f'{k}: {_fmt((v[0] or math.nan) / au.per_rad)} under positive torque, '
-                        f'{_fmt((v[1] or math.nan) / au.per_rad)} under negative torque '
-                        f'[N m/{au.name}]' for k, v in s['rigidity_nm_per_rad'].items())
-        p.append(f"<p>Torsional rigidity per side: {_e(rig)}; the verdict uses the smaller.</p>")
-        if s.get('cycles'):
-            spread = s.get('spread') or {}
-            sd = [f'{k.removesuffix("_rad")}: {_fmt(_display("rad", spread.get(k), au)[0])} '
-                  f'{au.name}' for k in ('lost_motion_rad', 'backlash_rad')]
-            p.append(f"<p>Read from {_e(s.get('reading', ''))}: {s['cycles']} load cycle(s) "
-                     f"averaged (standard deviation over the cycles: {_e('; '.join(sd))}); "
-                     f"torque noise {_fmt(s.get('torque_noise_nm') or 0.0)} N m.</p>")
-    if len(s.get('positions', [])) > 1:
-        p.append(f'<table><tr><th>position</th><th>output angle [deg]</th><th>lost motion '
-                 f'[{au.name}]</th><th>backlash [{au.name}]</th></tr>')
-        for j, c in enumerate(s['positions']):
-            lm, bl = (_display('rad', c.get(k), au)[0] for k in ('lost_motion_rad',
-                                                                  'backlash_rad'))
-            shown = ' (curve below)' if j == s['shown_position'] else ''
-            p.append(f"<tr><td>{j + 1}{shown}</td><td>{_deg(c.get('output_position_deg'))}</td>"
-                     f"<td>{_fmt(lm)}</td><td>{_fmt(bl)}</td></tr>")
-        p.append('</table><p class="muted">The unit\'s lost motion and backlash are the largest '
-                 'of the positions, its rigidity the smallest; the curve is the position with '
-                 'the largest lost motion.</p>')
-    return p
 
 
 def render_unit_html(report: dict[str, Any], images: dict[str, bytes],
@@ -422,16 +330,16 @@ def render_unit_html(report: dict[str, Any], images: dict[str, bytes],
     te_rows = [r for s in report['steps'] if s['kind'] == 'te' for r in s.get('rows', [])]
     if te_rows:
         p.append('<h2 id="te">Transmission error per direction</h2>')
-        p += _te_rows_html(te_rows, au)
+        p += te_rows_html(te_rows, au)
         img('te.png', 'TE against output position, one panel per direction, limit band')
     for s in report['steps']:
         if s['kind'] == 'hysteresis':
-            p += _hysteresis_html(s, au)
+            p += hysteresis_html(s, au)
             img('hysteresis.png', 'hysteresis curve with lost motion, backlash, rigidity and '
                 'their limits')
     if te_rows:
         p.append('<h2 id="spectrum">Spectrum</h2>')
-        p += _spectrum_html([r for r in te_rows if r.get('spectrum')], au)
+        p += spectrum_html([r for r in te_rows if r.get('spectrum')], au)
         img('spectrum.png', 'labelled and unassigned lines of the TE order spectrum')
     for s in report['steps']:
         if s['kind'] == 'sweep':
@@ -464,7 +372,7 @@ def document_of(report: dict[str, Any]) -> dict[str, Any]:
     sw = software_identity()
     return {'number': report_number(report, sw), 'software': sw,
             'issued_utc': dt.datetime.now(dt.UTC).isoformat(timespec='seconds'),
-            'angle_unit': angle_unit(report).name}
+            'angle_unit': angle_unit(report).name, 'calibrations': calibrations_of(report)}
 
 
 def write_unit_report(report: dict[str, Any], directory: Path) -> dict[str, Path]:

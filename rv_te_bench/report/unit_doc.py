@@ -25,7 +25,8 @@ from typing import Any
 
 from sim.units import ARCMIN_PER_RAD, ARCSEC_PER_RAD
 
-__all__ = ['PRINT_CSS', 'AngleUnit', 'angle_unit', 'calibration_references', 'report_number',
+__all__ = ['PRINT_CSS', 'AngleUnit', 'angle_unit', 'calibration_references', 'calibrations_of',
+           'report_number',
            'sign_off_html', 'software_identity']
 
 
@@ -98,19 +99,35 @@ def report_number(report: dict[str, Any], software: dict[str, str]) -> str:
     return f'RVTE-{day}-{serial}-{digest[:8].upper()}'
 
 
-def calibration_references(report: dict[str, Any]) -> str:
-    """The bench's and encoders' calibration references the record holds, or what is
-    missing (a conditions entry ``--condition encoder_out_calibration=CERT-123`` or the
-    bench's scale serials)."""
+def calibrations_of(report: dict[str, Any]) -> dict[str, str]:
+    """The calibration references the record holds, by where they come from: the test's
+    conditions (``--condition encoder_out_calibration=CERT-123``), the bag's metadata (a
+    bench description's ``metadata: {bench_calibration: ...}``), the scales' serials."""
     b, cond = report['bench'], report.get('conditions') or {}
-    refs = [f'{k}: {v}' for k, v in cond.items() if 'calibrat' in str(k).lower()]
-    refs += [f'{side} scale {b[k]}' for side, k in (('input', 'encoder_in_scale_serial'),
-                                                     ('output', 'encoder_out_scale_serial'))
-             if b.get(k)]
-    if refs:
-        return '; '.join(refs)
-    return ('NOT STATED: give them as --condition bench_calibration=... --condition '
-            'encoder_out_calibration=... (certificate numbers)')
+    out = {str(k): str(v) for k, v in cond.items() if 'calibrat' in str(k).lower()}
+    if b.get('bag'):
+        from rv_te_bench.errors import BagError
+        from rv_te_bench.io.bag_reader import open_bag
+
+        try:
+            custom = open_bag(b['bag']).info.get('custom_data') or {}
+        except (BagError, OSError):
+            custom = {}
+        if isinstance(custom, dict):
+            out.update({str(k): str(v) for k, v in custom.items()
+                        if 'calibrat' in str(k).lower() and str(k) not in out})
+    out.update({f'{side} scale serial': b[k] for side, k in (
+        ('input', 'encoder_in_scale_serial'), ('output', 'encoder_out_scale_serial'))
+        if b.get(k)})
+    return out
+
+
+def calibration_references(calibrations: dict[str, str]) -> str:
+    """The references as one line, or what is missing and how to give it."""
+    if calibrations:
+        return '; '.join(f'{k}: {v}' for k, v in calibrations.items())
+    return ('NOT STATED: give them in the bench description (metadata: {bench_calibration: '
+            '..., encoder_out_calibration: ...}) or as --condition encoder_out_calibration=...')
 
 
 def sign_off_html(operator: str) -> str:
@@ -131,7 +148,7 @@ def sign_off_html(operator: str) -> str:
 #: on one page, the identity block repeated nowhere but at the top.
 PRINT_CSS = """
 .signoff td.sign{min-width:12em;height:2.6em;border-bottom:1px solid #222}
-.ident td,.ident th{text-align:left}.dir{white-space:nowrap}
+.ident td,.ident th,.signoff th{text-align:left}.dir{white-space:nowrap}
 @page{size:A4;margin:12mm}
 @media print{body{max-width:none;margin:0;font-size:9.5pt}
 section.keep,table.verdict,table.signoff,.ident,figure,img{break-inside:avoid;

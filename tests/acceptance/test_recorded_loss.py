@@ -19,6 +19,7 @@ expanded uncertainty is ~0.01), temperature rise within 0.01 K, the life run's T
 
 from __future__ import annotations
 
+import json
 import math
 from pathlib import Path
 from typing import Any
@@ -94,9 +95,10 @@ def assert_close(live: dict[str, Any], judged: dict[str, Any]) -> None:
 
 
 def test_session_bag_with_bench_channels(tmp_path: Path, live: Run, plan: dict,
-                                         capsys: pytest.CaptureFixture[str]) -> None:
+                                         capsys: pytest.CaptureFixture[str],
+                                         default_store: Path) -> None:
     bag = write_session_bag(tmp_path / 'session', live, channels=True)
-    report, err = judge(tmp_path, capsys, plan, '--from', str(bag), '--no-db', code=0)
+    report, err = judge(tmp_path, capsys, plan, '--from', str(bag), code=0)
     assert_close(live.report, report)
     assert 'not judged' not in err
     assert report['source']['channels_from'].startswith(
@@ -105,6 +107,21 @@ def test_session_bag_with_bench_channels(tmp_path: Path, live: Run, plan: dict,
     parts = report['source']['steps'][1]['parts']
     assert [p['direction'] for p in parts] == ['ccw', 'cw']
     assert parts[0]['found_t_start_s'] < parts[1]['found_t_start_s']
+    # the life run's checkpoints are rows of the results store: rv-te results lists them
+    from rv_te_bench.cli.main import main
+
+    life = next(s for s in report['steps'] if s['kind'] == 'life')['checkpoints']
+    assert main(['results', '--serial', 'LI-42', '--metrics', 'life_cp*', '--json']) == 0
+    (doc,) = json.loads(capsys.readouterr().out)
+    got = {m['name']: m['value'] for m in doc['metrics']}
+    want = {f'life_cp{c["checkpoint"]:02d}_{q}': c[q] for c in life
+            for q in ('te_pp_rad', 'no_load_torque_nm', 'temp_case_degc')}
+    assert want.items() <= got.items()
+    assert set(got) - set(want) == {f'life_cp{k:02d}_line_1_f_w_rad' for k in range(4)} | {
+        f'life_cp{k:02d}_line_pin_mesh_40_f_w_1560_f_out_rad' for k in range(4)}
+    assert all(n.startswith('life_cp') for n in got)
+    assert main(['results', '--serial', 'LI-42', '--metrics', 'life_cp03_te_pp_rad']) == 0
+    assert f'life_cp03_te_pp_rad = {life[3]["te_pp_rad"]:.6g}' in capsys.readouterr().out
 
 
 def test_session_bag_without_channels_is_not_judged(tmp_path: Path, live: Run, plan: dict,
@@ -215,3 +232,81 @@ def test_standard_topics_of_a_ros2_control_bench(tmp_path: Path, live: Run, plan
     assert 'input torque: topic /bench/torque_in (WrenchStamped.torque.z' in \
         report['source']['channels_from']
     assert np.isfinite(metric(report, 'trend_alarms')['value'])
+    # rv-te unit-report judges the record again with the same topics (judged.json)
+    from rv_te_bench.cli.main import main
+
+    (run,) = [d for d in (tmp_path / 'out').iterdir() if d.is_dir()]
+    assert main(['unit-report', str(run), '--report', str(tmp_path / 'again')]) == 0
+    assert 'every metric equals the recorded result' in capsys.readouterr().err
+
+
+#: A short plan for a JointState bag (one message per sample): no-load, breakaway, one
+#: efficiency point.
+JS_PLAN = {'plan': 'js', 'tolerance': 'js-limits.yaml', 'steps': [
+    LOSS_PLAN['steps'][0], LOSS_PLAN['steps'][1],
+    {**LOSS_PLAN['steps'][3], 'loads_nm': [784]}]}
+JS_LIMITS = {'profile': 'js-limits', 'limits': {
+    k: v for k, v in LIMITS['limits'].items()
+    if k in {'efficiency_pct', 'no_load_torque_nm', 'starting_torque_nm'}}}
+
+
+def test_joint_state_bag_with_wrench_and_temperature_topics(
+        tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    """What a ros2_control bench records: sensor_msgs/JointState per sample (the output
+    joint's effort the output torque), the input torque transducer as WrenchStamped at
+    100 Hz and the case sensor as sensor_msgs/Temperature at 10 Hz, in one bag written by
+    rosbags: imported with the bench description, the topics read from the original bag."""
+    from rosbags.rosbag2 import Writer
+    from rosbags.typesys import Stores, get_typestore
+
+    (tmp_path / 'js-limits.yaml').write_text(yaml.safe_dump(JS_LIMITS), encoding='utf-8')
+    live = run_plan(JS_PLAN, 'rv-80e-101', limits=JS_LIMITS, losses=True)
+    a = live.arrays()
+    store = get_typestore(Stores.ROS2_JAZZY)
+    ty = store.types
+    js, ws, tm = ('sensor_msgs/msg/JointState', 'geometry_msgs/msg/WrenchStamped',
+                  'sensor_msgs/msg/Temperature')
+
+    def header(k: int) -> Any:
+        ns = T0_NS + round(float(a['t_s'][k]) * 1e9)
+        return ns, ty['std_msgs/msg/Header'](stamp=ty['builtin_interfaces/msg/Time'](
+            sec=ns // 10**9, nanosec=ns % 10**9), frame_id='')
+
+    bag = tmp_path / 'bench_record'
+    vec = ty['geometry_msgs/msg/Vector3']
+    with Writer(bag, version=9) as w:
+        cj = w.add_connection('/joint_states', js, typestore=store)
+        cw = w.add_connection('/torque_in_sensor/wrench', ws, typestore=store)
+        ct = w.add_connection('/case_temperature', tm, typestore=store)
+        for k in range(a['t_s'].size):
+            ns, h = header(k)
+            w.write(cj, ns + 50_000, bytes(store.serialize_cdr(ty[js](
+                header=h, name=['input_joint', 'output_joint'],
+                position=np.array([a['theta_in_rad'][k], a['theta_out_rad'][k]]),
+                velocity=np.zeros(0), effort=np.array([math.nan, a['torque_nm'][k]])), js)))
+            if k % 10 == 0:
+                w.write(cw, ns + 60_000, bytes(store.serialize_cdr(ty[ws](
+                    header=h, wrench=ty['geometry_msgs/msg/Wrench'](
+                        force=vec(x=0.0, y=0.0, z=0.0),
+                        torque=vec(x=0.0, y=0.0, z=float(a['torque_in_nm'][k])))), ws)))
+            if k % 100 == 0:
+                w.write(ct, ns + 70_000, bytes(store.serialize_cdr(ty[tm](
+                    header=h, temperature=float(a['temp_case_degc'][k]), variance=0.0), tm)))
+    bench = _loss_bench(tmp_path / 'bench.yaml', live)
+    report, err = judge(tmp_path, capsys, JS_PLAN, '--from', str(bag), '--bench', str(bench),
+                        '--torque', 'output_joint', '--no-unwrap', '--torque-in-topic',
+                        '/torque_in_sensor/wrench', '--temperature-topic', '/case_temperature',
+                        '--no-db', code=0)
+    assert 'not judged' not in err
+    for name, ab in (('no_load_torque_max_nm', 0.01), ('starting_torque_nm', 0.006),
+                     ('efficiency_at_max_load', 0.005)):
+        assert metric(report, name)['value'] == pytest.approx(
+            metric(live.report, name)['value'], abs=ab), name
+    assert 'case temperature: topic /case_temperature (Temperature' in \
+        report['source']['channels_from']
+    # judged again from the imported bag and the original's topics
+    from rv_te_bench.cli.main import main
+
+    (run,) = [d for d in (tmp_path / 'out').iterdir() if d.is_dir()]
+    assert main(['unit-report', str(run), '--report', str(tmp_path / 'again')]) == 0
+    assert 'every metric equals the recorded result' in capsys.readouterr().err

@@ -140,3 +140,49 @@ def test_limit_sources_cite_documents_in_the_repository() -> None:
     assert cited
     missing = [(f, m) for f, m in cited if not (REPO / m).exists()]
     assert not missing, missing
+
+
+def test_calibration_references_from_the_bench_description(tmp_path: Path,
+                                                            capsys: pytest.CaptureFixture[str]
+                                                            ) -> None:
+    """A DAQ's CSV judged with its bench description (rv-te test --from): the certificates
+    the description's metadata names are in the report's identity block and report.json."""
+    import yaml
+
+    from rv_te_bench.cli.main import main
+    from tests.acceptance.recorded_data import QUICK, bench_yaml, run_plan, write_csv
+
+    run = run_plan(QUICK)
+    csv = write_csv(tmp_path / 'run.csv', run)
+    bench = bench_yaml(tmp_path / 'bench.yaml', run, metadata={
+        'encoder_out_calibration': 'DKD-K-12345 2026-03-02', 'daq': 'NI PXIe-4492'})
+    (tmp_path / 'plan.yaml').write_text(yaml.safe_dump(QUICK), encoding='utf-8')
+    rc = main(['test', str(tmp_path / 'plan.yaml'), '--serial', 'LI-42', '--operator', 'kim',
+               '--out-dir', str(tmp_path / 'out'), '--from', str(csv), '--bench', str(bench),
+               '--time', 't_s', '--theta-in', 'theta_in_rad', '--theta-out', 'theta_out_rad',
+               '--torque', 'torque_nm', '--condition', 'bench_calibration=QP-12/2026-10'])
+    assert rc == 0, capsys.readouterr().err
+    (run_dir,) = [d for d in (tmp_path / 'out').iterdir() if d.is_dir()]
+    doc = json.loads((run_dir / 'report' / 'report.json').read_text())['document']
+    assert doc['calibrations'] == {'bench_calibration': 'QP-12/2026-10',
+                                   'encoder_out_calibration': 'DKD-K-12345 2026-03-02'}
+    text = visible_text((run_dir / 'report' / 'report.html').read_text())
+    assert ('bench_calibration: QP-12/2026-10; encoder_out_calibration: DKD-K-12345 '
+            '2026-03-02') in text
+
+
+def test_pdf_without_chromium_is_one_warning_and_the_report_stays(
+        report, tmp_path: Path, monkeypatch: pytest.MonkeyPatch,
+        capsys: pytest.CaptureFixture[str]) -> None:
+    from rv_te_bench.cli.test import show_report
+    from rv_te_bench.report.unit_doc import software_identity
+
+    software_identity()   # the commit read (and kept) while git is on the PATH
+    monkeypatch.setenv('PATH', str(tmp_path / 'empty'))
+    show_report(report, tmp_path / 'r', as_json=False, pdf=True)
+    err = capsys.readouterr().err.strip().splitlines()
+    assert err == ['WARNING: no report.pdf: no Chromium to print report.pdf (looked for '
+                   'chromium, chromium-browser, google-chrome on the PATH; Debian: apt-get '
+                   'install chromium)']
+    assert (tmp_path / 'r' / 'report.html').exists()
+    assert not (tmp_path / 'r' / 'report.pdf').exists()

@@ -96,3 +96,42 @@ def test_printed_to_pdf(written, tmp_path: Path) -> None:
     # the sign-off block is whole on its page
     (sign,) = [p for p in pages if 'Sign-off' in p]
     assert 'tested by' in sign and 'approved by' in sign
+
+
+def test_rv_te_test_and_unit_report_print_the_pdf(tmp_path: Path,
+                                                  capsys: pytest.CaptureFixture[str]) -> None:
+    """``rv-te test --from CSV --pdf`` and ``rv-te unit-report OUT --pdf``: Chromium's
+    command-line print (--print-to-pdf) beside report.html; pypdf reads back the number,
+    the serial and the sign-off block of each, and the two numbers are the same record's."""
+    import yaml
+    from pypdf import PdfReader
+
+    from rv_te_bench.cli.main import main
+    from tests.acceptance.recorded_data import QUICK, bench_yaml, run_plan, write_csv
+
+    if (reason := missing_reason()) is not None:
+        if os.environ.get('RV_TE_REQUIRE_CHROMIUM') == '1':
+            pytest.fail(reason)
+        pytest.skip(reason)
+    run = run_plan(QUICK)
+    csv = write_csv(tmp_path / 'run.csv', run)
+    bench = bench_yaml(tmp_path / 'bench.yaml', run)
+    (tmp_path / 'plan.yaml').write_text(yaml.safe_dump(QUICK), encoding='utf-8')
+    assert main(['test', str(tmp_path / 'plan.yaml'), '--serial', 'LI-77', '--operator',
+                 'kim', '--out-dir', str(tmp_path / 'out'), '--from', str(csv), '--bench',
+                 str(bench), '--time', 't_s', '--theta-in', 'theta_in_rad', '--theta-out',
+                 'theta_out_rad', '--torque', 'torque_nm', '--pdf']) == 0
+    (out,) = [d for d in (tmp_path / 'out').iterdir() if d.is_dir()]
+    assert main(['unit-report', str(out), '--report', str(tmp_path / 'again'), '--pdf']) == 0
+    err = capsys.readouterr().err
+    assert 'WARNING' not in err, err
+    numbers = []
+    for folder in (out / 'report', tmp_path / 'again'):
+        number = json.loads((folder / 'report.json').read_text())['document']['number']
+        numbers.append(number)
+        assert f'report PDF: {(folder / "report.pdf").resolve()}' in err
+        text = unicodedata.normalize('NFKC', '\n'.join(
+            p.extract_text() or '' for p in PdfReader(folder / 'report.pdf').pages))
+        for words in (number, 'Unit LI-77', 'tested by', 'approved by', 'signature'):
+            assert words in text, (folder, words)
+    assert numbers[0] == numbers[1]   # judged again: the same record, the same number

@@ -172,29 +172,34 @@ class CsvReader:
         block = min(_MAX_BLOCK_CHARS, max(1 << 16, self.options.chunk_samples
                                           * self._line_chars))
         while True:
+            # the last block's unfinished line, then the file's next bytes, in one buffer
+            # that the parser reads in place (no copies of the block)
+            buf = bytearray(len(rest) + block)
+            buf[:len(rest)] = rest
             try:
-                piece = self._file.read(block)
+                got = self._file.readinto(memoryview(buf)[len(rest):])
             except OSError as exc:
                 msg = f'{self.origin}: cannot read near {self.locate(first)} ({exc})'
                 raise DataImportError(msg) from None
-            data = rest + piece if rest else piece
-            if piece:
-                cut = data.rfind(b'\n') + 1
-                rest, data = data[cut:], data[:cut]
+            total = len(rest) + got
+            if got:
+                cut = buf.rfind(_NL, 0, total) + 1
+                rest = bytes(buf[cut:total])
                 if len(rest) > MAX_LINE_CHARS:
-                    msg = (f'{self.origin}: {self.locate(first + data.count(_NL))} is '
+                    msg = (f'{self.origin}: {self.locate(first + buf.count(_NL, 0, cut))} is '
                            f'longer than {MAX_LINE_CHARS} characters: not a row of a DAQ '
                            'export (no line break)')
                     raise DataImportError(msg)
-                if not data:
+                if not cut:
                     continue
-            elif not data:
+            elif not total:
                 break
             else:
-                rest = b''
+                cut, rest = total, b''
+            data = memoryview(buf)[:cut]
             n_lines = (int(np.count_nonzero(np.frombuffer(data, np.uint8) == _NL[0]))
-                       + (0 if data.endswith(_NL) else 1))
-            cols = self._parse(data, n_lines, first)
+                       + (0 if buf[cut - 1] == _NL[0] else 1))
+            cols = self._parse(data, n_lines, first, comments=buf.find(b'#', 0, cut) >= 0)
             n = cols['in'].size
             if n:
                 yield RawChunk(first=first, time=cols.get('time'), theta_in=cols['in'],
@@ -206,12 +211,14 @@ class CsvReader:
             msg = f'{self.origin}: no data rows after the header'
             raise DataImportError(msg)
 
-    def _parse(self, data: bytes, n_lines: int, first: int) -> dict[str, np.ndarray]:
-        """The block's columns by role (time as int64 for nanoseconds when it parses)."""
-        cols = self._load_arrow(data)
+    def _parse(self, data: memoryview, n_lines: int, first: int, *, comments: bool
+               ) -> dict[str, np.ndarray]:
+        """The block's columns by role (time as int64 for nanoseconds when it parses);
+        ``comments``: the block holds a ``#`` (numpy's path reads comment lines)."""
+        cols = self._load_arrow(data, comments=comments)
         if cols is None:
             try:
-                text = data.decode()
+                text = str(data, 'utf-8')
             except UnicodeDecodeError as exc:
                 msg = f'{self.origin}: cannot read near {self.locate(first)} ({exc})'
                 raise DataImportError(msg) from None
@@ -239,10 +246,11 @@ class CsvReader:
         parse = pacsv.ParseOptions(delimiter=self.delimiter, quote_char='"')
         return pacsv, read, parse, sorted({names[j] for j in self._usecols})
 
-    def _load_arrow(self, data: bytes) -> dict[str, np.ndarray] | None:
+    def _load_arrow(self, data: memoryview, *, comments: bool
+                    ) -> dict[str, np.ndarray] | None:
         """The block parsed by pyarrow, or None when it cannot be (comment lines, a bad or
         missing cell, ...: the numpy path then reads it or names the cell)."""
-        if self._arrow is None or b'#' in data:
+        if self._arrow is None or comments:
             return None
         import pyarrow as pa
 
