@@ -137,11 +137,15 @@ class TestSequencerNode(ProgramSteps, Node):
                 'bench_origin': d.origin}
 
     def destroy_node(self) -> None:
-        """The zero setpoint before going (a stop of this node stops the bench)."""
+        """The zero setpoint before going (a stop of this node stops the bench), and the
+        action server goes too: rclpy's destroy_node leaves a node's action servers behind,
+        and one left in a process answers no goal while clients there see it ready."""
         with contextlib.suppress(Exception):   # the context may be going already
             if self.busy is not None or self._drive is not None:
                 self.get_logger().warning('stopping during a test: zero setpoint sent')
             self.link.zero(wait_s=1.0)
+        with contextlib.suppress(Exception):
+            self.server.destroy()
         super().destroy_node()
 
     # -- callbacks ------------------------------------------------------------------------------
