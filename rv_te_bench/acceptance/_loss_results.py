@@ -31,7 +31,7 @@ from rv_te_bench.errors import TeInputError
 if TYPE_CHECKING:
     from collections.abc import Callable
 
-    from rv_te_bench.acceptance._results import SegmentData
+    from rv_te_bench.acceptance._segments import SegmentData
     from sim.bench_info import BenchInfoData
 
 __all__ = ['LOSS_RESULTS', 'bench_channels']

@@ -26,7 +26,8 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-from rv_te_bench.acceptance._results import SegmentData, step_result
+from rv_te_bench.acceptance._results import step_result
+from rv_te_bench.acceptance._segments import SegmentData
 from rv_te_bench.acceptance.loss_steps import LOSS_PROGRAMS
 from rv_te_bench.acceptance.plan import (
     DIRECTIONS,
