@@ -38,7 +38,7 @@ if TYPE_CHECKING:
     from rv_te_bench.core.angle_fold import FoldedTe
     from rv_te_bench.core.bench_uncertainty import BenchUncertainty
     from rv_te_bench.core.hysteresis import HysteresisConfig
-    from rv_te_bench.core.identify import Identification
+    from rv_te_bench.core.identification import Identification
     from rv_te_bench.core.uncertainty import Budget
 
 __all__ = ['McResult', 'mc_hysteresis', 'mc_identification', 'mc_line', 'mc_te_pp']
