@@ -308,7 +308,8 @@ def _without_budget(f: Callable[[Any, BenchInfoData, list[SegmentData]],
                                  tuple[list[Measured], dict[str, Any]]],
                     ) -> Callable[[Any, BenchInfoData, list[SegmentData], BenchUncertainty],
                                   tuple[list[Measured], dict[str, Any]]]:
-    """A step result that has no uncertainty budget yet (the bench's model unused)."""
+    """A whole-reducer step's result: its budgets come from the bench record's transducer
+    classes and the data (core/loss_uncertainty.py), not from the encoders' error model."""
     def run(step: Any, info: BenchInfoData, segments: list[SegmentData],
             _bench: BenchUncertainty) -> tuple[list[Measured], dict[str, Any]]:
         return f(step, info, segments)
