@@ -16,7 +16,11 @@ import numpy as np
 
 from rv_te_bench.acceptance._loss_results import LOSS_RESULTS
 from rv_te_bench.acceptance._segments import SegmentData
-from rv_te_bench.acceptance._uncertainty import hysteresis_point_budgets, te_direction_budget
+from rv_te_bench.acceptance._uncertainty import (
+    constant_speed_budgets,
+    hysteresis_point_budgets,
+    te_direction_budget,
+)
 from rv_te_bench.acceptance.plan import HysteresisStep, OperatorStep
 from rv_te_bench.acceptance.tolerance import Measured
 from rv_te_bench.core.bench_uncertainty import BenchUncertainty
@@ -290,12 +294,15 @@ def _one_position(step: HysteresisStep, info: BenchInfoData, segs: list[SegmentD
     if m.missing:
         curve['error'] = '; '.join(m.missing)
     buds: dict[str, Budget] = {}
-    if reading.method == 'torque_steps':
-        try:
+    try:
+        if reading.method == 'torque_steps':
             buds = hysteresis_point_budgets(m.points, float(th_out[0]), step.config(),
                                             bench=bench)
-        except TeInputError:
-            buds = {}
+        else:
+            buds = constant_speed_budgets(time_s, applied, angle, float(th_out[0]),
+                                          step.config(), reading, m, bench=bench)
+    except TeInputError:
+        buds = {}
     return {n: m.values[n] for n in names}, curve, buds
 
 
