@@ -13,7 +13,7 @@ unexport PYTHONDONTWRITEBYTECODE
 
 venv: $(VENV)/.stamp
 
-$(VENV)/.stamp: pyproject.toml setup.py rv_te_bench/core/_lagrange.c rv_te_msgs_py/pyproject.toml rv_te_msgs_py/CMakeLists.txt $(wildcard rv_te_msgs_py/msg/*.msg rv_te_msgs_py/srv/*.srv rv_te_msgs_py/action/*.action)
+$(VENV)/.stamp: pyproject.toml rv_te_bench/core/_lagrange.c rv_te_msgs_py/pyproject.toml rv_te_msgs_py/CMakeLists.txt $(wildcard rv_te_msgs_py/msg/*.msg rv_te_msgs_py/srv/*.srv rv_te_msgs_py/action/*.action)
 	test -x $(PY) || $(PYTHON) -m venv $(VENV)
 	$(PY) -m pip install --quiet --upgrade pip
 	$(PY) -m pip install --quiet ./rv_te_msgs_py

@@ -24,7 +24,13 @@ pinned to another core while it measures (a fleet worker or a busy line PC besid
 ``--paths both`` adds the analysis forced on each of its two paths (``RV_TE_READ_AHEAD=1``:
 helper thread; ``=0``: one thread) beside the one it picks itself (unset), so that the
 choice can be checked against both in the same run. ``--bag-dir`` keeps the bags for the
-next run (written once, reused when there).
+next run (written once, reused when there). ``--floor`` adds the least work any order-spectrum
+analysis of the bag does, interleaved with the rest: our reader (zstd, CRC, CDR decode)
+plus the resampling to the angle grid and the FFT of every complete window (the windows'
+phi and TE captured once from an analysis, not timed): what the analysis cannot go below
+without a faster read, resampler or FFT. Every row also gives its CPU time (user + sys of
+this process) over the rosbags read's in the same repeat (median of the repeats): on a
+shared machine the CPU ratio moves much less than the wall ratio.
 
 With ``--baseline REV`` the analysis as of that git revision also runs, interleaved with the
 others (the "before"): ``analyze_bag`` (report/analysis.py: how it drives the core and its
@@ -34,6 +40,7 @@ today's reader set as REV's (chunks read ahead; isal's or zlib's CRC-32).
     .venv/bin/python benchmarks/bench_analyze.py [--minutes 10]
         [--blocks 100 1000 3000 10000] [--repeats 5] [--allocator tuned|default]
         [--baseline REV] [--one-core] [--busy-core] [--paths auto|both] [--bag-dir DIR]
+        [--floor]
 """
 
 from __future__ import annotations
@@ -47,6 +54,10 @@ import sys
 import tempfile
 import time
 from pathlib import Path
+from typing import TYPE_CHECKING, Any
+
+if TYPE_CHECKING:
+    import numpy as np
 
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
@@ -73,6 +84,9 @@ def main(argv: list[str] | None = None) -> int:
                     help='both: also the analysis forced on each of its two paths')
     ap.add_argument('--bag-dir', type=Path, default=None,
                     help='write the bags here, or reuse the ones already there')
+    ap.add_argument('--floor', action='store_true',
+                    help='also the read + resampling + FFT alone (the least work of any '
+                         'order-spectrum analysis)')
     args = ap.parse_args(argv)
     cores = sorted(os.sched_getaffinity(0))
     if args.one_core:
@@ -176,6 +190,9 @@ def _run(args: argparse.Namespace, busy: bool) -> int:
             paths += [('helper', lambda: forced('1')), ('inline', lambda: forced('0'))]
         if base_core is not None:
             paths.insert(2, ('base', lambda bag=bag: analyze_base(bag)))
+        if args.floor:
+            windows = _spectrum_inputs(bag)
+            paths.insert(2, ('floor', lambda windows=windows: ours_read() + _spectra(windows)))
         wall: dict[str, list[float]] = {name: [] for name, _fn in paths}
         cpu: dict[str, list[float]] = {name: [] for name, _fn in paths}
         for _ in range(args.repeats):   # interleaved, so machine noise hits all alike
@@ -194,7 +211,10 @@ def _run(args: argparse.Namespace, busy: bool) -> int:
         budget_cpu[block] = _budget_cpu(bag)
         ratios = {k: sorted(a / r for a, r in zip(wall[k], wall['rosbags'], strict=True))
                   for k in ('analyze', 'base', 'helper', 'inline') if k in wall}
-        rows.append((block, n, size_mb, med, med_cpu, ratios))
+        # CPU over the rosbags read's CPU, repeat by repeat (the same stretch of load)
+        cpu_ratio = {k: statistics.median(a / r for a, r in zip(v, cpu['rosbags'], strict=True))
+                     for k, v in cpu.items()}
+        rows.append((block, n, size_mb, med, med_cpu, ratios, cpu_ratio))
         if args.process_repeats > 0:
             proc_rows.append((block, _whole_commands(bag, args.process_repeats)))
 
@@ -207,14 +227,17 @@ def _run(args: argparse.Namespace, busy: bool) -> int:
           f'allocator: {"tuned as rv-te analyze" if tuned else "glibc defaults"}; '
           f'load average {load0[0]:.2f} at the start, {os.getloadavg()[0]:.2f} at the end'
           + (f'; before = analysis at {args.baseline}' if args.baseline else '') + '\n')
-    print('| block | path | wall [s] | CPU [s] | samples/s | wall / rosbags read |')
-    print('|---|---|---|---|---|---|')
-    for block, n, size_mb, med, med_cpu, ratios in rows:
+    print('| block | path | wall [s] | CPU [s] | samples/s | wall / rosbags read | '
+          'CPU / rosbags read |')
+    print('|---|---|---|---|---|---|---|')
+    for block, n, size_mb, med, med_cpu, ratios, cpu_ratio in rows:
         picked = chose[block]
         auto = ('helper thread' if all(picked) else 'one thread' if not any(picked)
                 else f'helper thread {sum(picked)} of {len(picked)}')
         for name, label in (('rosbags', 'rosbags AnyReader read + deserialise (floor)'),
                             ('read', 'read_encoder_batches (our reader)'),
+                            ('floor', 'our reader + resampling + FFT of every window (the '
+                                      'least work of an order spectrum)'),
                             ('base', f'analyze_bag before (analysis at {args.baseline})'),
                             ('analyze', 'analyze_bag (read + TE + windows + spectra)'
                              + (f'; its choice: {auto}' if args.paths == 'both' else '')),
@@ -229,14 +252,14 @@ def _run(args: argparse.Namespace, busy: bool) -> int:
                 extra += f'; {med["base"] / med["analyze"]:.2f}x faster than before'
             print(f'| {block} ({size_mb:.0f} MB) | {label} | {med[name]:.2f} | '
                   f'{med_cpu[name]:.2f} | {n / med[name] / 1e6:.2f} M | '
-                  f'{med[name] / med["rosbags"]:.2f}{extra} |')
+                  f'{med[name] / med["rosbags"]:.2f}{extra} | {cpu_ratio[name]:.2f} |')
     if budget_cpu:
         print('\nThe uncertainty budgets alone (issue 35: TE p-p, every line; '
               '`report.uncertainty.analysis_uncertainty` on the analysis of the bag, CPU time of '
               'this thread, median of 21; the load does not enter a CPU time):\n')
         print('| block | budgets CPU [ms] | analyze_bag CPU [ms] | budgets / analysis |')
         print('|---|---|---|---|')
-        for (block, _n, _size, _med, med_cpu, _r) in rows:
+        for (block, _n, _size, _med, med_cpu, _r, _c) in rows:
             b = budget_cpu[block]
             print(f'| {block} | {1e3 * b:.1f} | {1e3 * med_cpu["analyze"]:.0f} | '
                   f'{100 * b / med_cpu["analyze"]:.1f} % |')
@@ -249,6 +272,43 @@ def _run(args: argparse.Namespace, busy: bool) -> int:
         for block, t in proc_rows:
             print(f'| {block} | {t["rosbags"]:.2f} | {t["analyze"]:.2f} | '
                   f'{t["analyze"] / t["rosbags"]:.2f} |')
+    return 0
+
+
+def _spectrum_inputs(bag: Path) -> list[tuple[np.ndarray, np.ndarray, int]]:
+    """(phi, TE, revolutions) of every complete window whose spectrum the analysis of
+    ``bag`` computes (copies, captured from one analysis; not timed)."""
+    import numpy as np
+
+    from rv_te_bench.core import stream
+    from rv_te_bench.report.analysis import analyze_bag
+
+    got: list[tuple[np.ndarray, np.ndarray, int]] = []
+    real = stream.order_spectrum
+
+    def keep(phi: np.ndarray, te: np.ndarray, *args: object, **kwargs: Any) -> object:
+        got.append((np.array(phi), np.array(te), kwargs.get('revolutions')))
+        return real(phi, te, *args, **kwargs)
+
+    stream.order_spectrum = keep
+    try:
+        analyze_bag(bag, with_advice=False)
+    finally:
+        stream.order_spectrum = real
+    return got
+
+
+def _spectra(windows: list[tuple[np.ndarray, np.ndarray, int]]) -> int:
+    """Resample each window to the angle grid and FFT it, as the analysis does (one
+    workspace, numpy's FFT); 0 samples (the reader beside it counts them)."""
+    import numpy as np
+
+    from rv_te_bench.core.spectrum import SpectrumWorkspace, resample_to_output_angle
+
+    work = SpectrumWorkspace()
+    for phi, te, revolutions in windows:
+        res = resample_to_output_angle(phi, te, revolutions=revolutions, workspace=work)
+        np.fft.rfft(res.te_rad)
     return 0
 
 

@@ -19,6 +19,12 @@ workers: utime + stime + cutime + cstime from ``/proc``). The per-bag overhead o
 is (CPU of the 1-worker run - CPU of the loop) / bags: the work the fleet adds, which a
 loaded machine does not inflate the way it inflates wall times; the wall figure is beside it.
 The speed-up (loop wall / 2-worker wall) needs two free cores: the load is printed with it.
+
+First, the engine alone (``--engine-only`` stops there): the same three ways with the
+analysis replaced by a stub that returns a ready record, so that what is left is the
+engine's own cost per bag (cluster start-up and shut-down, hand-over, results back), which
+the analyses' run-to-run spread on a loaded machine (+-10 % of ~0.5 CPU s per bag) would
+hide in the full comparison.
 """
 
 from __future__ import annotations
@@ -95,6 +101,59 @@ def _fleet(bags: list[Path], store_path: Path, opts: object, workers: int
     return wall, cpu
 
 
+def _stub_batch(paths: list[str], options: object) -> list[object]:
+    """The engine without the analysis: each bag's record is a copy of one made before
+    (defined in ``__main__``, so Dask ships it to the workers by value)."""
+    import dataclasses
+    return [dataclasses.replace(_TEMPLATE[0], bag_path=p,
+                                bag_sha256=f'{abs(hash(p)):064x}'[-64:]) for p in paths]
+
+
+_TEMPLATE: list[object] = []
+
+
+def engine_overhead(bags: list[Path], opts: object, repeats: int) -> str:
+    """Per-bag cost of the engine alone: run_fleet with 1 and 2 workers whose analysis is a
+    stub returning a ready record, against a loop of the same stub + store.upsert (medians
+    of ``repeats`` rotated rounds; start-up and shut-down included)."""
+    from rv_te_bench.fleet import _run, analyse_one
+    from rv_te_bench.store import open_store
+
+    _TEMPLATE.append(analyse_one(str(bags[0]), opts))   # type: ignore[arg-type]
+    real = _run.analyse_batch
+    got: dict[str, list[tuple[float, float]]] = {'loop': [], '1': [], '2': []}
+    with tempfile.TemporaryDirectory() as tmp:
+        try:
+            _run.analyse_batch = _stub_batch   # type: ignore[assignment]
+            for r in range(repeats):
+                for k in range(3):
+                    how = ('loop', '1', '2')[(k + r) % 3]
+                    db = Path(tmp) / f'e{r}{k}.sqlite'
+                    if how == 'loop':
+                        c0, t = _cpu_self(), time.perf_counter()
+                        with open_store(db) as st:
+                            for rec in _stub_batch([str(b) for b in bags], opts):
+                                st.upsert(rec)   # type: ignore[arg-type]
+                        got[how].append((time.perf_counter() - t, _cpu_self() - c0))
+                    else:
+                        got[how].append(_fleet(bags, db, opts, int(how)))
+        finally:
+            _run.analyse_batch = real
+    med = {k: (statistics.median(w for w, _ in v), statistics.median(c for _, c in v))
+           for k, v in got.items()}
+    n = len(bags)
+    rows = [f'| {name} | {med[k][0]:.2f} | {med[k][1]:.2f} | '
+            f'{(med[k][0] - med["loop"][0]) / n * 1e3:.1f} | '
+            f'{(med[k][1] - med["loop"][1]) / n * 1e3:.1f} |'
+            for k, name in (('loop', 'loop: stub + store.upsert'),
+                            ('1', 'run_fleet, 1 worker, stub analysis'),
+                            ('2', 'run_fleet, 2 workers, stub analysis'))]
+    return '\n'.join([f'Engine alone, {n} bags, median of {repeats} (load '
+                      f'{os.getloadavg()[0]:.1f} at the end):', '',
+                      '| how | wall s | CPU s | wall overhead per bag [ms] | CPU overhead per '
+                      'bag [ms] |', '|---|---:|---:|---:|---:|', *rows])
+
+
 def main(argv: list[str] | None = None) -> int:
     """Run the benchmark and print the table."""
     import distributed  # noqa: F401 - imported up front: charged to neither side
@@ -111,11 +170,18 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument('--dir', type=Path, default=Path(tempfile.gettempdir()) / 'rv-te-fleet-bench')
     ap.add_argument('--no-advice', action='store_true')
     ap.add_argument('--out', type=Path, default=None)
+    ap.add_argument('--engine-only', action='store_true',
+                    help='only the engine alone (a stub analysis): per-bag hand-over cost')
     args = ap.parse_args(argv)
     t = time.perf_counter()
     bags = make_bags(args.dir, args.bags, rate_hz=args.rate_hz, revolutions=args.revolutions)
     print(f'{len(bags)} bags ready in {time.perf_counter() - t:.1f} s', file=sys.stderr)
     opts = FleetOptions(with_advice=not args.no_advice)
+    print(f'{_cpu_model()}, {os.cpu_count()} CPUs, load {os.getloadavg()[0]:.1f} at the start',
+          flush=True)
+    print(engine_overhead(bags, opts, max(args.repeats, 3)), flush=True)
+    if args.engine_only:
+        return 0
     loads = [os.getloadavg()[0]]
     names = ['plain loop (this process)', 'run_fleet, local cluster of 1 worker',
              'run_fleet, local cluster of 2 workers']

@@ -49,7 +49,7 @@ setup(
         # launch and parameter files: the ones rv-te launch uses (rv_te_bench/launch/)
         (f'share/{PACKAGE}/launch', _files('rv_te_bench/launch/*.yaml')),
     ],
-    # the optional compiled resampler, as in the repository's setup.py (numpy path without it)
+    # the optional compiled resampler, as in pyproject.toml's ext-modules (numpy path without it)
     ext_modules=[Extension('rv_te_bench.core._lagrange', ['rv_te_bench/core/_lagrange.c'],
                            extra_compile_args=[] if sys.platform == 'win32'
                            else ['-O3', '-ffp-contract=off'], optional=True)],

@@ -3,7 +3,10 @@
 The first test runs the contracts on this repository; the second shows that they catch a
 lower layer importing a higher one, and ROS imported into the pure core, on a copy of the
 packages with both violations written in; the third, that a circle between two modules of
-a folder held by a function-local import (the kind io/ had) is caught.
+a folder held by a function-local import (the kind io/ had) is caught; the fourth, that the
+circles acceptance/, cli/, core/ and report/ once had (a step kind and the runner, the
+``rv-te test`` routes and the command, a result type and its budgets, held by function-local
+and type-checking imports) are caught in every package.
 (tests/test_no_ros_imports.py checks the other side: the pure packages really import and
 run with rclpy absent.)
 """
@@ -82,3 +85,32 @@ def test_a_circle_inside_a_folder_is_caught(tmp_path: Path, lower: str, upper: s
     assert out.returncode != 0, text
     package = upper.rsplit('.', 1)[0]
     assert f'No cycles are allowed in {package}' in text
+
+
+#: The four circles once inside a package, each planted back (module, the module it takes from,
+#: how): a type-checking import (the kind that tied the step kinds to the runner, the
+#: identification to its budgets, the TE trace to the budgets) and a function-local one (the
+#: kind that tied the ``rv-te test`` routes to the command).
+_OLD_CIRCLES = (
+    ('rv_te_bench/acceptance/loss_steps.py', 'rv_te_bench.acceptance.runner', 'typing'),
+    ('rv_te_bench/cli/_test_report.py', 'rv_te_bench.cli.test', 'local'),
+    ('rv_te_bench/core/identification.py', 'rv_te_bench.core.identify', 'typing'),
+    ('rv_te_bench/report/trace.py', 'rv_te_bench.report.results', 'typing'),
+)
+
+
+def test_the_old_circles_are_caught_in_every_package(tmp_path: Path) -> None:
+    """One copy with the four circles written back (one lint run): each package is named."""
+    _copy(tmp_path)
+    for lower, upper, how in _OLD_CIRCLES:
+        module = tmp_path / lower
+        planted = ('\n\nimport typing  # noqa: E402\n\nif typing.TYPE_CHECKING:\n'
+                   f'    import {upper}  # noqa: F401\n' if how == 'typing' else
+                   '\n\ndef _violation() -> None:\n'
+                   f'    import {upper}  # noqa: F401, PLC0415\n')
+        module.write_text(module.read_text(encoding='utf-8') + planted, encoding='utf-8')
+    out = _lint(tmp_path)
+    text = out.stdout + out.stderr
+    assert out.returncode != 0, text
+    for _, upper, _ in _OLD_CIRCLES:
+        assert f'No cycles are allowed in {upper.rsplit(".", 1)[0]}.' in text, text

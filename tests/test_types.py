@@ -42,6 +42,12 @@ def test_a_type_error_is_caught(tmp_path: Path) -> None:
     for pkg in ('rv_te_bench', 'sim'):
         shutil.copytree(ROOT / pkg, tmp_path / pkg, ignore=ignore)
     shutil.copy(ROOT / 'pyproject.toml', tmp_path / 'pyproject.toml')
+    # mypy's own cache of the repository (the first test, or make lint, wrote it) seeds the
+    # copy's, as a developer's incremental run: mypy checks every cached module against its
+    # source hash and re-checks te.py and what depends on it; the numpy / scipy stubs are
+    # not analysed again (they were most of this test's two minutes)
+    if (ROOT / '.mypy_cache').is_dir():
+        shutil.copytree(ROOT / '.mypy_cache', tmp_path / '.mypy_cache')
     te = tmp_path / 'rv_te_bench' / 'core' / 'te.py'
     # the record's crank order read as text: what a misspelt or mistyped field looks like
     te.write_text(te.read_text(encoding='utf-8')

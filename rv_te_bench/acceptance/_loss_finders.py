@@ -27,7 +27,7 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-from rv_te_bench.acceptance._results import SegmentData
+from rv_te_bench.acceptance._segments import SegmentData
 from rv_te_bench.core.hysteresis_measured import torque_noise_nm
 
 if TYPE_CHECKING:

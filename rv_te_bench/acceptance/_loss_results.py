@@ -17,6 +17,12 @@ import yaml
 
 from rv_te_bench.acceptance.tolerance import Measured
 from rv_te_bench.core.directional import direction_te
+from rv_te_bench.core.loss_uncertainty import (
+    breakaway_budget,
+    efficiency_budget,
+    mean_torque_budget,
+    temperature_rise_budget,
+)
 from rv_te_bench.core.orders import OrderSet
 from rv_te_bench.core.thermal_metrics import temperature_rise
 from rv_te_bench.core.torque_metrics import (
@@ -31,12 +37,14 @@ from rv_te_bench.errors import TeInputError
 if TYPE_CHECKING:
     from collections.abc import Callable
 
-    from rv_te_bench.acceptance._results import SegmentData
+    from rv_te_bench.acceptance._segments import SegmentData
+    from rv_te_bench.core.uncertainty import Budget
     from sim.bench_info import BenchInfoData
 
 __all__ = ['LOSS_RESULTS', 'bench_channels']
 
 _CURVE_POINTS = 2000
+_SQRT3 = math.sqrt(3.0)
 #: A crank-order line is tracked over the checkpoints when its baseline amplitude is at
 #: least this fraction of the baseline TE p-p (below, its amplitude is noise).
 _LINE_FLOOR = 0.02
@@ -66,6 +74,15 @@ def _u_class(info: BenchInfoData, which: str) -> float:
         return math.nan
 
 
+def _m(name: str, step: str, unit: str, value: float, note: str,
+       budget: Budget | None) -> Measured:
+    """A metric with its budget's U (the interval's reach below and above)."""
+    if budget is None or not (math.isfinite(value) and math.isfinite(budget.u95)):
+        return Measured(name, step, unit, value, note)
+    return Measured(name, step, unit, value, note, u95=budget.u95, u_below=budget.u_below,
+                    u_above=budget.u_above, budget=budget.to_json_dict())
+
+
 def _cut(seg: SegmentData, info: BenchInfoData, need: tuple[str, ...]
          ) -> tuple[dict[str, np.ndarray], str]:
     """The analysed part of a segment (after settle_s) and why it cannot be analysed."""
@@ -89,12 +106,24 @@ def _cut(seg: SegmentData, info: BenchInfoData, need: tuple[str, ...]
     return out, ''
 
 
+def _ramp_residual(time_s: np.ndarray, torque_nm: np.ndarray, t_found: float,
+                   ) -> tuple[float, int] | None:
+    """Scatter of the torque about a line over the ramp before the shaft turned (s, dof)."""
+    before = time_s < t_found
+    n = int(np.count_nonzero(before))
+    if n < 4:
+        return None
+    tt, yy = time_s[before], np.abs(torque_nm[before])
+    res = yy - np.polyval(np.polyfit(tt - tt[0], yy, 1), tt - tt[0])
+    return float(np.std(res, ddof=2)), n - 2
+
+
 def _efficiency_result(step: Any, info: BenchInfoData, segments: list[SegmentData]) -> Result:
     u_in, u_out = _u_class(info, 'torque_in'), _u_class(info, 'torque_out')
     # the speed ratio from the angles: one increment (uniform) per reading
     u_angle = max(info.encoder_in_resolution_rad, info.encoder_out_resolution_rad) \
         / math.sqrt(12.0)
-    rows, measured = [], []
+    rows, measured, budgets = [], [], []
     for seg in (s for s in segments if s.role == 'efficiency'):
         d, note = _cut(seg, info, ('torque_in', 'torque_out', 'temperature'))
         row: dict[str, Any] = {'speed_rpm': seg.label['speed_rpm'],
@@ -110,35 +139,47 @@ def _efficiency_result(step: Any, info: BenchInfoData, segments: list[SegmentDat
             except TeInputError as exc:
                 note = str(exc)
             else:
-                row.update({'efficiency': p.efficiency, 'u_efficiency': p.u_efficiency,
-                            'expanded_efficiency': p.expanded_efficiency,
+                b = efficiency_budget(
+                    p.efficiency, torque_in_nm=d['torque_in'], torque_out_nm=d['torque_out'],
+                    d_theta_in_rad=float(d['theta_in_rad'][-1] - d['theta_in_rad'][0]),
+                    d_theta_out_rad=float(d['theta_out_rad'][-1] - d['theta_out_rad'][0]),
+                    class_in_nm=u_in * _SQRT3, class_out_nm=u_out * _SQRT3,
+                    q_in_rad=info.encoder_in_resolution_rad,
+                    q_out_rad=info.encoder_out_resolution_rad)
+                row.update({'efficiency': p.efficiency, 'u_efficiency': b.u_c,
+                            'expanded_efficiency': b.u95, 'efficiency_u95': b.u95,
+                            'budget': b.to_json_dict(),
                             'torque_in_nm': p.torque_in_nm, 'torque_out_nm': p.torque_out_nm,
                             'power_in_w': p.power_in_w, 'power_loss_w': p.power_loss_w,
                             'temp_case_degc': p.temp_case_degc})
         if note:
             row['error'] = note
         rows.append(row)
-        measured.append(Measured(
+        budgets.append(None if note else b)
+        measured.append(_m(
             f'sweep:efficiency_{row["speed_rpm"]:g}rpm_{row["load_nm"]:g}nm', step.name, '1',
-            row['efficiency'] if row['efficiency'] is not None else math.nan, note))
+            row['efficiency'] if row['efficiency'] is not None else math.nan, note,
+            budgets[-1]))
     top = max(step.loads_nm)
-    at_top = [r for r in rows if r['load_nm'] == top]
-    vals = [r['efficiency'] for r in at_top]
+    at_top = [(r, b) for r, b in zip(rows, budgets, strict=True) if r['load_nm'] == top]
+    vals = [r['efficiency'] for r, _ in at_top]
     worst = min(vals) if vals and all(v is not None for v in vals) else math.nan
-    why = '' if math.isfinite(worst) else next((r.get('error', '') for r in at_top
+    why = '' if math.isfinite(worst) else next((r.get('error', '') for r, _ in at_top
                                                 if r.get('error')), 'no data')
-    measured.insert(0, Measured('efficiency_at_max_load', step.name, '1', worst, why))
+    wb = next((b for r, b in at_top if r['efficiency'] == worst), None)
+    measured.insert(0, _m('efficiency_at_max_load', step.name, '1', worst, why, wb))
     return measured, {'kind': step.kind, 'rows': rows, 'max_load_nm': top,
-                      'coverage_k': 2.0,
-                      'uncertainty': 'torque transducer classes read as rectangular '
-                                     '(c FS / 100 / sqrt 3), not averaged; + s/sqrt(n); '
-                                     'the speed ratio from the encoder angles (one '
-                                     'increment per reading)'}
+                      'uncertainty': 'GUM budget per point (core/loss_uncertainty.py): '
+                                     'torque transducer classes (c FS / 100, rectangular, '
+                                     'not averaged), type A of each mean torque by batch '
+                                     'means, the speed ratio from the encoder angles (+-q/2 '
+                                     'per reading); U (k from the distribution, 95.45 %); '
+                                     'the judged value carries its point\'s budget'}
 
 
 def _no_load_result(step: Any, info: BenchInfoData, segments: list[SegmentData]) -> Result:
     u_in = _u_class(info, 'torque_in')
-    rows, measured = [], []
+    rows, measured, budgets = [], [], []
     for seg in (s for s in segments if s.role == 'no_load'):
         d, note = _cut(seg, info, ('torque_in', 'temperature'))
         row: dict[str, Any] = {'speed_rpm': seg.label['speed_rpm'], 'torque_nm': None}
@@ -150,28 +191,38 @@ def _no_load_result(step: Any, info: BenchInfoData, segments: list[SegmentData])
             except TeInputError as exc:
                 note = str(exc)
             else:
+                b = (mean_torque_budget('no_load_torque_nm', p.torque_nm,
+                                        math.copysign(1.0, p.omega_in_rad_s) * d['torque_in'],
+                                        class_nm=u_in * _SQRT3)
+                     if math.isfinite(u_in) else None)
                 row.update({'torque_nm': p.torque_nm, 'u_torque_nm': p.u_torque_nm,
                             'temp_case_degc': p.temp_case_degc})
+                if b is not None:
+                    row.update({'u_torque_nm': b.u_c, 'torque_nm_u95': b.u95,
+                                'budget': b.to_json_dict()})
         if note:
             row['error'] = note
         rows.append(row)
-        measured.append(Measured(f'sweep:no_load_torque_{row["speed_rpm"]:g}rpm_nm', step.name,
-                                 'N m', math.nan if row['torque_nm'] is None
-                                 else row['torque_nm'], note))
+        budgets.append(None if note else b)
+        measured.append(_m(f'sweep:no_load_torque_{row["speed_rpm"]:g}rpm_nm', step.name,
+                           'N m', math.nan if row['torque_nm'] is None
+                           else row['torque_nm'], note, budgets[-1]))
     vals = [r['torque_nm'] for r in rows]
     top = max(vals) if vals and all(v is not None for v in vals) else math.nan
     why = '' if math.isfinite(top) else next((r['error'] for r in rows if r.get('error')),
                                              'no data')
-    measured.insert(0, Measured('no_load_torque_max_nm', step.name, 'N m', top, why))
+    tb = next((b for r, b in zip(rows, budgets, strict=True) if r['torque_nm'] == top), None)
+    measured.insert(0, _m('no_load_torque_max_nm', step.name, 'N m', top, why, tb))
     return measured, {'kind': step.kind, 'rows': rows}
 
 
 def _ramp_result(metric: str, channel: str) -> Callable[[Any, BenchInfoData,
                                                           list[SegmentData]], Result]:
     def result(step: Any, info: BenchInfoData, segments: list[SegmentData]) -> Result:
-        rows, measured = [], []
+        rows, measured, budgets = [], [], []
         u = _u_class(info, channel)
         for seg in (s for s in segments if s.role == 'ramp'):
+            bud = None
             d, note = _cut(seg, info, (channel,))
             row: dict[str, Any] = {'direction': seg.label['direction'], 'torque_nm': None,
                                    'threshold_rad': step.threshold_rad,
@@ -183,6 +234,15 @@ def _ramp_result(metric: str, channel: str) -> Callable[[Any, BenchInfoData,
                 if b.found:
                     row.update({'torque_nm': b.torque_nm, 'u_torque_nm': _fin(u),
                                 'time_s': b.time_s, 'torque_before_nm': b.torque_before_nm})
+                    if math.isfinite(u):
+                        bud = breakaway_budget(
+                            metric, b.torque_nm, class_nm=u * _SQRT3,
+                            ramp_rate_nm_s=b.ramp_rate_nm_s,
+                            sample_rate_hz=info.sample_rate_hz,
+                            ramp_residual_nm=_ramp_residual(d['time_s'], d[channel], b.time_s),
+                            channel='input' if channel == 'torque_in' else 'output')
+                        row.update({'u_torque_nm': bud.u_c, 'torque_nm_u95': bud.u95,
+                                    'budget': bud.to_json_dict()})
                 else:
                     note = (f'did not turn by {step.threshold_rad:g} rad up to '
                             f'{b.max_torque_nm:.4g} N m (self-locking, or above the ramp\'s '
@@ -195,14 +255,17 @@ def _ramp_result(metric: str, channel: str) -> Callable[[Any, BenchInfoData,
             if note:
                 row['error'] = note
             rows.append(row)
-            measured.append(Measured(f'sweep:{metric}_{row["direction"]}_nm', step.name, 'N m',
-                                     math.nan if row['torque_nm'] is None
-                                     else row['torque_nm'], note))
+            budgets.append(None if note else bud)
+            measured.append(_m(f'sweep:{metric}_{row["direction"]}_nm', step.name, 'N m',
+                               math.nan if row['torque_nm'] is None
+                               else row['torque_nm'], note, budgets[-1]))
         vals = [r['torque_nm'] for r in rows]
         top = max(vals) if vals and all(v is not None for v in vals) else math.nan
         why = '' if math.isfinite(top) else next((r['error'] for r in rows
                                                   if r.get('error')), 'no data')
-        measured.insert(0, Measured(f'{metric}_nm', step.name, 'N m', top, why))
+        tb = next((bb for r, bb in zip(rows, budgets, strict=True) if r['torque_nm'] == top),
+                  None)
+        measured.insert(0, _m(f'{metric}_nm', step.name, 'N m', top, why, tb))
         return measured, {'kind': step.kind, 'rows': rows,
                           'detection': f'shaft travel > {step.threshold_rad:g} rad, ramp '
                                        f'{step.ramp_rate_nm_s:g} N m/s'}
@@ -217,6 +280,7 @@ def _temperature_result(step: Any, info: BenchInfoData, segments: list[SegmentDa
                                'window_s': step.window_s}
     note = 'no data' if not segs else ''
     rise = settle = math.nan
+    bud = None
     if segs:
         d, note = _cut(segs[0], info, ('temperature',))
     if not note:
@@ -239,13 +303,16 @@ def _temperature_result(step: Any, info: BenchInfoData, segments: list[SegmentDa
                             'temp_case_degc': d['temperature'][::k].tolist()})
             if r.settled:
                 rise, settle = r.rise_k, r.settle_time_s
+                bud = temperature_rise_budget(rise, d['time_s'], d['temperature'],
+                                              window_s=step.window_s)
+                details.update({'rise_k_u95': bud.u95, 'budget': bud.to_json_dict()})
             else:
                 note = (f'not settled within {step.max_duration_s:g} s: last rate '
                         f'{r.final_rate_k_per_min:.3g} K/min, limit '
                         f'{step.rate_limit_k_per_min:g} K/min (rise so far {r.rise_k:.3g} K)')
     if note:
         details['error'] = note
-    return [Measured('temperature_rise_k', step.name, 'K', rise, note),
+    return [_m('temperature_rise_k', step.name, 'K', rise, note, bud),
             Measured('sweep:temperature_settle_time_s', step.name, 's', settle, note)], details
 
 

@@ -10,13 +10,17 @@ NaN with that note, which the tolerance evaluation turns into ``not_judged``.
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, field
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
 from rv_te_bench.acceptance._loss_results import LOSS_RESULTS
-from rv_te_bench.acceptance._uncertainty import hysteresis_point_budgets, te_direction_budget
+from rv_te_bench.acceptance._segments import SegmentData
+from rv_te_bench.acceptance._uncertainty import (
+    constant_speed_budgets,
+    hysteresis_point_budgets,
+    te_direction_budget,
+)
 from rv_te_bench.acceptance.plan import HysteresisStep, OperatorStep
 from rv_te_bench.acceptance.tolerance import Measured
 from rv_te_bench.core.bench_uncertainty import BenchUncertainty
@@ -43,34 +47,6 @@ __all__ = ['RESULTS', 'SegmentData', 'hysteresis_reading', 'step_result']
 _MAX_CURVE_POINTS = 4000
 #: Spectrum bins kept for the report (the labelled lines are kept whatever their order).
 _SPECTRUM_BINS = 400
-
-
-@dataclass(eq=False)
-class SegmentData:
-    """The data of one segment of a step (SI units).
-
-    Attributes:
-        role: 'te' | 'sweep' | 'preload' | 'cycle' | 'reposition'.
-        label: direction, speed_rpm, load_nm, settle_s (drives); position (hysteresis).
-        theta_in_rad, theta_out_rad, torque_out_nm: The samples (torque empty: no channel).
-        torque_in_nm, temp_case_degc: Input torque [N m] and case temperature [degC]
-            (empty: no channel).
-        time_s: Sample times [s] (None: consecutive at the bench's rate).
-        note: Why the segment cannot be analysed ('' when it can).
-        found: What the data said about the segment (found speed, load, times), for the
-            report of a recorded test.
-    """
-
-    role: str
-    label: dict[str, Any]
-    theta_in_rad: np.ndarray = field(default_factory=lambda: np.zeros(0))
-    theta_out_rad: np.ndarray = field(default_factory=lambda: np.zeros(0))
-    torque_out_nm: np.ndarray = field(default_factory=lambda: np.zeros(0))
-    torque_in_nm: np.ndarray = field(default_factory=lambda: np.zeros(0))
-    temp_case_degc: np.ndarray = field(default_factory=lambda: np.zeros(0))
-    time_s: np.ndarray | None = None
-    note: str = ''
-    found: dict[str, Any] = field(default_factory=dict)
 
 
 def _orders(info: BenchInfoData) -> OrderSet | None:
@@ -318,12 +294,15 @@ def _one_position(step: HysteresisStep, info: BenchInfoData, segs: list[SegmentD
     if m.missing:
         curve['error'] = '; '.join(m.missing)
     buds: dict[str, Budget] = {}
-    if reading.method == 'torque_steps':
-        try:
+    try:
+        if reading.method == 'torque_steps':
             buds = hysteresis_point_budgets(m.points, float(th_out[0]), step.config(),
                                             bench=bench)
-        except TeInputError:
-            buds = {}
+        else:
+            buds = constant_speed_budgets(time_s, applied, angle, float(th_out[0]),
+                                          step.config(), reading, m, bench=bench)
+    except TeInputError:
+        buds = {}
     return {n: m.values[n] for n in names}, curve, buds
 
 
@@ -336,7 +315,8 @@ def _without_budget(f: Callable[[Any, BenchInfoData, list[SegmentData]],
                                  tuple[list[Measured], dict[str, Any]]],
                     ) -> Callable[[Any, BenchInfoData, list[SegmentData], BenchUncertainty],
                                   tuple[list[Measured], dict[str, Any]]]:
-    """A step result that has no uncertainty budget yet (the bench's model unused)."""
+    """A whole-reducer step's result: its budgets come from the bench record's transducer
+    classes and the data (core/loss_uncertainty.py), not from the encoders' error model."""
     def run(step: Any, info: BenchInfoData, segments: list[SegmentData],
             _bench: BenchUncertainty) -> tuple[list[Measured], dict[str, Any]]:
         return f(step, info, segments)

@@ -7,8 +7,10 @@ hysteresis metrics, from the data the step runner holds (the whole record of eac
   from the spread of the revolutions' p-p;
 * hysteresis metrics of the measuring position that gives the unit's value:
   :func:`~rv_te_bench.core.hysteresis_uncertainty.hysteresis_budgets` on the dwell points
-  of its first load cycle (equal-torque-step tests; a constant-speed test reads the
-  samples by local fits and has no budget here: its metrics are reported without U).
+  of its first load cycle (equal-torque-step tests);
+* hysteresis metrics of a constant-speed test (the samples read by local fits against
+  time): :func:`constant_speed_budgets`, numeric sensitivities through the same reading
+  of the whole record, type A from the spread over its cycles.
 
 The bench's error model is the runner's (:class:`~rv_te_bench.core.bench_uncertainty.
 BenchUncertainty`: the data-sheet defaults of the BenchInfo encoder models, or what the
@@ -23,19 +25,26 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from rv_te_bench.core.hysteresis_measured import split_cycles
-from rv_te_bench.core.hysteresis_uncertainty import hysteresis_budgets
+from rv_te_bench.core.hysteresis_uncertainty import hysteresis_budgets, min_budget
 from rv_te_bench.core.te import output_phase_and_te
 from rv_te_bench.core.te_uncertainty import extreme_candidates, extreme_reach, te_pp_budget
+from rv_te_bench.core.uncertainty import UncertaintyInput, combine, type_a, type_b
+from rv_te_bench.errors import TeInputError
 
 if TYPE_CHECKING:
     from rv_te_bench.core.bench_uncertainty import BenchUncertainty
     from rv_te_bench.core.directional import DirectionTe
     from rv_te_bench.core.hysteresis import HysteresisConfig
+    from rv_te_bench.core.hysteresis_measured import HysteresisReading, MeasuredHysteresis
     from rv_te_bench.core.uncertainty import Budget
 
-__all__ = ['hysteresis_point_budgets', 'te_direction_budget']
+__all__ = ['constant_speed_budgets', 'hysteresis_point_budgets', 'te_direction_budget']
 
 _TWO_PI = 2.0 * math.pi
+#: Central-difference step of the torque sensor's zero and gain, per half-width of the band
+#: (the whole band: a reading by local fits over windows chosen by torque is not smooth on
+#: a finer scale, a window gaining or losing a sample).
+_SENS_STEP = 1.0
 
 
 def te_direction_budget(name: str, th_in: np.ndarray, th_out: np.ndarray, d: DirectionTe, *,
@@ -89,3 +98,103 @@ def hysteresis_point_budgets(points: tuple[np.ndarray, np.ndarray], theta_out0_r
     start = c.up_start + (int(up[-1]) if up.size else 0)
     sl = slice(start, c.back_end + 1)
     return hysteresis_budgets(t[sl], a[sl], config, bench=bench, theta_out_rad=theta_out0_rad)
+
+
+def _sides(m: MeasuredHysteresis, config: HysteresisConfig) -> dict[str, float]:
+    """The reported values, the rigidity as its two sides (means over the cycles)."""
+    out = {n: m.values[n] for n in ('lost_motion_rad', 'backlash_rad', 'hysteresis_loss_j')}
+    for r in config.rigidity_regions:
+        for j, side in enumerate(('pos', 'neg')):
+            out[f'torsional_rigidity_{r.name}_{side}'] = float(np.mean(
+                [c.rigidity_nm_per_rad[r.name][j] for c in m.cycles]))
+    return out
+
+
+def _per_cycle(m: MeasuredHysteresis, name: str) -> list[float]:
+    if name.startswith('torsional_rigidity_'):
+        region, _, side = name[len('torsional_rigidity_'):].rpartition('_')
+        return [c.rigidity_nm_per_rad[region][0 if side == 'pos' else 1] for c in m.cycles]
+    return [float(getattr(c, name)) for c in m.cycles]
+
+
+def constant_speed_budgets(time_s: np.ndarray, torque_nm: np.ndarray, angle_rad: np.ndarray,
+                           theta_out0_rad: float, config: HysteresisConfig,
+                           reading: HysteresisReading, measured: MeasuredHysteresis, *,
+                           bench: BenchUncertainty) -> dict[str, Budget]:
+    """Budgets of a constant-speed test's metrics (the samples read by local fits).
+
+    Every sensitivity is numeric, through the reading itself (``measured_hysteresis`` of
+    the whole record again): each output-encoder harmonic (graduation orders, mounting,
+    interpolation) added to the samples' angles in sine and cosine quadrature (arcsine
+    input, first order: a fit over many samples averages the fast harmonic's second-order
+    term), the torque sensor's zero (+-z) and gain (+-e) applied to the torque channel
+    (central differences over the band). A record turned until the torque read +-T_R
+    ends there: a perturbed torque channel that no longer reaches T_R is read by the last
+    fit, extrapolated, so the rigidity's (its region ends at T_R) sensitivities to the
+    zero and gain include that end effect (on the Li 2023 unit dK/de = 1.085 K against
+    K for the reading alone; the larger side's is taken: conservative). Type A: the
+    spread of each metric over the cycles, of their mean (cycles - 1 dof; with one cycle
+    there is none and the budget says so). The rigidity is the smaller side:
+    :func:`min_budget` over both.
+    """
+    from rv_te_bench.core.hysteresis_measured import measured_hysteresis
+
+    t, a = np.asarray(torque_nm, np.float64), np.asarray(angle_rad, np.float64)
+    base = _sides(measured, config)
+
+    def again(tq: np.ndarray, ang: np.ndarray) -> dict[str, float]:
+        try:
+            return _sides(measured_hysteresis(time_s, tq, ang, config, reading), config)
+        except TeInputError:
+            return dict.fromkeys(base, math.nan)
+
+    def fin(x: float) -> float:
+        return float(x) if math.isfinite(x) else 0.0
+
+    inputs: dict[str, list[UncertaintyInput | None]] = {n: [] for n in base}
+    enc = bench.encoder_out
+    th = theta_out0_rad + (a - a[0])
+    step = 1e-9
+    for cname, order, g in enc.components():
+        ds = again(t, a + step * np.sin(order * th))
+        dc = again(t, a + step * np.cos(order * th))
+        for n in base:
+            c = math.hypot(fin((ds[n] - base[n]) / step), fin((dc[n] - base[n]) / step))
+            inputs[n].append(type_b(f'output encoder: {cname}', sensitivity=c,
+                                    distribution='arcsine', half_width=g, source=enc.source,
+                                    note='numeric, through the local fits (first order)'))
+    zero = bench.torque_zero_for(config.rated_torque_nm)
+    gain = bench.torque_gain_rel
+    for label, hw, unit in (('torque sensor: zero and linearity', zero, 'N m'),
+                            ('torque sensor: sensitivity (gain)', gain, '1')):
+        if not hw > 0:
+            continue
+        h = _SENS_STEP * hw
+        up, dn = ((again(t + h, a), again(t - h, a)) if unit == 'N m' else
+                  (again(t * (1 + h), a), again(t * (1 - h), a)))
+        for n in base:
+            inputs[n].append(type_b(label, sensitivity=fin((up[n] - dn[n]) / (2 * h)),
+                                    distribution='rectangular', half_width=hw, unit=unit,
+                                    source=bench.source,
+                                    note='numeric: central difference over the class band'))
+    for n in base:
+        unit = 'N m/rad' if n.startswith('torsional') else ('J' if n.endswith('_j') else 'rad')
+        inputs[n].append(type_a('repeatability: spread over the cycles',
+                                _per_cycle(measured, n), unit=unit,
+                                source=f'{len(measured.cycles)} cycles of this record'))
+    notes = ['constant-speed test: the metrics read by local fits of the samples against '
+             'time; sensitivities numeric through that reading',
+             *([] if len(measured.cycles) > 1 else
+               ['one cycle: no type A (noise, friction variation) in this budget; run two or '
+                'more cycles'])]
+    out: dict[str, Budget] = {}
+    for n in ('lost_motion_rad', 'backlash_rad', 'hysteresis_loss_j'):
+        out[n] = combine(n, base[n], inputs[n], unit='J' if n.endswith('_j') else 'rad',
+                         notes=notes)
+    for r in config.rigidity_regions:
+        name = f'torsional_rigidity_{r.name}_nm_per_rad'
+        sides = [combine(f'{name} ({s})', base[f'torsional_rigidity_{r.name}_{s}'],
+                         inputs[f'torsional_rigidity_{r.name}_{s}'], unit='N m/rad',
+                         notes=notes) for s in ('pos', 'neg')]
+        out[name] = min_budget(name, sides[0], sides[1], notes=notes)
+    return out

@@ -32,8 +32,8 @@ from dataclasses import dataclass
 from typing import TYPE_CHECKING, Any
 
 if TYPE_CHECKING:
-    from rv_te_bench.acceptance.plan import _Fields
-    from rv_te_bench.acceptance.runner import StepRunner
+    from rv_te_bench.acceptance._fields import Fields
+    from rv_te_bench.acceptance._segments import ProgramSink
 
 __all__ = [
     'LOSS_KINDS',
@@ -138,7 +138,7 @@ class LifeStep:
     kind: str = 'life'
 
 
-def _directions(f: _Fields, default: list[str]) -> tuple[str, ...]:
+def _directions(f: Fields, default: list[str]) -> tuple[str, ...]:
     dirs = f.data.pop('directions', default)
     if not isinstance(dirs, list) or not dirs or len(set(map(str, dirs))) != len(dirs) or \
             not all(d in _DIRS for d in dirs):
@@ -146,12 +146,12 @@ def _directions(f: _Fields, default: list[str]) -> tuple[str, ...]:
     return tuple(dirs)
 
 
-def _window(f: _Fields) -> tuple[float, float]:
+def _window(f: Fields) -> tuple[float, float]:
     return (f.num('settle_s', 1.0, lo=0.0, hi=600.0),
             f.num('measure_s', 2.0, lo=0.0, lo_open=True, hi=3600.0))
 
 
-def _efficiency(f: _Fields, name: str) -> EfficiencyStep:
+def _efficiency(f: Fields, name: str) -> EfficiencyStep:
     speeds = f.numbers('speeds_rpm', lo=0.0, hi=_MAX_SPEED_RPM, nonzero=True)
     loads = f.numbers('loads_nm', lo=0.0, hi=_MAX_TORQUE_NM, nonzero=True)
     direction = f.text('direction', 'ccw', choices=tuple(_DIRS))
@@ -159,7 +159,7 @@ def _efficiency(f: _Fields, name: str) -> EfficiencyStep:
     return EfficiencyStep(name, speeds, loads, direction, settle, measure)
 
 
-def _no_load(f: _Fields, name: str) -> NoLoadStep:
+def _no_load(f: Fields, name: str) -> NoLoadStep:
     speeds = f.numbers('speeds_rpm', lo=0.0, hi=_MAX_SPEED_RPM, nonzero=True)
     direction = f.text('direction', 'ccw', choices=tuple(_DIRS))
     settle, measure = _window(f)
@@ -167,7 +167,7 @@ def _no_load(f: _Fields, name: str) -> NoLoadStep:
 
 
 def _ramp(cls: type, default_dirs: list[str]) -> Any:
-    def parse(f: _Fields, name: str) -> Any:
+    def parse(f: Fields, name: str) -> Any:
         rate = f.num('ramp_rate_nm_s', lo=0.0, lo_open=True, hi=_MAX_TORQUE_NM)
         top = f.num('max_torque_nm', lo=0.0, lo_open=True, hi=_MAX_TORQUE_NM)
         thr = f.num('threshold_rad', lo=0.0, lo_open=True, hi=0.1)
@@ -182,7 +182,7 @@ def _ramp(cls: type, default_dirs: list[str]) -> Any:
     return parse
 
 
-def _temperature(f: _Fields, name: str) -> TemperatureRiseStep:
+def _temperature(f: Fields, name: str) -> TemperatureRiseStep:
     step = TemperatureRiseStep(
         name=name, speed_rpm=f.num('speed_rpm', lo=0.0, lo_open=True, hi=_MAX_SPEED_RPM),
         load_nm=f.num('load_nm', 0.0, lo=0.0, hi=_MAX_TORQUE_NM),
@@ -197,7 +197,7 @@ def _temperature(f: _Fields, name: str) -> TemperatureRiseStep:
     return step
 
 
-def _life(f: _Fields, name: str) -> LifeStep:
+def _life(f: Fields, name: str) -> LifeStep:
     step = LifeStep(
         name=name, checkpoints=f.integer('checkpoints', 6, lo=2, hi=1000),
         run_s=f.num('run_s', lo=0.0, lo_open=True, hi=86400.0),
@@ -227,7 +227,7 @@ LOSS_KINDS = {'efficiency': _efficiency, 'no_load': _no_load,
 
 
 # -- programs --------------------------------------------------------------------------------
-def _timed(r: StepRunner, speed_rpm: float, load_nm: float, sign: int, seconds: float,
+def _timed(r: ProgramSink, speed_rpm: float, load_nm: float, sign: int, seconds: float,
            settle_s: float, role: str, label: dict[str, Any]) -> None:
     r.add_segment({'kind': 'drive', 'speed_rpm': sign * speed_rpm,
                    'duration_s': settle_s + seconds, 'load_nm': sign * load_nm},
@@ -235,21 +235,21 @@ def _timed(r: StepRunner, speed_rpm: float, load_nm: float, sign: int, seconds: 
                          'load_nm': load_nm})
 
 
-def _efficiency_program(r: StepRunner, step: EfficiencyStep) -> None:
+def _efficiency_program(r: ProgramSink, step: EfficiencyStep) -> None:
     for s in step.speeds_rpm:
         for load in step.loads_nm:
             _timed(r, s, load, _DIRS[step.direction], step.measure_s, step.settle_s,
                    'efficiency', {'direction': step.direction})
 
 
-def _no_load_program(r: StepRunner, step: NoLoadStep) -> None:
+def _no_load_program(r: ProgramSink, step: NoLoadStep) -> None:
     for s in step.speeds_rpm:
         _timed(r, s, 0.0, _DIRS[step.direction], step.measure_s, step.settle_s, 'no_load',
                {'direction': step.direction})
 
 
 def _ramp_program(shaft: str) -> Any:
-    def build(r: StepRunner, step: StartingTorqueStep | BackDrivingStep) -> None:
+    def build(r: ProgramSink, step: StartingTorqueStep | BackDrivingStep) -> None:
         r.live_name = 'torque_nm'
         for d in step.directions:
             r.add_segment({'kind': 'torque_ramp', 'shaft': shaft,
@@ -260,12 +260,12 @@ def _ramp_program(shaft: str) -> Any:
     return build
 
 
-def _temperature_program(r: StepRunner, step: TemperatureRiseStep) -> None:
+def _temperature_program(r: ProgramSink, step: TemperatureRiseStep) -> None:
     _timed(r, step.speed_rpm, step.load_nm, _DIRS[step.direction], step.max_duration_s, 0.0,
            'temperature', {'direction': step.direction})
 
 
-def _life_program(r: StepRunner, step: LifeStep) -> None:
+def _life_program(r: ProgramSink, step: LifeStep) -> None:
     sign = _DIRS[step.direction]
     for k in range(step.checkpoints):
         lab = {'direction': step.direction, 'checkpoint': k}

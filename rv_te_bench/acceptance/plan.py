@@ -49,9 +49,10 @@ import dataclasses
 import math
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
-from typing import TYPE_CHECKING, Any, NoReturn
+from typing import TYPE_CHECKING, Any
 
-from rv_te_bench.acceptance._files import parse_yaml_text, read_source, shipped, shown_keys
+from rv_te_bench.acceptance._fields import Fields
+from rv_te_bench.acceptance._files import parse_yaml_text, read_source, shipped
 from rv_te_bench.acceptance.loss_steps import (
     LOSS_KINDS,
     BackDrivingStep,
@@ -93,106 +94,6 @@ MAX_SPEED_RPM = 1e5
 MAX_TORQUE_NM = 1e6
 MAX_REVOLUTIONS = 100
 MAX_SETTLE_S = 600.0
-
-
-class _Fields:
-    """Pops and checks the keys of one mapping; names where and what on failure."""
-
-    def __init__(self, data: Any, where: str) -> None:
-        if not isinstance(data, dict):
-            msg = f'{where}: must be a mapping, got {type(data).__name__}'
-            raise PlanError(msg)
-        self.data = dict(data)
-        self.where = where
-
-    def fail(self, key: str, rule: str, value: Any = None) -> NoReturn:
-        got = '' if value is None else f', got {value!r}'
-        msg = f'{self.where}: {key} {rule}{got}'
-        raise PlanError(msg)
-
-    def num(self, key: str, default: float | None = None, *, lo: float | None = None,
-            lo_open: bool = False, hi: float | None = None) -> float:
-        if key not in self.data:
-            if default is None:
-                self.fail(key, 'is required')
-            return float(default)
-        v = self.data.pop(key)
-        if isinstance(v, bool) or not isinstance(v, int | float) or not math.isfinite(v):
-            self.fail(key, 'must be a finite number', v)
-        if lo is not None and (v <= lo if lo_open else v < lo):
-            self.fail(key, f'must be {">" if lo_open else ">="} {lo:g}', v)
-        if hi is not None and v > hi:
-            self.fail(key, f'must be <= {hi:g}', v)
-        return float(v)
-
-    def integer(self, key: str, default: int, *, lo: int, hi: int | None = None) -> int:
-        v = self.data.pop(key, default)
-        if isinstance(v, bool) or not isinstance(v, int) or v < lo or (hi is not None
-                                                                        and v > hi):
-            rule = f'an integer >= {lo}' if hi is None else f'an integer in {lo}..{hi}'
-            self.fail(key, f'must be {rule}', v)
-        return int(v)
-
-    def text(self, key: str, default: str | None = None, *,
-             choices: tuple[str, ...] = ()) -> str:
-        if key not in self.data:
-            if default is None:
-                self.fail(key, 'is required')
-            return str(default)
-        v = self.data.pop(key)
-        if not isinstance(v, str) or not v.strip():
-            self.fail(key, 'must be a non-empty string', v)
-        if choices and v not in choices:
-            self.fail(key, f'must be one of {list(choices)}', v)
-        return v.strip()
-
-    def flag(self, key: str, default: bool) -> bool:
-        v = self.data.pop(key, default)
-        if not isinstance(v, bool):
-            self.fail(key, 'must be true or false', v)
-        return v
-
-    def numbers(self, key: str, default: list[float] | None = None, *,
-                lo: float | None = None, hi: float | None = None,
-                nonzero: bool = False) -> tuple[float, ...]:
-        if key not in self.data and default is not None:
-            return tuple(default)
-        v = self.data.pop(key, None)
-        if not isinstance(v, list) or not v or len(v) > 50:
-            self.fail(key, 'must be a list of 1..50 numbers', v)
-        out = []
-        for j, x in enumerate(v):
-            if isinstance(x, bool) or not isinstance(x, int | float) or not math.isfinite(x) \
-                    or (lo is not None and x < lo) or (hi is not None and x > hi) \
-                    or (nonzero and x == 0):
-                rule = ('must be finite' + (f' and >= {lo:g}' if lo is not None else '')
-                        + (f' and <= {hi:g}' if hi is not None else '')
-                        + (' and non-zero' if nonzero else ''))
-                self.fail(f'{key}[{j}]', rule, x)
-            out.append(float(x))
-        return tuple(out)
-
-    def span(self, key: str, value: Any) -> tuple[float, float]:
-        """One [start, end] time range [s], 0 <= start < end."""
-        if not isinstance(value, list) or len(value) != 2 or not all(
-                not isinstance(x, bool) and isinstance(x, int | float) and math.isfinite(x)
-                for x in value) or not 0 <= value[0] < value[1]:
-            self.fail(key, 'must be [start, end] in seconds from the record\'s start, '
-                      '0 <= start < end', value)
-        return float(value[0]), float(value[1])
-
-    def spans(self, key: str, count: int, what: str) -> tuple[tuple[float, float], ...]:
-        """``count`` time ranges (one per ``what``), or none."""
-        if key not in self.data:
-            return ()
-        v = self.data.pop(key)
-        if not isinstance(v, list) or len(v) != count:
-            self.fail(key, f'must list {count} [start, end] range(s), one per {what}', v)
-        return tuple(self.span(f'{key}[{j}]', x) for j, x in enumerate(v))
-
-    def done(self) -> None:
-        if self.data:
-            self.fail(f'unknown key(s) {shown_keys(self.data)}', 'are not allowed here')
 
 
 @dataclass(frozen=True)
@@ -295,7 +196,7 @@ class TestPlan:
                            for k, v in asdict(s).items()} for s in self.steps]}
 
 
-def _te_step(f: _Fields, name: str) -> TeStep:
+def _te_step(f: Fields, name: str) -> TeStep:
     dirs = f.data.pop('directions', ['ccw', 'cw'])
     if not isinstance(dirs, list) or not dirs or len(set(map(str, dirs))) != len(dirs) or \
             not all(d in DIRECTIONS for d in dirs):
@@ -314,7 +215,7 @@ def _te_step(f: _Fields, name: str) -> TeStep:
                   settle_s=f.num('settle_s', 0.5, lo=0.0, hi=MAX_SETTLE_S), time_ranges_s=spans)
 
 
-def _hysteresis_step(f: _Fields, name: str) -> HysteresisStep:
+def _hysteresis_step(f: Fields, name: str) -> HysteresisStep:
     rig = f.data.pop('rigidity', {'K': [0.5, 1.0]})
     if not isinstance(rig, dict) or not rig:
         f.fail('rigidity', 'must map region names to [lo, hi] fractions of the rated torque',
@@ -348,7 +249,7 @@ def _hysteresis_step(f: _Fields, name: str) -> HysteresisStep:
     return step
 
 
-def _sweep_step(f: _Fields, name: str) -> SweepStep:
+def _sweep_step(f: Fields, name: str) -> SweepStep:
     step = SweepStep(name=name,
                      speeds_rpm=f.numbers('speeds_rpm', lo=0.0, hi=MAX_SPEED_RPM, nonzero=True),
                      loads_nm=f.numbers('loads_nm', [0.0], lo=0.0, hi=MAX_TORQUE_NM),
@@ -360,7 +261,7 @@ def _sweep_step(f: _Fields, name: str) -> SweepStep:
         'time_ranges_s', n, 'sweep point (speeds x loads)'))
 
 
-def _operator_step(f: _Fields, name: str) -> OperatorStep:
+def _operator_step(f: Fields, name: str) -> OperatorStep:
     text = f.text('instruction')
     if len(text) > 500:
         f.fail('instruction', 'must be at most 500 characters', text[:40] + '...')
@@ -371,15 +272,15 @@ def _operator_step(f: _Fields, name: str) -> OperatorStep:
 #: Step kind -> parser. A new kind (issue 38) adds its dataclass and parser here, its
 #: program to runner.PROGRAMS, its result to _results.RESULTS and how recorded data is cut
 #: for it to recorded.FINDERS (tests/acceptance/test_kinds.py checks they agree).
-_KINDS: dict[str, Callable[[_Fields, str], Step]] = {
+_KINDS: dict[str, Callable[[Fields, str], Step]] = {
     'te': _te_step, 'hysteresis': _hysteresis_step, 'sweep': _sweep_step,
     'operator': _operator_step, **LOSS_KINDS}
 STEP_KINDS = tuple(_KINDS)
 
 
-def _safety(top: _Fields) -> PlanSafety:
+def _safety(top: Fields) -> PlanSafety:
     raw = top.data.pop('safety', {})
-    f = _Fields(raw if raw is not None else {}, f'{top.where}: safety')
+    f = Fields(raw if raw is not None else {}, f'{top.where}: safety')
     out = PlanSafety(
         max_input_speed_rpm=f.num('max_input_speed_rpm', math.inf, lo=0.0, lo_open=True)
         if 'max_input_speed_rpm' in f.data else math.nan,
@@ -401,7 +302,7 @@ def parse_plan(data: Any, origin: str = '<plan>') -> TestPlan:
         msg = (f'{origin}: is not a test plan (it has neither a "plan" nor a "steps" key; '
                'nothing of it is shown)')
         raise PlanError(msg)
-    top = _Fields(data, origin)
+    top = Fields(data, origin)
     name = top.text('plan')
     from rv_te_bench.store.records import FIELD_MAX_CHARS
     if len(name) > FIELD_MAX_CHARS['plan']:   # the results store keeps 128 (issue #21)
@@ -417,7 +318,7 @@ def parse_plan(data: Any, origin: str = '<plan>') -> TestPlan:
     steps: list[Step] = []
     names: set[str] = set()
     for j, raw in enumerate(steps_raw):
-        f = _Fields(raw, f'{origin}: step {j}')
+        f = Fields(raw, f'{origin}: step {j}')
         kind = f.text('kind', choices=tuple(_KINDS))
         sname = f.text('name', f'{kind}-{j}')
         if sname in names:

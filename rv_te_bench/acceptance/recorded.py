@@ -29,7 +29,8 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 
 from rv_te_bench.acceptance._loss_finders import LOSS_FINDERS
-from rv_te_bench.acceptance._results import SegmentData, step_result
+from rv_te_bench.acceptance._results import step_result
+from rv_te_bench.acceptance._segments import SegmentData
 from rv_te_bench.acceptance.plan import DIRECTIONS, HysteresisStep, SweepStep, TeStep
 from rv_te_bench.acceptance.runner import build_report
 from rv_te_bench.core.hysteresis_measured import torque_noise_nm

@@ -28,7 +28,8 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-from rv_te_bench.acceptance._results import SegmentData, step_result
+from rv_te_bench.acceptance._results import step_result
+from rv_te_bench.acceptance._segments import SegmentData
 from rv_te_bench.acceptance.loss_steps import LOSS_PROGRAMS
 from rv_te_bench.acceptance.plan import (
     DIRECTIONS,
@@ -314,8 +315,8 @@ def build_report(*, plan: TestPlan, profile: ToleranceProfile, info: BenchInfoDa
     steps = []
     for step, (ms, details) in zip(plan.steps, results, strict=False):
         steps.append({'name': step.name, 'kind': step.kind,
-                      'metrics': [{'name': m.name, 'unit': m.unit, 'value': _fin(m.value)}
-                                  for m in ms], **details})
+                      'metrics': [{'name': m.name, 'unit': m.unit, 'value': _fin(m.value),
+                                   'u95': _fin(m.u95)} for m in ms], **details})
     return {
         'unit': {'serial': serial, 'operator': operator,
                  'date_utc': started_utc or dt.datetime.now(dt.UTC).isoformat(timespec='seconds')},

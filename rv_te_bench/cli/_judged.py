@@ -83,7 +83,7 @@ def rejudge(judged: Path, *, report_dir: Path | None, as_json: bool,
     from rv_te_bench.acceptance import parse_plan, parse_tolerance
     from rv_te_bench.acceptance._files import parse_yaml_text
     from rv_te_bench.acceptance.recorded import JudgeSettings, judge_record
-    from rv_te_bench.cli.test import show_report, verdict_exit
+    from rv_te_bench.cli._test_report import show_report, verdict_exit
     from rv_te_bench.errors import ToleranceError
     from rv_te_bench.io.measured_record import TorqueTopic, read_measured_record
 

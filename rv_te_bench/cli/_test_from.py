@@ -156,7 +156,7 @@ def run_from(args: argparse.Namespace, plan: TestPlan, plan_text: str, tol_text:
     from rv_te_bench.acceptance._files import parse_yaml_text
     from rv_te_bench.acceptance.recorded import JudgeSettings, judge_record
     from rv_te_bench.cli._judged import write_judged
-    from rv_te_bench.cli.test import _record, show_report, verdict_exit
+    from rv_te_bench.cli._test_report import record_in_store, show_report, verdict_exit
     from rv_te_bench.errors import ToleranceError
     from rv_te_bench.io.measured_record import TorqueTopic, read_measured_record
 
@@ -222,6 +222,6 @@ def run_from(args: argparse.Namespace, plan: TestPlan, plan_text: str, tol_text:
                               if v is not None}, topics_bag=topics_from)
     print(f'judged record: {judged} (rv-te unit-report {out_dir} judges it again)',
           file=sys.stderr)
-    _record(args, report, bag, beside_bag=bag == Path(args.from_path))
+    record_in_store(args, report, bag, beside_bag=bag == Path(args.from_path))
     return verdict_exit(report['verdict'], args.serial, report['reason'], report,
                         as_json=args.json)

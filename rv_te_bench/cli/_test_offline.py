@@ -58,7 +58,7 @@ def run_offline(args: argparse.Namespace, plan: TestPlan, tol_text: str,
     """Validate against the bench, run, report; 0 pass, 3 fail, 1 otherwise."""
     from rv_te_bench.acceptance import load_tolerance, parse_tolerance, run_plan_offline
     from rv_te_bench.acceptance._files import parse_yaml_text
-    from rv_te_bench.cli.test import DEFAULT_TE_MODE, show_report, verdict_exit
+    from rv_te_bench.cli._test_report import DEFAULT_TE_MODE, show_report, verdict_exit
     from rv_te_bench.errors import ToleranceError
     from sim.loss_bench import LossConfig
     from sim.program import ProgramSimulator

@@ -40,15 +40,16 @@ from typing import TYPE_CHECKING, Any
 
 import yaml
 
-from rv_te_bench import __version__
-from rv_te_bench.cli._db import (
-    add_db_argument,
-    check_record_text,
-    db_for_bags,
-    store_summary,
+from rv_te_bench.cli._db import add_db_argument, check_record_text
+from rv_te_bench.cli._test_report import (
+    DEFAULT_TE_MODE,
+    EXIT_FAIL,
+    EXIT_INDETERMINATE,
+    record_in_store,
+    show_report,
+    verdict_exit,
 )
 from rv_te_bench.cli.argtypes import float_between, nonempty_text
-from rv_te_bench.errors import StoreError
 from rv_te_bench.safe_yaml import SMALL_TEXT_LIMITS, brief, load_yaml
 
 if TYPE_CHECKING:
@@ -60,12 +61,6 @@ if TYPE_CHECKING:
     from rv_te_bench.launch.session import Session, SessionSpec
 
 __all__ = ['EXIT_FAIL', 'EXIT_INDETERMINATE', 'register', 'run']
-
-EXIT_FAIL = 3
-#: Exit code of a unit whose conformance the guarded decision rule could not prove.
-EXIT_INDETERMINATE = 4
-#: Reducer model -> TE model mode a simulated session uses.
-DEFAULT_TE_MODE = {'wang2020-2kv': 'nlte', 'hu2020-rv': 'elastic', 'li2023-rv': 'dte'}
 
 
 def register(subparsers: Subparsers) -> None:
@@ -320,7 +315,7 @@ def run(args: argparse.Namespace) -> int:
             report['bench']['bag'] = str(out_dir / 'bag')
         show_report(report, report_dir, as_json=args.json, pdf=args.pdf)
         if args.launch:
-            _record(args, report, out_dir / 'bag')
+            record_in_store(args, report, out_dir / 'bag')
     return verdict_exit(verdict, args.serial, reason, report, as_json=args.json)
 
 
@@ -329,90 +324,6 @@ def _linger(dash: Any, args: argparse.Namespace) -> None:
     end = time.monotonic() + float(getattr(args, 'dashboard_linger_s', 1.0))
     while time.monotonic() < end:
         time.sleep(0.05)
-
-
-def show_report(report: dict[str, Any], directory: Path, *, as_json: bool,
-                pdf: bool = False) -> None:
-    """Write the unit report (and ``pdf``: report.pdf printed by Chromium; a failure to print
-    is a warning, the test's record and verdict go on); print the record as JSON (the one
-    document on stdout; the report's path on stderr) or the verdict table and its path."""
-    from rv_te_bench.errors import RvTeError
-    from rv_te_bench.report.print_pdf import print_to_pdf
-    from rv_te_bench.report.unit import write_unit_report
-
-    paths = write_unit_report(report, directory)
-    if pdf:
-        try:
-            print(f'report PDF: {print_to_pdf(paths["html"], directory / "report.pdf")}',
-                  file=sys.stderr)
-        except RvTeError as exc:
-            print(f'WARNING: no report.pdf: {exc}', file=sys.stderr)
-    if as_json:
-        print(json.dumps(report, indent=1), flush=True)
-        print(f'report: {paths["html"]}', file=sys.stderr)
-    else:
-        _print_table(report)
-        print(f'report: {paths["html"]}')
-
-
-def verdict_exit(verdict: str, serial: str, reason: str,
-                 report: dict[str, Any] | None, *, as_json: bool = False) -> int:
-    """The verdict line (stderr with --json: stdout holds only the JSON) and the exit code:
-    0 pass, 3 fail, 4 indeterminate (guarded acceptance: conformance not proven), 1 anything
-    else."""
-    from rv_te_bench.report.unit import human_reason
-
-    out = sys.stderr if as_json else sys.stdout
-    if report is not None:
-        reason = human_reason(report)
-    if verdict == 'pass':
-        print(f'VERDICT: PASS  unit {serial}: {reason}', file=out)
-        return 0
-    if verdict == 'fail':
-        print(f'VERDICT: FAIL  unit {serial}: {reason}', file=out)
-        return EXIT_FAIL
-    if verdict == 'indeterminate':
-        print(f'VERDICT: INDETERMINATE  unit {serial}: {reason}', file=out)
-        return EXIT_INDETERMINATE
-    if verdict == 'not_judged':
-        print(f'VERDICT: NOT JUDGED  unit {serial}: {reason}', file=out)
-        return 1
-    print(f'ERROR: test of unit {serial} {verdict}: {reason}', file=sys.stderr)
-    return 1
-
-
-def _record(args: argparse.Namespace, report: dict[str, Any], bag: Path, *,
-            beside_bag: bool = False) -> None:
-    """The test's record in the results store (the user's one store by default, as
-    ``rv-te analyze``; ``beside_bag`` is kept for the callers and changes nothing)."""
-    from rv_te_bench.acceptance._store import store_record
-    from rv_te_bench.store import open_store
-
-    db = db_for_bags(args, [bag if beside_bag else bag.parent])
-    if db is None or not (bag / 'metadata.yaml').exists():
-        return
-    try:
-        with open_store(db) as store:
-            store.upsert(store_record(report, bag, software_version=__version__))
-            print(f'recorded in the {store_summary(store.url, store.count())}',
-                  file=sys.stderr if args.json else sys.stdout)
-    except StoreError as exc:   # a result not stored is an error (issue #32), --no-db to skip
-        msg = f'the test was not recorded in the results store: {exc} (--db elsewhere, or --no-db)'
-        raise StoreError(msg) from None
-
-
-def _print_table(report: dict[str, Any]) -> None:
-    from rv_te_bench.report.unit import decision_rule_text, metric_rows
-
-    print(f"unit {report['unit']['serial']}  operator {report['unit']['operator']}  "
-          f"{report['unit']['date_utc']}  plan {report['plan']['plan']}  "
-          f"tolerance {report['tolerance']['profile']}")
-    print(f'decision rule: {decision_rule_text(report)}')
-    print(f"{'metric':<34} {'value':>12} {'+-U':>8} {'limit':>14} {'margin':>12}  verdict")
-    for r in metric_rows(report):
-        pfa = f"  (P false accept {r['pfa']})" if r['pfa'] else ''
-        print(f"{r['label']:<34} {r['value']:>12} {r['u95']:>8} {r['limit']:>14} "
-              f"{r['margin']:>12}  {r['verdict']}{pfa}")
 
 
 class _Progress:

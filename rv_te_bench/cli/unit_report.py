@@ -27,7 +27,7 @@ import sys
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
-from rv_te_bench.cli.test import show_report, verdict_exit
+from rv_te_bench.cli._test_report import show_report, verdict_exit
 from rv_te_bench.errors import AcceptanceError
 
 if TYPE_CHECKING:

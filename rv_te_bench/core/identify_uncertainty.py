@@ -41,7 +41,7 @@ from rv_te_bench.core.uncertainty import Budget, UncertaintyInput, combine, type
 if TYPE_CHECKING:
     from rv_te_bench.core.angle_fold import FoldedTe
     from rv_te_bench.core.bench_uncertainty import BenchUncertainty
-    from rv_te_bench.core.identify import Identification
+    from rv_te_bench.core.identification import Identification
 
 __all__ = ['IDENTIFIED', 'identification_budgets', 'long_range_terms', 'solution']
 

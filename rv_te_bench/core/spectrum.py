@@ -219,7 +219,7 @@ class AngleResampled:
 
 _CHUNK = 16384  # grid points per pass: keeps the temporaries in cache and off mmap
 
-try:   # the compiled resampler (setup.py; optional: without a C compiler numpy does it)
+try:   # the compiled resampler (pyproject.toml ext-modules; optional: else numpy does it)
     _KERNEL: Any = importlib.import_module('rv_te_bench.core._lagrange')
 except ImportError:   # pragma: no cover - depends on how the package was installed
     _KERNEL = None

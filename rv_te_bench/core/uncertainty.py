@@ -66,6 +66,7 @@ __all__ = [
     'UncertaintyInput',
     'combine',
     'coverage_factor',
+    'coverage_interval',
     'monte_carlo_interval',
     'numeric_sensitivity',
     'sample_input',
@@ -378,8 +379,8 @@ def coverage_factor(inputs: Sequence[UncertaintyInput], p: float = COVERAGE_PROB
         basis = f't (nu_i = {", ".join(f"{v:g}" for v in nus)}; convolved)'
     big = (sig >= 0.01 * uc) | few_dof
     small_var = float(np.sum(sig[~big] ** 2))
-    parts = [(s, float(g), x.dof, x.shape) for s, g, x, b in zip(shapes, sig, inputs, big,
-                                                                  strict=True) if b]
+    parts = [(s, float(g), x.dof, _signed(x)) for s, g, x, b in zip(shapes, sig, inputs, big,
+                                                                     strict=True) if b]
     if small_var > 0:
         parts.append(('normal', math.sqrt(small_var), math.inf, ()))
     span = 6.0 * uc
@@ -389,6 +390,69 @@ def coverage_factor(inputs: Sequence[UncertaintyInput], p: float = COVERAGE_PROB
             return k, basis
         span *= 3.0
     return k, basis
+
+
+def _signed(x: UncertaintyInput) -> tuple[float, ...]:
+    """A tabulated input's shape as c_i X_i sees it (a negative c flips it)."""
+    return tuple(-v for v in x.shape) if x.sensitivity < 0 else x.shape
+
+
+def coverage_interval(inputs: Sequence[UncertaintyInput], p: float = COVERAGE_PROBABILITY,
+                      ) -> tuple[float, float] | None:
+    """The probabilistically symmetric p interval [q_lo, q_hi] of ``sum c_i X_i`` (GUM
+    Supplement 1, 7.7: the (1 - p) / 2 and (1 + p) / 2 quantiles), where a tabulated input
+    makes the sum's distribution asymmetric; None where every input is symmetric (then the
+    interval is +-k u_c, :func:`coverage_factor`).
+
+    A harmonic's second-order term (the points read at positions the error itself moved)
+    shares its phase with the first-order one: their sum over a uniform phase is skewed
+    when the first-order term's weights cancel and the second's do not (a closed loop's
+    area). Its symmetric interval about zero then reaches the long tail; this one does not.
+    """
+    xs = [x for x in inputs if x.contribution > 0]
+    if not any(x.distribution == 'tabulated' for x in xs):
+        return None
+    sig = np.array([x.contribution for x in xs], dtype=np.float64)
+    uc = math.sqrt(float(np.sum(sig * sig)))
+    shapes: list[Distribution] = [
+        'normal' if (x.distribution == 't' and math.isinf(x.dof)) else x.distribution
+        for x in xs]
+    few = np.array([s == 't' and x.dof < _WS_MIN_DOF for s, x in zip(shapes, xs, strict=True)],
+                   dtype=bool)
+    big = (sig >= 0.01 * uc) | few | np.array([s == 'tabulated' for s in shapes], dtype=bool)
+    parts = [(s, float(g), x.dof, _signed(x)) for s, g, x, b in zip(shapes, sig, xs, big,
+                                                                     strict=True) if b]
+    small_var = float(np.sum(sig[~big] ** 2))
+    if small_var > 0:
+        parts.append(('normal', math.sqrt(small_var), math.inf, ()))
+    span = 6.0 * uc
+    for _ in range(6):
+        x, cdf = _convolved_cdf(parts, span)
+        lo, hi = np.interp([(1.0 - p) / 2.0, (1.0 + p) / 2.0], cdf, x)
+        if max(-lo, hi) <= 0.6 * span:
+            return float(lo), float(hi)
+        span *= 3.0
+    return float(lo), float(hi)
+
+
+def _convolved_cdf(parts: list[tuple[Distribution, float, float, tuple[float, ...]]],
+                   span: float) -> tuple[np.ndarray, np.ndarray]:
+    """CDF of the sum at the right edges of its bins (x, F(x)), strictly increasing F."""
+    n = _GRID_BINS
+    edges = np.linspace(-span, span, n + 1)
+    h = edges[1] - edges[0]
+    centres = 0.5 * (edges[:-1] + edges[1:])
+    size = 1 << math.ceil(math.log2(len(parts) * (n - 1) + 1))
+    acc = np.ones(size // 2 + 1, dtype=np.complex128)
+    for shape, sigma, dof, table in parts:
+        acc *= np.fft.rfft(_bin_masses(shape, sigma, dof, edges, centres, h, table), size)
+    total = np.clip(np.fft.irfft(acc, size)[:len(parts) * (n - 1) + 1], 0.0, None)
+    kk = len(parts)
+    x = -kk * span + (np.arange(total.size) + kk / 2.0) * h + 0.5 * h
+    cdf = np.cumsum(total)
+    cdf /= cdf[-1]
+    keep = np.r_[True, np.diff(cdf) > 0]
+    return x[keep], cdf[keep]
 
 
 def _convolved_quantile(parts: list[tuple[Distribution, float, float, tuple[float, ...]]],
@@ -481,6 +545,9 @@ class Budget:
             high by up to this (a p-p of samples reads the crest of fast errors).
         bias_low_bound: Bound of an uncorrected one-sided bias downwards: the value may
             read low by up to this (the smaller of two uncertain values, E[min] <= min E).
+        shift: Centre of the coverage interval minus the value, where the distribution is
+            asymmetric (:func:`coverage_interval`; ``expanded`` is then the half-width of
+            the probabilistically symmetric interval); 0 for a symmetric one.
         parts: The budgets a derived result was taken over (the two sides of a minimum).
     """
 
@@ -498,23 +565,26 @@ class Budget:
     bias_bound: float = 0.0
     bias_low_bound: float = 0.0
     parts: tuple[Budget, ...] = field(default=(), compare=False)
+    shift: float = 0.0
 
     @property
     def u95(self) -> float:
-        """The U reported beside the value: ``expanded`` plus the bound of an uncorrected
-        one-sided bias (GUM F.2.4.5: the value may read high by up to ``bias_bound`` or
-        low by up to ``bias_low_bound``; the larger of the two)."""
-        return self.expanded + max(self.bias_bound, self.bias_low_bound)
+        """The U reported beside the value, symmetric about it: the farther of the
+        interval's two ends (``expanded`` plus the bound of an uncorrected one-sided bias,
+        GUM F.2.4.5, plus the ``shift`` of an asymmetric distribution's interval)."""
+        return max(self.u_below, self.u_above)
 
     @property
     def u_below(self) -> float:
-        """How far below the value the interval reaches: U + the upward bias bound."""
-        return self.expanded + self.bias_bound
+        """How far below the value the interval reaches: U + the upward bias bound - the
+        shift."""
+        return self.expanded + self.bias_bound - self.shift
 
     @property
     def u_above(self) -> float:
-        """How far above the value the interval reaches: U + the downward bias bound."""
-        return self.expanded + self.bias_low_bound
+        """How far above the value the interval reaches: U + the downward bias bound +
+        the shift."""
+        return self.expanded + self.bias_low_bound + self.shift
 
     @property
     def interval(self) -> tuple[float, float]:
@@ -542,7 +612,7 @@ class Budget:
         return {'measurand': self.measurand, 'unit': self.unit, 'value': fin(self.value),
                 'u_c': fin(self.u_c), 'nu_eff': fin(self.nu_eff), 'k': fin(self.k),
                 'expanded': fin(self.expanded), 'bias_bound': fin(self.bias_bound),
-                'bias_low_bound': fin(self.bias_low_bound),
+                'bias_low_bound': fin(self.bias_low_bound), 'shift': fin(self.shift),
                 'u95': fin(self.u95), 'interval': [fin(x) for x in self.interval],
                 'coverage_probability': self.coverage_probability, 'k_basis': self.k_basis,
                 'inputs': [x.to_json_dict(s) for x, s in zip(self.inputs, self.shares,
@@ -573,6 +643,14 @@ def combine(measurand: str, value: float, inputs: Sequence[UncertaintyInput | No
     nu = welch_satterthwaite(contrib, [x.dof for x in xs]) if xs else math.inf
     k, basis = coverage_factor(xs, p) if uc > 0 else (math.nan, 'normal')
     expanded = k * uc if uc > 0 else 0.0
+    shift = 0.0
+    qq = coverage_interval(xs, p) if uc > 0 else None
+    if qq is not None and (qq[1] + qq[0]) != 0.0:
+        # measured = true + sum c_i X_i: the true value lies in [y - q_hi, y - q_lo]
+        expanded = 0.5 * (qq[1] - qq[0])
+        shift = -0.5 * (qq[1] + qq[0])
+        k = expanded / uc
+        basis = f'{basis}; interval of the asymmetric distribution (GUM S1 7.7)'
     few = [x for x in xs if x.kind == 'A' and x.dof < _FEW_REPEATS_DOF and x.contribution > 0]
     if few and uc > 0:
         notes = [*notes, *(f'{x.name}: {x.dof + 1:g} observations ({x.dof:g} dof, '
@@ -583,7 +661,7 @@ def combine(measurand: str, value: float, inputs: Sequence[UncertaintyInput | No
     return Budget(measurand=measurand, unit=unit, value=float(value), inputs=tuple(xs),
                   u_c=uc, nu_eff=nu, k=k, expanded=expanded, coverage_probability=p,
                   k_basis=basis, notes=tuple(notes), bias_bound=float(bias_bound),
-                  bias_low_bound=float(bias_low_bound), parts=tuple(parts))
+                  bias_low_bound=float(bias_low_bound), parts=tuple(parts), shift=shift)
 
 
 def numeric_sensitivity(f: Callable[[float], float], x0: float, step: float) -> float:

@@ -16,13 +16,13 @@ import numpy as np
 
 from rv_te_bench.core.spectrum import SpectrumSummary, spectrum_line_json
 from rv_te_bench.core.units import json_float
+from rv_te_bench.report.trace import TeTrace
 from sim.units import rad_to_arcmin
 
 if TYPE_CHECKING:
     import numpy.typing as npt
 
     from rv_te_bench.core.advice import Advice
-    from rv_te_bench.core.envelope import EnvelopeData
     from rv_te_bench.core.orders import OrderSet
     from rv_te_bench.core.spectrum import SpectrumLine
     from rv_te_bench.core.stream_records import GapEvent, WindowResult
@@ -211,25 +211,6 @@ def report_title(result: AnalysisResult) -> str:
     if sess.unit_serial:
         parts.append(f'unit {sess.unit_serial}')
     return ', '.join(parts)
-
-
-@dataclass(frozen=True)
-class TeTrace:
-    """A thinned TE trace for plots: every ``stride``-th sample, NaN rows at gaps; and the
-    min/max envelope of every clean sample (what long records are drawn from).
-
-    Attributes:
-        theta_out_rad: Output angle [rad] (unwrapped, as recorded).
-        te_rad: TE at those samples [rad].
-        stride: Every how many samples one was kept.
-        envelope: TE min and max per bucket of consecutive samples over the whole record
-            (:class:`~rv_te_bench.core.envelope.EnvelopeData`), or None.
-    """
-
-    theta_out_rad: FloatArray = field(repr=False)
-    te_rad: FloatArray = field(repr=False)
-    stride: int = 1
-    envelope: EnvelopeData | None = field(default=None, repr=False)
 
 
 @dataclass(frozen=True)

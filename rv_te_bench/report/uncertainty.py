@@ -45,7 +45,7 @@ if TYPE_CHECKING:
     from rv_te_bench.core.te import TeStats
     from rv_te_bench.core.uncertainty import Budget
     from rv_te_bench.core.uncertainty_mc import McResult
-    from rv_te_bench.report.results import TeTrace
+    from rv_te_bench.report.trace import TeTrace
     from sim.bench_info import BenchInfoData
 
 __all__ = ['AnalysisUncertainty', 'MonteCarloCheck', 'analysis_uncertainty',

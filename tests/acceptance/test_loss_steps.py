@@ -35,6 +35,10 @@ def _run(steps: list[dict], overrides: tuple[str, ...] = (), losses: LossConfig 
     return report, blocks
 
 
+def _metric_row(report: dict, name: str) -> dict:
+    return next(m for s in report['steps'] for m in s['metrics'] if m['name'] == name)
+
+
 def _metric(report: dict, name: str) -> float:
     for s in report['steps']:
         for m in s['metrics']:
@@ -59,8 +63,15 @@ def test_efficiency_step_obeys_the_energy_balance() -> None:
         truth = 1.0 - loss / p_in
         assert abs(r['efficiency'] - truth) <= r['expanded_efficiency']
         assert r['expanded_efficiency'] < 0.01
+        # the GUM budget (issue 35): U beside the value, its inputs named
+        assert r['efficiency_u95'] == r['expanded_efficiency'] > 0
+        names = {x['name'] for x in r['budget']['inputs']}
+        assert {'input torque transducer: class', 'output torque transducer: class'} <= names
     top = min(r['efficiency'] for r in step['rows'] if r['load_nm'] == 784)
     assert _metric(report, 'efficiency_at_max_load') == pytest.approx(top)
+    m = _metric_row(report, 'efficiency_at_max_load')
+    row = next(r for r in step['rows'] if r['efficiency'] == top)
+    assert m['u95'] == pytest.approx(row['efficiency_u95'])
 
 
 def test_ramp_steps_read_the_friction_models_static_values() -> None:
@@ -74,6 +85,11 @@ def test_ramp_steps_read_the_friction_models_static_values() -> None:
     for r in report['steps'][0]['rows']:
         # class-0.05 transducer of 20 N m: +-0.01 N m; detection bias < 1 % (core tests)
         assert r['torque_nm'] == pytest.approx(ts, abs=0.01 + 0.01 * ts)
+        # the budget: class band p x 0.01 N m at least, the ramp's increment per sample
+        # (0.2 N m/s at 1 kHz) as the bias bound reading high
+        b = r['budget']
+        assert b['bias_bound'] == pytest.approx(0.2 / 1000.0, rel=0.05)
+        assert r['torque_nm_u95'] >= 0.95 * 0.01
     for r in report['steps'][1]['rows']:
         assert r['torque_nm'] == pytest.approx(tbd, abs=1.0 + 0.02 * tbd)   # 2000 N m FS
     assert report['metrics'][0]['name'] == 'starting_torque_nm' or any(
@@ -105,6 +121,8 @@ def test_temperature_step_matches_the_true_case_temperature() -> None:
     assert s['settle_time_s'] == pytest.approx(t_true, abs=3.0)
     rise_true = np.interp(s['settle_time_s'], t, temp) - temp[0]
     assert s['rise_k'] == pytest.approx(rise_true, abs=0.1)
+    assert 0 < s['rise_k_u95'] < 0.1
+    assert _metric_row(report, 'temperature_rise_k')['u95'] == pytest.approx(s['rise_k_u95'])
 
 
 def test_life_step_on_a_stable_unit_flags_nothing() -> None:

@@ -382,3 +382,41 @@ def test_tabulated_input_of_a_sine_is_the_arcsine() -> None:
     assert k_tab == pytest.approx(coverage_factor([arc])[0], abs=3e-3)
     with pytest.raises(TeInputError, match='tabulated'):
         type_b('t', sensitivity=1.0, distribution='tabulated', half_width=1.0, shape=[0.0] * 9)
+
+
+@pytest.mark.parametrize('sign', [1.0, -1.0])
+def test_a_skewed_tabulated_input_gets_its_probabilistically_symmetric_interval(
+        sign: float) -> None:
+    """A harmonic with its second-order term, f(rho) = sin(rho) + 0.3 cos(2 rho) over a
+    uniform phase, is skewed (its extremes are 1.3 and ... below -1). With a normal input
+    beside it, P(S <= s) = mean over rho of Phi((s - c f(rho)) / sigma) (computed here on
+    a fine grid of rho, scipy root finder): the budget's interval of the true value is
+    [y - q_hi, y - q_lo] (measured = true + S), its U the half-width, shifted."""
+    from scipy import optimize
+    from scipy.special import ndtr
+
+    rho = np.linspace(0.0, 2 * np.pi, 4000, endpoint=False)
+    f = np.sin(rho) + 0.3 * np.cos(2 * rho)
+    g, sigma = 2.0, 0.4
+    x = type_b('h', sensitivity=sign * 1.5, distribution='tabulated', half_width=g,
+               shape=f)
+    n = type_b('n', sensitivity=1.0, distribution='normal', u=sigma)
+    vals = sign * 1.5 * g * f / float(np.max(np.abs(f)))
+
+    def cdf(s: float) -> float:
+        return float(np.mean(ndtr((s - vals) / sigma)))
+
+    p = math.erf(math.sqrt(2.0))
+    q_lo = optimize.brentq(lambda s: cdf(s) - (1 - p) / 2, -20, 20)
+    q_hi = optimize.brentq(lambda s: cdf(s) - (1 + p) / 2, -20, 20)
+    b = combine('y', 10.0, [x, n])
+    lo, hi = b.interval
+    assert lo == pytest.approx(10.0 - q_hi, abs=0.01 * (q_hi - q_lo) / 2)
+    assert hi == pytest.approx(10.0 - q_lo, abs=0.01 * (q_hi - q_lo) / 2)
+    assert b.expanded == pytest.approx((q_hi - q_lo) / 2, rel=0.01)
+    assert abs(b.shift) > 0.05 * b.expanded            # skewed: not symmetric about y
+    assert b.u95 == pytest.approx(max(10.0 - lo, hi - 10.0))
+    # a symmetric budget keeps shift 0 and y +- k u_c
+    s = combine('y', 1.0, [n, type_b('r', sensitivity=1.0, distribution='rectangular',
+                                     half_width=1.0)])
+    assert s.shift == 0.0 and s.interval == (1.0 - s.expanded, 1.0 + s.expanded)

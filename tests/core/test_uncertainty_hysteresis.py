@@ -78,11 +78,16 @@ def test_second_order_term_of_the_interpolation_error() -> None:
     assert x.contribution == pytest.approx(np.std(f), rel=1e-3)
     first_only = abs(np.sum(c * np.exp(1j * n * th)))
     assert x.sensitivity > first_only    # the second order widens it here
-    # its share of U: the 95.45 % quantile of |sum| of the tabulated values, the only input
-    q = np.quantile(np.abs(f), 0.9545)
+    # its interval: the tabulated values are (nearly) the only input; measured = true + f,
+    # so the true value lies in [y - q(97.725 %), y - q(2.275 %)] of f (GUM S1 7.7, the
+    # probabilistically symmetric interval: f is skewed by its second-order term)
+    q_lo, q_hi = np.quantile(f, [0.02275, 0.97725])
     b = buds['lost_motion_rad']
     assert b.inputs[0] is x and b.shares[0] > 0.99
-    assert b.expanded == pytest.approx(q, rel=0.02)
+    assert b.expanded == pytest.approx((q_hi - q_lo) / 2, rel=0.02)
+    lo, hi = b.interval
+    assert lo - b.value == pytest.approx(-q_hi, abs=0.02 * b.expanded)
+    assert hi - b.value == pytest.approx(-q_lo, abs=0.02 * b.expanded)
     # the term is real: the error function at positions read with the error, minus its
     # first-order value, for every phase, lies within the second-order amplitude (+ third)
     rho = np.linspace(0, 2 * np.pi, 721)[:, None]

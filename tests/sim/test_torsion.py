@@ -59,7 +59,9 @@ def test_wang_backlash_is_eq9_at_the_locked_position(theta_in: float) -> None:
 
 
 def test_hu_curve_is_the_tca_rotation() -> None:
-    p = load_preset('hu2020-rv', ['torsion.clearance_rad=0.0'])
+    # the TCA alone: no free play, no parts in series (sim.torsion adds both)
+    p = load_preset('hu2020-rv', ['torsion.clearance_rad=0.0',
+                                  'torsion.series_stiffness_nm_rad=0.0'])
     params = hu2020.HuRvParams.from_preset(p)
     c = torsion_curve(p)
     for t in (50.0, 392.0, 784.0):
