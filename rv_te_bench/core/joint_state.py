@@ -102,6 +102,8 @@ class JointStateConfig:
         wrap_out: The output position is single-turn: unwrap it.
         effort_scale: Output torque [N m] per unit of the output joint's effort; 0 = no
             torque in the blocks.
+        input_effort_scale: Input-shaft torque [N m] per unit of the input (drive) joint's
+            effort (the bench's torque-in channel, issue 38); 0 = no input torque.
         pairing_tolerance_s: Joints in separate messages: largest stamp difference [s] of
             one sample's input and output positions (>= 0, below half a sample period).
         max_unpaired: Samples one joint may run ahead of the other (reordering) before its
@@ -122,6 +124,7 @@ class JointStateConfig:
     wrap_in: bool = False
     wrap_out: bool = False
     effort_scale: float = 0.0
+    input_effort_scale: float = 0.0
     pairing_tolerance_s: float = 0.0
     max_unpaired: int = 64
     output_head_joints: tuple[str, ...] = ()
@@ -176,6 +179,10 @@ class JointStateConfig:
                 and math.isfinite(self.effort_scale)):
             msg = f'effort_scale must be finite, got {self.effort_scale!r}'
             raise TeConfigError(msg)
+        if not (isinstance(self.input_effort_scale, int | float)
+                and math.isfinite(self.input_effort_scale)):
+            msg = f'input_effort_scale must be finite, got {self.input_effort_scale!r}'
+            raise TeConfigError(msg)
         tol = self.pairing_tolerance_s
         half = 0.5 / rate
         if not (isinstance(tol, int | float) and math.isfinite(tol) and 0 <= tol < half):
@@ -209,6 +216,8 @@ class JointStateBlock:
         out_head_ids: The output heads present in the whole block (head 0 first), or ()
             without further heads.
         theta_out_heads_rad: Their readings, (heads, n) [rad], unwrapped beside head 0.
+        torque_in_nm: Input-shaft torque [N m] from the drive joint's effort (empty
+            without ``input_effort_scale``), read-only.
     """
 
     seq: int
@@ -220,6 +229,7 @@ class JointStateBlock:
     torque_out_nm: np.ndarray = field(default_factory=lambda: _EMPTY)
     out_head_ids: tuple[int, ...] = ()
     theta_out_heads_rad: np.ndarray = field(default_factory=lambda: _EMPTY)
+    torque_in_nm: np.ndarray = field(default_factory=lambda: _EMPTY)
 
     @property
     def stamp_s(self) -> float:
@@ -304,6 +314,8 @@ class JointStateAssembler:
         self._jump_ns = STAMP_JUMP_PERIODS * self._period_ns
         self._tol_ns = config.pairing_tolerance_s * 1e9
         self._use_effort = config.effort_scale != 0.0
+        self._use_effort_in = config.input_effort_scale != 0.0
+        self._eff_in: list[float] = []
         self._head_names = config.output_head_joints
         self._layouts: dict[tuple[str, ...], tuple[int, int]] = {}
         self._head_index: dict[tuple[str, ...], tuple[int, ...]] = {}
@@ -377,14 +389,18 @@ class JointStateAssembler:
         p_out = self._value(positions, i_out)
         e_val = self._value(efforts, i_out) if self._use_effort else math.nan
         e_out = math.nan if e_val is None else e_val   # no effort value: torque unknown
+        e_in = math.nan
+        if self._use_effort_in:
+            e_v = self._value(efforts, i_in)
+            e_in = math.nan if e_v is None else e_v
         heads = self._head_values(key, positions) if self._head_names and p_out is not None \
             else ()
         if p_in is not None and p_out is not None and not self._half_in \
                 and not self._half_out:
-            self._sample(int(stamp_ns), p_in, p_out, e_out, out, heads)
+            self._sample(int(stamp_ns), p_in, p_out, e_out, out, heads, e_in)
             return tuple(out) if out else _NOTHING
         if p_in is not None:
-            self._half_in.append((int(stamp_ns), p_in, math.nan, ()))
+            self._half_in.append((int(stamp_ns), p_in, e_in, ()))
         if p_out is not None:
             self._half_out.append((int(stamp_ns), p_out, e_out, heads))
         if p_in is None and p_out is None:   # named but no position value: missing joint
@@ -436,7 +452,7 @@ class JointStateAssembler:
             if abs(a[0] - b[0]) <= tol:
                 hin.popleft()
                 hout.popleft()
-                self._sample(a[0], a[1], b[1], b[2], out, b[3])
+                self._sample(a[0], a[1], b[1], b[2], out, b[3], a[2])
             elif a[0] < b[0]:
                 hin.popleft()
                 self._problem('missing_joint', a[0], out,
@@ -453,7 +469,7 @@ class JointStateAssembler:
 
     def _sample(self, t: int, p_in: float, p_out: float, e_out: float,
                 out: list[JointStateBlock | JointStateGap],
-                heads: tuple[float, ...] = ()) -> None:
+                heads: tuple[float, ...] = (), e_in: float = math.nan) -> None:
         if not (math.isfinite(p_in) and math.isfinite(p_out)):
             self._problem('non_finite', t, out, f'position {p_in!r}/{p_out!r} at {t} ns')
             return
@@ -476,6 +492,8 @@ class JointStateAssembler:
         self._out.append(p_out)
         if self._use_effort:
             self._eff.append(e_out)
+        if self._use_effort_in:
+            self._eff_in.append(e_in)
         if self._head_names:
             self._heads.append(heads or (math.nan,) * len(self._head_names))
         if len(self._t) >= self._cfg.block_size:
@@ -540,6 +558,10 @@ class JointStateAssembler:
                 np.vstack([th_out[None, :], rows[[k - 1 for k in keep]]]))}
             self.counters['blocks_head_missing'] += int(len(keep) < rows.shape[0])
             self._heads = []
+        if self._use_effort_in:
+            heads['torque_in_nm'] = _readonly(np.array(self._eff_in, dtype=np.float64)
+                                              * cfg.input_effort_scale)
+            self._eff_in = []
         block = JointStateBlock(
             self._next_seq, int(t[0]), float(self._cfg.sample_rate_hz),
             _readonly((t - t[0]).astype(np.float64) * 1e-9), _readonly(th_in),

@@ -17,6 +17,14 @@ both joints came ``joints_timeout_s`` after start, the adapter says which names 
 and which the messages carry (log, ``/diagnostics`` ERROR) and ends with exit code 1, so the
 session ends non-zero with that line instead of recording an empty bag.
 
+The whole-reducer steps' channels (issue 38), when the bench description has
+``loss_channels``: the drive (input) joint's effort x ``loss_channels.torque_in.
+scale_nm_per_unit`` is the input torque, and the case temperature comes from a
+``sensor_msgs/Temperature`` topic (``temperature_topic``; readings interpolated onto the
+samples, held after the last one, none older than 10 s: NaN). Both go on ``bench/channels``
+(``rv_te_msgs/BenchChannels``), one message with each EncoderBlock (the same seq, stamp and
+sample count; published just before it), as the simulated bench publishes them.
+
 Parameters left at their "from the description" value (empty joint names, 0 rate, 0 block
 size, 0 counts per revolution, 0 effort scale) take the bench description's values.
 """
@@ -24,17 +32,19 @@ size, 0 counts per revolution, 0 effort scale) take the bench description's valu
 from __future__ import annotations
 
 import dataclasses
+import math
 import sys
 import time
 from collections import deque
 from typing import Any
 
+import numpy as np
 from builtin_interfaces.msg import Time
 from diagnostic_msgs.msg import DiagnosticArray
 from rclpy.node import Node
 from rclpy.qos_overriding_options import QoSOverridingOptions
-from rv_te_msgs.msg import BenchInfo, EncoderBlock
-from sensor_msgs.msg import JointState
+from rv_te_msgs.msg import BenchChannels, BenchInfo, EncoderBlock
+from sensor_msgs.msg import JointState, Temperature
 
 from rv_te_bench.core.joint_state import (
     JointStateAssembler,
@@ -57,6 +67,8 @@ from rv_te_bench.nodes.common import (
 from rv_te_bench.nodes.params.joint_state_adapter import PARAMS, JointStateAdapterParams
 from rv_te_bench.params import params_record
 
+#: A case temperature reading farther than this from a sample leaves it without one [ns].
+_TEMP_MAX_AGE_NS = 10e9
 #: Most blocks held while waiting for the session's subscribers (then the oldest go).
 _MAX_HELD_BLOCKS = 10000
 
@@ -107,12 +119,15 @@ def build_config(p: JointStateAdapterParams) -> tuple[JointStateConfig, Any]:
     if scale == 0 and desc is not None and desc.torque_sensor.present:
         scale = desc.torque_sensor.scale_nm_per_unit
     tol = p.pairing_tolerance_s if p.pairing_tolerance_s >= 0 else 0.25 / rate
+    loss = dict(desc.loss_channels or {}) if desc is not None else {}
+    scale_in = float(loss['torque_in'].get('scale_nm_per_unit', 1.0)) if 'torque_in' in loss \
+        else 0.0
     config = JointStateConfig(
         input_joint=in_name, output_joint=out_name, sample_rate_hz=float(rate),
         block_size=int(block), position_unit=p.position_unit,
         counts_per_rev_in=float(cpr[0]), counts_per_rev_out=float(cpr[1]),
         wrap_in=p.wrap in {'input', 'both'}, wrap_out=p.wrap in {'output', 'both'},
-        effort_scale=float(scale), pairing_tolerance_s=float(tol),
+        effort_scale=float(scale), input_effort_scale=scale_in, pairing_tolerance_s=float(tol),
         max_unpaired=int(p.max_unpaired), output_head_joints=_further_heads(heads, out_name))
     info = None
     if desc is not None:
@@ -171,8 +186,24 @@ class JointStateAdapterNode(Node):
         self.exit_code = 0
         self.finished = False
         self._finish_at: float | None = None
-        self._held: deque[EncoderBlock] | None = deque() if self.p.wait_for_nodes else None
+        self._held: deque[tuple[BenchChannels | None, EncoderBlock]] | None = (
+            deque() if self.p.wait_for_nodes else None)
         self.pub_blocks = self.create_publisher(EncoderBlock, 'bench/encoders', qos.ENCODER_QOS)
+        loss: dict[str, Any] = {}
+        if info is not None:
+            from rv_te_bench.acceptance._loss_results import bench_channels
+
+            loss = bench_channels(info)
+        self.has_torque_in = 'torque_in' in loss
+        self.has_temperature = 'temperature' in loss
+        self._temps: deque[tuple[int, float]] = deque(maxlen=256)   # (stamp ns, degC)
+        self.pub_channels = None
+        if self.has_torque_in or self.has_temperature:
+            self.pub_channels = self.create_publisher(BenchChannels, 'bench/channels',
+                                                      qos.ENCODER_QOS)
+        if self.has_temperature:
+            self.create_subscription(Temperature, self.p.temperature_topic, self._on_temp,
+                                     qos.ENCODER_QOS)
         self.pub_info = self.create_publisher(BenchInfo, 'bench/info', qos.LATCHED_QOS)
         self.pub_diag = self.create_publisher(DiagnosticArray, '/diagnostics',
                                               qos.DIAGNOSTICS_QOS)
@@ -196,6 +227,39 @@ class JointStateAdapterNode(Node):
             f'{self.p.wrap}, pairing tolerance {c.pairing_tolerance_s:.3g} s')
 
     # -- data path (lean: one sample per message is the usual case) ------------------------
+    def _on_temp(self, msg: Temperature) -> None:
+        t = float(msg.temperature)
+        if not math.isfinite(t):
+            self.drops.drop('malformed', f'case temperature {t!r} is not finite')
+            return
+        self._temps.append((msg.header.stamp.sec * 1_000_000_000 + msg.header.stamp.nanosec,
+                            t))
+
+    def _channels(self, b: JointStateBlock) -> BenchChannels:
+        """The block's input torque and case temperature (bench/channels)."""
+        n = b.theta_in_rad.size
+        temp = np.zeros(0)
+        if self.has_temperature:
+            temp = np.full(n, np.nan)
+            if self._temps:
+                ts = np.array([x[0] for x in self._temps], dtype=np.float64)
+                vs = np.array([x[1] for x in self._temps], dtype=np.float64)
+                t = (b.stamp_ns - ts[0]) + b.time_offset_s * 1e9   # ns after the first
+                rel = ts - ts[0]
+                temp = np.interp(t, rel, vs)
+                k = np.searchsorted(rel, t)
+                near = np.minimum(np.abs(t - rel[np.clip(k - 1, 0, rel.size - 1)]),
+                                  np.abs(t - rel[np.clip(k, 0, rel.size - 1)]))
+                temp[near > _TEMP_MAX_AGE_NS] = np.nan
+        t_in = b.torque_in_nm if self.has_torque_in and b.torque_in_nm.size == n \
+            else (np.full(n, np.nan) if self.has_torque_in else np.zeros(0))
+        msg = BenchChannels(seq=int(b.seq), torque_in_nm=np.asarray(t_in, dtype=np.float64)
+                            .tolist(), temp_case_degc=temp.tolist())
+        msg.header.stamp = Time(sec=b.stamp_ns // 1_000_000_000,
+                                nanosec=b.stamp_ns % 1_000_000_000)
+        msg.header.frame_id = self.bench_id
+        return msg
+
     def _on_joint_state(self, msg: JointState) -> None:
         self._last_msg = time.monotonic()
         stamp = msg.header.stamp
@@ -230,13 +294,16 @@ class JointStateAdapterNode(Node):
             out_head_ids=b.out_head_ids or None)
         msg.header.stamp = Time(sec=b.stamp_ns // 1_000_000_000,
                                 nanosec=b.stamp_ns % 1_000_000_000)   # exact, not via float
+        ch = self._channels(b) if self.pub_channels is not None else None
         if self._held is not None:
             if len(self._held) >= _MAX_HELD_BLOCKS:
                 self._held.popleft()
                 self.drops.drop('held_overflow', f'kept the last {_MAX_HELD_BLOCKS} blocks '
                                 'while waiting for subscribers')
-            self._held.append(msg)
+            self._held.append((ch, msg))
             return
+        if ch is not None and self.pub_channels is not None:
+            self.pub_channels.publish(ch)   # before its block: a reader pairs them by seq
         self.pub_blocks.publish(msg)
         self.blocks_published += 1
 
@@ -260,7 +327,9 @@ class JointStateAdapterNode(Node):
         held, self._held = self._held, None
         if self._wait_timer is not None:
             self._wait_timer.cancel()
-        for msg in held or ():
+        for ch, msg in held or ():
+            if ch is not None and self.pub_channels is not None:
+                self.pub_channels.publish(ch)
             self.pub_blocks.publish(msg)
             self.blocks_published += 1
 

@@ -259,6 +259,35 @@ def test_effort_scaled_to_output_torque() -> None:
     assert_allclose(cat(blocks_of(items), 'torque_out_nm'), effort * 12.5, rtol=1e-15)
 
 
+@pytest.mark.parametrize('separate', [False, True])
+def test_drive_joint_effort_is_the_input_torque(separate: bool) -> None:
+    """Issue 38: the drive joint's effort x input_effort_scale is the input torque, sample
+    for sample, whether both joints share a message or come in their own."""
+    stamps, th_in, th_out = ramp(250)
+    e_in = 0.3 + 1e-3 * np.arange(250)
+    e_out = -np.linspace(0.0, 40.0, 250)
+    asm = JointStateAssembler(cfg(effort_scale=-1.0, input_effort_scale=2.0,
+                                  pairing_tolerance_s=100e-6))
+    items: list[JointStateBlock | JointStateGap] = []
+    for i in range(250):
+        if separate:
+            items.extend(asm.push(int(stamps[i]), ['input_joint'], [float(th_in[i])],
+                                  [float(e_in[i])]))
+            items.extend(asm.push(int(stamps[i]) + 50_000, ['output_joint'],
+                                  [float(th_out[i])], [float(e_out[i])]))
+        else:
+            items.extend(asm.push(int(stamps[i]), ['input_joint', 'output_joint'],
+                                  [float(th_in[i]), float(th_out[i])],
+                                  [float(e_in[i]), float(e_out[i])]))
+    items.extend(asm.finish())
+    blocks = blocks_of(items)
+    assert_array_equal(cat(blocks, 'torque_in_nm'), e_in * 2.0)
+    assert_array_equal(cat(blocks, 'torque_out_nm'), -e_out)
+    # without the scale there is no input torque (an empty array, as before)
+    (b, *_) = blocks_of(feed(JointStateAssembler(cfg()), stamps, th_in, th_out))
+    assert b.torque_in_nm.size == 0
+
+
 def test_unrelated_messages_are_ignored() -> None:
     asm = JointStateAssembler(cfg())
     assert asm.push(T0_NS, ['gripper'], [0.3]) == ()

@@ -27,6 +27,11 @@ class JointStateAdapterParams:
         'Bench description YAML file (rv_te_bench/launch/bench_description_example.yaml)'
         ' published as bench/info; empty = no bench/info (then give the TE node its '
         'gear_ratio) [path]')
+    temperature_topic: str = param(
+        'case_temperature',
+        'sensor_msgs/Temperature topic of the reducer case sensor (degC); read only when '
+        'the bench description\'s loss_channels has temperature: its readings (held '
+        'between them, none older than 10 s) go on bench/channels with each block [-]')
     input_joint: str = param(
         '',
         'JointState name of the input-shaft encoder; empty = joints.input of the bench '
