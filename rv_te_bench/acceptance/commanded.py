@@ -37,11 +37,14 @@ def to_command(sp: Setpoint) -> BenchCommand:
 
 
 def feed_parts(runner: StepRunner, parts: list[tuple[int, int, int]], theta_in: np.ndarray,
-               theta_out: np.ndarray, torque_out: np.ndarray, last: list[int]) -> float:
+               theta_out: np.ndarray, torque_out: np.ndarray, last: list[int],
+               torque_in: np.ndarray | None = None,
+               temp_case: np.ndarray | None = None) -> float:
     """Hand the segments' slices of a block to the runner; returns the live value.
 
     ``last`` holds the segment fed last (a one-element list, updated), so that the live
-    value restarts with each new segment.
+    value restarts with each new segment. ``torque_in`` / ``temp_case``: the block's input
+    torque and case temperature (None or empty: the bench has no such channel).
     """
     live = float('nan')
     for seg, a, b in parts:
@@ -49,7 +52,9 @@ def feed_parts(runner: StepRunner, parts: list[tuple[int, int, int]], theta_in: 
             runner.next_segment()
             last[0] = seg
         tq = torque_out[a:b] if torque_out.size else torque_out
-        live = runner.feed(seg, theta_in[a:b], theta_out[a:b], tq)
+        t_in = torque_in[a:b] if torque_in is not None and torque_in.size else None
+        temp = temp_case[a:b] if temp_case is not None and temp_case.size else None
+        live = runner.feed(seg, theta_in[a:b], theta_out[a:b], tq, t_in, temp)
     return live
 
 
@@ -108,7 +113,10 @@ def run_plan_commanded(plan: TestPlan, profile: ToleranceProfile, *, bench: Comm
             upd = driver.push(t, block.theta_in_rad, block.theta_out_rad,
                               -tq if tq.size else None)
             feed_parts(runner, upd.parts, np.asarray(block.theta_in_rad),
-                       np.asarray(block.theta_out_rad), tq, last)
+                       np.asarray(block.theta_out_rad), tq, last,
+                       None if block.torque_in_nm is None else np.asarray(block.torque_in_nm),
+                       None if block.temp_case_degc is None
+                       else np.asarray(block.temp_case_degc))
             if upd.setpoint is not None:
                 bench.set(to_command(upd.setpoint))
             if upd.abort:

@@ -411,6 +411,11 @@ def plan_limits(plan: Any, *, bench_max_input_speed_rpm: float = math.nan,
         elif isinstance(st, HysteresisStep):
             cands = [(st.reposition_speed_rpm if st.positions > 1 else 0.0,
                       st.rated_torque_nm)]
+        elif st.kind != 'operator':   # whole-reducer steps: their speeds and loads
+            from rv_te_bench.acceptance.preflight import step_speeds_rpm
+
+            loads = [float(getattr(st, 'load_nm', 0.0)), *getattr(st, 'loads_nm', ())]
+            cands = [(max(step_speeds_rpm(st), default=0.0), max(loads))]
         for s, t in cands:
             if s > speed:
                 speed, what_speed = s, st.name

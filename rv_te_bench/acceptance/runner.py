@@ -495,5 +495,8 @@ def _feed_by_time(runner: StepRunner, step: dict[str, Any], spans: list[tuple[fl
                 runner.next_segment()
                 last = int(i)
             tq = block[2][keep] if block[2].size else block[2]
-            runner.feed(int(i), block[0][keep], block[1][keep], tq)
+            extra = [None if x is None or np.asarray(x).size != t.size else np.asarray(x)[keep]
+                     for x in (block[3] if len(block) > 3 else None,
+                               block[4] if len(block) > 4 else None)]
+            runner.feed(int(i), block[0][keep], block[1][keep], tq, *extra)
 

@@ -11,7 +11,11 @@ selects that interface, as a controller switch does). Published: ``joint_states`
 positions as the encoders read them, velocities (input: the drive's; output: the input's
 over the ratio while turning, else the output's own), efforts (input: NaN or the input
 torque transducer; output: the torque applied to the output, in the joint's sense, as its
-effort command). Physics: :class:`sim.commanded.CommandedBench`.
+effort command). With ``losses: true`` the simulator has the reducer's losses, its torque
+transducers and case sensor (issue 38): the input joint's effort is the input torque
+transducer's reading and the case temperature goes on ``temperature_topic``
+(``sensor_msgs/Temperature``, one reading per block, stamped at its last sample), as a real
+bench serves them. Physics: :class:`sim.commanded.CommandedBench`.
 
 A malformed setpoint (empty, not finite) is counted, logged (throttled) and ignored.
 """
@@ -23,7 +27,7 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 from builtin_interfaces.msg import Time
-from sensor_msgs.msg import JointState
+from sensor_msgs.msg import JointState, Temperature
 from std_msgs.msg import Float64MultiArray
 
 from rv_te_bench.nodes import qos
@@ -58,7 +62,7 @@ class Ros2ControlBench:
             preset=get('preset'), overrides=tuple(get('overrides')), te_mode=get('te_mode'),
             encoder_in=get('encoder_in'), encoder_out=get('encoder_out'),
             sample_rate_hz=get('sample_rate_hz'), block_size=get('block_size'),
-            seed=get('seed'), bench_id=get('bench_id'))
+            seed=get('seed'), bench_id=get('bench_id'), losses=_losses(get('losses')))
         self.bench = CommandedBench(
             sim, max_input_speed_rad_s=get('max_input_speed_rpm') * RAD_S_PER_RPM)
         self.names = tuple(get('joint_state_names'))
@@ -71,6 +75,9 @@ class Ros2ControlBench:
         node.create_subscription(Float64MultiArray, get('load_position_command_topic'),
                                  lambda m: self._on(m, 'position'), qos.COMMAND_QOS)
         self._last_out = math.nan
+        self.pub_temp = (node.create_publisher(Temperature, get('temperature_topic'),
+                                               qos.ENCODER_QOS)
+                         if sim.losses is not None else None)
 
     @property
     def info(self) -> BenchInfoData:
@@ -117,6 +124,13 @@ class Ros2ControlBench:
                 else [math.nan] * n)
         name_in, name_out = self.names
         frame = self.info.bench_id
+        if self.pub_temp is not None and b.temp_case_degc is not None and len(
+                b.temp_case_degc):
+            tm = Temperature(temperature=float(b.temp_case_degc[-1]), variance=0.0)
+            tm.header.stamp = Time(sec=stamps[-1] // 1_000_000_000,
+                                   nanosec=stamps[-1] % 1_000_000_000)
+            tm.header.frame_id = frame
+            self.pub_temp.publish(tm)
         for t_ns, p_in, p_out, wo, e_in, e_out in zip(
                 stamps, b.theta_in_rad.tolist(), b.theta_out_rad.tolist(), w_out.tolist(),
                 t_in, applied, strict=True):
@@ -129,3 +143,12 @@ class Ros2ControlBench:
             m.effort = [e_in, e_out]
             pub.publish(m)
         return n
+
+
+def _losses(on: bool) -> Any:
+    """The simulator's loss model (issue 38) when ``losses`` is set, else None."""
+    if not on:
+        return None
+    from sim.loss_bench import LossConfig
+
+    return LossConfig()

@@ -167,9 +167,14 @@ class BenchParams:
         'of running the drive profile from the start')
     losses: bool = param(
         False,
-        'commanded: simulate the reducer\'s losses, the input/output torque transducers '
-        'and the case temperature sensor (issue 38), and publish the input torque and case '
-        'temperature on bench/channels (BenchChannels, one per EncoderBlock) [-]')
+        'commanded or ros2_control: simulate the reducer\'s losses, the input/output torque '
+        'transducers and the case temperature sensor (issue 38); commanded: publish the '
+        'input torque and case temperature on bench/channels (BenchChannels, one per '
+        'EncoderBlock); ros2_control: the input joint\'s effort is the input torque and the '
+        'case temperature goes on temperature_topic, as a real bench serves them [-]')
+    temperature_topic: str = param(
+        'case_temperature',
+        'ros2_control with losses: sensor_msgs/Temperature topic of the case sensor [-]')
     ros2_control: bool = param(
         False, "Serve a ros2_control bench's interfaces: setpoints on the forward command "
         "controllers' topics (drive velocity, load effort or position), joint_states out "
