@@ -112,6 +112,12 @@ def register(subparsers: Subparsers) -> None:
                    help='times faster than real time; 0 = as fast as the joint_states '
                         'readers keep up (2000 samples/s) (0..1000)')
     g.add_argument('--seed', type=int, default=1)
+    g.add_argument('--bench-programs', action='store_true',
+                   help='with --launch: run a plan with whole-reducer steps (efficiency, '
+                        'no-load, starting and back-driving torque, temperature, life) as '
+                        'the simulated bench\'s own programs (bench/run_program) instead of '
+                        'through the ros2_control setpoints; needed for starting_torque and '
+                        'back_driving, which the setpoint route has no input effort ramp for')
     add_from_arguments(p)
     from rv_te_bench.cli._test_offline import add_offline_arguments
 
@@ -155,11 +161,10 @@ def _session(args: argparse.Namespace, out_dir: Path) -> Session:
                      encoder_in=args.encoder, encoder_out=args.encoder,
                      sample_rate_hz=args.sample_rate_hz)   # the model builds: mode is valid
     # with the live page, a TE node too: the page shows its windows and spectra
-    if getattr(args, 'losses', False):
-        # the whole-reducer steps (issue 38) need the input torque, the case temperature and
-        # torque ramps, which a bench's ros2_control forward command controllers do not
-        # carry: the simulated bench runs such a plan's programs itself (bench/run_program),
-        # publishing bench/encoders and bench/channels
+    if getattr(args, 'losses', False) and getattr(args, 'bench_programs', False):
+        # asked for: the simulated bench runs the whole-reducer steps' programs itself
+        # (bench/run_program, with their torque ramps), publishing bench/encoders and
+        # bench/channels
         out_dir.mkdir(parents=True, exist_ok=True)
         nodes = ('recorder', 'bench', 'test_sequencer') + (
             ('te_node',) if getattr(args, 'dashboard', False) else ())
@@ -173,12 +178,13 @@ def _session(args: argparse.Namespace, out_dir: Path) -> Session:
                           'speed_factor': float(args.speed_factor), 'commanded': True,
                           'losses': True},
                 'recorder': {'output_dir': str(out_dir), 'bag_name': 'bag'},
-                'test_sequencer': {}})
+                'test_sequencer': {'loss_route': 'programs'}})
     else:
         spec = simulated_session_spec(
             out_dir, preset=args.launch, overrides=list(args.set), te_mode=mode,
             encoder=args.encoder, sample_rate_hz=float(args.sample_rate_hz), seed=int(args.seed),
             speed_factor=float(args.speed_factor), namespace=args.namespace_norm,
+            losses=bool(getattr(args, 'losses', False)),
             extra_nodes=('te_node',) if getattr(args, 'dashboard', False) else ())
     if getattr(args, 'dashboard', False):
         from rv_te_bench.cli.dashboard import wait_for_dashboard
@@ -205,15 +211,32 @@ def simulated_session_spec(out_dir: Path, *, preset: str, overrides: list[str] |
                            te_mode: str, encoder: str = 'heidenhain-ron886',
                            sample_rate_hz: float = 1000.0, seed: int = 1,
                            speed_factor: float = 2.0, namespace: str = '',
-                           extra_nodes: tuple[str, ...] = ()) -> SessionSpec:
+                           extra_nodes: tuple[str, ...] = (),
+                           losses: bool = False) -> SessionSpec:
     """The session of ``--launch``: a simulated ros2_control bench (setpoint topics in,
     joint_states out), the JointState adapter with the bench's description (written to
     ``out_dir``), the test_sequencer and the recorder (the bag: ``out_dir/bag``), as on a
-    real bench."""
+    real bench. With ``losses`` the bench simulates the reducer's losses and serves the
+    input torque as the drive joint's effort and the case temperature on a
+    ``sensor_msgs/Temperature`` topic; the description's ``loss_channels`` state the
+    transducers (the simulator's own), as a real bench's description does."""
     from rv_te_bench.launch.session import SessionSpec
 
     out_dir.mkdir(parents=True, exist_ok=True)
     desc = out_dir / 'bench_description.yaml'
+    loss: dict[str, Any] = {}
+    if losses:
+        from sim.loss_bench import LossConfig
+        from sim.program import ProgramSimulator
+
+        sensors = ProgramSimulator(preset=preset, overrides=tuple(overrides or ()),
+                                   te_mode=te_mode, sample_rate_hz=sample_rate_hz,
+                                   losses=LossConfig()).losses.describe()['sensors']
+        # the ranges and %-classes a description states (a Pt100's class is not one: 0)
+        loss = {'loss_channels': {k: {kk: v[kk] for kk in ('model', 'full_scale',
+                                                            'accuracy_class_pct')
+                                      if kk in v and (kk == 'model' or v[kk] > 0)}
+                                  for k, v in sensors.items()}}
     desc.write_text(yaml.safe_dump({
         'bench_id': 'bench0', 'preset': preset, 'preset_overrides': list(overrides or []),
         'sample_rate_hz': float(sample_rate_hz), 'block_size': SIM_BLOCK_SIZE,
@@ -223,8 +246,8 @@ def simulated_session_spec(out_dir: Path, *, preset: str, overrides: list[str] |
         'torque_sensor': {'present': True, 'model': 'simulated (exact)',
                           'scale_nm_per_unit': -1.0},
         'joints': {'input': SIM_JOINTS[0], 'output': SIM_JOINTS[1]},
-        'metadata': {'bench': 'simulated ros2_control bench (rv-te test --launch)'}},
-        sort_keys=False), encoding='utf-8')
+        'metadata': {'bench': 'simulated ros2_control bench (rv-te test --launch)'},
+        **loss}, sort_keys=False), encoding='utf-8')
     return SessionSpec(
         nodes=('recorder', 'bench', 'joint_state_adapter', 'test_sequencer', *extra_nodes),
         namespace=namespace,
@@ -233,7 +256,8 @@ def simulated_session_spec(out_dir: Path, *, preset: str, overrides: list[str] |
                       'encoder_in': encoder, 'encoder_out': encoder,
                       'sample_rate_hz': float(sample_rate_hz), 'block_size': SIM_BLOCK_SIZE,
                       'seed': int(seed), 'time_mode': 'fast', 'speed_factor': float(speed_factor),
-                      'ros2_control': True, 'joint_state_names': list(SIM_JOINTS)},
+                      'ros2_control': True, 'joint_state_names': list(SIM_JOINTS),
+                      'losses': bool(losses)},
             'joint_state_adapter': {'bench_description': str(desc)},
             'recorder': {'output_dir': str(out_dir), 'bag_name': 'bag'},
             'test_sequencer': {'bench_description': str(desc)}})
@@ -275,6 +299,16 @@ def run(args: argparse.Namespace) -> int:
     args.losses = bool(loss_steps_in(plan))
     if args.launch:   # the simulated bench has the loss channels when the plan needs them
         from rv_te_bench.cli._test_offline import sim_preflight
+
+        ramps = [(j, s) for j, s in enumerate(plan.steps)
+                 if s.kind in ('starting_torque', 'back_driving')]
+        if ramps and not getattr(args, 'bench_programs', False):
+            j, st = ramps[0]
+            print(f'ERROR: step {j} ({st.name!r}, {st.kind}) needs a torque ramp, which the '
+                  'ros2_control setpoint route does not command (no effort command interface '
+                  'on the drive joint); add --bench-programs to run the plan as the simulated '
+                  "bench's own programs; nothing was run", file=sys.stderr)
+            return 1
 
         sim_preflight(plan, args.launch, list(args.set), {'torque_out'} | (
             {'torque_in', 'temperature'} if args.losses else set()))

@@ -100,7 +100,9 @@ class ProgramSteps:
         if len(self._channels) > _KEEP_CHANNELS:   # those of blocks not in a step
             for seq in sorted(self._channels)[:len(self._channels) - _KEEP_CHANNELS]:
                 del self._channels[seq]
-        if self._held:
+        if getattr(self, '_drive', None) is not None:   # a step driven by setpoints
+            self._release_driven()   # type: ignore[attr-defined]
+        elif self._held:
             self._release_held()
 
     def _release_held(self) -> None:

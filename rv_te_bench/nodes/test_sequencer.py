@@ -9,9 +9,19 @@ joint's effort or position; topics are parameters), samples read back through
 simulated bench serves the same interfaces (``bench`` with ``ros2_control: true``), so this
 node cannot tell it from a real one. Each step's program is driven by
 :class:`~rv_te_bench.acceptance.driver.ProgramDriver`; its blocks go to the step runner.
-A plan with whole-reducer steps (efficiency, losses, life: they need the input torque, the
-case temperature and torque ramps) runs as the simulated bench's programs instead
-(:mod:`rv_te_bench.nodes.sequencer_program`).
+Whole-reducer steps that are speed and load plateaus (efficiency map, no-load torque,
+temperature rise, life checkpoints; issue 38) are driven the same way: their input torque
+(the drive joint's effort) and case temperature (a ``sensor_msgs/Temperature`` topic) come
+through the JointState adapter on ``bench/channels``, one BenchChannels per EncoderBlock,
+paired by seq (a block whose channels have not come :data:`HOLD_BLOCKS` blocks later goes
+without, its segment marked not analysed). Their transducers and classes are the bench
+description's ``loss_channels`` (in bench/info); a step needing a channel the bench lacks
+is refused in one line before anything moves. Starting and back-driving torque need a
+torque ramp on the input or a free input, i.e. an effort command interface on the drive
+joint, which this route does not command: such a step is refused in one line before
+anything moves. With ``loss_route: programs`` a plan with whole-reducer steps runs instead
+as the simulated bench's own programs (:mod:`rv_te_bench.nodes.sequencer_program`; ``rv-te
+test --launch --bench-programs``).
 
 Safety: every sample read back is checked against the limits of the plan's ``safety`` and
 the bench description's ``limits`` (:func:`~rv_te_bench.acceptance.driver.plan_limits`);
@@ -57,6 +67,7 @@ from rv_te_bench.acceptance._files import parse_yaml_text
 from rv_te_bench.acceptance._loss_results import bench_channels
 from rv_te_bench.acceptance.commanded import feed_parts
 from rv_te_bench.acceptance.driver import DriverSettings, ProgramDriver, plan_limits
+from rv_te_bench.acceptance.loss_steps import LOSS_PROGRAMS
 from rv_te_bench.acceptance.plan import OperatorStep
 from rv_te_bench.acceptance.preflight import check_plan
 from rv_te_bench.acceptance.runner import running_verdicts
@@ -67,9 +78,9 @@ from rv_te_bench.nodes import qos
 from rv_te_bench.nodes.common import DropCounter, declare_from_specs, run_node
 from rv_te_bench.nodes.params.test_sequencer import PARAMS, TestSequencerParams
 from rv_te_bench.nodes.sequencer_io import SetpointLink
+from rv_te_bench.nodes.sequencer_program import HOLD_BLOCKS, ProgramSteps, needs_programs
 from rv_te_bench.nodes.sequencer_program import Aborted as _Aborted
 from rv_te_bench.nodes.sequencer_program import Cancelled as _Cancelled
-from rv_te_bench.nodes.sequencer_program import ProgramSteps, needs_programs
 from rv_te_bench.params import params_record
 from sim.bench_info import BenchInfoData
 
@@ -83,6 +94,9 @@ if TYPE_CHECKING:
 __all__ = ['PARAMS', 'TestSequencerNode', 'main']
 
 
+#: Steps the setpoint route refuses: what each needs of the drive joint.
+_RAMP_KINDS = {'starting_torque': 'a torque ramp on the input shaft',
+               'back_driving': 'a free input shaft (zero effort on the drive joint)'}
 #: A stale read-back is confirmed when it lasts this much longer on this node's clock [s].
 _STALE_CONFIRM_S = 0.25
 
@@ -106,6 +120,7 @@ class TestSequencerNode(ProgramSteps, Node):
         self._last_block_wall = math.nan
         self._bench_limits = self._read_bench_limits()
         self._init_programs()     # a plan with whole-reducer steps (sequencer_program)
+        self._drive_held: dict[int, EncoderBlock] = {}   # blocks waiting for their channels
         self.link = SetpointLink(
             self, drive_topic=self.p.drive_command_topic,
             effort_topic=self.p.load_effort_command_topic,
@@ -182,6 +197,27 @@ class TestSequencerNode(ProgramSteps, Node):
             return
         if d['done'] or d['abort']:
             return
+        if d['channels']:   # held until its bench/channels came (paired by seq)
+            self._drive_held[int(msg.seq)] = msg
+            self._release_driven()
+            return
+        self._drive_block(msg, None)
+
+    def _release_driven(self) -> None:
+        """Feed the held blocks whose channels came, in order; one held longer than
+        HOLD_BLOCKS blocks goes without (its segment is then not analysed)."""
+        held = self._drive_held
+        while held and self._drive is not None:
+            seq = min(held)
+            ch = self._channels.pop(seq, None)
+            if ch is None and len(held) <= HOLD_BLOCKS:
+                return
+            self._drive_block(held.pop(seq), ch, lost=ch is None)
+
+    def _drive_block(self, msg: EncoderBlock, ch: Any, *, lost: bool = False) -> None:
+        d = self._drive
+        if d is None or d['done'] or d['abort']:
+            return
         try:
             th_in = np.asarray(msg.theta_in_rad, dtype=np.float64)
             th_out = np.asarray(msg.theta_out_rad, dtype=np.float64)
@@ -191,6 +227,13 @@ class TestSequencerNode(ProgramSteps, Node):
                 raise ValueError(msg_)
             t = msg.header.stamp.sec + msg.header.stamp.nanosec * 1e-9 + np.asarray(
                 msg.time_offset_s, dtype=np.float64)
+            t_in = temp = None
+            if ch is not None:
+                t_in = np.asarray(ch.torque_in_nm, dtype=np.float64)
+                temp = np.asarray(ch.temp_case_degc, dtype=np.float64)
+                if t_in.size not in (0, th_in.size) or temp.size not in (0, th_in.size):
+                    msg_ = f'bench/channels {msg.seq}: not one value per sample of its block'
+                    raise ValueError(msg_)
         except (ValueError, TypeError) as exc:
             self.drops.drop('malformed', str(exc))
             return
@@ -206,7 +249,12 @@ class TestSequencerNode(ProgramSteps, Node):
         upd = d['driver'].push(t, th_in, th_out, -tq if tq.size else None)
         if upd.parts:
             d['live'] = feed_parts(d['runner'], upd.parts, th_in, th_out, tq,
-                                   d['last_segment'])
+                                   d['last_segment'], t_in, temp)
+            if lost:
+                self.drops.drop('channels', f'no bench/channels for block {seq}')
+                for i in {p[0] for p in upd.parts}:
+                    d['runner'].mark(i, f'the input torque / case temperature of block {seq} '
+                                        'never came (bench/channels); not analysed')
         if upd.setpoint is not None:
             self.link.send(upd.setpoint)
         if upd.abort:
@@ -247,7 +295,7 @@ class TestSequencerNode(ProgramSteps, Node):
                 msg = 'conditions_yaml must be a mapping'
                 raise AcceptanceError(msg)
             limits = plan_limits(plan, **self._bench_limits)   # before anything moves
-            programs = needs_programs(plan)
+            programs = needs_programs(plan) and self.p.loss_route == 'programs'
             if programs:
                 info = await self._program_bench()
                 # before anything moves: the channels the whole-reducer steps need
@@ -313,7 +361,11 @@ class TestSequencerNode(ProgramSteps, Node):
         modes = {'effort'} | ({'position'} if any(
             getattr(s, 'method', '') == 'constant_speed' for s in plan.steps) else set())
         deadline = time.monotonic() + self.p.bench_timeout_s
+        checked = False
         while True:
+            if self.bench_info is not None and not checked:   # before anything moves
+                self._check_setpoint_plan(plan, self.bench_info)
+                checked = True
             missing = []
             if self.bench_info is None:
                 missing.append('bench/info (is the joint_state_adapter running with a bench '
@@ -346,6 +398,25 @@ class TestSequencerNode(ProgramSteps, Node):
             await self._sleep()
         assert self.bench_info is not None
         return self.bench_info
+
+    def _check_setpoint_plan(self, plan: TestPlan, info: BenchInfoData) -> None:
+        """One line, before anything moves, for a step the setpoint route cannot run on this
+        bench: a channel it lacks (bench/info's loss_channels), or a torque ramp on the input
+        / a free input (no effort command interface on the drive joint is commanded)."""
+        import types
+
+        bench = f'the bench {info.bench_id!r}'
+        ramps = [j for j, st in enumerate(plan.steps) if st.kind in _RAMP_KINDS]
+        first = ramps[0] if ramps else len(plan.steps)
+        # the steps before the first ramp in plan order (the message names the first problem)
+        check_plan(types.SimpleNamespace(steps=plan.steps[:first]),  # type: ignore[arg-type]
+                   channels={'torque_out', *bench_channels(info)}, bench=bench)
+        if ramps:
+            st = plan.steps[first]
+            msg = (f'step {first} ({st.name!r}, {st.kind}) needs {_RAMP_KINDS[st.kind]}, i.e. '
+                   'an effort command interface on the drive joint, which the setpoint route '
+                   f'does not command on {bench} (drive velocity only); nothing was run')
+            raise AcceptanceError(msg)
 
     async def _wait_for_operator(self, goal_handle: ServerGoalHandle, req: RunTestPlan.Goal,
                                  j: int, step: OperatorStep,
@@ -399,8 +470,11 @@ class TestSequencerNode(ProgramSteps, Node):
                                   reach_timeout_s=plan.safety.reach_timeout_s)
         driver = ProgramDriver(program, limits=limits, settings=settings,
                                sample_rate_hz=info.sample_rate_hz)
+        self._drive_held.clear()
         self._drive = d = {'runner': runner, 'driver': driver, 'first_seq': -1, 'last_seq': -1,
-                           'live': math.nan, 'done': False, 'abort': '', 'last_segment': [-1]}
+                           'live': math.nan, 'done': False, 'abort': '', 'last_segment': [-1],
+                           'channels': step.kind in LOSS_PROGRAMS and bool(
+                               {'torque_in', 'temperature'} & set(bench_channels(info)))}
         params = yaml.safe_dump(_plain(dataclasses.asdict(step)), default_flow_style=True)
         self._publish_step(req, j, n_steps, step, 'started', params, '')
         self.link.send(driver.start())

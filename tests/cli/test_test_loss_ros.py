@@ -1,7 +1,14 @@
 """``rv-te test PLAN --launch PRESET`` runs the whole-reducer steps (issue 38) over the
-middleware: the simulated bench node publishes the input torque and case temperature on
-``bench/channels`` (BenchChannels, one per EncoderBlock), the test_sequencer feeds them to
-the steps, the recorder records them. Real rclpy nodes in their own processes.
+middleware, by either route. Real rclpy nodes in their own processes.
+
+* Through the ros2_control setpoints (the default): the simulated bench serves the input
+  torque as the drive joint's effort and the case temperature on a sensor_msgs/Temperature
+  topic, the JointState adapter puts them on ``bench/channels``; the plateau steps
+  (no-load, efficiency, temperature rise, life) give the verdicts of ``--sim`` within
+  tolerance (the setpoint route cuts each plateau where the bench reached it, not on the
+  program's block grid).
+* ``--bench-programs``: the simulated bench runs the steps as its own programs and
+  publishes ``bench/channels`` itself (every kind, the torque ramps too).
 
 * The verdicts and metrics equal ``--sim`` (the same simulator and seed in this process):
   the channels cross the middleware sample for sample (rel 1e-12).
@@ -51,7 +58,7 @@ def test_launch_gives_the_sim_verdicts_and_records_the_channels(
                  str(tmp_path / 'sim'), '--no-db']) == 0
     sim = _json(capsys)
     assert main(['test', plan, *common, '--launch', 'rv-80e-101', '--speed-factor', '0',
-                 '--out-dir', str(tmp_path / 'out')]) == 0
+                 '--bench-programs', '--out-dir', str(tmp_path / 'out')]) == 0
     ros = _json(capsys)
     assert ros['verdict'] == sim['verdict'] == 'pass'
     assert [m['name'] for m in ros['metrics']] == [m['name'] for m in sim['metrics']]
@@ -101,6 +108,44 @@ def test_launch_gives_the_sim_verdicts_and_records_the_channels(
     assert 'every metric equals the recorded result' in capsys.readouterr().err
 
 
+#: The plateau steps of LOSS_PLAN (the setpoint route refuses the torque ramps).
+PLATEAU_PLAN = {**LOSS_PLAN, 'steps': [s for s in LOSS_PLAN['steps']
+                                       if s['kind'] not in ('starting_torque', 'back_driving')]}
+PLATEAU_LIMITS = {**LIMITS, 'limits': {k: v for k, v in LIMITS['limits'].items() if k not in
+                                       ('starting_torque_nm', 'back_driving_torque_nm')}}
+#: metric -> absolute tolerance between --launch over setpoints and --sim: the case
+#: temperature differs by the transitions' heat (the bench reaches each setpoint in its
+#: own time), a no-load torque by its viscosity (~1e-3 relative per 0.1 K).
+SETPOINT_TOL = {'no_load_torque_max_nm': 0.003, 'efficiency_at_max_load': 5e-4,
+                'temperature_rise_k': 0.01, 'trend_alarms': 0.0}
+
+
+@pytest.mark.timeout(900)
+def test_setpoint_route_gives_the_sim_verdicts(
+        tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    (tmp_path / 'loss-limits.yaml').write_text(yaml.safe_dump(PLATEAU_LIMITS),
+                                               encoding='utf-8')
+    plan = tmp_path / 'plan.yaml'
+    plan.write_text(yaml.safe_dump(PLATEAU_PLAN), encoding='utf-8')
+    common = ['--serial', 'RV-38S', '--operator', 'pytest', '--json', '--seed', '5']
+    assert main(['test', str(plan), *common, '--sim', 'rv-80e-101', '--report',
+                 str(tmp_path / 'sim'), '--no-db']) == 0
+    sim = _json(capsys)
+    assert main(['test', str(plan), *common, '--launch', 'rv-80e-101', '--speed-factor', '0',
+                 '--out-dir', str(tmp_path / 'out'), '--no-db']) == 0
+    ros = _json(capsys)
+    assert ros['verdict'] == sim['verdict'] == 'pass'
+    assert [m['name'] for m in ros['metrics']] == [m['name'] for m in sim['metrics']]
+    for a, b in zip(sim['metrics'], ros['metrics'], strict=True):
+        assert b['verdict'] == a['verdict'], b
+        assert b['value'] == pytest.approx(a['value'], abs=SETPOINT_TOL[a['name']]), b['name']
+    # it ran through the setpoints: no bench program, and the adapter's channels
+    log = next((tmp_path / 'out').glob('*/session.log')).read_text()
+    assert 'program:' not in log
+    steps = {s['name']: s for s in ros['steps']}
+    assert all(r['efficiency'] is not None for r in steps['efficiency']['rows'])
+
+
 @pytest.mark.timeout(300)
 def test_bench_without_channels_refuses_the_plan_before_anything_moves(
         tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
@@ -127,3 +172,18 @@ def test_bench_without_channels_refuses_the_plan_before_anything_moves(
         "ERROR: test of unit S error: step 0 ('no-load', no_load) needs an input torque "
         "transducer, which the bench 'bench0' does not have; nothing was run"), err
     assert 'program:' not in (tmp_path / 'session.log').read_text()   # the bench never ran
+
+
+def test_launch_refuses_a_torque_ramp_without_bench_programs(
+        tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    """The setpoint route has no input effort ramp: one line, before any node starts."""
+    rc = main(['test', _write_plan(tmp_path), '--serial', 'S', '--operator', 'o',
+               '--launch', 'rv-80e-101', '--out-dir', str(tmp_path / 'out'), '--no-db'])
+    assert rc == 1
+    err = capsys.readouterr().err.strip().splitlines()
+    assert err == [
+        "ERROR: step 1 ('starting', starting_torque) needs a torque ramp, which the "
+        'ros2_control setpoint route does not command (no effort command interface on the '
+        "drive joint); add --bench-programs to run the plan as the simulated bench's own "
+        'programs; nothing was run'], err
+    assert not (tmp_path / 'out').exists()

@@ -17,6 +17,14 @@ Physics (ideal encoders, SI):
   ``tf_nm``: phi = min(max(phi, up(T - tf)), down(T + tf)), up/down the flank positions.
   Truth: backlash b + 2 tf / k, lost motion b + 2 t / k (t > tf), rigidity k.
 
+Losses (``losses=StandInLosses(...)``, issue 38), closed form: turning at input speed w
+against a load resisting T_out (the applied effort's opposite), the input torque is
+T_in = sign(w) (T_out / (i eta) + T0(w)), T0(w) = c0 + c1 |w| (the no-load drag), plus
+Gaussian noise; it is the input joint's effort (NaN without losses). The case is one
+first-order lag: dT/dt = (T_amb + R P_loss - T) / tau, P_loss = T_in w - T_out w / i, on
+``case_temperature`` (``sensor_msgs/Temperature``, 10 Hz, stamped on the same clock).
+Measured efficiency at a point: eta_m = T_out / (T_out / eta + i T0(w)).
+
 Faults for the safety tests: ``overshoot`` (the loader's step response overshoots by that
 fraction of each setpoint change, decaying in 10 ms: a limit is exceeded at the largest
 step), :meth:`go_silent` (joint_states stop: a stale stream).
@@ -25,18 +33,56 @@ step), :meth:`go_silent` (joint_states stop: a stale stream).
 from __future__ import annotations
 
 import math
+import random
 import threading
 import time
+from dataclasses import dataclass
 from typing import Any
 
+import rclpy
+import yaml
 from builtin_interfaces.msg import Time
+from rclpy.action import ActionClient
+from rclpy.executors import SingleThreadedExecutor
 from rclpy.node import Node
-from sensor_msgs.msg import JointState
+from rv_te_msgs.action import RunTestPlan
+from sensor_msgs.msg import JointState, Temperature
 from std_msgs.msg import Float64MultiArray
 
+from rv_te_bench.cli.ack import acknowledge
 from rv_te_bench.nodes import qos
+from tests.nodes.rosutil import spin_until
 
 RATIO = 121.0          # li2023-rv (the bench description names that preset)
+
+
+@dataclass(frozen=True)
+class StandInLosses:
+    """The stand-in's loss model (module docstring), SI."""
+
+    eta: float = 0.85              # mesh efficiency
+    c0_nm: float = 0.30            # no-load drag at standstill speed [N m]
+    c1_nm_s: float = 1.0e-3        # no-load drag per rad/s of input [N m s]
+    noise_nm: float = 0.002        # input torque noise (1 sigma) [N m]
+    t_amb_degc: float = 23.0
+    r_k_per_w: float = 0.08        # steady case rise per watt lost [K/W]
+    tau_s: float = 3.0             # case time constant [s]
+    temp_rate_hz: float = 10.0     # Temperature readings per second
+
+    def drag_nm(self, w_rad_s: float) -> float:
+        """T0(w): the no-load input torque [N m]."""
+        return self.c0_nm + self.c1_nm_s * abs(w_rad_s)
+
+    def torque_in_nm(self, w_rad_s: float, t_out_nm: float) -> float:
+        """T_in at input speed w against T_out resisting (noise-free)."""
+        if w_rad_s == 0.0:
+            return 0.0
+        return math.copysign(max(t_out_nm, 0.0) / (RATIO * self.eta) + self.drag_nm(w_rad_s),
+                             w_rad_s)
+
+    def efficiency(self, w_rad_s: float, t_out_nm: float) -> float:
+        """What T_out w_out / (T_in w_in) is at a point (the truth a test reads)."""
+        return t_out_nm / (t_out_nm / self.eta + RATIO * self.drag_nm(w_rad_s))
 
 
 class StandInBench(Node):
@@ -44,11 +90,16 @@ class StandInBench(Node):
 
     def __init__(self, *, context: Any, fs_hz: float = 500.0, te_amp_rad: float = 6e-5,
                  b_rad: float = 1.5e-4, k_nm_per_rad: float = 5.0e5, tf_nm: float = 5.0,
-                 overshoot: float = 0.0) -> None:
+                 overshoot: float = 0.0, losses: StandInLosses | None = None) -> None:
         super().__init__('real_bench_stand_in', context=context)
         self.fs = fs_hz
         self.te_amp, self.b, self.k, self.tf = te_amp_rad, b_rad, k_nm_per_rad, tf_nm
         self.overshoot = overshoot
+        self.losses = losses
+        self.rng = random.Random(38)
+        self.temp = losses.t_amb_degc if losses is not None else math.nan
+        self.pub_temp = self.create_publisher(Temperature, 'case_temperature',
+                                              qos.ENCODER_QOS) if losses else None
         self.step_from = 0.0      # the effort before the last change, and when it changed
         self.step_at = -1.0
         self.lock = threading.Lock()
@@ -97,6 +148,16 @@ class StandInBench(Node):
                 since = k / self.fs - self.step_at
             applied = eff + self.overshoot * (eff - self.step_from) * math.exp(-since / 0.01) \
                 if self.step_at >= 0 and since >= 0 else eff
+            e_in = math.nan
+            lo = self.losses
+            if lo is not None:
+                t_out = -applied * (1.0 if w >= 0 else -1.0)   # the load resisting
+                t_in = lo.torque_in_nm(w, t_out)
+                p_loss = t_in * w - t_out * abs(w) / RATIO if w != 0.0 else 0.0
+                target = lo.t_amb_degc + lo.r_k_per_w * p_loss
+                self.temp += (target - self.temp) * (1.0 - math.exp(-1.0 / (self.fs
+                                                                            * lo.tau_s)))
+                e_in = t_in + self.rng.gauss(0.0, lo.noise_nm)
             if w != 0.0:
                 self.theta_in += w / self.fs
                 out = self.theta_in / RATIO + self.te_amp * math.sin(self.theta_in / RATIO)
@@ -115,9 +176,15 @@ class StandInBench(Node):
             m.name = ['input_joint', 'output_joint']
             m.position = [self.theta_in, out]
             m.velocity = [w, w_out]
-            m.effort = [math.nan, applied]
+            m.effort = [e_in, applied]
             self.pub.publish(m)
             self.published += 1
+            if lo is not None and self.pub_temp is not None and \
+                    k % round(self.fs / lo.temp_rate_hz) == 0:
+                tm = Temperature(temperature=self.temp, variance=0.0)
+                tm.header.stamp = m.header.stamp
+                tm.header.frame_id = 'stand-in'
+                self.pub_temp.publish(tm)
 
     # the truth of the closed form
     def truth(self, rated_nm: float) -> dict[str, float]:
@@ -140,3 +207,65 @@ torque_sensor: {present: true, model: stand-in, scale_nm_per_unit: -1.0}
 joints: {input: input_joint, output: output_joint}
 limits: {max_input_speed_rpm: 4000, max_output_torque_nm: 520}
 """
+
+#: The stand-in's description with its loss channels (the transducers' classes: the
+#: efficiency budget's inputs).
+LOSS_DESCRIPTION = DESCRIPTION + """\
+loss_channels:
+  torque_in: {model: stand-in input transducer, full_scale: 20, accuracy_class_pct: 0.05,
+              scale_nm_per_unit: 1.0}
+  torque_out: {model: stand-in output transducer, full_scale: 500, accuracy_class_pct: 0.05}
+  temperature: {model: stand-in Pt100}
+"""
+
+
+class Rig:
+    """The stand-in bench on a thread of its own; the test's action client here."""
+
+    def __init__(self, ctx: Any, **faults: Any) -> None:
+        self.bench = StandInBench(context=ctx, **faults)
+        self.bench_ex = SingleThreadedExecutor(context=ctx)
+        self.bench_ex.add_node(self.bench)
+        self.running = True
+        self.thread = threading.Thread(target=self._spin, daemon=True)
+        self.thread.start()
+        self.node = rclpy.create_node('stand_in_test_client', context=ctx)
+        self.ex = SingleThreadedExecutor(context=ctx)
+        self.ex.add_node(self.node)
+        self.client = ActionClient(self.node, RunTestPlan, 'run_test_plan')
+
+    def _spin(self) -> None:
+        while self.running:
+            self.bench_ex.spin_once(timeout_sec=0.01)
+
+    def run(self, plan: dict, *, serial: str, ack: bool = True,
+            during: Any = None, timeout_s: float = 180.0) -> Any:
+        assert spin_until(self.ex, self.client.server_is_ready, 30.0), 'no action server'
+        feedback: list[Any] = []
+        send = self.client.send_goal_async(
+            RunTestPlan.Goal(plan_yaml=yaml.safe_dump(plan), serial=serial,
+                             operator_name='pytest'),
+            feedback_callback=lambda f: feedback.append(f.feedback))
+        assert spin_until(self.ex, send.done, 20.0) and send.result().accepted
+        res = send.result().get_result_async()
+        acked: set[int] = set()
+        end = time.monotonic() + timeout_s
+        while not res.done():
+            assert time.monotonic() < end, 'the test did not end'
+            self.ex.spin_once(timeout_sec=0.05)
+            if feedback and feedback[-1].step_kind == 'operator' and ack and \
+                    feedback[-1].step_index not in acked:
+                acked.add(feedback[-1].step_index)
+                ok, msg = acknowledge(self.node, self.ex, wait_s=10.0)
+                assert ok, msg
+            if during is not None:
+                during(feedback)
+        return res.result().result, feedback
+
+    def close(self) -> None:
+        self.running = False
+        self.thread.join(timeout=5)
+        self.bench_ex.shutdown()
+        self.bench.destroy_node()
+        self.ex.shutdown()
+        self.node.destroy_node()

@@ -12,7 +12,6 @@ from __future__ import annotations
 
 import json
 import math
-import threading
 import time
 from pathlib import Path
 from typing import Any
@@ -24,16 +23,13 @@ pytestmark = pytest.mark.ros
 
 rclpy = pytest.importorskip('rclpy')
 
-from rclpy.action import ActionClient  # noqa: E402
-from rclpy.executors import SingleThreadedExecutor  # noqa: E402
 from rosbags.highlevel import AnyReader  # noqa: E402
-from rv_te_msgs.action import RunTestPlan  # noqa: E402
 
 from rv_te_bench.cli.ack import acknowledge  # noqa: E402
 from rv_te_bench.io.msgdefs import rv_te_typestore  # noqa: E402
 from rv_te_bench.launch.session import Session, SessionSpec  # noqa: E402
-from tests.nodes.real_bench import DESCRIPTION, StandInBench  # noqa: E402
-from tests.nodes.rosutil import spin_for, spin_until  # noqa: E402
+from tests.nodes.real_bench import DESCRIPTION, Rig  # noqa: E402
+from tests.nodes.rosutil import spin_for  # noqa: E402
 
 RATED = 450.0
 PLAN = {'plan': 'stand-in', 'safety': {'max_output_torque_nm': 500},
@@ -65,58 +61,6 @@ def session(tmp_path: Path) -> Any:
     finally:
         s.stop()
         log.close()
-
-
-class Rig:
-    """The stand-in bench on a thread of its own; the test's action client here."""
-
-    def __init__(self, ctx: Any, **faults: Any) -> None:
-        self.bench = StandInBench(context=ctx, **faults)
-        self.bench_ex = SingleThreadedExecutor(context=ctx)
-        self.bench_ex.add_node(self.bench)
-        self.running = True
-        self.thread = threading.Thread(target=self._spin, daemon=True)
-        self.thread.start()
-        self.node = rclpy.create_node('stand_in_test_client', context=ctx)
-        self.ex = SingleThreadedExecutor(context=ctx)
-        self.ex.add_node(self.node)
-        self.client = ActionClient(self.node, RunTestPlan, 'run_test_plan')
-
-    def _spin(self) -> None:
-        while self.running:
-            self.bench_ex.spin_once(timeout_sec=0.01)
-
-    def run(self, plan: dict, *, serial: str, ack: bool = True,
-            during: Any = None, timeout_s: float = 180.0) -> Any:
-        assert spin_until(self.ex, self.client.server_is_ready, 30.0), 'no action server'
-        feedback: list[Any] = []
-        send = self.client.send_goal_async(
-            RunTestPlan.Goal(plan_yaml=yaml.safe_dump(plan), serial=serial,
-                             operator_name='pytest'),
-            feedback_callback=lambda f: feedback.append(f.feedback))
-        assert spin_until(self.ex, send.done, 20.0) and send.result().accepted
-        res = send.result().get_result_async()
-        acked: set[int] = set()
-        end = time.monotonic() + timeout_s
-        while not res.done():
-            assert time.monotonic() < end, 'the test did not end'
-            self.ex.spin_once(timeout_sec=0.05)
-            if feedback and feedback[-1].step_kind == 'operator' and ack and \
-                    feedback[-1].step_index not in acked:
-                acked.add(feedback[-1].step_index)
-                ok, msg = acknowledge(self.node, self.ex, wait_s=10.0)
-                assert ok, msg
-            if during is not None:
-                during(feedback)
-        return res.result().result, feedback
-
-    def close(self) -> None:
-        self.running = False
-        self.thread.join(timeout=5)
-        self.bench_ex.shutdown()
-        self.bench.destroy_node()
-        self.ex.shutdown()
-        self.node.destroy_node()
 
 
 @pytest.fixture

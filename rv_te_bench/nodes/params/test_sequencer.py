@@ -51,6 +51,14 @@ class TestSequencerParams:
         "bound every step besides the plan's safety [path]")
     setpoint_period_s: float = param(
         0.2, 'The last setpoint is sent again this often [s]', min_value=0.01, max_value=10.0)
+    loss_route: str = param(
+        'setpoints',
+        'How whole-reducer steps (efficiency, no_load, temperature_rise, life) run: '
+        "'setpoints' through the controllers like every step (input torque from "
+        "bench/channels: the drive joint's effort and the case temperature topic, through "
+        "the JointState adapter); 'programs' as the simulated bench's own programs "
+        "(bench/run_program; also starting_torque and back_driving) [-]",
+        choices=('setpoints', 'programs'))
 
 
 PARAMS = param_specs(TestSequencerParams)
