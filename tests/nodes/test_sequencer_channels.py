@@ -108,3 +108,79 @@ def test_channels_first_then_blocks(ros_context: Any) -> None:
                                       20.0 + np.arange(40) / 100)
     finally:
         node.destroy_node()
+
+
+# -- the setpoint route (a ros2_control bench: the adapter's bench/channels) ----------------
+W_IN = 1000.0 * 2.0 * math.pi / 60.0    # the step's 1000 rpm [rad/s]
+
+
+def _driven(ros_context: Any) -> Any:
+    """A node with a no-load step of 4 s at 1000 rpm driven through setpoints."""
+    from rv_te_bench.acceptance.driver import DriverSettings, ProgramDriver, plan_limits
+
+    node = ts.TestSequencerNode(context=ros_context)
+    info = ProgramSimulator(preset='rv-80e-101', te_mode='elastic', sample_rate_hz=1000.0,
+                            block_size=N, losses=LossConfig()).info
+    plan = parse_plan({'plan': 'p', 'steps': [
+        {'kind': 'no_load', 'name': 'nl', 'speeds_rpm': [1000], 'settle_s': 0.0,
+         'measure_s': 4.0}]})
+    runner = StepRunner(plan.steps[0], info)
+    driver = ProgramDriver(runner.program(), limits=plan_limits(plan),
+                           settings=DriverSettings(), sample_rate_hz=1000.0)
+    driver.start()
+    node.busy = {'plan': 'p', 'serial': 'S', 'step': 0, 'steps': 1}
+    node._drive = {'runner': runner, 'driver': driver, 'first_seq': -1, 'last_seq': -1,
+                   'live': math.nan, 'done': False, 'abort': '', 'last_segment': [-1],
+                   'channels': True}
+    return node
+
+
+def _turning(seq: int) -> EncoderBlock:
+    m = _block(seq)
+    t = (seq * N + np.arange(N)) / 1000.0
+    m.header.stamp.sec, m.header.stamp.nanosec = int(t[0]), round((t[0] % 1) * 1e9)
+    m.theta_in_rad = (W_IN * t).tolist()
+    m.theta_out_rad = (W_IN * t / 101.0).tolist()
+    return m
+
+
+def test_setpoint_route_pairs_blocks_with_their_channels(ros_context: Any) -> None:
+    node = _driven(ros_context)
+    try:
+        for s in range(45):                      # channels first (the adapter's order)
+            ch = _channels(s)
+            ch.torque_in_nm = (s * N + np.arange(N, dtype=float)).tolist()   # sample index
+            node._on_channels(ch)
+            node._on_block(_turning(s))
+        assert node._drive['done'] and not node.drops.counts
+        (seg,) = node._drive['runner'].segment_data()
+        assert seg.note == '' and seg.torque_in_nm.size == 4000
+        # each sample carries its own sample's input torque: the index its angle says
+        np.testing.assert_allclose(seg.torque_in_nm, seg.theta_in_rad / W_IN * 1000.0,
+                                   atol=1e-6)
+    finally:
+        node._drive = None
+        node.destroy_node()
+
+
+def test_setpoint_route_holds_blocks_and_marks_lost_channels(ros_context: Any) -> None:
+    node = _driven(ros_context)
+    try:
+        for s in range(60):                      # every block before its channels
+            node._on_block(_turning(s))
+        lost = 60 - sp.HOLD_BLOCKS               # the oldest went without
+        assert len(node._drive_held) == sp.HOLD_BLOCKS
+        assert node.drops.counts.get('channels') == lost
+        for s in reversed(range(60)):            # the channels come, last first
+            ch = _channels(s)
+            ch.torque_in_nm = (s * N + np.arange(N, dtype=float)).tolist()   # sample index
+            node._on_channels(ch)
+        assert node._drive['done']
+        (seg,) = node._drive['runner'].segment_data()
+        assert 'never came (bench/channels)' in seg.note    # not analysed, named
+        # the held blocks were fed in order, each with its own channels
+        assert seg.torque_in_nm[0] == lost * N
+        np.testing.assert_array_equal(np.diff(seg.torque_in_nm), 1.0)
+    finally:
+        node._drive = None
+        node.destroy_node()
