@@ -133,16 +133,25 @@ def run(args: argparse.Namespace) -> int:
 
 
 def wait_for_dashboard(spec: Any) -> None:
-    """Make a session's bench wait for the page's bridge too (its first blocks on screen)."""
+    """Make the node that publishes a session's encoder blocks wait for the page's bridge
+    too (its first blocks on screen): the bench, or the JointState adapter when the bench
+    publishes joint states (a ros2_control bench), since the bridge never subscribes to
+    ``joint_states`` and a bench waiting for it there held the session up for its whole
+    wait (and the adapter gave up on its joints meanwhile)."""
     from rv_te_bench.launch.session import node_parameters
 
-    if 'bench' not in spec.nodes or spec.parameters.get('bench', {}).get('output') == \
-            'joint_state':
+    if 'bench' not in spec.nodes:
         return
-    waits = list(node_parameters(spec, 'bench').get('wait_for_nodes', []))
+    bench = spec.parameters.get('bench', {})
+    node = 'bench'
+    if bench.get('output') == 'joint_state' or bench.get('ros2_control'):
+        if 'joint_state_adapter' not in spec.nodes:
+            return
+        node = 'joint_state_adapter'
+    waits = list(node_parameters(spec, node).get('wait_for_nodes', []))
     if 'dashboard' not in waits:
         waits.append('dashboard')
-    spec.parameters.setdefault('bench', {})['wait_for_nodes'] = waits
+    spec.parameters.setdefault(node, {})['wait_for_nodes'] = waits
 
 
 def watch_session(dash: Dashboard | None) -> Any:
