@@ -177,7 +177,7 @@ def ros_context(ros_domain_id: int):
 
 REPO = Path(__file__).resolve().parents[1]
 _CACHES = ('__pycache__', '.pytest_cache', '.hypothesis', '.egg-info', '.coverage',
-           '.ruff_cache', '.mypy_cache')
+           '.ruff_cache', '.mypy_cache', '.import_linter_cache')
 
 
 def repo_litter() -> set[str] | None:
