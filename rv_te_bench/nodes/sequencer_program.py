@@ -170,6 +170,10 @@ class ProgramSteps:
                        'and losses: true)')
                 raise AcceptanceError(msg)
             await self._sleep()   # type: ignore[attr-defined]
+        # the bench runs a program the moment it gets one, without waiting for subscribers
+        # itself: the session's recorder must be on bench/encoders first, or the first
+        # blocks of the first step are not in the bag
+        await self._wait_for_recorder()   # type: ignore[attr-defined]
         return self.bench_info
 
     async def _run_program_step(self, goal_handle: ServerGoalHandle, req: RunTestPlan.Goal,

@@ -382,6 +382,13 @@ class TestSequencerNode(ProgramSteps, Node):
                        f'{self.p.bench_timeout_s:g} s')
                 raise AcceptanceError(msg)
             await self._sleep()
+        await self._wait_for_recorder()
+        assert self.bench_info is not None
+        return self.bench_info
+
+    async def _wait_for_recorder(self) -> None:
+        """Wait (``wait_timeout_s`` at most) until ``wait_for_nodes`` subscribe
+        bench/encoders, so every step's blocks are recorded from its first."""
         wanted = set(self.p.wait_for_nodes)
         deadline = time.monotonic() + self.p.wait_timeout_s
         ns = self.get_namespace()
@@ -396,8 +403,6 @@ class TestSequencerNode(ProgramSteps, Node):
                     'are not recorded by them')
                 break
             await self._sleep()
-        assert self.bench_info is not None
-        return self.bench_info
 
     def _check_setpoint_plan(self, plan: TestPlan, info: BenchInfoData) -> None:
         """One line, before anything moves, for a step the setpoint route cannot run on this
