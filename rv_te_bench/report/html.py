@@ -16,6 +16,8 @@ import math
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
+import numpy as np
+
 from rv_te_bench.core.advice import modification_value
 from rv_te_bench.core.spectrum_lines import threshold_rule_text, unassigned_lines
 from rv_te_bench.errors import RvTeError
@@ -32,6 +34,7 @@ from sim.units import rad_to_arcmin, rad_to_deg
 if TYPE_CHECKING:
     from collections.abc import Sequence
 
+    from rv_te_bench.core.stream_records import WindowResult
     from rv_te_bench.core.te import TeStats
     from rv_te_bench.report.analysis import AnalysisResult
 
@@ -91,6 +94,7 @@ def write_report(results: Sequence[AnalysisResult], directory: Path, *,
         png_bytes,
         spectrum_figure,
         te_figure,
+        windows_figure,
     )
 
     te = [r for r in results if not r.not_te_record]   # a hysteresis record has no TE
@@ -100,6 +104,8 @@ def write_report(results: Sequence[AnalysisResult], directory: Path, *,
                   'spectrum.png': png_bytes(spectrum_figure(te))}
     if len(te) > 1:
         images['comparison.png'] = png_bytes(comparison_figure(te))
+    if any(len(r.windows) > MAX_WINDOW_ROWS for r in te):   # the table lists only some
+        images['windows.png'] = png_bytes(windows_figure(te))
     doc = report_json(results)
     files: dict[Path, bytes | str] = {directory / name: data for name, data in images.items()}
     files[directory / 'report.json'] = json.dumps(doc, indent=2) + '\n'
@@ -158,6 +164,31 @@ def _stats_cells(st: TeStats) -> str:
     return (f'<td>{_am(st.pp_rad)}</td><td>{_am(st.amplitude_rad)}</td>'
             f'<td>{_am(st.mean_rad)}</td><td>{_am(st.std_rad)}</td>'
             f'<td>{revs}</td><td>{st.n_samples}</td>')
+
+
+#: A record with more windows than this lists the first and last ones and those of the
+#: largest and smallest TE p-p in the report's table (a 10-hour life test has ~2000).
+MAX_WINDOW_ROWS = 40
+_END_ROWS = 8
+
+
+def _window_rows(windows: Sequence[WindowResult]) -> tuple[list[int], str]:
+    """Indices of the windows the table lists, and a note on the ones it leaves out."""
+    n = len(windows)
+    if n <= MAX_WINDOW_ROWS:
+        return list(range(n)), ''
+    pps = np.array([w.stats.pp_rad if w.complete else np.nan for w in windows])
+    keep = set(range(_END_ROWS)) | set(range(n - _END_ROWS, n))
+    finite = np.flatnonzero(np.isfinite(pps))
+    if finite.size:
+        keep |= {int(finite[np.argmax(pps[finite])]), int(finite[np.argmin(pps[finite])])}
+    note = (f'{n} windows: the first and last {_END_ROWS} and those of the largest and '
+            'smallest TE p-p are listed; report.json holds every one')
+    if finite.size:
+        q = rad_to_arcmin(np.percentile(pps[finite], [0.0, 50.0, 100.0]))
+        note += (f'. TE p-p of the {finite.size} complete windows: min {q[0]:.4f}, median '
+                 f'{q[1]:.4f}, max {q[2]:.4f} arcmin')
+    return sorted(keep), note + '.'
 
 
 _STATS_HEAD = ('<th>TE p-p [arcmin]</th><th>amplitude max|TE| [arcmin]</th>'
@@ -219,12 +250,21 @@ def _te_section(res: AnalysisResult) -> str:
     out.append('<h3>Statistics</h3><table><tr><th class="l">window</th><th>start [s]</th>'
                f'<th>end [s]</th><th class="l">complete</th>{_STATS_HEAD}</tr>')
     t0 = res.windows[0].start_stamp_s if res.windows else 0.0
-    for w in res.windows:
+    shown, note = _window_rows(res.windows)
+    previous = -1
+    for k in shown:
+        w = res.windows[k]
+        if k > previous + 1:
+            out.append(f'<tr><td class="l muted" colspan="10">... {k - previous - 1} '
+                       'windows ...</td></tr>')
+        previous = k
         out.append(f'<tr><td class="l">{w.index}</td><td>{w.start_stamp_s - t0:.3f}</td>'
                    f'<td>{w.end_stamp_s - t0:.3f}</td><td class="l">{"yes" if w.complete else "no"}'
                    f'</td>{_stats_cells(w.stats)}</tr>')
     out.append(f'<tr><th class="l" colspan="4">cumulative (all clean samples)</th>'
                f'{_stats_cells(res.cumulative)}</tr></table>')
+    if note:
+        out.append(f'<p class="muted">{_e(note)}</p>')
     unc = res.uncertainty
     if unc is not None:
         parts = [f'{what} <b>{_am(bud.value)} &plusmn; {_am_g(bud.u95)}</b> arcmin'
@@ -470,6 +510,7 @@ def render_html(results: Sequence[AnalysisResult], images: dict[str, bytes],
         parts.append(_img(images, 'comparison.png', 'TE statistics per bag'))
     parts.append(_img(images, 'te.png', 'TE against output angle'))
     parts.append(_img(images, 'spectrum.png', 'TE order spectrum'))
+    parts.append(_img(images, 'windows.png', 'TE p-p and mean of each window over the session'))
     parts += [_bag_section(r) for r in results]
     parts.append('</body></html>\n')
     return '\n'.join(parts)

@@ -3,7 +3,8 @@
 * :func:`te_figure`: TE [arcmin] against output angle [deg] for one or several bags;
 * :func:`spectrum_figure`: the full order spectrum (log axes) with the labelled lines marked,
   and a bar chart of the labelled lines ('1 f_w', 'f_w - f_out', 'mesh 52 f_w', ...);
-* :func:`comparison_figure`: TE statistics of several bags side by side (before / after).
+* :func:`comparison_figure`: TE statistics of several bags side by side (before / after);
+* :func:`windows_figure`: TE p-p and mean of every window over the session (a life test).
 
 Values are converted from radians to arcmin here, at the edge, with :mod:`sim.units`.
 """
@@ -29,7 +30,8 @@ if TYPE_CHECKING:
 
     from rv_te_bench.report.analysis import AnalysisResult
 
-__all__ = ['comparison_figure', 'png_bytes', 'save_png', 'spectrum_figure', 'te_figure']
+__all__ = ['comparison_figure', 'png_bytes', 'save_png', 'spectrum_figure', 'te_figure',
+           'windows_figure']
 
 #: Records longer than this many output revolutions are folded onto 0..360 deg.
 OVERLAY_REVOLUTIONS = 4
@@ -352,4 +354,46 @@ def comparison_figure(results: Sequence[AnalysisResult]) -> Figure:
     ax.set_title('TE statistics over all clean samples, bag by bag')
     ax.grid(visible=True, axis='y', alpha=0.3)
     ax.legend(fontsize=8)
+    return fig
+
+
+def windows_figure(results: Sequence[AnalysisResult]) -> Figure:
+    """TE p-p and mean of each complete window against time from the start of the record.
+
+    The trend of a long session (a life test's wear, a warm-up's drift), one point per
+    window (one output revolution by default: ~2000 over 10 hours at 1 rev/16 s), where
+    the report's table lists only the first and last windows and the extremes. Time in
+    hours, minutes or seconds by the longest record.
+
+    Args:
+        results: One or more analyses.
+
+    Returns:
+        The figure: TE p-p per window (top), mean per window (bottom) [arcmin].
+    """
+    fig = _new_figure(10.0, 6.4, top=0.94, bottom=0.09, hspace=0.35)
+    ax_pp, ax_mean = fig.subplots(2, 1, sharex=True)
+    span_s = max((w.end_stamp_s - r.windows[0].start_stamp_s for r in results
+                  for w in r.windows[-1:]), default=0.0)
+    unit, per_s = (('h', 3600.0) if span_s > 7200.0 else ('min', 60.0) if span_s > 120.0
+                   else ('s', 1.0))
+    for k, res in enumerate(results):
+        done = [w for w in res.windows if w.complete]
+        if not done:
+            continue
+        t0 = res.windows[0].start_stamp_s
+        t = np.array([0.5 * (w.start_stamp_s + w.end_stamp_s) - t0 for w in done]) / per_s
+        pp = rad_to_arcmin(np.array([w.stats.pp_rad for w in done]))
+        mean = rad_to_arcmin(np.array([w.stats.mean_rad for w in done]))
+        color = _COLORS[k % len(_COLORS)]
+        style = {'color': color, 'lw': 0.6, 'marker': '.', 'ms': 2.0 if t.size > 200 else 4.0}
+        ax_pp.plot(t, pp, label=f'{_name(res)} ({t.size} windows)', **style)
+        ax_mean.plot(t, mean, **style)
+    ax_pp.set_ylabel('TE p-p per window [arcmin]')
+    ax_pp.set_title('TE of each complete window over the session')
+    ax_pp.legend(loc='upper right', fontsize=8)
+    ax_mean.set_ylabel('mean TE per window [arcmin]')
+    ax_mean.set_xlabel(f'time from start of record [{unit}] (window centre)')
+    for ax in (ax_pp, ax_mean):
+        ax.grid(visible=True, alpha=0.3)
     return fig
