@@ -57,6 +57,7 @@ the rule and the value.
 
 from __future__ import annotations
 
+import functools
 import math
 from dataclasses import dataclass, field, replace
 from pathlib import Path
@@ -332,15 +333,24 @@ class BenchDescription:
             return float(self._kinematics().crank_rel_per_input)
         return -self.crank_rel_per_output / self.gear_ratio   # against the input, as above
 
-    def _kinematics(self) -> ReducerKinematics:
+    @functools.cached_property
+    def _kinematics_cached(self) -> ReducerKinematics:
         from sim.kinematics import kinematics_from_preset
 
         return kinematics_from_preset(self._preset())
 
-    def _preset(self) -> Preset:
+    def _kinematics(self) -> ReducerKinematics:
+        return self._kinematics_cached
+
+    @functools.cached_property
+    def _preset_cached(self) -> Preset:
+        """The preset, loaded once per description (BenchInfo needs it three times)."""
         from sim.presets import load_preset
 
         return load_preset(str(self.preset), list(self.preset_overrides))
+
+    def _preset(self) -> Preset:
+        return self._preset_cached
 
     def to_plain(self) -> dict[str, Any]:
         """The description as validated (SI units), YAML-friendly."""
@@ -399,7 +409,7 @@ class BenchDescription:
             encoder_in_resolution_rad=self.encoder_in.resolution_rad,
             encoder_out_resolution_rad=self.encoder_out.resolution_rad,
             sample_rate_hz=self.sample_rate_hz, block_size=self.block_size,
-            parameters_yaml=yaml.safe_dump(record, sort_keys=True),
+            parameters_yaml=_safe_dump_sorted(record),
             **self.encoder_in.scale_fields('in'), **self.encoder_out.scale_fields('out'))
 
     def to_metadata(self) -> dict[str, Any]:
@@ -422,6 +432,12 @@ class BenchDescription:
             'bench_description': yaml.safe_dump(self.to_plain(), sort_keys=True),
         })
         return out
+
+
+def _safe_dump_sorted(data: Any) -> str:
+    """``yaml.safe_dump(data, sort_keys=True)``, by libyaml where installed (the same text,
+    tested; a quarter of the time)."""
+    return yaml.dump(data, Dumper=getattr(yaml, 'CSafeDumper', yaml.SafeDumper), sort_keys=True)
 
 
 def _encoder_plain(e: EncoderInfo) -> dict[str, Any]:

@@ -21,7 +21,7 @@ from rv_te_bench.core.bench_uncertainty import BenchUncertainty, bench_uncertain
 from rv_te_bench.errors import BagError, BenchInfoError, TeConfigError, YamlInputError
 from rv_te_bench.io._bag_open import find_messages, open_bag, scan_topics, topic_types
 from rv_te_bench.io._bag_types import MessageStream, summarize_problems
-from rv_te_bench.io.msgdefs import BENCH_INFO, ENCODER_BLOCK, rv_te_typestore
+from rv_te_bench.io.msgdefs import BENCH_INFO, ENCODER_BLOCK, own_typestore, rv_te_typestore
 from rv_te_bench.safe_yaml import DOCUMENT_LIMITS, load_yaml
 from sim.bench_info import BenchInfoData
 
@@ -193,7 +193,7 @@ def bench_info_cdr(info: BenchInfoData, stamp_ns: int) -> bytes:
     converted to its declared type first): a field added to the record and the message is
     written without a change here. :func:`read_bench_info` reads it back.
     """
-    store = rv_te_typestore()
+    store = own_typestore(BENCH_INFO)   # rv_te_typestore's bytes, 0.1 CPU s less to build
     types = store.types
     values = BenchInfoData.from_message(info).message_values()
     for name in _FLOAT_ARRAYS:

@@ -34,6 +34,7 @@ __all__ = [
     'full_msgdef',
     'learn_type',
     'load_msg_texts',
+    'own_typestore',
     'rv_te_typestore',
     'type_hash',
 ]
@@ -94,6 +95,68 @@ def rv_te_typestore() -> Typestore:
     return store
 
 
+#: The ROS 2 types that rv_te_msgs use (std_msgs/Header and its stamp), as Jazzy defines
+#: them (tested equal to the rosbags Jazzy store's definitions).
+BASE_MSG_TEXTS = {'builtin_interfaces/msg/Time': 'int32 sec\nuint32 nanosec\n',
+                  'std_msgs/msg/Header': 'builtin_interfaces/Time stamp\nstring frame_id\n'}
+
+
+@functools.cache
+def _own_store() -> Typestore:
+    return get_typestore(Stores.EMPTY)
+
+
+def own_typestore(*msgtypes: str) -> Typestore:
+    """A small rosbags typestore of ``rv_te_msgs`` types and the two ROS 2 types they use,
+    without the Jazzy store (building that costs ~0.1 CPU s per process: every ``rv-te
+    import`` paid it, issue 41). Serialises our messages to the same bytes and gives the
+    same definitions and type hashes as :func:`rv_te_typestore` (tested).
+
+    Args:
+        msgtypes: Types to make known (each parsed once per process, with the types it
+            uses); none: all of ``rv_te_msgs``.
+
+    Raises:
+        BagError: A type that is not ours, or uses a type that is not (``_known_in``).
+    """
+    store = _own_store()
+    texts = {**BASE_MSG_TEXTS, **load_msg_texts()}
+    todo = list(msgtypes or texts)
+    found: Typesdict = {}
+    while todo:
+        name = todo.pop()
+        if name in store.fielddefs or name in found:
+            continue
+        if name not in texts:
+            msg = f'{name!r} is not an rv_te_msgs type nor one they use'
+            raise BagError(msg)
+        parsed = get_types_from_msg(texts[name], name)
+        found.update(parsed)
+        for _, node in parsed[name][1]:
+            todo.extend(_referenced(node))
+    if found:
+        store.register(found)
+    return store
+
+
+def _known_in(msgtype: str) -> bool:
+    """``msgtype`` is ours and uses only our types and those of BASE_MSG_TEXTS."""
+    try:
+        own_typestore(msgtype)
+    except BagError:
+        return False
+    return True
+
+
+def _store_for(msgtype: str) -> Typestore:
+    """:func:`own_typestore` for our types, else :func:`rv_te_typestore` (taught the type)."""
+    if msgtype in load_msg_texts() and _known_in(msgtype):
+        return own_typestore(msgtype)
+    store = rv_te_typestore()
+    learn_type(msgtype)
+    return store
+
+
 def _msg_file_text(msgtype: str) -> str | None:
     """Text of ``msgtype``'s ``.msg`` file if one is installed here."""
     if msgtype in (ours := load_msg_texts()):
@@ -119,8 +182,11 @@ def full_msgdef(msgtype: str) -> str:
     Raises:
         BagError: The type is unknown to the typestore.
     """
-    store = rv_te_typestore()
-    learn_type(msgtype)
+    return full_msgdef_from(_store_for(msgtype), msgtype)
+
+
+def full_msgdef_from(store: Typestore, msgtype: str) -> str:
+    """:func:`full_msgdef` with the definitions of ``store`` (which knows ``msgtype``)."""
     subdefs: dict[str, tuple[str, str]] = {}
     generated, _ = store.gendefhash(msgtype, subdefs, ros_version=2)
     parts = [(_msg_file_text(msgtype) or generated).rstrip('\n') + '\n']
@@ -133,9 +199,7 @@ def full_msgdef(msgtype: str) -> str:
 
 def type_hash(msgtype: str) -> str:
     """RIHS01 type hash of ``msgtype`` (equal to what rclpy reports for the type)."""
-    store = rv_te_typestore()
-    learn_type(msgtype)
-    return store.hash_rihs01(msgtype)
+    return _store_for(msgtype).hash_rihs01(msgtype)
 
 
 def _referenced(node: FieldDesc) -> list[str]:

@@ -69,3 +69,62 @@ def test_unknown_type_names_what_is_missing(tmp_path: Path,
         learn_type('half_msgs/msg/Outer')
     with pytest.raises(BagError, match=r"Unknown message type 'nope_msgs/msg/X'"):
         full_msgdef('nope_msgs/msg/X')
+
+
+# --- the small store of our own types (issue 41: no Jazzy store per import) -----------------
+
+def test_own_store_defines_our_types_as_the_jazzy_store_does() -> None:
+    """Definitions, type hashes and serialised bytes from ``own_typestore`` equal those of
+    the full Jazzy store (rosbags' own definitions of Header and Time), for every type."""
+    from rosbags.typesys import Stores, get_typestore
+
+    from rv_te_bench.io.msgdefs import (
+        BASE_MSG_TEXTS,
+        full_msgdef_from,
+        load_msg_texts,
+        own_typestore,
+    )
+
+    jazzy = get_typestore(Stores.ROS2_JAZZY)
+    full = rv_te_typestore()
+    for name in BASE_MSG_TEXTS:
+        assert own_typestore(name).fielddefs[name] == jazzy.fielddefs[name]
+    ours = sorted(load_msg_texts())
+    assert len(ours) >= 13
+    own = own_typestore(*ours)
+    for name in ours:
+        assert full_msgdef_from(own, name) == full_msgdef_from(full, name), name
+        assert own.hash_rihs01(name) == full.hash_rihs01(name), name
+
+
+def test_bench_info_bytes_unchanged_by_the_small_store() -> None:
+    """BenchInfo serialised by the import (small store) == by the full store, byte for byte;
+    the preset loaded once per description gives the same record as a fresh load."""
+    import dataclasses
+
+    import yaml
+
+    from rv_te_bench.io.bench_description import parse_bench_description
+    from rv_te_bench.io.bench_record import bench_info_cdr
+    from rv_te_bench.io.msgdefs import BENCH_INFO
+    from sim.bench_info import BenchInfoData
+
+    desc = parse_bench_description({'bench_id': 'b7', 'preset': 'rv-80e-101',
+                                    'sample_rate_hz': 5000.0, 'block_size': 250})
+    info = desc.bench_info()
+    assert info == parse_bench_description({'bench_id': 'b7', 'preset': 'rv-80e-101',
+                                            'sample_rate_hz': 5000.0,
+                                            'block_size': 250}).bench_info()
+    record = yaml.safe_load(info.parameters_yaml)
+    assert info.parameters_yaml == yaml.safe_dump(record, sort_keys=True)
+    store = rv_te_typestore()
+    ty = store.types
+    values = BenchInfoData.from_message(info).message_values()
+    values = {k: (np.asarray(v, dtype=np.float64) if isinstance(v, (list, tuple))
+                  and k not in ('mesh_labels',) else v) for k, v in values.items()}
+    header = ty['std_msgs/msg/Header'](stamp=ty['builtin_interfaces/msg/Time'](
+        sec=1_700_000_000, nanosec=123), frame_id='b7')
+    msg = ty[BENCH_INFO](header=header, **values)
+    expected = bytes(store.serialize_cdr(msg, BENCH_INFO))
+    assert bench_info_cdr(info, 1_700_000_000 * 10**9 + 123) == expected
+    assert dataclasses.asdict(info)   # a plain record

@@ -148,3 +148,17 @@ def test_wang_preset_overrides_reach_the_model() -> None:
     p = Wang2kvParams.from_preset(load_preset('wang2020-2kv', ['stage2.r_p_m=0.05307']))
     assert p.r_p_m == 0.05307
     assert p.mesh_stiffness_n_m == 8.43e7
+
+
+def test_shipped_preset_parsed_once_and_handed_out_as_copies() -> None:
+    """load_preset parses a shipped preset once per process (issue 41) but every caller
+    gets its own mapping: a change to one does not reach the next caller."""
+    from sim.presets import _shipped_preset, load_preset
+
+    _shipped_preset.cache_clear()
+    a = load_preset('wang2020-2kv')
+    b = load_preset('wang2020-2kv')
+    assert _shipped_preset.cache_info().misses == 1
+    assert a.values == b.values and a.values is not b.values
+    a.values.clear()
+    assert load_preset('wang2020-2kv').values == b.values

@@ -43,7 +43,7 @@ from rv_te_bench.io.importers._ahead import read_ahead
 from rv_te_bench.io.importers._common import TIME_UNITS, angle_unit, time_unit
 from rv_te_bench.io.importers._convert import ChunkConverter, to_rad_factor
 from rv_te_bench.io.importers._turns import TurnStitcher
-from rv_te_bench.io.msgdefs import BENCH_CHANNELS, BENCH_INFO, ENCODER_BLOCK, rv_te_typestore
+from rv_te_bench.io.msgdefs import BENCH_CHANNELS, BENCH_INFO, ENCODER_BLOCK, own_typestore
 
 if TYPE_CHECKING:
     from collections.abc import Callable, Iterator
@@ -220,7 +220,7 @@ class _Blocks:
         """The BenchChannels of the block about to be written (rows: input torque, case
         temperature; an all-NaN row is a channel not imported)."""
         if self._store is None:
-            self._store = rv_te_typestore()
+            self._store = own_typestore(BENCH_CHANNELS)
         ty = self._store.types
         header = ty['std_msgs/msg/Header'](stamp=ty['builtin_interfaces/msg/Time'](
             sec=stamp_ns // _NS, nanosec=stamp_ns % _NS), frame_id=self.frame_id)
