@@ -67,6 +67,32 @@ def load_core_at(rev: str) -> dict[str, ModuleType]:
     return loaded
 
 
+# the bag reader as one unit (issue 41 round 4 changed the record walk and the opener): each
+# module as of REV, loaded after the ones it imports, so the old reader runs on its own
+# walk, storage and opener; the readers of BenchInfo and the session's head record too
+IO_MODULES = (('rv_te_bench/io/_bag_types.py', 'rv_te_bench.io._bag_types'),
+              ('rv_te_bench/io/_mcap_scan.py', 'rv_te_bench.io._mcap_scan'),
+              ('rv_te_bench/io/_storage_mcap.py', 'rv_te_bench.io._storage_mcap'),
+              ('rv_te_bench/io/_storage_sqlite3.py', 'rv_te_bench.io._storage_sqlite3'),
+              ('rv_te_bench/io/_bag_open.py', 'rv_te_bench.io._bag_open'),
+              ('rv_te_bench/io/_encoder_cdr.py', 'rv_te_bench.io._encoder_cdr'),
+              ('rv_te_bench/io/bench_record.py', 'rv_te_bench.io.bench_record'),
+              ('rv_te_bench/io/session_heads.py', 'rv_te_bench.io.session_heads'),
+              ('rv_te_bench/io/bag_reader.py', 'rv_te_bench.io.bag_reader'))
+
+
+def load_io_at(rev: str) -> dict[str, ModuleType]:
+    """The bag reader's modules (:data:`IO_MODULES`) as of ``rev``, keyed by module name,
+    each compiled while the ones before it stand in for their current versions (use with
+    :func:`swapped`, beside :func:`load_core_at`'s)."""
+    loaded: dict[str, ModuleType] = {}
+    for path, name in IO_MODULES:
+        if _exists_at(rev, path):
+            with swapped(loaded):
+                loaded[name] = load_at(rev, path, name)
+    return loaded
+
+
 class swapped:  # noqa: N801 - used like a function: with swapped(mods): ...
     """Context: ``sys.modules`` entries (and the parent packages' attributes) replaced by
     ``modules`` ({name: module}), restored on exit."""
@@ -94,4 +120,8 @@ class swapped:  # noqa: N801 - used like a function: with swapped(mods): ...
                 sys.modules[name] = mod
             if attr_mod is not None:
                 setattr(sys.modules[parent_name], attr, attr_mod)
+            elif getattr(sys.modules[parent_name], attr, None) is not None:
+                # not imported before: the package must not keep the old one as its attribute
+                # (``from package import module`` would then find it)
+                delattr(sys.modules[parent_name], attr)
         self._saved.clear()

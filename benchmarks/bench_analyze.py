@@ -34,8 +34,8 @@ shared machine the CPU ratio moves much less than the wall ratio.
 
 With ``--baseline REV`` the analysis as of that git revision also runs, interleaved with the
 others (the "before"): ``analyze_bag`` (report/analysis.py: how it drives the core and its
-threads) and the TE core (core/te.py, core/spectrum.py, core/stream.py) at REV, with
-today's reader set as REV's (chunks read ahead; isal's or zlib's CRC-32).
+threads), the TE core (core/te.py, core/spectrum.py, core/stream.py) and the bag reader
+(io/: record walk, storage, opener, CDR decode) at REV, its read-ahead and CRC-32 as REV's.
 
     .venv/bin/python benchmarks/bench_analyze.py [--minutes 10]
         [--blocks 100 1000 3000 10000] [--repeats 5] [--allocator tuned|default]
@@ -140,8 +140,9 @@ def _run(args: argparse.Namespace, busy: bool) -> int:
     base_core = None
     if args.baseline:
         sys.path.insert(0, str(ROOT / 'benchmarks'))
-        from _baseline import load_at, load_core_at, swapped
+        from _baseline import load_at, load_core_at, load_io_at, swapped
         base_core = load_core_at(args.baseline)
+        base_core.update(load_io_at(args.baseline))   # its bag reader too
         with swapped(base_core):
             # the result types of that revision too (the analysis builds them)
             base_core['rv_te_bench.report.results'] = load_at(
@@ -156,6 +157,13 @@ def _run(args: argparse.Namespace, busy: bool) -> int:
             with swapped(base_core), reader_as_then:
                 return int(base_analysis.analyze_bag(bag, with_advice=False)
                            .cumulative.n_samples)
+
+        def read_base(bag: Path) -> int:
+            with swapped(base_core), reader_as_then:
+                reader = base_core['rv_te_bench.io.bag_reader']
+                return sum(it.n_samples if hasattr(it, 'n_samples') else len(it.theta_in_rad)
+                           for it in reader.read_encoder_batches(
+                               bag, read_ahead=helper_threads_allowed()))
     from rv_te_bench.io.bag_reader import READ_AHEAD_ENV, helper_threads_allowed
 
     os.environ.pop(READ_AHEAD_ENV, None)   # the analysis as a user runs it: its own choice
@@ -172,7 +180,8 @@ def _run(args: argparse.Namespace, busy: bool) -> int:
 
         def ours_read(bag: Path = bag) -> int:
             return sum(it.n_samples if isinstance(it, EncoderBatch) else len(it.theta_in_rad)
-                       for it in read_encoder_batches(bag))
+                       for it in read_encoder_batches(bag,
+                                                      read_ahead=helper_threads_allowed()))
 
         def analyze(bag: Path = bag) -> int:
             return int(analyze_bag(bag, with_advice=False).cumulative.n_samples)
@@ -190,6 +199,7 @@ def _run(args: argparse.Namespace, busy: bool) -> int:
             paths += [('helper', lambda: forced('1')), ('inline', lambda: forced('0'))]
         if base_core is not None:
             paths.insert(2, ('base', lambda bag=bag: analyze_base(bag)))
+            paths.insert(1, ('baseread', lambda bag=bag: read_base(bag)))
         if args.floor:
             windows = _spectrum_inputs(bag)
             paths.insert(2, ('floor', lambda windows=windows: ours_read() + _spectra(windows)))
@@ -235,6 +245,8 @@ def _run(args: argparse.Namespace, busy: bool) -> int:
         auto = ('helper thread' if all(picked) else 'one thread' if not any(picked)
                 else f'helper thread {sum(picked)} of {len(picked)}')
         for name, label in (('rosbags', 'rosbags AnyReader read + deserialise (floor)'),
+                            ('baseread', f'read_encoder_batches before (reader at '
+                                         f'{args.baseline})'),
                             ('read', 'read_encoder_batches (our reader)'),
                             ('floor', 'our reader + resampling + FFT of every window (the '
                                       'least work of an order spectrum)'),

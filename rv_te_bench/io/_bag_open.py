@@ -7,6 +7,7 @@ other function here asks the storage the bag was opened with:
 * :func:`open_bag`: a bag folder (metadata.yaml + files) or a lone ``.mcap`` file ->
   :class:`~._bag_types.Bag`;
 * :func:`units` / :func:`messages`: the wanted messages, by storage unit or one by one;
+  :func:`unit_columns`: by storage unit as arrays (the offline reader's path);
 * :func:`scan_topics` / :func:`topic_types`: the topics as the files hold them (a lone
   file, or metadata.yaml that lists none);
 * :func:`find_messages`: a few messages of some topics, through an MCAP file's chunk
@@ -23,7 +24,7 @@ from typing import TYPE_CHECKING, Any
 from rv_te_bench.errors import BagError, YamlInputError
 from rv_te_bench.io import _storage_mcap, _storage_sqlite3
 from rv_te_bench.io._bag_folder import entry_problem, layout_notes, listed_files
-from rv_te_bench.io._bag_types import Bag
+from rv_te_bench.io._bag_types import Bag, UnitColumns
 from rv_te_bench.safe_yaml import BAG_METADATA_LIMITS, read_yaml_file
 
 if TYPE_CHECKING:
@@ -32,7 +33,8 @@ if TYPE_CHECKING:
 
     from rv_te_bench.io._bag_types import MessageStream, Unit
 
-__all__ = ['find_messages', 'messages', 'open_bag', 'scan_topics', 'topic_types', 'units']
+__all__ = ['find_messages', 'messages', 'open_bag', 'scan_topics', 'topic_types',
+           'unit_columns', 'units']
 
 
 def open_bag(path: str | Path) -> Bag:
@@ -118,6 +120,17 @@ def units(bag: Bag, stream: MessageStream[Any], topics: Collection[str] | None,
                                              None if topics is None else set(topics))
     return _storage_mcap.mcap_units(bag, stream.report_problem, topics, executor,
                                    read_ahead=read_ahead)
+
+
+def unit_columns(bag: Bag, stream: MessageStream[Any], topics: Collection[str] | None,
+                 executor: Executor | None = None, *, read_ahead: bool = True,
+                 ) -> Iterator[UnitColumns]:
+    """:func:`units` with each unit's messages as arrays (:class:`._bag_types.UnitColumns`)."""
+    if bag.storage == _storage_sqlite3.STORAGE:
+        return (UnitColumns.from_rows(buf, rows) for buf, rows in _storage_sqlite3.sqlite_units(
+            bag, stream.report_problem, None if topics is None else set(topics)))
+    return _storage_mcap.mcap_unit_columns(bag, stream.report_problem, topics, executor,
+                                          read_ahead=read_ahead)
 
 
 def messages(bag: Bag, stream: MessageStream[Any], topics: Collection[str] | None,

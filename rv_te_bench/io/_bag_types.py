@@ -9,6 +9,8 @@ the readers on top (:mod:`.bag_reader`, :mod:`.bench_record`) hand them to calle
 * :class:`MessageStream`: an iterator that records whether the result is partial;
 * :data:`RawMessage` and :data:`Unit`: one stored message, and one storage unit (an MCAP
   chunk, or a buffer of sqlite3 rows) with the offsets of the messages wanted in it;
+  :class:`UnitColumns`: the same unit with its messages as arrays (no per-message Python
+  work: the offline reader's path);
 * :func:`summarize_problems`: the problems of a read as one line.
 """
 
@@ -17,13 +19,16 @@ from __future__ import annotations
 from dataclasses import dataclass
 from typing import TYPE_CHECKING, Any, Generic, TypeVar
 
+import numpy as np
+
 from rv_te_bench.errors import BagError
 
 if TYPE_CHECKING:
     from collections.abc import Callable, Iterator
     from pathlib import Path
 
-__all__ = ['PROBLEMS_SHOWN', 'Bag', 'MessageStream', 'RawMessage', 'Unit', 'summarize_problems']
+__all__ = ['PROBLEMS_SHOWN', 'Bag', 'MessageStream', 'RawMessage', 'Unit', 'UnitColumns',
+           'summarize_problems']
 
 T = TypeVar('T')
 RawMessage = tuple[str, str, int, memoryview]
@@ -32,6 +37,45 @@ RawMessage = tuple[str, str, int, memoryview]
 Unit = tuple[memoryview, list[tuple[str, str, int, int, int]]]
 """(buffer, [(topic, msgtype, log_time_ns, start, end), ...]): the messages wanted from one
 storage unit (an MCAP chunk, or ~1 MiB of sqlite3 rows), as offsets into its buffer."""
+
+
+@dataclass(frozen=True, slots=True)
+class UnitColumns:
+    """The wanted messages of one storage unit as arrays (a :data:`Unit` by columns).
+
+    Attributes:
+        buf: The unit's buffer (a decompressed MCAP chunk, or sqlite3 rows).
+        targets: ``(topic, msgtype)`` of each kind of message in the unit.
+        kind: Per message, its index into ``targets``.
+        log_time: Per message, its log time [ns] (uint64).
+        start: Per message, where its data starts in ``buf``.
+        end: Per message, where its data ends in ``buf``.
+    """
+
+    buf: memoryview
+    targets: tuple[tuple[str, str], ...]
+    kind: np.ndarray
+    log_time: np.ndarray
+    start: np.ndarray
+    end: np.ndarray
+
+    @classmethod
+    def from_rows(cls, buf: memoryview,
+                  rows: list[tuple[str, str, int, int, int]]) -> UnitColumns:
+        """The columns of a :data:`Unit`'s rows."""
+        index: dict[tuple[str, str], int] = {}
+        kind = [index.setdefault((r[0], r[1]), len(index)) for r in rows]
+        return cls(buf, tuple(index), np.array(kind, np.intp),
+                   np.array([r[2] for r in rows], np.uint64),
+                   np.array([r[3] for r in rows], np.int64),
+                   np.array([r[4] for r in rows], np.int64))
+
+    def rows(self) -> list[tuple[str, str, int, int, int]]:
+        """The messages as a :data:`Unit`'s rows ``(topic, msgtype, log_time, start, end)``."""
+        targets = self.targets
+        return [(*targets[k], t, a, b) for k, t, a, b in zip(
+            self.kind.tolist(), self.log_time.tolist(), self.start.tolist(), self.end.tolist(),
+            strict=True)]
 
 #: Problems named one by one in a one-line message; the rest are counted.
 PROBLEMS_SHOWN = 3

@@ -15,12 +15,14 @@ from __future__ import annotations
 import collections
 import contextlib
 import mmap
+import os
 import struct
 import threading
 import zlib
 from dataclasses import dataclass, field
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING, Any, NamedTuple
 
+import numpy as np
 from mcap.opcode import Opcode
 
 from rv_te_bench.io._cores import READ_AHEAD_ENV, helper_threads_allowed, read_ahead_setting
@@ -31,7 +33,8 @@ if TYPE_CHECKING:
     from concurrent.futures import Executor
     from pathlib import Path
 
-__all__ = ['PREFETCH_CHUNKS', 'READ_AHEAD_ENV', 'helper_threads_allowed']
+__all__ = ['CHUNK_CRC_ENV', 'PREFETCH_CHUNKS', 'READ_AHEAD_ENV', 'chunk_crc_checked',
+           'helper_threads_allowed']
 
 _U16 = struct.Struct('<H')
 _U32 = struct.Struct('<I')
@@ -134,7 +137,21 @@ except ImportError:   # pragma: no cover - a platform without an isal wheel
     _crc32 = zlib.crc32
 
 
-def _chunk_records(body: memoryview) -> memoryview:
+#: Environment switch: ``0`` skips the CRC-32 of the decompressed chunks (unset or ``1``:
+#: checked). The rosbags reader does not check it; here it is on by default because it is
+#: the only check of the measured values themselves (the writers' zstd frames carry no
+#: checksum of their own: a flipped bit in a chunk that still decompresses would otherwise
+#: change a TE value unseen). It costs 2-3 % of an analysis's CPU time (issue 41,
+#: benchmarks/README.md); switch it off only for data whose storage is checked otherwise.
+CHUNK_CRC_ENV = 'RV_TE_CHUNK_CRC'
+
+
+def chunk_crc_checked() -> bool:
+    """False when ``RV_TE_CHUNK_CRC=0`` (see :data:`CHUNK_CRC_ENV`), else True."""
+    return os.environ.get(CHUNK_CRC_ENV, '1').strip() != '0'
+
+
+def _chunk_records(body: memoryview, check_crc: bool = True) -> memoryview:
     start, end, usize, crc = _CHUNK.unpack_from(body, 0)
     _ = start, end
     compression, pos = _string(body, _CHUNK.size)
@@ -144,7 +161,7 @@ def _chunk_records(body: memoryview) -> memoryview:
     raw = _decompress(compression, body[pos + 8:pos + 8 + csize], usize)
     if len(raw) != usize:
         raise _CorruptError(f'chunk holds {len(raw)} bytes, header says {usize}')
-    if crc and _crc32(raw) != crc:
+    if crc and check_crc and _crc32(raw) != crc:
         raise _CorruptError('chunk CRC mismatch')
     return memoryview(raw)
 
@@ -165,9 +182,24 @@ def _iter_records(buf: memoryview, start: int) -> Iterator[tuple[int, int, memor
         pos = end
 
 
-_Unit = tuple[memoryview, list[tuple[int, int, int, int]]]
-"""A decompressed chunk (or one loose message) and its messages as
-(channel_id, log_time_ns, data_start, data_end) byte positions in it."""
+class _Columns(NamedTuple):
+    """The messages of a decompressed chunk (or one loose message), one array per field:
+    channel id, log time [ns] (uint64), and the byte positions of each message's data in
+    the chunk (``start``, ``end``)."""
+
+    cid: np.ndarray
+    log_time: np.ndarray
+    start: np.ndarray
+    end: np.ndarray
+
+    def rows(self) -> Iterator[tuple[int, int, int, int]]:
+        """(cid, log_time, start, end) message by message, as Python ints."""
+        return zip(*(a.tolist() for a in self), strict=True)
+
+
+_Unit = tuple[memoryview, _Columns]
+"""A decompressed chunk (or one loose message) and its messages (see ``_Columns``)."""
+
 
 #: Environment switch: ``0`` turns the helper threads of one bag's analysis off, the
 #: read-ahead here and the spectra thread of ``analyze_bag`` (a Dask worker of a fleet run on
@@ -212,17 +244,79 @@ class _Releaser:
         self.done = end
 
 
-def _walk_chunk(inner: memoryview, state: _ScanState,
-                out: list[tuple[int, int, int, int]]) -> None:
-    """Collect the messages of a decompressed chunk into ``out``, parse its other records.
+#: Message records of one length in a row from which the walk parses them as one array
+#: (issue 41): a chunk of EncoderBlocks is a few to a few hundred records of one length.
+_RUN_MIN = 8
+
+
+class _Found:
+    """The messages a chunk walk has found: rows one by one, runs as arrays."""
+
+    __slots__ = ('_pieces', '_rows')
+
+    def __init__(self) -> None:
+        self._rows: list[tuple[int, int, int, int]] = []
+        self._pieces: list[tuple[np.ndarray, ...]] = []
+
+    def __bool__(self) -> bool:
+        return bool(self._rows or self._pieces)
+
+    def _flush(self) -> None:
+        if self._rows:
+            cid, log_time, start, end = zip(*self._rows, strict=True)
+            self._pieces.append((np.array(cid, np.int64), np.array(log_time, np.uint64),
+                                 np.array(start, np.int64), np.array(end, np.int64)))
+            self._rows.clear()
+
+    def run(self, *arrays: np.ndarray) -> None:
+        self._flush()
+        self._pieces.append(arrays)
+
+    def columns(self) -> _Columns:
+        self._flush()
+        if len(self._pieces) == 1:
+            return _Columns(*self._pieces[0])
+        return _Columns(*(np.concatenate(parts) for parts in zip(*self._pieces, strict=True)))
+
+
+def _message_run(u8: np.ndarray, pos: int, length: int, found: _Found) -> int:
+    """Parse the run of message records of ``length`` bytes from ``pos`` as arrays (one
+    numpy pass over their headers, none per message); the bytes after it, or ``pos`` when
+    fewer than :data:`_RUN_MIN` records of that length follow."""
+    rec = 9 + length
+    k = (u8.size - pos) // rec
+    if k < _RUN_MIN:
+        return pos
+    rows = u8[pos:pos + k * rec].reshape(k, rec)
+    same = (rows[:, :9] == rows[0, :9]).all(axis=1)   # opcode and length as the first's
+    run = k if same.all() else int(same.argmin())
+    if run < _RUN_MIN:
+        return pos
+    rows = rows[:run]
+    first = pos + 9 + _MSG.size
+    start = np.arange(first, first + run * rec, rec, dtype=np.int64)
+    found.run(rows[:, 9:11].copy().view('<u2').ravel().astype(np.int64),
+              rows[:, 15:23].copy().view('<u8').ravel(), start, start + (length - _MSG.size))
+    return pos + run * rec
+
+
+def _walk_chunk(inner: memoryview, state: _ScanState, found: _Found) -> None:
+    """Collect the messages of a decompressed chunk into ``found``, parse its other records.
+
+    Runs of message records of one length (the EncoderBlocks of a bench) are parsed as
+    arrays, checked record by record as the plain walk checks them (opcode, length).
 
     Raises:
         _CorruptError, struct.error, UnicodeDecodeError, ValueError: A record is damaged
-            (the messages before it are in ``out``).
+            (the messages before it are in ``found``).
     """
     pos, n = 0, len(inner)
     rec, msg, op_message = _REC.unpack_from, _MSG.unpack_from, _OP_MESSAGE
     head = 9 + _MSG.size
+    rows = found._rows   # the walk appends to its accumulator directly
+    u8: np.ndarray | None = None
+    last_length = -1
+    runs = True   # off once a run came out short (records of varying lengths)
     while pos < n:
         if pos + 9 > n:
             raise _CorruptError(f'{n - pos} stray bytes at byte {pos} (truncated)')
@@ -235,8 +329,17 @@ def _walk_chunk(inner: memoryview, state: _ScanState,
         if op == op_message:
             if length < _MSG.size:
                 raise _CorruptError(f'message record at byte {pos} is {length} bytes long')
+            if runs and length == last_length:   # a second of one length: try a run
+                if u8 is None:
+                    u8 = np.frombuffer(inner, np.uint8)
+                after = _message_run(u8, pos, length, found)
+                if after > pos:
+                    pos = after
+                    continue
+                runs = False
+            last_length = length
             cid, _, log_time, _ = msg(inner, pos + 9)
-            out.append((cid, log_time, pos + head, end))
+            rows.append((cid, log_time, pos + head, end))
         else:
             _parse_meta_record(op, inner[pos + 9:end], state)
         pos = end
@@ -270,6 +373,7 @@ def _scan_units(
     buf = memoryview(mm)
     release = _Releaser(mm)
     ended = False
+    check_crc = chunk_crc_checked()
     reader_thread = threading.get_ident()
     pool: Executor | None = None
     if prefetch and messages and _read_ahead_on():
@@ -302,7 +406,7 @@ def _scan_units(
                 offset, op, body = item
                 job = None
                 if op == _OP_CHUNK and messages and pool is not None:
-                    job = pool.submit(_chunk_records, body)
+                    job = pool.submit(_chunk_records, body, check_crc)
                 ahead.append((offset, op, body, job))
                 if op in (_OP_DATA_END, _OP_FOOTER):
                     exhausted = True
@@ -319,18 +423,20 @@ def _scan_units(
                         if len(body) < _MSG.size:
                             raise _CorruptError(f'message record is {len(body)} bytes long')
                         cid, _, log_time, _ = _MSG.unpack_from(body, 0)
-                        yield memoryview(bytes(body)), [(cid, log_time, _MSG.size, len(body))]
+                        yield memoryview(bytes(body)), _Columns(
+                            np.array([cid], np.int64), np.array([log_time], np.uint64),
+                            np.array([_MSG.size], np.int64), np.array([len(body)], np.int64))
                 elif op == _OP_CHUNK:
                     # (a metadata-only scan decompresses too: schemas and channels live there)
-                    inner = _chunk_records(body) if job is None else job.result()
-                    found: list[tuple[int, int, int, int]] = []
+                    inner = _chunk_records(body, check_crc) if job is None else job.result()
+                    found = _Found()
                     damage = None
                     try:
                         _walk_chunk(inner, state, found)
                     except (_CorruptError, struct.error, UnicodeDecodeError, ValueError) as exc:
                         damage = exc   # the messages before the damaged record are sound
                     if found and messages:
-                        yield inner, found
+                        yield inner, found.columns()
                     if damage is not None:
                         raise damage
                 elif op in (_OP_DATA_END, _OP_FOOTER):
@@ -373,7 +479,7 @@ def _scan_file(
 ) -> Iterator[tuple[int, int, memoryview]]:
     """Yield (channel_id, log_time_ns, data) of every sound message of one MCAP file."""
     for inner, found in _scan_units(file, state, report, messages=messages):
-        for cid, log_time, start, end in found:
+        for cid, log_time, start, end in found.rows():
             yield cid, log_time, inner[start:end]
 
 
@@ -473,9 +579,9 @@ def _indexed_messages(file: Path, topics: Collection[str]) -> list[tuple[str, by
                 if op != _OP_CHUNK or offset + 9 + length > len(buf):
                     return None
                 inner = _chunk_records(buf[offset + 9:offset + 9 + length])
-                found: list[tuple[int, int, int, int]] = []
+                found = _Found()
                 _walk_chunk(inner, state, found)
-                for cid, _, start, end in found:
+                for cid, _, start, end in found.columns().rows():
                     if cid in wanted:
                         sid = state.channels[cid][1]
                         out.append((state.schemas.get(sid, ('', ''))[0],

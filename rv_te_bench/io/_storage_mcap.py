@@ -6,7 +6,8 @@ read-ahead, chunk CRC) is :mod:`._mcap_scan`; here it is turned into what the op
 
 * :func:`check_magic`: a file is MCAP (its first 8 bytes);
 * :func:`mcap_units`: the wanted messages of each chunk as offsets into its buffer
-  (:data:`._bag_types.Unit`), file by file, in recording order;
+  (:data:`._bag_types.Unit`), file by file, in recording order; :func:`mcap_unit_columns`
+  the same as arrays (:class:`._bag_types.UnitColumns`);
 * :func:`mcap_topics`: topic -> type and offered QoS from the channels of every file;
 * :func:`indexed_messages`: the few messages of some topics found through a file's
   summary (its chunk index), None without a sound summary;
@@ -18,7 +19,10 @@ from __future__ import annotations
 
 from typing import TYPE_CHECKING, Any
 
+import numpy as np
+
 from rv_te_bench.errors import BagError
+from rv_te_bench.io._bag_types import UnitColumns
 from rv_te_bench.io._mcap_file import MAGIC
 from rv_te_bench.io._mcap_scan import (
     _file_channels,
@@ -36,7 +40,7 @@ if TYPE_CHECKING:
     from rv_te_bench.io._bag_types import Bag, Unit
 
 __all__ = ['STORAGE', 'check_magic', 'indexed_messages', 'mcap_counts', 'mcap_topics',
-           'mcap_units']
+           'mcap_unit_columns', 'mcap_units']
 
 STORAGE = 'mcap'
 
@@ -73,29 +77,50 @@ def mcap_units(bag: Bag, report: Callable[[str], None], topics: Collection[str] 
         executor: The thread that reads MCAP chunks ahead (None: one of the scan's own).
         read_ahead: False: no chunk is read ahead (no thread at all; the one-core path).
     """
+    for unit in mcap_unit_columns(bag, report, topics, executor, read_ahead=read_ahead):
+        yield unit.buf, unit.rows()
+
+
+def mcap_unit_columns(bag: Bag, report: Callable[[str], None], topics: Collection[str] | None,
+                      executor: Executor | None = None, *, read_ahead: bool = True,
+                      ) -> Iterator[UnitColumns]:
+    """:func:`mcap_units` by columns: per chunk, its wanted messages as arrays (a chunk's
+    few channels are resolved once, its messages selected with one mask)."""
     wanted = None if topics is None else set(topics)
     for file in bag.files:
         state = _ScanState()
         resolved: dict[int, tuple[str, str] | None] = {}
-        for inner, found in _scan_units(file, state, report, executor=executor,
-                                          prefetch=read_ahead):
-            out = []
-            for cid, log_time, start, end in found:
-                if cid in resolved:
-                    target = resolved[cid]
-                else:
-                    chan = state.channels.get(cid)
+        for inner, cols in _scan_units(file, state, report, executor=executor,
+                                        prefetch=read_ahead):
+            cid = cols.cid
+            lo, hi = int(cid.min()), int(cid.max())
+            ids = [lo] if lo == hi else np.unique(cid).tolist()
+            keep: list[int] = []
+            targets: list[tuple[str, str]] = []
+            for c in ids:
+                if c not in resolved:
+                    chan = state.channels.get(c)
                     if chan is None:
-                        report(f'{file}: message on unknown channel {cid}; skipped')
+                        for _ in range(int(np.count_nonzero(cid == c))):
+                            report(f'{file}: message on unknown channel {c}; skipped')
                         continue
                     topic, sid = chan
                     msgtype = state.schemas.get(sid, ('', ''))[0] or bag.topic_types.get(topic, '')
-                    target = (topic, msgtype) if wanted is None or topic in wanted else None
-                    resolved[cid] = target
+                    resolved[c] = (topic, msgtype) if wanted is None or topic in wanted else None
+                target = resolved[c]
                 if target is not None:
-                    out.append((target[0], target[1], log_time, start, end))
-            if out:
-                yield inner, out
+                    keep.append(c)
+                    targets.append(target)
+            if not keep:
+                continue
+            if len(keep) == len(ids) == 1:   # the usual chunk: one channel, every message
+                yield UnitColumns(inner, (targets[0],), np.zeros(cid.size, np.intp),
+                                  cols.log_time, cols.start, cols.end)
+                continue
+            ids_kept = np.array(keep, np.int64)   # sorted (np.unique)
+            mask = np.isin(cid, ids_kept)
+            yield UnitColumns(inner, tuple(targets), np.searchsorted(ids_kept, cid[mask]),
+                              cols.log_time[mask], cols.start[mask], cols.end[mask])
 
 
 def mcap_topics(bag: Bag) -> dict[str, dict[str, Any]]:

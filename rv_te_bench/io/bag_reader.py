@@ -28,7 +28,7 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 
 from rv_te_bench.errors import BagError
-from rv_te_bench.io._bag_open import messages, open_bag, scan_topics, topic_types, units
+from rv_te_bench.io._bag_open import messages, open_bag, scan_topics, topic_types, unit_columns
 from rv_te_bench.io._bag_types import (
     PROBLEMS_SHOWN,
     Bag,
@@ -229,31 +229,35 @@ def read_encoder_batches(
     _check_encoder_definition(bag, name)
 
     def produce(stream: MessageStream[Any]) -> Iterator[EncoderBatch | EncoderBlockData]:
-        index = 0
-        for buf, found in units(bag, stream, [name], executor, read_ahead=read_ahead):
-            typed = []
-            for _, msgtype, log_time, start, end in found:
-                if msgtype != ENCODER_BLOCK:
+        index = 0   # of the message on the topic (as read_encoder_blocks counts)
+        for unit in unit_columns(bag, stream, [name], executor, read_ahead=read_ahead):
+            m = unit.start.size
+            typed = [msgtype == ENCODER_BLOCK for _, msgtype in unit.targets]
+            sel = None   # the EncoderBlocks of the unit: all of them
+            starts, ends = unit.start, unit.end
+            if not all(typed):
+                good = np.array(typed)[unit.kind]
+                for i in np.flatnonzero(~good).tolist():
                     stream.report_problem(
-                        f'Bag {bag.path}: topic {name!r} message {index} is stored as '
-                        f'{msgtype!r}, expected {ENCODER_BLOCK}; skipped')
-                else:
-                    typed.append((index, log_time, start, end))
-                index += 1
-            if not typed:
-                continue
-            starts = np.array([t[2] for t in typed], dtype=np.int64)
-            ends = np.array([t[3] for t in typed], dtype=np.int64)
-            for item in _encoder_items(buf, starts, ends):
-                if not isinstance(item, int):
-                    yield item
-                    continue
-                k, log_time, start, end = typed[item]
-                try:
-                    yield decode_encoder_block(buf[start:end])
-                except BagError as exc:
-                    stream.report_problem(
-                        f'{bag.path}: {name} message {k} at {log_time} ns: {exc}; skipped')
+                        f'Bag {bag.path}: topic {name!r} message {index + i} is stored as '
+                        f'{unit.targets[int(unit.kind[i])][1]!r}, expected {ENCODER_BLOCK}; '
+                        'skipped')
+                sel = np.flatnonzero(good)
+                starts, ends = starts[sel], ends[sel]
+            if starts.size:
+                for item in _encoder_items(unit.buf, starts, ends):
+                    if not isinstance(item, int):
+                        yield item
+                        continue
+                    i = item if sel is None else int(sel[item])
+                    start, end = int(unit.start[i]), int(unit.end[i])
+                    try:
+                        yield decode_encoder_block(unit.buf[start:end])
+                    except BagError as exc:
+                        stream.report_problem(
+                            f'{bag.path}: {name} message {index + i} at '
+                            f'{int(unit.log_time[i])} ns: {exc}; skipped')
+            index += m
 
     return MessageStream(produce, strict=strict)
 

@@ -145,10 +145,10 @@ def test_abandoned_read_leaves_a_shared_executor_running_and_idle(
     real = _mcap_scan._chunk_records
     decompressed: list[str] = []
 
-    def counted(body: memoryview) -> memoryview:
+    def counted(body: memoryview, *check: bool) -> memoryview:
         decompressed.append(threading.current_thread().name)
         time.sleep(0.002)   # the read-ahead queue is still full when the read stops
-        return real(body)
+        return real(body, *check)
 
     monkeypatch.setattr(_mcap_scan, '_chunk_records', counted)
     with ThreadPoolExecutor(max_workers=1, thread_name_prefix='shared') as helper:
@@ -174,13 +174,13 @@ def test_a_reader_closed_on_the_shared_executors_thread_does_not_wait_for_itself
     caller_out, closed = threading.Event(), threading.Event()
     box: dict[str, object] = {}
 
-    def closing_in_the_second_job(body: memoryview) -> memoryview:
+    def closing_in_the_second_job(body: memoryview, *check: bool) -> memoryview:
         calls.append(1)
         if len(calls) == 2:
             assert caller_out.wait(5.0)
             box['stream']._it.close()
             closed.set()
-        return real(body)
+        return real(body, *check)
 
     monkeypatch.setattr(_mcap_scan, '_chunk_records', closing_in_the_second_job)
     helper = ThreadPoolExecutor(max_workers=1)
