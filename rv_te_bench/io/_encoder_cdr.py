@@ -337,10 +337,15 @@ def _concat_f64(u8: np.ndarray, pos: np.ndarray, counts: np.ndarray) -> np.ndarr
         # messages of one layout lie at equal steps in a chunk: one strided copy of all
         # (a view of rows of 8 n bytes, ``step`` apart), no per-message Python work
         if step >= 8 * n and int(pos[-1]) + 8 * n <= u8.size \
-                and (counts == n).all() and (np.diff(pos) == step).all():
-            rows = np.lib.stride_tricks.as_strided(u8[int(pos[0]):], shape=(m, 8 * n),
-                                                   strides=(step, 1), writeable=False)
-            return rows.copy().view('<f8').ravel()
+                and (counts == n).all() and (pos[1:] - pos[:-1] == step).all():
+            # (np.ndarray over the buffer: as_strided's wrapper cost ~10 us per call)
+            rows = np.ndarray((m, 8 * n), np.uint8, buffer=u8, offset=int(pos[0]),
+                              strides=(step, 1))
+            # copied straight into the float64 array's bytes (a copy, then a view of it,
+            # took 15-20 % longer: issue 41)
+            out = np.empty(m * n, dtype='<f8')
+            np.copyto(out.view(np.uint8).reshape(m, 8 * n), rows)
+            return out
     ends = pos + 8 * counts
     return np.concatenate([u8[a:b] for a, b in zip(pos.tolist(), ends.tolist(),
                                                      strict=True)]).view('<f8')
