@@ -5,16 +5,19 @@ from __future__ import annotations
 import re
 from importlib import resources
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from rv_te_bench.errors import YamlInputError
 from rv_te_bench.safe_yaml import DOCUMENT_LIMITS, load_yaml
+
+if TYPE_CHECKING:
+    from collections.abc import Iterable
 
 _MAX_TEXT = DOCUMENT_LIMITS.max_bytes
 _NAME = re.compile(r'[A-Za-z_][A-Za-z0-9_.\-]{0,63}')
 
 
-def shown_keys(keys: Any) -> str:
+def shown_keys(keys: Iterable[object]) -> str:
     """Unknown keys for a message: the ones that look like names (a file of another kind,
     e.g. ``/etc/shadow`` given as a tolerance, must not have its lines printed); the rest
     only counted."""

@@ -23,7 +23,7 @@ DAQ file's columns or the bench's own topics (:mod:`rv_te_bench.io.measured_reco
 from __future__ import annotations
 
 import math
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING, Any, Protocol
 
 import numpy as np
 
@@ -33,6 +33,17 @@ from rv_te_bench.core.hysteresis_measured import torque_noise_nm
 if TYPE_CHECKING:
     from collections.abc import Callable
 
+    from rv_te_bench.acceptance.loss_steps import (
+        BackDrivingStep,
+        EfficiencyStep,
+        LifeStep,
+        NoLoadStep,
+        StartingTorqueStep,
+        TemperatureRiseStep,
+    )
+    from rv_te_bench.core.segments import MeasuredRecord
+    from sim.bench_info import BenchInfoData
+
 __all__ = ['LOSS_FINDERS']
 
 #: Samples below the detection level tolerated inside one ramp.
@@ -41,13 +52,35 @@ _RAMP_GAP = 5
 _PEAK_AT = 0.9
 
 
+class PartFinder(Protocol):
+    """What the finders here use of :class:`rv_te_bench.acceptance.recorded._Finder`."""
+
+    record: MeasuredRecord
+    info: BenchInfoData
+    cursor_s: float
+    used_ramps: set[int]
+
+    def run_for(self, direction: str, speed_rpm: float, load_nm: float, need_s: float,
+                role: str, label: dict[str, Any], what: str, *,
+                cut_s: float | None = None) -> SegmentData:
+        """The part of the record that is such a run (or one saying what is missing)."""
+
+    def data(self, start: int, stop: int, role: str, label: dict[str, Any], note: str = '',
+             found: dict[str, Any] | None = None) -> SegmentData:
+        """The part ``start:stop`` of the record."""
+
+    def ramp_episodes(self, channel: str, find: Callable[[], list[tuple[int, int, int]]],
+                      ) -> list[tuple[int, int, int]]:
+        """The torque ramps of ``channel`` in the record (found once by ``find``)."""
+
+
 def _lab(direction: str, speed_rpm: float, load_nm: float, settle_s: float,
          **extra: Any) -> dict[str, Any]:
     return {'direction': direction, 'speed_rpm': speed_rpm, 'load_nm': load_nm,
             'settle_s': settle_s, **extra}
 
 
-def _efficiency(finder: Any, step: Any) -> list[SegmentData]:
+def _efficiency(finder: PartFinder, step: EfficiencyStep) -> list[SegmentData]:
     need = step.settle_s + step.measure_s
     return [finder.run_for(step.direction, s, ld, need, 'efficiency',
                            _lab(step.direction, s, ld, step.settle_s),
@@ -56,7 +89,7 @@ def _efficiency(finder: Any, step: Any) -> list[SegmentData]:
             for s in step.speeds_rpm for ld in step.loads_nm]
 
 
-def _no_load(finder: Any, step: Any) -> list[SegmentData]:
+def _no_load(finder: PartFinder, step: NoLoadStep) -> list[SegmentData]:
     need = step.settle_s + step.measure_s
     return [finder.run_for(step.direction, s, 0.0, need, 'no_load',
                            _lab(step.direction, s, 0.0, step.settle_s),
@@ -65,7 +98,7 @@ def _no_load(finder: Any, step: Any) -> list[SegmentData]:
             for s in step.speeds_rpm]
 
 
-def _temperature(finder: Any, step: Any) -> list[SegmentData]:
+def _temperature(finder: PartFinder, step: TemperatureRiseStep) -> list[SegmentData]:
     return [finder.run_for(step.direction, step.speed_rpm, step.load_nm, 2.0 * step.window_s,
                            'temperature', _lab(step.direction, step.speed_rpm, step.load_nm,
                                                0.0),
@@ -73,7 +106,7 @@ def _temperature(finder: Any, step: Any) -> list[SegmentData]:
                            cut_s=step.max_duration_s)]
 
 
-def _life(finder: Any, step: Any) -> list[SegmentData]:
+def _life(finder: PartFinder, step: LifeStep) -> list[SegmentData]:
     d = step.direction
     rev_s = finder.info.gear_ratio * 60.0 / step.te_speed_rpm
     te_s = step.settle_s + rev_s * 1.02 + 2.0 / finder.info.sample_rate_hz
@@ -136,8 +169,10 @@ def _episodes(torque: np.ndarray, angle: np.ndarray, breaks: np.ndarray,
     return out
 
 
-def _ramps(channel: str) -> Callable[[Any, Any], list[SegmentData]]:
-    def find(finder: Any, step: Any) -> list[SegmentData]:
+def _ramps(channel: str,
+           ) -> Callable[[PartFinder, StartingTorqueStep | BackDrivingStep], list[SegmentData]]:
+    def find(finder: PartFinder, step: StartingTorqueStep | BackDrivingStep,
+             ) -> list[SegmentData]:
         r = finder.record
         torque = r.torque_in_nm if channel == 'torque_in' else r.torque_out_nm
         angle = r.theta_in_rad if channel == 'torque_in' else r.theta_out_rad
@@ -173,6 +208,8 @@ def _ramps(channel: str) -> Callable[[Any, Any], list[SegmentData]]:
 
 
 #: Step kind -> how its parts are found in a measured record (recorded.FINDERS takes these).
-LOSS_FINDERS: dict[str, Callable[[Any, Any], list[SegmentData]]] = {
+#: The step is Any: each finder takes the step class of its key's kind, which a table
+#: indexed by kind cannot say.
+LOSS_FINDERS: dict[str, Callable[[PartFinder, Any], list[SegmentData]]] = {
     'efficiency': _efficiency, 'no_load': _no_load, 'temperature_rise': _temperature,
     'life': _life, 'starting_torque': _ramps('torque_in'), 'back_driving': _ramps('torque_out')}

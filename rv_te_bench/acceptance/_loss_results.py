@@ -38,6 +38,14 @@ if TYPE_CHECKING:
     from collections.abc import Callable
 
     from rv_te_bench.acceptance._segments import SegmentData
+    from rv_te_bench.acceptance.loss_steps import (
+        BackDrivingStep,
+        EfficiencyStep,
+        LifeStep,
+        NoLoadStep,
+        StartingTorqueStep,
+        TemperatureRiseStep,
+    )
     from rv_te_bench.core.uncertainty import Budget
     from sim.bench_info import BenchInfoData
 
@@ -118,7 +126,8 @@ def _ramp_residual(time_s: np.ndarray, torque_nm: np.ndarray, t_found: float,
     return float(np.std(res, ddof=2)), n - 2
 
 
-def _efficiency_result(step: Any, info: BenchInfoData, segments: list[SegmentData]) -> Result:
+def _efficiency_result(step: EfficiencyStep, info: BenchInfoData,
+                       segments: list[SegmentData]) -> Result:
     u_in, u_out = _u_class(info, 'torque_in'), _u_class(info, 'torque_out')
     # the speed ratio from the angles: one increment (uniform) per reading
     u_angle = max(info.encoder_in_resolution_rad, info.encoder_out_resolution_rad) \
@@ -177,7 +186,7 @@ def _efficiency_result(step: Any, info: BenchInfoData, segments: list[SegmentDat
                                      'the judged value carries its point\'s budget'}
 
 
-def _no_load_result(step: Any, info: BenchInfoData, segments: list[SegmentData]) -> Result:
+def _no_load_result(step: NoLoadStep, info: BenchInfoData, segments: list[SegmentData]) -> Result:
     u_in = _u_class(info, 'torque_in')
     rows, measured, budgets = [], [], []
     for seg in (s for s in segments if s.role == 'no_load'):
@@ -216,9 +225,11 @@ def _no_load_result(step: Any, info: BenchInfoData, segments: list[SegmentData])
     return measured, {'kind': step.kind, 'rows': rows}
 
 
-def _ramp_result(metric: str, channel: str) -> Callable[[Any, BenchInfoData,
-                                                          list[SegmentData]], Result]:
-    def result(step: Any, info: BenchInfoData, segments: list[SegmentData]) -> Result:
+def _ramp_result(metric: str, channel: str,
+                 ) -> Callable[[StartingTorqueStep | BackDrivingStep, BenchInfoData,
+                                list[SegmentData]], Result]:
+    def result(step: StartingTorqueStep | BackDrivingStep, info: BenchInfoData,
+               segments: list[SegmentData]) -> Result:
         rows, measured, budgets = [], [], []
         u = _u_class(info, channel)
         for seg in (s for s in segments if s.role == 'ramp'):
@@ -272,7 +283,8 @@ def _ramp_result(metric: str, channel: str) -> Callable[[Any, BenchInfoData,
     return result
 
 
-def _temperature_result(step: Any, info: BenchInfoData, segments: list[SegmentData]) -> Result:
+def _temperature_result(step: TemperatureRiseStep, info: BenchInfoData,
+                        segments: list[SegmentData]) -> Result:
     segs = [s for s in segments if s.role == 'temperature']
     details: dict[str, Any] = {'kind': step.kind, 'speed_rpm': step.speed_rpm,
                                'load_nm': step.load_nm,
@@ -316,7 +328,7 @@ def _temperature_result(step: Any, info: BenchInfoData, segments: list[SegmentDa
             Measured('sweep:temperature_settle_time_s', step.name, 's', settle, note)], details
 
 
-def _checkpoint(step: Any, info: BenchInfoData, k: int, segs: list[SegmentData],
+def _checkpoint(step: LifeStep, info: BenchInfoData, k: int, segs: list[SegmentData],
                 orders: OrderSet | None) -> dict[str, Any]:
     row: dict[str, Any] = {'checkpoint': k}
     te = [s for s in segs if s.role == 'life_te']
@@ -346,7 +358,7 @@ def _checkpoint(step: Any, info: BenchInfoData, k: int, segs: list[SegmentData],
     return row
 
 
-def _life_result(step: Any, info: BenchInfoData, segments: list[SegmentData]) -> Result:
+def _life_result(step: LifeStep, info: BenchInfoData, segments: list[SegmentData]) -> Result:
     orders = OrderSet.from_bench_info(info) if info.crank_per_input else None
     rows = [_checkpoint(step, info, k, [s for s in segments
                                         if s.label.get('checkpoint') == k], orders)
@@ -391,7 +403,8 @@ def _life_result(step: Any, info: BenchInfoData, segments: list[SegmentData]) ->
                       'temperature_degc': [r.get('temp_case_degc') for r in rows]}
 
 
-#: kind -> result (the acceptance _results.RESULTS takes these).
+#: kind -> result (the acceptance _results.RESULTS takes these). The step is Any: each
+#: result takes the step class of its key's kind, which the table cannot say.
 LOSS_RESULTS: dict[str, Callable[[Any, BenchInfoData, list[SegmentData]], Result]] = {
     'efficiency': _efficiency_result, 'no_load': _no_load_result,
     'starting_torque': _ramp_result('starting_torque', 'torque_in'),

@@ -10,7 +10,7 @@ NaN with that note, which the tolerance evaluation turns into ``not_judged``.
 from __future__ import annotations
 
 import math
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING, Any, TypeVar
 
 import numpy as np
 
@@ -45,6 +45,8 @@ if TYPE_CHECKING:
 __all__ = ['RESULTS', 'SegmentData', 'hysteresis_reading', 'step_result']
 
 _MAX_CURVE_POINTS = 4000
+#: The step class a result function takes.
+_S = TypeVar('_S')
 #: Spectrum bins kept for the report (the labelled lines are kept whatever their order).
 _SPECTRUM_BINS = 400
 
@@ -311,20 +313,21 @@ def _operator_result(step: OperatorStep, _info: BenchInfoData, _segments: list[S
     return [], {'kind': 'operator', 'instruction': step.instruction}
 
 
-def _without_budget(f: Callable[[Any, BenchInfoData, list[SegmentData]],
+def _without_budget(f: Callable[[_S, BenchInfoData, list[SegmentData]],
                                  tuple[list[Measured], dict[str, Any]]],
-                    ) -> Callable[[Any, BenchInfoData, list[SegmentData], BenchUncertainty],
+                    ) -> Callable[[_S, BenchInfoData, list[SegmentData], BenchUncertainty],
                                   tuple[list[Measured], dict[str, Any]]]:
     """A whole-reducer step's result: its budgets come from the bench record's transducer
     classes and the data (core/loss_uncertainty.py), not from the encoders' error model."""
-    def run(step: Any, info: BenchInfoData, segments: list[SegmentData],
+    def run(step: _S, info: BenchInfoData, segments: list[SegmentData],
             _bench: BenchUncertainty) -> tuple[list[Measured], dict[str, Any]]:
         return f(step, info, segments)
 
     return run
 
 
-#: Step kind -> its result from the segments' data (see plan._KINDS for a new kind).
+#: Step kind -> its result from the segments' data (see plan._KINDS for a new kind). The
+#: step is Any: each result takes the step class of its key's kind, which the table cannot say.
 RESULTS: dict[str, Callable[[Any, BenchInfoData, list[SegmentData], BenchUncertainty],
                             tuple[list[Measured], dict[str, Any]]]] = {
     'te': _te_result, 'sweep': _te_result, 'hysteresis': _hysteresis_result,

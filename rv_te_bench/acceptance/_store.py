@@ -25,7 +25,7 @@ from typing import TYPE_CHECKING, Any
 if TYPE_CHECKING:
     from pathlib import Path
 
-    from rv_te_bench.store import UnitRecord
+    from rv_te_bench.store import MetricValue, UnitRecord
     from rv_te_bench.store.records import Direction, Verdict
 
 __all__ = ['life_rows', 'record_of_report', 'store_record']
@@ -52,7 +52,7 @@ def _slug(label: str) -> str:
     return re.sub(r'[^a-z0-9]+', '_', label.lower()).strip('_')
 
 
-def life_rows(report: dict[str, Any]) -> list[Any]:
+def life_rows(report: dict[str, Any]) -> list[MetricValue]:
     """The checkpoints of the report's life steps as store metrics (see the module doc)."""
     from rv_te_bench.store import MetricValue
 

@@ -36,6 +36,8 @@ from rv_te_bench.errors import AcceptanceError
 if TYPE_CHECKING:
     import numpy.typing as npt
 
+    from rv_te_bench.acceptance.plan import TestPlan
+
 __all__ = ['ZERO', 'DriverSettings', 'ProgramDriver', 'SafetyLimits', 'Setpoint', 'Update',
            'plan_limits']
 
@@ -388,7 +390,7 @@ class ProgramDriver:
                 f'{self.index}: {want}; read back: {now}) after {waited:.3g} s')
 
 
-def plan_limits(plan: Any, *, bench_max_input_speed_rpm: float = math.nan,
+def plan_limits(plan: TestPlan, *, bench_max_input_speed_rpm: float = math.nan,
                 bench_max_output_torque_nm: float = math.nan, bench_origin: str = 'bench',
                 margin: float = 1.25) -> SafetyLimits:
     """The safety limits of a plan on a bench: the smallest of the plan's ``safety``, the

@@ -32,6 +32,8 @@ from dataclasses import dataclass
 from typing import TYPE_CHECKING, Any
 
 if TYPE_CHECKING:
+    from collections.abc import Callable
+
     from rv_te_bench.acceptance._fields import Fields
     from rv_te_bench.acceptance._segments import ProgramSink
 
@@ -166,8 +168,9 @@ def _no_load(f: Fields, name: str) -> NoLoadStep:
     return NoLoadStep(name, speeds, direction, settle, measure)
 
 
-def _ramp(cls: type, default_dirs: list[str]) -> Any:
-    def parse(f: Fields, name: str) -> Any:
+def _ramp(cls: type[StartingTorqueStep | BackDrivingStep], default_dirs: list[str],
+          ) -> Callable[[Fields, str], StartingTorqueStep | BackDrivingStep]:
+    def parse(f: Fields, name: str) -> StartingTorqueStep | BackDrivingStep:
         rate = f.num('ramp_rate_nm_s', lo=0.0, lo_open=True, hi=_MAX_TORQUE_NM)
         top = f.num('max_torque_nm', lo=0.0, lo_open=True, hi=_MAX_TORQUE_NM)
         thr = f.num('threshold_rad', lo=0.0, lo_open=True, hi=0.1)
@@ -219,11 +222,16 @@ def _life(f: Fields, name: str) -> LifeStep:
     return step
 
 
+#: A whole-reducer step.
+LossStep = (EfficiencyStep | NoLoadStep | StartingTorqueStep | BackDrivingStep
+            | TemperatureRiseStep | LifeStep)
+
 #: kind -> parser (plan._KINDS takes these).
-LOSS_KINDS = {'efficiency': _efficiency, 'no_load': _no_load,
-              'starting_torque': _ramp(StartingTorqueStep, ['ccw', 'cw']),
-              'back_driving': _ramp(BackDrivingStep, ['ccw']),
-              'temperature_rise': _temperature, 'life': _life}
+LOSS_KINDS: dict[str, Callable[[Fields, str], LossStep]] = {
+    'efficiency': _efficiency, 'no_load': _no_load,
+    'starting_torque': _ramp(StartingTorqueStep, ['ccw', 'cw']),
+    'back_driving': _ramp(BackDrivingStep, ['ccw']),
+    'temperature_rise': _temperature, 'life': _life}
 
 
 # -- programs --------------------------------------------------------------------------------
@@ -248,7 +256,8 @@ def _no_load_program(r: ProgramSink, step: NoLoadStep) -> None:
                {'direction': step.direction})
 
 
-def _ramp_program(shaft: str) -> Any:
+def _ramp_program(shaft: str,
+                  ) -> Callable[[ProgramSink, StartingTorqueStep | BackDrivingStep], None]:
     def build(r: ProgramSink, step: StartingTorqueStep | BackDrivingStep) -> None:
         r.live_name = 'torque_nm'
         for d in step.directions:
@@ -276,8 +285,10 @@ def _life_program(r: ProgramSink, step: LifeStep) -> None:
                'life_no_load', lab)
 
 
-#: kind -> bench program builder (runner.PROGRAMS takes these).
-LOSS_PROGRAMS = {'efficiency': _efficiency_program, 'no_load': _no_load_program,
-                 'starting_torque': _ramp_program('input'),
-                 'back_driving': _ramp_program('output'),
-                 'temperature_rise': _temperature_program, 'life': _life_program}
+#: kind -> bench program builder (runner.PROGRAMS takes these). The step is Any: each
+#: builder takes the step class of its key's kind, which the table cannot say.
+LOSS_PROGRAMS: dict[str, Callable[[ProgramSink, Any], None]] = {
+    'efficiency': _efficiency_program, 'no_load': _no_load_program,
+    'starting_torque': _ramp_program('input'),
+    'back_driving': _ramp_program('output'),
+    'temperature_rise': _temperature_program, 'life': _life_program}

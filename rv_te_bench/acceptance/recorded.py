@@ -321,7 +321,8 @@ def _no_parts(_finder: _Finder, _step: Step) -> list[SegmentData]:
     return []   # an operator step leaves no data to find
 
 
-#: Step kind -> how its parts are found in a measured record (see plan._KINDS).
+#: Step kind -> how its parts are found in a measured record (see plan._KINDS). The step
+#: is Any: each finder takes the step class of its key's kind, which the table cannot say.
 FINDERS: dict[str, Callable[[_Finder, Any], list[SegmentData]]] = {
     'te': _te_parts, 'sweep': _sweep_parts, 'hysteresis': _hysteresis_parts,
     'operator': _no_parts, **LOSS_FINDERS}

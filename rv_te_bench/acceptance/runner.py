@@ -291,7 +291,8 @@ def running_verdicts(measured: list[Measured], profile: ToleranceProfile,
     return rows, 'fail' if any(r['verdict'] == 'fail' for r in rows) else 'running'
 
 
-#: Step kind -> the builder of its bench program (see plan._KINDS for a new kind).
+#: Step kind -> the builder of its bench program (see plan._KINDS for a new kind). The step
+#: is Any: each builder takes the step class of its key's kind, which the table cannot say.
 PROGRAMS: dict[str, Callable[[StepRunner, Any], None]] = {
     'te': _te_program, 'sweep': _sweep_program, 'hysteresis': _hysteresis_program,
     'operator': _operator_program, **LOSS_PROGRAMS}
