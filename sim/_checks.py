@@ -38,7 +38,8 @@ def real_number(label: str, value: Any, rule: Rule = '', *,
 
     Args:
         label: What it is, for the message (``''``: the message starts at "must").
-        value: The value given.
+        value: The value given (Any: with ``coerce`` it goes to ``float()`` as it is, a
+            TypeError caught).
         rule: The sign rule on top of "finite" (see :data:`Rule`).
         error: The exception class to raise (the caller's domain error).
         coerce: Take anything ``float()`` takes (text too); without it only int, float

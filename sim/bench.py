@@ -33,7 +33,7 @@ from sim.bench_info import DEFAULT_SAMPLE_RATE_HZ, BenchInfoData
 from sim.drive import ConstantLoad, profile_to_plain
 from sim.encoders import EncoderSpec, SimulatedEncoder, encoder_preset
 from sim.errors import ModelInputError
-from sim.loss_bench import LossChannels, LossConfig
+from sim.loss_bench import LossBlock, LossChannels, LossConfig
 from sim.models import build_te_model
 from sim.presets import Preset, load_preset, parse_override_items
 
@@ -258,7 +258,7 @@ def scale_fields(side: str, spec: EncoderSpec) -> dict[str, Any]:
             f'encoder_{side}_scale_index_rad': spec.scale_index_rad}
 
 
-def loss_fields(lb: Any) -> dict[str, np.ndarray]:
+def loss_fields(lb: LossBlock) -> dict[str, np.ndarray]:
     """The :class:`BenchBlock` loss fields of a :class:`sim.loss_bench.LossBlock`
     (read-only arrays)."""
     return {'torque_in_nm': _readonly(lb.torque_in_meas_nm),

@@ -115,7 +115,7 @@ class BenchInfoData:
         return tuple(f.name for f in fields(cls))
 
     @classmethod
-    def from_message(cls, msg: Any) -> BenchInfoData:
+    def from_message(cls, msg: object) -> BenchInfoData:
         """The record of a ``BenchInfo`` message (rclpy or rosbags) or anything alike.
 
         Args:

@@ -63,7 +63,7 @@ __all__ = [
 ]
 
 
-def _num(cls: str, name: str, value: Any, *, rule: Rule = '') -> float:
+def _num(cls: str, name: str, value: object, *, rule: Rule = '') -> float:
     """``value`` as a finite float keeping ``rule``; the message names ``cls.name``."""
     return real_number(f'{cls}.{name}', value, rule)
 

@@ -61,7 +61,7 @@ _TWO_PI = 2.0 * math.pi
 _MAX_COUNTS_PER_REV = 2**40
 
 
-def _finite_float(name: str, value: Any, *, nonneg: bool = False) -> float:
+def _finite_float(name: str, value: object, *, nonneg: bool = False) -> float:
     """Return ``value`` as float or raise naming ``name`` and the rule."""
     return real_number(name, value, '>=0' if nonneg else '')
 

@@ -32,7 +32,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING
 
 import numpy as np
 
@@ -53,7 +53,7 @@ __all__ = [
 _KINDS = ('2kv', 'rv')
 
 
-def _check_teeth(name: str, value: Any) -> int:
+def _check_teeth(name: str, value: object) -> int:
     """Return ``value`` as a positive int or raise naming ``name``."""
     if isinstance(value, bool) or not isinstance(value, int | np.integer):
         msg = f'{name} must be an integer tooth count, got {value!r}'

@@ -110,7 +110,7 @@ from sim.errors import ModelInputError, PresetError
 from sim.kinematics import kinematics_from_preset
 
 
-def _lapack_dposv() -> Any:
+def _lapack_dposv() -> Any:   # a ctypes function or None (checked where the path is chosen)
     """LAPACK dposv as a ctypes function (SciPy's public Cython LAPACK table), or None.
 
     Called with the addresses of its eight arguments; about 1.5 us less per call than the
@@ -237,7 +237,7 @@ _FIELDS: dict[str, tuple[str, str]] = {
 }
 
 
-def _check(name: str, key: str, rule: str, value: Any) -> None:
+def _check(name: str, key: str, rule: str, value: object) -> None:
     """Raise PresetError naming ``key`` when ``value`` breaks ``rule``."""
     if rule == 'bool':
         if not isinstance(value, bool):

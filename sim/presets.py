@@ -141,7 +141,7 @@ def parse_override_items(overrides: dict[str, str] | list[str]) -> dict[str, str
     return out
 
 
-def _coerce(key: str, text: str, like: Any) -> Any:
+def _coerce(key: str, text: str, like: object) -> object:
     """Parse ``text`` into the type of ``like``; name the key on failure."""
     try:
         if isinstance(like, bool):

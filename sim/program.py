@@ -66,7 +66,7 @@ __all__ = [
 ]
 
 
-def _num(seg: str, name: str, value: Any, rule: Rule = '') -> float:
+def _num(seg: str, name: str, value: object, rule: Rule = '') -> float:
     return real_number(f'{seg}: {name}', value, rule)
 
 

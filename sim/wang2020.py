@@ -96,6 +96,10 @@ if TYPE_CHECKING:
     #: The four assembly phases (theta_p1_0, theta_p2_0, theta_g_0, theta_ot_0) [rad], each a
     #: number or an array (broadcast over a grid of phases).
     PhasesLike: TypeAlias = Sequence[npt.ArrayLike] | npt.NDArray[np.float64]
+    #: The modal constants of a linear stretch: eigenvalues, their exp(lam h) and the two
+    #: input weights (each of the two modes).
+    _Modal: TypeAlias = tuple[npt.NDArray[np.complex128], npt.NDArray[np.complex128],
+                              npt.NDArray[np.complex128], npt.NDArray[np.complex128]]
 
 __all__ = [
     'DTE_STARTS',
@@ -160,7 +164,7 @@ TABLE4_DTE_START: dict[str, str] = {
 }
 
 
-def _fail(name: str, value: Any, rule: str) -> None:
+def _fail(name: str, value: object, rule: str) -> None:
     msg = f'{_KEYS.get(name, name)} = {value!r}: {rule}'
     raise PresetError(msg)
 
@@ -550,7 +554,7 @@ class _Velocity:
 
     __slots__ = ('_parts',)
 
-    def __init__(self, parts: tuple[tuple[Any, np.ndarray], ...]) -> None:
+    def __init__(self, parts: tuple[tuple[complex, np.ndarray], ...]) -> None:
         self._parts = parts
 
     def __getitem__(self, i: int) -> float:
@@ -593,6 +597,7 @@ class Wang2kvDynamics:
         basis = np.stack([np.cos(rc * basis_pts) - 1.0, np.sin(rc * basis_pts),
                           np.cos(basis_pts) - 1.0, np.sin(basis_pts), np.ones(basis_pts.size)])
         self._coef = np.linalg.lstsq(basis.T, rows.T, rcond=None)[0].T   # (4, 5), exact
+        # n >= 0: the modal constants (_Modal); n < 0: the discrete step's floats (_disc)
         self._cache: dict[tuple[int, float], tuple[Any, ...]] = {}
         self._ripple = bool(params.stiffness_harmonic_ratio) and any(
             r != 0 for r in params.stiffness_harmonic_ratio)
@@ -638,7 +643,7 @@ class Wang2kvDynamics:
         return _Grid(h=h, u=u, ud=ud, k=k, f_load=fl)
 
     # ---- linear pieces
-    def _modal(self, n: int, h: float) -> tuple[Any, ...]:
+    def _modal(self, n: int, h: float) -> _Modal:
         key = (n, h)
         hit = self._cache.get(key)
         if hit is not None:
