@@ -13,15 +13,15 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, field
-from typing import Any, SupportsFloat
+from typing import Any, NotRequired, SupportsFloat, TypedDict
 
 from rv_te_bench.core.phases import PHASE_NAMES, EccentricGeometry
 from rv_te_bench.core.units import json_deg, rad_to_arcmin, rad_to_arcsec
 from rv_te_bench.errors import CompensationError
 
 __all__ = ['LABEL_MISFIT_FLOOR', 'LABEL_RATIO_RESOLVED', 'MIN_EXPLAINED_FRACTION', 'OBSERVABILITY',
-           'SPLIT_WELL_POSED_DEG_PER_PCT', 'FitQuality', 'Identification', 'PoorFitError',
-           'json_rounded']
+           'SPLIT_WELL_POSED_DEG_PER_PCT', 'FitQuality', 'FitQualityJson', 'Identification',
+           'IdentificationJson', 'Observability', 'PoorFitError', 'json_rounded']
 
 #: label_ratio above which pair 1 and pair 2 count as told apart ...
 LABEL_RATIO_RESOLVED = 2.0
@@ -34,8 +34,64 @@ MIN_EXPLAINED_FRACTION = 0.99
 #: A split counts as well posed when a 1 % vector error turns no part phase by more.
 SPLIT_WELL_POSED_DEG_PER_PCT = 5.0
 
+
+class Observability(TypedDict):
+    """What one TE record identifies and what needs the measured part magnitudes."""
+
+    identified_from_te: list[str]
+    needs_part_magnitudes: list[str]
+
+
+class FitQualityJson(TypedDict):
+    """The JSON of :class:`FitQuality` (None: not finite)."""
+
+    residual_rms_arcsec: float | None
+    te_std_arcsec: float | None
+    noise_rms_arcsec: float | None
+    explained_fraction: float | None
+    min_explained_fraction: float
+    acceptable: bool
+    residual_rms_rad: float | None
+    te_std_rad: float | None
+    noise_rms_rad: float | None
+
+
+class IdentificationJson(TypedDict):
+    """The JSON of :class:`Identification` (None: not finite, or not resolved), with its U
+    when the bench's uncertainty is known (:func:`.identify.identification_u95_json`)."""
+
+    e_um: dict[str, float | None]
+    e_m: dict[str, float]
+    phases_deg: dict[str, float | None]
+    phases_rad: dict[str, float]
+    sigma_um: dict[str, float | None]
+    sigma_deg: dict[str, float | None]
+    residual_rms_arcsec: float | None
+    offset_arcmin: float | None
+    fit: FitQualityJson | None
+    contact_fraction: list[float | None]
+    output_revolutions: float | None
+    n_samples: int
+    assumed_e_um: dict[str, float | None]
+    split_residual_um: float | None
+    split_deg_per_pct_vector_error: float | None
+    split_deg_per_um_magnitude_error: float | None
+    split_well_posed: bool | None
+    labels_swapped: bool
+    label_ratio: float | None
+    label_misfit_um: float | None
+    labels_resolved: bool | None
+    observability: Observability
+    notes: list[str]
+    u95_m: NotRequired[dict[str, float | None]]
+    u95_rad: NotRequired[dict[str, float | None]]
+    u95_um: NotRequired[dict[str, float | None]]
+    u95_deg: NotRequired[dict[str, float | None]]
+    uncertainty: NotRequired[dict[str, dict[str, Any]]]
+
+
 #: What one TE record identifies and what needs the measured part magnitudes (for output).
-OBSERVABILITY: dict[str, Any] = {
+OBSERVABILITY: Observability = {
     'identified_from_te': [
         'Q1 = e_p1 e^(i theta_p1) + e_g e^(i theta_g): pair-1 sum of planet and revolution '
         'eccentricity',
@@ -97,7 +153,7 @@ class FitQuality:
                 f'TE std {float(rad_to_arcsec(self.te_std_rad)):.2f}": the model explains '
                 f'{100 * self.explained_fraction:.3f} % of the TE variance')
 
-    def to_json_dict(self) -> dict[str, Any]:
+    def to_json_dict(self) -> FitQualityJson:
         """JSON-friendly dict (arcsec for people, rad kept)."""
         return {
             'residual_rms_arcsec': json_rounded(rad_to_arcsec(self.residual_rms_rad), 4),
@@ -217,7 +273,7 @@ class Identification:
                            f'{self.split_residual_m * 1e6:.2f} um): measure the parts')
         return out
 
-    def to_json_dict(self) -> dict[str, Any]:
+    def to_json_dict(self) -> IdentificationJson:
         """JSON-friendly dict with unit suffixes (um, deg, arcsec for people)."""
         return {
             'e_um': {k: json_rounded(v * 1e6, 6) for k, v in self.e_m.items()},

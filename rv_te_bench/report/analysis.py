@@ -79,9 +79,11 @@ if TYPE_CHECKING:
     from rv_te_bench.core.angle_fold import FoldedTe
     from rv_te_bench.core.bench_uncertainty import BenchUncertainty
     from rv_te_bench.core.encoder_calibration import EncoderCalibration
+    from rv_te_bench.core.identification import IdentificationJson
     from rv_te_bench.core.stream_records import WindowResult
     from rv_te_bench.core.te import TeStats
     from sim.bench_info import BenchInfoData
+    from sim.presets import Preset
 
     ProgressFn = Callable[[int, int, float], None]
 
@@ -501,7 +503,7 @@ def _agree_with_diagnosis(rec: Recommendation, dominant: DominantHarmonic | None
     return rec
 
 
-def _advice_2kv(preset: Any, folded: FoldedTe | None, search: tuple[float, bool],
+def _advice_2kv(preset: Preset, folded: FoldedTe | None, search: tuple[float, bool],
                 uncertainty: BenchUncertainty | None = None,
                 gear_ratio: float = math.nan) -> Recommendation:
     """Identified assembly phases when possible, else the model-based Wang 2020 Eq. 21
@@ -530,7 +532,7 @@ def _advice_2kv(preset: Any, folded: FoldedTe | None, search: tuple[float, bool]
         '(model-based, not identified from this measurement)'), advice=advice)
 
 
-def describe_identification(ident: dict[str, Any]) -> list[str]:
+def describe_identification(ident: IdentificationJson) -> list[str]:
     """Lines for people about an identification (the JSON of ``Identification``): what one
     TE record identified, what rests on assumed part magnitudes, and the notes."""
     e, ph = ident['e_um'], ident['phases_deg']

@@ -23,6 +23,7 @@ if TYPE_CHECKING:
     import numpy.typing as npt
 
     from rv_te_bench.core.advice import Advice
+    from rv_te_bench.core.identification import IdentificationJson
     from rv_te_bench.core.orders import OrderSet
     from rv_te_bench.core.spectrum import SpectrumLine
     from rv_te_bench.core.stream_records import GapEvent, WindowResult
@@ -155,7 +156,7 @@ class Recommendation:
     available: bool
     reason: str
     advice: Advice | None = None
-    identification: dict[str, Any] | None = None
+    identification: IdentificationJson | None = None
     encoder_flag: str = ''
 
     def to_json_dict(self) -> dict[str, Any]:
