@@ -313,7 +313,7 @@ _ENCODER_KEYS = {'accuracy_arcsec', 'interpolation_arcsec', 'signal_periods',
 _TOP_KEYS = {'encoders', 'daq_skew_ns', 'torque_sensor', 'temperature', 'source'}
 
 
-def _num(where: str, key: str, v: Any, *, minimum: float = 0.0) -> float:
+def _num(where: str, key: str, v: object, *, minimum: float = 0.0) -> float:
     if isinstance(v, bool) or not isinstance(v, int | float) or not math.isfinite(v) \
             or v < minimum:
         msg = f'{where}: {key} must be a finite number >= {minimum:g}, got {v!r}'

@@ -21,6 +21,8 @@ from typing import TYPE_CHECKING, Any
 from rv_te_bench.core.units import rad_to_arcsec
 
 if TYPE_CHECKING:
+    import numpy.typing as npt
+
     from rv_te_bench.core.bench_uncertainty import EncoderErrorModel
     from rv_te_bench.core.encoder_calibration import EncoderCalibration
     from rv_te_bench.core.heads import HeadLayout
@@ -168,7 +170,7 @@ def note_for_bench(info: BenchInfoData, heads_record: dict[str, Any] | None,
         layout=layout, calibration=cal)
 
 
-def line_amplitude_rad(theta_out_rad: Any, te_rad: Any) -> float:
+def line_amplitude_rad(theta_out_rad: npt.ArrayLike, te_rad: npt.ArrayLike) -> float:
     """Amplitude of the TE's order-1 line over whole output revolutions [rad] (NaN with
     less than one)."""
     import numpy as np

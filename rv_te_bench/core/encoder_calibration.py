@@ -232,7 +232,7 @@ class EncoderCalibration:
         }
 
 
-def _num(where: str, key: str, v: Any, *, nonneg: bool = False) -> float:
+def _num(where: str, key: str, v: object, *, nonneg: bool = False) -> float:
     if isinstance(v, bool) or not isinstance(v, int | float) or not math.isfinite(v) or (
             nonneg and v < 0):
         rule = 'a finite number' + (' >= 0' if nonneg else '')

@@ -315,7 +315,7 @@ def combine_stream(items: Iterable[EncoderBlockData | EncoderBatch], combiner: H
     if not combiner.active:
         yield from items
         return
-    used: Any = None
+    used: str | tuple[tuple[str, tuple[int, ...]], ...] | None = None   # 'all': every head
     for item in items:
         if isinstance(item, EncoderBatch) and combiner.batch_complete(item):
             if used not in (None, 'all'):

@@ -91,7 +91,7 @@ _N_PROBE = 64                    # most promising combinations that set the firs
 _TWO_PI = 2.0 * math.pi
 
 
-def _finite(name: str, value: Any, *, positive: bool = False, nonneg: bool = False,
+def _finite(name: str, value: object, *, positive: bool = False, nonneg: bool = False,
             ) -> float:
     """Return ``value`` as float or raise CompensationError naming ``name``."""
     rule: Rule = '>0' if positive else '>=0' if nonneg else ''

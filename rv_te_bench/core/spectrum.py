@@ -47,6 +47,8 @@ from rv_te_bench.core.units import json_deg, json_float, rad_to_arcmin
 from rv_te_bench.errors import TeInputError
 
 if TYPE_CHECKING:
+    from types import ModuleType
+
     import numpy.typing as npt
 
     from rv_te_bench.core.orders import OrderSet
@@ -220,7 +222,7 @@ class AngleResampled:
 _CHUNK = 16384  # grid points per pass: keeps the temporaries in cache and off mmap
 
 try:   # the compiled resampler (pyproject.toml ext-modules; optional: else numpy does it)
-    _KERNEL: Any = importlib.import_module('rv_te_bench.core._lagrange')
+    _KERNEL: ModuleType | None = importlib.import_module('rv_te_bench.core._lagrange')
 except ImportError:   # pragma: no cover - depends on how the package was installed
     _KERNEL = None
 #: Which resampler :func:`order_spectrum` uses: ``'compiled'`` or ``'numpy'`` (same values).

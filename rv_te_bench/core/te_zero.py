@@ -89,7 +89,7 @@ class EncoderZero:
             object.__setattr__(self, name, float(v))
 
 
-def encoder_zero_from_record(record: Any) -> EncoderZero | None:
+def encoder_zero_from_record(record: object) -> EncoderZero | None:
     """The encoder zeros a bench record declares (``BenchInfo.parameters_yaml`` parsed).
 
     * ``encoder_zero: {input_rad, output_rad, source}``: declared (a bench description with
