@@ -36,7 +36,7 @@ _BASE = ('id', 'serial', 'lot', 'operator', 'bench_id', 'preset', 'reducer_type'
 _FORMULA_START = ('=', '+', '-', '@', '\t', '\r')
 
 
-def _csv_safe(v: Any) -> Any:
+def _csv_safe(v: object) -> object:
     """A text cell that a spreadsheet would run as a formula, quoted with a leading '."""
     if isinstance(v, str) and v.startswith(_FORMULA_START):
         return "'" + v

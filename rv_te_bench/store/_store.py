@@ -49,9 +49,13 @@ from rv_te_bench.store._schema import LineRow, MetricRow, ResultRow
 
 if TYPE_CHECKING:
     from collections.abc import Iterable, Sequence
+    from types import ModuleType
 
+    from alembic.config import Config
+    from alembic.runtime.migration import MigrationContext
+    from alembic.script import ScriptDirectory
     from sqlalchemy import Select
-    from sqlalchemy.engine import Engine
+    from sqlalchemy.engine import Connection, Engine
     from sqlalchemy.engine.interfaces import DBAPIConnection
     from sqlalchemy.pool import ConnectionPoolEntry
 
@@ -217,7 +221,7 @@ def _sqlite_readonly(dbapi_conn: DBAPIConnection, _record: ConnectionPoolEntry) 
     cur.close()
 
 
-def _revision(conn: Any) -> list[str] | None:
+def _revision(conn: Connection) -> list[str] | None:
     """The store's alembic_version rows, None when the table is missing."""
     if not inspect(conn).has_table(_VERSION_TABLE.name):
         return None
@@ -230,7 +234,7 @@ def _at_head(engine: Engine) -> bool:
         return _revision(conn) == [SCHEMA_HEAD]
 
 
-def _lock_schema(conn: Any) -> None:
+def _lock_schema(conn: Connection) -> None:
     """Take the database's lock for a schema change (held to the end of the transaction)."""
     if conn.dialect.name == 'sqlite':
         # pysqlite would begin lazily (and run DDL outside a transaction): begin ourselves
@@ -271,8 +275,9 @@ def _migrate(engine: Engine, shown: str) -> None:
                 _upgrade(conn, cfg, script, head, shown, MigrationContext, command)
 
 
-def _upgrade(conn: Any, cfg: Any, script: Any, head: str | None, shown: str,
-             migration_context: Any, command: Any) -> None:
+def _upgrade(conn: Connection, cfg: Config, script: ScriptDirectory, head: str | None,
+             shown: str, migration_context: type[MigrationContext], command: ModuleType,
+             ) -> None:
     current = migration_context.configure(conn).get_current_revision()
     if current == head:
         return   # another process did it while we waited for the lock
