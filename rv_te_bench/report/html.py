@@ -140,7 +140,7 @@ padding:.5em}.muted{color:#666}code{background:#f5f5f5;padding:0 .2em}
 """
 
 
-def _e(x: Any) -> str:
+def _e(x: object) -> str:
     return html.escape(printable(x))   # undecodable bytes of a path: U+FFFD, not a crash
 
 

@@ -23,7 +23,7 @@ LOSS_STEP_KINDS = ('efficiency', 'no_load', 'starting_torque', 'back_driving',
                    'temperature_rise', 'life')
 
 
-def _e(x: Any) -> str:
+def _e(x: object) -> str:
     return html.escape(str(x))
 
 

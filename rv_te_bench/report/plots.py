@@ -13,7 +13,7 @@ from __future__ import annotations
 
 import io
 import math
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING
 
 import numpy as np
 from matplotlib.backends.backend_agg import FigureCanvasAgg
@@ -27,6 +27,8 @@ from sim.units import rad_to_arcmin, rad_to_deg
 if TYPE_CHECKING:
     from collections.abc import Sequence
     from pathlib import Path
+
+    from matplotlib.axes import Axes
 
     from rv_te_bench.report.analysis import AnalysisResult
 
@@ -157,7 +159,7 @@ def te_figure(results: Sequence[AnalysisResult]) -> Figure:
     return fig
 
 
-def _envelope_band(ax: Any, ax_session: Any, res: AnalysisResult, *, fold: bool,
+def _envelope_band(ax: Axes, ax_session: Axes | None, res: AnalysisResult, *, fold: bool,
                    color: str, label: str) -> None:
     """Draw a record's min/max envelope: against angle (folded or not) and over the
     session (``ax_session``, when given); breaks at gaps."""

@@ -13,7 +13,7 @@
 from __future__ import annotations
 
 import math
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING, Any, TypedDict
 
 import numpy as np
 
@@ -23,7 +23,10 @@ from rv_te_bench.report.plots import _new_figure, _short, png_bytes
 from rv_te_bench.report.unit_doc import angle_unit
 
 if TYPE_CHECKING:
+    from collections.abc import Callable
+
     import numpy.typing as npt
+    from matplotlib.axes import Axes
     from matplotlib.figure import Figure
 
     from rv_te_bench.report.unit_doc import AngleUnit
@@ -33,7 +36,17 @@ __all__ = ['DIRECTION_STYLE', 'limit_si', 'spectrum_table', 'unit_figures']
 #: Direction -> (colour, line style, hatch, words): the same in every figure.
 DIRECTION_STYLE = {'ccw': ('tab:blue', '-', '', 'ccw (output +)'),
                    'cw': ('tab:red', '--', '//', 'cw (output -)')}
-_LIMIT = {'color': '#2e7d32', 'alpha': 0.12}
+
+
+class _Shade(TypedDict):
+    """Keyword arguments of matplotlib's shading (``axhspan``, ``fill_between``)."""
+
+    color: str
+    alpha: float
+
+
+#: How a limit is drawn.
+_LIMIT: _Shade = {'color': '#2e7d32', 'alpha': 0.12}
 
 
 def _style(direction: str) -> tuple[str, str, str, str]:
@@ -95,8 +108,8 @@ def _te_figure(rows: list[dict[str, Any]], au: AngleUnit, limit_rad: float) -> F
     return fig
 
 
-def _hysteresis_limits(ax: Any, report: dict[str, Any], h: dict[str, Any],
-                       am: Any, au: AngleUnit) -> None:
+def _hysteresis_limits(ax: Axes, report: dict[str, Any], h: dict[str, Any],
+                       am: Callable[[npt.ArrayLike], np.ndarray], au: AngleUnit) -> None:
     bl = limit_si(report, 'backlash', 'max')
     if math.isfinite(bl):
         for x in (-0.5 * bl * au.per_rad, 0.5 * bl * au.per_rad):

@@ -36,7 +36,7 @@ def _deg(x: float | None) -> str:
     return '-' if x is None or not math.isfinite(x) else f'{x:.1f}'
 
 
-def esc(x: Any) -> str:
+def esc(x: object) -> str:
     return html.escape(str(x))
 
 
