@@ -110,7 +110,7 @@ _REPR.maxlevel = 3
 _BRIEF_MAX = 80
 
 
-def brief(value: Any) -> str:
+def brief(value: object) -> str:
     """``repr(value)`` cut to a few dozen characters, without walking all of ``value``.
 
     >>> brief('x' * 1000)[:12], len(brief('x' * 1000)) < 70
@@ -321,12 +321,12 @@ class _Builder:
         self.aliases = 0
         self.nodes = 0
 
-    def fail(self, event: Any, text: str,
+    def fail(self, event: Any, text: str,   # Any: a yaml.Event; start_mark read via getattr
              kind: type[YamlInputError] = YamlInputError) -> YamlInputError:
         line = event.start_mark.line + 1 if getattr(event, 'start_mark', None) else '?'
         return kind(f'{self.origin}, line {line}: {text}')
 
-    def count(self, event: Any, n: int) -> None:
+    def count(self, event: yaml.Event, n: int) -> None:
         self.nodes += n
         if self.nodes > self.limits.max_nodes:
             msg = (f'more than {self.limits.max_nodes} YAML nodes (aliases expanded): '
@@ -403,13 +403,13 @@ class _Builder:
                 top[3], top[4] = None, False
         return root
 
-    def check_tag(self, event: Any, kind: str) -> None:
+    def check_tag(self, event: yaml.CollectionStartEvent, kind: str) -> None:
         tag = event.tag
         if tag in (None, '!', f'{_STD}{kind}'):
             return
         raise self.fail(event, f'not valid YAML data: tag {brief(tag)} is not allowed')
 
-    def scalar(self, event: Any, *, key: bool) -> Any:
+    def scalar(self, event: Any, *, key: bool) -> Any:   # Any: types-PyYAML's two Mark types
         tag = event.tag
         plain = bool(event.implicit[0]) and not event.style
         if tag not in (None, '!') and tag not in _SCALAR_TAGS:
@@ -439,7 +439,7 @@ class _RosDumper(yaml.SafeDumper):
     """Every string double-quoted (rcl would read a plain ``y``, ``1e5`` or ``on`` as a bool or
     number), no anchors or aliases (rcl refuses them)."""
 
-    def ignore_aliases(self, data: Any) -> bool:
+    def ignore_aliases(self, data: object) -> bool:
         return True
 
 
@@ -450,7 +450,7 @@ def _quoted_str(dumper: yaml.SafeDumper, data: str) -> yaml.ScalarNode:
 _RosDumper.add_representer(str, _quoted_str)
 
 
-def dump_ros_yaml(data: Any) -> str:
+def dump_ros_yaml(data: object) -> str:
     """YAML that rcl's parameter parser and :func:`load_yaml` read back to ``data`` exactly."""
     return yaml.dump(data, Dumper=_RosDumper, sort_keys=True, allow_unicode=True,
                      default_flow_style=False)
