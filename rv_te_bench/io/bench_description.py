@@ -160,7 +160,7 @@ class EncoderInfo:
         if z is not None and not _number(z):
             _fail('EncoderInfo', 'zero_offset_rad', 'must be a finite number or None', z)
 
-    def scale_fields(self, side: str) -> dict[str, Any]:
+    def scale_fields(self, side: str) -> dict[str, Any]:   # BenchInfoData keywords
         """The BenchInfo fields of this scale (``side``: 'in' or 'out')."""
         return {f'encoder_{side}_head_angles_rad': self.head_angles_rad,
                 f'encoder_{side}_scale_serial': self.serial,
@@ -260,7 +260,8 @@ class BenchDescription:
     max_output_torque_nm: float = math.nan
     metadata: Mapping[str, str] = field(default_factory=dict, hash=False)
     uncertainty: Mapping[str, Any] | None = field(default=None, hash=False)
-    loss_channels: Mapping[str, Any] | None = field(default=None, hash=False)
+    loss_channels: Mapping[str, Mapping[str, str | float]] | None = field(default=None,
+                                                                          hash=False)
     origin: str = field(default='<bench description>', compare=False)
 
     def __post_init__(self) -> None:
@@ -703,16 +704,16 @@ def parse_bench_description(data: Any, origin: str = '<bench description>',
         metadata=meta, uncertainty=unc, loss_channels=loss, origin=origin, **kin)
 
 
-def _loss_channels(k: _Keys) -> dict[str, dict[str, Any]]:
+def _loss_channels(k: _Keys) -> dict[str, dict[str, str | float]]:
     """The ``loss_channels:`` section: per channel (``torque_in``, ``torque_out``,
     ``temperature``) its model, range and class (the efficiency budget reads them) and, for
     the input torque, the scale of its column."""
-    out: dict[str, dict[str, Any]] = {}
+    out: dict[str, dict[str, str | float]] = {}
     for name in ('torque_in', 'torque_out', 'temperature'):
         if name not in k.data:
             continue
         c = k.sub(name)
-        spec: dict[str, Any] = {'model': c.text('model', '', allow_empty=True) or ''}
+        spec: dict[str, str | float] = {'model': c.text('model', '', allow_empty=True) or ''}
         for key in ('full_scale', 'accuracy_class_pct'):
             v = c.num(key)
             if v is not None:
