@@ -75,14 +75,14 @@ class ParamSpec:
             msg = f'ParamSpec {self.name!r}: default {problem}'
             raise ValueError(msg)
 
-    def check(self, value: Any) -> str | None:
+    def check(self, value: object) -> str | None:
         """Return None when ``value`` is acceptable, else the rule it breaks (one phrase)."""
         problem = self._check_type(value)
         if problem is None and self.rule is not None:
             problem = self.rule(value)
         return problem
 
-    def _check_type(self, value: Any) -> str | None:
+    def _check_type(self, value: object) -> str | None:
         t = self.type
         if t == 'bool':
             return None if isinstance(value, bool) else f'must be a bool, got {brief(value)}'

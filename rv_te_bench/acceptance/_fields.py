@@ -28,7 +28,7 @@ class Fields:
         self.data = dict(data)
         self.where = where
 
-    def fail(self, key: str, rule: str, value: Any = None) -> NoReturn:
+    def fail(self, key: str, rule: str, value: object = None) -> NoReturn:
         got = '' if value is None else f', got {value!r}'
         msg = f'{self.where}: {key} {rule}{got}'
         raise PlanError(msg)
@@ -95,7 +95,7 @@ class Fields:
             out.append(float(x))
         return tuple(out)
 
-    def span(self, key: str, value: Any) -> tuple[float, float]:
+    def span(self, key: str, value: object) -> tuple[float, float]:
         """One [start, end] time range [s], 0 <= start < end."""
         if not isinstance(value, list) or len(value) != 2 or not all(
                 not isinstance(x, bool) and isinstance(x, int | float) and math.isfinite(x)

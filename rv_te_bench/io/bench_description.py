@@ -94,13 +94,13 @@ _MAX_TEXT = 4096        # longest free text (notes, metadata values) [characters
 _MAX_METADATA = 100     # most free metadata keys
 
 
-def _fail(where: str, key: str, rule: str, value: Any = None) -> NoReturn:
+def _fail(where: str, key: str, rule: str, value: object = None) -> NoReturn:
     got = '' if value is None else f', got {brief(value)}'
     msg = f'{where}: {key} {rule}{got}'
     raise BenchDescriptionError(msg)
 
 
-def _number(v: Any) -> bool:
+def _number(v: object) -> bool:
     return not isinstance(v, bool) and isinstance(v, int | float) and math.isfinite(v)
 
 
@@ -466,7 +466,7 @@ class _Keys:
             _fail(where, key or 'document', 'must be a mapping', data)
         self.data = dict(data)
 
-    def fail(self, key: str, rule: str, value: Any = None) -> NoReturn:
+    def fail(self, key: str, rule: str, value: object = None) -> NoReturn:
         _fail(self.where, f'{self.prefix}{key}', rule, value)
 
     def num(self, key: str, *, required: bool = False, positive: bool = True,
