@@ -12,7 +12,7 @@ from __future__ import annotations
 
 import functools
 from importlib import resources
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING
 
 import numpy as np
 from rosbags.typesys import Stores, get_types_from_msg, get_typestore
@@ -20,6 +20,7 @@ from rosbags.typesys import Stores, get_types_from_msg, get_typestore
 from rv_te_bench.io.msgdefs import BENCH_INFO, ENCODER_BLOCK, rv_te_typestore
 
 if TYPE_CHECKING:
+    from rosbags.interfaces.typing import FieldDesc, Typesdict
     from rosbags.typesys.store import Typestore
 
 __all__ = ['LEGACY_HASHES', 'added_field_defaults', 'legacy_typestore', 'upgrade_cdr']
@@ -41,7 +42,7 @@ LEGACY_HASHES: dict[str, frozenset[str]] = {
 def legacy_typestore() -> Typestore:
     """A rosbags typestore with the pre-issue-36 definitions under their own names."""
     store = get_typestore(Stores.ROS2_JAZZY)
-    types: dict[str, Any] = {}
+    types: Typesdict = {}
     here = resources.files('rv_te_bench.io').joinpath('legacy_msgs')
     for name, file in _FILES.items():
         types.update(get_types_from_msg(here.joinpath(file).read_text('utf-8'), name))
@@ -49,7 +50,7 @@ def legacy_typestore() -> Typestore:
     return store
 
 
-def _default(node: Any) -> Any:
+def _default(node: FieldDesc) -> np.ndarray | str | float:
     """The default of a field issue 36 added (rosbags field definition)."""
     kind, detail = node
     if getattr(kind, 'name', '') == 'SEQUENCE':
@@ -58,7 +59,7 @@ def _default(node: Any) -> Any:
     return '' if detail[0] == 'string' else 0.0
 
 
-def added_field_defaults(msgtype: str) -> dict[str, Any]:
+def added_field_defaults(msgtype: str) -> dict[str, np.ndarray | str | float]:
     """The fields issue 36 added to ``msgtype`` at their defaults ("not stated"), for
     building a message with rosbags' typestore, which needs every field."""
     if msgtype not in _FILES:

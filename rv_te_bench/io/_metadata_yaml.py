@@ -19,7 +19,7 @@ __all__ = ['bag_info', 'dump_yaml', 'metadata_yaml_bytes', 'qos_profile_dict',
 _YamlDumper = getattr(yaml, 'CSafeDumper', yaml.SafeDumper)  # libyaml: ~20x faster
 
 
-def dump_yaml(data: Any) -> str:
+def dump_yaml(data: object) -> str:
     """YAML text of plain data, keys in insertion order."""
     return yaml.dump(data, Dumper=_YamlDumper, sort_keys=False)
 
