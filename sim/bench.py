@@ -24,7 +24,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, field
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING, Any, NotRequired, TypedDict
 
 import numpy as np
 import yaml
@@ -38,12 +38,15 @@ from sim.models import build_te_model
 from sim.presets import Preset, load_preset, parse_override_items
 
 if TYPE_CHECKING:
+    from collections.abc import Mapping
+
     from sim.drive import DriveProfile, LoadProfile
     from sim.kinematics import ReducerKinematics
     from sim.models import TeModel
 
-__all__ = ['DEFAULT_SAMPLE_RATE_HZ', 'BenchBlock', 'BenchConfig', 'BenchInfoData', 'BenchSimulator',
-           'bench_info_of', 'loss_fields', 'read_heads', 'scale_fields', 'skewed_reading']
+__all__ = ['DEFAULT_SAMPLE_RATE_HZ', 'BenchBlock', 'BenchConfig', 'BenchConfigPlain',
+           'BenchInfoData', 'BenchSimulator', 'bench_info_of', 'loss_fields', 'read_heads',
+           'scale_fields', 'skewed_reading']
 
 
 def skewed_reading(theta_out_rad: np.ndarray, omega_ref_rad_s: np.ndarray | float,
@@ -169,10 +172,10 @@ class BenchConfig:
         enc = self.encoder_in if which == 'in' else self.encoder_out
         return enc if isinstance(enc, EncoderSpec) else encoder_preset(enc)
 
-    def to_plain(self) -> dict[str, Any]:
+    def to_plain(self) -> BenchConfigPlain:
         """YAML-friendly dict of the config (profiles and encoders as dicts; ``losses``
         only when set, so a session without them records what it always did)."""
-        out = {
+        out: BenchConfigPlain = {
             'bench_id': self.bench_id,
             'preset': self.preset,
             'overrides': list(self.overrides),
@@ -190,6 +193,26 @@ class BenchConfig:
         if self.losses is not None:
             out['losses'] = self.losses.to_plain()
         return out
+
+
+class BenchConfigPlain(TypedDict):
+    """:meth:`BenchConfig.to_plain`: the settings a simulated bench records (``bench`` in
+    its ``parameters_yaml``); profiles, encoders and losses in their own plain forms."""
+
+    bench_id: str
+    preset: str
+    overrides: list[str]
+    te_mode: str
+    drive: dict[str, Any]
+    load: dict[str, Any]
+    encoder_in: dict[str, Any]
+    encoder_out: dict[str, Any]
+    sample_rate_hz: float
+    block_size: int
+    seed: int
+    start_time_s: float
+    daq_skew_s: float
+    losses: NotRequired[dict[str, Any]]
 
 
 @dataclass(frozen=True)
@@ -271,7 +294,7 @@ def loss_fields(lb: LossBlock) -> dict[str, np.ndarray]:
 
 def bench_info_of(*, bench_id: str, preset: Preset, kinematics: ReducerKinematics,
                   encoder_in: EncoderSpec, encoder_out: EncoderSpec, sample_rate_hz: float,
-                  block_size: int, settings: dict[str, Any]) -> BenchInfoData:
+                  block_size: int, settings: Mapping[str, object]) -> BenchInfoData:
     """The record of a simulated bench: the preset's kinematics, the encoders, the DAQ.
 
     ``parameters_yaml`` holds ``{'bench': settings, 'preset': {name, model, values}}``
