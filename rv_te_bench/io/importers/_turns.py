@@ -151,20 +151,35 @@ def _slope(t: np.ndarray, x: np.ndarray) -> tuple[float, float] | None:
     return v, math.sqrt(float(r @ r) / (t.size - 2) / sxx)
 
 
-def _wrap_turns(x: np.ndarray, prev: float) -> np.ndarray:
+def _wrap_turns(x: np.ndarray, prev: float) -> np.ndarray | int:
     """Whole turns (int64, cumulative) that unwrap ``x`` after the reading ``prev``:
     numpy.unwrap's rule (a step beyond half a turn), counted in integers so that the
-    unwrapped angle, ``x + 2 pi K``, does not depend on where the file was cut in chunks."""
+    unwrapped angle, ``x + 2 pi K``, does not depend on where the file was cut in chunks.
+    0 (an int) when no step is beyond half a turn (the usual chunk: no array of zeros)."""
+    if x.size and abs(float(x[0]) - prev) < math.pi:
+        steps = x[1:] - x[:-1]
+        if not steps.size or (float(steps.max()) < math.pi and float(steps.min()) > -math.pi):
+            return 0
     d = np.diff(x, prepend=prev)
     big = np.flatnonzero(np.abs(d) >= math.pi)   # the few steps that can wrap
+    if not big.size:
+        return 0
     k = np.zeros(x.size, dtype=np.int64)
-    if big.size:
-        db = d[big]
-        dmod = np.mod(db + math.pi, _TWO_PI) - math.pi
-        dmod[(dmod == -math.pi) & (db > 0)] = math.pi
-        k[big] = np.rint((dmod - db) / _TWO_PI).astype(np.int64)
-        np.cumsum(k, out=k)
+    db = d[big]
+    dmod = np.mod(db + math.pi, _TWO_PI) - math.pi
+    dmod[(dmod == -math.pi) & (db > 0)] = math.pi
+    k[big] = np.rint((dmod - db) / _TWO_PI).astype(np.int64)
+    np.cumsum(k, out=k)
     return k
+
+
+def _plus_turns(raw: np.ndarray, k: np.ndarray | int) -> np.ndarray:
+    """``raw + 2 pi k`` (the same bits for a constant ``k`` given as an int)."""
+    if isinstance(k, int):
+        out: np.ndarray = raw + _TWO_PI * float(k)
+        return out
+    out = raw + _TWO_PI * k.astype(np.float64)
+    return out
 
 
 class _Channel:
@@ -188,23 +203,25 @@ class _Channel:
         return self.turns == 'multi' or (self.turns == 'auto'
                                          and self.hi - self.lo > _TWO_PI * (1 + 1e-9))
 
-    def local(self, raw: np.ndarray, prev: float) -> np.ndarray:
-        """Whole turns (cumulative, int64) that unwrap ``raw`` within itself after ``prev``
-        (none for a counter)."""
-        self.lo = min(self.lo, float(raw.min()))
-        self.hi = max(self.hi, float(raw.max()))
+    def local(self, raw: np.ndarray, prev: float) -> np.ndarray | int:
+        """Whole turns (cumulative, int64; an int when constant) that unwrap ``raw`` within
+        itself after ``prev`` (none for a counter)."""
+        if self.turns == 'auto' and not self.multi_turn:   # (once it is, it stays so)
+            self.lo = min(self.lo, float(raw.min()))
+            self.hi = max(self.hi, float(raw.max()))
         if self.turns == 'multi':
             self.jumps += int(np.count_nonzero(np.abs(np.diff(raw, prepend=prev)) > math.pi))
-            return np.zeros(raw.size, dtype=np.int64)
+            return 0
         turns = _wrap_turns(raw, prev)
-        self.wraps += int(np.count_nonzero(np.diff(turns, prepend=0)))
+        if not isinstance(turns, int):
+            self.wraps += int(np.count_nonzero(np.diff(turns, prepend=0)))
         return turns
 
-    def _emit(self, t: np.ndarray, raw: np.ndarray, k: np.ndarray) -> np.ndarray:
+    def _emit(self, t: np.ndarray, raw: np.ndarray, k: np.ndarray | int) -> np.ndarray:
         """The unwrapped angles; remember the end of the piece (state for what follows)."""
-        x = raw + _TWO_PI * k.astype(np.float64)
+        x = _plus_turns(raw, k)
         self.prev_raw = float(raw[-1])
-        self.k = int(k[-1])
+        self.k = k if isinstance(k, int) else int(k[-1])
         if t.size >= self.window:
             self.tail_t, self.tail_x = t[-self.window:].copy(), x[-self.window:].copy()
         else:
@@ -220,7 +237,7 @@ class _Channel:
     def across(self, t: np.ndarray, raw: np.ndarray) -> tuple[np.ndarray, float, How]:
         """Unwrap the data after a drop-out: (angles, advance [rad], how)."""
         turns = self.local(raw, raw[0])      # within the new stretch, from its first value
-        u = raw + _TWO_PI * turns.astype(np.float64)
+        u = _plus_turns(raw, turns)
         d = float(raw[0]) - self.prev_raw    # the recorded advance across the drop-out
         k: int | None
         how: How
