@@ -12,7 +12,8 @@ process:
   reference before issue 41; TDMS: ``TdmsFile.open`` + ``read_data``; MDF:
   ``MDF.iter_get`` of the three channels zipped);
 * **import**: ``rv_te_bench.io.importers.import_file`` (read, convert, unwrap, check, CDR,
-  zstd bag) to a bag on the same disk.
+  compressed bag) to a bag on the same disk, once per ``--compression`` choice (each
+  side by side with its own bare reads; the bag's size is printed).
 
 Printed: median wall time of each, the ratio import / bare, the ratio of their CPU times
 (user + system of the process: the figure to trust on a loaded machine), samples per
@@ -24,6 +25,8 @@ no read-ahead thread). The header names the CPU and the load before and after.
 
     .venv/bin/python benchmarks/bench_import.py --sizes-mb 100 --repeats 5
     .venv/bin/python benchmarks/bench_import.py --sizes-mb 100 --repeats 5 --cpus 0
+    .venv/bin/python benchmarks/bench_import.py --sizes-mb 100 --formats tdms \
+        --compression zstd-fast zstd lz4 none
 """
 
 from __future__ import annotations
@@ -99,7 +102,8 @@ cols = {'csv': dict(time='t_s', theta_in='theta_in_rad', theta_out='theta_out_ra
         'tdms': dict(theta_in='encoders/theta_in', theta_out='encoders/theta_out',
                      torque='encoders/torque'),
         'mdf': dict(theta_in='theta_in', theta_out='theta_out', torque='torque')}[FMT]
-import_file(PATH, desc, OUT, options=ImportOptions(chunk_samples=CHUNK, start_ns=0, **cols))
+import_file(PATH, desc, OUT, options=ImportOptions(chunk_samples=CHUNK, start_ns=0,
+                                                  compression=COMPRESSION, **cols))
 """
 
 #: Imported before the clock starts (both sides): the libraries, not the interpreter start.
@@ -216,6 +220,10 @@ def main() -> None:
                     choices=['csv', 'tdms', 'mdf'])
     ap.add_argument('--csv-bare', choices=['pyarrow', 'loadtxt'], default='pyarrow',
                     help='the bare CSV read: pyarrow.csv (default) or numpy.loadtxt')
+    ap.add_argument('--compression', nargs='+', default=['zstd-fast'],
+                    choices=['zstd-fast', 'zstd', 'lz4', 'none'],
+                    help="the bag's chunk compression (rv-te import --compression); several: "
+                         'one row each')
     ap.add_argument('--repeats', type=int, default=3, help='rounds (medians are printed)')
     ap.add_argument('--cpus', default=None, help="run both under taskset -c CPUS (e.g. '0')")
     ap.add_argument('--dir', type=Path, default=None, help='work folder (default: a temp one)')
@@ -223,36 +231,39 @@ def main() -> None:
     work = Path(tempfile.mkdtemp(dir=args.dir, prefix='bench_import_'))
     cores = f'taskset -c {args.cpus}' if args.cpus is not None else 'all cores'
     print(f'{machine()}; {cores}; {args.repeats} rounds', flush=True)
-    print('| format | file size [MB] | samples | bare read [s] | import [s] | ratio | CPU bare / '
-          'import [s] | CPU ratio | import [M samples/s] | peak RSS bare / import [MB] | '
-          'peak heap (RssAnon) bare / import [MB] |')
-    print('|---|---|---|---|---|---|---|---|---|---|---|')
+    print('| format | compression | file size [MB] | samples | bag [MB] | bare read [s] | '
+          'import [s] | ratio | CPU bare / import [s] | CPU ratio | import [M samples/s] | '
+          'peak RSS bare / import [MB] | peak heap (RssAnon) bare / import [MB] |')
+    print('|---|---|---|---|---|---|---|---|---|---|---|---|---|')
     try:
         for mb in args.sizes_mb:
             n = int(mb * 1e6 / CSV_BYTES_PER_ROW)
             for fmt in args.formats:
                 path = work / f'run_{mb:g}.{ {"csv": "csv", "tdms": "tdms", "mdf": "mf4"}[fmt] }'
                 {'csv': write_csv, 'tdms': write_tdms, 'mdf': write_mdf}[fmt](path, n)
-                head = (f'PATH = {str(path)!r}\nCHUNK = {CHUNK}\nFMT = {fmt!r}\n'
-                        f'CSV_BLOCK = {CSV_BLOCK}\n')
-                out = work / f'bag_{fmt}_{mb:g}'
-                bare_code = BARE['loadtxt' if fmt == 'csv' and args.csv_bare == 'loadtxt'
-                                 else fmt]
-                bare, imp = [], []
-                for _ in range(args.repeats):
-                    bare.append(run(head + bare_code, args.cpus))
-                    imp.append(run(head + f'OUT = {str(out)!r}\n' + IMPORT, args.cpus))
-                    shutil.rmtree(out)
-                bare_s, imp_s = (statistics.median(r[0] for r in x) for x in (bare, imp))
-                bare_c, imp_c = (statistics.median(r[3] for r in x) for x in (bare, imp))
-                bare_kb, imp_kb = (max(r[1] for r in x) for x in (bare, imp))
-                bare_anon, imp_anon = (max(r[2] for r in x) for x in (bare, imp))
-                size = path.stat().st_size / 1e6
-                print(f'| {fmt} | {size:.0f} | {n:,} | {bare_s:.2f} | {imp_s:.2f} | '
-                      f'{imp_s / bare_s:.2f} | {bare_c:.2f} / {imp_c:.2f} | '
-                      f'{imp_c / bare_c:.2f} | {n / imp_s / 1e6:.2f} | '
-                      f'{bare_kb / 1024:.0f} / {imp_kb / 1024:.0f} | '
-                      f'{bare_anon / 1024:.0f} / {imp_anon / 1024:.0f} |', flush=True)
+                for comp in args.compression:
+                    head = (f'PATH = {str(path)!r}\nCHUNK = {CHUNK}\nFMT = {fmt!r}\n'
+                            f'CSV_BLOCK = {CSV_BLOCK}\nCOMPRESSION = {comp!r}\n')
+                    out = work / f'bag_{fmt}_{mb:g}'
+                    bare_code = BARE['loadtxt' if fmt == 'csv' and args.csv_bare == 'loadtxt'
+                                     else fmt]
+                    bare, imp = [], []
+                    bag_mb = 0.0
+                    for _ in range(args.repeats):
+                        bare.append(run(head + bare_code, args.cpus))
+                        imp.append(run(head + f'OUT = {str(out)!r}\n' + IMPORT, args.cpus))
+                        bag_mb = sum(f.stat().st_size for f in out.glob('*.mcap')) / 1e6
+                        shutil.rmtree(out)
+                    bare_s, imp_s = (statistics.median(r[0] for r in x) for x in (bare, imp))
+                    bare_c, imp_c = (statistics.median(r[3] for r in x) for x in (bare, imp))
+                    bare_kb, imp_kb = (max(r[1] for r in x) for x in (bare, imp))
+                    bare_anon, imp_anon = (max(r[2] for r in x) for x in (bare, imp))
+                    size = path.stat().st_size / 1e6
+                    print(f'| {fmt} | {comp} | {size:.0f} | {n:,} | {bag_mb:.0f} | {bare_s:.2f} | '
+                          f'{imp_s:.2f} | {imp_s / bare_s:.2f} | {bare_c:.2f} / {imp_c:.2f} | '
+                          f'{imp_c / bare_c:.2f} | {n / imp_s / 1e6:.2f} | '
+                          f'{bare_kb / 1024:.0f} / {imp_kb / 1024:.0f} | '
+                          f'{bare_anon / 1024:.0f} / {imp_anon / 1024:.0f} |', flush=True)
                 path.unlink()
         print(f'after: {machine()}')
     finally:

@@ -74,16 +74,24 @@ def record_bytes(*records: McapRecord) -> bytes:
     return out
 
 
-def compressor(compression: Compression) -> tuple[str, Callable[[bytes | bytearray], bytes]]:
+def compressor(compression: Compression, level: int | None = None,
+               ) -> tuple[str, Callable[[bytes | bytearray], bytes]]:
     """(MCAP compression name, function) for a ``compression`` setting.
 
+    Args:
+        compression: ``zstd``, ``lz4`` or ``none``.
+        level: The zstd level (None: 1; negative levels are zstd's fast ones).
+
     Raises:
-        ValueError: Unknown compression.
+        ValueError: Unknown compression, or a level given for another than zstd.
     """
+    if level is not None and compression != 'zstd':
+        msg = f'a compression level is a zstd setting, not one of {compression!r}'
+        raise ValueError(msg)
     if compression == 'zstd':
         import zstandard
 
-        ctx = zstandard.ZstdCompressor(level=1)
+        ctx = zstandard.ZstdCompressor(level=1 if level is None else int(level))
         return 'zstd', ctx.compress
     if compression == 'lz4':
         import lz4.frame

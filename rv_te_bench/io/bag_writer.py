@@ -89,6 +89,8 @@ class BagWriter:
     Args:
         path: Bag folder to create; must not exist.
         compression: Chunk compression, ``'zstd'``, ``'lz4'`` or ``'none'``.
+        compression_level: The zstd level (None: 1, as rosbag2's default; a negative
+            level is one of zstd's fast ones).
         chunk_size_bytes: Uncompressed chunk size that triggers a chunk write [bytes].
         flush_interval_s: Longest time a message stays in memory [s] (checked on ``write``
             and ``flush_if_due``; call the latter from a timer when messages can stop); also
@@ -113,6 +115,7 @@ class BagWriter:
         path: str | os.PathLike[str],
         *,
         compression: Compression = 'zstd',
+        compression_level: int | None = None,
         chunk_size_bytes: int = 1 << 20,
         flush_interval_s: float = 1.0,
         split_size_bytes: int | None = None,
@@ -139,7 +142,7 @@ class BagWriter:
             msg = f'stall_buffer_bytes must be >= 0, got {stall_buffer_bytes!r}'
             raise BagError(msg)
         try:
-            self._compression_name, self._compress = compressor(compression)
+            self._compression_name, self._compress = compressor(compression, compression_level)
         except ValueError as exc:
             raise BagError(str(exc)) from None
         self.compression: Compression = compression

@@ -152,3 +152,60 @@ def test_import_bag_same_as_the_block_by_block_path(tmp_path: Path,
     assert len(msgs_fast) == fast.blocks + 1
     assert msgs_fast == msgs_slow
     assert chunks_fast == chunks_slow
+
+
+@pytest.mark.parametrize('compression', ['zstd-fast', 'zstd', 'lz4', 'none'])
+def test_every_compression_read_back_by_rosbags_and_mcap(tmp_path: Path,
+                                                         compression: str) -> None:
+    """Each ``--compression`` makes a bag that rosbags and mcap + mcap-ros2-support read
+    (chunks compressed as declared), holding the samples of the file."""
+    from mcap_ros2.decoder import DecoderFactory
+    from rosbags.highlevel import AnyReader
+
+    n = 12_345
+    t = np.arange(n) / RATE_HZ
+    th_in = 2 * np.pi * 5 * t
+    th_out = th_in / 79 + 1e-4 * np.sin(th_in / 79 * 25)
+    tq = 30 + np.cos(t)
+    src = tmp_path / 'run.csv'
+    with src.open('w') as f:
+        f.write('t_s,theta_in_rad,theta_out_rad,torque_nm\n')
+        np.savetxt(f, np.c_[t, th_in, th_out, tq], fmt='%.17g', delimiter=',')
+    desc = parse_bench_description({'bench_id': 'b', 'preset': 'wang2020-2kv',
+                                    'sample_rate_hz': RATE_HZ, 'block_size': 500})
+    out = tmp_path / 'bag'
+    import_file(src, desc, out, options=ImportOptions(
+        time='t_s', theta_in='theta_in_rad', theta_out='theta_out_rad', torque='torque_nm',
+        start_ns=1_700_000_000 * 10**9, chunk_samples=4000, compression=compression))
+    mcap_path = next(out.glob('*.mcap'))
+    with mcap_path.open('rb') as fh:
+        r = make_reader(fh, decoder_factories=[DecoderFactory()])
+        summary = r.get_summary()
+        assert summary is not None
+        assert {c.compression for c in summary.chunk_indexes} == {
+            {'zstd-fast': 'zstd', 'zstd': 'zstd', 'lz4': 'lz4', 'none': ''}[compression]}
+        decoded = [m for _, ch, _, m in r.iter_decoded_messages()
+                   if ch.topic == '/bench/encoders']
+    got_in = np.concatenate([np.asarray(m.theta_in_rad) for m in decoded])
+    got_tq = np.concatenate([np.asarray(m.torque_out_nm) for m in decoded])
+    assert got_in.size == n
+    np.testing.assert_array_equal(got_in, th_in)
+    np.testing.assert_array_equal(got_tq, tq)
+    with AnyReader([out]) as reader:
+        conns = [c for c in reader.connections if c.topic == '/bench/encoders']
+        msgs = [reader.deserialize(raw, c.msgtype)
+                for c, _, raw in reader.messages(connections=conns)]
+    np.testing.assert_array_equal(np.concatenate([m.theta_out_rad for m in msgs]), th_out)
+    offsets = np.concatenate([m.time_offset_s + (m.header.stamp.sec - 1_700_000_000
+                                                 + m.header.stamp.nanosec * 1e-9)
+                              for m in msgs])
+    np.testing.assert_allclose(offsets, t, atol=1e-9)
+
+
+def test_a_level_for_another_compression_is_refused(tmp_path: Path) -> None:
+    from rv_te_bench.errors import BagError, DataImportError
+
+    with pytest.raises(BagError, match='zstd setting'):
+        BagWriter(tmp_path / 'b', compression='lz4', compression_level=3)
+    with pytest.raises(DataImportError, match=r"--compression must be one of .*'brotli'"):
+        ImportOptions(compression='brotli')

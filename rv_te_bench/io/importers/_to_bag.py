@@ -40,7 +40,13 @@ from rv_te_bench.io._encoder_cdr_out import EncoderBlocksLayout, encoder_block_c
 from rv_te_bench.io.bag_writer import BagWriter, qos_profile_dict
 from rv_te_bench.io.bench_record import bench_info_cdr
 from rv_te_bench.io.importers._ahead import read_ahead
-from rv_te_bench.io.importers._common import TIME_UNITS, angle_unit, time_unit
+from rv_te_bench.io.importers._common import (
+    COMPRESSIONS,
+    DEFAULT_COMPRESSION,
+    TIME_UNITS,
+    angle_unit,
+    time_unit,
+)
 from rv_te_bench.io.importers._convert import ChunkConverter, to_rad_factor
 from rv_te_bench.io.importers._turns import TurnStitcher
 from rv_te_bench.io.msgdefs import BENCH_CHANNELS, BENCH_INFO, ENCODER_BLOCK, own_typestore
@@ -319,7 +325,8 @@ class _Segments:
 
     def __init__(self, tmp_dir: Path, out: Path, desc: BenchDescription, info: BenchInfoData,
                  meta: dict[str, Any], rate_hz: float, start_ns: int, *,
-                 channels: bool = False) -> None:
+                 channels: bool = False, compression: str = DEFAULT_COMPRESSION) -> None:
+        self.compression = compression
         self.channels = channels     # loss columns: a bench/channels topic (issue 38)
         self.tmp_dir = tmp_dir
         self.out = out
@@ -339,7 +346,9 @@ class _Segments:
         if after is not None:
             meta.update({'import_segment': str(k), 'import_segment_after': after.describe()})
         tmp_bag = self.tmp_dir / _segment_path(self.out, k).name
-        self.writer = BagWriter(tmp_bag, session_metadata=meta, flush_interval_s=3600.0)
+        compression, level = COMPRESSIONS[self.compression]
+        self.writer = BagWriter(tmp_bag, session_metadata=meta, flush_interval_s=3600.0,
+                                compression=compression, compression_level=level)
         self.writer.add_topic(INFO_TOPIC, BENCH_INFO, offered_qos_profiles=[
             qos_profile_dict(durability='transient_local', depth=1)])
         self.writer.add_topic(ENCODER_TOPIC, ENCODER_BLOCK,
@@ -493,7 +502,8 @@ def _write_bag(reader: ImportReader, desc: BenchDescription, options: ImportOpti
     advance = _Advance()
     try:
         segments = _Segments(tmp_dir, out, desc, info, meta, rate_hz, start_ns,
-                             channels=bool({'torque_in', 'temperature'} & set(labels)))
+                             channels=bool({'torque_in', 'temperature'} & set(labels)),
+                             compression=options.compression)
         for piece in stitcher.push(first):
             advance.push(piece)
             segments.push(piece)
