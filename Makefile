@@ -9,7 +9,7 @@ unexport _ROS_WHEELS_BOOTSTRAP_COMPLETE
 # pytest process compiles the suite and rewrites its asserts anew (twice the collection CPU).
 unexport PYTHONDONTWRITEBYTECODE
 
-.PHONY: demo test test-fast lint mutation venv clean-venv system-deps
+.PHONY: demo test test-fast test-seconds lint mutation venv clean-venv system-deps
 
 venv: $(VENV)/.stamp
 
@@ -35,6 +35,16 @@ test: venv
 # The quick loop: every test that needs no ROS middleware and is not marked slow.
 test-fast: venv
 	$(PYTEST_PAR) -m "not ros and not slow"
+
+# Rewrites the committed seconds per test file (tests/seconds_per_file.json, which orders the
+# files longest-first where .pytest_cache has no times, as on CI's fresh clone) from the
+# times the last `make test` kept in .pytest_cache. Run it after a full run on a quiet machine.
+test-seconds:
+	$(PY) -c "import json, pathlib; \
+	c = json.loads(pathlib.Path('.pytest_cache/v/rv_te_bench/seconds_per_file').read_text()); \
+	t = {f: round(s, 1) for f, s in sorted(c.items()) if pathlib.Path(f).is_file()}; \
+	pathlib.Path('tests/seconds_per_file.json').write_text(json.dumps(t, indent=0) + '\\n'); \
+	print(len(t), 'files,', round(sum(t.values())), 's in all')"
 
 # The house rules checked by tools: ruff's rule set ([tool.ruff.lint] in pyproject.toml), the
 # layering contracts ([tool.importlinter]) and the type check ([tool.mypy]: its files).

@@ -4,6 +4,7 @@ and a guard that no test leaves files in the repository (issue #15)."""
 from __future__ import annotations
 
 import atexit
+import json
 import os
 import shutil
 import subprocess
@@ -102,16 +103,29 @@ def pytest_collection_modifyitems(config: pytest.Config, items: list[pytest.Item
 # collection order): the files that took longest last time start first, so that no long
 # file starts last and runs alone at the end (longest-processing-time-first scheduling).
 # The seconds per file are kept in pytest's cache (.pytest_cache) by the run that measured
-# them. Files without a time (a fresh clone, a new file, or one that run left out) go first,
-# those with slow ROS tests first, then slow, then ROS tests. Tests keep their order within
-# a file.
+# them; where the cache has none (a fresh clone: CI), the table committed in
+# tests/seconds_per_file.json gives them (`make test-seconds` rewrites it from the cache of
+# the last full run). Files without a time (a new file, or one the measuring run left out)
+# go first, those with slow ROS tests first, then slow, then ROS tests. Tests keep their
+# order within a file.
 
 _SECONDS_KEY = 'rv_te_bench/seconds_per_file'
+SECONDS_TABLE = Path(__file__).with_name('seconds_per_file.json')
+
+
+def committed_seconds() -> dict[str, float]:
+    """The committed seconds per file ({} when the table is missing or unreadable)."""
+    try:
+        table = json.loads(SECONDS_TABLE.read_text(encoding='utf-8'))
+    except (OSError, ValueError):
+        return {}
+    return {str(f): float(s) for f, s in table.items()} if isinstance(table, dict) else {}
 
 
 def _heaviest_files_first(config: pytest.Config, items: list[pytest.Item]) -> None:
     cache = getattr(config, 'cache', None)
-    seconds: dict[str, float] = (cache.get(_SECONDS_KEY, {}) if cache is not None else {}) or {}
+    seconds = committed_seconds()
+    seconds.update((cache.get(_SECONDS_KEY, {}) if cache is not None else {}) or {})
     weight: dict[str, tuple[float, int]] = {}
     for item in items:
         f = item.nodeid.split('::', 1)[0]
