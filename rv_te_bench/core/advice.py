@@ -8,12 +8,13 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, field
-from typing import Any, Literal, TypeAlias
+from typing import Any, Literal, TypeAlias, TypedDict
 
 from rv_te_bench.errors import CompensationError
 from sim.units import rad_to_arcmin, rad_to_deg
 
-__all__ = ['Advice', 'AdviceKind', 'Modification', 'advice_kind', 'modification_value']
+__all__ = ['Advice', 'AdviceKind', 'Modification', 'ModificationJson', 'advice_kind',
+           'modification_value']
 
 #: The compensation the suite can advise: 2K-V assembly phases (Wang 2020 Eq. 21, identified
 #: from the measured TE or optimised on the preset) or RV tooth-profile modification (Hu 2020
@@ -40,6 +41,17 @@ def advice_kind(model: str) -> AdviceKind | None:
     return _ADVICE_BY_MODEL.get(model)
 
 
+class ModificationJson(TypedDict):
+    """The JSON of :class:`Modification` (None: not finite)."""
+
+    factor: str
+    symbol: str
+    unit: str
+    current_value: float | None
+    recommended_value: float | None
+    sensitivity_index: float | None
+
+
 @dataclass(frozen=True)
 class Modification:
     """One recommended change to a reducer factor.
@@ -60,7 +72,7 @@ class Modification:
     recommended_value: float
     sensitivity_index: float = math.nan
 
-    def to_json_dict(self) -> dict[str, Any]:
+    def to_json_dict(self) -> ModificationJson:
         """JSON-friendly dict (NaN becomes None)."""
         return {
             'factor': self.factor, 'symbol': self.symbol, 'unit': self.unit,

@@ -16,7 +16,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING, Any, TypedDict
 
 from rv_te_bench.core.units import rad_to_arcsec
 
@@ -28,7 +28,8 @@ if TYPE_CHECKING:
     from rv_te_bench.core.heads import HeadLayout
     from sim.bench_info import BenchInfoData
 
-__all__ = ['COMPARABLE_FRACTION', 'OncePerRevNote', 'line_amplitude_rad', 'note_for_bench',
+__all__ = ['COMPARABLE_FRACTION', 'OncePerRevNote', 'OncePerRevNoteJson', 'line_amplitude_rad',
+           'note_for_bench',
            'once_per_rev_note']
 
 #: The encoder's possible share of the once-per-revolution line above which results resting
@@ -38,6 +39,20 @@ COMPARABLE_FRACTION = 0.1
 
 def _arcsec(x: float) -> str:
     return f'{float(rad_to_arcsec(x)):.3g}"'
+
+
+class OncePerRevNoteJson(TypedDict):
+    """The JSON of :class:`OncePerRevNote` (None: not finite)."""
+
+    possible_arcsec: float
+    line_arcsec: float | None
+    fraction: float | None
+    comparable: bool
+    separated: bool
+    how: str
+    source: str
+    text: str
+    possible_rad: float
 
 
 @dataclass(frozen=True)
@@ -88,7 +103,7 @@ class OncePerRevNote:
                 f'encoder could produce {_arcsec(self.possible_rad)}{line} ({self.source}).'
                 f'{flag}')
 
-    def to_plain(self) -> dict[str, Any]:
+    def to_plain(self) -> OncePerRevNoteJson:
         """JSON-friendly (arcsec for people, rad kept)."""
         return {'possible_arcsec': float(rad_to_arcsec(self.possible_rad)),
                 'line_arcsec': (float(rad_to_arcsec(self.line_rad))

@@ -31,7 +31,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING, TypedDict
 
 import numpy as np
 
@@ -44,7 +44,7 @@ if TYPE_CHECKING:
     import numpy.typing as npt
 
 __all__ = ['CANCEL_TOL', 'MAX_NOISE_GAIN', 'MIN_OBSERVABILITY', 'MIN_SEPARATION_RAD',
-           'HeadLayout']
+           'HeadLayout', 'HeadLayoutJson']
 
 _TWO_PI = 2.0 * math.pi
 #: |H_k| below this counts as cancelled.
@@ -60,6 +60,22 @@ MIN_OBSERVABILITY = 0.1
 
 def _deg_list(angles: Iterable[float]) -> str:
     return '[' + ', '.join(f'{float(rad_to_deg(a)):.6g}' for a in angles) + '] deg'
+
+
+class HeadLayoutJson(TypedDict):
+    """The JSON of :class:`HeadLayout` (degrees for people, radians kept)."""
+
+    n_heads: int
+    head_ids: list[int]
+    angles_rad: list[float]
+    angles_deg: list[float]
+    weights: list[float]
+    equally_spaced: bool
+    noise_gain: float
+    ambiguous_orders: list[int]
+    unobservable_orders: list[int]
+    max_order: int
+    description: str
 
 
 @dataclass(frozen=True)
@@ -229,7 +245,7 @@ class HeadLayout:
         shown = ', '.join(map(str, left)) or 'none'
         return f'{how}; orders still ambiguous with the reducer (<= {top}): {shown}'
 
-    def to_plain(self, max_order: int = 0) -> dict[str, Any]:
+    def to_plain(self, max_order: int = 0) -> HeadLayoutJson:
         """JSON-friendly record (degrees for people, radians kept)."""
         top = max_order or 4 * self.n_heads
         return {'n_heads': self.n_heads, 'head_ids': list(self.head_ids),

@@ -37,7 +37,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, field
-from typing import Any
+from typing import TypedDict
 
 import numpy as np
 import numpy.typing as npt
@@ -46,9 +46,12 @@ from rv_te_bench.errors import MsaError
 
 __all__ = [
     'AnovaRow',
+    'AnovaRowJson',
     'GaugeRR',
+    'GaugeRRJson',
     'MsaError',
     'Type1Study',
+    'Type1StudyJson',
     'gauge_rr_anova',
     'type1_study',
 ]
@@ -63,6 +66,60 @@ POOL_ALPHA = 0.25
 
 def _fin(x: float) -> float | None:
     return float(x) if math.isfinite(x) else None
+
+
+class Type1StudyJson(TypedDict):
+    """The JSON of :class:`Type1Study` (None: not finite)."""
+
+    n: int
+    mean: float
+    std: float
+    tolerance: float
+    reference: float | None
+    cg: float | None
+    cgk: float | None
+    bias: float | None
+    t_bias: float | None
+    p_bias: float | None
+    k_percent: float
+    sigma_multiplier: float
+    capable: bool | None
+    criterion: str
+
+
+class AnovaRowJson(TypedDict):
+    """The JSON of :class:`AnovaRow` (None: not finite)."""
+
+    source: str
+    dof: int
+    ss: float
+    ms: float | None
+    f: float | None
+    p: float | None
+
+
+class GaugeRRJson(TypedDict):
+    """The JSON of :class:`GaugeRR` (None: not finite)."""
+
+    parts: int
+    operators: int
+    repeats: int
+    anova: list[AnovaRowJson]
+    interaction_pooled: bool
+    variance: dict[str, float]
+    ev: float
+    av: float
+    interaction: float
+    grr: float
+    pv: float
+    tv: float
+    tolerance: float | None
+    process_sigma: float | None
+    pct_grr_of_process: float | None
+    pct_grr_of_tolerance: float | None
+    ndc: int
+    verdict: str
+    criteria: str
 
 
 @dataclass(frozen=True)
@@ -103,7 +160,7 @@ class Type1Study:
             return None
         return self.cg >= CAPABLE and self.cgk >= CAPABLE
 
-    def to_json_dict(self) -> dict[str, Any]:
+    def to_json_dict(self) -> Type1StudyJson:
         """JSON (values in the unit of the data)."""
         return {'n': self.n, 'mean': self.mean, 'std': self.std, 'tolerance': self.tolerance,
                 'reference': _fin(self.reference), 'cg': _fin(self.cg), 'cgk': _fin(self.cgk),
@@ -175,7 +232,7 @@ class AnovaRow:
     f: float = math.nan
     p: float = math.nan
 
-    def to_json_dict(self) -> dict[str, Any]:
+    def to_json_dict(self) -> AnovaRowJson:
         """JSON."""
         return {'source': self.source, 'dof': self.dof, 'ss': self.ss, 'ms': _fin(self.ms),
                 'f': _fin(self.f), 'p': _fin(self.p)}
@@ -264,7 +321,7 @@ class GaugeRR:
             return 'unknown'
         return 'acceptable' if pct <= 10 else 'conditional' if pct <= 30 else 'unacceptable'
 
-    def to_json_dict(self) -> dict[str, Any]:
+    def to_json_dict(self) -> GaugeRRJson:
         """JSON (standard deviations in the unit of the data, percentages in %)."""
         return {'parts': self.parts, 'operators': self.operators, 'repeats': self.repeats,
                 'anova': [r.to_json_dict() for r in self.anova],

@@ -26,7 +26,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, replace
-from typing import TYPE_CHECKING, Any, Literal, TypeAlias
+from typing import TYPE_CHECKING, Literal, TypeAlias, TypedDict
 
 import numpy as np
 
@@ -39,7 +39,8 @@ if TYPE_CHECKING:
 
     from rv_te_bench.core.head_combine import WindowBreak
 
-__all__ = ['SIMULATED_ZERO_SOURCE', 'TE_ZERO_MODES', 'EncoderZero', 'TeReference', 'TeZero',
+__all__ = ['SIMULATED_ZERO_SOURCE', 'TE_ZERO_MODES', 'EncoderZero', 'TeReference',
+           'TeReferenceJson', 'TeZero',
            'TeZeroMode', 'encoder_zero_from_record', 'wrap_turn_rad']
 
 TeZeroMode: TypeAlias = Literal['auto', 'first-sample', 'encoders']
@@ -121,6 +122,21 @@ def encoder_zero_from_record(record: object) -> EncoderZero | None:
     return None
 
 
+class TeReferenceJson(TypedDict):
+    """The JSON of :class:`TeReference` (units in the keys)."""
+
+    method: Literal['encoders', 'first-sample']
+    source: str
+    removed_rad: float
+    whole_output_turns: int
+    removed_within_turn_rad: float
+    removed_within_turn_deg: float
+    removed_within_turn_arcmin: float
+    first_te_rad: float
+    first_te_arcmin: float
+    text: str
+
+
 @dataclass(frozen=True)
 class TeReference:
     """The zero the TE was referred to (what the report states).
@@ -161,7 +177,7 @@ class TeReference:
                    + ' removed)' if self.removed_rad else '')
                 + f'; TE at the first sample {rad_to_arcmin(self.first_te_rad):+.4f} arcmin')
 
-    def to_json_dict(self) -> dict[str, Any]:
+    def to_json_dict(self) -> TeReferenceJson:
         """JSON (units in the keys)."""
         within = self.removed_within_turn_rad
         return {'method': self.method, 'source': self.source,
