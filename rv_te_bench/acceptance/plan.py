@@ -49,7 +49,7 @@ import dataclasses
 import math
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING, Any, TypedDict
 
 from rv_te_bench.acceptance._fields import Fields
 from rv_te_bench.acceptance._files import parse_yaml_text, read_source, shipped
@@ -73,6 +73,7 @@ __all__ = [
     'STEP_KINDS',
     'HysteresisStep',
     'OperatorStep',
+    'PlanPlain',
     'PlanSafety',
     'Step',
     'SweepStep',
@@ -173,6 +174,17 @@ class PlanSafety:
     reach_timeout_s: float = 10.0
 
 
+class PlanPlain(TypedDict):
+    """:meth:`TestPlan.to_plain`: the plan as validated (safety NaN -> None; each step its
+    fields, which depend on its kind)."""
+
+    plan: str
+    description: str
+    tolerance: str
+    safety: dict[str, float | None]
+    steps: list[dict[str, Any]]
+
+
 @dataclass(frozen=True)
 class TestPlan:
     """A validated plan."""
@@ -186,7 +198,7 @@ class TestPlan:
     safety: PlanSafety = field(default_factory=PlanSafety)
     origin: str = field(default='<plan>', compare=False)
 
-    def to_plain(self) -> dict[str, Any]:
+    def to_plain(self) -> PlanPlain:
         """The plan as validated (SI units), for records."""
         return {'plan': self.name, 'description': self.description,
                 'tolerance': self.tolerance,

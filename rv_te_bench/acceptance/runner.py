@@ -48,7 +48,7 @@ if TYPE_CHECKING:
     from collections.abc import Callable
 
     from rv_te_bench.acceptance.plan import Step, TestPlan
-    from rv_te_bench.acceptance.tolerance import Measured, ToleranceProfile
+    from rv_te_bench.acceptance.tolerance import Measured, MetricVerdictJson, ToleranceProfile
     from rv_te_bench.core.bench_uncertainty import BenchUncertainty
     from sim.bench import BenchBlock
     from sim.bench_info import BenchInfoData
@@ -274,7 +274,7 @@ SEGMENT_DECIDED = frozenset({'te', 'sweep'})
 
 
 def running_verdicts(measured: list[Measured], profile: ToleranceProfile,
-                     ) -> tuple[list[dict[str, Any]], str]:
+                     ) -> tuple[list[MetricVerdictJson], str]:
     """The metrics decided so far against their limits, while a test runs.
 
     Returns the rows (as the final report's ``metrics``; a limit not measured yet is

@@ -33,7 +33,7 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING, Any, NotRequired, TypedDict
 
 from rv_te_bench.acceptance._files import parse_yaml_text, read_source, shipped, shown_keys
 from rv_te_bench.core.decision import DecisionRule, decide
@@ -45,9 +45,13 @@ if TYPE_CHECKING:
 
 __all__ = [
     'LIMIT_KEYS',
+    'DecisionRulePlain',
     'Limit',
+    'LimitPlain',
     'Measured',
     'MetricVerdict',
+    'MetricVerdictJson',
+    'TolerancePlain',
     'ToleranceProfile',
     'evaluate',
     'load_tolerance',
@@ -122,6 +126,36 @@ class Limit:
                 **_SINGLE_METRIC}[self.family]
 
 
+class DecisionRulePlain(TypedDict):
+    """A profile's decision rule in its record."""
+
+    kind: str
+    guard_fraction: float
+    statement: str
+    source: str
+
+
+class LimitPlain(TypedDict):
+    """A limit in a profile's record (SI; None: no bound)."""
+
+    key: str
+    family: str
+    unit: str
+    min_si: float | None
+    max_si: float | None
+    region: str
+    source: str
+
+
+class TolerancePlain(TypedDict):
+    """:meth:`ToleranceProfile.to_plain`."""
+
+    profile: str
+    description: str
+    decision_rule: DecisionRulePlain
+    limits: list[LimitPlain]
+
+
 @dataclass(frozen=True)
 class ToleranceProfile:
     """A validated tolerance profile."""
@@ -133,7 +167,7 @@ class ToleranceProfile:
     rule: DecisionRule = field(default_factory=DecisionRule)
     rule_source: str = ''
 
-    def to_plain(self) -> dict[str, Any]:
+    def to_plain(self) -> TolerancePlain:
         """For records (SI limits)."""
         return {'profile': self.name, 'description': self.description,
                 'decision_rule': {'kind': self.rule.kind,
@@ -280,6 +314,27 @@ class Measured:
     budget: dict[str, Any] | None = field(default=None, compare=False, repr=False)
 
 
+class MetricVerdictJson(TypedDict):
+    """The JSON of :class:`MetricVerdict` (None: not finite; ``note`` and ``budget`` only
+    when there is one)."""
+
+    name: str
+    step: str
+    unit: str
+    value: float | None
+    u95: float | None
+    limit_min: float | None
+    limit_max: float | None
+    margin: float | None
+    verdict: str
+    source: str
+    guard: float | None
+    pfa: float | None
+    borderline: bool
+    note: NotRequired[str]
+    budget: NotRequired[dict[str, Any]]
+
+
 @dataclass(frozen=True)
 class MetricVerdict:
     """A metric, its limit and its verdict (SI)."""
@@ -300,13 +355,13 @@ class MetricVerdict:
     borderline: bool = False
     budget: dict[str, Any] | None = field(default=None, compare=False, repr=False)
 
-    def to_json_dict(self) -> dict[str, Any]:
+    def to_json_dict(self) -> MetricVerdictJson:
         """JSON-friendly (NaN -> None); ``u95`` the value's U in SI, ``guard`` the guard
         band applied, ``pfa`` the probability that the true value lies outside the limit
         (shown for borderline results)."""
         def fin(x: float) -> float | None:
             return float(x) if math.isfinite(x) else None
-        out: dict[str, Any] = {'name': self.name, 'step': self.step, 'unit': self.unit,
+        out: MetricVerdictJson = {'name': self.name, 'step': self.step, 'unit': self.unit,
                'value': fin(self.value), 'u95': fin(self.u95),
                'limit_min': fin(self.limit_min),
                'limit_max': fin(self.limit_max), 'margin': fin(self.margin),
