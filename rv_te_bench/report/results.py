@@ -10,7 +10,7 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING, Any, TypedDict
 
 import numpy as np
 
@@ -36,15 +36,48 @@ if TYPE_CHECKING:
 
 __all__ = [
     'AnalysisBench',
+    'AnalysisBenchJson',
     'AnalysisResult',
     'DominantHarmonic',
     'Recommendation',
     'SessionInfo',
     'SpectrumSummary',
+    'TeStatsJson',
     'TeTrace',
     'report_title',
     'stats_json',
 ]
+
+
+class AnalysisBenchJson(TypedDict):
+    """The analysis JSON's ``bench``: what the record says of its bench."""
+
+    source: str
+    bench_id: str
+    preset: str
+    reducer_type: str
+    gear_ratio: float
+    crank_per_output: float
+    mesh_orders_out: list[float]
+    mesh_labels: list[str]
+    sample_rate_hz: float | None
+    encoder_in_model: str
+    encoder_out_model: str
+
+
+class TeStatsJson(TypedDict):
+    """TE statistics in the analysis JSON (None: not finite)."""
+
+    te_pp_arcmin: float | None
+    te_amplitude_arcmin: float | None
+    te_mean_arcmin: float | None
+    te_std_arcmin: float | None
+    te_pp_rad: float | None
+    te_amplitude_rad: float | None
+    te_mean_rad: float | None
+    te_std_rad: float | None
+    revolutions: float | None
+    n_samples: int
 
 
 @dataclass(frozen=True)
@@ -116,7 +149,7 @@ class AnalysisBench:
         """Output encoder model ('' when unknown)."""
         return '' if self.info is None else self.info.encoder_out_model
 
-    def to_json_dict(self) -> dict[str, Any]:
+    def to_json_dict(self) -> AnalysisBenchJson:
         """JSON-friendly dict (unit-suffixed keys)."""
         return {
             'source': self.source, 'bench_id': self.bench_id, 'preset': self.preset,
@@ -350,7 +383,7 @@ class AnalysisResult:
         return doc
 
 
-def stats_json(stats: TeStats) -> dict[str, Any]:
+def stats_json(stats: TeStats) -> TeStatsJson:
     """TE statistics as a JSON dict in arcmin (and rad), keys carrying the unit."""
     return {
         'te_pp_arcmin': json_float(rad_to_arcmin(stats.pp_rad)),
