@@ -46,7 +46,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING, Any, TypedDict
 
 import numpy as np
 import numpy.typing as npt
@@ -65,6 +65,7 @@ __all__ = [
     'HuRvParams',
     'SensitivityRow',
     'TcaResult',
+    'TcaSummary',
     'build_te_model',
     'cycloid_profile_m',
     'elastic_te_rad',
@@ -509,6 +510,17 @@ def build_te_model(preset: Preset, mode: str) -> HuGeometricTeModel:
 # ----------------------------------------------------------------- tooth contact analysis
 
 
+class TcaSummary(TypedDict):
+    """:meth:`TcaResult.summary` (SI; the mesh arc None when no pin is in mesh)."""
+
+    pins_in_mesh: int
+    f_max_n: float
+    delta_max_m: float
+    iterations: int
+    mesh_from_deg: float | None
+    mesh_to_deg: float | None
+
+
 @dataclass(frozen=True)
 class TcaResult:
     """Result of the tooth contact analysis (Hu 2020 Eqs 28-48) for one cycloid disc.
@@ -545,7 +557,7 @@ class TcaResult:
     torque_cycloid_nm: float
     rho_m: float
 
-    def summary(self) -> dict[str, Any]:
+    def summary(self) -> TcaSummary:
         """JSON-friendly summary (SI, unit-suffixed keys)."""
         ang = np.degrees(self.pin_angle_rad[self.in_mesh])
         return {'pins_in_mesh': self.pins_in_mesh, 'f_max_n': self.f_max_n,
