@@ -30,7 +30,7 @@ from __future__ import annotations
 import functools
 import math
 from dataclasses import dataclass, field
-from typing import TYPE_CHECKING, Any, Literal
+from typing import TYPE_CHECKING, Literal, TypedDict
 
 import numpy as np
 from numpy.lib.stride_tricks import sliding_window_view
@@ -42,9 +42,9 @@ if TYPE_CHECKING:
 
     import numpy.typing as npt
 
-__all__ = ['NELSON_RULES', 'WESTERN_ELECTRIC_RULES', 'Capability', 'ControlChart',
-           'RuleHit', 'capability', 'd2', 'd3', 'individuals_chart', 'run_rules',
-           'xbar_r_chart']
+__all__ = ['NELSON_RULES', 'WESTERN_ELECTRIC_RULES', 'Capability', 'CapabilityJson',
+           'ControlChart', 'ControlChartJson', 'RuleHit', 'capability', 'd2', 'd3',
+           'individuals_chart', 'run_rules', 'xbar_r_chart']
 
 RuleSet = Literal['nelson', 'western-electric']
 
@@ -101,6 +101,56 @@ def d3(n: int) -> float:
     """Standard deviation of the range of ``n`` standard normal values (constant d3)."""
     m1, m2 = _range_moments(_check_n(n))
     return math.sqrt(max(m2 - m1 * m1, 0.0))
+
+
+class RuleHitJson(TypedDict):
+    """A rule hit in :class:`ControlChartJson`."""
+
+    rule: str
+    index: int
+    description: str
+
+
+class ControlChartJson(TypedDict):
+    """The JSON of :class:`ControlChart` (values scaled; None: not finite)."""
+
+    kind: Literal['individuals', 'xbar-r']
+    unit: str
+    rules: RuleSet
+    centre: float
+    process_sigma: float
+    values: list[float | None]
+    lcl: list[float | None]
+    ucl: list[float | None]
+    spread: list[float | None]
+    spread_centre: float
+    spread_ucl: list[float | None]
+    spread_lcl: list[float | None]
+    sizes: list[int]
+    baseline: list[int]
+    hits: list[RuleHitJson]
+
+
+class CapabilityJson(TypedDict):
+    """The JSON of :class:`Capability` (limits, mean and sigmas scaled; None: none)."""
+
+    unit: str
+    lsl: float | None
+    usl: float | None
+    mean: float
+    sigma_within: float
+    sigma_overall: float
+    n: int
+    cp: float | None
+    cpk: float | None
+    pp: float | None
+    ppk: float | None
+    fraction_out: float
+    sigma_measurement: float | None
+    cp_corrected: float | None
+    cpk_corrected: float | None
+    pp_corrected: float | None
+    ppk_corrected: float | None
 
 
 @dataclass(frozen=True, slots=True)
@@ -161,7 +211,7 @@ class ControlChart:
         """Index of the first point any rule flags, or None."""
         return self.hits[0].index if self.hits else None
 
-    def to_json_dict(self, scale: float = 1.0, unit: str = '') -> dict[str, Any]:
+    def to_json_dict(self, scale: float = 1.0, unit: str = '') -> ControlChartJson:
         """JSON form; values multiplied by ``scale`` (e.g. rad -> arcmin) and tagged."""
         def arr(a: np.ndarray) -> list[float | None]:
             return [None if not math.isfinite(v) else float(v) * scale for v in a]
@@ -377,7 +427,7 @@ class Capability:
     pp_corrected: float | None = None
     ppk_corrected: float | None = None
 
-    def to_json_dict(self, scale: float = 1.0, unit: str = '') -> dict[str, Any]:
+    def to_json_dict(self, scale: float = 1.0, unit: str = '') -> CapabilityJson:
         """JSON form; the limits, mean and sigmas multiplied by ``scale``."""
         def sc(v: float | None) -> float | None:
             return None if v is None else v * scale
