@@ -36,7 +36,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, field, replace
-from typing import Any
+from typing import Any, TypedDict
 
 from rv_te_bench.core.units import arcsec_to_rad
 from rv_te_bench.errors import TeConfigError
@@ -45,7 +45,9 @@ __all__ = [
     'DEFAULT_GRADUATION_ORDERS',
     'ENCODER_ERROR_DEFAULTS',
     'BenchUncertainty',
+    'BenchUncertaintyPlain',
     'EncoderErrorModel',
+    'EncoderErrorPlain',
     'bench_uncertainty_from_plain',
     'default_encoder_errors',
     'graduation_from_band',
@@ -76,6 +78,35 @@ def graduation_from_band(band_rad: float, orders: tuple[int, ...] = DEFAULT_GRAD
         return ()
     g = band_rad * math.sqrt(2.0 / (3.0 * len(orders)))
     return tuple((int(k), g) for k in orders)
+
+
+class EncoderErrorPlain(TypedDict):
+    """:meth:`EncoderErrorModel.to_plain` (SI; graduation as [order, amplitude] pairs)."""
+
+    model: str
+    accuracy_rad: float
+    graduation: list[list[int | float]]
+    signal_periods: int
+    interpolation_rad: float
+    eccentricity_rad: float
+    eccentricity_u_rad: float
+    noise_sigma_rad: float
+    resolution_rad: float
+    cte_mismatch_per_k: float
+    source: str
+    known: bool
+
+
+class BenchUncertaintyPlain(TypedDict):
+    """:meth:`BenchUncertainty.to_plain` (SI; the torque zero None when not stated)."""
+
+    encoder_in: EncoderErrorPlain
+    encoder_out: EncoderErrorPlain
+    daq_skew_s: float
+    torque_zero_nm: float | None
+    torque_gain_rel: float
+    temperature_spread_k: float
+    source: str
 
 
 @dataclass(frozen=True)
@@ -157,7 +188,7 @@ class EncoderErrorModel:
         """:meth:`components` without the interpolation error."""
         return tuple(c for c in self.components() if not c[0].startswith('interpolation'))
 
-    def to_plain(self) -> dict[str, Any]:
+    def to_plain(self) -> EncoderErrorPlain:
         """JSON-friendly (SI)."""
         return {'model': self.model, 'accuracy_rad': self.accuracy_rad,
                 'graduation': [[k, g] for k, g in self.graduation],
@@ -284,7 +315,7 @@ class BenchUncertainty:
                    encoder_out=default_encoder_errors(encoder_out_model, resolution_out_rad),
                    source=DEFAULT_BENCH_SOURCE)
 
-    def to_plain(self) -> dict[str, Any]:
+    def to_plain(self) -> BenchUncertaintyPlain:
         """JSON-friendly (SI)."""
         return {'encoder_in': self.encoder_in.to_plain(),
                 'encoder_out': self.encoder_out.to_plain(),

@@ -21,7 +21,7 @@ from __future__ import annotations
 import datetime as _dt
 import math
 from dataclasses import dataclass, replace
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING, Any, TypedDict
 
 import numpy as np
 
@@ -34,7 +34,7 @@ if TYPE_CHECKING:
 
     from rv_te_bench.core.selfcal import HarmonicEstimate
 
-__all__ = ['CALIBRATION_FORMAT', 'CalibrationHarmonic', 'EncoderCalibration',
+__all__ = ['CALIBRATION_FORMAT', 'CalibrationFile', 'CalibrationHarmonic', 'EncoderCalibration',
            'calibration_from_estimate', 'calibration_from_plain']
 
 #: The file format's name and version (the first key of a calibration file).
@@ -76,6 +76,32 @@ def _date(where: str, key: str, text: str) -> _dt.date | None:
     except ValueError:
         msg = f'{where}: {key} must be an ISO date (YYYY-MM-DD), got {text!r}'
         raise EncoderCalibrationError(msg) from None
+
+
+class HarmonicPlain(TypedDict):
+    """A harmonic in the file form (catalogue units)."""
+
+    order: int
+    amplitude_arcsec: float
+    phase_deg: float
+    u_arcsec: float
+
+
+class CalibrationFile(TypedDict):
+    """:meth:`EncoderCalibration.to_plain`: the file form (catalogue units: arcsec, deg)."""
+
+    format: str
+    scale_serial: str
+    date: str
+    method: str
+    valid_until: str
+    mounting: str
+    encoder_model: str
+    source: str
+    coordinate: str
+    max_order: int
+    undetermined_orders: list[int]
+    harmonics: list[HarmonicPlain]
 
 
 @dataclass(frozen=True)
@@ -215,7 +241,7 @@ class EncoderCalibration:
                 f'{len(self.harmonics)} harmonics up to order {self.max_order}'
                 + (f', orders {und}{more} not determined' if und else ''))
 
-    def to_plain(self) -> dict[str, Any]:
+    def to_plain(self) -> CalibrationFile:
         """The file form (catalogue units: arcsec, deg)."""
         return {
             'format': CALIBRATION_FORMAT,
