@@ -38,7 +38,7 @@ import math
 import time
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field, replace
-from typing import TYPE_CHECKING, Any, TypeAlias
+from typing import TYPE_CHECKING, Any, TypeAlias, TypedDict
 
 import numpy as np
 import numpy.typing as npt
@@ -57,6 +57,8 @@ __all__ = [
     'PHASE_NAMES',
     'EccentricGeometry',
     'PhaseOptimisation',
+    'PhaseOptimisationJson',
+    'PhaseTableRow',
     'SteComparison',
     'delta_pair_m',
     'grid_search_phases',
@@ -462,6 +464,36 @@ class SteComparison:
     after: TeStats
 
 
+class PhaseTableRow(TypedDict):
+    """A row of :meth:`PhaseOptimisation.table_rows` (Table 4 style, arcmin)."""
+
+    case: str
+    when: str
+    te_pp_arcmin: float
+    te_amplitude_arcmin: float
+    te_std_arcmin: float
+    te_mean_arcmin: float
+
+
+class PhaseOptimisationJson(TypedDict):
+    """The JSON of :class:`PhaseOptimisation` (unit suffixes; None: not finite)."""
+
+    phases_before_rad: list[float]
+    phases_after_rad: list[float]
+    phases_before_deg: list[float | None]
+    phases_after_deg: list[float | None]
+    objective_before_arcmin: float
+    objective_after_arcmin: float
+    objective_before_rad: float
+    objective_after_rad: float
+    grid_step_deg: float | None
+    refined: bool
+    n_combinations: int
+    elapsed_s: float
+    e_m: list[float]
+    table: list[PhaseTableRow]
+
+
 @dataclass(frozen=True)
 class PhaseOptimisation:
     """Result of the Wang 2020 Eq. 21 phase optimisation (Table 4 rows before/after).
@@ -502,9 +534,9 @@ class PhaseOptimisation:
             return 0.0
         return 1.0 - self.objective_after_rad / self.objective_before_rad
 
-    def table_rows(self) -> list[dict[str, Any]]:
+    def table_rows(self) -> list[PhaseTableRow]:
         """Table 4 style rows in arcmin (pp, amplitude, std, mean) for people and JSON."""
-        rows = []
+        rows: list[PhaseTableRow] = []
         pairs = [('NLTE', self.nlte_before, self.nlte_after)]
         pairs += [(f'{c.load_nm:g} Nm STE', c.before, c.after) for c in self.ste]
         for name, b, a in pairs:
@@ -540,7 +572,7 @@ class PhaseOptimisation:
                                'n_combinations': self.n_combinations,
                                'e_m': list(self.e_m), **self.details})
 
-    def to_json_dict(self) -> dict[str, Any]:
+    def to_json_dict(self) -> PhaseOptimisationJson:
         """JSON-friendly dict with unit suffixes."""
         return {
             'phases_before_rad': list(self.phases_before_rad),
