@@ -22,7 +22,7 @@ the same session, for comparison.
 from __future__ import annotations
 
 from dataclasses import dataclass, replace
-from typing import TYPE_CHECKING, Any, Literal
+from typing import TYPE_CHECKING, Any, Literal, TypedDict
 
 import numpy as np
 
@@ -33,12 +33,13 @@ if TYPE_CHECKING:
     import datetime as _dt
     from collections.abc import Iterable, Iterator
 
-    from rv_te_bench.core.encoder_calibration import EncoderCalibration
+    from rv_te_bench.core.encoder_calibration import CalibrationFile, EncoderCalibration
+    from rv_te_bench.core.heads import HeadLayoutJson
     from rv_te_bench.core.stream_records import EncoderBatch, EncoderBlockData
     from sim.bench_info import BenchInfoData
 
 __all__ = ['HEAD_MODES', 'MAX_EVENTS_KEPT', 'HeadCombiner', 'HeadEvent', 'ScaleHeads',
-           'WindowBreak', 'combine_stream']
+           'ScaleHeadsJson', 'WindowBreak', 'combine_stream']
 
 HeadMode = Literal['average', 'head0']
 HEAD_MODES: tuple[str, ...] = ('average', 'head0')
@@ -80,6 +81,17 @@ class WindowBreak:
     detail: str
 
 
+class ScaleHeadsJson(TypedDict):
+    """The JSON of :class:`ScaleHeads` (what is done to one shaft's heads)."""
+
+    mode: HeadMode
+    n_heads: int
+    layout: HeadLayoutJson | None
+    calibration: CalibrationFile | None
+    index_rad: float
+    description: str
+
+
 @dataclass(frozen=True)
 class ScaleHeads:
     """How one shaft's angle is formed.
@@ -119,7 +131,7 @@ class ScaleHeads:
             parts.append(f'calibration applied: {self.calibration.describe()}')
         return '; '.join(parts)
 
-    def to_plain(self) -> dict[str, Any]:
+    def to_plain(self) -> ScaleHeadsJson:
         """JSON-friendly."""
         return {'mode': self.mode, 'n_heads': self.n_heads,
                 'layout': None if self.layout is None else self.layout.to_plain(),
@@ -176,7 +188,7 @@ class HeadCombiner:
         """Whether any shaft's readings are changed (else blocks pass unchanged)."""
         return any(s.active for s in self.scales.values())
 
-    def describe(self) -> dict[str, Any]:
+    def describe(self) -> dict[str, ScaleHeadsJson]:
         """What is done to each shaft, JSON-friendly (report, bag metadata)."""
         return {f'{side}put': s.to_plain() for side, s in self.scales.items()}
 
