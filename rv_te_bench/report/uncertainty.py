@@ -26,7 +26,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, field
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING, Any, NotRequired, TypedDict
 
 import numpy as np
 
@@ -39,7 +39,7 @@ from rv_te_bench.core.te_uncertainty import (
 from rv_te_bench.io.bench_record import bench_uncertainty_of
 
 if TYPE_CHECKING:
-    from rv_te_bench.core.bench_uncertainty import BenchUncertainty
+    from rv_te_bench.core.bench_uncertainty import BenchUncertainty, BenchUncertaintyPlain
     from rv_te_bench.core.spectrum import SpectrumSummary
     from rv_te_bench.core.stream_records import WindowResult
     from rv_te_bench.core.te import TeStats
@@ -48,7 +48,8 @@ if TYPE_CHECKING:
     from rv_te_bench.report.trace import TeTrace
     from sim.bench_info import BenchInfoData
 
-__all__ = ['AnalysisUncertainty', 'MonteCarloCheck', 'analysis_uncertainty',
+__all__ = ['AnalysisUncertainty', 'AnalysisUncertaintyJson', 'MonteCarloCheck',
+           'MonteCarloJson', 'analysis_uncertainty',
            'bench_uncertainty_of', 'budget_html', 'display_of', 'line_budget_key',
            'monte_carlo_check']
 
@@ -57,6 +58,40 @@ __all__ = ['AnalysisUncertainty', 'MonteCarloCheck', 'analysis_uncertainty',
 def line_budget_key(label: str, what: str) -> str:
     """Name of a line's budget: ``'line <label> amplitude'`` / ``'... phase'``."""
     return f'line {label} {what}'
+
+
+class McRowJson(TypedDict):
+    """One budget's U by the law of propagation beside the Monte Carlo one (SI)."""
+
+    u95_gum: float
+    u95_mc: float
+    difference: float
+    low: float
+    high: float
+    std_mc: float
+    u_c: float
+
+
+class MonteCarloJson(TypedDict):
+    """The JSON of :class:`MonteCarloCheck`."""
+
+    draws: int
+    notes: list[str]
+    results: dict[str, McRowJson]
+
+
+class AnalysisUncertaintyJson(TypedDict):
+    """The analysis JSON's ``uncertainty``: every budget in full (the budgets' own JSON),
+    the bench model, the TE p-p's U when there is a revolution, the Monte Carlo check when
+    asked for."""
+
+    coverage_probability: float | None
+    notes: list[str]
+    bench: BenchUncertaintyPlain
+    budgets: dict[str, dict[str, Any]]
+    te_pp_revolution_max_rad: NotRequired[float]
+    te_pp_revolution_max_rad_u95: NotRequired[float]
+    monte_carlo: NotRequired[MonteCarloJson]
 
 
 @dataclass(frozen=True)
@@ -81,10 +116,11 @@ class AnalysisUncertainty:
         b = self.budgets.get(name)
         return math.nan if b is None else b.u95
 
-    def to_json_dict(self) -> dict[str, Any]:
+    def to_json_dict(self) -> AnalysisUncertaintyJson:
         """JSON: every budget in full, the bench model, the values' U under ``*_u95``."""
-        out: dict[str, Any] = {'coverage_probability': None, 'notes': list(self.notes),
-                               'bench': self.bench.to_plain(), 'budgets': {}}
+        out: AnalysisUncertaintyJson = {'coverage_probability': None,
+                                        'notes': list(self.notes),
+                                        'bench': self.bench.to_plain(), 'budgets': {}}
         for name, b in self.budgets.items():
             out['budgets'][name] = b.to_json_dict()
             out['coverage_probability'] = b.coverage_probability
@@ -185,7 +221,7 @@ class MonteCarloCheck:
     results: dict[str, McResult] = field(default_factory=dict)
     notes: tuple[str, ...] = ()
 
-    def to_json_dict(self) -> dict[str, Any]:
+    def to_json_dict(self) -> MonteCarloJson:
         """JSON (SI): each budget's U (law of propagation) beside the Monte Carlo one."""
         return {'draws': self.draws, 'notes': list(self.notes), 'results': {
             name: {'u95_gum': r.u_gum, 'u95_mc': r.u_mc, 'difference': r.difference,
