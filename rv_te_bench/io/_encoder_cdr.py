@@ -22,7 +22,8 @@ if TYPE_CHECKING:
 
     from rv_te_bench.core.stream_records import EncoderBatch, EncoderBlockData
 
-__all__ = ['decode_encoder_block', 'decode_encoder_block_rosbags', 'encoder_block_seq']
+__all__ = ['decode_encoder_block', 'decode_encoder_block_rosbags', 'encoder_block_frame_id',
+           'encoder_block_seq']
 
 
 _ALIGN4, _ALIGN8 = 3, 7
@@ -44,6 +45,21 @@ def encoder_block_seq(data: bytes | memoryview) -> int:
     end = '<' if data[1] == 1 else '>'
     seq: int = struct.unpack_from(end + 'Q', data, 4 + _seq_offset(data, end))[0]
     return seq
+
+
+def encoder_block_frame_id(data: bytes | memoryview) -> str:
+    """``header.frame_id`` of a serialised EncoderBlock (the bench id; invalid UTF-8 is
+    replaced, as a reader that only shows it would).
+
+    Raises:
+        struct.error, IndexError: The bytes are too short to hold it.
+    """
+    end = '<' if data[1] == 1 else '>'
+    flen: int = struct.unpack_from(end + 'I', data, 12)[0]
+    if flen == 0 or 16 + flen > len(data):
+        msg = f'frame_id of {flen} bytes in a message of {len(data)}'
+        raise IndexError(msg)
+    return bytes(data[16:16 + flen - 1]).decode('utf-8', 'replace')
 
 
 #: Bytes the four head sequences take at least (their counts): fewer after the torque

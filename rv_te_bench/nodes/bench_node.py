@@ -529,7 +529,8 @@ class BenchNode(Node):
             self._publish_joint_states(b)
         else:
             stamp_s = self.wall_start + b.t0_s
-            msg = convert.make_encoder_block(
+            # serialised here (no message object): publish() sends the bytes as they are
+            msg = convert.encoder_block_bytes(
                 bench_id=self.sim.info.bench_id, seq=b.seq, stamp_s=stamp_s,
                 sample_rate_hz=self.p.sample_rate_hz, time_offset_s=b.time_offset_s,
                 theta_in_rad=b.theta_in_rad, theta_out_rad=b.theta_out_rad,

@@ -41,7 +41,7 @@ from std_msgs.msg import String
 
 from rv_te_bench.core.advice import advice_kind
 from rv_te_bench.core.advice_gate import check_cause, dominant_line, is_mesh_line, likely_source
-from rv_te_bench.errors import RvTeError, YamlInputError
+from rv_te_bench.errors import BagError, RvTeError, YamlInputError
 from rv_te_bench.nodes import convert, qos
 from rv_te_bench.nodes.common import (
     OK,
@@ -139,8 +139,10 @@ class CompensationNode(Node):
         self.heads_record: dict[str, Any] | None = None
         self.create_subscription(TransmissionError, 'te/statistics', self._on_window,
                                  qos.LATCHED_QOS)
+        # raw: only the two sample arrays are taken from the bytes (io._te_cdr), not the
+        # whole message with its statistics (issue 41 item 4)
         self.create_subscription(TransmissionError, 'te/samples', self._on_samples,
-                                 qos.ENCODER_QOS)
+                                 qos.ENCODER_QOS, raw=True)
         self.create_subscription(TeSpectrum, 'te/spectrum', self._on_spectrum,
                                  qos.LATCHED_QOS)
         self.create_timer(0.2, self._collect)
@@ -229,11 +231,22 @@ class CompensationNode(Node):
             summary = f'{summary} [ENCODER: {note.text()}]'
         return replace(advice, details=details, summary=summary)
 
-    def _on_samples(self, msg: TransmissionError) -> None:
-        te = np.asarray(msg.te_rad, dtype=np.float64)
-        ph = np.asarray(msg.theta_out_rad, dtype=np.float64)
-        if te.shape != ph.shape or not np.all(np.isfinite(te)) or not np.all(np.isfinite(ph)):
-            self.drops.drop('malformed', f'te/samples seq {msg.seq}: lengths {te.shape} vs '
+    def _on_samples(self, msg: TransmissionError | bytes) -> None:
+        """Samples of one te/samples message (raw, the subscription's form, or a message)."""
+        if isinstance(msg, bytes):
+            from rv_te_bench.io._te_cdr import te_samples_of
+
+            try:
+                seq, te, ph = te_samples_of(msg)
+            except BagError as exc:
+                self.drops.drop('malformed', f'te/samples: {exc}')
+                return
+        else:
+            seq = msg.seq
+            te = np.asarray(msg.te_rad, dtype=np.float64)
+            ph = np.asarray(msg.theta_out_rad, dtype=np.float64)
+        if te.shape != ph.shape or not np.isfinite(te).all() or not np.isfinite(ph).all():
+            self.drops.drop('malformed', f'te/samples seq {seq}: lengths {te.shape} vs '
                             f'{ph.shape} or non-finite values')
             return
         self._te.append(te)

@@ -5,6 +5,7 @@ from __future__ import annotations
 import array
 import importlib
 import math
+import struct
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
@@ -82,6 +83,34 @@ def encoder_block_to_data(msg: EncoderBlock) -> EncoderBlockData:
         theta_out_rad=_arr(msg.theta_out_rad), torque_out_nm=_arr(msg.torque_out_nm), **heads)
 
 
+def encoder_block_data_of(msg: EncoderBlock | bytes) -> tuple[EncoderBlockData, str]:
+    """(core EncoderBlockData, header.frame_id) of a message or of its serialised CDR bytes
+    (a raw subscription's: decoded straight into read-only numpy arrays, as the bag reader
+    does; what that decoder refuses, e.g. head readings that do not fit their ids, goes
+    through the message path, so that the core reports it as it always did).
+
+    Raises:
+        ValueError, TypeError: Bytes that are no EncoderBlock at all.
+    """
+    if not isinstance(msg, bytes | bytearray | memoryview):
+        return encoder_block_to_data(msg), msg.header.frame_id
+    from rv_te_bench.errors import BagError
+    from rv_te_bench.io._encoder_cdr import decode_encoder_block, encoder_block_frame_id
+
+    try:
+        return decode_encoder_block(msg), encoder_block_frame_id(msg)
+    except (BagError, struct.error, IndexError):
+        pass
+    from rclpy.serialization import deserialize_message
+
+    try:
+        obj = deserialize_message(bytes(msg), EncoderBlock)
+    except Exception as exc:  # noqa: BLE001 - the C typesupport raises several kinds
+        text = f'not a serialised EncoderBlock ({len(msg)} bytes): {exc}'
+        raise ValueError(text) from None
+    return encoder_block_to_data(obj), obj.header.frame_id
+
+
 def make_encoder_block(*, bench_id: str, seq: int, stamp_s: float, sample_rate_hz: float,
                        time_offset_s: np.ndarray, theta_in_rad: np.ndarray,
                        theta_out_rad: np.ndarray, torque_out_nm: np.ndarray | None,
@@ -109,6 +138,33 @@ def make_encoder_block(*, bench_id: str, seq: int, stamp_s: float, sample_rate_h
             setattr(msg, f'{side}_head_ids', numbers.astype(np.uint8).tobytes())
             setattr(msg, f'theta_{side}_heads_rad', float64_field(rows.ravel()))
     return msg
+
+
+def encoder_block_bytes(*, bench_id: str, seq: int, stamp_s: float, sample_rate_hz: float,
+                        time_offset_s: np.ndarray, theta_in_rad: np.ndarray,
+                        theta_out_rad: np.ndarray, torque_out_nm: np.ndarray | None,
+                        theta_in_heads_rad: np.ndarray | None = None,
+                        theta_out_heads_rad: np.ndarray | None = None) -> bytes:
+    """What :func:`make_encoder_block` builds, serialised (CDR, little-endian) without a
+    message object: the bench publishes these bytes (``Publisher.publish`` takes them as
+    they are), 15 us per block of 100 instead of 33 us (issue 41 item 4). Same fields,
+    same stamp rounding, heads numbered 0 .. N-1."""
+    from rv_te_bench.io._encoder_cdr_out import encoder_block_cdr
+
+    none_u8, none_f8 = np.zeros(0, np.uint8), np.zeros(0)
+    heads = []
+    for rows in (theta_in_heads_rad, theta_out_heads_rad):
+        if rows is not None and len(rows):
+            r = np.asarray(rows, dtype=np.float64)
+            heads += [np.arange(r.shape[0], dtype=np.uint8), r.ravel()]
+        else:
+            heads += [none_u8, none_f8]
+    return encoder_block_cdr(
+        max(0, round(stamp_s * 1e9)), bench_id, int(seq), float(sample_rate_hz),
+        np.asarray(time_offset_s, dtype=np.float64), np.asarray(theta_in_rad, np.float64),
+        np.asarray(theta_out_rad, dtype=np.float64),
+        none_f8 if torque_out_nm is None else np.asarray(torque_out_nm, dtype=np.float64),
+        *heads)
 
 
 def make_bench_channels(*, bench_id: str, seq: int, stamp_s: float,

@@ -22,6 +22,7 @@ import datetime as dt
 import platform
 import struct
 import sys
+import time
 from collections.abc import Callable, Sequence
 from importlib import metadata as importlib_metadata
 from pathlib import Path
@@ -348,7 +349,9 @@ class RecorderNode(Node):
         return self.get_clock().now().nanoseconds
 
     def _make_callback(self, state: _TopicState) -> Callable[[bytes], None]:
-        now = self._log_time_ns
+        # without sim time the node's clock is the system clock: read it directly
+        # (Clock.now() builds a Time object per message; issue 41 item 4)
+        now = self._log_time_ns if self._use_sim_time else time.time_ns
         record = self._record
 
         def on_message(data: bytes) -> None:

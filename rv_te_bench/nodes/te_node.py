@@ -31,7 +31,7 @@ from rv_te_bench.core.orders import OrderSet
 from rv_te_bench.core.stream import StreamingTeAnalyzer
 from rv_te_bench.core.stream_records import StreamUpdate, TeAnalysisConfig
 from rv_te_bench.core.te_zero import EncoderZero, TeZero
-from rv_te_bench.errors import EncoderCalibrationError, HeadLayoutError
+from rv_te_bench.errors import EncoderCalibrationError, HeadLayoutError, RvTeError
 from rv_te_bench.nodes import convert, qos
 from rv_te_bench.nodes.common import (
     ERROR,
@@ -116,7 +116,7 @@ class TeNode(Node):
         self._first_seq: int | None = None
         # blocks that arrive before the gear ratio is known (bench/info is latched but may
         # land after the first blocks): kept, bounded, and analysed once configured
-        self._pending: deque[EncoderBlock] = deque()
+        self._pending: deque[EncoderBlock | bytes] = deque()
         self.recent_windows: deque[Any] = deque(maxlen=64)  # for diagnostics and tests
         # reliable: the compensation node identifies the unit from these samples and the
         # recorder keeps them; best-effort viewers are still compatible
@@ -135,8 +135,10 @@ class TeNode(Node):
         # the recorder keeps it in the bag
         self.pub_heads = self.create_publisher(String, 'te/encoder_heads', qos.LATCHED_QOS)
         self.create_subscription(BenchInfo, 'bench/info', self._on_info, qos.LATCHED_QOS)
+        # raw: the CDR bytes are decoded straight into numpy arrays (decode_encoder_block,
+        # the bag reader's); no message object per block (issue 41 item 4)
         self.create_subscription(EncoderBlock, 'bench/encoders', self._on_block,
-                                 qos.ENCODER_QOS)
+                                 qos.ENCODER_QOS, raw=True)
         self.create_timer(self.p.diagnostics_period_s, self._publish_diagnostics)
         if orders is not None:
             self._crank_per_output()   # warns when the deprecated spelling is used
@@ -235,7 +237,8 @@ class TeNode(Node):
             f"encoder heads: output {combiner.scales['out'].describe()}")
 
     # -- data path ------------------------------------------------------------------------
-    def _on_block(self, msg: EncoderBlock) -> None:
+    def _on_block(self, msg: EncoderBlock | bytes) -> None:
+        """One block, as a message or raw (serialised CDR, the subscription's form)."""
         t_arrival = time.perf_counter()
         if self.analyzer is None:
             if len(self._pending) >= _MAX_PENDING_BLOCKS:
@@ -245,8 +248,8 @@ class TeNode(Node):
             self._pending.append(msg)
             return
         try:
-            block = convert.encoder_block_to_data(msg)
-        except (ValueError, TypeError) as exc:
+            block, frame_id = convert.encoder_block_data_of(msg)
+        except (ValueError, TypeError, RvTeError) as exc:
             self.drops.drop('malformed', str(exc))
             return
         if self.combiner is not None and self.combiner.active:
@@ -281,11 +284,11 @@ class TeNode(Node):
                 self.get_logger().warning(f'gap ({gap.kind}) at seq {gap.seq}: {gap.detail}',
                                           throttle_duration_sec=5.0)
         if len(update.te_rad):
-            self._publish_samples(update, msg.header.frame_id)
+            self._publish_samples(update, frame_id)
         self._publish_windows(update.windows)
         if len(update.te_rad):
             # a window that closed here shows in te/plot at once (not rate-limited)
-            self._publish_plot(update, msg.header.frame_id,
+            self._publish_plot(update, frame_id,
                                force=any(w.complete for w in update.windows))
         self._latency_ms.append((time.perf_counter() - t_arrival) * 1e3)
         if len(self._latency_ms) > 1000:

@@ -76,3 +76,103 @@ def test_float64_field_is_an_exact_array_copy() -> None:
     got = convert.float64_field(src)
     src[0] = 42.0   # a copy, not a view
     assert got[0] == x[0]
+
+
+# -- the raw paths of the live nodes (issue 41 item 4): bytes in, bytes out ---------------
+
+def _block_fields(msg: object) -> dict[str, object]:
+    names = ('time_offset_s', 'theta_in_rad', 'theta_out_rad', 'torque_out_nm',
+             'theta_in_heads_rad', 'theta_out_heads_rad')
+    out: dict[str, object] = {k: np.asarray(getattr(msg, k)) for k in names}
+    out.update(seq=msg.seq, sample_rate_hz=msg.sample_rate_hz,
+               sec=msg.header.stamp.sec, nanosec=msg.header.stamp.nanosec,
+               frame_id=msg.header.frame_id, in_ids=bytes(msg.in_head_ids),
+               out_ids=bytes(msg.out_head_ids))
+    return out
+
+
+@pytest.mark.parametrize('heads', [0, 3])
+@pytest.mark.parametrize('torque', [True, False])
+def test_encoder_block_bytes_deserialise_to_the_message_make_encoder_block_builds(
+        heads: int, torque: bool) -> None:
+    """The bench's serialised block, read back by rclpy's own deserialiser, holds exactly
+    the fields of the message the bench built before (stamp rounding, heads numbered)."""
+    from rclpy.serialization import deserialize_message
+    from rv_te_msgs.msg import EncoderBlock
+
+    rng = np.random.default_rng(41)
+    n = 100
+    kw = {'bench_id': 'bench7', 'seq': 2**40 + 3, 'stamp_s': 1795806515.0705361,
+          'sample_rate_hz': 10000.0, 'time_offset_s': np.arange(n) / 1e4,
+          'theta_in_rad': rng.normal(size=n) * 1e3, 'theta_out_rad': rng.normal(size=n),
+          'torque_out_nm': rng.normal(size=n) if torque else np.zeros(0),
+          'theta_in_heads_rad': None,
+          'theta_out_heads_rad': rng.normal(size=(heads, n)) if heads else None}
+    want = _block_fields(convert.make_encoder_block(**kw))
+    got = _block_fields(deserialize_message(convert.encoder_block_bytes(**kw), EncoderBlock))
+    assert got.keys() == want.keys()
+    for k, v in want.items():
+        if isinstance(v, np.ndarray):
+            np.testing.assert_array_equal(got[k], v, err_msg=k)
+        else:
+            assert got[k] == v, k
+    assert got['out_ids'] == bytes(range(heads))
+
+
+def test_encoder_block_data_of_bytes_equals_the_message_path() -> None:
+    """The TE node's raw path (decode from the bytes) gives the core the same block as
+    the message path; bytes the fast decoder refuses take the message path; garbage is
+    a ValueError (counted as malformed by the node), never a crash."""
+    from rclpy.serialization import serialize_message
+
+    rng = np.random.default_rng(7)
+    t = np.arange(50) / 1e4
+    msg = convert.make_encoder_block(bench_id='b3', seq=9, stamp_s=12.25, sample_rate_hz=1e4,
+                                     time_offset_s=t, theta_in_rad=rng.normal(size=50),
+                                     theta_out_rad=rng.normal(size=50),
+                                     torque_out_nm=rng.normal(size=50),
+                                     theta_out_heads_rad=rng.normal(size=(2, 50)))
+    want, fid = convert.encoder_block_data_of(msg)
+    got, gfid = convert.encoder_block_data_of(serialize_message(msg))
+    assert (gfid, fid) == ('b3', 'b3')
+    assert (got.seq, got.stamp_s, got.sample_rate_hz) == (want.seq, want.stamp_s,
+                                                         want.sample_rate_hz)
+    for k in ('time_offset_s', 'theta_in_rad', 'theta_out_rad', 'torque_out_nm',
+              'theta_out_heads_rad'):
+        np.testing.assert_array_equal(getattr(got, k), getattr(want, k), err_msg=k)
+    assert got.out_head_ids == want.out_head_ids == (0, 1)
+    # head readings that do not fit their ids: the fast decoder refuses, the message path
+    # hands them on as they are (the combiner reports them), as before
+    msg.theta_out_heads_rad = convert.float64_field(rng.normal(size=7))
+    odd, _ = convert.encoder_block_data_of(serialize_message(msg))
+    assert odd.out_head_ids == (0, 1) and np.asarray(odd.theta_out_heads_rad).size == 7
+    with pytest.raises(ValueError, match='not a serialised EncoderBlock'):
+        convert.encoder_block_data_of(b'\x00\x01\x00\x00' + bytes(9))
+
+
+def test_te_samples_of_reads_what_rclpy_serialises() -> None:
+    """The compensation node's raw path: seq and the two sample arrays, for frame ids of
+    every length mod 8 and empty arrays; truncated bytes are a BagError."""
+    from rclpy.serialization import serialize_message
+    from rv_te_msgs.msg import TransmissionError
+
+    from rv_te_bench.errors import BagError
+    from rv_te_bench.io._te_cdr import te_samples_of
+
+    rng = np.random.default_rng(3)
+    for fid in ('', 'b', 'bench12', 'abcdefgh'):
+        for n in (0, 1, 5):
+            m = TransmissionError()
+            m.header.frame_id = fid
+            m.seq = int(rng.integers(0, 2**62))
+            m.window_index, m.window_complete, m.sample_rate_hz = 3, True, 500.0
+            m.te_rad = convert.float64_field(rng.normal(size=n))
+            m.theta_out_rad = convert.float64_field(rng.normal(size=n))
+            m.window.pp_rad, m.gaps = 1.5, 2
+            seq, te, th = te_samples_of(serialize_message(m))
+            assert seq == m.seq
+            np.testing.assert_array_equal(te, np.asarray(m.te_rad))
+            np.testing.assert_array_equal(th, np.asarray(m.theta_out_rad))
+            data = serialize_message(m)
+    with pytest.raises(BagError):
+        te_samples_of(data[:40])

@@ -13,6 +13,7 @@ pytestmark = pytest.mark.ros
 rclpy = pytest.importorskip('rclpy')
 
 from rclpy.parameter import Parameter  # noqa: E402
+from rclpy.serialization import serialize_message  # noqa: E402
 from rv_te_msgs.msg import EncoderBlock, TransmissionError  # noqa: E402
 
 from rv_te_bench.nodes.compensation_node import CompensationNode  # noqa: E402
@@ -61,6 +62,15 @@ def test_te_node_handles_any_encoder_block(nodes, seq: int, sec: int, nsec: int,
     # every block is accounted for: handed to the core (a malformed one also counted as a
     # drop) or refused at conversion and counted as a drop; none vanishes silently
     assert (pushed, dropped) in {(1, 0), (1, 1), (0, 1)}
+    # the same block as the subscription hands it over (raw CDR bytes): the same outcome
+    blocks, drops = te._blocks, te.drops.total
+    te._on_block(serialize_message(msg))
+    assert (te._blocks - blocks, te.drops.total - drops) == (pushed, dropped)
+    # and bytes cut short anywhere: counted, never fatal
+    data = serialize_message(msg)
+    blocks, drops = te._blocks, te.drops.total
+    te._on_block(data[:len(data) // 2])
+    assert te._blocks - blocks + te.drops.total - drops >= 1
 
 
 @settings(max_examples=60, deadline=None)
@@ -74,6 +84,9 @@ def test_compensation_node_handles_any_te_message(nodes, te_rad: np.ndarray, th:
     msg.window_complete = complete
     msg.window.pp_rad = pp
     comp._on_samples(msg)
+    comp._on_samples(serialize_message(msg))      # raw, as the subscription hands it over
+    data = serialize_message(msg)
+    comp._on_samples(data[:len(data) // 2])       # cut short: counted, never fatal
     comp._on_window(msg)
     for _, fut in comp.jobs:
         exc = fut.exception(timeout=30)
