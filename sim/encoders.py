@@ -445,7 +445,7 @@ class SimulatedEncoder:
         if th.ndim != 1:
             msg = f'theta_true_rad must be 1-D, got shape {th.shape}'
             raise ModelInputError(msg)
-        if not np.all(np.isfinite(th)):
+        if not np.isfinite(th).all():
             msg = 'theta_true_rad must be finite (NaN or inf found)'
             raise ModelInputError(msg)
         return th

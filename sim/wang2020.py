@@ -77,6 +77,7 @@ and the 100 N m p-p after within 1 % and changes no other cell (docs/DESIGN_NOTE
 from __future__ import annotations
 
 import cmath
+import functools
 import math
 from dataclasses import dataclass
 from typing import TYPE_CHECKING, Any, NamedTuple, TypeAlias
@@ -337,7 +338,7 @@ class NlteCurves(NamedTuple):
 
 def _check_theta(theta_out_rad: npt.ArrayLike) -> np.ndarray:
     th = np.asarray(theta_out_rad, dtype=np.float64)
-    if not np.all(np.isfinite(th)):
+    if not np.isfinite(th).all():
         msg = 'theta_out_rad must be finite'
         raise ModelInputError(msg)
     return th
@@ -385,16 +386,44 @@ def _increments(theta_out_rad: npt.ArrayLike, params: Wang2kvParams,
                 *, back: bool) -> tuple[np.ndarray, np.ndarray]:
     """Wang 2020 Eqs 1-2 (drive flanks) or Wang 2020 Eqs 3-4 (tooth backs, ``back=True``) [m]."""
     th = _check_theta(theta_out_rad)
-    p1, p2, g, ot = _phases(params, phases_rad)
     rc = params.kinematics.crank_per_input * params.kinematics.gear_ratio  # -25 for Wang
     cc, sc = np.cos(rc * th), np.sin(rc * th)
     co, so = np.cos(th), np.sin(th)
+    if phases_rad is None:
+        # the preset's phases: the six (sin, cos) of phase + psi are constants of the
+        # parameters, computed once (the same operations: the same numbers; issue 41)
+        k = _flank_constants(params, back)
+        cc1, co1 = cc - 1.0, co - 1.0
+        d1 = (_term_k(params.e_p1_m, k[0], cc1, sc) + _term_k(params.e_g_m, k[1], cc1, sc)
+              + _term_k(params.e_ot_m, k[2], co1, so))
+        d2 = (_term_k(params.e_p2_m, k[3], cc1, sc) + _term_k(params.e_g_m, k[4], cc1, sc)
+              + _term_k(params.e_ot_m, k[5], co1, so))
+        return d1, d2
+    p1, p2, g, ot = _phases(params, phases_rad)
     s, pi = (params.pressure_angle_rad if back else -params.pressure_angle_rad), math.pi
     d1 = (_term(params.e_p1_m, p1, s, cc, sc) + _term(params.e_g_m, g, s, cc, sc)
           + _term(params.e_ot_m, ot, s, co, so))
     d2 = (_term(params.e_p2_m, p2, s, cc, sc) + _term(params.e_g_m, g, s + pi, cc, sc)
           + _term(params.e_ot_m, ot, s + pi, co, so))
     return d1, d2
+
+
+@functools.lru_cache(maxsize=32)
+def _flank_constants(params: Wang2kvParams, back: bool,
+                     ) -> tuple[tuple[Any, Any], ...]:
+    """(sin, cos) of phase + psi of the six terms of :func:`_increments` at the preset's
+    phases, in its order (p1, g, ot on pair 1; p2, g + pi, ot + pi on pair 2)."""
+    p1, p2, g, ot = _phases(params, None)
+    s, pi = (params.pressure_angle_rad if back else -params.pressure_angle_rad), math.pi
+    return tuple((np.sin(p + q), np.cos(p + q))
+                 for p, q in ((p1, s), (g, s), (ot, s), (p2, s), (g, s + pi), (ot, s + pi)))
+
+
+def _term_k(e: float, sin_cos: tuple[Any, Any], cos_t_minus_1: np.ndarray,
+            sin_t: np.ndarray) -> np.ndarray:
+    """:func:`_term` with sin and cos of phase + psi given and cos w - 1 computed."""
+    term: npt.NDArray[np.float64] = e * (sin_cos[0] * cos_t_minus_1 + sin_cos[1] * sin_t)
+    return term
 
 
 def nlte_pairs_rad(theta_out_rad: npt.ArrayLike, params: Wang2kvParams, *,
@@ -1060,10 +1089,11 @@ def _check_block(*arrays: npt.ArrayLike) -> tuple[np.ndarray, ...]:
         if a.shape != out[0].shape:
             msg = f'{name} has shape {a.shape}, t_s has {out[0].shape}'
             raise ModelInputError(msg)
-        if not np.all(np.isfinite(a)):
+        if not np.isfinite(a).all():   # (the method: np.all costs more than the test)
             msg = f'{name} must be finite'
             raise ModelInputError(msg)
-    if out[0].size > 1 and not np.all(np.diff(out[0]) > 0):
+    t = out[0]
+    if t.size > 1 and not (t[1:] > t[:-1]).all():
         msg = 't_s must be strictly increasing'
         raise ModelInputError(msg)
     return out
