@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import ctypes
+import gc
 import os
 import signal
 import sys
@@ -252,6 +253,7 @@ def run_node(factory: Callable[[Context], Node], args: Sequence[str] | None = No
     from rclpy.context import Context
     from rclpy.exceptions import ParameterException
     from rclpy.signals import SignalHandlerOptions
+    from rclpy.task import Future
 
     from rv_te_bench.errors import RvTeError
     from rv_te_bench.safe_yaml import one_line
@@ -287,10 +289,16 @@ def run_node(factory: Callable[[Context], Node], args: Sequence[str] | None = No
             return 130
         stop['starting'] = False
         mark_session(node)
+        # what start-up made (imports, the node) stays: out of the collector's full passes
+        # (~35 ms each over ~60,000 objects on the 2-core VM; issue 41 item 4)
+        gc.freeze()
         executor = make_executor(executor_kind, context=context)
         executor.add_node(node)
+        # up to 0.1 s of events per pass (a future that is never completed; a new one each
+        # pass, as the executors add a done callback to it): one Python pass per event cost
+        # ~4-8 us each, at hundreds of messages per second (issue 41 item 4)
         while context.ok() and not stop['requested'] and not getattr(node, 'finished', False):
-            executor.spin_once(timeout_sec=0.1)
+            executor.spin_until_future_complete(Future(), timeout_sec=0.1)
         # Linger (reliable delivery of our last messages), and on a stop request drain what
         # is already queued for us so that it is analysed / recorded, not dropped.
         end = time.monotonic() + max(linger_s, _DRAIN_S if stop['requested'] else 0.0)
