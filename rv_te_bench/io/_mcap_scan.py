@@ -141,7 +141,7 @@ except ImportError:   # pragma: no cover - a platform without an isal wheel
 #: checked). The rosbags reader does not check it; here it is on by default because it is
 #: the only check of the measured values themselves (the writers' zstd frames carry no
 #: checksum of their own: a flipped bit in a chunk that still decompresses would otherwise
-#: change a TE value unseen). It costs 2-3 % of an analysis's CPU time (issue 41,
+#: change a TE value unseen). It costs 1-3 % of an analysis's CPU time (issue 41,
 #: benchmarks/README.md); switch it off only for data whose storage is checked otherwise.
 CHUNK_CRC_ENV = 'RV_TE_CHUNK_CRC'
 
