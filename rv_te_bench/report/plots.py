@@ -177,8 +177,32 @@ def _envelope_band(ax: Axes, ax_session: Axes | None, res: AnalysisResult, *, fo
         x, blo, bhi = _breaks(rad_to_deg(x_rad), lo, hi, env.segment)
         ax.fill_between(x, blo, bhi, color=color, alpha=0.6, lw=0.0, label=label)
     if ax_session is not None:
-        x, blo, bhi = _breaks(x_rad / (2 * math.pi), lo, hi, env.segment)
+        x, slo, shi, seg = _coarser(x_rad / (2 * math.pi), lo, hi, env.segment,
+                                    SESSION_BUCKETS)
+        x, blo, bhi = _breaks(x, slo, shi, seg)
         ax_session.fill_between(x, blo, bhi, color=color, alpha=0.6, lw=0.0)
+
+
+#: Buckets drawn across the session panel (~1000 pixels wide): 20000 buckets of a 10-hour
+#: record drawn there alias the once-per-revolution swing of their maxima into stripes
+#: that move at every gap; merged to about one bucket per pixel, the band is what each
+#: pixel's samples span.
+SESSION_BUCKETS = 1000
+
+
+def _coarser(x: np.ndarray, lo: np.ndarray, hi: np.ndarray, segment: np.ndarray,
+             most: int) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """Merge runs of ``k`` neighbouring buckets (min of the mins, max of the maxes; never
+    across a gap) so that about ``most`` remain; unchanged when there are no more."""
+    k = -(-x.size // most)
+    if k <= 1:
+        return x, lo, hi, segment
+    # a group starts every k buckets and at every segment start
+    cuts = np.flatnonzero(np.r_[True, segment[1:] != segment[:-1]])
+    starts = np.unique(np.concatenate([np.arange(c, e, k) for c, e in
+                                       zip(cuts, [*cuts[1:], x.size], strict=True)]))
+    return (x[starts], np.minimum.reduceat(lo, starts), np.maximum.reduceat(hi, starts),
+            segment[starts])
 
 
 def _breaks(x: np.ndarray, lo: np.ndarray, hi: np.ndarray, segment: np.ndarray,
@@ -391,6 +415,17 @@ def windows_figure(results: Sequence[AnalysisResult]) -> Figure:
         style = {'color': color, 'lw': 0.6, 'marker': '.', 'ms': 2.0 if t.size > 200 else 4.0}
         ax_pp.plot(t, pp, label=f'{_name(res)} ({t.size} windows)', **style)
         ax_mean.plot(t, mean, **style)
+    # p-p from zero (a wear of 10 % looks like 10 %), the mean over at least a tenth of the
+    # largest p-p: the noise of a steady unit is no trend; plain numbers on the ticks
+    top = max((float(np.nanmax(line.get_ydata())) for line in ax_pp.lines), default=0.0)
+    if math.isfinite(top) and top > 0:
+        ax_pp.set_ylim(0.0, 1.15 * top)
+        lo, hi = ax_mean.get_ylim()
+        if hi - lo < 0.1 * top:
+            mid = 0.5 * (lo + hi)
+            ax_mean.set_ylim(mid - 0.05 * top, mid + 0.05 * top)
+    for ax in (ax_pp, ax_mean):
+        ax.ticklabel_format(axis='y', useOffset=False, style='plain')
     ax_pp.set_ylabel('TE p-p per window [arcmin]')
     ax_pp.set_title('TE of each complete window over the session')
     ax_pp.legend(loc='upper right', fontsize=8)

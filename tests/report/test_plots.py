@@ -88,3 +88,31 @@ def test_long_record_is_drawn_as_a_band_holding_every_sample(tmp_path) -> None:
     bucket_rev = res.trace.envelope.bucket_samples / fs * 0.5
     assert duration_s * 0.5 - bucket_rev - 1e-9 <= sv[:, 0].max() <= duration_s * 0.5
     assert png_bytes(fig).startswith(b'\x89PNG')
+
+
+def test_session_band_merges_buckets_to_the_panel_width_never_across_a_gap() -> None:
+    """20000 buckets of a 10-hour record are merged for the session panel to about one a
+    pixel: each merged bucket spans exactly the samples of the buckets it replaces (checked
+    bucket by bucket here), and no merged bucket spans a gap."""
+    from rv_te_bench.report.plots import SESSION_BUCKETS, _coarser
+
+    rng = np.random.default_rng(5)
+    n = 20_000
+    x = np.cumsum(rng.uniform(0.05, 0.15, n))
+    lo = rng.normal(-1.0, 0.1, n)
+    hi = lo + rng.uniform(0.0, 2.0, n)
+    segment = np.repeat([0, 1, 2, 3], [7001, 3, 9000, n - 7001 - 3 - 9000])
+    cx, clo, chi, cseg = _coarser(x, lo, hi, segment, SESSION_BUCKETS)
+    assert SESSION_BUCKETS / 2 < cx.size <= SESSION_BUCKETS + 4
+    # independent: each original bucket belongs to the merged one that starts at or before
+    # it in its own segment
+    owner = np.searchsorted(cx, x, side='right') - 1
+    for j in range(cx.size):
+        mine = owner == j
+        assert np.all(segment[mine] == cseg[j])            # never across a gap
+        assert clo[j] == lo[mine].min() and chi[j] == hi[mine].max()
+    assert cseg.tolist() == sorted(cseg.tolist()) and set(cseg.tolist()) == {0, 1, 2, 3}
+    # few buckets: drawn as they are
+    same = _coarser(x[:500], lo[:500], hi[:500], segment[:500], SESSION_BUCKETS)
+    first = (x[:500], lo[:500], hi[:500], segment[:500])
+    assert all(np.array_equal(a, b) for a, b in zip(same, first, strict=True))
