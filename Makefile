@@ -38,13 +38,10 @@ test-fast: venv
 
 # Rewrites the committed seconds per test file (tests/seconds_per_file.json, which orders the
 # files longest-first where .pytest_cache has no times, as on CI's fresh clone) from the
-# times the last `make test` kept in .pytest_cache. Run it after a full run on a quiet machine.
+# times the last `make test` kept in .pytest_cache, and lists the files taking most wall and
+# CPU seconds. Run it after a full run on a quiet machine.
 test-seconds:
-	$(PY) -c "import json, pathlib; \
-	c = json.loads(pathlib.Path('.pytest_cache/v/rv_te_bench/seconds_per_file').read_text()); \
-	t = {f: round(s, 1) for f, s in sorted(c.items()) if pathlib.Path(f).is_file()}; \
-	pathlib.Path('tests/seconds_per_file.json').write_text(json.dumps(t, indent=0) + '\\n'); \
-	print(len(t), 'files,', round(sum(t.values())), 's in all')"
+	$(PY) scripts/test_seconds.py
 
 # The house rules checked by tools: ruff's rule set ([tool.ruff.lint] in pyproject.toml), the
 # layering contracts ([tool.importlinter]) and the type check ([tool.mypy]: its files).

@@ -6,10 +6,13 @@ from __future__ import annotations
 import atexit
 import json
 import os
+import resource
 import shutil
 import subprocess
 import tempfile
+from collections.abc import Generator
 from pathlib import Path
+from typing import Any
 
 import pytest
 from hypothesis import HealthCheck, settings
@@ -144,24 +147,58 @@ def _heaviest_files_first(config: pytest.Config, items: list[pytest.Item]) -> No
     items.sort(key=key)
 
 
+def _cpu_s() -> float:
+    """CPU seconds (user + system) of this process and of its children waited for."""
+    own, kids = resource.getrusage(resource.RUSAGE_SELF), resource.getrusage(
+        resource.RUSAGE_CHILDREN)
+    return own.ru_utime + own.ru_stime + kids.ru_utime + kids.ru_stime
+
+
+_CPU_KEY = pytest.StashKey[float]()
+
+
+@pytest.hookimpl(hookwrapper=True)
+def pytest_runtest_setup(item: pytest.Item) -> Generator[None, None, None]:
+    item.stash[_CPU_KEY] = _cpu_s()
+    yield
+
+
+@pytest.hookimpl(hookwrapper=True)
+def pytest_runtest_makereport(item: pytest.Item,
+                              call: pytest.CallInfo[None]) -> Generator[None, Any, None]:
+    """Each phase's report carries the CPU seconds the test used since its setup began
+    (user_properties travel from an xdist worker to the controller)."""
+    outcome = yield
+    if call.when == 'teardown' and _CPU_KEY in item.stash:
+        outcome.get_result().user_properties.append(
+            ('cpu_s', _cpu_s() - item.stash[_CPU_KEY]))
+
+
 def pytest_runtest_logreport(report: pytest.TestReport) -> None:
-    """Seconds per file of this run (under xdist the controller gets every worker's reports)."""
+    """Seconds and CPU seconds per file of this run (under xdist the controller gets every
+    worker's reports)."""
     if os.environ.get('PYTEST_XDIST_WORKER'):
         return
     f = report.nodeid.split('::', 1)[0]
     _RUN_SECONDS[f] = _RUN_SECONDS.get(f, 0.0) + report.duration
+    for name, value in report.user_properties:
+        if name == 'cpu_s':
+            _RUN_CPU[f] = _RUN_CPU.get(f, 0.0) + float(value)
 
 
 _RUN_SECONDS: dict[str, float] = {}
+_RUN_CPU: dict[str, float] = {}
+_CPU_SECONDS_KEY = 'rv_te_bench/cpu_seconds_per_file'
 
 
 def _store_seconds(session: pytest.Session) -> None:
     cache = getattr(session.config, 'cache', None)
     if cache is None or not _RUN_SECONDS:
         return
-    seconds = dict(cache.get(_SECONDS_KEY, {}) or {})
-    seconds.update({f: round(s, 2) for f, s in _RUN_SECONDS.items()})
-    cache.set(_SECONDS_KEY, seconds)
+    for key, run in ((_SECONDS_KEY, _RUN_SECONDS), (_CPU_SECONDS_KEY, _RUN_CPU)):
+        kept = dict(cache.get(key, {}) or {})
+        kept.update({f: round(s, 2) for f, s in run.items()})
+        cache.set(key, kept)
 
 
 @pytest.fixture
