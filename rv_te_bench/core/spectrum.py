@@ -39,7 +39,7 @@ import functools
 import importlib
 import math
 from dataclasses import dataclass, field, replace
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING, Any, NotRequired, TypedDict
 
 import numpy as np
 
@@ -55,8 +55,9 @@ if TYPE_CHECKING:
 
     FloatArray = npt.NDArray[np.float64]
 
-__all__ = ['AngleResampled', 'OrderSpectrum', 'SpectrumAverager', 'SpectrumLine',
-           'SpectrumSummary', 'SpectrumWorkspace', 'order_spectrum', 'resample_to_output_angle',
+__all__ = ['AngleResampled', 'AveragedLineJson', 'OrderSpectrum', 'OrderSpectrumJson',
+           'SpectrumAverager', 'SpectrumLine', 'SpectrumLineJson', 'SpectrumSummary',
+           'SpectrumWorkspace', 'order_spectrum', 'resample_to_output_angle',
            'spectrum_line_json']
 
 _TWO_PI = 2.0 * math.pi
@@ -98,6 +99,44 @@ _EMPTY_C = np.empty(0, dtype=np.complex128)
 _EMPTY_C.setflags(write=False)
 
 
+class SpectrumLineJson(TypedDict):
+    """:meth:`SpectrumLine.to_json_dict`: a labelled line of one spectrum."""
+
+    label: str
+    output_order: float
+    crank_order: float
+    frequency_hz: float | None
+    amplitude_rad: float
+    amplitude_arcmin: float
+    phase_rad: float
+
+
+class OrderSpectrumJson(TypedDict):
+    """:meth:`OrderSpectrum.to_json_dict`: the lines of one spectrum (None: not finite)."""
+
+    output_hz: float | None
+    crank_hz: float | None
+    revolutions: float
+    samples_per_rev: int
+    mean_rad: float
+    lines: list[SpectrumLineJson]
+
+
+class AveragedLineJson(TypedDict):
+    """:func:`spectrum_line_json`: an averaged line in the analysis JSON (None: not
+    finite; the spread of the per-window amplitudes only when known)."""
+
+    label: str
+    output_order: float | None
+    crank_order: float | None
+    frequency_hz: float | None
+    amplitude_arcmin: float | None
+    amplitude_rad: float | None
+    phase_rad: float | None
+    phase_deg: float | None
+    amplitude_spread_arcmin: NotRequired[float | None]
+
+
 @dataclass(frozen=True)
 class SpectrumLine:
     """One reported line of the order spectrum.
@@ -118,7 +157,7 @@ class SpectrumLine:
     phase_rad: float
     label: str
 
-    def to_json_dict(self) -> dict[str, Any]:
+    def to_json_dict(self) -> SpectrumLineJson:
         """JSON-friendly dict (units in the keys; NaN becomes None)."""
         def fin(x: float) -> float | None:
             return float(x) if math.isfinite(x) else None
@@ -191,7 +230,7 @@ class OrderSpectrum:
                 return ln
         raise KeyError(label)
 
-    def to_json_dict(self) -> dict[str, Any]:
+    def to_json_dict(self) -> OrderSpectrumJson:
         """JSON-friendly summary (the lines, not the full spectrum)."""
         def fin(x: float) -> float | None:
             return float(x) if math.isfinite(x) else None
@@ -695,10 +734,10 @@ class SpectrumAverager:
             orders=orders, amplitude_rad=amp)
 
 
-def spectrum_line_json(line: SpectrumLine, spread_rad: float) -> dict[str, Any]:
+def spectrum_line_json(line: SpectrumLine, spread_rad: float) -> AveragedLineJson:
     """A line as JSON: amplitude in rad and arcmin, phase in rad and deg, and the spread of
     the per-window amplitudes [arcmin] when ``spread_rad`` is finite (None for NaN)."""
-    out = {
+    out: AveragedLineJson = {
         'label': line.label,
         'output_order': json_float(line.output_order),
         'crank_order': json_float(line.crank_order),
