@@ -47,7 +47,7 @@ from __future__ import annotations
 import functools
 import math
 from dataclasses import dataclass, field
-from typing import TYPE_CHECKING, Any, Literal
+from typing import TYPE_CHECKING, Any, Literal, TypedDict
 
 import numpy as np
 
@@ -64,6 +64,7 @@ __all__ = [
     'Budget',
     'Distribution',
     'UncertaintyInput',
+    'UncertaintyInputJson',
     'combine',
     'coverage_factor',
     'coverage_interval',
@@ -100,6 +101,23 @@ _WS_MIN_DOF = 30.0
 #: A type A input with fewer dof than this (n < 4: the t's variance is not finite, GUM
 #: Supplement 1 6.4.9.4) gets a note in its budget saying what it does to k.
 _FEW_REPEATS_DOF = 3.0
+
+
+class UncertaintyInputJson(TypedDict):
+    """An input of a budget's JSON (SI; ``dof`` None when infinite, ``share`` its part of
+    u_c^2)."""
+
+    name: str
+    type: Literal['A', 'B']
+    u: float
+    unit: str
+    distribution: Distribution
+    dof: float | None
+    sensitivity: float
+    contribution: float
+    share: float
+    source: str
+    note: str
 
 
 @dataclass(frozen=True)
@@ -176,7 +194,7 @@ class UncertaintyInput:
         f = _U_PER_HALF_WIDTH.get(self.distribution)
         return self.u / f if f else math.nan
 
-    def to_json_dict(self, share: float) -> dict[str, Any]:
+    def to_json_dict(self, share: float) -> UncertaintyInputJson:
         """JSON (SI; ``share`` is this input's part of u_c^2)."""
         return {'name': self.name, 'type': self.kind, 'u': self.u, 'unit': self.unit,
                 'distribution': self.distribution,
