@@ -21,7 +21,8 @@ from rv_te_bench.errors import CompensationError
 
 __all__ = ['LABEL_MISFIT_FLOOR', 'LABEL_RATIO_RESOLVED', 'MIN_EXPLAINED_FRACTION', 'OBSERVABILITY',
            'SPLIT_WELL_POSED_DEG_PER_PCT', 'FitQuality', 'FitQualityJson', 'Identification',
-           'IdentificationJson', 'Observability', 'PoorFitError', 'json_rounded']
+           'IdentificationJson', 'IdentificationU95Json', 'Observability', 'PoorFitError',
+           'json_rounded']
 
 #: label_ratio above which pair 1 and pair 2 count as told apart ...
 LABEL_RATIO_RESOLVED = 2.0
@@ -88,6 +89,17 @@ class IdentificationJson(TypedDict):
     u95_um: NotRequired[dict[str, float | None]]
     u95_deg: NotRequired[dict[str, float | None]]
     uncertainty: NotRequired[dict[str, dict[str, Any]]]
+
+
+class IdentificationU95Json(TypedDict):
+    """The U keys :func:`.identify.identification_u95_json` adds to
+    :class:`IdentificationJson` (None: not finite; each budget's own JSON)."""
+
+    u95_m: dict[str, float | None]
+    u95_rad: dict[str, float | None]
+    u95_um: dict[str, float | None]
+    u95_deg: dict[str, float | None]
+    uncertainty: dict[str, dict[str, Any]]
 
 
 #: What one TE record identifies and what needs the measured part magnitudes (for output).

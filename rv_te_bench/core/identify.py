@@ -65,7 +65,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import replace
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING
 
 import numpy as np
 import numpy.typing as npt
@@ -105,6 +105,7 @@ from rv_te_bench.errors import CompensationError, TeInputError
 
 if TYPE_CHECKING:
     from rv_te_bench.core.bench_uncertainty import BenchUncertainty
+    from rv_te_bench.core.identification import IdentificationU95Json
 
 __all__ = ['LABEL_MISFIT_FLOOR', 'LABEL_RATIO_RESOLVED', 'MIN_EXPLAINED_FRACTION', 'OBSERVABILITY',
            'SPLIT_WELL_POSED_DEG_PER_PCT', 'FitQuality', 'Identification', 'PoorFitError',
@@ -370,7 +371,7 @@ def identified_advice(phase_out_rad: npt.ArrayLike | FoldedTe, te_rad: npt.Array
 
 
 def identification_u95_json(ident: Identification, folded: FoldedTe, *, gear_ratio: float,
-                            bench: BenchUncertainty) -> dict[str, Any]:
+                            bench: BenchUncertainty) -> IdentificationU95Json:
     """The identification's U (``u95_m``, ``u95_rad``, ``u95_um``, ``u95_deg``) and its
     budgets (``uncertainty``), for its JSON."""
     from rv_te_bench.core.identify_uncertainty import identification_budgets

@@ -40,6 +40,7 @@ __all__ = [
     'AnalysisResult',
     'DominantHarmonic',
     'Recommendation',
+    'RecommendationJson',
     'SessionInfo',
     'SpectrumSummary',
     'TeStatsJson',
@@ -174,6 +175,16 @@ class DominantHarmonic:
         return {**spectrum_line_json(self.line, math.nan), 'likely_source': self.likely_source}
 
 
+class RecommendationJson(TypedDict):
+    """The analysis JSON's ``recommendation``."""
+
+    available: bool
+    reason: str
+    advice: dict[str, Any] | None
+    identification: IdentificationJson | None
+    encoder_flag: str
+
+
 @dataclass(frozen=True)
 class Recommendation:
     """Compensation advice, or why there is none.
@@ -192,7 +203,7 @@ class Recommendation:
     identification: IdentificationJson | None = None
     encoder_flag: str = ''
 
-    def to_json_dict(self) -> dict[str, Any]:
+    def to_json_dict(self) -> RecommendationJson:
         """JSON-friendly dict (``encoder_flag``: why the advice may rest on the output
         encoder's once-per-revolution error, '' when it does not)."""
         return {'available': self.available, 'reason': self.reason,
