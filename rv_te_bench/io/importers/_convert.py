@@ -177,7 +177,7 @@ class ChunkConverter:
             if self.t0 is None:
                 self.t0 = int(t[0])
                 self.t0_s = self.t0 * self.time_scale_s
-            return (t - np.int64(self.t0)).astype(np.float64) * self.time_scale_s
+            return _scaled((t - np.int64(self.t0)).astype(np.float64), self.time_scale_s)
         t = np.asarray(t, dtype=np.float64)
         if self.t0 is None:
             finite = np.flatnonzero(np.isfinite(t))
@@ -185,7 +185,7 @@ class ChunkConverter:
                 return np.full(n, math.nan)
             self.t0 = float(t[finite[0]])
             self.t0_s = self.t0 * self.time_scale_s
-        return (t - self.t0) * self.time_scale_s
+        return _scaled(t - self.t0, self.time_scale_s)
 
     def __call__(self, raw: RawChunk) -> SiChunk:
         """Convert and check one chunk (its samples follow the previous chunk's)."""

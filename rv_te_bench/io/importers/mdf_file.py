@@ -57,14 +57,17 @@ class MdfReader:
         problem = None
         hook = sys.unraisablehook
         sys.unraisablehook = lambda _u: None    # a half-built MDF4 complains in __del__
+        opened = False
         try:
             with warnings.catch_warnings():
                 warnings.simplefilter('ignore')
                 self._mdf = asammdf.MDF(self.path)  # type: ignore[attr-defined]
+            opened = True
         except Exception as exc:  # noqa: BLE001 - asammdf raises many types on bad files
             problem = _short(exc)
         finally:
-            gc.collect()
+            if not opened:   # the half-built MDF's __del__ runs now, silenced (a whole one
+                gc.collect()  # leaves none: the collection cost 20-50 ms per import)
             sys.unraisablehook = hook
         if problem is not None:
             msg = f'{path}: not a readable MDF file, truncated or damaged ({problem})'
