@@ -50,13 +50,14 @@ NAMED = {'suite (-25, -25, +1)': (-25, -25, 1), 'planet -26': (-26, -25, 1),
          'revolution -26': (-25, -26, 1), 'planet spin +1': (1, -25, 1)}
 
 
-def increments(phi: np.ndarray, phases_deg: Any, rates: tuple[float, float, float],
+def increments(phi: np.ndarray, phases_deg: Any, rates: tuple[Any, Any, Any],
                ) -> tuple[np.ndarray, np.ndarray]:
-    """Wang 2020 Eqs 1-2 [m]; phases (..., 4) broadcast against phi (n,)."""
+    """Wang 2020 Eqs 1-2 [m]; phases (..., 4) broadcast against phi (n,), and so do the rates
+    (numbers, or (B, 1) arrays: B readings at once)."""
     ph = np.radians(np.asarray(phases_deg, dtype=float))[..., None]
     rp, rg, ro = rates
 
-    def term(e: float, th0: np.ndarray, rate: float, off: float) -> np.ndarray:
+    def term(e: float, th0: np.ndarray, rate: Any, off: float) -> np.ndarray:
         return e * (np.sin(th0 + rate * phi + off) - np.sin(th0 + off))
 
     e1, e2, eg, eo = E_M
@@ -67,7 +68,7 @@ def increments(phi: np.ndarray, phases_deg: Any, rates: tuple[float, float, floa
     return d1, d2
 
 
-def nlte_arcmin(phi: np.ndarray, phases_deg: Any, rates: tuple[float, float, float]
+def nlte_arcmin(phi: np.ndarray, phases_deg: Any, rates: tuple[Any, Any, Any]
                 ) -> np.ndarray:
     """Eqs 5 and 8: max(Delta_1, Delta_2) / r_p in arcmin."""
     d1, d2 = increments(phi, phases_deg, rates)
@@ -111,27 +112,34 @@ def _errors(got: np.ndarray, want: tuple[float, ...], kinds: str) -> np.ndarray:
     return np.stack(out)
 
 
-def reading_errors(rates_batch: np.ndarray, n: int = 3000) -> dict[str, np.ndarray]:
+def reading_errors(rates_batch: np.ndarray, n: int = 3000,
+                   batch: int = 256) -> dict[str, np.ndarray]:
     """Relative errors of each reading (rows of rates_batch) per group of paper values;
     'table3_fit': whether all nine Table 3 values are within the paper's rounding
-    (+-0.005') plus 1 % (the tolerance of tests/sim/test_fidelity_wang2020.py)."""
+    (+-0.005') plus 1 % (the tolerance of tests/sim/test_fidelity_wang2020.py).
+
+    Readings are evaluated ``batch`` at a time as rows of one array (the same elementwise
+    operations and per-row reductions as one reading at a time, 7x less CPU in the scan)."""
     phi = np.linspace(0.0, 2 * math.pi, n, endpoint=False)
     out: dict[str, list[Any]] = {'fig5a': [], 'table3': [], 'table4': [], 'table3_fit': []}
-    for rates in rates_batch:
-        r = tuple(float(x) for x in rates)
+    every = np.asarray(rates_batch, dtype=float).reshape(-1, 3)
+    for start in range(0, every.shape[0], batch):
+        rows = every[start:start + batch]
+        r = (rows[:, 0:1], rows[:, 1:2], rows[:, 2:3])       # (B, 1) against phi (n,)
         pp, amp, mean, _ = stats(nlte_arcmin(phi, TABLE2, r))
-        out['fig5a'].append(_errors(np.array([pp, amp, mean]), PAPER_FIG5A, 'pam'))
-        t3 = [np.array(stats(nlte_arcmin(phi, g, r))[1:]) for g in TABLE3]
+        out['fig5a'].append(_errors(np.array([pp, amp, mean]), PAPER_FIG5A, 'pam').T)
+        t3 = [np.array(stats(nlte_arcmin(phi, g, r))[1:]) for g in TABLE3]   # (3, B) each
         out['table3'].append(np.concatenate([
-            _errors(s, w, 'ams') for s, w in zip(t3, PAPER_TABLE3, strict=True)]))
-        out['table3_fit'].append(all(
-            np.all(np.abs(s - np.array(w)) <= 0.005 + 0.01 * np.abs(w))
-            for s, w in zip(t3, PAPER_TABLE3, strict=True)))
+            _errors(s, w, 'ams') for s, w in zip(t3, PAPER_TABLE3, strict=True)]).T)
+        out['table3_fit'].append(np.all([
+            np.all(np.abs(s - np.array(w)[:, None]) <= 0.005 + 0.01 * np.abs(w)[:, None],
+                   axis=0)
+            for s, w in zip(t3, PAPER_TABLE3, strict=True)], axis=0))
         t4 = [stats(nlte_arcmin(phi, g, r)) for g in (TABLE2, OPTIMUM)]
         out['table4'].append(np.concatenate([
             _errors(np.array([s[0], s[1], s[3]]), w, 'pas')
-            for s, w in zip(t4, PAPER_TABLE4, strict=True)]))
-    return {k: np.array(v) for k, v in out.items()}
+            for s, w in zip(t4, PAPER_TABLE4, strict=True)]).T)
+    return {k: np.concatenate(v) for k, v in out.items()}
 
 
 def score(errors: dict[str, np.ndarray]) -> np.ndarray:
