@@ -63,7 +63,7 @@ def _walk(path: Path) -> tuple[float, list[str]]:
     seen = []
     for inner, found in _mcap_scan._scan_units(path, _mcap_scan._ScanState(), problems.append,
                                                 prefetch=False):
-        for _cid, _t, start, end in found:
+        for _cid, _t, start, end in found.rows():
             seen.append(hashlib.sha1(inner[start:end]).hexdigest())
         grow = max(grow, _rss_file_mb() - base)
     assert problems == []
