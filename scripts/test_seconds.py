@@ -2,7 +2,7 @@
 rewrites the committed table tests/seconds_per_file.json (it orders a fresh clone's parallel
 run longest-first) and prints the files that took most wall and CPU seconds.
 
-    .venv/bin/python scripts/test_seconds.py [--top N]      (make test-seconds)
+    .venv/bin/python scripts/test_seconds.py [--top N] [--print-only]   (make test-seconds)
 """
 
 from __future__ import annotations
@@ -24,14 +24,19 @@ def _kept(name: str) -> dict[str, float]:
 def main() -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument('--top', type=int, default=25, help='files listed (default 25)')
+    parser.add_argument('--print-only', action='store_true',
+                        help='list the files; leave the committed table as it is')
     args = parser.parse_args()
     seconds, cpu = _kept('seconds_per_file'), _kept('cpu_seconds_per_file')
     if not seconds:
         parser.error(f'no times in {CACHE}: run `make test` first')
     table = {f: round(s, 1) for f, s in sorted(seconds.items()) if (ROOT / f).is_file()}
-    TABLE.write_text(json.dumps(table, indent=0) + '\n', encoding='utf-8')
-    print(f'{TABLE.relative_to(ROOT)}: {len(table)} files, {sum(table.values()):.0f} s summed, '
-          f'{sum(cpu.get(f, 0.0) for f in table):.0f} CPU s')
+    if not args.print_only:
+        TABLE.write_text(json.dumps(table, indent=0) + '\n', encoding='utf-8')
+    done = '' if args.print_only else ' rewritten'
+    cpu_s = sum(cpu.get(f, 0.0) for f in table)
+    print(f'{TABLE.relative_to(ROOT)}{done}: {len(table)} files, '
+          f'{sum(table.values()):.0f} s summed, {cpu_s:.0f} CPU s')
     print(f'{"wall s":>8} {"CPU s":>8}  file')
     for f in sorted(table, key=table.__getitem__, reverse=True)[:args.top]:
         c = f'{cpu[f]:8.1f}' if f in cpu else f'{"-":>8}'
