@@ -301,8 +301,9 @@ def _bounds_for_sets(phases_rad: FloatArray, geom: EccentricGeometry, n: int,
         a1, b1, a2, b2, ao, bo = _coefficients(phases_rad[s:s + step], geom)
         d1 = np.stack([a1, b1, ao, bo], axis=-1) @ bas
         d2 = np.stack([a2, b2, -ao, -bo], axis=-1) @ bas
-        mx = np.maximum(d1.max(-1), d2.max(-1))
-        mn = np.maximum(d1, d2).min(-1)
+        np.maximum(d1, d2, out=d1)   # NLTE * r_p; its max is the larger of the two maxima
+        mx = d1.max(-1)
+        mn = d1.min(-1)
         lo[s:s + step] = np.maximum(mx, -mn)
         hi[s:s + step] = np.maximum(mx + eps_max, -mn + eps_min)
     return lo, hi
