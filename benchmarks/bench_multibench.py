@@ -121,12 +121,15 @@ def _stop_on_sigterm() -> dict[str, Any]:
 def run_benches(n_benches: int, rate_hz: float, block: int, duration_s: float,
                 out_dir: Path, warmup_s: float = 2.0, profile_s: float = 0.0,
                 start_timeout_s: float = 90.0, extra_params: tuple[str, ...] = (),
-                rt_probe_priority: int = -1, probes: int | None = None) -> dict[str, Any]:
+                rt_probe_priority: int = -1, probes: int | None = None,
+                first: int = 1) -> dict[str, Any]:
     """Run N sessions side by side; return per-bench results and per-process CPU.
 
     ``probes``: how many benches (the first ones) get a probe node (block arrival,
     latency); None: every bench. A probe reads two topics of its bench, 150 messages/s at
     10 kHz: eight of them cost the driver a fifth of a core, which the benches would feel.
+    ``first``: the number of the first namespace (``/bench<first>``), so that two runs
+    (two versions of the code) can go side by side in one ROS domain.
     """
     import rclpy
     from diagnostic_msgs.msg import DiagnosticArray
@@ -137,7 +140,7 @@ def run_benches(n_benches: int, rate_hz: float, block: int, duration_s: float,
     from rv_te_bench.nodes import qos
     from rv_te_bench.nodes.common import make_executor
 
-    names = [f'bench{k + 1}' for k in range(n_benches)]
+    names = [f'bench{k + first}' for k in range(n_benches)]
     probed = names if probes is None else names[:max(0, probes)]
     specs = {}
     for ns in names:
@@ -733,6 +736,9 @@ def main() -> int:
                     help='benches (the first ones) with a probe node in the driver (block '
                          'arrival, latency block->TE; default 1); the counts, gaps and lag of '
                          'every bench come from its own nodes. -1: every bench')
+    ap.add_argument('--first', type=int, default=1,
+                    help='number of the first namespace, /bench<FIRST> (two runs side by '
+                         'side in one ROS domain: e.g. the code before and after a change)')
     ap.add_argument('--keep', action='store_true', help='keep the temporary folder (bags)')
     ap.add_argument('--_rt-probe', dest='rt_probe', type=float, help=argparse.SUPPRESS)
     ap.add_argument('--_period', dest='period', type=float, help=argparse.SUPPRESS)
@@ -767,7 +773,8 @@ def main() -> int:
                                             *args.param),
                               rt_probe_priority=-1 if args.no_rt_probe
                               else args.realtime_priority,
-                              probes=None if args.probes < 0 else args.probes)
+                              probes=None if args.probes < 0 else args.probes,
+                              first=args.first)
             ok = print_benches(res, args)
             print_profiles(res['profiles'])
     except KeyboardInterrupt:
