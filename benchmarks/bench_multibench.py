@@ -467,11 +467,12 @@ def print_benches(res: dict[str, Any], args: argparse.Namespace) -> bool:
               f"{b['te_gaps']} | {b['crashed']} | "
               f"{' / '.join(_f(c[n]) for n in NODES)} % ({_f(sum(c[n] for n in NODES))} %) | "
               f"{_f(steady_ms)} ms ({_f(lag_ms)} ms) | "
-              f"{_f(b['probe_lag_max_ms'])} / {_f(b['probe_lag_p99_ms'])} "
-              f"ms ({b['probe_lag_worst_at_s']:.0f} s) | "
-              f"{b['probe_late']} of {b['probe_n']} | "
-              f"{_f(b['lat_median_ms'], '{:.2f}')} / "
-              f"{_f(b['lat_p99_ms'], '{:.2f}')} ms |")
+              + ('- | - | - |' if b['probe'] is None else   # no probe on this bench
+                 f"{_f(b['probe_lag_max_ms'])} / {_f(b['probe_lag_p99_ms'])} "
+                 f"ms ({b['probe_lag_worst_at_s']:.0f} s) | "
+                 f"{b['probe_late']} of {b['probe_n']} | "
+                 f"{_f(b['lat_median_ms'], '{:.2f}')} / "
+                 f"{_f(b['lat_p99_ms'], '{:.2f}')} ms |"))
     kinds = sorted({str(b['scheduling']) for b in res['benches']})
     print(f"\nbench scheduling (diagnostics): {'; '.join(kinds)}")
     fl = res.get('rt_floor')
@@ -505,7 +506,8 @@ def print_benches(res: dict[str, Any], args: argparse.Namespace) -> bool:
            + f'; {total:.0f} % of the {os.cpu_count() * 100} %, {per_bench:.1f} % per bench'
            + ('' if ok else ' (**not met**)'))
     print('\nREADME row:\n'
-          f'| [{args.benches} benches](#eight-benches-bench_multibenchpy) live, '
+          f"| [{args.benches} bench{'es' if args.benches > 1 else ''}]"
+          '(#eight-benches-bench_multibenchpy) live, '
           f'{args.benches} x {args.rate_hz / 1e3:g} kHz, {args.duration_s / 60:g} min | '
           f'`bench_multibench.py` | 0 lost, 0 gaps, lag within 1 ms of the floor; per-bench '
           f'cost halved (#41) | {got} | {time.strftime("%Y-%m-%d")}, {cpu_model}, '
