@@ -188,8 +188,8 @@ def mark_session(node: Node) -> None:
         node.create_publisher(Empty, topic, 1)
 
 
-#: Longest a stopping node may take to finish work under way (``busy``) [s]; below the
-#: launcher's 10 s grace before it escalates.
+#: Longest a stopping node may take to finish work under way (``busy``) [s]; the launcher's
+#: grace before it escalates is this plus 10 s (launch.session.stop_grace_s).
 FINISH_MAX_S = 8.0
 
 #: Longest a node whose launcher died keeps going once it stops: a drain of what is queued
