@@ -84,3 +84,19 @@ def test_bad_values_named() -> None:
     bare = preset_from_text('name = "x"\nmodel = "wang2020-2kv"\n[thermal]\ncase_mass_kg = 1.0\n')
     with pytest.raises(PresetError, match=r"'x' has no thermal\.specific_heat_j_kgk"):
         ThermalParams.from_preset(bare)
+
+
+def test_the_bench_simulator_imports_no_scipy_signal() -> None:
+    """A bench node of a default session (NLTE, no losses) never filters a temperature:
+    importing sim.bench (through sim.loss_bench and sim.thermal) must not import
+    scipy.signal, ~0.9 CPU s (it pulls scipy.stats and scipy.optimize) in every bench
+    process and launcher; the lfilter is imported where the temperature is stepped."""
+    import subprocess
+    import sys
+
+    code = ('import sys, sim.bench, sim.thermal; '
+            'print(sorted(m for m in ("scipy.signal", "scipy.stats", "scipy.optimize") '
+            'if m in sys.modules))')
+    out = subprocess.run([sys.executable, '-c', code], capture_output=True, text=True,
+                         timeout=120, check=True).stdout
+    assert out.strip() == '[]'
