@@ -27,13 +27,14 @@ from rv_te_bench.store.records import (
     MetricValue,
     UnitRecord,
     bag_fingerprint,
+    bag_probe,
     bag_stat,
     failed_record,
     records_from_analysis_json,
 )
 
 __all__ = ['DEFAULT_DB_NAME', 'DEFAULT_STORE_NAME', 'LineValue', 'MetricValue', 'ResultFilter',
-           'ResultStore', 'Series', 'StoredResult', 'UnitRecord', 'bag_fingerprint', 'bag_stat',
-           'default_db_for', 'default_store_path', 'export_records', 'failed_record',
-           'open_store', 'records_from_analysis_json', 'records_table', 'redact_url',
-           'upsert_all']
+           'ResultStore', 'Series', 'StoredResult', 'UnitRecord', 'bag_fingerprint', 'bag_probe',
+           'bag_stat', 'default_db_for', 'default_store_path', 'export_records',
+           'failed_record', 'open_store', 'records_from_analysis_json', 'records_table',
+           'redact_url', 'upsert_all']

@@ -399,9 +399,17 @@ class ResultStore:
 
     def upsert(self, record: UnitRecord) -> int:
         """Write a record in one transaction; the same key updates it. Returns its id."""
+        return self.upsert_many([record])[0]
+
+    def upsert_many(self, records: Sequence[UnitRecord]) -> list[int]:
+        """Write records in one transaction (all of them or none), each as :meth:`upsert`
+        writes it (the same key updates it; a later record of the same key updates the
+        earlier one). Returns their ids in order."""
+        if not records:
+            return []
         for attempt in range(2):
             try:
-                return self._upsert_once(record)
+                return self._upsert_once(records)
             except IntegrityError as exc:
                 if attempt:   # a concurrent writer inserted the same key: update it now
                     detail = str(getattr(exc, 'orig', None) or exc).strip().splitlines()[0]
@@ -413,38 +421,44 @@ class ResultStore:
                 raise StoreError(msg) from None
         raise AssertionError  # pragma: no cover
 
-    def _upsert_once(self, record: UnitRecord) -> int:
+    def _upsert_once(self, records: Sequence[UnitRecord]) -> list[int]:
         now = datetime.now(tz=UTC)
-        values = _row_values(record, now)
         with Session(self._engine) as s, s.begin():
-            row = s.scalars(select(ResultRow).where(ResultRow.record_key == record.key)
-                            .with_for_update()).one_or_none()
-            if row is None:
-                row = ResultRow(**values)
-                s.add(row)
-            else:
-                for k, v in values.items():
-                    if v is None and k in _KEPT_WHEN_MISSING:
-                        continue   # a re-analysis without --serial keeps the serial given
-                    setattr(row, k, v)
-                row.metrics.clear()
-                row.lines.clear()
-                s.flush()     # the old children go before the new ones (unique keys)
-            row.metrics.extend(
-                MetricRow(name=m.name, direction=m.direction, value=float(m.value),
-                          limit_low=_opt(m.limit_low), limit_high=_opt(m.limit_high),
-                          verdict=m.verdict, u95=_opt(m.u95), uc=_opt(m.uc))
-                for m in record.metrics)
-            row.lines.extend(
-                LineRow(label=ln.label, output_order=_opt(ln.output_order),
-                        crank_order=_opt(ln.crank_order), frequency_hz=_opt(ln.frequency_hz),
-                        amplitude_rad=float(ln.amplitude_rad), phase_rad=_opt(ln.phase_rad),
-                        amplitude_u95_rad=_opt(ln.amplitude_u95_rad),
-                        amplitude_uc_rad=_opt(ln.amplitude_uc_rad),
-                        phase_u95_rad=_opt(ln.phase_u95_rad))
-                for ln in record.lines)
+            keys = list(dict.fromkeys(r.key for r in records))
+            found = {row.record_key: row for row in s.scalars(
+                select(ResultRow).where(ResultRow.record_key.in_(keys)).with_for_update())}
+            out = []
+            for record in records:
+                values = _row_values(record, now)
+                row = found.get(record.key)
+                if row is None:
+                    row = found[record.key] = ResultRow(**values)
+                    s.add(row)
+                else:
+                    for k, v in values.items():
+                        if v is None and k in _KEPT_WHEN_MISSING:
+                            continue   # a re-analysis without --serial keeps the serial given
+                        setattr(row, k, v)
+                    row.metrics.clear()
+                    row.lines.clear()
+                    s.flush()     # the old children go before the new ones (unique keys)
+                row.metrics.extend(
+                    MetricRow(name=m.name, direction=m.direction, value=float(m.value),
+                              limit_low=_opt(m.limit_low), limit_high=_opt(m.limit_high),
+                              verdict=m.verdict, u95=_opt(m.u95), uc=_opt(m.uc))
+                    for m in record.metrics)
+                row.lines.extend(
+                    LineRow(label=ln.label, output_order=_opt(ln.output_order),
+                            crank_order=_opt(ln.crank_order),
+                            frequency_hz=_opt(ln.frequency_hz),
+                            amplitude_rad=float(ln.amplitude_rad), phase_rad=_opt(ln.phase_rad),
+                            amplitude_u95_rad=_opt(ln.amplitude_u95_rad),
+                            amplitude_uc_rad=_opt(ln.amplitude_uc_rad),
+                            phase_u95_rad=_opt(ln.phase_u95_rad))
+                    for ln in record.lines)
+                out.append(row)
             s.flush()
-            return row.id
+            return [row.id for row in out]
 
     # ------------------------------------------------------------------ reading
 
