@@ -16,6 +16,7 @@ that imported the analysis once (:mod:`._warm`).
 
 from __future__ import annotations
 
+import contextlib
 import logging
 import os
 import time
@@ -29,6 +30,7 @@ from rv_te_bench.errors import RvTeError, StoreError
 from rv_te_bench.io.bag_reader import READ_AHEAD_ENV
 from rv_te_bench.store import (
     bag_fingerprint,
+    bag_probe,
     bag_stat,
     failed_record,
     records_from_analysis_json,
@@ -146,8 +148,10 @@ def _todo(bags: Sequence[Path], store: ResultStore, force: bool,
     of one unit: one record, analysed once (the first path in order), the other paths
     reported as duplicates. A bag is skipped when its content already has a good record:
     known by its path with the recorded size and mtime (no reading), else by its hash. The
-    hash is computed only where it can matter, for a bag whose total size equals another
-    bag's of this run or a good record's (a copy of the same bag has the same size).
+    hash is computed only where it can matter: for a bag whose total size equals a good
+    record's (a copy of the same bag has the same size), and for bags of this run that
+    share their size and their probe (:func:`bag_probe`: the files' first and last 64 kB,
+    which tell two recordings of the same length apart without reading them whole).
     """
     known = store.known_bags()
     good = {k[3] for k in known.values() if k[2] != 'failed'}
@@ -160,17 +164,27 @@ def _todo(bags: Sequence[Path], store: ResultStore, force: bool,
             stats[b] = None
     sizes = Counter(st[0] for st in stats.values() if st is not None)
     sha_of: dict[Path, str] = {}
+    to_hash: list[Path] = []
+    probed: dict[tuple[int, str], list[Path]] = {}
     for b in bags:
         st, k = stats[b], known.get(str(b))
         if st is None:
             continue
         if k is not None and k[2] != 'failed' and (k[0], k[1]) == st:
             sha_of[b] = k[3]                       # unchanged since its record: no reading
-        elif sizes[st[0]] > 1 or st[0] in good_sizes:
+        elif st[0] in good_sizes:
+            to_hash.append(b)                      # may be a recorded bag at another path
+        elif sizes[st[0]] > 1:
             try:
-                sha_of[b] = bag_fingerprint(b)[0]
+                probed.setdefault((st[0], bag_probe(b)), []).append(b)
             except (OSError, StoreError):
                 pass
+    to_hash += [b for same in probed.values() if len(same) > 1 for b in same]
+    for b in to_hash:
+        try:
+            sha_of[b] = bag_fingerprint(b)[0]
+        except (OSError, StoreError):
+            pass
     groups: dict[str, list[Path]] = {}
     for b in bags:
         if b in sha_of:
@@ -238,6 +252,26 @@ def _probe_scheduler(address: str) -> None:
         raise RvTeError(msg) from None
 
 
+def _local_config() -> Any:
+    """Dask's settings for a local cluster whose workers are forked warm (a context manager).
+
+    The workers are forked from a fork server that imported :mod:`._warm` (the analysis,
+    the report's JSON, the store, Dask's worker) once, instead of each spawned cold and
+    importing it all. Dask sets the fork server's preload itself the first time it starts
+    a worker (its own list: distributed, numpy, pandas, ..., each imported in this process
+    too), replacing ours, unless it has done so already: marked done, ours stays. The
+    setting also covers a worker the nanny starts again after it died.
+    """
+    import multiprocessing
+
+    import dask
+    import distributed.utils
+
+    multiprocessing.get_context('forkserver').set_forkserver_preload([_WARM])
+    distributed.utils._forkserver_preload_set = True   # see above
+    return dask.config.set({'distributed.worker.multiprocessing-method': 'forkserver'})
+
+
 def _client(workers: int, scheduler: str | None) -> tuple[Any, Any]:
     try:
         from distributed import Client, LocalCluster
@@ -257,14 +291,7 @@ def _client(workers: int, scheduler: str | None) -> tuple[Any, Any]:
     # helper threads (read-ahead and window spectra: one analysis takes ~1.6 cores): off in
     # the workers
     env = {READ_AHEAD_ENV: '0'} if workers >= (os.cpu_count() or 1) else {}
-    # warm workers: forked from a fork server that imported the analysis once (._warm)
-    # instead of each spawned cold and importing it with its first bag
-    import multiprocessing
-
-    import dask
-
-    multiprocessing.get_context('forkserver').set_forkserver_preload([_WARM])
-    with dask.config.set({'distributed.worker.multiprocessing-method': 'forkserver'}):
+    with _local_config():
         cluster = LocalCluster(n_workers=workers, threads_per_worker=1, processes=True,
                                dashboard_address=':0', silence_logs=logging.ERROR, env=env,
                                preload=[_WARM])
@@ -288,9 +315,6 @@ def run_fleet(bags: Sequence[Path], store: ResultStore, *, options: FleetOptions
         progress: Called as ``progress(done, total, failed)`` after each bag.
         on_client: Called with the Dask client once it is up (tests, diagnostics).
     """
-    from distributed import as_completed
-    from distributed.scheduler import KilledWorker
-
     t0 = time.monotonic()
     summary = FleetSummary()
     todo, summary.skipped, summary.duplicates = _todo(bags, store, force)
@@ -298,54 +322,73 @@ def run_fleet(bags: Sequence[Path], store: ResultStore, *, options: FleetOptions
     if not todo:
         summary.elapsed_s = time.monotonic() - t0
         return summary
-    client, cluster = _client(workers, scheduler)
-    try:
-        if on_client is not None:
-            on_client(client)
-        summary.workers = len(client.scheduler_info().get('workers', {}))
-        n_workers = max(1, summary.workers if scheduler else workers)
-        ac = as_completed()
-        batch_of: dict[str, list[Path]] = {}
-
-        def submit(group: list[Path]) -> None:
-            fut = client.submit(analyse_batch, [str(b) for b in group], options, pure=False)
-            batch_of[fut.key] = group
-            ac.add(fut)
-
-        for group in batches(todo, n_workers):
-            submit(group)
-        done = 0
-        for fut in ac:
-            group = batch_of.pop(fut.key)
-            try:
-                recs = fut.result()
-            except KilledWorker:
-                if len(group) > 1:     # one of them may kill its worker: each on its own
-                    for b in group:
-                        submit([b])
-                    continue
-                recs = [failed_record(group[0], 'the worker analysing this bag died every '
-                                      'time it was tried (Dask allowed-failures)',
-                                      command='fleet', software_version=__version__)]
-            except Exception as exc:  # noqa: BLE001 - recorded with its reason, not lost
-                recs = [failed_record(b, f'{type(exc).__name__}: {_one_line(exc)}',
-                                      command='fleet', software_version=__version__)
-                        for b in group]
-            for bag, rec in zip(group, recs, strict=True):
-                store.upsert(rec)
-                done += 1
-                if rec.status == 'failed':
-                    summary.failed += 1
-                    summary.failures.append((str(bag), rec.failure or ''))
-                elif rec.status == 'partial':
-                    summary.partial += 1
-                else:
-                    summary.ok += 1
-                if progress is not None:
-                    progress(done, len(todo), summary.failed)
-    finally:
-        client.close()
-        if cluster is not None:
-            cluster.close()
+    with contextlib.ExitStack() as stack:
+        if scheduler is None:
+            stack.enter_context(_local_config())   # also for a worker started again
+        client, cluster = _client(workers, scheduler)
+        stack.callback(_close, client, cluster)
+        _hand_out(client, todo, summary, scheduler=scheduler, workers=workers,
+                  options=options, store=store, progress=progress, on_client=on_client)
     summary.elapsed_s = time.monotonic() - t0
     return summary
+
+
+def _close(client: Any, cluster: Any) -> None:
+    client.close()
+    if cluster is not None:
+        cluster.close()
+
+
+def _hand_out(client: Any, todo: list[Path], summary: FleetSummary, *, scheduler: str | None,
+              workers: int, options: FleetOptions, store: ResultStore,
+              progress: Callable[[int, int, int], None] | None,
+              on_client: Callable[[Any], None] | None) -> None:
+    """Send the bags in batches; write each batch's records as it comes back (one
+    transaction per batch: a batch's records are in the store together or not at all)."""
+    from distributed import as_completed
+    from distributed.scheduler import KilledWorker
+
+    if on_client is not None:
+        on_client(client)
+    summary.workers = len(client.scheduler_info().get('workers', {}))
+    n_workers = max(1, summary.workers if scheduler else workers)
+    ac = as_completed()
+    batch_of: dict[str, list[Path]] = {}
+
+    def submit(group: list[Path]) -> None:
+        fut = client.submit(analyse_batch, [str(b) for b in group], options, pure=False)
+        batch_of[fut.key] = group
+        ac.add(fut)
+
+    for group in batches(todo, n_workers):
+        submit(group)
+    done = 0
+    for fut in ac:
+        group = batch_of.pop(fut.key)
+        try:
+            recs = fut.result()
+        except KilledWorker:
+            if len(group) > 1:     # one of them may kill its worker: each on its own
+                for b in group:
+                    submit([b])
+                continue
+            recs = [failed_record(group[0], 'the worker analysing this bag died every '
+                                  'time it was tried (Dask allowed-failures)',
+                                  command='fleet', software_version=__version__)]
+        except Exception as exc:  # noqa: BLE001 - recorded with its reason, not lost
+            recs = [failed_record(b, f'{type(exc).__name__}: {_one_line(exc)}',
+                                  command='fleet', software_version=__version__)
+                    for b in group]
+        fut.release()
+        store.upsert_many(recs)
+        for bag, rec in zip(group, recs, strict=True):
+            done += 1
+            if rec.status == 'failed':
+                summary.failed += 1
+                summary.failures.append((str(bag), rec.failure or ''))
+            elif rec.status == 'partial':
+                summary.partial += 1
+            else:
+                summary.ok += 1
+            if progress is not None:
+                progress(done, len(todo), summary.failed)

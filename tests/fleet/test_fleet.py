@@ -177,6 +177,28 @@ def test_workers_read_without_the_read_ahead_thread_when_they_fill_the_cores() -
     assert got == ({'0'} if (os.cpu_count() or 1) <= 2 else {None})
 
 
+def test_local_workers_come_forked_with_the_analysis_imported() -> None:
+    """Issue 41: a local cluster's workers are forked from one fork server that imported the
+    analysis (``fleet._warm``) once; no worker imports it itself. Fails before: Dask set
+    its own preload list on the fork server (numpy, pandas, ...), replacing ours, and each
+    worker imported the analysis at its start (~0.6 CPU s each, per run)."""
+    from rv_te_bench.fleet._run import _client
+
+    def where_imported() -> tuple[int, int | None]:
+        warm = sys.modules.get('rv_te_bench.fleet._warm')
+        return os.getpid(), getattr(warm, 'IMPORTED_IN_PID', None)
+
+    client, cluster = _client(2, None)
+    try:
+        got = list(client.run(where_imported).values())
+    finally:
+        client.close()
+        cluster.close()
+    assert len(got) == 2
+    (server,) = {imported for _, imported in got}        # one fork server for both
+    assert server is not None and server not in {pid for pid, _ in got}
+
+
 def test_a_bag_at_two_paths_is_one_record_and_reruns_skip_both(fleet_dir: Path,
                                                                 tmp_path: Path) -> None:
     """Issue #21: records are keyed by content hash, the rerun skipped by path. A unit's bag
