@@ -1,8 +1,9 @@
 """Analyse many bags with Dask distributed and write each result to the store.
 
 The client (this process) is the only writer of the store: workers analyse a bag and hand
-back its :class:`~rv_te_bench.store.UnitRecord` (the same record ``rv-te analyze`` writes),
-the client writes it the moment it arrives. A worker that dies mid-task loses nothing: the
+back its :class:`~rv_te_bench.store.UnitRecord` (the same record ``rv-te analyze`` writes,
+~10 kB, no arrays), the client writes a task's records the moment they arrive, in one
+transaction. A worker that dies mid-task loses nothing: the
 scheduler runs its task again on another worker (up to Dask's ``allowed-failures``, then
 the bag is recorded as failed with that reason); results already handed back are already
 in the store. A bag that cannot be analysed is recorded as failed with its one-line reason.
@@ -10,8 +11,9 @@ in the store. A bag that cannot be analysed is recorded as failed with its one-l
 Hand-over costs are kept off the bags (issue 41): bags go to the workers in batches (several
 per task while many remain, one per task at the end so that the workers finish together),
 a batch whose worker died is split into single bags (only a bag that kills its worker every
-time is recorded failed), and a local cluster's workers are forked warm from a fork server
-that imported the analysis once (:mod:`._warm`).
+time is recorded failed), a local cluster's workers are forked warm from a fork server
+that imported the analysis once (:mod:`._warm`, :func:`_local_config`), and bags of one
+size are told apart by their ends before any is hashed whole (:func:`_todo`).
 """
 
 from __future__ import annotations

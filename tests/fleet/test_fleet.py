@@ -199,6 +199,18 @@ def test_local_workers_come_forked_with_the_analysis_imported() -> None:
     assert server is not None and server not in {pid for pid, _ in got}
 
 
+def test_what_the_workers_import_leaves_out_the_database() -> None:
+    """The fork server imports what a worker needs (``fleet._warm``) once per run: the
+    analysis and the records, not the store's database side (SQLAlchemy, ~0.3 CPU s),
+    which only the client uses. Fails before: ``rv_te_bench.store`` imported it."""
+    code = ('import sys, rv_te_bench.fleet._warm; print(sorted(m for m in ("sqlalchemy", '
+            '"alembic", "pandas", "matplotlib") if m in sys.modules))')
+    p = subprocess.run([sys.executable, '-c', code], capture_output=True, text=True,
+                       timeout=120, env=_env(), check=False)
+    assert p.returncode == 0, p.stderr
+    assert p.stdout.strip() == '[]'
+
+
 def test_a_bag_at_two_paths_is_one_record_and_reruns_skip_both(fleet_dir: Path,
                                                                 tmp_path: Path) -> None:
     """Issue #21: records are keyed by content hash, the rerun skipped by path. A unit's bag
