@@ -15,6 +15,7 @@ import sys
 import threading
 import time
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 import pytest
@@ -188,12 +189,17 @@ def test_local_workers_come_forked_with_the_analysis_imported() -> None:
         warm = sys.modules.get('rv_te_bench.fleet._warm')
         return os.getpid(), getattr(warm, 'IMPORTED_IN_PID', None)
 
+    def profiling(dask_worker: Any) -> bool:      # Dask passes its Worker
+        return 'profile' in dask_worker.periodic_callbacks
+
     client, cluster = _client(2, None)
     try:
         got = list(client.run(where_imported).values())
+        profiled = set(client.run(profiling).values())
     finally:
         client.close()
         cluster.close()
+    assert profiled == {False}          # no stack sampling beside the analysis (issue 41)
     assert len(got) == 2
     (server,) = {imported for _, imported in got}        # one fork server for both
     assert server is not None and server not in {pid for pid, _ in got}
