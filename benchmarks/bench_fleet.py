@@ -1,6 +1,7 @@
 """Fleet analysis on Dask: 100 bags with 1 and 2 workers, against a plain loop.
 
-Run: ``.venv/bin/python benchmarks/bench_fleet.py [--bags 100] [--dir /tmp/rv-te-fleet-bench]``.
+Run: ``.venv/bin/python benchmarks/bench_fleet.py [--bags 100] [--dir /tmp/rv-te-fleet-bench]``
+(``--engine-only --engine-repeats 3`` for the engine alone, a few minutes).
 Prints a markdown table (and writes it to ``--out`` if given).
 
 The bags (written once into ``--dir`` and reused) are units of the Wang 2020 2K-V with
@@ -21,10 +22,14 @@ loaded machine does not inflate the way it inflates wall times; the wall figure 
 The speed-up (loop wall / 2-worker wall) needs two free cores: the load is printed with it.
 
 First, the engine alone (``--engine-only`` stops there): the same three ways with the
-analysis replaced by a stub that returns a ready record, so that what is left is the
-engine's own cost per bag (cluster start-up and shut-down, hand-over, results back), which
-the analyses' run-to-run spread on a loaded machine (+-10 % of ~0.5 CPU s per bag) would
-hide in the full comparison.
+analysis replaced by a stub that returns a ready record (``_fleet_stub.py``, sent to the
+workers by reference like the real analysis), so that what is left is the engine's own
+cost (cluster start-up and shut-down, hand-over, results back, store writes), which the
+analyses' run-to-run spread on a loaded machine (+-10 % of ~0.5 CPU s per bag) would hide
+in the full comparison. It runs at two numbers of bags (``--engine-sizes``, default a
+fifth of ``--bags`` and ``--bags``), which splits the engine's cost into a fixed cost per
+run (the cluster, the fork server's imports) and a cost per bag: "overhead per bag" at 100
+bags is both, the fixed part divided by 100.
 """
 
 from __future__ import annotations
@@ -68,90 +73,116 @@ def _cpu_self() -> float:
     return ru.ru_utime + ru.ru_stime
 
 
-def _forkserver_cpu() -> float:
-    """CPU seconds of multiprocessing's fork server so far, with its children that ended
-    (the workers forked from it, reaped by it), 0 when none runs."""
+def _forkserver_cpu() -> tuple[float, float]:
+    """CPU seconds of multiprocessing's fork server so far: (its own: its imports and the
+    forking, its children that ended: the workers forked from it, reaped by it), zeros
+    when none runs."""
     from multiprocessing import forkserver
     pid = getattr(forkserver._forkserver, '_forkserver_pid', None)
     if not pid:
-        return 0.0
+        return 0.0, 0.0
     try:
         fields = Path(f'/proc/{pid}/stat').read_text().rsplit(')', 1)[1].split()
     except OSError:
-        return 0.0
-    return sum(int(f) for f in fields[11:15]) / os.sysconf('SC_CLK_TCK')
+        return 0.0, 0.0
+    tck = os.sysconf('SC_CLK_TCK')
+    return sum(int(f) for f in fields[11:13]) / tck, sum(int(f) for f in fields[13:15]) / tck
 
 
 def _fleet(bags: list[Path], store_path: Path, opts: object, workers: int
-           ) -> tuple[float, float]:
-    """(wall, CPU) of one run_fleet: this process + the workers + the fork server."""
+           ) -> tuple[float, float, float]:
+    """(wall, CPU, the fork server's own CPU) of one run_fleet: CPU of this process + the
+    workers + the fork server (its own: its imports, what the loop's process imported
+    before its clock started)."""
     from rv_te_bench.fleet import run_fleet
     from rv_te_bench.store import open_store
 
-    fs0, c0, t = 0.0, _cpu_self(), time.perf_counter()
+    c0, t = _cpu_self(), time.perf_counter()
     with open_store(store_path) as st:
         s = run_fleet(bags, st, options=opts, workers=workers)  # type: ignore[arg-type]
     wall = time.perf_counter() - t
     assert s.ok == len(bags), s
     time.sleep(1.0)      # the fork server reaps the workers (their CPU joins its children's)
-    cpu = _cpu_self() - c0 + _forkserver_cpu() - fs0
+    own, children = _forkserver_cpu()
+    cpu = _cpu_self() - c0 + own + children
     # stopped, so that each run starts (and pays for) its own, as each rv-te command does
     from multiprocessing import forkserver
     forkserver._forkserver._stop()  # type: ignore[attr-defined]
-    return wall, cpu
+    return wall, cpu, own
 
 
-def _stub_batch(paths: list[str], options: object) -> list[object]:
-    """The engine without the analysis: each bag's record is a copy of one made before
-    (defined in ``__main__``, so Dask ships it to the workers by value)."""
-    import dataclasses
-    return [dataclasses.replace(_TEMPLATE[0], bag_path=p,
-                                bag_sha256=f'{abs(hash(p)):064x}'[-64:]) for p in paths]
+def engine_overhead(bags: list[Path], opts: object, repeats: int, sizes: list[int]) -> str:
+    """Cost of the engine alone: run_fleet with 1 and 2 workers whose analysis is a stub
+    returning a ready record (``_fleet_stub``), against a loop of the same stub +
+    store.upsert, each at every number of bags in ``sizes`` (medians of ``repeats``
+    rotated rounds; start-up and shut-down included). Two sizes split the engine's cost
+    into a fixed cost per run (the intercept) and a cost per bag (the slope)."""
+    import pickle
 
+    import _fleet_stub
 
-_TEMPLATE: list[object] = []
-
-
-def engine_overhead(bags: list[Path], opts: object, repeats: int) -> str:
-    """Per-bag cost of the engine alone: run_fleet with 1 and 2 workers whose analysis is a
-    stub returning a ready record, against a loop of the same stub + store.upsert (medians
-    of ``repeats`` rotated rounds; start-up and shut-down included)."""
     from rv_te_bench.fleet import _run, analyse_one
     from rv_te_bench.store import open_store
 
-    _TEMPLATE.append(analyse_one(str(bags[0]), opts))   # type: ignore[arg-type]
-    real = _run.analyse_batch
-    got: dict[str, list[tuple[float, float]]] = {'loop': [], '1': [], '2': []}
+    ways = ('loop', '1', '2')
+    got: dict[tuple[str, int], list[tuple[float, float, float]]] = {
+        (w, n): [] for w in ways for n in sizes}
+    loads = [os.getloadavg()[0]]
     with tempfile.TemporaryDirectory() as tmp:
+        template = Path(tmp) / 'template.pickle'
+        template.write_bytes(pickle.dumps(analyse_one(str(bags[0]), opts)))  # type: ignore[arg-type]
+        os.environ[_fleet_stub.TEMPLATE_ENV] = str(template)
+        real = _run.analyse_batch
         try:
-            _run.analyse_batch = _stub_batch   # type: ignore[assignment]
+            _run.analyse_batch = _fleet_stub.stub_batch   # type: ignore[assignment]
             for r in range(repeats):
-                for k in range(3):
-                    how = ('loop', '1', '2')[(k + r) % 3]
+                for k in range(len(ways) * len(sizes)):
+                    j = (k + r) % (len(ways) * len(sizes))
+                    how, n = ways[j % len(ways)], sizes[j // len(ways)]
                     db = Path(tmp) / f'e{r}{k}.sqlite'
                     if how == 'loop':
                         c0, t = _cpu_self(), time.perf_counter()
                         with open_store(db) as st:
-                            for rec in _stub_batch([str(b) for b in bags], opts):
-                                st.upsert(rec)   # type: ignore[arg-type]
-                        got[how].append((time.perf_counter() - t, _cpu_self() - c0))
+                            for rec in _fleet_stub.stub_batch([str(b) for b in bags[:n]],
+                                                              opts):
+                                st.upsert(rec)
+                        got[how, n].append((time.perf_counter() - t, _cpu_self() - c0, 0.0))
                     else:
-                        got[how].append(_fleet(bags, db, opts, int(how)))
+                        got[how, n].append(_fleet(bags[:n], db, opts, int(how)))
+                    loads.append(os.getloadavg()[0])
         finally:
             _run.analyse_batch = real
-    med = {k: (statistics.median(w for w, _ in v), statistics.median(c for _, c in v))
-           for k, v in got.items()}
-    n = len(bags)
-    rows = [f'| {name} | {med[k][0]:.2f} | {med[k][1]:.2f} | '
-            f'{(med[k][0] - med["loop"][0]) / n * 1e3:.1f} | '
-            f'{(med[k][1] - med["loop"][1]) / n * 1e3:.1f} |'
-            for k, name in (('loop', 'loop: stub + store.upsert'),
-                            ('1', 'run_fleet, 1 worker, stub analysis'),
-                            ('2', 'run_fleet, 2 workers, stub analysis'))]
-    return '\n'.join([f'Engine alone, {n} bags, median of {repeats} (load '
-                      f'{os.getloadavg()[0]:.1f} at the end):', '',
-                      '| how | wall s | CPU s | wall overhead per bag [ms] | CPU overhead per '
-                      'bag [ms] |', '|---|---:|---:|---:|---:|', *rows])
+            os.environ.pop(_fleet_stub.TEMPLATE_ENV, None)
+    med = {key: tuple(statistics.median(x[i] for x in v) for i in range(3))
+           for key, v in got.items()}
+    names = {'loop': 'loop: stub + store.upsert', '1': 'run_fleet, 1 worker, stub analysis',
+             '2': 'run_fleet, 2 workers, stub analysis'}
+    rows = []
+    for n in sizes:
+        for w in ways:
+            (mw, mc, mo), (lw, lc, _) = med[w, n], med['loop', n]
+            rows.append(f'| {names[w]} | {n} | {mw:.2f} | {mc:.2f} | {mo:.2f} | '
+                        f'{(mw - lw) / n * 1e3:.1f} | {(mc - lc) / n * 1e3:.1f} | '
+                        f'{(mc - mo - lc) / n * 1e3:.1f} |')
+    lines = [f'Engine alone, median of {repeats} (load {min(loads):.1f}-{max(loads):.1f}):', '',
+             '| how | bags | wall s | CPU s | of which the fork server\'s imports, CPU s | '
+             'wall overhead per bag [ms] | CPU overhead per bag [ms] | CPU overhead per bag '
+             'without those imports [ms] |', '|---|---:|---:|---:|---:|---:|---:|---:|', *rows]
+    if len(sizes) >= 2:
+        a, b = sizes[0], sizes[-1]
+        lines.append('')
+        for w in ('1', '2'):
+            # overhead = fleet - loop, split into a line through the two sizes
+            ow = [med[w, n][0] - med['loop', n][0] for n in (a, b)]
+            oc = [med[w, n][1] - med['loop', n][1] for n in (a, b)]
+            imports = statistics.median(med[w, n][2] for n in (a, b))
+            slope_w, slope_c = (ow[1] - ow[0]) / (b - a), (oc[1] - oc[0]) / (b - a)
+            lines.append(f'- {w} worker(s): fixed per run **{oc[0] - slope_c * a:.2f} CPU s** '
+                         f'(of which the fork server\'s imports {imports:.2f} s), '
+                         f'{ow[0] - slope_w * a:.2f} s wall; per bag beyond that '
+                         f'**{slope_c * 1e3:.1f} ms CPU**, {slope_w * 1e3:.1f} ms wall '
+                         f'(a line through {a} and {b} bags)')
+    return '\n'.join(lines)
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -172,6 +203,11 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument('--out', type=Path, default=None)
     ap.add_argument('--engine-only', action='store_true',
                     help='only the engine alone (a stub analysis): per-bag hand-over cost')
+    ap.add_argument('--engine-sizes', type=int, nargs='+', default=None,
+                    help='numbers of bags of the engine-alone runs (default: a fifth of '
+                         '--bags and --bags: the fixed cost per run and the cost per bag)')
+    ap.add_argument('--engine-repeats', type=int, default=3,
+                    help='rounds of the engine-alone runs (0: none, only the full runs)')
     args = ap.parse_args(argv)
     t = time.perf_counter()
     bags = make_bags(args.dir, args.bags, rate_hz=args.rate_hz, revolutions=args.revolutions)
@@ -179,13 +215,15 @@ def main(argv: list[str] | None = None) -> int:
     opts = FleetOptions(with_advice=not args.no_advice)
     print(f'{_cpu_model()}, {os.cpu_count()} CPUs, load {os.getloadavg()[0]:.1f} at the start',
           flush=True)
-    print(engine_overhead(bags, opts, max(args.repeats, 3)), flush=True)
+    sizes = args.engine_sizes or sorted({max(1, len(bags) // 5), len(bags)})
+    if args.engine_repeats > 0:
+        print(engine_overhead(bags, opts, args.engine_repeats, sizes), flush=True)
     if args.engine_only:
         return 0
     loads = [os.getloadavg()[0]]
     names = ['plain loop (this process)', 'run_fleet, local cluster of 1 worker',
              'run_fleet, local cluster of 2 workers']
-    got: dict[str, list[tuple[float, float]]] = {n: [] for n in names}
+    got: dict[str, list[tuple[float, float, float]]] = {n: [] for n in names}
     with tempfile.TemporaryDirectory() as tmp:
         for r in range(args.repeats):
             for k in range(3):
@@ -196,13 +234,13 @@ def main(argv: list[str] | None = None) -> int:
                     with open_store(db) as st:
                         for b in bags:
                             st.upsert(analyse_one(str(b), opts))
-                    got[name].append((time.perf_counter() - t, _cpu_self() - c0))
+                    got[name].append((time.perf_counter() - t, _cpu_self() - c0, 0.0))
                 else:
                     got[name].append(_fleet(bags, db, opts, 1 if '1 worker' in name else 2))
                 loads.append(os.getloadavg()[0])
                 print(f'{name}: wall {got[name][-1][0]:.1f} s, CPU {got[name][-1][1]:.1f} s, '
                       f'load {loads[-1]:.1f}', file=sys.stderr, flush=True)
-    med = {n: (statistics.median(w for w, _ in v), statistics.median(c for _, c in v))
+    med = {n: (statistics.median(x[0] for x in v), statistics.median(x[1] for x in v))
            for n, v in got.items()}
     (loop_w, loop_c), (one_w, one_c), (two_w, two_c) = (med[n] for n in names)
     n = len(bags)
