@@ -274,6 +274,12 @@ class BenchNode(Node):
             self.speed_factor = factor
         self.pub_clock = self.create_publisher(Clock, '/clock', qos.CLOCK_QOS) if self.fast \
             else None
+        self.gate = None   # fast mode: the readers that must not lose hold the bench
+        if self.fast and not self.joint_state and self.program is None \
+                and self.p.wait_for_nodes:
+            from rv_te_bench.nodes.backpressure import AckGate
+
+            self.gate = AckGate(self, self.p.wait_for_nodes, self.p.ack_timeout_s)
         self.wall_start = time.time()
         self.mono_start = time.monotonic()
         self.started = not self.p.wait_for_nodes
@@ -410,15 +416,19 @@ class BenchNode(Node):
         elapsed = time.monotonic() - self.mono_start
         if self.fast:
             factor = self.speed_factor
-            if factor <= 0:
-                return 10  # as fast as possible: several per tick, still yielding to spin
+            if factor <= 0:   # as fast as possible: several per tick, still yielding to spin
+                return 10 if self.gate is None else min(
+                    10, self.gate.room(self.blocks_published - 1))
             elapsed *= factor
         due = int(elapsed / self.block_period_s) + 1 - self.blocks_published
         if self.control is not None and self.fast and due > self._max_catch_up_blocks:
             # held up: forgive the backlog (simulated time runs slower for a moment)
             self.mono_start += (due - self._max_catch_up_blocks) * self.block_period_s \
                 / self.speed_factor
-        return max(0, min(due, self._max_catch_up_blocks))
+        due = max(0, min(due, self._max_catch_up_blocks))
+        if self.gate is not None and due:
+            due = min(due, self.gate.room(self.blocks_published - 1))
+        return due
 
     def _wait_for_subscribers(self) -> bool:
         """True once the named subscriber nodes are there (or the wait timed out)."""
@@ -443,6 +453,10 @@ class BenchNode(Node):
             self.get_logger().warning(
                 f'starting without {missing} on {topic} after {waited:.1f} s')
         self.started = True
+        if self.gate is not None:
+            holding = self.gate.start(have)
+            self.get_logger().info(f'fast mode: waiting for {holding or "no reader"} when '
+                                   f'more than {self.gate.window} blocks behind')
         self.wall_start = time.time()
         self.mono_start = time.monotonic()
         if self.pub_clock is not None:   # the session clock starts at the first block's time
@@ -628,6 +642,9 @@ class BenchNode(Node):
             'scheduling': self.scheduling,
         }
         self._lag_period_max_s = 0.0
+        if self.gate is not None:   # how long the readers held the bench back, and who not
+            values['held_by_readers_s'] = self.gate.held_s
+            values['readers_let_go'] = ','.join(self.gate.released)
         if self.joint_state:
             values['joint_states_published'] = self.joint_states_published
         late = (not self.fast) and self._lag_s > self.block_period_s

@@ -41,6 +41,7 @@ from rv_te_bench.io.bag_writer import BagWriter, qos_profile_dict
 from rv_te_bench.io.files import write_atomic
 from rv_te_bench.io.msgdefs import ENCODER_BLOCK
 from rv_te_bench.nodes import qos
+from rv_te_bench.nodes.backpressure import BlockAcks
 from rv_te_bench.nodes.common import declare_from_specs, run_node
 from rv_te_bench.nodes.convert import message_class
 from rv_te_bench.nodes.params.recorder import DEFAULT_TOPICS, PARAMS, RecorderParams
@@ -185,6 +186,10 @@ class RecorderNode(Node):
                           clock=steady)
         self.create_timer(1.0, self._publish_diagnostics, clock=steady)
         self.create_timer(p.discovery_period_s, self._discover, clock=steady)
+        # a fast bench waits while the blocks recorded are too far behind its newest
+        encoders = self._resolve('bench/encoders')
+        BlockAcks(self, lambda: (s.last_seq if (s := self._topics.get(encoders)) is not None
+                                 else None))
         self._discover()
         self.get_logger().info(f'recording {self._wanted} to {self.bag_path}')
 

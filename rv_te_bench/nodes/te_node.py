@@ -33,6 +33,7 @@ from rv_te_bench.core.stream_records import StreamUpdate, TeAnalysisConfig
 from rv_te_bench.core.te_zero import EncoderZero, TeZero
 from rv_te_bench.errors import EncoderCalibrationError, HeadLayoutError, RvTeError
 from rv_te_bench.nodes import convert, qos
+from rv_te_bench.nodes.backpressure import BlockAcks
 from rv_te_bench.nodes.common import (
     ERROR,
     OK,
@@ -114,6 +115,7 @@ class TeNode(Node):
         self._blocks = 0
         self._last_window: Any = None
         self._first_seq: int | None = None
+        self._last_seq: int | None = None   # the last block analysed, acknowledged (fast mode)
         # blocks that arrive before the gear ratio is known (bench/info is latched but may
         # land after the first blocks): kept, bounded, and analysed once configured
         self._pending: deque[EncoderBlock | bytes] = deque()
@@ -140,6 +142,7 @@ class TeNode(Node):
         self.create_subscription(EncoderBlock, 'bench/encoders', self._on_block,
                                  qos.ENCODER_QOS, raw=True)
         self.create_timer(self.p.diagnostics_period_s, self._publish_diagnostics)
+        BlockAcks(self, lambda: self._last_seq)   # a fast bench waits for the analysis
         if orders is not None:
             self._crank_per_output()   # warns when the deprecated spelling is used
             self._configure(orders)
@@ -275,6 +278,7 @@ class TeNode(Node):
                 self.get_logger().info(self.zero.reference.describe())
         update = self.analyzer.push(block)
         self._blocks += 1
+        self._last_seq = block.seq
         for gap in update.gaps:
             self._gaps_total += 1
             self.last_gap = f'{gap.kind} at seq {gap.seq}: {gap.detail}'

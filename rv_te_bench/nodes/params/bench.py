@@ -137,6 +137,10 @@ class BenchParams:
     wait_timeout_s: float = param(
         20.0, 'Start anyway after this long when subscribers are missing [s]', min_value=0.0,
         max_value=3600.0)
+    ack_timeout_s: float = param(
+        5.0, 'fast mode: how long a waited-for reader (recorder, te_node) that takes no '
+        'block may hold the bench before it goes on without it [s]', min_value=0.1,
+        max_value=3600.0)
     diagnostics_period_s: float = param(
         1.0, 'Diagnostics period [s]', min_value=0.05, max_value=60.0)
     output: str = param(
