@@ -12,9 +12,10 @@ Steps, each in fresh processes as a user runs them:
    (the command's fixed cost), ``--short-minutes`` (the reference bag) and ``--hours`` (the
    life-test bag); the recorder's peak resident memory is its VmHWM and its CPU time
    utime+stime, read from /proc every 0.5 s while it runs (the last reading before it exits).
-   Blocks on disk are compared with the blocks the bench published. ``--speed-factor 0``
-   (as fast as the bench can) outruns the recorder on a loaded 2-core machine: 5714 of 6000
-   blocks reached the 10-minute bag at 96x real time; 30x lost none.
+   Blocks on disk are compared with the blocks the bench published. Before 642c45d
+   ``--speed-factor 0`` (as fast as the bench can) outran the recorder on a loaded 2-core
+   machine (5714 of 6000 blocks reached the 10-minute bag at 96x real time); a fast bench
+   now waits for its recorder (rv_te_bench/nodes/backpressure.py).
 2. ``rv-te analyze BAG --json --no-advice --report DIR`` on the three bags, ``--repeats``
    rounds interleaved (the long bag in ``--long-repeats`` middle rounds): wall time, CPU
    time (user+sys) and peak RSS (``ru_maxrss``) from ``wait4``; linearity =
