@@ -118,7 +118,8 @@ def test_a_busy_compensation_node_dies_with_a_sigkilled_launcher(
         # off every CPU for seconds) failed it while the nodes did cut their work off
         took = wait_gone(nodes, 2.0)
         left = {p: _cmdline(p).split()[-5:] for p in nodes if alive(p)}
-        assert not left, f'node processes left running 2 s (of time they could run) after the launcher died: {left}'
+        assert not left, ('node processes left running 2 s (of time they could run) after '
+                          f'the launcher died: {left}')
     finally:
         for p in nodes:
             if alive(p):
