@@ -438,6 +438,8 @@ def _run_goal(args: argparse.Namespace, plan_text: str, tol_text: str,
     from rclpy.executors import SingleThreadedExecutor
     from rv_te_msgs.action import RunTestPlan
 
+    from rv_te_bench.nodes.goal_client import TrackedGoal
+
     ctx = rclpy.context.Context()
     rclpy.init(context=ctx)
     node = rclpy.create_node('rv_te_test_client', context=ctx,
@@ -458,19 +460,26 @@ def _run_goal(args: argparse.Namespace, plan_text: str, tol_text: str,
         goal = RunTestPlan.Goal(plan_yaml=plan_text, tolerance_yaml=tol_text,
                                 serial=args.serial, operator_name=args.operator,
                                 conditions_yaml=conditions)
-        send = client.send_goal_async(goal, feedback_callback=lambda m: progress(m.feedback))
-        while not send.done():
+        tracked = TrackedGoal(node, client, RunTestPlan, 'run_test_plan', goal,
+                              feedback_callback=lambda m: progress(m.feedback))
+        deadline = time.monotonic() + args.wait_s
+        while not tracked.answered():   # (a reply the middleware lost: goal_client)
+            if time.monotonic() > deadline:
+                print(f'ERROR: the test_sequencer did not answer the goal within '
+                      f'{args.wait_s:g} s (its reply lost, and the goal not on its status '
+                      'topic)', file=sys.stderr)
+                return None
             executor.spin_once(timeout_sec=0.1)
-        handle = send.result()
+        handle = tracked.handle
+        assert handle is not None
         if not handle.accepted:
             print(f'ERROR: the test_sequencer rejected the goal: {_busy_reason(node, executor)}',
                   file=sys.stderr)
             return None
-        res_future = handle.get_result_async()
         try:
             gone_since: float | None = None
             operator = _OperatorAck(args, node, executor)
-            while not res_future.done():
+            while not tracked.result_done():
                 executor.spin_once(timeout_sec=0.1)
                 operator.poll(progress)
                 if client.server_is_ready():
@@ -486,14 +495,16 @@ def _run_goal(args: argparse.Namespace, plan_text: str, tol_text: str,
             print('\ncancelling the test (the bench stops) ...', file=sys.stderr)
             cancel = handle.cancel_goal_async()
             end = time.monotonic() + 30.0
-            while not (cancel.done() and res_future.done()) and time.monotonic() < end:
+            done = False
+            while not (cancel.done() and done) and time.monotonic() < end:
                 executor.spin_once(timeout_sec=0.1)
-            if not res_future.done():
+                done = done or tracked.result_done()
+            if not done:
                 print('ERROR: the test_sequencer did not confirm the cancel', file=sys.stderr)
                 return None
         if progress.tty and progress.step >= 0:
             print(file=sys.stderr)
-        res = res_future.result().result
+        res = tracked.result()
         return res.verdict, res.reason, res.report_json
     finally:
         with contextlib.suppress(Exception):

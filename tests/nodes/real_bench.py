@@ -51,6 +51,7 @@ from std_msgs.msg import Float64MultiArray
 
 from rv_te_bench.cli.ack import acknowledge
 from rv_te_bench.nodes import qos
+from rv_te_bench.nodes.goal_client import TrackedGoal
 from tests.nodes.rosutil import spin_until
 
 RATIO = 121.0          # li2023-rv (the bench description names that preset)
@@ -242,15 +243,14 @@ class Rig:
             during: Any = None, timeout_s: float = 180.0) -> Any:
         assert spin_until(self.ex, self.client.server_is_ready, 30.0), 'no action server'
         feedback: list[Any] = []
-        send = self.client.send_goal_async(
-            RunTestPlan.Goal(plan_yaml=yaml.safe_dump(plan), serial=serial,
-                             operator_name='pytest'),
-            feedback_callback=lambda f: feedback.append(f.feedback))
-        assert spin_until(self.ex, send.done, 20.0) and send.result().accepted
-        res = send.result().get_result_async()
+        goal = TrackedGoal(self.node, self.client, RunTestPlan, 'run_test_plan',
+                           RunTestPlan.Goal(plan_yaml=yaml.safe_dump(plan), serial=serial,
+                                            operator_name='pytest'),
+                           feedback_callback=lambda f: feedback.append(f.feedback))
+        assert spin_until(self.ex, goal.answered, 20.0) and goal.handle.accepted
         acked: set[int] = set()
         end = time.monotonic() + timeout_s
-        while not res.done():
+        while not goal.result_done():
             assert time.monotonic() < end, 'the test did not end'
             self.ex.spin_once(timeout_sec=0.05)
             if feedback and feedback[-1].step_kind == 'operator' and ack and \
@@ -260,7 +260,7 @@ class Rig:
                 assert ok, msg
             if during is not None:
                 during(feedback)
-        return res.result().result, feedback
+        return goal.result(), feedback
 
     def close(self) -> None:
         self.running = False

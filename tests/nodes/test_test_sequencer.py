@@ -29,6 +29,7 @@ from rv_te_msgs.msg import EncoderBlock  # noqa: E402
 from rv_te_bench.cli.test import _busy_reason, simulated_session_spec  # noqa: E402
 from rv_te_bench.launch.session import Session  # noqa: E402
 from rv_te_bench.nodes import qos  # noqa: E402
+from rv_te_bench.nodes.goal_client import TrackedGoal  # noqa: E402
 from tests.nodes.rosutil import spin_for, spin_until  # noqa: E402
 
 # slow enough to cancel in the middle: 2 s of simulated data per direction at 4x real time
@@ -211,15 +212,16 @@ def test_each_metric_is_judged_on_test_report_as_it_is_decided(session: Any,
     try:
         client = ActionClient(node, RunTestPlan, 'run_test_plan')
         assert spin_until(ex, client.server_is_ready, 30.0), 'no action server'
-        send = client.send_goal_async(RunTestPlan.Goal(plan_yaml=yaml.safe_dump(TE_PLAN),
-                                                       serial='SN-LIVE', operator_name='pt'))
-        assert spin_until(ex, send.done, 20.0) and send.result().accepted
-        res = send.result().get_result_async()
-        assert spin_until(ex, res.done, 120.0)
+        # (a goal reply the middleware lost failed this once: followed on the status topic)
+        goal = TrackedGoal(node, client, RunTestPlan, 'run_test_plan',
+                           RunTestPlan.Goal(plan_yaml=yaml.safe_dump(TE_PLAN),
+                                            serial='SN-LIVE', operator_name='pt'))
+        assert spin_until(ex, goal.answered, 20.0) and goal.handle.accepted
+        assert spin_until(ex, goal.result_done, 120.0)
         spin_for(ex, 1.0)
     finally:
         node.destroy_node()
-    final = res.result().result
+    final = goal.result()
     by_name = {m.name: m for m in final.metrics}
     ccw = by_name['te_pp_ccw_rad']
     assert ccw.verdict in {'pass', 'fail'} and ccw.value > 0
