@@ -7,8 +7,11 @@ goal, and the client's ``send_goal_async`` future never completes - ``rv-te test
 for it forever while the bench ran the test. The same can happen to the reply to a result
 request. The goal's fate is also published on the action's status topic (transient local),
 so :class:`TrackedGoal` follows that topic for its own goal id: a goal seen there as
-accepted gets its handle without the lost reply, and a goal seen finished whose result
-reply does not come is asked for its result again (the server keeps results for minutes).
+accepted whose reply has not come :data:`REPLY_GRACE_S` later gets its handle without the
+lost reply, and a goal seen finished whose result reply does not come is asked for its
+result again (the server keeps results for minutes). The grace matters: the status message
+and the reply travel on different topics, and the status often arrives first (CI saw it:
+a reply taken for lost 0 s after the status, while it was on its way).
 """
 
 from __future__ import annotations
@@ -24,6 +27,8 @@ from unique_identifier_msgs.msg import UUID
 
 #: Ask again for the result of a goal the status topic shows finished this long ago [s].
 RESULT_AGAIN_S = 3.0
+#: Take the goal reply for lost when the status topic has shown the goal this long [s].
+REPLY_GRACE_S = 3.0
 
 _TERMINAL = {GoalStatus.STATUS_SUCCEEDED, GoalStatus.STATUS_CANCELED, GoalStatus.STATUS_ABORTED}
 
@@ -51,6 +56,7 @@ class TrackedGoal:
         self.handle: ClientGoalHandle | None = None
         self._result: Any = None
         self._terminal_at: float | None = None
+        self._status_seen_at: float | None = None
 
     def _on_status(self, msg: GoalStatusArray) -> None:
         for s in msg.status_list:
@@ -63,6 +69,11 @@ class TrackedGoal:
             if self._send.done():
                 self.handle = self._send.result()
             elif self.status is not None and self.status != GoalStatus.STATUS_UNKNOWN:
+                now = time.monotonic()
+                if self._status_seen_at is None:
+                    self._status_seen_at = now
+                if now - self._status_seen_at < REPLY_GRACE_S:
+                    return False
                 reply = self._action_type.Impl.SendGoalService.Response(accepted=True)
                 self.handle = ClientGoalHandle(self._client, self._uuid, reply)
                 self.recovered.append('goal response')

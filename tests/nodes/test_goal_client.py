@@ -97,6 +97,52 @@ def test_the_goal_reaches_its_result_whatever_reply_is_lost(
 
 
 @pytest.mark.timeout(60)
+def test_a_goal_reply_that_comes_after_the_status_is_not_taken_for_lost(
+        ros_context: Any, monkeypatch: pytest.MonkeyPatch) -> None:
+    """The status topic often brings the goal before its reply does (CI saw a reply taken
+    for lost the moment the status came): a reply that comes 0.5 s after the status is
+    the reply, not a loss (the old code recovered 'goal response' here)."""
+    node = rclpy.create_node('goal_client_late', context=ros_context)
+    ex = SingleThreadedExecutor(context=ros_context)
+    ex.add_node(node)
+    server = _server(node, accept=True)
+    client = ActionClient(node, RunTestPlan, ACTION)
+    held: dict[str, Any] = {}
+    send = client.send_goal_async
+
+    def send_late(*a: Any, **k: Any) -> Future:
+        held['real'], held['late'] = send(*a, **k), Future()
+        return held['late']
+
+    def release() -> None:   # the reply, held until the status has shown the goal 0.5 s
+        goal = held.get('goal')
+        if goal is None or goal.status is None or held['late'].done():
+            return
+        held.setdefault('status_at', time.monotonic())
+        if held['real'].done() and time.monotonic() - held['status_at'] > 0.5:
+            held['late'].set_result(held['real'].result())
+
+    monkeypatch.setattr(client, 'send_goal_async', send_late)
+    timer = node.create_timer(0.05, release)
+    try:
+        assert _spin_until(ex, client.server_is_ready, 20.0)
+        held['goal'] = goal = TrackedGoal(node, client, RunTestPlan, ACTION,
+                                          RunTestPlan.Goal(serial='SN-9', operator_name='pt'))
+        assert _spin_until(ex, goal.answered, 20.0)
+        assert held['late'].done(), 'answered before the reply came'
+        assert goal.handle is held['real'].result()
+        assert _spin_until(ex, goal.result_done, 20.0)
+        assert goal.result().reason == 'unit SN-9'
+        assert goal.recovered == []
+        goal.destroy()
+    finally:
+        node.destroy_timer(timer)
+        client.destroy()
+        server.destroy()
+        node.destroy_node()
+
+
+@pytest.mark.timeout(60)
 def test_a_rejected_goal_is_not_taken_for_accepted(ros_context: Any) -> None:
     node = rclpy.create_node('goal_client_reject', context=ros_context)
     ex = SingleThreadedExecutor(context=ros_context)
