@@ -8,7 +8,10 @@ times per second, how far it has taken the blocks: the last ``seq`` received, a
 bench publishes only while its newest block is less than :data:`ACK_WINDOW_BLOCKS` ahead of
 the slowest of them (:class:`AckGate`); one whose acknowledgement has not moved for
 ``ack_timeout_s`` while it holds the bench (it died, or hangs) is let go, logged once.
-Real-time mode does not wait (a DAQ does not): there the gate is not made.
+Real-time mode does not wait (a DAQ does not): there the gate is not made. A bench that
+runs programs (``commanded``) starts the gate again at each program's first block (its
+``seq`` continues across programs): a reader that acknowledged before holds from where it
+was, one that did not from the program's first block.
 """
 
 from __future__ import annotations
@@ -73,6 +76,7 @@ class AckGate:
         self.window = window
         self.timeout_s = timeout_s
         self._acked: dict[str, int] = {}       # holding consumer -> last seq it received
+        self._seen: dict[str, int] = {}        # any consumer -> last seq it acknowledged
         self._moved: dict[str, float] = {}     # ... -> when its acknowledgement last moved
         self._low = -1                         # min(self._acked.values())
         self.released: list[str] = []          # let go after the timeout
@@ -83,22 +87,32 @@ class AckGate:
                                         lambda m, n=n: self._on_ack(n, m.data), ACK_QOS)
             for n in names}
 
-    def start(self, present: Iterable[str]) -> list[str]:
-        """Hold for the ``present`` nodes that publish acknowledgements; returns them."""
+    def start(self, present: Iterable[str], first_seq: int = 0) -> list[str]:
+        """Hold for the ``present`` nodes that publish acknowledgements, from block
+        ``first_seq`` on (a program's first block: the seq continues across programs);
+        returns them. Called again, it starts over (who holds, the timeouts)."""
         ns = self._node.get_namespace()
         now = time.monotonic()
+        if self._held_since is not None:
+            self.held_s += now - self._held_since
+            self._held_since = None
+        self._acked.clear()
+        self._moved.clear()
         for name in present:
             sub = self._subs.get(name)
             if sub is None:
                 continue
             pubs = self._node.get_publishers_info_by_topic(sub.topic_name)
             if any(i.node_name == name and i.node_namespace == ns for i in pubs):
-                self._acked[name] = -1
+                # where it was (still behind on an earlier program?), else before the first
+                self._acked[name] = self._seen.get(name, first_seq - 1)
                 self._moved[name] = now
-        self._low = -1
+        self._low = min(self._acked.values()) if self._acked else -1
         return sorted(self._acked)
 
     def _on_ack(self, name: str, seq: int) -> None:
+        if seq > self._seen.get(name, -1):
+            self._seen[name] = seq
         old = self._acked.get(name)
         if old is None or seq <= old:
             return

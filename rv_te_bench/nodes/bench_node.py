@@ -275,8 +275,7 @@ class BenchNode(Node):
         self.pub_clock = self.create_publisher(Clock, '/clock', qos.CLOCK_QOS) if self.fast \
             else None
         self.gate = None   # fast mode: the readers that must not lose hold the bench
-        if self.fast and not self.joint_state and self.program is None \
-                and self.p.wait_for_nodes:
+        if self.fast and not self.joint_state and self.p.wait_for_nodes:
             from rv_te_bench.nodes.backpressure import AckGate
 
             self.gate = AckGate(self, self.p.wait_for_nodes, self.p.ack_timeout_s)
@@ -383,8 +382,16 @@ class BenchNode(Node):
         self._prog_blocks = 0
         if not self.fast:
             self.wall_start = time.time() - self.program.seq * self.block_period_s
+        held = ''
+        if self.gate is not None:   # fast: the session's readers hold it from this block on
+            ns = self.get_namespace()
+            have = {i.node_name for i in self.get_subscriptions_info_by_topic(
+                self.pub_data.topic_name) if i.node_namespace == ns}
+            holding = self.gate.start(have, first_seq=self.program.seq)
+            held = f'; waiting for {holding or "no reader"} when more than ' \
+                   f'{self.gate.window} blocks behind'
         self.get_logger().info(f'program: {len(segments)} segments, {total} blocks from seq '
-                               f'{response.first_seq}')
+                               f'{response.first_seq}{held}')
         return response
 
     def _on_stop(self, _request: Trigger.Request,
@@ -401,6 +408,8 @@ class BenchNode(Node):
         factor = self.speed_factor if self.fast else 1.0
         due = 10 if self.fast and factor <= 0 else int(
             elapsed * factor / self.block_period_s) + 1 - self._prog_blocks
+        if self.gate is not None and due > 0:
+            due = min(due, self.gate.room(self.program.seq - 1))
         for _ in range(max(0, min(due, 100))):
             if not self.program.running:
                 return

@@ -30,7 +30,7 @@ from rv_te_bench.nodes import qos  # noqa: E402
 from rv_te_bench.nodes.backpressure import BlockAcks  # noqa: E402
 from rv_te_bench.nodes.bench_node import BenchNode  # noqa: E402
 from rv_te_bench.nodes.recorder import RecorderNode  # noqa: E402
-from tests.nodes.rosutil import spin_until  # noqa: E402
+from tests.nodes.rosutil import spin_for, spin_until, spin_while_progress  # noqa: E402
 
 BLOCKS = 3000          # 30 s at 10 kHz in blocks of 100: three encoder queues
 WRITE_DELAY_S = 0.004  # the slowed recorder: ~250 blocks/s
@@ -153,3 +153,88 @@ def test_reader_that_dies_does_not_hang_the_bench(ros_context: Any) -> None:
     finally:
         ex.shutdown()
         bench.destroy_node()
+
+
+def _run_program(ex: SingleThreadedExecutor, client: Any, blocks: int) -> Any:
+    """Ask the bench (bench/run_program, as the sequencer does) for a drive of ``blocks``."""
+    import yaml
+    from rv_te_msgs.srv import RunBenchProgram
+
+    program = [{'kind': 'drive', 'speed_rpm': 1000.0, 'duration_s': blocks * 100 / 10000.0}]
+    future = client.call_async(RunBenchProgram.Request(program_yaml=yaml.safe_dump(program)))
+    assert spin_until(ex, future.done, 30.0), 'bench/run_program did not answer'
+    resp = future.result()
+    assert resp.accepted, resp.reason
+    assert resp.block_count == blocks
+    return resp
+
+
+@pytest.mark.timeout(240)
+def test_program_bench_waits_for_a_slow_recorder(ros_context: Any, tmp_path: Path) -> None:
+    """A bench running programs (commanded, the sequencer's whole-reducer route) in fast
+    mode waits for its recorder too: two programs, the second once the recorder has taken
+    the first (its seq starts where the first ended: the gate starts over from there, not
+    from seq 0), the recorder slowed to ~250 blocks/s. Every block of both programs is in
+    the bag, in order, and the recorder was never let go."""
+    from rv_te_msgs.srv import RunBenchProgram
+
+    first, second = 2000, 1500     # the first alone is twice the encoder queue
+    ns = f'/bpprog_{os.getpid()}_{time.monotonic_ns() % 10**6}'
+    topic = f'{ns}/bench/encoders'
+    recorder = RecorderNode(context=ros_context, namespace=ns, parameter_overrides=[
+        Parameter('output_dir', value=str(tmp_path)), Parameter('bag_name', value='bag'),
+        Parameter('topics', value=['bench/encoders', 'bench/info'])])
+    write = recorder._writer.write
+
+    def slow_write(name: str, t_ns: int, data: bytes) -> None:
+        if name == topic:
+            time.sleep(WRITE_DELAY_S)
+        write(name, t_ns, data)
+
+    recorder._writer.write = slow_write   # type: ignore[method-assign]
+    bench = _bench(ros_context, ns, ['recorder'], commanded=True, duration_s=0.0)
+    caller = rclpy.create_node('caller', namespace=ns, context=ros_context)
+    client = caller.create_client(RunBenchProgram, 'bench/run_program')
+    ex_rec, ex_bench = SingleThreadedExecutor(context=ros_context), \
+        SingleThreadedExecutor(context=ros_context)
+    ex_rec.add_node(recorder)
+    ex_rec.add_node(caller)
+    ex_bench.add_node(bench)
+    stop = threading.Event()
+    thread = _spin_in_thread(ex_bench, stop)
+    try:
+        assert client.wait_for_service(timeout_sec=30.0)
+        assert spin_until(ex_rec, lambda: bench.get_subscriptions_info_by_topic(topic)
+                          and bench.count_publishers(f'{ns}/bench/acked/recorder') >= 1
+                          and bench.pub_blocks.get_subscription_count() >= 1, 30.0)
+        assert _run_program(ex_rec, client, first).first_seq == 0
+        assert spin_until(ex_rec, lambda: not bench.program.running, 150.0), \
+            'the first program never ended'
+        # the recorder has taken all of it and said so: the second program starts from a
+        # reader that acknowledges nothing before its first block
+        assert spin_while_progress(ex_rec, lambda: recorder.counts.get(topic, 0) >= first,
+                                   lambda: recorder.counts.get(topic, 0), idle_s=10.0)
+        spin_for(ex_rec, 0.3)
+        assert _run_program(ex_rec, client, second).first_seq == first
+        assert spin_until(ex_rec, lambda: not bench.program.running, 150.0), \
+            'the second program never ended'
+        spin_while_progress(ex_rec, lambda: recorder.counts.get(topic, 0) >= first + second,
+                            lambda: recorder.counts.get(topic, 0), idle_s=10.0)
+        stop.set()
+        thread.join()
+        recorder.close()
+        seqs = _seqs(tmp_path / 'bag', topic)
+        total = first + second
+        assert seqs == list(range(total)), (
+            f'{len(seqs)} of {total} blocks on disk, {len(set(range(total)) - set(seqs))} '
+            'missing')
+        assert recorder.gaps[topic] == (0, 0)
+        assert bench.gate is not None and bench.gate.held_s > 0   # it did hold back
+        assert bench.gate.released == []
+    finally:
+        stop.set()
+        ex_rec.shutdown()
+        ex_bench.shutdown()
+        caller.destroy_node()
+        bench.destroy_node()
+        recorder.destroy_node()
