@@ -1,7 +1,8 @@
 """ASAM MDF (MDF4, also MDF3) measurement files through ``asammdf`` (optional extra ``daq``).
 
 Channels are read a data fragment of about ``chunk_samples`` records at a time
-(``MDF.iter_get`` with ``read_fragment_size``), so memory stays flat. The angle (and torque)
+(``read_fragment_size``; each fragment read once for all the channels), so memory stays
+flat. The angle (and torque)
 channels must be in one channel group (one DAQ clock); time is that group's master channel [s]
 unless ``--time`` names another channel of the group; the absolute start is the file header's
 start time.
@@ -126,9 +127,9 @@ class MdfReader:
         """Yield the channel group's data fragments (about ``chunk_samples`` records each);
         time = the master channel [s] (or ``--time``).
 
-        ``MDF.iter_get`` reads one fragment at a time (``read_fragment_size``); the channels
-        of one group share the fragments, so they are zipped. (``MDF.get`` with
-        ``record_offset`` re-reads the group from its start: 58 s for 10 M records.)
+        One fragment at a time (``read_fragment_size``), each read once for all the
+        channels of the group (:meth:`_fragments`). (``MDF.get`` with ``record_offset``
+        re-reads the group from its start: 58 s for 10 M records.)
         asammdf maps the file into memory: the resident size grows by the pages read (file
         pages the kernel can drop); the heap stays flat.
 
@@ -140,30 +141,27 @@ class MdfReader:
             getattr(grp.channel_group, 'invalidation_bytes_nr', 0) or 0)
         self._mdf.configure(read_fragment_size=max(record * self.options.chunk_samples, 1 << 16))
         roles = list(self.where)
-        iters = [self._iter(role) for role in roles]
         first = 0
-        while True:
-            sigs = [next(it, None) for it in iters]
-            if all(sig is None for sig in sigs):
-                break
+        for master, samples in self._fragments(roles):
             cols: dict[str, np.ndarray] = {}
-            for role, sig in zip(roles, sigs, strict=True):
-                data = None if sig is None else self._numbers(role, sig.samples)
+            for role, got in zip(roles, samples, strict=True):
+                data = None if got is None else self._numbers(role, got)
                 if data is None or (cols and data.size != cols[roles[0]].size):
-                    got = first + (0 if data is None else data.size)
-                    msg = (f'{self.origin}: channel {self.labels[role]!r}, sample {got}: the '
+                    at = first + (0 if data is None else data.size)
+                    msg = (f'{self.origin}: channel {self.labels[role]!r}, sample {at}: the '
                            f'data ends early (truncated or damaged file: {self.n} records '
                            'announced)')
                     raise DataImportError(msg)
                 cols[role] = data
-            first_sig = sigs[0]
-            assert first_sig is not None   # a missing first channel raised above
-            master = np.asarray(first_sig.timestamps, dtype=np.float64)
             n = cols['in'].size
-            yield RawChunk(first=first, time=cols.get('time', master), theta_in=cols['in'],
+            time = cols.get('time')
+            if time is None:
+                assert master is not None   # a missing first channel raised above
+                time = np.asarray(master, dtype=np.float64)
+            yield RawChunk(first=first, time=time, theta_in=cols['in'],
                            theta_out=cols['out'], torque=cols.get('torque'),
                            out_heads=stack_heads(cols, self.options),
-                               loss=stack_loss(cols, self.options))
+                           loss=stack_loss(cols, self.options))
             first += n
         if first != self.n:
             msg = (f'{self.origin}: channel {self.labels["in"]!r}, sample {first}: the data '
@@ -185,6 +183,52 @@ class MdfReader:
             msg = f'{self.origin}: channel {self.labels[role]!r} holds {what}, not numbers'
             raise DataImportError(msg)
         return a.astype(np.float64, copy=False)
+
+    def _fragments(self, roles: list[str]) -> Iterator[tuple[Any, list[Any]]]:
+        """(master times or None, each role's samples or None) per data fragment of the group.
+
+        The group's data is read once per fragment and each channel taken from it
+        (``MDF.get(data=fragment)``, as ``MDF.iter_get`` does per channel): ``iter_get``
+        would read every fragment once per channel and decode the master channel with
+        each (4 channels: 3 reads and 8 decodes per fragment, issue 41). The fragments come
+        from asammdf's own ``_load_data`` (what ``iter_get`` iterates); an asammdf without
+        it is read by ``iter_get`` as before.
+        """
+        load = getattr(getattr(self._mdf, '_mdf', None), '_load_data', None)
+        if load is None:
+            yield from self._zipped(roles)
+            return
+        where = [self.where[r] for r in roles]
+        need_master = 'time' not in self.where
+        role, done = roles[0], 0
+        try:
+            with warnings.catch_warnings():
+                warnings.simplefilter('ignore')
+                for fragment in load(self._mdf.groups[self.group]):
+                    samples = []
+                    for role, (gp, idx) in zip(roles, where, strict=True):  # noqa: B007
+                        samples.append(self._mdf.get(
+                            group=gp, index=idx, data=fragment, samples_only=True,
+                            ignore_invalidation_bits=True)[0])
+                    role = roles[0]
+                    master = self._mdf.get_master(self.group, data=fragment) \
+                        if need_master else None
+                    done += len(samples[0])
+                    yield master, samples
+        except Exception as exc:  # noqa: BLE001 - truncated files raise many types
+            msg = (f'{self.origin}: channel {self.labels[role]!r}, sample {done}: cannot be '
+                   f'read, the file is truncated or damaged ({_short(exc)})')
+            raise DataImportError(msg) from None
+
+    def _zipped(self, roles: list[str]) -> Iterator[tuple[Any, list[Any]]]:
+        """:meth:`_fragments` by ``MDF.iter_get``, one iterator per channel, zipped."""
+        iters = [self._iter(role) for role in roles]
+        while True:
+            sigs = [next(it, None) for it in iters]
+            if all(sig is None for sig in sigs):
+                return
+            yield (None if sigs[0] is None else sigs[0].timestamps,
+                   [None if sig is None else sig.samples for sig in sigs])
 
     def _iter(self, role: str) -> Iterator[Any]:
         gp, idx = self.where[role]
