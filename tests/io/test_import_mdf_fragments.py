@@ -112,3 +112,21 @@ def test_truncated_file_is_named(tmp_path: Path) -> None:
     with pytest.raises(DataImportError, match=r'run\.mf4') as info:
         _chunks(path, one_read=True)
     assert 'truncated' in str(info.value) or 'damaged' in str(info.value)
+
+
+def test_loader_prints_nothing_on_stdout(tmp_path: Path, monkeypatch: pytest.MonkeyPatch,
+                                         capfd: pytest.CaptureFixture[str]) -> None:
+    """asammdf 8.x prints a throughput line on stdout every 10 s its data loader runs (a
+    1 GB file on a busy PC): ``rv-te import --json``'s stdout would not be one JSON
+    document. A clock that moves 11 s per reading makes the loader print at once."""
+    import time
+
+    path = tmp_path / 'run.mf4'
+    _write(path)
+    clock = iter(range(0, 10**6, 11))
+    # the loader imports perf_counter from time when it starts
+    monkeypatch.setattr(time, 'perf_counter', lambda: float(next(clock)))
+    chunks = _chunks(path, one_read=True)
+    assert sum(c.theta_in.size for c in chunks) == N
+    out = capfd.readouterr().out
+    assert out == '', f'asammdf wrote {out[:200]!r} on stdout'

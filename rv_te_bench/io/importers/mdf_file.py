@@ -11,6 +11,7 @@ Units: each channel's unit unless an option gives one.
 
 from __future__ import annotations
 
+import builtins
 import gc
 import sys
 import warnings
@@ -37,6 +38,25 @@ if TYPE_CHECKING:
 __all__ = ['MdfReader']
 
 
+def _quiet_loader() -> None:
+    """Keep asammdf's data loader off stdout: asammdf 8.x prints a throughput line
+    (``'12.1 MB/s cc=30 vv=10.1'``) on stdout every 10 s a fragment iterator runs, so a
+    long import broke ``rv-te import --json`` (stdout one JSON document). Only that line
+    is dropped (a ``print`` in the module's namespace); anything else it prints passes."""
+    mod = sys.modules.get('asammdf.blocks.mdf_v4')
+    if mod is None or getattr(mod, '_rv_te_quiet', False):
+        return
+
+    def quiet(*args: Any, **kwargs: Any) -> None:
+        if not kwargs and len(args) == 1 and isinstance(args[0], str) \
+                and ' MB/s cc=' in args[0]:
+            return
+        builtins.print(*args, **kwargs)
+
+    mod.print = quiet  # type: ignore[attr-defined]
+    mod._rv_te_quiet = True  # type: ignore[attr-defined]
+
+
 def _short(exc: BaseException) -> str:
     return ' '.join(str(exc).split())[:200] or type(exc).__name__
 
@@ -51,6 +71,7 @@ class MdfReader:
 
     def __init__(self, path: Path, options: ImportOptions) -> None:
         asammdf = require_reader('asammdf', 'MDF')
+        _quiet_loader()
         self.path = Path(path)
         self.origin = str(path)
         self.options = options
