@@ -32,6 +32,7 @@ from typing import TYPE_CHECKING, Any
 from rv_te_bench.errors import ParameterFileError, YamlInputError, YamlLimitError
 from rv_te_bench.launch.checks import check_namespace, check_node_config, check_ros_names
 from rv_te_bench.launch.node_specs import NODE_TYPES, node_specs, ros_arguments
+from rv_te_bench.launch.pacing import PacedNode
 from rv_te_bench.nodes.params import FAILURE_FILE_ENV
 from rv_te_bench.params import (
     ParamSpec,
@@ -587,12 +588,16 @@ def run_single_process(spec: SessionSpec, *, until: Callable[[], bool] | None = 
     """All nodes in one process on one executor; returns an exit code.
 
     The EventsExecutor (single-threaded; the fastest receiver measured here, DESIGN s.3):
-    the compensation node's searches run on its own worker thread. SIGINT/SIGTERM request a
-    stop; the nodes are then destroyed in data-flow order with the executor spinning in
-    between, so the TE node's final window reaches the recorder before the bag closes.
+    the compensation node's searches run on its own worker thread. A real-time bench beside
+    other nodes runs on a thread and executor of its own (:mod:`rv_te_bench.launch.pacing`:
+    its blocks wait for no other node's callback, and only that thread gets the SCHED_FIFO
+    of its ``realtime_priority``; the other nodes' thread the middleware's nice -10).
+    SIGINT/SIGTERM request a stop; the nodes are then destroyed in data-flow order with the
+    executor spinning in between, so the TE node's final window reaches the recorder before
+    the bag closes.
     """
     import rclpy
-    from rclpy.exceptions import ParameterException
+    from rclpy.exceptions import InvalidHandle, ParameterException
     from rclpy.signals import SignalHandlerOptions
 
     from rv_te_bench.nodes.common import make_executor
@@ -611,11 +616,34 @@ def run_single_process(spec: SessionSpec, *, until: Callable[[], bool] | None = 
     recorder: Any = None
     executor = make_executor('events', context=ctx)
     failed: list[str] = []   # nodes that ended with an error (the adapter's joints)
+    pacer: PacedNode | None = None
+    tearing_down = False
 
     def settle(seconds: float) -> None:
         end = time.monotonic() + seconds
         while ctx.ok() and time.monotonic() < end:
-            executor.spin_once(timeout_sec=0.05)
+            try:
+                executor.spin_once(timeout_sec=0.05)
+            except InvalidHandle:
+                if not tearing_down:
+                    raise
+                # a message queued for a node destroyed already (a stop mid-stream): the
+                # node is gone, its callback has nothing to publish to
+
+    def drain(bench: Any) -> None:
+        """Spin until the readers that acknowledge blocks (the TE node, the recorder) have
+        taken the bench's last one, at most DRAIN_MAX_S, then the 2 s the TE node's last
+        results take. A fixed 2 s lost blocks: eight sessions on a loaded 2-core machine
+        were 300-1,000 blocks behind when their bench finished (issue 41 item 4)."""
+        end = time.monotonic() + DRAIN_MAX_S
+        behind = readers_behind(bench, nodes)
+        while ctx.ok() and behind and time.monotonic() < end:
+            settle(0.05)
+            behind = readers_behind(bench, nodes)
+        if behind:
+            print(f'[launch] {", ".join(behind)} still behind the bench after '
+                  f'{DRAIN_MAX_S:g} s: stopping anyway', file=sys.stderr)
+        settle(2.0)
 
     try:
         for name in [n for n in NODE_TYPES if n in spec.nodes]:
@@ -623,17 +651,27 @@ def run_single_process(spec: SessionSpec, *, until: Callable[[], bool] | None = 
             cls = getattr(importlib.import_module(module), cls_name)
             values = node_parameters(spec, name)
             overrides = [typed_parameter(k, v, node_specs(name)) for k, v in values.items()]
+            paced = name == 'bench' and len(spec.nodes) > 1 \
+                and values.get('time_mode', 'realtime') == 'realtime'
             try:
-                nodes.append(cls(context=ctx, parameter_overrides=overrides))
+                if paced:
+                    pacer = PacedNode(lambda c=cls, o=overrides: c(
+                        context=ctx, parameter_overrides=o), ctx)
+                    nodes.append(pacer.start())
+                else:
+                    nodes.append(cls(context=ctx, parameter_overrides=overrides))
             except ParameterException as exc:
                 msg = f'node {name!r}: {exc}'
                 raise ParameterFileError(msg) from None
-            executor.add_node(nodes[-1])
+            if not paced:
+                executor.add_node(nodes[-1])
         bench = next((n for n in nodes if n.get_name() == 'bench'), None)
         while ctx.ok() and not stop['requested']:
             executor.spin_once(timeout_sec=0.1)
+            if pacer is not None:
+                pacer.check()   # (an error in the bench's callbacks ends the session)
             if bench is not None and getattr(bench, 'finished', False):
-                settle(2.0)   # the TE node takes the last blocks
+                drain(bench)   # the TE node and the recorder take the last blocks
                 break
             if until is not None and until():
                 break
@@ -641,6 +679,7 @@ def run_single_process(spec: SessionSpec, *, until: Callable[[], bool] | None = 
                 settle(1.0)   # its ERROR diagnostics go out
                 break
     finally:
+        tearing_down = True
         failed += [f'node {n.get_name()!r}: {n.failure}' for n in nodes
                    if getattr(n, 'failure', '')]
         for n in sorted(nodes, key=lambda n: STOP_ORDER.index(n.get_name())
@@ -654,9 +693,14 @@ def run_single_process(spec: SessionSpec, *, until: Callable[[], bool] | None = 
             if n.get_name() == 'recorder':
                 settle(1.0)   # the final windows and advice reach the bag
                 recorder = n
-            executor.remove_node(n)
+            if pacer is not None and n is pacer.node:
+                pacer.stop()
+            else:
+                executor.remove_node(n)
             n.destroy_node()
             settle(0.2)
+        if pacer is not None:
+            pacer.stop()   # (stopped already unless the bench was never built)
         signal.signal(signal.SIGINT, old_int)
         signal.signal(signal.SIGTERM, old_term)
         rclpy.try_shutdown(context=ctx)
@@ -664,6 +708,26 @@ def run_single_process(spec: SessionSpec, *, until: Callable[[], bool] | None = 
     for line in [*lines, *failed]:
         print(f'[launch] {line}', file=sys.stderr)
     return 1 if lost or failed or (recorder is not None and recorder.exit_code) else 0
+
+
+#: Longest a one-process session waits at its end for the readers to take the bench's
+#: last block [s].
+DRAIN_MAX_S = 30.0
+
+
+def readers_behind(bench: Any, nodes: Sequence[Any]) -> list[str]:
+    """Names of the nodes that acknowledge blocks (``block_acks``: the TE node, the
+    recorder) and have not taken the bench's last published block yet."""
+    last = int(getattr(bench, 'blocks_published', 0)) - 1
+    behind = []
+    for n in nodes:
+        acks = getattr(n, 'block_acks', None)
+        if acks is None:
+            continue
+        seq = acks.last()
+        if (-1 if seq is None else seq) < last:
+            behind.append(n.get_name())
+    return behind
 
 
 def read_recorder_summary(path: Path) -> dict[str, Any] | None:

@@ -54,6 +54,10 @@ class BlockAcks:
         node.create_timer(ACK_PERIOD_S, self._on_timer,
                           clock=Clock(clock_type=ClockType.STEADY_TIME))
 
+    def last(self) -> int | None:
+        """The last block the node took (None: none yet)."""
+        return self._last_seq()
+
     def _on_timer(self) -> None:
         seq = self._last_seq()
         if seq is not None and seq != self._sent:

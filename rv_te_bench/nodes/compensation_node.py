@@ -24,6 +24,7 @@ finished search waits (at most :data:`SPECTRUM_WAIT_S`) for the spectrum of its 
 
 from __future__ import annotations
 
+import contextlib
 import math
 import os
 import sys
@@ -158,7 +159,15 @@ class CompensationNode(Node):
         """On the worker thread: raise its niceness by ``search_nice`` (Linux sets the
         priority of one thread by its thread id). A search after each window costs about a
         CPU second (2K-V identification); four benches' searches at once starved the benches
-        on 2 cores (issue #23 item 1), while the advice is not urgent."""
+        on 2 cores (issue #23 item 1), while the advice is not urgent.
+
+        A worker started from a real-time thread inherits SCHED_FIFO (in a one-process
+        session the bench's pacing thread is one; issue 41 item 4: a search of 0.4-0.8 s
+        then ran on SCHED_FIFO 50, where no niceness applies): it goes back to the normal
+        policy first."""
+        if sys.platform.startswith('linux') and os.sched_getscheduler(0) != os.SCHED_OTHER:
+            with contextlib.suppress(OSError):   # (lowering needs no permission)
+                os.sched_setscheduler(0, os.SCHED_OTHER, os.sched_param(0))
         want = int(self.p.search_nice)
         if want <= 0 or not sys.platform.startswith('linux'):
             return

@@ -188,8 +188,8 @@ class RecorderNode(Node):
         self.create_timer(p.discovery_period_s, self._discover, clock=steady)
         # a fast bench waits while the blocks recorded are too far behind its newest
         encoders = self._resolve('bench/encoders')
-        BlockAcks(self, lambda: (s.last_seq if (s := self._topics.get(encoders)) is not None
-                                 else None))
+        self.block_acks = BlockAcks(self, lambda: (
+            s.last_seq if (s := self._topics.get(encoders)) is not None else None))
         self._discover()
         self.get_logger().info(f'recording {self._wanted} to {self.bag_path}')
 

@@ -142,7 +142,8 @@ class TeNode(Node):
         self.create_subscription(EncoderBlock, 'bench/encoders', self._on_block,
                                  qos.ENCODER_QOS, raw=True)
         self.create_timer(self.p.diagnostics_period_s, self._publish_diagnostics)
-        BlockAcks(self, lambda: self._last_seq)   # a fast bench waits for the analysis
+        # a fast bench waits for the analysis; a one-process session for its last block
+        self.block_acks = BlockAcks(self, lambda: self._last_seq)
         if orders is not None:
             self._crank_per_output()   # warns when the deprecated spelling is used
             self._configure(orders)

@@ -231,3 +231,113 @@ def test_fifo_permitted_but_nice_not_says_so(monkeypatch: pytest.MonkeyPatch) ->
     assert tried == [101, 102, 103]          # every thread but the caller's
     assert line == ('SCHED_FIFO 7, middleware threads nice 0 (nice -10 not permitted for '
                     '3 of 3)')
+
+
+WORKER_CHILD = r'''
+import json, os, threading, types
+from concurrent.futures import ThreadPoolExecutor
+from rv_te_bench.nodes.compensation_node import CompensationNode
+node = types.SimpleNamespace(p=types.SimpleNamespace(search_nice=5), search_nice=None)
+out = {}
+def pacing():   # a SCHED_FIFO thread that starts the search pool (a one-process session)
+    os.sched_setscheduler(0, os.SCHED_FIFO, os.sched_param(20))
+    pool = ThreadPoolExecutor(max_workers=1,
+                              initializer=CompensationNode._lower_search_priority.__get__(node))
+    out['worker'] = pool.submit(lambda: (os.sched_getscheduler(0), os.getpriority(
+        os.PRIO_PROCESS, threading.get_native_id()))).result()
+    out['pacing'] = os.sched_getscheduler(0)
+    pool.shutdown()
+t = threading.Thread(target=pacing)
+t.start()
+t.join()
+print(json.dumps(out))
+'''
+
+
+@linux
+@pytest.mark.skipif(not may_set_fifo(20), reason='SCHED_FIFO not permitted for this user')
+def test_search_thread_started_from_a_fifo_thread_runs_normal_and_niced() -> None:
+    """The compensation node's search thread, started from a SCHED_FIFO thread (it inherits
+    the policy), goes back to SCHED_OTHER before it raises its niceness (issue 41 item 4:
+    a 0.4-0.8 s search ran on SCHED_FIFO 50 in a one-process session)."""
+    pytest.importorskip('rclpy')
+    env = dict(os.environ, PYTHONPATH=str(ROOT))
+    env.pop('_ROS_WHEELS_BOOTSTRAP_COMPLETE', None)
+    done = subprocess.run([sys.executable, '-c', WORKER_CHILD], cwd=ROOT, env=env, text=True,
+                          capture_output=True, timeout=60, check=False)
+    assert done.returncode == 0, done.stderr
+    out = json.loads(done.stdout.strip().splitlines()[-1])
+    assert out['pacing'] == SCHED_FIFO
+    assert out['worker'] == [SCHED_OTHER, os.getpriority(os.PRIO_PROCESS, 0) + 5]
+
+
+SESSION_CHILD = r'''
+import sys
+from rv_te_bench.launch.session import build_session, run_single_process
+sys.exit(run_single_process(build_session(
+    [], nodes=['bench', 'te_node', 'compensation', 'recorder'], overrides=sys.argv[1:],
+    single_process=True)))
+'''
+
+
+@linux
+@pytest.mark.ros
+@pytest.mark.skipif(not may_set_fifo(20), reason='SCHED_FIFO not permitted for this user')
+def test_one_process_session_paces_the_bench_on_its_own_fifo_thread(
+        tmp_path: Path, ros_domain_id: int) -> None:
+    """A real-time session in one process (as ``rv-te launch --single-process``: bench, TE
+    node, compensation, recorder; realtime_priority 20; 3 s at 10 kHz in blocks of 100):
+    the bench's pacing thread is SCHED_FIFO 20, the process's main thread, which runs the
+    other nodes, is on the normal policy at the middleware's nice -10 (it ran every node's
+    callbacks on SCHED_FIFO, and the bench's blocks waited behind them; issue 41 item 4);
+    and nothing is lost: the
+    bag (rosbags) holds blocks 0..299 and the TE node's samples of each block."""
+    from rosbags.highlevel import AnyReader
+
+    from rv_te_bench.io.msgdefs import rv_te_typestore
+
+    env = dict(os.environ, PYTHONPATH=str(ROOT), ROS_DOMAIN_ID=str(ros_domain_id),
+               RV_TE_DB=str(tmp_path / 'results.sqlite'))
+    env.pop('_ROS_WHEELS_BOOTSTRAP_COMPLETE', None)
+    params = ['bench.realtime_priority=20', 'bench.time_mode=realtime', 'bench.duration_s=3.0',
+              'bench.sample_rate_hz=10000.0', 'bench.block_size=100',
+              f'recorder.output_dir={tmp_path}', 'recorder.bag_name=bag']
+    p = subprocess.Popen(
+        [sys.executable, '-c', SESSION_CHILD, *params],
+        cwd=ROOT, env=env, text=True, stdout=subprocess.PIPE, stderr=subprocess.STDOUT)
+    lines: list[str] = []
+    try:
+        deadline = time.monotonic() + 60
+        while time.monotonic() < deadline:
+            line = p.stdout.readline()
+            lines.append(line)
+            if 'scheduling:' in line or not line:
+                break
+        assert any('scheduling: SCHED_FIFO 20, middleware threads nice -10' in x
+                   for x in lines), ''.join(lines)
+        time.sleep(0.5)   # the bench's executor and its timer thread are up
+        seen = task_sched(p.pid)
+        assert seen[p.pid] == (SCHED_OTHER, 0, -10), seen         # the other nodes' thread
+        assert (SCHED_FIFO, 20) in {v[:2] for v in seen.values()}, seen   # the pacing one
+        lines += p.stdout.readlines()
+        assert p.wait(timeout=60) == 0, ''.join(lines)
+    finally:
+        if p.poll() is None:
+            p.kill()
+            p.wait()
+    with AnyReader([tmp_path / 'bag'], default_typestore=rv_te_typestore()) as reader:
+        seqs: dict[str, list[int]] = {}
+        te_status: list[dict[str, str]] = []
+        for conn, _t, raw in reader.messages(connections=[
+                c for c in reader.connections
+                if c.topic in {'/bench/encoders', '/te/samples', '/diagnostics'}]):
+            msg = reader.deserialize(raw, conn.msgtype)
+            if conn.topic == '/diagnostics':
+                te_status += [{kv.key: kv.value for kv in st.values} for st in msg.status
+                              if st.name == '/te_node: te analysis']
+            else:
+                seqs.setdefault(conn.topic, []).append(int(msg.seq))
+    assert seqs['/bench/encoders'] == list(range(300))
+    assert seqs['/te/samples'] == list(range(len(seqs['/te/samples'])))
+    # the TE node analysed every block before the session ended
+    assert (te_status[-1]['blocks'], te_status[-1]['gaps_reported']) == ('300', '0')
