@@ -63,6 +63,9 @@ from bench_pipeline import cpu_s
 
 NODES = ('bench', 'te_node', 'compensation', 'recorder')
 PROBE = 'multibench_probe'
+#: The process layouts of a session: one process per node (``rv-te launch``), or all four
+#: nodes in one process on one executor (``rv-te launch --single-process``).
+LAYOUTS = ('per-node', 'single')
 
 
 def cdr_stamp_s(data: bytes) -> float:
@@ -118,11 +121,65 @@ def _stop_on_sigterm() -> dict[str, Any]:
 
 # -- the pipeline: N full sessions ---------------------------------------------------------
 
+class OneProcessSession:
+    """A session with its four nodes in one process (a child of this script that runs
+    :func:`rv_te_bench.launch.session.run_single_process`, as ``rv-te launch
+    --single-process`` does), with the parts of :class:`~rv_te_bench.launch.session.Session`
+    the driver uses: ``procs`` (one, named 'session'), ``failures``, ``poll``, ``stop``."""
+
+    def __init__(self, ns: str, overrides: list[str]) -> None:
+        """Prepare; nothing starts until :meth:`start`."""
+        self.ns, self.overrides = ns, overrides
+        self.procs: dict[str, Any] = {}
+        self.failures: list[str] = []
+
+    def start(self) -> None:
+        """Start the session's process."""
+        from rv_te_bench.launch.session import NodeProcess, child_env
+
+        cmd = [sys.executable, str(Path(__file__).resolve()), '--_session', self.ns,
+               '--_overrides', json.dumps(self.overrides)]
+        self.procs['session'] = NodeProcess('session', subprocess.Popen(
+            cmd, env=child_env(), start_new_session=True))
+
+    def poll(self) -> dict[str, int | None]:
+        """Exit code so far; a non-zero one is a failure."""
+        np_ = self.procs['session']
+        code = np_.proc.poll()
+        if code is not None and not np_.expected_exit:
+            np_.expected_exit = True
+            if code != 0:
+                self.failures.append(f'session {self.ns} exited with code {code}')
+        return {'session': code}
+
+    def stop(self) -> dict[str, int | None]:
+        """SIGTERM (the session stops its nodes in data-flow order), then SIGKILL."""
+        proc = self.procs['session'].proc
+        self.procs['session'].expected_exit = True
+        if proc.poll() is None:
+            proc.send_signal(signal.SIGTERM)
+            try:
+                proc.wait(timeout=30)
+            except subprocess.TimeoutExpired:
+                proc.kill()
+                proc.wait()
+        return {'session': proc.returncode}
+
+
+def one_process_session(ns: str, overrides: list[str]) -> int:
+    """The child of :class:`OneProcessSession`: the session's nodes in this process."""
+    from rv_te_bench.launch.session import build_session, run_single_process
+
+    spec = build_session([], namespace=ns, nodes=list(NODES), overrides=overrides,
+                         single_process=True)
+    return run_single_process(spec)
+
+
 def run_benches(n_benches: int, rate_hz: float, block: int, duration_s: float,
                 out_dir: Path, warmup_s: float = 2.0, profile_s: float = 0.0,
                 start_timeout_s: float = 90.0, extra_params: tuple[str, ...] = (),
                 rt_probe_priority: int = -1, probes: int | None = None,
-                first: int = 1) -> dict[str, Any]:
+                first: int = 1, layout: str = 'per-node') -> dict[str, Any]:
     """Run N sessions side by side; return per-bench results and per-process CPU.
 
     ``probes``: how many benches (the first ones) get a probe node (block arrival,
@@ -130,6 +187,8 @@ def run_benches(n_benches: int, rate_hz: float, block: int, duration_s: float,
     10 kHz: eight of them cost the driver a fifth of a core, which the benches would feel.
     ``first``: the number of the first namespace (``/bench<first>``), so that two runs
     (two versions of the code) can go side by side in one ROS domain.
+    ``layout``: 'per-node' (a process per node) or 'single' (a session's four nodes in one
+    process on one executor); the CPU is then per session, not per node.
     """
     import rclpy
     from diagnostic_msgs.msg import DiagnosticArray
@@ -142,16 +201,17 @@ def run_benches(n_benches: int, rate_hz: float, block: int, duration_s: float,
 
     names = [f'bench{k + first}' for k in range(n_benches)]
     probed = names if probes is None else names[:max(0, probes)]
-    specs = {}
+    specs, overrides = {}, {}
     for ns in names:
         waits = f'te_node, recorder, {PROBE}' if ns in probed else 'te_node, recorder'
-        specs[ns] = build_session([], namespace=ns, nodes=list(NODES), overrides=[
+        overrides[ns] = [
             'bench.te_mode=nlte', f'bench.bench_id={ns}', f'bench.sample_rate_hz={rate_hz}',
             f'bench.block_size={block}', f'bench.duration_s={duration_s}',
             'bench.time_mode=realtime',
             f'recorder.output_dir={out_dir}', f'recorder.bag_name={ns}',
             f'bench.wait_for_nodes=[{waits}]',
-            f'bench.wait_timeout_s={start_timeout_s + 30.0}', *extra_params])
+            f'bench.wait_timeout_s={start_timeout_s + 30.0}', *extra_params]
+        specs[ns] = build_session([], namespace=ns, nodes=list(NODES), overrides=overrides[ns])
     ctx = rclpy.context.Context()
     rclpy.init(context=ctx)
     ex = make_executor('events', context=ctx)
@@ -195,8 +255,11 @@ def run_benches(n_benches: int, rate_hz: float, block: int, duration_s: float,
         have = set(watch.get_node_names_and_namespaces())
         return all((n, f'/{ns}') in have for ns in names for n in NODES)
 
-    sessions = {ns: Session(specs[ns], log=lambda s: print(s, file=sys.stderr))
-                for ns in names}
+    sessions: dict[str, Any] = {
+        ns: OneProcessSession(ns, overrides[ns]) if layout == 'single'
+        else Session(specs[ns], log=lambda s: print(s, file=sys.stderr)) for ns in names}
+    kinds = ('session',) if layout == 'single' else NODES
+    ends = 'session' if layout == 'single' else 'bench'
     meter = CpuMeter()
     crashed: list[str] = []
     interrupted = False
@@ -248,7 +311,7 @@ def run_benches(n_benches: int, rate_hz: float, block: int, duration_s: float,
                 s.poll()
                 if s.failures and ns not in crashed:
                     crashed.append(ns)
-            if crashed or all(s.procs['bench'].proc.poll() is not None
+            if crashed or all(s.procs[ends].proc.poll() is not None
                               for s in sessions.values()):
                 break
         end = time.monotonic() + 3.0   # the TE nodes and the recorders take the last blocks
@@ -313,7 +376,7 @@ def run_benches(n_benches: int, rate_hz: float, block: int, duration_s: float,
             'steady_lag_max_s': steady_lag.get(f'/{ns}/bench: bench'),
             'scheduling': bench_diag.get('scheduling', '?'),
             'crashed': ns in crashed or any(c not in (0, None) for c in codes[ns].values()),
-            'cpu': {n: cpu.get(f'{ns}/{n}', float('nan')) for n in NODES},
+            'cpu': {n: cpu.get(f'{ns}/{n}', float('nan')) for n in kinds},
             'probe_lag_max_ms': float(np.nanmax(steady)) * 1e3,
             'probe_lag_p99_ms': float(np.nanpercentile(steady, 99)) * 1e3,
             'probe_late': int(np.count_nonzero(steady > block / rate_hz)),
@@ -323,6 +386,7 @@ def run_benches(n_benches: int, rate_hz: float, block: int, duration_s: float,
             'lat_p99_ms': float(np.nanpercentile(lat_ms, 99)),
         })
     return {'benches': benches, 'cpu': cpu, 'rt_floor': floor, 'cpu_s': meter.seconds(),
+            'kinds': kinds, 'layout': layout,
             'measured_s': max((w for _, w in meter.end.values()), default=0.0)
             - min((w for _, w in meter.start.values()), default=0.0),
             'profiles': sorted((out_dir / 'profile').glob('*.txt')) if profile_s else []}
@@ -440,10 +504,15 @@ def print_benches(res: dict[str, Any], args: argparse.Namespace) -> bool:
     the target (0 lost, 0 gaps, no crash, lag within the limit of :func:`lag_limit_ms`)."""
     period_ms = 1e3 * args.block_size / args.rate_hz
     limit_ms, limit_why = lag_limit_ms(res, period_ms)
+    kinds = res.get('kinds', NODES)
+    one = tuple(kinds) == ('session',)
     print(f'\n{args.benches} benches x {args.rate_hz:g} Hz, blocks of {args.block_size} '
-          f'(block period {period_ms:g} ms), {args.duration_s:g} s real time\n')
+          f'(block period {period_ms:g} ms), {args.duration_s:g} s real time; '
+          + ('each session in one process (its four nodes on one executor)' if one
+             else 'one process per node') + '\n')
     print('| bench | blocks expected / published / probe / recorded / TE | TE gaps | crashed | '
-          'CPU bench / TE / compensation / recorder (sum) | '
+          + ('CPU of the session\'s process | ' if one else
+             'CPU bench / TE / compensation / recorder (sum) | ') +
           'bench lag max after the warm-up (whole run) | '
           'block arrival after its end, max / p99 (worst at) | '
           'blocks arriving > 1 period after their end | '
@@ -465,16 +534,17 @@ def print_benches(res: dict[str, Any], args: argparse.Namespace) -> bool:
         ok &= complete and steady_ms <= limit_ms
         print(f"| {b['ns']} | {b['expected']} / {' / '.join(str(x) for x in counts)} | "
               f"{b['te_gaps']} | {b['crashed']} | "
-              f"{' / '.join(_f(c[n]) for n in NODES)} % ({_f(sum(c[n] for n in NODES))} %) | "
-              f"{_f(steady_ms)} ms ({_f(lag_ms)} ms) | "
+              + (f"{_f(c['session'])} % | " if one else
+                 f"{' / '.join(_f(c[n]) for n in NODES)} % ({_f(sum(c[n] for n in NODES))} %) | ")
+              + f"{_f(steady_ms)} ms ({_f(lag_ms)} ms) | "
               + ('- | - | - |' if b['probe'] is None else   # no probe on this bench
                  f"{_f(b['probe_lag_max_ms'])} / {_f(b['probe_lag_p99_ms'])} "
                  f"ms ({b['probe_lag_worst_at_s']:.0f} s) | "
                  f"{b['probe_late']} of {b['probe_n']} | "
                  f"{_f(b['lat_median_ms'], '{:.2f}')} / "
                  f"{_f(b['lat_p99_ms'], '{:.2f}')} ms |"))
-    kinds = sorted({str(b['scheduling']) for b in res['benches']})
-    print(f"\nbench scheduling (diagnostics): {'; '.join(kinds)}")
+    scheds = sorted({str(b['scheduling']) for b in res['benches']})
+    print(f"\nbench scheduling (diagnostics): {'; '.join(scheds)}")
     fl = res.get('rt_floor')
     if fl:
         print(f"machine floor over the same time (a bare paced thread scheduled as the "
@@ -483,16 +553,18 @@ def print_benches(res: dict[str, Any], args: argparse.Namespace) -> bool:
               f"{fl['p99_ms']:.2f} ms), {fl['over_period']} of {fl['n']} periods more than "
               f"one block period late; kernel {platform.release()} {platform.version()}")
     cpu, cpu_s_ = res['cpu'], res.get('cpu_s', {})
-    per_kind = {n: sum(v for k, v in cpu.items() if k.endswith('/' + n)) for n in NODES}
+    per_kind = {n: sum(v for k, v in cpu.items() if k.endswith('/' + n)) for n in kinds}
     total = sum(cpu.values())
     n_b = max(1, len(res['benches']))
     per_bench = sum(per_kind.values()) / n_b
     print(f"\ntotal CPU {total:.0f} % of one core (of {os.cpu_count() * 100} %): "
           + ', '.join(f'{n} {v:.1f} %' for n, v in per_kind.items())
           + f", driver (probes) {cpu.get('driver (probes)', float('nan')):.1f} %")
-    print(f'per bench (its four processes, mean of {n_b}): {per_bench:.1f} % of one core = '
-          + ' / '.join(f'{per_kind[n] / n_b:.1f}' for n in NODES)
-          + f" % (bench / TE / compensation / recorder); CPU time (user + sys) "
+    print(f"per bench (its {'process' if one else 'four processes'}, mean of {n_b}): "
+          f'{per_bench:.1f} % of one core'
+          + ('' if one else ' = ' + ' / '.join(f'{per_kind[n] / n_b:.1f}' for n in NODES)
+             + ' % (bench / TE / compensation / recorder)')
+          + f"; CPU time (user + sys) "
           f"{sum(v for k, v in cpu_s_.items() if '/' in k):.1f} s over "
           f"{res.get('measured_s', float('nan')):.1f} s of wall time (after the warm-up)")
     print(f"result: {'PASS' if ok else 'FAIL'} (0 lost, 0 gaps, no crash, lag after the "
@@ -741,7 +813,13 @@ def main() -> int:
     ap.add_argument('--first', type=int, default=1,
                     help='number of the first namespace, /bench<FIRST> (two runs side by '
                          'side in one ROS domain: e.g. the code before and after a change)')
+    ap.add_argument('--layout', choices=LAYOUTS, default='per-node',
+                    help="per-node: a process per node (rv-te launch); single: a session's "
+                         'four nodes in one process on one executor (rv-te launch '
+                         '--single-process)')
     ap.add_argument('--keep', action='store_true', help='keep the temporary folder (bags)')
+    ap.add_argument('--_session', dest='session', help=argparse.SUPPRESS)
+    ap.add_argument('--_overrides', dest='overrides', help=argparse.SUPPRESS)
     ap.add_argument('--_rt-probe', dest='rt_probe', type=float, help=argparse.SUPPRESS)
     ap.add_argument('--_period', dest='period', type=float, help=argparse.SUPPRESS)
     ap.add_argument('--_priority', dest='priority', type=int, help=argparse.SUPPRESS)
@@ -751,6 +829,8 @@ def main() -> int:
     args = ap.parse_args()
     if args.rt_probe:
         return rt_probe(args.rt_probe, args.period, args.priority)
+    if args.session:
+        return one_process_session(args.session, json.loads(args.overrides))
     if args.floor_pub:
         return floor_publisher(args.floor_pub, args.rate_hz, args.block_size, args.duration_s)
     if args.floor_sub:
@@ -776,7 +856,7 @@ def main() -> int:
                               rt_probe_priority=-1 if args.no_rt_probe
                               else args.realtime_priority,
                               probes=None if args.probes < 0 else args.probes,
-                              first=args.first)
+                              first=args.first, layout=args.layout)
             ok = print_benches(res, args)
             print_profiles(res['profiles'])
     except KeyboardInterrupt:
