@@ -17,6 +17,8 @@ from typing import Any
 import pytest
 from hypothesis import HealthCheck, settings
 
+from rv_te_bench.nodes.middleware import use_quick_acknowledgements
+
 settings.register_profile('dev', deadline=None, max_examples=60)
 settings.register_profile('ci', deadline=None, max_examples=100,
                           suppress_health_check=[HealthCheck.too_slow])
@@ -85,6 +87,9 @@ os.environ['XDG_DATA_HOME'] = _TEST_DATA_HOME
 os.environ.pop('RV_TE_DB', None)
 os.environ['ROS_AUTOMATIC_DISCOVERY_RANGE'] = 'LOCALHOST'
 os.environ.pop('ROS_LOCALHOST_ONLY', None)
+# The nodes a test runs in this process get the middleware settings of a node process
+# (rv_te_bench.nodes.middleware: acknowledgements within ~0.1 s, not Fast DDS's 3 s).
+use_quick_acknowledgements(os.environ)
 
 #: Fixtures that start ROS (in process or in a child): a test using one is a ``ros`` test.
 ROS_FIXTURES = frozenset({'ros_domain_id', 'ros_context', 'graph'})

@@ -601,8 +601,10 @@ def run_single_process(spec: SessionSpec, *, until: Callable[[], bool] | None = 
     from rclpy.signals import SignalHandlerOptions
 
     from rv_te_bench.nodes.common import make_executor
+    from rv_te_bench.nodes.middleware import use_quick_acknowledgements
 
     args = ros_args(spec, None, None)
+    use_quick_acknowledgements(os.environ)   # as in a node process (nodes.common.run_node)
     ctx = rclpy.context.Context()
     rclpy.init(args=args, context=ctx, signal_handler_options=SignalHandlerOptions.NO)
     stop = {'requested': False}

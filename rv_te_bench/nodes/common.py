@@ -262,6 +262,9 @@ def run_node(factory: Callable[[Context], Node], args: Sequence[str] | None = No
         print('ERROR: the launcher that started this node is gone; not starting',
               file=sys.stderr)
         return 1
+    from rv_te_bench.nodes.middleware import use_quick_acknowledgements
+
+    use_quick_acknowledgements(os.environ)   # (before this process's first participant)
     context = Context()
     rclpy.init(args=list(args) if args is not None else None, context=context,
                signal_handler_options=SignalHandlerOptions.NO)

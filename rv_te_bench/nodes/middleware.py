@@ -1,0 +1,42 @@
+"""The middleware settings of rv-te-bench's node processes (no rclpy import here).
+
+Fast DDS (ROS 2 Jazzy's default middleware) sends a reliable writer's heartbeat every 3 s,
+and a reader in another process acknowledges a sample only when a heartbeat asks: a
+``wait_for_all_acked`` across processes returned after 2.7-3.0 s although the sample
+arrived at once (measured here). The nodes wait for acknowledgements where it matters
+(the sequencer's zero setpoint when it stops, a finished bench's last blocks, the
+recorder's 'closed' status), so each such wait ran into its timeout: 2 s of every stop of a
+session with a test_sequencer. :func:`use_quick_acknowledgements` points Fast DDS at
+:data:`PROFILE` (heartbeats every 100 ms while something is unacknowledged: the same
+waits take ~0.1 s, and a lost sample is repaired as soon) before the process makes its
+first participant. A profile file the user chose (``FASTRTPS_DEFAULT_PROFILES_FILE`` /
+``FASTDDS_DEFAULT_PROFILES_FILE``) or another middleware (``RMW_IMPLEMENTATION``) is left
+alone.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import TYPE_CHECKING
+
+if TYPE_CHECKING:
+    from collections.abc import MutableMapping
+
+__all__ = ['PROFILE', 'PROFILE_ENV', 'use_quick_acknowledgements']
+
+#: The Fast DDS XML profile (the default data writer's heartbeat period).
+PROFILE = Path(__file__).with_name('fastdds_profile.xml')
+#: The variables Fast DDS reads its profile file from (2.x, 3.x).
+PROFILE_ENV = ('FASTRTPS_DEFAULT_PROFILES_FILE', 'FASTDDS_DEFAULT_PROFILES_FILE')
+_FAST_DDS = ('', 'rmw_fastrtps_cpp', 'rmw_fastrtps_dynamic_cpp')
+
+
+def use_quick_acknowledgements(env: MutableMapping[str, str]) -> bool:
+    """Set ``env``'s Fast DDS profile file to :data:`PROFILE` unless the user set one or
+    another middleware is chosen; True when set. Takes effect for participants made after
+    it (call it before ``rclpy.init``)."""
+    if any(env.get(v) for v in PROFILE_ENV) or \
+            env.get('RMW_IMPLEMENTATION', '') not in _FAST_DDS or not PROFILE.is_file():
+        return False
+    env[PROFILE_ENV[0]] = str(PROFILE)
+    return True
