@@ -10,8 +10,9 @@ session with a test_sequencer. :func:`use_quick_acknowledgements` points Fast DD
 :data:`PROFILE` (heartbeats every 100 ms while something is unacknowledged: the same
 waits take ~0.1 s, and a lost sample is repaired as soon) before the process makes its
 first participant. A profile file the user chose (``FASTRTPS_DEFAULT_PROFILES_FILE`` /
-``FASTDDS_DEFAULT_PROFILES_FILE``) or another middleware (``RMW_IMPLEMENTATION``) is left
-alone.
+``FASTDDS_DEFAULT_PROFILES_FILE``), another middleware (``RMW_IMPLEMENTATION``) or QoS
+taken from XML (``RMW_FASTRTPS_USE_QOS_FROM_XML``: the profile would then replace the
+nodes' QoS) is left alone.
 """
 
 from __future__ import annotations
@@ -36,7 +37,8 @@ def use_quick_acknowledgements(env: MutableMapping[str, str]) -> bool:
     another middleware is chosen; True when set. Takes effect for participants made after
     it (call it before ``rclpy.init``)."""
     if any(env.get(v) for v in PROFILE_ENV) or \
-            env.get('RMW_IMPLEMENTATION', '') not in _FAST_DDS or not PROFILE.is_file():
+            env.get('RMW_IMPLEMENTATION', '') not in _FAST_DDS or not PROFILE.is_file() or \
+            env.get('RMW_FASTRTPS_USE_QOS_FROM_XML', '') not in ('', '0'):
         return False
     env[PROFILE_ENV[0]] = str(PROFILE)
     return True

@@ -79,10 +79,12 @@ def test_a_sample_is_acknowledged_across_processes_at_once(tmp_path: Path) -> No
 
 
 def test_the_users_profile_and_other_middlewares_are_left_alone() -> None:
+    """(QoS from XML: the profile's defaults would replace the nodes' QoS.)"""
     env: dict[str, str] = {}
     assert use_quick_acknowledgements(env) and env == {PROFILE_ENV[0]: str(PROFILE)}
     for mine in ({PROFILE_ENV[0]: '/etc/my.xml'}, {PROFILE_ENV[1]: '/etc/my.xml'},
-                 {'RMW_IMPLEMENTATION': 'rmw_cyclonedds_cpp'}):
+                 {'RMW_IMPLEMENTATION': 'rmw_cyclonedds_cpp'},
+                 {'RMW_FASTRTPS_USE_QOS_FROM_XML': '1'}):
         env = dict(mine)
         assert not use_quick_acknowledgements(env) and env == mine
     env = {'RMW_IMPLEMENTATION': 'rmw_fastrtps_cpp'}
