@@ -27,12 +27,16 @@ from rclpy.parameter import Parameter  # noqa: E402
 from rv_te_msgs.msg import EncoderBlock  # noqa: E402
 
 from rv_te_bench.nodes import qos  # noqa: E402
-from rv_te_bench.nodes.backpressure import BlockAcks  # noqa: E402
+from rv_te_bench.nodes.backpressure import ACK_WINDOW_BLOCKS, BlockAcks  # noqa: E402
 from rv_te_bench.nodes.bench_node import BenchNode  # noqa: E402
 from rv_te_bench.nodes.recorder import RecorderNode  # noqa: E402
 from tests.nodes.rosutil import spin_for, spin_until, spin_while_progress  # noqa: E402
 
 BLOCKS = 3000          # 30 s at 10 kHz in blocks of 100: three encoder queues
+#: The sessions without a slow reader: three windows (ACK_WINDOW_BLOCKS, 500), so a bench
+#: held by a reader that took 200 blocks has to wait for it, and one nobody holds shows it
+#: ran free (1.5 s of CPU less per test than BLOCKS: ~1 ms of rclpy per block).
+FREE_BLOCKS = 1500
 WRITE_DELAY_S = 0.004  # the slowed recorder: ~250 blocks/s
 
 
@@ -110,12 +114,13 @@ def test_slow_recorder_records_every_block(ros_context: Any, tmp_path: Path) -> 
 def test_bench_without_reader_is_not_held(ros_context: Any) -> None:
     """No recorder there (the wait times out): nobody holds the bench, it runs free."""
     ns = f'/bpnone_{os.getpid()}_{time.monotonic_ns() % 10**6}'
-    bench = _bench(ros_context, ns, ['recorder'], wait_timeout_s=1.0)
+    bench = _bench(ros_context, ns, ['recorder'], wait_timeout_s=1.0,
+                   duration_s=FREE_BLOCKS * 100 / 10000.0)
     ex = SingleThreadedExecutor(context=ros_context)
     ex.add_node(bench)
     try:
         assert spin_until(ex, lambda: bench.finished, 100.0)
-        assert bench.blocks_published == BLOCKS
+        assert bench.blocks_published == FREE_BLOCKS
         assert bench.gate is not None
         assert bench.gate.held_s == 0.0 and bench.gate.released == []
     finally:
@@ -137,7 +142,9 @@ def test_reader_that_dies_does_not_hang_the_bench(ros_context: Any) -> None:
 
     reader.create_subscription(EncoderBlock, 'bench/encoders', on_block, qos.ENCODER_QOS)
     BlockAcks(reader, lambda: seen[-1] if seen else None)
-    bench = _bench(ros_context, ns, ['te_node'], ack_timeout_s=1.0)
+    bench = _bench(ros_context, ns, ['te_node'], ack_timeout_s=1.0,
+                   duration_s=FREE_BLOCKS * 100 / 10000.0)
+    assert FREE_BLOCKS > 200 + ACK_WINDOW_BLOCKS    # the gate must hold for the dead reader
     ex = SingleThreadedExecutor(context=ros_context)
     ex.add_node(bench)
     ex.add_node(reader)
@@ -148,7 +155,7 @@ def test_reader_that_dies_does_not_hang_the_bench(ros_context: Any) -> None:
         t0 = time.monotonic()
         assert spin_until(ex, lambda: bench.finished, 60.0), 'the bench hung on a dead reader'
         assert bench.gate is not None and bench.gate.released == ['te_node']
-        assert bench.blocks_published == BLOCKS
+        assert bench.blocks_published == FREE_BLOCKS
         assert time.monotonic() - t0 < 60.0
     finally:
         ex.shutdown()
