@@ -39,10 +39,9 @@ PLAN = {'plan': 'cancel-me', 'steps': [
     {'kind': 'hysteresis', 'name': 'hysteresis', 'rated_torque_nm': 450.0, 'dwell_s': 0.2}]}
 
 
-@pytest.fixture
-def session(tmp_path: Path) -> Any:
+def _session(tmp_path: Path, speed_factor: float) -> Any:
     spec = simulated_session_spec(tmp_path, preset='li2023-rv', te_mode='dte',
-                                  speed_factor=1.0)
+                                  speed_factor=speed_factor)
     log = (tmp_path / 'session.log').open('wb')
     s = Session(spec, stdout=log)
     s.start()
@@ -51,6 +50,19 @@ def session(tmp_path: Path) -> Any:
     finally:
         s.stop()
         log.close()
+
+
+@pytest.fixture
+def session(tmp_path: Path) -> Any:
+    """In real time: slow enough to act in the middle of a step."""
+    yield from _session(tmp_path, 1.0)
+
+
+@pytest.fixture
+def fast_session(tmp_path: Path) -> Any:
+    """At 2x real time: 2000 joint states/s, what ``rv-te test --launch --speed-factor 0``
+    runs at (the rate the adapter and the sequencer are known to keep up with)."""
+    yield from _session(tmp_path, 2.0)
 
 
 @pytest.mark.timeout(240)
@@ -194,11 +206,13 @@ TE_PLAN = {'plan': 'te-live', 'steps': [
 
 
 @pytest.mark.timeout(240)
-def test_each_metric_is_judged_on_test_report_as_it_is_decided(session: Any,
+def test_each_metric_is_judged_on_test_report_as_it_is_decided(fast_session: Any,
                                                                ros_context: Any) -> None:
     """A TE direction's metric is decided when its segment ends: the running test/report
     carries it against its limit before the step (the other direction) has finished, with
-    the value the final report gives it; limits not measured yet are 'pending'."""
+    the value the final report gives it; limits not measured yet are 'pending'. (At 2x
+    real time: the order of the reports, not their timing, is what is tested; the cw
+    direction still takes ~2.4 s after the ccw metric is decided.)"""
     from rv_te_msgs.msg import TestReport, TestStep
 
     node = rclpy.create_node('sequencer_live_client', context=ros_context)
