@@ -185,8 +185,67 @@ def engine_overhead(bags: list[Path], opts: object, repeats: int, sizes: list[in
     return '\n'.join(lines)
 
 
+def _loop_child(bags: list[Path], with_advice: bool) -> None:
+    """One plain loop of ``analyse_one`` (no store) in this fresh process: prints wall, CPU."""
+    import json
+
+    from rv_te_bench.fleet import FleetOptions, analyse_one
+    opts = FleetOptions(with_advice=with_advice)
+    analyse_one(str(bags[0]), opts)   # imports and first-call costs outside the clock
+    c0, t = _cpu_self(), time.perf_counter()
+    for b in bags:
+        analyse_one(str(b), opts)
+    print(json.dumps({'wall_s': time.perf_counter() - t, 'cpu_s': _cpu_self() - c0}))
+
+
+def blas_loop(bags: list[Path], with_advice: bool, repeats: int) -> str:
+    """The plain loop with OpenBLAS's pool of a thread per core (before c8be8b8, forced here
+    with OPENBLAS_NUM_THREADS=2) and with the batch setting's one thread, each in a fresh
+    process, alternating; on both cores and pinned to one (``taskset -c 0``)."""
+    import json
+    ways = [('both cores', 'a BLAS thread per core (before)', '2', False),
+            ('both cores', 'one BLAS thread (batch setting)', None, False),
+            ('one core', 'a BLAS thread per core (before)', '2', True),
+            ('one core', 'one BLAS thread (batch setting)', None, True)]
+    got: dict[int, list[tuple[float, float]]] = {k: [] for k in range(len(ways))}
+    loads = [os.getloadavg()[0]]
+    for r in range(repeats):
+        for k in (range(len(ways)) if r % 2 == 0 else reversed(range(len(ways)))):
+            _, _, threads, pin = ways[k]
+            env = dict(os.environ)
+            env.pop('OPENBLAS_NUM_THREADS', None)
+            if threads is not None:
+                env['OPENBLAS_NUM_THREADS'] = threads
+            cmd = [*(['taskset', '-c', '0'] if pin else []), sys.executable, __file__,
+                   '--loop-child', *map(str, bags), *(['--no-advice'] if not with_advice
+                                                       else [])]
+            out = subprocess.run(cmd, capture_output=True, text=True, check=True, env=env)
+            d = json.loads(out.stdout.strip().splitlines()[-1])
+            got[k].append((d['wall_s'], d['cpu_s']))
+            loads.append(os.getloadavg()[0])
+            print(f'{ways[k][0]}, {ways[k][1]}: wall {d["wall_s"]:.2f} s, CPU '
+                  f'{d["cpu_s"]:.2f} s, load {loads[-1]:.1f}', file=sys.stderr, flush=True)
+    lines = [f'Plain loop of analyse_one over {len(bags)} bags (advice '
+             f'{"on" if with_advice else "off"}), fresh process per run, alternating; '
+             f'{_cpu_model()}, load {min(loads):.1f}-{max(loads):.1f}; median of {repeats}',
+             '', '| cores | BLAS | wall s | CPU s | CPU / wall | CPU vs one BLAS thread |',
+             '|---|---|---:|---:|---:|---:|']
+    for k, (cores, blas, _, _) in enumerate(ways):
+        w = statistics.median(x[0] for x in got[k])
+        c = statistics.median(x[1] for x in got[k])
+        ref = statistics.median(x[1] for x in got[k | 1])
+        lines.append(f'| {cores} | {blas} | {w:.2f} | {c:.2f} | {c / w:.2f} | '
+                     f'{c / ref:.2f}x |')
+    return '\n'.join(lines)
+
+
 def main(argv: list[str] | None = None) -> int:
     """Run the benchmark and print the table."""
+    if argv is None and '--loop-child' in sys.argv:
+        paths = [Path(a) for a in sys.argv[sys.argv.index('--loop-child') + 1:]
+                 if not a.startswith('--')]
+        _loop_child(paths, '--no-advice' not in sys.argv)
+        return 0
     import distributed  # noqa: F401 - imported up front: charged to neither side
 
     import rv_te_bench.fleet._warm  # noqa: F401 - the loop's imports, outside its clock
@@ -208,10 +267,16 @@ def main(argv: list[str] | None = None) -> int:
                          '--bags and --bags: the fixed cost per run and the cost per bag)')
     ap.add_argument('--engine-repeats', type=int, default=3,
                     help='rounds of the engine-alone runs (0: none, only the full runs)')
+    ap.add_argument('--blas-loop', type=int, default=0, metavar='BAGS',
+                    help='only the plain loop over the first BAGS bags with a BLAS thread '
+                         'per core and with one, side by side (--repeats rounds)')
     args = ap.parse_args(argv)
     t = time.perf_counter()
     bags = make_bags(args.dir, args.bags, rate_hz=args.rate_hz, revolutions=args.revolutions)
     print(f'{len(bags)} bags ready in {time.perf_counter() - t:.1f} s', file=sys.stderr)
+    if args.blas_loop:
+        print(blas_loop(bags[:args.blas_loop], not args.no_advice, args.repeats), flush=True)
+        return 0
     opts = FleetOptions(with_advice=not args.no_advice)
     print(f'{_cpu_model()}, {os.cpu_count()} CPUs, load {os.getloadavg()[0]:.1f} at the start',
           flush=True)
