@@ -564,17 +564,21 @@ def order_spectrum(
         bin_orders = np.arange(spec.size, dtype=np.float64) / res.revolutions
     else:
         bin_orders = workspace.orders(spec.size, res.revolutions)
-    lines = []
-    for order, label in orders.lines():
-        m = round(order * res.revolutions)
-        if m >= spec.size:
-            continue
-        # phase referred to phi = 0, not to the grid start
-        phase = np.array([math.atan2(spec[m].imag, spec[m].real) - bin_orders[m] * res.phi0_rad])
-        lines.append(SpectrumLine(
-            output_order=order, crank_order=orders.crank_order(order),
-            frequency_hz=order * output_hz, amplitude_rad=float(amplitude[m]),
-            phase_rad=float(_wrap_pi_inplace(phase)[0]), label=label))
+    # the lines below the Nyquist order, each at its bin m; one pass over all of them
+    # (issue 41), element by element the same operations as one line at a time
+    kept = [(order, label, m) for order, label in orders.lines()
+            if (m := round(order * res.revolutions)) < spec.size]
+    bins = [m for _, _, m in kept]
+    at = spec[bins].tolist()
+    # phase referred to phi = 0, not to the grid start
+    phase = np.array([math.atan2(z.imag, z.real) for z in at])
+    phase -= bin_orders[bins] * res.phi0_rad
+    phases = _wrap_pi_inplace(phase).tolist()
+    amps = amplitude[bins].tolist()
+    lines = [SpectrumLine(output_order=order, crank_order=orders.crank_order(order),
+                          frequency_hz=order * output_hz, amplitude_rad=a, phase_rad=p,
+                          label=label)
+             for (order, label, _), a, p in zip(kept, amps, phases, strict=True)]
     for arr in (bin_orders, amplitude, spec):
         if arr.flags.writeable:
             arr.setflags(write=False)

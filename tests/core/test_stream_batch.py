@@ -180,6 +180,14 @@ def test_analyze_blocks_on_window_streams_the_windows() -> None:
     ({'starts': np.array([1, 2, 4])}, 'from 0 to 4'),
     ({'seq': np.array([0])}, 'do not fit'),
     ({'theta_out_rad': np.zeros(3)}, 'do not fit'),
+    # every array's shape on its own (issue 41 compares them one by one)
+    ({'stamp_s': np.zeros(3)}, 'do not fit'),
+    ({'sample_rate_hz': np.ones(1)}, 'do not fit'),
+    ({'time_offset_s': np.zeros(5)}, 'do not fit'),
+    ({'theta_in_rad': np.zeros((2, 2))}, 'do not fit'),
+    ({'theta_out_rad': np.zeros((4, 1))}, 'do not fit'),
+    ({'seq': np.zeros(0, dtype=np.int64), 'stamp_s': np.zeros(0),
+      'sample_rate_hz': np.ones(0), 'starts': np.array([0])}, 'do not fit'),
 ])
 def test_batch_structure_is_checked(kwargs: dict, match: str) -> None:
     good = {'seq': np.array([0, 1]), 'stamp_s': np.zeros(2), 'sample_rate_hz': np.ones(2),
