@@ -31,10 +31,12 @@ def load_at(rev: str, path: str, name: str) -> ModuleType:
     return module
 
 
-# the TE core as one unit: stream imports spectrum and te (and, since issue 39, its record
+# the TE core as one unit (with the order set the spectra read their lines from, since
+# issue 41 caches them): stream imports spectrum and te (and, since issue 39, its record
 # types) at import time, so an old stream must see the old spectrum and te (its own
 # revision), not the current ones; a file a revision does not have is skipped
-CORE_MODULES = (('rv_te_bench/core/te.py', 'rv_te_bench.core.te'),
+CORE_MODULES = (('rv_te_bench/core/orders.py', 'rv_te_bench.core.orders'),   # (its lines)
+                ('rv_te_bench/core/te.py', 'rv_te_bench.core.te'),
                 ('rv_te_bench/core/spectrum.py', 'rv_te_bench.core.spectrum'),
                 ('rv_te_bench/core/stream_records.py', 'rv_te_bench.core.stream_records'),
                 ('rv_te_bench/core/stream.py', 'rv_te_bench.core.stream'),
@@ -47,7 +49,8 @@ def _exists_at(rev: str, path: str) -> bool:
 
 
 def load_core_at(rev: str) -> dict[str, ModuleType]:
-    """The TE core modules (te, spectrum, stream records, stream, offline) as of ``rev``,
+    """The TE core modules (orders, te, spectrum, stream records, stream, offline) as of
+    ``rev``,
     keyed by module name.
 
     Each is compiled while the ones loaded before it stand in for their current versions in
