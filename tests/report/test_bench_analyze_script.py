@@ -46,3 +46,26 @@ def test_bench_analyze_floor_rows(capsys: pytest.CaptureFixture[str], tmp_path: 
         assert phi.shape == te.shape and phi.size > 1000 and revolutions == 1
         # a complete window of one output revolution: phi spans 2 pi less one sample step
         assert abs(abs(phi[-1] - phi[0]) - 2 * math.pi) <= 2 * abs(phi[1] - phi[0])
+
+
+def test_baseline_core_has_its_own_order_set() -> None:
+    """--baseline REV: the old spectrum reads its lines from the order set of REV (since
+    issue 41 the current one caches them), and the old analysis builds that order set."""
+    import sys
+
+    import rv_te_bench.core.orders as current
+
+    root = Path(__file__).resolve().parents[2]
+    sys.path.insert(0, str(root / 'benchmarks'))
+    try:
+        from _baseline import load_core_at, swapped
+    finally:
+        sys.path.remove(str(root / 'benchmarks'))
+    core = load_core_at('HEAD')
+    old_orders = core['rv_te_bench.core.orders']
+    assert old_orders is not current
+    with swapped(core):
+        from rv_te_bench.core.orders import OrderSet
+        assert OrderSet is old_orders.OrderSet
+        assert sys.modules['rv_te_bench.core.spectrum'] is core['rv_te_bench.core.spectrum']
+    assert sys.modules['rv_te_bench.core.orders'] is current
