@@ -65,7 +65,10 @@ def one_blas_thread() -> None:
     if os.environ.get(BLAS_THREADS_ENV, '').strip():
         return
     os.environ[BLAS_THREADS_ENV] = '1'
-    from threadpoolctl import threadpool_limits
+    try:
+        from threadpoolctl import threadpool_limits
+    except ImportError:   # an environment made before the dependency: later loads only
+        return
     threadpool_limits(limits=1, user_api='blas')   # not as a context: it stays in effect
 
 
