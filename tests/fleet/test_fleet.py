@@ -192,14 +192,20 @@ def test_local_workers_come_forked_with_the_analysis_imported() -> None:
     def profiling(dask_worker: Any) -> bool:      # Dask passes its Worker
         return 'profile' in dask_worker.periodic_callbacks
 
+    def tick_ms(dask_worker: Any) -> float:
+        return dask_worker.periodic_callbacks['tick'].callback_time
+
     client, cluster = _client(2, None)
     try:
         got = list(client.run(where_imported).values())
         profiled = set(client.run(profiling).values())
+        ticks = {*client.run(tick_ms).values(),
+                 cluster.scheduler.periodic_callbacks['tick'].callback_time}
     finally:
         client.close()
         cluster.close()
     assert profiled == {False}          # no stack sampling beside the analysis (issue 41)
+    assert ticks == {1000.0}            # loop health checked each second, not every 20 ms
     assert len(got) == 2
     (server,) = {imported for _, imported in got}        # one fork server for both
     assert server is not None and server not in {pid for pid, _ in got}
