@@ -52,7 +52,7 @@ def _port(text: str) -> int:
 
 def add_dashboard_arguments(p: argparse.ArgumentParser, *, flag: bool) -> None:
     """The page's options; ``flag``: add ``--dashboard`` too (launch, test, replay)."""
-    from rv_te_bench.dashboard.run import DEFAULT_FOXGLOVE_PORT, DEFAULT_PORT
+    from rv_te_bench.dashboard.ports import DEFAULT_FOXGLOVE_PORT, DEFAULT_PORT
 
     g = p.add_argument_group('live page (rv-te dashboard)')
     if flag:

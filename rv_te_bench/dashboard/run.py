@@ -17,12 +17,10 @@ from dataclasses import dataclass
 from typing import Any
 
 from rv_te_bench.dashboard.model import DashboardModel
+from rv_te_bench.dashboard.ports import DEFAULT_FOXGLOVE_PORT, DEFAULT_PORT
 from rv_te_bench.dashboard.server import HttpServer, bind_socket, create_app
 
 __all__ = ['DEFAULT_FOXGLOVE_PORT', 'DEFAULT_PORT', 'Dashboard', 'DashboardOptions']
-
-DEFAULT_PORT = 8760
-DEFAULT_FOXGLOVE_PORT = 8765
 
 
 def is_loopback(host: str) -> bool:
