@@ -147,22 +147,29 @@ def mc_te_pp(budget: Budget, phi_rad: npt.ArrayLike, te_rad: npt.ArrayLike, *,
     comps = _signal_components(bench, gear_ratio)
     theta_out = phi + te + theta_out_offset_rad
     theta_in = gear_ratio * phi
-    basis = []
-    for _, sc, k, g, inp in comps:
+    # the error function of a draw with phases rho_j: sum_j s_j(theta) cos(rho_j) +
+    # c_j(theta) sin(rho_j), i.e. one matrix product of the (2 components, samples) basis
+    # with the (draws, 2 components) weights; rows are draws, so that each revolution's
+    # max and min run along contiguous memory
+    basis = np.empty((2 * len(comps), te.size))
+    for j, (_, sc, k, g, inp) in enumerate(comps):
         th = theta_in if inp else theta_out
-        basis.append((sc * g * np.sin(k * th), sc * g * np.cos(k * th)))
+        basis[2 * j] = sc * g * np.sin(k * th)
+        basis[2 * j + 1] = sc * g * np.cos(k * th)
     skip = {c[0] for c in comps}
     y = np.empty(draws)
     for b0 in range(0, draws, _BATCH):
         m = min(_BATCH, draws - b0)
-        err = np.zeros((te.size, m))
-        for s_arr, c_arr in basis:
+        weights = np.empty((m, 2 * len(comps)))
+        for j in range(len(comps)):
             rho = rng.uniform(0.0, _TWO_PI, m)
-            err += np.outer(s_arr, np.cos(rho)) + np.outer(c_arr, np.sin(rho))
-        corr = te[:, None] - err
-        pp = np.maximum.reduceat(corr, starts, axis=0) - np.minimum.reduceat(corr, starts,
-                                                                             axis=0)
-        y[b0:b0 + m] = pp.max(axis=0)
+            weights[:, 2 * j] = np.cos(rho)
+            weights[:, 2 * j + 1] = np.sin(rho)
+        corr = weights @ basis
+        np.subtract(te, corr, out=corr)
+        pp = np.maximum.reduceat(corr, starts, axis=1)
+        pp -= np.minimum.reduceat(corr, starts, axis=1)
+        y[b0:b0 + m] = pp.max(axis=1)
     y += _scalar_draws(budget, skip, draws, rng)
     return _result(budget, y)
 
