@@ -17,7 +17,22 @@ from typing import Any
 import pytest
 from hypothesis import HealthCheck, settings
 
+from rv_te_bench.allocator import tune_for_batch_work
 from rv_te_bench.nodes.middleware import use_quick_acknowledgements
+
+# One BLAS / OpenMP thread per test process and per process a test starts, unless set (as
+# the node processes, rv_te_bench.launch.session.NODE_THREAD_ENV, and the batch commands,
+# rv_te_bench.allocator, have it). The suite runs cores + 1 workers: OpenBLAS's pool of one
+# spinning thread per core in each only burns CPU the other workers need (issue 39 s.4:
+# tests/core/test_uncertainty_validation.py 36.2 / 43.0 -> 28.2 / 14.4 CPU s, side by side
+# on the 2-core VM at load 9-25). Set before anything imports numpy.
+for _var in ('OPENBLAS_NUM_THREADS', 'OMP_NUM_THREADS', 'MKL_NUM_THREADS'):
+    os.environ.setdefault(_var, '1')
+# And the batch commands' malloc settings (rv_te_bench.allocator; per process, not inherited):
+# the tests evaluate models on arrays of megabytes, which glibc's defaults map and fault in
+# afresh on every operation (tests/core/test_phases.py spent 7.7 of its 17.8 CPU s in the
+# kernel; 0.3 s tuned). A test process that ran `rv-te analyze` in process had them already.
+tune_for_batch_work()
 
 settings.register_profile('dev', deadline=None, max_examples=60)
 settings.register_profile('ci', deadline=None, max_examples=100,
