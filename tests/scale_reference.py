@@ -19,6 +19,7 @@ Reducer TE comes from :mod:`tests.wang2020_reference` or a sinusoid written in t
 
 from __future__ import annotations
 
+import cmath
 import math
 from dataclasses import dataclass, field
 
@@ -47,11 +48,22 @@ class Scale:
     noise_rad: tuple[float, ...] = field(default=())
 
     def graduation_rad(self, u: np.ndarray) -> np.ndarray:
-        """g(u) = sum a_k sin(k u + phi_k)."""
-        out = np.zeros_like(u)
+        """g(u) = sum a_k sin(k u + phi_k) = Im P(z), P(z) = sum_k a_k e^{i phi_k} z^k at
+        z = e^{iu}, by Horner's rule (one complex exponential per sample instead of one sine
+        per order and sample; |z| = 1, so the rounding stays ~ k_max eps sum a_k)."""
+        u = np.asarray(u, dtype=np.float64)
+        if not self.orders:
+            return np.zeros_like(u)
+        coef = np.zeros(max(self.orders) + 1, dtype=np.complex128)
         for k, a, p in zip(self.orders, self.amplitudes_rad, self.phases_rad, strict=True):
-            out += a * np.sin(k * u + p)
-        return out
+            coef[k] += a * cmath.exp(1j * p)
+        z = np.exp(1j * u)
+        acc = np.full(u.shape, coef[-1])
+        for c in coef[-2:0:-1]:
+            acc *= z
+            acc += c
+        acc *= z
+        return acc.imag.copy()
 
     def readings(self, theta_rad: np.ndarray, rng: np.random.Generator | None = None,
                  ) -> np.ndarray:
