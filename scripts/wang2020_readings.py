@@ -58,6 +58,14 @@ def increments(phi: np.ndarray, phases_deg: Any, rates: tuple[Any, Any, Any],
     rp, rg, ro = rates
 
     def term(e: float, th0: np.ndarray, rate: Any, off: float) -> np.ndarray:
+        if np.ndim(rate) == 2 and np.shape(rate)[0] > 1 and np.size(th0) == 1:
+            # a batch of readings at one set of phases: each term depends on one of the
+            # three rates, which take few values (55 in the full scan); the rows of each
+            # value are computed once and gathered (the same operations on the same
+            # numbers: the same array)
+            vals, rows = np.unique(rate, return_inverse=True)
+            one = e * (np.sin(th0 + vals[:, None] * phi + off) - np.sin(th0 + off))
+            return one[rows.reshape(-1)]
         return e * (np.sin(th0 + rate * phi + off) - np.sin(th0 + off))
 
     e1, e2, eg, eo = E_M
