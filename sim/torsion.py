@@ -236,15 +236,15 @@ class TorsionCurve:
             raise ModelInputError(msg)
         tf = self.friction_torque_nm
         lo, hi = self._lo(t - tf), self._hi(t + tf)
-        d = np.sign(np.diff(np.r_[t[0], t]))
+        d = np.sign(np.diff(np.concatenate((t[:1], t))))
         # a flat stretch continues the run it is in: carry the last non-zero sign forward
         nz = np.flatnonzero(d)
         idx = np.maximum.accumulate(np.where(d != 0, np.arange(t.size), 0))
         d = d[idx] if nz.size else d
-        starts = np.flatnonzero(np.r_[True, d[1:] != d[:-1]])
+        starts = np.flatnonzero(np.concatenate(([True], d[1:] != d[:-1])))
         out = np.empty_like(t)
         phi = float(angle0_rad)
-        for s, e in zip(starts, np.r_[starts[1:], t.size], strict=True):
+        for s, e in zip(starts, np.append(starts[1:], t.size), strict=True):
             if d[s] >= 0:
                 seg = np.minimum(np.maximum(phi, np.maximum.accumulate(lo[s:e])), hi[s:e])
             else:

@@ -225,8 +225,8 @@ def dwell_points(torque_nm: npt.ArrayLike, angle_rad: npt.ArrayLike,
     t, a = _as_pair(torque_nm, angle_rad)
     if t.size == 0:
         return t, a, np.zeros(0, dtype=np.int64)
-    starts = np.flatnonzero(np.r_[True, t[1:] != t[:-1]])
-    counts = np.diff(np.r_[starts, t.size])
+    starts = np.flatnonzero(np.concatenate(([True], t[1:] != t[:-1])))
+    counts = np.diff(np.append(starts, t.size))
     sums = np.add.reduceat(a, starts)
     return t[starts].copy(), sums / counts, counts
 
@@ -308,7 +308,9 @@ def _loop_area(t_loop: np.ndarray, a_loop: np.ndarray) -> float:
     if t_loop.size < 3:
         return math.nan
     x, y = a_loop, t_loop
-    return float(0.5 * abs(np.dot(x, np.roll(y, -1)) - np.dot(y, np.roll(x, -1))))
+    # np.roll(v, -1), without its generic-axis overhead (this runs per perturbed point)
+    y1, x1 = np.concatenate((y[1:], y[:1])), np.concatenate((x[1:], x[:1]))
+    return float(0.5 * abs(np.dot(x, y1) - np.dot(y, x1)))
 
 
 def hysteresis_metrics(torque_nm: npt.ArrayLike, angle_rad: npt.ArrayLike,
@@ -375,8 +377,8 @@ def loop_area(up: Branch, down: Branch, back: Branch, config: HysteresisConfig) 
     loading above zero torque, closed (shoelace formula over their points or samples)."""
     back_t, back_a = _to_zero(back, _END_TOLERANCE * config.rated_torque_nm)
     k = _first_positive(up)
-    return _loop_area(np.r_[down.torque_nm, back_t[1:], up.torque_nm[k:-1]],
-                      np.r_[down.angle_rad, back_a[1:], up.angle_rad[k:-1]])
+    return _loop_area(np.concatenate((down.torque_nm, back_t[1:], up.torque_nm[k:-1])),
+                      np.concatenate((down.angle_rad, back_a[1:], up.angle_rad[k:-1])))
 
 
 def cycle_metrics(up: Branch, down: Branch, back: Branch, config: HysteresisConfig,
@@ -423,8 +425,8 @@ def cycle_metrics(up: Branch, down: Branch, back: Branch, config: HysteresisConf
     dn_t, dn_a = down.torque_nm, down.angle_rad
     back_t, back_a = _to_zero(back, tol)
     up_from = _first_positive(up)
-    asc_t = np.r_[back_t, up_t[up_from:]]
-    asc_a = np.r_[back_a, up_a[up_from:]]
+    asc_t = np.concatenate((back_t, up_t[up_from:]))
+    asc_a = np.concatenate((back_a, up_a[up_from:]))
     for arr in (asc_t, asc_a):
         arr.setflags(write=False)
     return HysteresisMetrics(
