@@ -229,7 +229,8 @@ def node_parameters(spec: SessionSpec, node: str) -> dict[str, Any]:
     values = dict(spec.parameters.get(node, {}))
     if node == 'bench':
         # the bench's clock starts once the session's encoder subscribers are up
-        waits = [n for n in ('te_node', 'recorder') if n in spec.nodes]
+        # (and, fast, holds while they are behind: the sequencer pairs blocks and channels)
+        waits = [n for n in ('te_node', 'recorder', 'test_sequencer') if n in spec.nodes]
         if values.get('output') == 'joint_state' or values.get('ros2_control'):
             # its subscriber is the adapter
             waits = [n for n in ('joint_state_adapter',) if n in spec.nodes]

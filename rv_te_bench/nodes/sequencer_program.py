@@ -8,7 +8,10 @@ do not carry. For such a plan the sequencer sends each step's program to the sim
 bench's ``bench/run_program`` (``commanded: true``, ``losses: true``), which answers with
 the blocks per segment, and feeds the runner the bench's own ``bench/encoders`` with their
 channels (a block is held until its channels come, or :data:`HOLD_BLOCKS` blocks later
-goes without and its segment is not analysed). A cancel stops the bench (``bench/stop``).
+goes without and its segment is not analysed). In fast mode the bench waits for the
+sequencer as for its recorder (:class:`~rv_te_bench.nodes.backpressure.BlockAcks`: the
+last block whose encoders and channels both came), so a sequencer that falls behind loses
+neither. A cancel stops the bench (``bench/stop``).
 Every other plan is driven through setpoints (:mod:`rv_te_bench.nodes.test_sequencer`).
 """
 
@@ -32,6 +35,7 @@ from rv_te_bench.acceptance.preflight import NEEDS
 from rv_te_bench.errors import AcceptanceError
 from rv_te_bench.io.bench_record import bench_uncertainty_of
 from rv_te_bench.nodes import qos
+from rv_te_bench.nodes.backpressure import BlockAcks
 
 if TYPE_CHECKING:
     from rclpy.action.server import ServerGoalHandle
@@ -81,8 +85,13 @@ class ProgramSteps:
         self._want_channels = False
         self._channels: dict[int, BenchChannels] = {}
         self._held: dict[int, EncoderBlock] = {}
+        # how far the blocks came in (whether a program runs or not): a fast bench holds
+        # while the last block with both its encoders and its channels is too far behind
+        self._last_encoders_seq: int | None = None
+        self._last_channels_seq: int | None = None
         node.create_subscription(BenchChannels, 'bench/channels', self._on_channels,
                                  qos.ENCODER_QOS)
+        self.block_acks = BlockAcks(node, self._taken_seq)
         self.cli_program = node.create_client(RunBenchProgram, 'bench/run_program')
         self.cli_stop = node.create_client(Trigger, 'bench/stop')
 
@@ -93,7 +102,18 @@ class ProgramSteps:
         self._runner, self._prog = None, {}
 
     # -- data -------------------------------------------------------------------------------
+    def _taken_seq(self) -> int | None:
+        """The last block taken: its encoders, and its channels where the bench sends them."""
+        enc, ch = self._last_encoders_seq, self._last_channels_seq
+        return enc if ch is None or enc is None else min(enc, ch)
+
+    def _saw_encoders(self, seq: int) -> None:
+        if self._last_encoders_seq is None or seq > self._last_encoders_seq:
+            self._last_encoders_seq = seq
+
     def _on_channels(self, msg: BenchChannels) -> None:
+        if self._last_channels_seq is None or int(msg.seq) > self._last_channels_seq:
+            self._last_channels_seq = int(msg.seq)
         if self.busy is None:
             return
         self._channels[int(msg.seq)] = msg

@@ -191,6 +191,7 @@ class TestSequencerNode(ProgramSteps, Node):
 
     def _on_block(self, msg: EncoderBlock) -> None:
         self._last_block_wall = time.monotonic()
+        self._saw_encoders(int(msg.seq))
         d = self._drive
         if d is None:
             self._on_program_block(msg)   # a bench program's block, or none runs
