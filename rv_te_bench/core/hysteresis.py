@@ -60,16 +60,22 @@ if TYPE_CHECKING:
 __all__ = [
     'DEFAULT_RIGIDITY_REGIONS',
     'Branch',
+    'BranchPlan',
     'BranchReader',
+    'CycleReadings',
     'HysteresisConfig',
     'HysteresisMetrics',
+    'PointCycle',
     'RigidityRegion',
+    'branch_plan',
     'branch_value',
     'cycle_metrics',
     'dwell_points',
     'hysteresis_metrics',
     'loop_area',
     'point_reader',
+    'read_cycle',
+    'read_plan',
 ]
 
 #: Part of T_R by which a branch may fall short of a wanted torque and still be read at its
@@ -253,28 +259,72 @@ def branch_value(torque_nm: np.ndarray, angle_rad: np.ndarray, t0_nm: float, *,
         two points around the branch's crossing of ``t0_nm`` (a run of points exactly at
         ``t0_nm`` gives the mean of their angles); NaN when the branch does not reach it.
     """
+    return read_plan(branch_plan(torque_nm, t0_nm, direction=direction,
+                                 end_tolerance_nm=end_tolerance_nm, match_nm=match_nm),
+                     angle_rad)
+
+
+class BranchPlan(NamedTuple):
+    """Which points :func:`branch_value` reads, found from the torques alone.
+
+    Attributes:
+        kind: ``'nan'`` (the branch does not reach the torque), ``'point'`` (the angle of
+            point ``k``), ``'mean'`` (the mean angle of points ``k`` to ``end - 1``, a run
+            exactly at the torque) or ``'lerp'`` (between points ``k - 1`` and ``k`` with
+            weight ``w`` on the change).
+    """
+
+    kind: str
+    k: int = 0
+    end: int = 0
+    w: float = math.nan
+
+    def points(self) -> range:
+        """The indices of the points the reading takes."""
+        if self.kind == 'point':
+            return range(self.k, self.k + 1)
+        if self.kind == 'mean':
+            return range(self.k, self.end)
+        if self.kind == 'lerp':
+            return range(self.k - 1, self.k + 1)
+        return range(0)
+
+
+def branch_plan(torque_nm: np.ndarray, t0_nm: float, *, direction: int,
+                end_tolerance_nm: float = 0.0, match_nm: float = 0.0) -> BranchPlan:
+    """How :func:`branch_value` reads the branch at ``t0_nm`` (same arguments, no angles)."""
     if torque_nm.size == 0:
-        return math.nan
+        return BranchPlan('nan')
     s = direction * (torque_nm - t0_nm)
     if match_nm > 0:
         near = np.abs(s)
         k = int(np.argmin(near))
         if near[k] <= match_nm and near[k] > 0:
-            return float(angle_rad[k])
+            return BranchPlan('point', k)
     hit = np.flatnonzero(s >= 0)
     if hit.size == 0:
         k = int(np.argmax(s))
-        return float(angle_rad[k]) if -s[k] <= end_tolerance_nm else math.nan
+        return BranchPlan('point', k) if -s[k] <= end_tolerance_nm else BranchPlan('nan')
     k = int(hit[0])
     if s[k] == 0:
         run = np.flatnonzero(s[k:] != 0)
-        end = k + (int(run[0]) if run.size else s.size - k)
-        return float(np.mean(angle_rad[k:end]))
+        return BranchPlan('mean', k, k + (int(run[0]) if run.size else s.size - k))
     if k == 0:
-        return float(angle_rad[0])
+        return BranchPlan('point', 0)
     t1, t2 = torque_nm[k - 1], torque_nm[k]
-    w = (t0_nm - t1) / (t2 - t1)
-    return float(angle_rad[k - 1] + w * (angle_rad[k] - angle_rad[k - 1]))
+    return BranchPlan('lerp', k, w=(t0_nm - t1) / (t2 - t1))
+
+
+def read_plan(plan: BranchPlan, angle_rad: np.ndarray) -> float:
+    """The angle a :class:`BranchPlan` reads from the branch's angles [rad]."""
+    kind, k = plan.kind, plan.k
+    if kind == 'point':
+        return float(angle_rad[k])
+    if kind == 'lerp':
+        return float(angle_rad[k - 1] + plan.w * (angle_rad[k] - angle_rad[k - 1]))
+    if kind == 'mean':
+        return float(np.mean(angle_rad[k:plan.end]))
+    return math.nan
 
 
 class Branch(NamedTuple):
@@ -350,6 +400,14 @@ def hysteresis_metrics(torque_nm: npt.ArrayLike, angle_rad: npt.ArrayLike,
         (0.001, 100000)
     """
     t, a = _as_pair(torque_nm, angle_rad)
+    i_max, i_min = _turns(t)
+    return cycle_metrics(Branch(t[:i_max + 1], a[:i_max + 1]),
+                         Branch(t[i_max:i_min + 1], a[i_max:i_min + 1]),
+                         Branch(t[i_min:], a[i_min:]), config, point_reader(match_nm))
+
+
+def _turns(t: np.ndarray) -> tuple[int, int]:
+    """Indices of the torque maximum and minimum of one cycle's points (validated)."""
     if t.size < 5:
         msg = f'a hysteresis record needs at least 5 points, got {t.size}'
         raise TeInputError(msg)
@@ -359,9 +417,73 @@ def hysteresis_metrics(torque_nm: npt.ArrayLike, angle_rad: npt.ArrayLike,
                f'negative one (0 -> +T_R -> 0 -> -T_R -> 0); its maximum {t[i_max]:.6g} N m '
                f'is at point {i_max}, its minimum {t[i_min]:.6g} N m at point {i_min}')
         raise TeInputError(msg)
-    return cycle_metrics(Branch(t[:i_max + 1], a[:i_max + 1]),
-                         Branch(t[i_max:i_min + 1], a[i_max:i_min + 1]),
-                         Branch(t[i_min:], a[i_min:]), config, point_reader(match_nm))
+    return i_max, i_min
+
+
+class PointCycle:
+    """One load cycle of curve points at fixed torques, read as :func:`hysteresis_metrics`
+    reads it (exact matches only), with the points each reading takes.
+
+    The torques alone decide which points a reading takes and with which weights, and
+    which points make the loop: found once, the metrics of any angles at these torques
+    follow without searching the branches again, and a change of one point's angle reads
+    again only what that point enters (the uncertainty budget moves every point in turn:
+    :mod:`rv_te_bench.core.hysteresis_uncertainty`). The values are those of
+    :func:`hysteresis_metrics`, bit for bit.
+
+    Raises:
+        TeInputError: As :func:`hysteresis_metrics`.
+    """
+
+    def __init__(self, torque_nm: npt.ArrayLike, config: HysteresisConfig) -> None:
+        """Find the readings' points and the loop of ``torque_nm`` under ``config``."""
+        t = np.asarray(torque_nm, dtype=np.float64).ravel()
+        _as_pair(t, t)
+        i_max, i_min = _turns(t)
+        self.config = config
+        tol = _END_TOLERANCE * config.rated_torque_nm
+        #: (direction, t0) -> (index of the branch's first point, how it is read)
+        self.plans: dict[tuple[int, float], tuple[int, BranchPlan]] = {}
+
+        def planned(direction: int, start: int, stop: int, t0: float) -> float:
+            self.plans[direction, t0] = (start, branch_plan(
+                t[start:stop], t0, direction=direction, end_tolerance_nm=tol))
+            return 0.0
+
+        read_cycle(lambda t0: planned(+1, *((i_min, t.size) if t0 <= 0 else (0, i_max + 1)),
+                                      t0),
+                   lambda t0: planned(-1, i_max, i_min + 1, t0), config)
+        back_end = i_min + _to_zero(Branch(t[i_min:], t[i_min:]), tol)[0].size
+        up_from = _first_positive(Branch(t[:i_max + 1], t[:i_max + 1]))
+        #: The points of the loop, in the order :func:`loop_area` takes them.
+        self.loop_index = np.concatenate((np.arange(i_max, i_min + 1),
+                                          np.arange(i_min + 1, back_end),
+                                          np.arange(up_from, i_max)))
+        self._loop_t = t[self.loop_index]
+
+    def points(self, key: tuple[int, float]) -> range:
+        """The indices of the points a reading (key of :attr:`plans`) takes."""
+        start, plan = self.plans[key]
+        r = plan.points()
+        return range(start + r.start, start + r.stop)
+
+    def read(self, key: tuple[int, float], angle_rad: np.ndarray) -> float:
+        """One reading of the cycle's angles [rad]."""
+        start, plan = self.plans[key]
+        return read_plan(plan, angle_rad[start:])
+
+    def readings(self, angle_rad: np.ndarray) -> dict[tuple[int, float], float]:
+        """Every reading of the cycle's angles [rad]."""
+        return {key: self.read(key, angle_rad) for key in self.plans}
+
+    def cycle(self, readings: dict[tuple[int, float], float]) -> CycleReadings:
+        """Backlash, lost motion and rigidity from the readings."""
+        return read_cycle(lambda t0: readings[+1, t0], lambda t0: readings[-1, t0],
+                          self.config)
+
+    def loss(self, angle_rad: np.ndarray) -> float:
+        """The hysteresis loss (area of the loop) [J]."""
+        return _loop_area(self._loop_t, angle_rad[self.loop_index])
 
 
 def _to_zero(back: Branch, tol: float) -> tuple[np.ndarray, np.ndarray]:
@@ -385,6 +507,54 @@ def loop_area(up: Branch, down: Branch, back: Branch, config: HysteresisConfig) 
                       np.concatenate((down.angle_rad, back_a[1:], up.angle_rad[k:-1])))
 
 
+class CycleReadings(NamedTuple):
+    """What a load cycle's readings give, before the loop's area (SI units).
+
+    Attributes:
+        zero: (phi_asc(0), phi_desc(0)) [rad].
+        mid_pos, mid_neg: Mid-points of the curve's width at +t and -t [rad].
+        rigidity_nm_per_rad, rigidity_points: As :class:`HysteresisMetrics`'.
+    """
+
+    zero: tuple[float, float]
+    mid_pos: float
+    mid_neg: float
+    rigidity_nm_per_rad: dict[str, tuple[float, float]]
+    rigidity_points: dict[str, tuple[tuple[float, ...], tuple[float, ...]]]
+
+    @property
+    def backlash_rad(self) -> float:
+        """Width of the curve at zero torque [rad]."""
+        return float(self.zero[1] - self.zero[0])
+
+    @property
+    def lost_motion_rad(self) -> float:
+        """Lost motion [rad]."""
+        return float(self.mid_pos - self.mid_neg)
+
+
+def read_cycle(asc: Callable[[float], float], desc: Callable[[float], float],
+               config: HysteresisConfig) -> CycleReadings:
+    """Backlash, lost motion and rigidity from the ascending and descending branches read
+    at a torque (``asc(t0)``, ``desc(t0)`` [rad]): the readings of :func:`cycle_metrics`."""
+    tr = config.rated_torque_nm
+    zero = (asc(0.0), desc(0.0))
+    lm_t = config.lost_motion_fraction * tr
+    mid_pos = 0.5 * (asc(lm_t) + desc(lm_t))
+    mid_neg = 0.5 * (asc(-lm_t) + desc(-lm_t))
+    rigidity: dict[str, tuple[float, float]] = {}
+    points: dict[str, tuple[tuple[float, ...], tuple[float, ...]]] = {}
+    for reg in config.rigidity_regions:
+        t1, t2 = reg.lo_fraction * tr, reg.hi_fraction * tr
+        p1, p2 = asc(t1), asc(t2)
+        n1, n2 = desc(-t1), desc(-t2)
+        k_pos = (t2 - t1) / (p2 - p1) if p2 != p1 else math.nan
+        k_neg = (t2 - t1) / (n1 - n2) if n1 != n2 else math.nan
+        rigidity[reg.name] = (float(k_pos), float(k_neg))
+        points[reg.name] = ((t1, p1, t2, p2), (-t1, n1, -t2, n2))
+    return CycleReadings(zero, mid_pos, mid_neg, rigidity, points)
+
+
 def cycle_metrics(up: Branch, down: Branch, back: Branch, config: HysteresisConfig,
                   read: BranchReader) -> HysteresisMetrics:
     """The metrics of one load cycle from its three branches.
@@ -402,8 +572,7 @@ def cycle_metrics(up: Branch, down: Branch, back: Branch, config: HysteresisConf
     Returns:
         The metrics; NaN where a branch does not reach a torque a metric needs.
     """
-    tr = config.rated_torque_nm
-    tol = _END_TOLERANCE * tr
+    tol = _END_TOLERANCE * config.rated_torque_nm
 
     def asc(t0: float) -> float:
         return read(back if t0 <= 0 else up, t0, +1, tol)
@@ -411,20 +580,7 @@ def cycle_metrics(up: Branch, down: Branch, back: Branch, config: HysteresisConf
     def desc(t0: float) -> float:
         return read(down, t0, -1, tol)
 
-    zero = (asc(0.0), desc(0.0))
-    lm_t = config.lost_motion_fraction * tr
-    mid_pos = 0.5 * (asc(lm_t) + desc(lm_t))
-    mid_neg = 0.5 * (asc(-lm_t) + desc(-lm_t))
-    rigidity: dict[str, tuple[float, float]] = {}
-    points: dict[str, tuple[tuple[float, ...], tuple[float, ...]]] = {}
-    for reg in config.rigidity_regions:
-        t1, t2 = reg.lo_fraction * tr, reg.hi_fraction * tr
-        p1, p2 = asc(t1), asc(t2)
-        n1, n2 = desc(-t1), desc(-t2)
-        k_pos = (t2 - t1) / (p2 - p1) if p2 != p1 else math.nan
-        k_neg = (t2 - t1) / (n1 - n2) if n1 != n2 else math.nan
-        rigidity[reg.name] = (float(k_pos), float(k_neg))
-        points[reg.name] = ((t1, p1, t2, p2), (-t1, n1, -t2, n2))
+    r = read_cycle(asc, desc, config)
     up_t, up_a = up.torque_nm, up.angle_rad
     dn_t, dn_a = down.torque_nm, down.angle_rad
     back_t, back_a = _to_zero(back, tol)
@@ -434,17 +590,17 @@ def cycle_metrics(up: Branch, down: Branch, back: Branch, config: HysteresisConf
     for arr in (asc_t, asc_a):
         arr.setflags(write=False)
     return HysteresisMetrics(
-        backlash_rad=float(zero[1] - zero[0]),
-        lost_motion_rad=float(mid_pos - mid_neg),
-        lost_motion_torque_nm=float(lm_t),
-        rigidity_nm_per_rad=rigidity,
+        backlash_rad=r.backlash_rad,
+        lost_motion_rad=r.lost_motion_rad,
+        lost_motion_torque_nm=float(config.lost_motion_fraction * config.rated_torque_nm),
+        rigidity_nm_per_rad=r.rigidity_nm_per_rad,
         hysteresis_loss_j=loop_area(up, down, back, config),
-        rated_torque_nm=float(tr),
+        rated_torque_nm=float(config.rated_torque_nm),
         max_torque_nm=float(np.max(up_t)) if up_t.size else math.nan,
         min_torque_nm=float(np.min(dn_t)) if dn_t.size else math.nan,
-        zero_width_rad=(float(zero[0]), float(zero[1])),
-        lost_motion_mid_rad=(float(mid_neg), float(mid_pos)),
-        rigidity_points=points,
+        zero_width_rad=(float(r.zero[0]), float(r.zero[1])),
+        lost_motion_mid_rad=(float(r.mid_neg), float(r.mid_pos)),
+        rigidity_points=r.rigidity_points,
         ascending=(asc_t, asc_a),
         descending=(dn_t.copy(), dn_a.copy()),
     )

@@ -45,7 +45,7 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from rv_te_bench.core.hysteresis import hysteresis_metrics
+from rv_te_bench.core.hysteresis import PointCycle, hysteresis_metrics
 from rv_te_bench.core.uncertainty import Budget, UncertaintyInput, combine, type_b
 
 if TYPE_CHECKING:
@@ -84,15 +84,52 @@ def _names(config: HysteresisConfig) -> list[str]:
     return out
 
 
-def _metrics(t: np.ndarray, a: np.ndarray, config: HysteresisConfig) -> dict[str, float]:
-    m = hysteresis_metrics(t, a, config)
-    out = {'lost_motion_rad': m.lost_motion_rad, 'backlash_rad': m.backlash_rad,
-           'hysteresis_loss_j': m.hysteresis_loss_j}
-    for r in config.rigidity_regions:
-        pos, neg = m.rigidity_nm_per_rad[r.name]
-        out[f'torsional_rigidity_{r.name}_pos'] = pos
-        out[f'torsional_rigidity_{r.name}_neg'] = neg
+def _metrics(cyc: PointCycle, a: np.ndarray) -> dict[str, float]:
+    """The metrics of the cycle's points at angles ``a`` (those of hysteresis_metrics)."""
+    r = cyc.cycle(cyc.readings(a))
+    return _named(r.backlash_rad, r.lost_motion_rad, cyc.loss(a), r.rigidity_nm_per_rad)
+
+
+def _named(backlash_rad: float, lost_motion_rad: float, loss_j: float,
+           rigidity: dict[str, tuple[float, float]]) -> dict[str, float]:
+    out = {'lost_motion_rad': lost_motion_rad, 'backlash_rad': backlash_rad,
+           'hysteresis_loss_j': loss_j}
+    for name, (pos, neg) in rigidity.items():
+        out[f'torsional_rigidity_{name}_pos'] = pos
+        out[f'torsional_rigidity_{name}_neg'] = neg
     return out
+
+
+def _point_weights(cyc: PointCycle, a: np.ndarray, base: dict[str, float],
+                   step: float) -> dict[str, np.ndarray]:
+    """Each metric's change per unit change of each point's angle: the point moved by
+    ``step`` alone and the metrics taken again (:func:`_delta`), where a point changes
+    only the readings it enters (one or two points each) and the loop's area (every
+    point of the loop): a point in neither changes nothing."""
+    base_read = cyc.readings(a)
+    entered: dict[int, list[tuple[int, float]]] = {}
+    for key in base_read:
+        for i in cyc.points(key):
+            entered.setdefault(i, []).append(key)
+    in_loop = set(cyc.loop_index.tolist())
+    weights = {n: np.zeros(a.size) for n in base}
+    for j in sorted(entered.keys() | in_loop):
+        bump = np.zeros(a.size)
+        bump[j] = step
+        moved = a + bump
+        new = dict(base)
+        if j in entered:
+            read = dict(base_read)
+            for key in entered[j]:
+                read[key] = cyc.read(key, moved)
+            r = cyc.cycle(read)
+            new.update(_named(r.backlash_rad, r.lost_motion_rad, new['hysteresis_loss_j'],
+                              r.rigidity_nm_per_rad))
+        if j in in_loop:
+            new['hysteresis_loss_j'] = cyc.loss(moved)
+        for n, v in new.items():
+            weights[n][j] = _finite((v - base[n]) / step)
+    return weights
 
 
 def _finite(x: float) -> float:
@@ -133,10 +170,14 @@ def hysteresis_budgets(torque_nm: npt.ArrayLike, angle_rad: npt.ArrayLike,
     a = np.asarray(angle_rad, dtype=np.float64)
     n_pts = np.ones(t.size) if counts is None else np.asarray(counts, dtype=np.float64)
 
-    def metrics(tt: np.ndarray, aa: np.ndarray) -> dict[str, float]:
-        return _metrics(tt, aa, config)
+    m = hysteresis_metrics(t, a, config)
+    base = _named(m.backlash_rad, m.lost_motion_rad, m.hysteresis_loss_j,
+                  m.rigidity_nm_per_rad)
+    cyc = PointCycle(t, config)
 
-    base = metrics(t, a)
+    def metrics(_tt: np.ndarray, aa: np.ndarray) -> dict[str, float]:
+        return _metrics(cyc, aa)
+
     names = _names(config)
     inputs: dict[str, list[UncertaintyInput | None]] = {n: [] for n in names}
     step = 1e-9
@@ -173,13 +214,7 @@ def hysteresis_budgets(torque_nm: npt.ArrayLike, angle_rad: npt.ArrayLike,
                       'distribution of the change over the phase, tabulated; sensitivity: '
                       'its largest value per unit amplitude')))
     # per-point weights (numeric): the metric change per unit angle change of each point
-    weights = {n: np.zeros(t.size) for n in names}
-    for j in range(t.size):
-        bump = np.zeros(t.size)
-        bump[j] = step
-        d = _delta(metrics, base, t, a + bump, step)
-        for n in names:
-            weights[n][j] = d[n]
+    weights = _point_weights(cyc, a, base, step)
     comp = local_compliance(t, a)
     zero = bench.torque_zero_for(config.rated_torque_nm)
     for n in names:

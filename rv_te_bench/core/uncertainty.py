@@ -370,18 +370,29 @@ def coverage_factor(inputs: Sequence[UncertaintyInput], p: float = COVERAGE_PROB
         >>> round(coverage_factor([x], 0.95)[0], 3)    # GUM G.2.3: 1.65 for a rectangular
         1.645
     """
+    k, basis, parts, uc = _coverage_plan(inputs, p)
+    return (k, basis) if parts is None else (_convolved_k(parts, uc, p), basis)
+
+
+_Part = tuple[Distribution, float, float, tuple[float, ...]]
+
+
+def _coverage_plan(inputs: Sequence[UncertaintyInput], p: float,
+                   ) -> tuple[float, str, list[_Part] | None, float]:
+    """What :func:`coverage_factor` does: (k, basis, None, u_c) where k follows without a
+    convolution, else (NaN, basis, the parts to convolve, u_c)."""
     if not 0.5 < p < 1.0:
         msg = f'coverage probability must lie in (0.5, 1), got {p!r}'
         raise TeInputError(msg)
     sig = np.array([x.contribution for x in inputs], dtype=np.float64)
     uc = math.sqrt(float(np.sum(sig * sig)))
     if uc == 0.0:
-        return math.nan, 'normal'
+        return math.nan, 'normal', None, uc
     shapes: list[Distribution] = [
         'normal' if (x.distribution == 't' and math.isinf(x.dof)) else x.distribution
         for x in inputs]
     if all(s == 'normal' for s in shapes):
-        return _normal_quantile(0.5 + p / 2.0), 'normal'
+        return _normal_quantile(0.5 + p / 2.0), 'normal', None, uc
     bounded = sum(float(g) ** 2 for s, g in zip(shapes, sig, strict=True)
                   if s not in ('normal', 't'))
     few_dof = np.array([s == 't' and x.dof < _WS_MIN_DOF for s, x in
@@ -389,8 +400,8 @@ def coverage_factor(inputs: Sequence[UncertaintyInput], p: float = COVERAGE_PROB
     if bounded < _NEAR_NORMAL_SHARE * uc * uc and not few_dof.any():
         nu = welch_satterthwaite(sig, [x.dof for x in inputs])
         if math.isinf(nu):
-            return _normal_quantile(0.5 + p / 2.0), 'normal'
-        return t_quantile(p, round(nu, 2)), f't (nu_eff = {nu:.3g})'
+            return _normal_quantile(0.5 + p / 2.0), 'normal', None, uc
+        return t_quantile(p, round(nu, 2)), f't (nu_eff = {nu:.3g})', None, uc
     basis = 'distribution'
     if bounded < _NEAR_NORMAL_SHARE * uc * uc:
         nus = sorted({float(x.dof) for x, f in zip(inputs, few_dof, strict=True) if f})
@@ -401,13 +412,18 @@ def coverage_factor(inputs: Sequence[UncertaintyInput], p: float = COVERAGE_PROB
                                                                      strict=True) if b]
     if small_var > 0:
         parts.append(('normal', math.sqrt(small_var), math.inf, ()))
+    return math.nan, basis, parts, uc
+
+
+def _convolved_k(parts: list[_Part], uc: float, p: float) -> float:
+    """k of the convolved parts, the grid widened until the quantile lies well inside."""
     span = 6.0 * uc
     for _ in range(6):
         k, ok = _convolved_quantile(parts, span, uc, p)
         if ok:
-            return k, basis
+            return k
         span *= 3.0
-    return k, basis
+    return k
 
 
 def _signed(x: UncertaintyInput) -> tuple[float, ...]:
@@ -659,11 +675,15 @@ def combine(measurand: str, value: float, inputs: Sequence[UncertaintyInput | No
     contrib = np.array([x.contribution for x in xs], dtype=np.float64)
     uc = math.sqrt(float(np.sum(contrib * contrib)))
     nu = welch_satterthwaite(contrib, [x.dof for x in xs]) if xs else math.inf
-    k, basis = coverage_factor(xs, p) if uc > 0 else (math.nan, 'normal')
+    k, basis, to_convolve, uc_k = (_coverage_plan(xs, p) if uc > 0
+                                   else (math.nan, 'normal', None, 0.0))
+    qq = coverage_interval(xs, p) if uc > 0 else None
+    asymmetric = qq is not None and (qq[1] + qq[0]) != 0.0
+    if to_convolve is not None and not asymmetric:   # an asymmetric interval gives k itself
+        k = _convolved_k(to_convolve, uc_k, p)
     expanded = k * uc if uc > 0 else 0.0
     shift = 0.0
-    qq = coverage_interval(xs, p) if uc > 0 else None
-    if qq is not None and (qq[1] + qq[0]) != 0.0:
+    if qq is not None and asymmetric:
         # measured = true + sum c_i X_i: the true value lies in [y - q_hi, y - q_lo]
         expanded = 0.5 * (qq[1] - qq[0])
         shift = -0.5 * (qq[1] + qq[0])

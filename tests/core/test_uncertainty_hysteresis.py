@@ -213,3 +213,74 @@ def test_identified_e_ot_responds_to_an_order_1_encoder_error_as_a_refit_does(
     # an order-1 error of 1" is of the size of e_ot's TE (r_p x angle): sensitivity near r_p
     assert 0.2 * wang_geometry.r_p_m < x.sensitivity < 2 * wang_geometry.r_p_m
     assert buds['e_ot_m'].value == pytest.approx(10e-6, rel=1e-3)
+
+
+def _cycles() -> list[tuple[np.ndarray, np.ndarray, HysteresisConfig]]:
+    """Load cycles of points the budget's per-point weights are checked on: plain steps,
+    runs of points at one torque (a reading averages them), a back branch that stops
+    short of zero torque (a reading at its end or NaN), several rigidity regions, torques
+    that miss the read torques (interpolated), a unit stiffer on one side."""
+    from rv_te_bench.core.hysteresis import RigidityRegion
+
+    rng = np.random.default_rng(39)
+    out = []
+    t, a = _linear_cycle(2e5, 1e-4, 100.0)
+    out.append((t, a + 1e-8 * rng.standard_normal(t.size), HysteresisConfig(100.0)))
+    reps = rng.integers(1, 4, t.size)
+    out.append((np.repeat(t, reps), np.repeat(a, reps) + 1e-8 * rng.standard_normal(
+        reps.sum()), HysteresisConfig(100.0, lost_motion_fraction=0.1)))
+    out.append((t[:-2], a[:-2] + 2.0, HysteresisConfig(100.0)))
+    tr = 450.0
+    f = np.r_[np.linspace(0, 1, 13), np.linspace(0.93, -1, 25), np.linspace(-0.9, 0, 10)]
+    tq = f * tr + rng.normal(0.0, 0.4, f.size)
+    tq[0] = 0.0
+    side = np.where(np.arange(f.size) < 13, 1.0, np.where(np.arange(f.size) < 38, 1.0, -1.0))
+    ang = 3e-4 * side * (f != 0) + np.where(tq > 0, tq / 1.1e5, tq / 0.8e5) \
+        + 1e-7 * rng.standard_normal(f.size)
+    regions = (RigidityRegion('K1', 0.03, 0.25), RigidityRegion('K2', 0.25, 0.7),
+               RigidityRegion('K3', 0.7, 1.0))
+    out.append((tq, ang, HysteresisConfig(tr, rigidity_regions=regions)))
+    return out
+
+
+@pytest.mark.parametrize('case', range(4))
+def test_point_weights_are_those_of_moving_each_point_and_computing_again(case: int) -> None:
+    """The budget reads again only what a moved point enters: its weights must be, bit for
+    bit, the metrics of hysteresis_metrics recomputed with each point moved (done here)."""
+    from rv_te_bench.core.hysteresis import PointCycle, hysteresis_metrics
+    from rv_te_bench.core.hysteresis_uncertainty import _named, _point_weights
+
+    t, a, cfg = _cycles()[case]
+
+    def metrics(aa: np.ndarray) -> dict[str, float]:
+        m = hysteresis_metrics(t, aa, cfg)
+        out = {'lost_motion_rad': m.lost_motion_rad, 'backlash_rad': m.backlash_rad,
+               'hysteresis_loss_j': m.hysteresis_loss_j}
+        for r in cfg.rigidity_regions:
+            out[f'torsional_rigidity_{r.name}_pos'] = m.rigidity_nm_per_rad[r.name][0]
+            out[f'torsional_rigidity_{r.name}_neg'] = m.rigidity_nm_per_rad[r.name][1]
+        return out
+
+    base = metrics(a)
+    step = 1e-9
+    want = {n: np.zeros(t.size) for n in base}
+    for j in range(t.size):
+        bump = np.zeros(t.size)
+        bump[j] = step
+        new = metrics(a + bump)
+        for n in base:
+            d = (new[n] - base[n]) / step
+            want[n][j] = d if math.isfinite(d) else 0.0
+    got = _point_weights(PointCycle(t, cfg), a, base, step)
+    assert got.keys() == want.keys()
+    for n in want:
+        assert np.array_equal(got[n], want[n]), n
+    assert any(np.count_nonzero(w) for w in want.values())
+    m = hysteresis_metrics(t, a, cfg)
+    cyc = PointCycle(t, cfg)
+    r = cyc.cycle(cyc.readings(a))
+    fast = _named(r.backlash_rad, r.lost_motion_rad, cyc.loss(a), r.rigidity_nm_per_rad)
+    full = _named(m.backlash_rad, m.lost_motion_rad, m.hysteresis_loss_j,
+                  m.rigidity_nm_per_rad)
+    assert fast.keys() == full.keys()
+    np.testing.assert_array_equal(list(fast.values()), list(full.values()))   # NaN == NaN
