@@ -342,6 +342,8 @@ class ProgramSimulator:
         self._seg_index = -1
         self._last_true_torque_nm = 0.0   # a position-held output keeps its torque (stick)
         self._holding = False             # running commands block by block (hold())
+        #: (curve, (phi0, true torque, samples), angles) of the last held-torque block
+        self._held: tuple[TorsionCurve, tuple[float, float, int], np.ndarray] | None = None
 
     @property
     def info(self) -> BenchInfoData:
@@ -480,6 +482,12 @@ class ProgramSimulator:
 
     def segment_of_block(self, k: int) -> int:
         """Index of the segment that block ``k`` of the program belongs to."""
+        i = self._seg_index
+        for j in (i, i + 1):   # the segment of the last block, or the next one
+            if 0 <= j < len(self._plan):
+                p = self._plan[j]
+                if p.first_block <= k < p.first_block + p.blocks:
+                    return j
         for i, p in enumerate(self._plan):
             if p.first_block <= k < p.first_block + p.blocks:
                 return i
@@ -606,7 +614,11 @@ class ProgramSimulator:
         phi0 = self._rest_angle(curve, self._seg_phi0)
         if isinstance(seg, TorqueSegment):
             true = np.full_like(t, self._true_torque(seg.torque_nm))
-            phi = curve.angle_under_torque(true, phi0)
+            # every block of a held torque gives the same angles: computed once
+            key = (phi0, float(true[0]), t.size)
+            if self._held is None or self._held[0] is not curve or self._held[1] != key:
+                self._held = (curve, key, curve.angle_under_torque(true, phi0))
+            phi = self._held[2].copy()
         elif isinstance(seg, OutputPositionSegment):
             target = seg.position_rad - theta / self.gear_ratio
             # where the output was at the start of this block: reached by the end of the
