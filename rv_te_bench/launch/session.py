@@ -515,7 +515,7 @@ class Session:
             time.sleep(min(0.05, deadline - now))
         return True
 
-    def stop(self, grace_s: float | None = None, settle_s: float = 1.0) -> dict[str, int | None]:
+    def stop(self, grace_s: float | None = None, settle_s: float = 0.0) -> dict[str, int | None]:
         """Stop nodes in data-flow order with SIGTERM (then SIGKILL); returns codes.
 
         A running node takes SIGTERM as Ctrl-C (:func:`rv_te_bench.nodes.common.run_node`:
@@ -548,7 +548,9 @@ class Session:
                 continue
             np_.expected_exit = True
             if np_.proc.poll() is None:
-                if name == 'recorder':   # let the final windows and advice reach the bag
+                # (the nodes before the recorder waited until it had their last messages,
+                # nodes.common.wait_for_readers, and it drains them: no wait needed here)
+                if name == 'recorder':
                     end = time.monotonic() + settle_s
                     while time.monotonic() < end and self._hurried_at is None:
                         time.sleep(0.05)
@@ -793,8 +795,8 @@ def run_session(spec: SessionSpec, *, log: Callable[[str], None] | None = None,
             if on_tick is not None:
                 on_tick(session)
             time.sleep(0.2)
-        if session.bench_done():
-            time.sleep(2.0)  # let the TE node drain the last blocks before stopping it
+        # (the bench ended once its readers had its last blocks: the TE node, stopped
+        # next, takes what is queued for it before it goes; no fixed wait here)
     except KeyboardInterrupt:
         interrupted = True
         session.log('[launch] Ctrl-C: stopping the session')

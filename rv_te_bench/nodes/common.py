@@ -133,7 +133,26 @@ def _fmt(v: object) -> str:
     return str(v)
 
 
-_DRAIN_S = 0.5   # how long a stopping node keeps taking its queued messages [s]
+#: A stopping node takes the messages queued for it until none came for
+#: :data:`_DRAIN_QUIET_S` (and :data:`_DRAIN_QUIET_PASSES` executor passes in a row), at
+#: most its ``drain_max_s`` (default :data:`_DRAIN_S`). Its upstream nodes stopped before it
+#: (the launcher's data-flow order) and waited until their readers had their last messages
+#: (:func:`wait_for_readers`): what is left for it is in its own process already, so a
+#: quiet pass means drained. A fixed 0.5 s drain per node, and the launcher's fixed waits
+#: between nodes (2 s after the bench, 1 s before the recorder), cost every session stop
+#: ~4 s of waiting whatever there was to take (and the 0.5 s cut off a single-threaded
+#: executor's node with more work queued; the EventsExecutor takes a subscription's whole
+#: queue in one pass).
+_DRAIN_S = 0.5
+_DRAIN_QUIET_S = 0.1
+_DRAIN_QUIET_PASSES = 3
+#: ``drain_max_s`` of the readers that must not lose what was published (the TE node, the
+#: recorder): a backlog of blocks (a fast bench runs up to ACK_WINDOW_BLOCKS ahead) is taken
+#: before they go [s].
+DRAIN_MAX_S = 3.0
+#: Longest a stopping node waits until the readers of its publishers have its last
+#: messages (reliable acknowledgements; a reader that died is given up on) [s].
+READERS_ACK_MAX_S = 2.0
 
 OK = 0
 WARN = 1
@@ -313,11 +332,16 @@ def run_node(factory: Callable[[Context], Node], args: Sequence[str] | None = No
             executor.spin_until_future_complete(Future(), timeout_sec=0.1)
         # Linger (reliable delivery of our last messages), and on a stop request drain what
         # is already queued for us so that it is analysed / recorded, not dropped.
-        end = time.monotonic() + max(linger_s, _DRAIN_S if stop['requested'] else 0.0)
+        taken = count_messages_taken(node)
+        start = time.monotonic()
+        linger_end = start + linger_s
+        drain_max_s = float(getattr(node, 'drain_max_s', _DRAIN_S))
+        end = start + max(linger_s, drain_max_s if stop['requested'] else 0.0)
         # a node with work under way (the compensation node's search) finishes it and
         # publishes the result before it goes, within FINISH_MAX_S (issue #15 item 4)
-        finish_by = time.monotonic() + FINISH_MAX_S
+        finish_by = start + FINISH_MAX_S
         cut_off = False
+        last_count, last_taken, quiet_passes = taken[0], start, 0
         while context.ok():
             now = time.monotonic()
             if not cut_off and launcher_gone():
@@ -331,11 +355,20 @@ def run_node(factory: Callable[[Context], Node], args: Sequence[str] | None = No
                     node.get_logger().error('the launcher died: work under way is cut off, '
                                             'not finished')
             if getattr(node, 'busy', False) and now < finish_by:
-                end = max(end, now + _DRAIN_S)   # and a drain after the last result
-            elif now >= end:
-                break
+                end = max(end, now + drain_max_s)   # and a drain after the last result
+                last_taken, quiet_passes = now, 0
+            elif now >= end or (stop['requested'] and now >= linger_end
+                                and quiet_passes >= _DRAIN_QUIET_PASSES
+                                and now - last_taken >= _DRAIN_QUIET_S):
+                break   # (the longest drain, or nothing came for a while: drained)
             executor.spin_once(timeout_sec=0.05)
+            if taken[0] != last_count:
+                last_count, last_taken, quiet_passes = taken[0], time.monotonic(), 0
+            else:
+                quiet_passes += 1
         executor.shutdown()
+        if not launcher_gone():   # (its recorder stops at the same moment: nobody to wait for)
+            wait_for_readers(node)
     except (KeyboardInterrupt, ExternalShutdownException):
         pass
     finally:
@@ -351,6 +384,40 @@ def run_node(factory: Callable[[Context], Node], args: Sequence[str] | None = No
     if launcher_gone():
         _exit_without_waiting_for_workers(code)
     return code
+
+
+def count_messages_taken(node: Node) -> list[int]:
+    """Count the messages ``node``'s subscriptions take from now on: ``[count]``, updated
+    in place (each subscription's callback wrapped; both executors look it up per message)."""
+    taken = [0]
+
+    def counted(callback: Callable[..., Any]) -> Callable[..., Any]:
+        def call(*args: Any) -> Any:
+            taken[0] += 1
+            return callback(*args)
+        return call
+
+    for sub in list(node.subscriptions):
+        sub.callback = counted(sub.callback)
+    return taken
+
+
+def wait_for_readers(node: Node, timeout_s: float = READERS_ACK_MAX_S) -> bool:
+    """Wait until every reader of ``node``'s publishers has acknowledged what it published
+    (reliable readers; at most ``timeout_s`` in all): a node about to exit then leaves its
+    last messages in its readers' queues, where their drain takes them (the TE node's final
+    window in the recorder). True when all were acknowledged in time."""
+    from rclpy.duration import Duration
+
+    deadline = time.monotonic() + timeout_s
+    ok = True
+    for pub in list(node.publishers):
+        left = deadline - time.monotonic()
+        try:
+            ok = pub.wait_for_all_acked(Duration(seconds=max(left, 0.0))) and ok
+        except Exception:  # noqa: BLE001 - a publisher destroyed or a context shut down
+            ok = False
+    return ok
 
 
 def report_failure(reason: str) -> None:

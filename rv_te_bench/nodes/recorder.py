@@ -42,7 +42,7 @@ from rv_te_bench.io.files import write_atomic
 from rv_te_bench.io.msgdefs import ENCODER_BLOCK
 from rv_te_bench.nodes import qos
 from rv_te_bench.nodes.backpressure import BlockAcks
-from rv_te_bench.nodes.common import declare_from_specs, run_node
+from rv_te_bench.nodes.common import DRAIN_MAX_S, declare_from_specs, run_node
 from rv_te_bench.nodes.convert import message_class
 from rv_te_bench.nodes.params.recorder import DEFAULT_TOPICS, PARAMS, RecorderParams
 from rv_te_bench.params import params_record, params_values
@@ -146,6 +146,9 @@ class RecorderNode(Node):
     Raises:
         BagError: The bag folder exists already or cannot be created.
     """
+
+    #: A stopping recorder takes every message already queued for it (run_node's drain).
+    drain_max_s = DRAIN_MAX_S
 
     def __init__(self, node_name: str = 'recorder',
                  **kwargs: Any) -> None:

@@ -35,14 +35,17 @@ from rv_te_bench.errors import EncoderCalibrationError, HeadLayoutError, RvTeErr
 from rv_te_bench.nodes import convert, qos
 from rv_te_bench.nodes.backpressure import BlockAcks
 from rv_te_bench.nodes.common import (
+    DRAIN_MAX_S,
     ERROR,
     OK,
     WARN,
     DropCounter,
     declare_from_specs,
     diagnostic_array,
+    launcher_gone,
     reject_invalid_changes,
     run_node,
+    wait_for_readers,
 )
 from rv_te_bench.nodes.params.te import PARAMS, TeParams
 from rv_te_bench.params import params_changed, params_record
@@ -90,6 +93,9 @@ def initial_orders(p: TeParams) -> OrderSet | None:
 
 class TeNode(Node):
     """Online TE analysis on top of :class:`StreamingTeAnalyzer`."""
+
+    #: A stopping TE node takes every block already queued for it (run_node's drain).
+    drain_max_s = DRAIN_MAX_S
 
     def __init__(self, **kwargs: Any) -> None:
         """Declare parameters, create topics; ``kwargs`` go to ``Node`` (context, overrides)."""
@@ -381,6 +387,8 @@ class TeNode(Node):
                 self._publish_windows(self.analyzer.flush())
             except Exception as exc:  # noqa: BLE001 - shutting down: report, do not raise
                 self.get_logger().warning(f'final flush failed: {exc}')
+            if not launcher_gone():   # (the recorder stops now too: nobody to wait for)
+                wait_for_readers(self)   # the final window reaches the recorder's queue
         super().destroy_node()
 
 
