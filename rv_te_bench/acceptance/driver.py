@@ -10,7 +10,10 @@ read back (through ``joint_states`` and the JointState adapter), a test feeds
 
 Each segment starts with its setpoint and waits until the bench *has reached* it (the
 input speed within ``speed_tolerance`` of a drive's, the input stopped and the torque
-within ``torque_tolerance_nm`` of a held one), then runs for its duration counted on the
+within ``torque_tolerance_nm`` of a held one, each over the whole ``window_s``: the mean
+of the window and the means of both its halves, so that a speed or torque passing through
+the target - a stop from a higher speed averaged with the standstill after it - is not
+taken for reached), then runs for its duration counted on the
 samples' own clock; the samples in between are the transition, in no segment's data. A
 constant-speed segment moves the load joint's position setpoint at the segment's speed from
 where the output stands until the torque read back reaches its target, then holds the
@@ -129,7 +132,8 @@ class DriverSettings:
         speed_tolerance: A drive speed is reached within this fraction (> 0).
         lock_speed_rad_s: The input counts as stopped below this speed [rad/s].
         torque_tolerance_nm: A held torque is reached within this [N m] (> 0).
-        window_s: Speeds and torques are averaged over this before comparing [s].
+        window_s: Speeds and torques are averaged over this (and over each half of it)
+            before comparing [s].
         reach_timeout_s: A setpoint not reached within this aborts the step [s].
     """
 
@@ -320,16 +324,20 @@ class ProgramDriver:
         j = idx[ok]
         if j.size == 0:
             return -1
-        speed = (ww[j] - ww[j - w]) / (tt[j] - tt[j - w])
+        # the window's mean speed and its halves' (a window across a change of speed has
+        # a mean anywhere between the two speeds; its halves differ then)
+        h = j - w // 2
+        speeds = [(ww[b] - ww[a]) / (tt[b] - tt[a])
+                  for a, b in ((j - w, j), (j - w, h), (h, j))]
         s = self.settings
         if seg['kind'] == 'drive':
             target = seg['speed_rpm'] * RAD_S_PER_RPM
-            good = np.abs(speed - target) <= s.speed_tolerance * abs(target)
+            good = _all_near(speeds, target, s.speed_tolerance * abs(target))
             load = -float(seg.get('load_nm', 0.0))
             if tq is not None and load != 0.0:
                 good &= self._torque_near(t, tq, j - n, load)
         else:
-            good = np.abs(speed) <= s.lock_speed_rad_s
+            good = _all_near(speeds, 0.0, s.lock_speed_rad_s)
             if seg['kind'] == 'torque':
                 if tq is None:
                     return -1
@@ -339,15 +347,18 @@ class ProgramDriver:
 
     def _torque_near(self, t: np.ndarray, tq: np.ndarray, k: np.ndarray,
                      target: float) -> np.ndarray:
-        """Windowed mean torque at samples k within the tolerance of target."""
+        """Where the mean torque of the window ending at samples k, and of each of its
+        halves, is within the tolerance of target."""
         w = self.window
         _, xx, n = self._windowed(t, tq, self._tail_tq)
         c = np.r_[0.0, np.cumsum(np.nan_to_num(xx))]
-        j = k + n
-        lo = np.maximum(j - w + 1, 0)
-        mean = (c[j + 1] - c[lo]) / (j + 1 - lo)
-        ok: npt.NDArray[np.bool_] = np.abs(mean - target) <= self.settings.torque_tolerance_nm
-        return ok
+        j = k + n + 1                       # exclusive ends in the extended arrays
+        lo = np.maximum(j - w, 0)
+        mid = lo + np.maximum((j - lo) // 2, 1)   # the halves [lo, mid) and [mid, j)
+        full = (c[j] - c[lo]) / (j - lo)
+        second = np.where(j > mid, (c[j] - c[mid]) / np.maximum(j - mid, 1), full)
+        means = [full, (c[mid] - c[lo]) / (mid - lo), second]
+        return _all_near(means, target, self.settings.torque_tolerance_nm)
 
     def _segment_end(self, seg: dict[str, Any], t: np.ndarray, tq: np.ndarray | None,
                      k: int) -> int | None:
@@ -449,3 +460,13 @@ def plan_limits(plan: TestPlan, *, bench_max_input_speed_rpm: float = math.nan,
                         max_output_torque_nm=t_lim[0],
                         stale_timeout_s=plan.safety.stale_joint_state_s,
                         speed_source=s_lim[1], torque_source=t_lim[1])
+
+
+def _all_near(values: list[np.ndarray], target: float, tolerance: float
+              ) -> npt.NDArray[np.bool_]:
+    """Where every one of ``values`` (equal-shaped arrays) is within ``tolerance`` of
+    ``target``."""
+    ok = np.ones(values[0].shape, dtype=bool)
+    for v in values:
+        ok &= np.abs(v - target) <= tolerance
+    return ok
