@@ -113,11 +113,46 @@ PLATEAU_PLAN = {**LOSS_PLAN, 'steps': [s for s in LOSS_PLAN['steps']
                                        if s['kind'] not in ('starting_torque', 'back_driving')]}
 PLATEAU_LIMITS = {**LIMITS, 'limits': {k: v for k, v in LIMITS['limits'].items() if k not in
                                        ('starting_torque_nm', 'back_driving_torque_nm')}}
-#: metric -> absolute tolerance between --launch over setpoints and --sim: the case
-#: temperature differs by the transitions' heat (the bench reaches each setpoint in its
-#: own time), a no-load torque by its viscosity (~1e-3 relative per 0.1 K).
+#: metric -> absolute tolerance between --launch over setpoints and --sim: the routes cut
+#: each plateau where the bench reached it, each in its own time. The no-load torque is
+#: compared at the same case temperature (see _drag_at_sim_temperature).
 SETPOINT_TOL = {'no_load_torque_max_nm': 0.003, 'efficiency_at_max_load': 5e-4,
                 'temperature_rise_k': 0.01, 'trend_alarms': 0.0}
+
+
+def _temperatures(sim: dict[str, Any], ros: dict[str, Any]) -> list[tuple[float, ...]]:
+    """(speed, sim torque, sim case temperature, setpoint-route torque, its temperature)
+    per no-load row, for the message of a failed comparison."""
+    rows = [next(s for s in x['steps'] if s['kind'] == 'no_load')['rows'] for x in (sim, ros)]
+    return [(a['speed_rpm'], a['torque_nm'], a['temp_case_degc'], b['torque_nm'],
+             b['temp_case_degc']) for a, b in zip(*rows, strict=True)]
+
+
+def _drag_at_sim_temperature(sim: dict[str, Any], ros: dict[str, Any]) -> float:
+    """The sim route's largest no-load torque moved to the case temperature the setpoint
+    route measured it at.
+
+    The case warms by the no-load drag's heat (~0.07 K/s at 1000 rpm): the setpoint route's
+    next setpoint reaches the simulated bench later in its own time on a loaded machine (the
+    bench runs on at the old speed meanwhile), so its case is warmer and the oil thinner when
+    it measures. The drag's sensitivity to the case temperature, from the preset's loss
+    model (the simulated unit's physics: -0.047 N m/K at 2000 rpm, 2.9 %/K), takes that
+    difference out; what stays is the routes' own cut of the plateau (4e-4 N m quiet).
+    """
+    import math
+
+    from sim.losses import LossModel
+    from sim.presets import load_preset
+
+    rows = [next(s for s in x['steps'] if s['kind'] == 'no_load')['rows'] for x in (sim, ros)]
+    a, b = (max(r, key=lambda row: row['torque_nm']) for r in rows)
+    assert a['speed_rpm'] == b['speed_rpm']
+    model = LossModel.from_preset(load_preset('rv-80e-101'))
+    w = a['speed_rpm'] * 2.0 * math.pi / 60.0
+    t = a['temp_case_degc']
+    slope = float(model.no_load_torque_nm(w, t + 0.05) - model.no_load_torque_nm(w, t - 0.05)) \
+        / 0.1
+    return float(a['torque_nm'] + slope * (b['temp_case_degc'] - t))
 
 
 @pytest.mark.timeout(900)
@@ -138,7 +173,10 @@ def test_setpoint_route_gives_the_sim_verdicts(
     assert [m['name'] for m in ros['metrics']] == [m['name'] for m in sim['metrics']]
     for a, b in zip(sim['metrics'], ros['metrics'], strict=True):
         assert b['verdict'] == a['verdict'], b
-        assert b['value'] == pytest.approx(a['value'], abs=SETPOINT_TOL[a['name']]), b['name']
+        want = _drag_at_sim_temperature(sim, ros) if a['name'] == 'no_load_torque_max_nm' \
+            else a['value']
+        assert b['value'] == pytest.approx(want, abs=SETPOINT_TOL[a['name']]), \
+            (b['name'], _temperatures(sim, ros))
     # it ran through the setpoints: no bench program, and the adapter's channels
     log = next((tmp_path / 'out').glob('*/session.log')).read_text()
     assert 'program:' not in log
