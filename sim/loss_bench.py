@@ -184,8 +184,8 @@ class LossChannels:
         alpha = np.gradient(w, t) if t.size > 1 else np.zeros_like(t)
         temp0 = self.thermal.temp_degc
         if torque_in_true_nm is None:
-            t_in = self.model.input_torque_nm(w, load, temp0, alpha_in_rad_s2=alpha)
-            p_loss = self.model.loss_powers(w, load, temp0).total_w
+            t_in, powers = self.model.running(w, load, temp0, alpha_in_rad_s2=alpha)
+            p_loss = powers.total_w
         else:
             t_in = np.broadcast_to(np.asarray(torque_in_true_nm, dtype=np.float64), t.shape)
             p_loss = np.zeros(t.shape)

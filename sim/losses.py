@@ -213,7 +213,7 @@ class LossPowers(NamedTuple):
 
 def _arr(name: str, x: npt.ArrayLike) -> np.ndarray:
     a = np.asarray(x, dtype=np.float64)
-    if not np.all(np.isfinite(a)):
+    if not np.isfinite(a).all():   # (the method: np.all's wrapper costs more, per block)
         msg = f'{name} must be finite (NaN or inf found)'
         raise ModelInputError(msg)
     return a
@@ -322,10 +322,15 @@ class LossModel:
         w = _arr('omega_in_rad_s', omega_in_rad_s)
         load = _arr('load_nm', load_nm)
         w, load = np.broadcast_arrays(w, load)
+        return self._input_torque(w, load, self._terms(w, load, temp_case_degc),
+                                  alpha_in_rad_s2)
+
+    def _input_torque(self, w: np.ndarray, load: np.ndarray, terms: tuple[np.ndarray, ...],
+                      alpha_in_rad_s2: npt.ArrayLike) -> np.ndarray:
         i = self.params.gear_ratio
         s = np.sign(w)
         t_res = s * load
-        f, b1, b0, ch = self._terms(w, load, temp_case_degc)
+        f, b1, b0, ch = terms
         mag = t_res / i + f * np.abs(t_res) / i + b1 + b0 + ch + self.params.seal_torque_nm
         t_in = np.where(s == 0.0, load / i, s * mag)
         return t_in + self.params.inertia_in_kgm2 * _arr('alpha_in_rad_s2', alpha_in_rad_s2)
@@ -336,7 +341,23 @@ class LossModel:
         w = _arr('omega_in_rad_s', omega_in_rad_s)
         load = _arr('load_nm', load_nm)
         w, load = np.broadcast_arrays(w, load)
-        f, b1, b0, ch = self._terms(w, load, temp_case_degc)
+        return self._powers(w, self._terms(w, load, temp_case_degc), load)
+
+    def running(self, omega_in_rad_s: npt.ArrayLike, load_nm: npt.ArrayLike,
+                temp_case_degc: npt.ArrayLike, *, alpha_in_rad_s2: npt.ArrayLike = 0.0,
+                ) -> tuple[np.ndarray, LossPowers]:
+        """(:meth:`input_torque_nm`, :meth:`loss_powers`) of the same samples, the loss
+        terms computed once (a bench block needs both)."""
+        w = _arr('omega_in_rad_s', omega_in_rad_s)
+        load = _arr('load_nm', load_nm)
+        w, load = np.broadcast_arrays(w, load)
+        terms = self._terms(w, load, temp_case_degc)
+        return (self._input_torque(w, load, terms, alpha_in_rad_s2),
+                self._powers(w, terms, load))
+
+    def _powers(self, w: np.ndarray, terms: tuple[np.ndarray, ...],
+                load: np.ndarray) -> LossPowers:
+        f, b1, b0, ch = terms
         aw = np.abs(w)
         return LossPowers(
             mesh_w=f * np.abs(load) / self.params.gear_ratio * aw,

@@ -161,7 +161,7 @@ class ThermalState:
         """
         dt = real_number('dt_s', dt_s, '>0')
         p = np.asarray(power_w, dtype=np.float64)
-        if p.ndim != 1 or not np.all(np.isfinite(p)):
+        if p.ndim != 1 or not np.isfinite(p).all():
             msg = f'power_w must be a finite 1-D array, got shape {p.shape}'
             raise ModelInputError(msg)
         if p.size == 0:
