@@ -11,9 +11,10 @@ session with a test_sequencer. :func:`use_quick_acknowledgements` points Fast DD
 waits take ~0.1 s, and a lost sample is repaired as soon; and a participant lease of 6 s
 renewed every second instead of 20 s / 3 s: a node process killed without a word leaves the
 others' graph within ~6 s) before the process makes its first participant. A profile file
-the user chose (``FASTRTPS_DEFAULT_PROFILES_FILE`` / ``FASTDDS_DEFAULT_PROFILES_FILE``), another middleware (``RMW_IMPLEMENTATION``) or QoS
-taken from XML (``RMW_FASTRTPS_USE_QOS_FROM_XML``: the profile would then replace the
-nodes' QoS) is left alone.
+the user chose (``FASTRTPS_DEFAULT_PROFILES_FILE`` / ``FASTDDS_DEFAULT_PROFILES_FILE``),
+another middleware (``RMW_IMPLEMENTATION``) or QoS taken from XML
+(``RMW_FASTRTPS_USE_QOS_FROM_XML``: the profile would then replace the nodes' QoS) is left
+alone.
 """
 
 from __future__ import annotations
