@@ -603,7 +603,13 @@ def run_single_process(spec: SessionSpec, *, until: Callable[[], bool] | None = 
     from rclpy.exceptions import InvalidHandle, ParameterException
     from rclpy.signals import SignalHandlerOptions
 
-    from rv_te_bench.nodes.common import make_executor
+    from rv_te_bench.nodes.common import DRAIN_MAX_S as READER_DRAIN_MAX_S
+    from rv_te_bench.nodes.common import (
+        count_messages_taken,
+        make_executor,
+        publish_final_status,
+        wait_for_readers,
+    )
     from rv_te_bench.nodes.middleware import use_quick_acknowledgements
 
     args = ros_args(spec, None, None)
@@ -624,22 +630,45 @@ def run_single_process(spec: SessionSpec, *, until: Callable[[], bool] | None = 
     pacer: PacedNode | None = None
     tearing_down = False
 
+    def spin_once() -> None:
+        try:
+            executor.spin_once(timeout_sec=0.05)
+        except InvalidHandle:
+            if not tearing_down:
+                raise
+            # a message queued for a node destroyed already (a stop mid-stream): the
+            # node is gone, its callback has nothing to publish to
+
     def settle(seconds: float) -> None:
         end = time.monotonic() + seconds
         while ctx.ok() and time.monotonic() < end:
-            try:
-                executor.spin_once(timeout_sec=0.05)
-            except InvalidHandle:
-                if not tearing_down:
-                    raise
-                # a message queued for a node destroyed already (a stop mid-stream): the
-                # node is gone, its callback has nothing to publish to
+            spin_once()
+
+    def settle_quiet(max_s: float) -> None:
+        """Spin until the nodes took no message for QUIET_S (and QUIET_PASSES passes in a
+        row), at most ``max_s``: what was published is taken (a fixed settle waited its
+        whole time whatever there was; nodes.common.run_node drains the same way)."""
+        taken = [0]
+        for n in nodes:
+            count_messages_taken(n, taken)   # (the recorder subscribes as it discovers)
+        start = last_taken = time.monotonic()
+        seen, passes = taken[0], 0
+        while ctx.ok():
+            now = time.monotonic()
+            if now - start >= max_s or (passes >= QUIET_PASSES and now - last_taken >= QUIET_S):
+                return
+            spin_once()
+            if taken[0] != seen:
+                seen, last_taken, passes = taken[0], time.monotonic(), 0
+            else:
+                passes += 1
 
     def drain(bench: Any) -> None:
         """Spin until the readers that acknowledge blocks (the TE node, the recorder) have
-        taken the bench's last one, at most DRAIN_MAX_S, then the 2 s the TE node's last
-        results take. A fixed 2 s lost blocks: eight sessions on a loaded 2-core machine
-        were 300-1,000 blocks behind when their bench finished (issue 41 item 4)."""
+        taken the bench's last one, at most DRAIN_MAX_S, then until the TE node's last
+        results are taken (at most 2 s). A fixed 2 s lost blocks: eight sessions on a loaded
+        2-core machine were 300-1,000 blocks behind when their bench finished (issue 41
+        item 4)."""
         end = time.monotonic() + DRAIN_MAX_S
         behind = readers_behind(bench, nodes)
         while ctx.ok() and behind and time.monotonic() < end:
@@ -648,7 +677,7 @@ def run_single_process(spec: SessionSpec, *, until: Callable[[], bool] | None = 
         if behind:
             print(f'[launch] {", ".join(behind)} still behind the bench after '
                   f'{DRAIN_MAX_S:g} s: stopping anyway', file=sys.stderr)
-        settle(2.0)
+        settle_quiet(2.0)
 
     try:
         for name in [n for n in NODE_TYPES if n in spec.nodes]:
@@ -696,14 +725,19 @@ def run_single_process(spec: SessionSpec, *, until: Callable[[], bool] | None = 
                 while getattr(n, 'busy', False) and time.monotonic() < end:
                     settle(0.1)
             if n.get_name() == 'recorder':
-                settle(1.0)   # the final windows and advice reach the bag
+                # the final windows and advice reach the bag: the nodes destroyed before
+                # waited until it had them (wait_for_readers); it takes them now
+                settle_quiet(READER_DRAIN_MAX_S)
                 recorder = n
+            else:
+                settle_quiet(0.5)   # (what is queued for it)
+                publish_final_status(n)   # (its counters as they end)
+                wait_for_readers(n)   # its last messages reach their readers' queues
             if pacer is not None and n is pacer.node:
                 pacer.stop()
             else:
                 executor.remove_node(n)
             n.destroy_node()
-            settle(0.2)
         if pacer is not None:
             pacer.stop()   # (stopped already unless the bench was never built)
         signal.signal(signal.SIGINT, old_int)
@@ -718,6 +752,10 @@ def run_single_process(spec: SessionSpec, *, until: Callable[[], bool] | None = 
 #: Longest a one-process session waits at its end for the readers to take the bench's
 #: last block [s].
 DRAIN_MAX_S = 30.0
+#: A one-process session's nodes have taken what was queued when none took a message for
+#: this long and this many executor passes in a row [s] (as nodes.common.run_node).
+QUIET_S = 0.1
+QUIET_PASSES = 3
 
 
 def readers_behind(bench: Any, nodes: Sequence[Any]) -> list[str]:

@@ -368,6 +368,7 @@ def run_node(factory: Callable[[Context], Node], args: Sequence[str] | None = No
                 quiet_passes += 1
         executor.shutdown()
         if not launcher_gone():   # (its recorder stops at the same moment: nobody to wait for)
+            publish_final_status(node)
             wait_for_readers(node)
     except (KeyboardInterrupt, ExternalShutdownException):
         pass
@@ -386,20 +387,35 @@ def run_node(factory: Callable[[Context], Node], args: Sequence[str] | None = No
     return code
 
 
-def count_messages_taken(node: Node) -> list[int]:
-    """Count the messages ``node``'s subscriptions take from now on: ``[count]``, updated
-    in place (each subscription's callback wrapped; both executors look it up per message)."""
-    taken = [0]
+def count_messages_taken(node: Node, taken: list[int] | None = None) -> list[int]:
+    """Count the messages ``node``'s subscriptions take from now on: ``[count]`` (``taken``
+    if given, shared between nodes), updated in place. Each subscription's callback is
+    wrapped (both executors look it up per message); one counted already is left as it is."""
+    taken = [0] if taken is None else taken
 
     def counted(callback: Callable[..., Any]) -> Callable[..., Any]:
         def call(*args: Any) -> Any:
             taken[0] += 1
             return callback(*args)
+        call.rv_te_counted = True   # type: ignore[attr-defined]
         return call
 
     for sub in list(node.subscriptions):
-        sub.callback = counted(sub.callback)
+        if not getattr(sub.callback, 'rv_te_counted', False):
+            sub.callback = counted(sub.callback)
     return taken
+
+
+def publish_final_status(node: Node) -> None:
+    """Publish the node's diagnostics once more as it stops (its counters as they end: the
+    periodic status may be up to a period old, and nothing waits for the next one)."""
+    publish = getattr(node, '_publish_diagnostics', None)
+    if publish is None:
+        return
+    try:
+        publish()
+    except Exception as exc:  # noqa: BLE001 - stopping: report, do not raise
+        node.get_logger().debug(f'final status not published: {exc}')
 
 
 def wait_for_readers(node: Node, timeout_s: float = READERS_ACK_MAX_S) -> bool:
