@@ -217,12 +217,14 @@ def test_a_crashed_te_node_is_contained(tmp_path: Path, ros_domain_id: int) -> N
     env = dict(os.environ, ROS_DOMAIN_ID=str(ros_domain_id))
     env.pop('_ROS_WHEELS_BOOTSTRAP_COMPLETE', None)
     # two output revolutions of the Wang 2020 2K-V at 300 rpm: 31.6 s of session, 1 kHz,
-    # blocks of 100 -> 316 blocks; at speed factor 2 about 16 s of wall time
+    # blocks of 100 -> 316 blocks; at speed factor 4 about 8 s of wall time, of which ~7 s
+    # after the kill (at factor 2: 16 s, the same blocks; the kill comes at the bag's first
+    # 100 kB either way)
     proc = subprocess.Popen(
         [sys.executable, '-c', 'import sys; from rv_te_bench.cli.main import main; '
          'sys.exit(main(sys.argv[1:]))', 'launch', '--default',
          '--param', f'recorder.output_dir={tmp_path}', '--param', 'recorder.bag_name=crash',
-         '--param', 'bench.speed_factor=2.0'],
+         '--param', 'bench.speed_factor=4.0'],
         env=env, cwd=tmp_path, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
     try:
         te = None
