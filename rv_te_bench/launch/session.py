@@ -423,7 +423,10 @@ class Session:
         return path
 
     def start(self) -> None:
-        """Start every node process (recorder first so it sees the first messages)."""
+        """Start every node process (recorder first). Nothing waits here: the bench starts
+        its clock once the session's readers (the recorder, the TE node) subscribe
+        (``wait_for_nodes``), and their latched topics reach a late reader; a fixed 0.5 s
+        after the recorder's start (it imports for ~1 s) guaranteed nothing."""
         for node in [n for n in NODE_TYPES if n in self.spec.nodes]:
             module, _ = NODE_TYPES[node]
             # (through _entry: a stop while the node still imports ends it quietly)
@@ -442,8 +445,6 @@ class Session:
             proc = subprocess.Popen(cmd, env=env, stdout=self._stdout,
                                     stderr=self._stdout, start_new_session=True)
             self.procs[node] = NodeProcess(node, proc)
-            if node == 'recorder':
-                time.sleep(0.5)
 
     def _failure_path(self, node: str) -> Path:
         return Path(self._tmp.name) / f'{node}.failure'
