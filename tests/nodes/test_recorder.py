@@ -189,7 +189,11 @@ def test_recorder_process_stopped_by_signal(ros_context: Any, ros_domain_id: int
             pytest.fail(f'recorder did not subscribe (exit {proc.returncode}): {err[-2000:]}')
         sent = _publish_while(executor, pub, 100.0, lambda seq: seq >= 150)
         if sig != signal.SIGKILL:
-            time.sleep(0.5)  # let the recorder take the last messages in
+            # the recorder's middleware has every block (acknowledged); its stop takes what
+            # is queued for it (nodes.common.run_node's drain): a fixed 0.5 s was no guarantee
+            from rclpy.duration import Duration
+
+            assert pub.wait_for_all_acked(Duration(seconds=20.0))
         proc.send_signal(sig)
         _, err = proc.communicate(timeout=20)
     finally:
