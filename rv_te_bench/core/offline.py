@@ -132,6 +132,8 @@ class _SpectraThread:
         self._jobs: dict[int, Future[OrderSpectrum]] = {}   # window index -> its spectrum
         self._on_thread: Future[OrderSpectrum] | None = None   # the thread's latest job
         self._thread_arrays: tuple[np.ndarray, np.ndarray] | None = None   # ... its arrays
+        # the thread's jobs' arguments (phi, te, duration), to compute one here instead
+        self._args: dict[int, tuple[np.ndarray, np.ndarray, float]] = {}
         self._queue: deque[WindowResult] = deque()
         analyzer.set_spectrum_hook(self._submit)
 
@@ -167,6 +169,7 @@ class _SpectraThread:
         buf.phi, buf.te = (spare if spare is not None and spare[0].size == phi.size
                            else (np.empty_like(phi), np.empty_like(te)))
         self._thread_arrays = (phi, te)
+        self._args[index] = (phi[:n], te[:n], duration_s)
         self._on_thread = self._jobs[index] = self._pool.submit(
             ana.window_spectrum, phi[:n], te[:n], duration_s, self._work)
 
@@ -188,13 +191,23 @@ class _SpectraThread:
             self._keep([self._finish(w) for w in self._queue])
             self._queue.clear()
 
+    def _steal(self, index: int) -> OrderSpectrum:
+        """The spectrum of a job taken back from the thread, computed here."""
+        phi, te, duration_s = self._args[index]
+        ana = self._analyzer
+        return ana.window_spectrum(phi, te, duration_s, ana.spectrum_workspace)
+
     def _finish(self, window: WindowResult) -> WindowResult:
         job = self._jobs.pop(window.index, None)
         if job is None:
             return window
         try:
-            spectrum = job.result()
+            # one the thread has not started (busy reading ahead, or not given a core by a
+            # loaded machine) is computed here rather than waited for: the same call
+            spectrum = self._steal(window.index) if job.cancel() else job.result()
         except TeInputError:
             self._analyzer.count_spectrum_failure()
             return window
+        finally:
+            self._args.pop(window.index, None)
         return replace(window, spectrum=spectrum)

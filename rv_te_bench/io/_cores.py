@@ -1,4 +1,4 @@
-"""Whether the offline analysis should use its helper thread: may it run on two cores?
+"""Whether the offline analysis should use its helper thread: two cores, and a bag worth it.
 
 The analysis has two paths (``report/analysis.py``): all on the caller's thread, or with
 one helper thread that decompresses chunks ahead and computes window spectra. The helper
@@ -14,8 +14,15 @@ larger share; issue 41, ``benchmarks/README.md``: 0.83x vs 1.37x the rosbags rea
 blocks of 10000 with the other core busy). A fleet worker per core is told to do without
 (``RV_TE_READ_AHEAD=0``): there the other cores run other analyses.
 
-``RV_TE_READ_AHEAD=0`` turns the helper off; ``1`` (or unset) uses it when two cores are
-allowed.
+Where two cores are allowed, the bag's size decides (:func:`analysis_uses_helper`): the
+helper overlaps the decompression of later chunks and the spectra of closed windows with
+the rest of the analysis, a gain that grows with the bag, while starting it and handing
+each chunk and window over costs about the same for any bag; below
+:data:`HELPER_MIN_BAG_BYTES` the one-thread path was as fast or faster, on two free cores
+and beside a CPU-bound process alike (``benchmarks/bench_paths.py``, issue 41).
+
+``RV_TE_READ_AHEAD=0`` turns the helper off; ``1`` uses it whenever two cores are allowed
+(whatever the bag's size); unset: the rule above.
 """
 
 from __future__ import annotations
@@ -23,10 +30,14 @@ from __future__ import annotations
 import os
 from pathlib import Path
 
-__all__ = ['READ_AHEAD_ENV', 'allowed_cores', 'helper_threads_allowed', 'read_ahead_setting']
+__all__ = ['HELPER_MIN_BAG_BYTES', 'READ_AHEAD_ENV', 'allowed_cores', 'analysis_uses_helper',
+           'helper_threads_allowed', 'read_ahead_setting']
 
 READ_AHEAD_ENV = 'RV_TE_READ_AHEAD'
 _CPU_MAX = Path('/sys/fs/cgroup/cpu.max')
+#: Bags (their storage files) smaller than this are analysed on one thread even where two
+#: cores are allowed: measured, the helper thread did not pay below it (issue 41).
+HELPER_MIN_BAG_BYTES = 8 * 2**20
 
 
 def read_ahead_setting() -> str:
@@ -50,3 +61,13 @@ def allowed_cores() -> float:
 def helper_threads_allowed() -> bool:
     """True when the helper thread may have a core of its own (see the module docstring)."""
     return read_ahead_setting() != '0' and allowed_cores() >= 2.0
+
+
+def analysis_uses_helper(bag_bytes: int) -> bool:
+    """True when the analysis of a bag of ``bag_bytes`` (its storage files) should run its
+    helper thread: two cores allowed, and the bag at least :data:`HELPER_MIN_BAG_BYTES`
+    (or ``RV_TE_READ_AHEAD=1``, which forces it on wherever two cores are allowed)."""
+    if not helper_threads_allowed():
+        return False
+    return (os.environ.get(READ_AHEAD_ENV, '').strip() == '1'
+            or bag_bytes >= HELPER_MIN_BAG_BYTES)

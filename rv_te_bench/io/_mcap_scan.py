@@ -428,7 +428,10 @@ def _scan_units(
                             np.array([_MSG.size], np.int64), np.array([len(body)], np.int64))
                 elif op == _OP_CHUNK:
                     # (a metadata-only scan decompresses too: schemas and channels live there)
-                    inner = _chunk_records(body, check_crc) if job is None else job.result()
+                    # a chunk the helper has not started yet (busy, or not given a core by
+                    # a loaded machine) is decompressed here rather than waited for
+                    inner = _chunk_records(body, check_crc) \
+                        if job is None or job.cancel() else job.result()
                     found = _Found()
                     damage = None
                     try:

@@ -32,7 +32,7 @@ import math
 import time
 from dataclasses import replace
 from pathlib import Path
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING, Any, Literal
 
 import numpy as np
 
@@ -96,6 +96,7 @@ __all__ = [
     'SpectrumAverager',
     'SpectrumSummary',
     'TeTrace',
+    'analysis_path',
     'analyze_bag',
     'compare_results',
     'describe_identification',
@@ -135,6 +136,22 @@ def session_info(path: str | Path) -> SessionInfo:
                        temperature_c=str(custom.get('temperature_c') or ''),
                        unit_notes=str(custom.get('unit_notes') or ''),
                        imported_from=str(custom.get('imported_from') or ''))
+
+
+def analysis_path(path: str | Path) -> Literal['helper', 'one thread']:
+    """Which of its two paths :func:`analyze_bag` takes for the bag at ``path``: the helper
+    thread (reading ahead, window spectra) where two cores are allowed and the bag's files
+    hold at least ``HELPER_MIN_BAG_BYTES``, else everything on the calling thread
+    (:mod:`rv_te_bench.io._cores`; ``RV_TE_READ_AHEAD`` overrides). Never raises: a bag
+    that cannot be opened gets the one-thread path (its analysis reports why)."""
+    from rv_te_bench.io._cores import analysis_uses_helper
+    from rv_te_bench.io.bag_reader import open_bag
+
+    try:
+        size = sum(f.stat().st_size for f in open_bag(path).files)
+    except (BagError, OSError):
+        return 'one thread'
+    return 'helper' if analysis_uses_helper(size) else 'one thread'
 
 
 def analyze_bag(
@@ -196,7 +213,6 @@ def analyze_bag(
     from rv_te_bench.core.stream_records import TeAnalysisConfig
     from rv_te_bench.core.te_zero import TeZero
     from rv_te_bench.io.bag_reader import (
-        helper_threads_allowed,
         open_bag,
         read_encoder_batches,
         summarize_problems,
@@ -220,9 +236,10 @@ def analyze_bag(
 
     # one helper thread reads the bag ahead and computes window spectra: with the caller,
     # two runnable threads on two cores (a third preempts the caller: issue 23); where one
-    # core is allowed (affinity, cgroup quota) no thread at all, no read-ahead (issue 41)
+    # core is allowed (affinity, cgroup quota), or the bag is too small for the helper to
+    # pay, no thread at all, no read-ahead (issue 41)
     helper = ThreadPoolExecutor(max_workers=1, thread_name_prefix='te-helper') \
-        if helper_threads_allowed() else None
+        if analysis_path(path) == 'helper' else None
     try:
         stream = read_encoder_batches(path, topic, strict=False, executor=helper,
                                       read_ahead=helper is not None)

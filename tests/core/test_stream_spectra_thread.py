@@ -189,17 +189,23 @@ def test_an_error_of_the_source_leaves_a_shared_executor_running_and_idle(
     assert 'MainThread' in ran            # the caller computed spectra while it was busy
 
 
-@pytest.mark.parametrize(('env', 'cores', 'spectra', 'reads'), [
-    (None, {0, 1}, 'te-helper', 'te-helper'), ('0', {0, 1}, 'MainThread', 'MainThread'),
-    (None, {1}, 'MainThread', 'MainThread'), ('1', {0, 1}, 'te-helper', 'te-helper')])
+@pytest.mark.parametrize(('env', 'cores', 'big', 'spectra', 'reads'), [
+    (None, {0, 1}, True, 'te-helper', 'te-helper'),
+    (None, {0, 1}, False, 'MainThread', 'MainThread'),     # too small for the helper
+    ('0', {0, 1}, True, 'MainThread', 'MainThread'),
+    (None, {1}, True, 'MainThread', 'MainThread'),
+    ('1', {0, 1}, False, 'te-helper', 'te-helper'),        # forced on, whatever the size
+    ('1', {1}, True, 'MainThread', 'MainThread')])
 def test_analyze_bag_helper_thread_follows_the_read_ahead_switch(
         tmp_path: object, monkeypatch: pytest.MonkeyPatch, env: str | None, cores: set[int],
-        spectra: str, reads: str) -> None:
+        big: bool, spectra: str, reads: str) -> None:
     """analyze_bag reads ahead and computes spectra on one helper thread, shared (no third
-    thread on two cores), unless RV_TE_READ_AHEAD=0 (a fleet worker per core: nothing off
-    the main thread) or the process may run on one core only (taskset, a cpuset, a cgroup
-    quota): then all on the main thread, the reader's read-ahead too (issue 41; it ran on
-    a thread of the reader's own before)."""
+    thread on two cores), when the bag is big enough for it to pay (HELPER_MIN_BAG_BYTES;
+    here the limit is set just below or above the test bag's size), unless
+    RV_TE_READ_AHEAD=0 (a fleet worker per core: nothing off the main thread) or the
+    process may run on one core only (taskset, a cpuset, a cgroup quota): then all on the
+    main thread, the reader's read-ahead too (issue 41; it ran on a thread of the reader's
+    own before). RV_TE_READ_AHEAD=1 forces the helper on small bags too (two cores)."""
     from rv_te_bench.io import _mcap_scan
     from rv_te_bench.io.bag_reader import READ_AHEAD_ENV
     from rv_te_bench.report.analysis import analyze_bag
@@ -223,21 +229,73 @@ def test_analyze_bag_helper_thread_follows_the_read_ahead_switch(
     monkeypatch.setattr(stream, 'order_spectrum', spy(stream.order_spectrum, spectra_on))
     monkeypatch.setattr(_mcap_scan, '_chunk_records', spy(_mcap_scan._chunk_records, reads_on))
     monkeypatch.setattr(_mcap_scan, 'PREFETCH_CHUNKS', 1)   # the small bag: read on the thread
+    # what is handed to a pool (which thread then runs it is timing: the caller takes back
+    # a job the helper has not started, see test_a_job_the_thread_has_not_started_...)
+    submitted: set[tuple[str, str]] = set()
+    real_submit = ThreadPoolExecutor.submit
+
+    def submit(pool: ThreadPoolExecutor, fn: object, /, *args: object, **kwargs: object):
+        name = getattr(fn, '__name__', '')
+        submitted.add((pool._thread_name_prefix, 'read' if name == 'call' and args
+                       and isinstance(args[0], memoryview) else name))
+        return real_submit(pool, fn, *args, **kwargs)
+    monkeypatch.setattr(ThreadPoolExecutor, 'submit', submit)
     # 4 output revolutions of an independently generated unit (2 kHz, 1 crank-order line)
     rate = 2000.0
     t = np.arange(int(4 * 15.8 * rate)) / rate
     theta_in = 2 * math.pi * (300 / 60) * t
     theta_out = theta_in / 79.0 + 1e-4 * np.cos(25 * theta_in / 79.0)
     bag = write_unit_bag(tmp_path / 'bag', theta_in, theta_out, rate_hz=rate, block=1000)
+    size = sum(f.stat().st_size for f in bag.glob('*.mcap'))   # the storage files
+    monkeypatch.setattr('rv_te_bench.io._cores.HELPER_MIN_BAG_BYTES',
+                        size if big else size + 1)
     result = analyze_bag(bag, with_advice=False)
     assert result.spectrum is not None
-    assert reads in reads_on
     if spectra == 'te-helper':
-        # the first spectrum goes to the helper; the caller computes one while it is busy
-        assert spectra in spectra_on
-        assert spectra_on <= {'te-helper', 'MainThread'}
-        assert reads_on <= {'te-helper', 'MainThread'}   # no thread of the reader's own
+        # chunks and the first spectrum go to the one helper; the caller computes a
+        # spectrum while it is busy and takes back what it has not started
+        assert submitted == {('te-helper', 'read'), ('te-helper', 'window_spectrum')}
+        assert spectra_on and spectra_on <= {'te-helper', 'MainThread'}
+        assert reads_on and reads_on <= {'te-helper', 'MainThread'}   # no reader's thread
     else:
+        assert submitted == set()         # no pool at all
         assert spectra_on == {spectra}
         assert reads_on == {reads}        # no read-ahead thread of the reader's own either
     assert not [t.name for t in threading.enumerate() if t.name.startswith('te-helper')]
+
+
+def test_a_job_the_helper_has_not_started_is_done_by_the_caller(tmp_path: object) -> None:
+    """A helper that gets no core (a loaded machine; here a job that blocks it) costs the
+    analysis nothing but its hand-overs: the caller takes back each chunk and spectrum the
+    helper has not started and does it itself (the same call, the same values) instead of
+    waiting (issue 41: the helper path must never be slower than one thread). Fails on
+    code that waits: the analysis would end only after the gate opens."""
+    from rv_te_bench.io.bag_reader import read_encoder_batches
+    from tests.unit_bags import write_unit_bag
+
+    rate = 2000.0
+    t = np.arange(int(4 * 15.8 * rate)) / rate
+    theta_in = 2 * math.pi * (300 / 60) * t
+    theta_out = theta_in / 79.0 + 1e-4 * np.cos(25 * theta_in / 79.0)
+    bag = write_unit_bag(tmp_path / 'bag', theta_in, theta_out, rate_hz=rate, block=500)
+    config = TeAnalysisConfig(orders=ORDERS)
+    inline = analyze_blocks(read_encoder_batches(bag, read_ahead=False), config)
+    assert sum(w.spectrum is not None for w in inline.windows) >= 3
+
+    gate = threading.Event()
+    opened = threading.Timer(20.0, gate.set)     # (code that waits ends after 20 s)
+    helper = ThreadPoolExecutor(max_workers=1, thread_name_prefix='te-helper')
+    helper.submit(gate.wait)
+    opened.start()
+    try:
+        taken = analyze_blocks(read_encoder_batches(bag, executor=helper, read_ahead=True),
+                               config, spectra_thread=helper)
+        ended_before_the_gate = not gate.is_set()
+    finally:
+        gate.set()
+        opened.cancel()
+        helper.shutdown(wait=True)
+    assert ended_before_the_gate
+    assert [_full_key(w) for w in taken.windows] == [_full_key(w) for w in inline.windows]
+    assert taken.counters == inline.counters
+    assert taken.cumulative == inline.cumulative
