@@ -135,7 +135,7 @@ def _run(args: argparse.Namespace, busy: bool) -> int:
     tuned = tune_for_batch_work() if args.allocator == 'tuned' else False
     from rv_te_bench.core.stream_records import EncoderBatch
     from rv_te_bench.io.bag_reader import read_encoder_batches
-    from rv_te_bench.report.analysis import analyze_bag
+    from rv_te_bench.report.analysis import analysis_path, analyze_bag
 
     base_core = None
     if args.baseline:
@@ -208,7 +208,7 @@ def _run(args: argparse.Namespace, busy: bool) -> int:
         for _ in range(args.repeats):   # interleaved, so machine noise hits all alike
             for name, fn in paths:
                 if name == 'analyze':
-                    chose[block].append(helper_threads_allowed())
+                    chose[block].append(analysis_path(bag) == 'helper')
                 c0, t0 = time.process_time(), time.perf_counter()
                 got = fn()
                 wall[name].append(time.perf_counter() - t0)
