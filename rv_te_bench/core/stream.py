@@ -111,10 +111,7 @@ class WindowBuffer:
         if m == 0:
             return
         need = self.n + m
-        if need > self.phi.size:
-            cap = min(max(need, 2 * self.phi.size), self.cap)
-            self.phi = np.concatenate([self.phi[:self.n], np.empty(cap - self.n)])
-            self.te = np.concatenate([self.te[:self.n], np.empty(cap - self.n)])
+        self.reserve(need)
         self.phi[self.n:need] = phi
         self.te[self.n:need] = te
         if self.n == 0:
@@ -123,6 +120,13 @@ class WindowBuffer:
         self.t_last = t_last
         self.last_seq = seq_last
         self.n = need
+
+    def reserve(self, need: int) -> None:
+        """Room for ``need`` samples (at most the cap), the window's samples kept."""
+        if need > self.phi.size:
+            cap = min(max(need, 2 * self.phi.size), self.cap)
+            self.phi = np.concatenate([self.phi[:self.n], np.empty(cap - self.n)])
+            self.te = np.concatenate([self.te[:self.n], np.empty(cap - self.n)])
 
     def take(self, m: int, t_first: float, t_last: float, seq_first: int,
              seq_last: int) -> None:
@@ -462,6 +466,31 @@ class StreamingTeAnalyzer:
                     out.append(closed)
                 i += room
 
+    def _feed_in_place(self, phi: np.ndarray, te: np.ndarray,
+                       time_at: Callable[[int], float], seq_at: Callable[[int], int],
+                       out: list[WindowResult]) -> None:
+        """As :meth:`_feed` for samples already written past the end of the window buffer
+        (``phi`` and ``te`` are ``buf.phi[n:n + m]`` and ``buf.te[n:n + m]``, all within
+        the cap): taken in where the window goes on; from the first sample that ends it,
+        the rest is copied out (closing may hand the buffer's arrays to the spectra
+        thread) and goes through :meth:`_feed`."""
+        buf = self._buf
+        m = phi.size
+        if m == 0:
+            return
+        start = float(phi[0]) if buf.n == 0 else float(buf.phi[0])
+        j = _first_reach(phi, start, _TWO_PI * self._config.window_revolutions)
+        if j < 0:
+            buf.take(m, time_at(0), time_at(m - 1), seq_at(0), seq_at(m - 1))
+            return
+        rest_phi, rest_te = phi[j:].copy(), te[j:].copy()
+        if j > 0:
+            buf.take(j, time_at(0), time_at(j - 1), seq_at(0), seq_at(j - 1))
+        closed = self._close('complete')
+        if closed is not None:
+            out.append(closed)
+        self._feed(rest_phi, rest_te, lambda i: time_at(j + i), lambda i: seq_at(j + i), out)
+
     def push(self, block: EncoderBlockData) -> StreamUpdate:
         """Analyse one block; never raises on bad data (see the module docstring).
 
@@ -516,8 +545,16 @@ class StreamingTeAnalyzer:
         """Blocks k0..k1-1 of ``batch``: clean and continuous (checked by the caller)."""
         starts = np.asarray(batch.starts, dtype=np.intp)
         a, b = int(starts[k0]), int(starts[k1])
-        phi, te = output_phase_and_te(batch.theta_in_rad[a:b], batch.theta_out_rad[a:b],
-                                      gear_ratio=self._config.gear_ratio, check=False)
+        buf = self._buf
+        n0 = buf.n
+        # Wang 2020 Eq. 22 straight into the window buffer when the run fits (no copy)
+        in_place = n0 + (b - a) <= self._config.max_window_samples
+        if in_place:
+            buf.reserve(n0 + (b - a))
+        phi, te = output_phase_and_te(
+            batch.theta_in_rad[a:b], batch.theta_out_rad[a:b],
+            gear_ratio=self._config.gear_ratio, check=False,
+            out=(buf.phi[n0:n0 + b - a], buf.te[n0:n0 + b - a]) if in_place else None)
         self._counters['blocks'] += k1 - k0
         rel = starts[k0:k1 + 1] - a
         # angle travelled: within each block first -> last, and between blocks (as push does)
@@ -547,7 +584,10 @@ class StreamingTeAnalyzer:
         def seq_at(i: int) -> int:
             return int(seq[block_of(i)])
 
-        self._feed(phi, te, time_at, seq_at, windows)
+        if in_place:
+            self._feed_in_place(phi, te, time_at, seq_at, windows)
+        else:
+            self._feed(phi, te, time_at, seq_at, windows)
         # the decimation phase moves on as if the blocks had been pushed one by one
         rates = np.asarray(batch.sample_rate_hz[k0:k1], dtype=np.float64)
         q = np.maximum(1, np.round(rates / self._config.decimated_rate_hz)).astype(np.int64)

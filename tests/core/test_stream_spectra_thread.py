@@ -117,9 +117,14 @@ def _with_a_slow_thread(monkeypatch: pytest.MonkeyPatch,
             time.sleep(0.03)
         return real(*args, **kwargs)
 
-    def counting_submit(self: object, index: int, buf: object) -> None:
+    def counting_submit(self: offline._SpectraThread, index: int, buf: object) -> None:
         closed.append(index)
         real_submit(self, index, buf)
+        # a job handed to the thread has started before the caller goes on (else, on a
+        # loaded machine, the caller may take it back: test_a_job_the_helper_has_not_...)
+        job = self._jobs[index]
+        while job is self._on_thread and not (job.running() or job.done()):
+            time.sleep(0.0005)
 
     monkeypatch.setattr(stream, 'order_spectrum', slow_on_the_thread)
     monkeypatch.setattr(offline._SpectraThread, '_submit', counting_submit)
