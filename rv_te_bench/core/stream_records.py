@@ -176,6 +176,11 @@ class EncoderBatch:
         theta_in_heads_rad: Their readings, shape (heads, N) [rad].
         out_head_ids: The output scale's heads, the same in every block.
         theta_out_heads_rad: Their readings, shape (heads, N) [rad].
+        parts: Blocks (indices, ascending, > 0) where a batch a reader merged from the
+            batches of consecutive chunks begins another chunk's (``read_encoder_batches(
+            merge=True)``); a consumer whose result depends on where the record was cut
+            cuts there too, so that merging changes nothing (the angle fold: its noise
+            estimate starts with each piece it is given). Not checked.
 
     Raises:
         TeInputError: The arrays do not fit together (names the sizes).
@@ -192,6 +197,7 @@ class EncoderBatch:
     theta_in_heads_rad: np.ndarray = field(default_factory=_no_heads)
     out_head_ids: tuple[int, ...] = ()
     theta_out_heads_rad: np.ndarray = field(default_factory=_no_heads)
+    parts: tuple[int, ...] = ()
 
     def __post_init__(self) -> None:
         """Check the structure."""

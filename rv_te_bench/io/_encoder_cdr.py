@@ -339,12 +339,14 @@ def _parse_encoder_blocks(u8: np.ndarray, starts: np.ndarray, ends: np.ndarray) 
     return _ParsedBlocks(ok, seq, stamp, rate, n, (data[0], data[1], data[2]))
 
 
-def _concat_f64(u8: np.ndarray, pos: np.ndarray, counts: np.ndarray) -> np.ndarray:
+def _concat_f64(u8: np.ndarray, pos: np.ndarray, counts: np.ndarray,
+                out: np.ndarray | None = None) -> np.ndarray:
     """Concatenate little-endian float64 arrays of ``counts[k]`` values at byte ``pos[k]``.
 
     The bytes are copied message by message (one slice each, any alignment) and viewed as
     float64 once: faster than an element gather when the sources are not 8-byte aligned.
     Arrays of equal length at equal steps (the usual chunk) are copied in one strided copy.
+    ``out``: a contiguous float64 array of ``counts.sum()`` values to write into (returned).
     """
     m = pos.size
     if m > 1:
@@ -359,17 +361,52 @@ def _concat_f64(u8: np.ndarray, pos: np.ndarray, counts: np.ndarray) -> np.ndarr
                               strides=(step, 1))
             # copied straight into the float64 array's bytes (a copy, then a view of it,
             # took 15-20 % longer: issue 41)
-            out = np.empty(m * n, dtype='<f8')
+            if out is None:
+                out = np.empty(m * n, dtype='<f8')
             np.copyto(out.view(np.uint8).reshape(m, 8 * n), rows)
             return out
     ends = pos + 8 * counts
-    return np.concatenate([u8[a:b] for a, b in zip(pos.tolist(), ends.tolist(),
-                                                     strict=True)]).view('<f8')
+    parts = [u8[a:b] for a, b in zip(pos.tolist(), ends.tolist(), strict=True)]
+    if out is None:
+        return np.concatenate(parts).view('<f8')
+    np.concatenate(parts, out=out.view(np.uint8))
+    return out
 
 
-def _encoder_items(buf: memoryview, starts: np.ndarray,
-                   ends: np.ndarray) -> Iterator[EncoderBatch | int]:
-    """Runs of well-formed messages as EncoderBatch, other messages by their index."""
+class BatchArena:
+    """Fresh float64 arrays that the batches of consecutive chunks are decoded into side by
+    side, so that a reader can hand them on as one batch without copying them again.
+
+    Issue 41: the analysis's work per batch (the checks, Eq. 22, the window search, the
+    plot trace, each a few numpy calls) was ~15 % of its CPU time with one batch per 1 MiB
+    chunk. Arrays are never reused: a batch handed on keeps its memory.
+    """
+
+    def __init__(self, samples: int) -> None:
+        self.samples = samples
+        self.arrays: tuple[np.ndarray, np.ndarray, np.ndarray] | None = None
+        self._pos = 0
+        self.generation = 0   # arrays handed out since: ``take`` started new ones
+        self.last = (0, 0)    # [start, stop) of the last ``take`` in ``arrays``
+
+    def take(self, k: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Room for ``k`` samples of the three arrays (time, in, out), after the last."""
+        if self.arrays is None or self._pos + k > self.arrays[0].size:
+            size = max(self.samples, k)
+            self.arrays = (np.empty(size), np.empty(size), np.empty(size))
+            self._pos = 0
+            self.generation += 1
+        a = self._pos
+        self._pos += k
+        self.last = (a, a + k)
+        t, i, o = self.arrays
+        return t[a:a + k], i[a:a + k], o[a:a + k]
+
+
+def _encoder_items(buf: memoryview, starts: np.ndarray, ends: np.ndarray,
+                   arena: BatchArena | None = None) -> Iterator[EncoderBatch | int]:
+    """Runs of well-formed messages as EncoderBatch, other messages by their index; with
+    ``arena`` the arrays of batches without read heads are decoded into its arrays."""
     from rv_te_bench.core.stream_records import EncoderBatch
 
     u8 = np.frombuffer(buf, np.uint8)
@@ -385,7 +422,10 @@ def _encoder_items(buf: memoryview, starts: np.ndarray,
             yield bad[bi]
             bi += 1
         n = parsed.count[a:b]
-        arrays = [_concat_f64(u8, d[a:b], n) for d in parsed.data]
+        slots = (None, None, None) if arena is None or parsed.heads \
+            else arena.take(int(n.sum()))
+        arrays = [_concat_f64(u8, d[a:b], n, out) for d, out in zip(parsed.data, slots,
+                                                                        strict=True)]
         heads: dict[str, object] = {}
         for side, ids, pos in parsed.heads:
             h = len(ids)

@@ -37,6 +37,7 @@ from rv_te_bench.io._bag_types import (
     summarize_problems,
 )
 from rv_te_bench.io._encoder_cdr import (
+    BatchArena,
     _encoder_items,
     decode_encoder_block,
     decode_encoder_block_rosbags,
@@ -197,7 +198,7 @@ def read_encoder_blocks(
 
 def read_encoder_batches(
     path: str | Path, topic: str | None = None, *, strict: bool = True,
-    executor: Executor | None = None, read_ahead: bool = True,
+    executor: Executor | None = None, read_ahead: bool = True, merge: bool = False,
 ) -> MessageStream[EncoderBatch | EncoderBlockData]:
     """Encoder blocks of a bag, a whole MCAP chunk at a time (the fast offline path).
 
@@ -217,6 +218,10 @@ def read_encoder_batches(
             on it too); None: on a thread of the reader's own. Either way not under
             ``RV_TE_READ_AHEAD=0``.
         read_ahead: False: no chunk read ahead, no thread (the one-core path).
+        merge: Hand on the batches of consecutive chunks as one batch of about
+            :data:`MERGE_SAMPLES` samples (decoded side by side, not copied again): less
+            work per batch for a consumer of the whole bag (the offline analysis), but
+            the first batch comes only after several chunks.
 
     Returns:
         Stream of batches and single blocks in recording order.
@@ -228,7 +233,40 @@ def read_encoder_batches(
     name = _encoder_topic(bag, topic)
     _check_encoder_definition(bag, name)
 
+    from rv_te_bench.core.stream_records import EncoderBatch
+
     def produce(stream: MessageStream[Any]) -> Iterator[EncoderBatch | EncoderBlockData]:
+        if not merge:
+            yield from _units(stream, None)
+            return
+        arena = BatchArena(MERGE_SAMPLES)
+        # batches side by side in the arena's arrays since ``begin``, not handed on yet
+        pending: list[EncoderBatch] = []
+        gen, begin = 0, 0
+        arena_arrays = arena.arrays
+        for item in _units(stream, arena):
+            if isinstance(item, EncoderBatch) and item.theta_in_heads_rad.size == 0 \
+                    and item.theta_out_heads_rad.size == 0:   # (decoded into the arena)
+                if pending and arena.generation != gen:   # not next to the pending ones
+                    yield _merged(pending, arena_arrays, begin)
+                    pending = []
+                if not pending:
+                    gen, begin = arena.generation, arena.last[0]
+                    arena_arrays = arena.arrays
+                pending.append(item)
+                if arena.last[1] - begin >= MERGE_SAMPLES:
+                    yield _merged(pending, arena_arrays, begin)
+                    pending = []
+                continue
+            if pending:                                   # (the order is kept)
+                yield _merged(pending, arena_arrays, begin)
+                pending = []
+            yield item
+        if pending:
+            yield _merged(pending, arena_arrays, begin)
+
+    def _units(stream: MessageStream[Any],
+               arena: BatchArena | None) -> Iterator[EncoderBatch | EncoderBlockData]:
         index = 0   # of the message on the topic (as read_encoder_blocks counts)
         for unit in unit_columns(bag, stream, [name], executor, read_ahead=read_ahead):
             m = unit.start.size
@@ -245,7 +283,7 @@ def read_encoder_batches(
                 sel = np.flatnonzero(good)
                 starts, ends = starts[sel], ends[sel]
             if starts.size:
-                for item in _encoder_items(unit.buf, starts, ends):
+                for item in _encoder_items(unit.buf, starts, ends, arena):
                     if not isinstance(item, int):
                         yield item
                         continue
@@ -260,6 +298,34 @@ def read_encoder_batches(
             index += m
 
     return MessageStream(produce, strict=strict)
+
+
+#: Samples of consecutive chunks handed on as one batch by :func:`read_encoder_batches`
+#: (about four 1 MiB chunks: issue 41, the analysis's work per batch).
+MERGE_SAMPLES = 1 << 17
+
+
+def _merged(batches: list[EncoderBatch], arrays: Any, begin: int) -> EncoderBatch:
+    """Batches decoded side by side into ``arrays`` (time, in, out) from sample ``begin``
+    on, as one batch: views of those arrays, nothing copied but the per-block fields."""
+    from rv_te_bench.core.stream_records import EncoderBatch
+
+    if len(batches) == 1:
+        return batches[0]
+    sizes = [b.n_samples for b in batches]
+    offsets = np.concatenate([[0], np.cumsum(sizes)]).astype(np.int64)
+    blocks = np.cumsum([b.n_blocks for b in batches])[:-1]
+    end = begin + int(offsets[-1])
+    time_s, theta_in, theta_out = arrays
+    return EncoderBatch(
+        seq=np.concatenate([b.seq for b in batches]),
+        stamp_s=np.concatenate([b.stamp_s for b in batches]),
+        sample_rate_hz=np.concatenate([b.sample_rate_hz for b in batches]),
+        starts=np.concatenate([*(np.asarray(b.starts[:-1], dtype=np.int64) + off
+                                 for b, off in zip(batches, offsets.tolist(), strict=False)),
+                               offsets[-1:]]),
+        time_offset_s=time_s[begin:end], theta_in_rad=theta_in[begin:end],
+        theta_out_rad=theta_out[begin:end], parts=tuple(int(k) for k in blocks))
 
 
 def bag_summary(path: str | Path) -> dict[str, Any]:

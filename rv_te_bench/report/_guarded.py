@@ -112,6 +112,8 @@ class _GuardedBlocks:
         starts = np.asarray(batch.starts, dtype=np.intp)
         g0 = self.samples - batch.n_samples
         cuts = [0, *(np.flatnonzero(seq[1:] != seq[:-1] + 1) + 1).tolist(), seq.size]
+        if batch.parts:   # the chunks of a merged batch, as the fold was given them
+            cuts = sorted({*cuts, *batch.parts})
         for k0, k1 in itertools.pairwise(cuts):
             a, b = int(starts[k0]), int(starts[k1])
             self._keep_run(int(seq[k0]), int(seq[k1 - 1]), batch.theta_in_rad[a:b],

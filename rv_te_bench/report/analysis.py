@@ -242,7 +242,7 @@ def analyze_bag(
         if analysis_path(path) == 'helper' else None
     try:
         stream = read_encoder_batches(path, topic, strict=False, executor=helper,
-                                      read_ahead=helper is not None)
+                                      read_ahead=helper is not None, merge=True)
         # a 2K-V unit is identified from every sample, folded on theta_in / i as it is read
         fold = AngleFold() if with_advice and bench.reducer_type == '2kv' else None
         # the shaft angles formed from the read heads (and the calibration) before anything

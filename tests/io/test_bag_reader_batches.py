@@ -87,20 +87,30 @@ def _mixed_bag(path: Path) -> None:
                                                                'std_msgs/msg/String')))
 
 
+@pytest.mark.parametrize('merge', [False, True])
 @pytest.mark.parametrize('read_ahead', ['own thread', 'shared executor', 'none'])
-def test_batches_equal_blocks_on_a_mixed_bag(tmp_path: Path, read_ahead: str,
+def test_batches_equal_blocks_on_a_mixed_bag(tmp_path: Path, read_ahead: str, merge: bool,
                                              monkeypatch: pytest.MonkeyPatch) -> None:
+    """The batches (merged across chunks or not) hold exactly the blocks read one by one,
+    in order, around the blocks that go alone (big-endian, cut short)."""
     monkeypatch.setitem(_mcap_scan._scan_units.__kwdefaults__, 'prefetch',
                         read_ahead != 'none')
+    monkeypatch.setattr(bag_reader, 'MERGE_SAMPLES', 400)   # ~8 chunks of this bag
     bag = tmp_path / 'mixed'
     _mixed_bag(bag)
     ref_stream = read_encoder_blocks(bag, strict=False)
     ref = list(ref_stream)
     with ThreadPoolExecutor(max_workers=1) as helper:
         stream = read_encoder_batches(
-            bag, strict=False, executor=helper if read_ahead == 'shared executor' else None)
+            bag, strict=False, executor=helper if read_ahead == 'shared executor' else None,
+            merge=merge)
         items = list(stream)
     assert any(isinstance(i, EncoderBatch) and i.n_blocks > 1 for i in items)
+    if merge:   # batches span chunks: fewer of them than chunk by chunk, none empty
+        chunkwise = list(read_encoder_batches(bag, strict=False))
+        assert len(items) < len(chunkwise)
+        assert max(i.n_samples for i in items if isinstance(i, EncoderBatch)) > max(
+            i.n_samples for i in chunkwise if isinstance(i, EncoderBatch))
     _assert_same_blocks(_flatten(items), ref)
     assert [b.seq for b in ref] == [s for s in range(60) if s != 21]
     assert stream.problems == ref_stream.problems
