@@ -148,6 +148,10 @@ def _run(args: argparse.Namespace, busy: bool) -> int:
             base_core['rv_te_bench.report.results'] = load_at(
                 args.baseline, 'rv_te_bench/report/results.py', 'rv_te_bench.report.results')
         with swapped(base_core):
+            # and the analysis's block guard (plot trace, angle fold) as then
+            base_core['rv_te_bench.report._guarded'] = load_at(
+                args.baseline, 'rv_te_bench/report/_guarded.py', 'rv_te_bench.report._guarded')
+        with swapped(base_core):
             base_analysis = load_at(args.baseline, 'rv_te_bench/report/analysis.py',
                                     'rv_te_bench.report.analysis')
 
