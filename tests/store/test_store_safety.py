@@ -118,25 +118,17 @@ def test_concurrent_first_writers_all_recorded(tmp_path: Path, default_store: Pa
         assert len(st.query()) == 4
 
 
-def _open_and_write(db: str, k: int, barrier: object, errors: object) -> None:
-    """A first writer: wait for the others, then open the (new) store and write."""
-    try:
-        barrier.wait(60)   # type: ignore[attr-defined]
-        with open_store(db) as st:
-            st.upsert(make_record(k))
-    except Exception as exc:  # noqa: BLE001 - reported to the test
-        errors.put(f'{type(exc).__name__}: {exc}')   # type: ignore[attr-defined]
-
-
 def test_first_writers_released_together(tmp_path: Path) -> None:
     """Six processes released by a barrier open one new SQLite store and write at the same
     instant: all six records, no error (before: 'table ... already exists' for most)."""
     import multiprocessing as mp
 
+    from tests.store._first_writer import open_and_write
+
     ctx = mp.get_context('spawn')
     db = str(tmp_path / 'new.sqlite')
     barrier, errors = ctx.Barrier(6), ctx.Queue()
-    procs = [ctx.Process(target=_open_and_write, args=(db, k, barrier, errors))
+    procs = [ctx.Process(target=open_and_write, args=(db, k, barrier, errors))
              for k in range(6)]
     for p in procs:
         p.start()
