@@ -17,6 +17,10 @@ measured side by side.
 
     ROS_DOMAIN_ID=45 .venv/bin/python benchmarks/trace_one_process.py --duration-s 40
     ROS_DOMAIN_ID=45 .venv/bin/python benchmarks/trace_one_process.py --switch-interval-s 0.005
+    ROS_DOMAIN_ID=45 .venv/bin/python benchmarks/trace_one_process.py --search-thread
+
+Since issue 41 s.4 the searches run in a worker process of the compensation node (its
+``search_process`` parameter); ``--search-thread`` runs them on a thread as before.
 """
 
 from __future__ import annotations
@@ -38,7 +42,8 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 WARMUP_S = 2.0
 
 
-def trace(duration_s: float, priority: int, switch_s: float | None) -> dict[str, Any]:
+def trace(duration_s: float, priority: int, switch_s: float | None,
+          search_process: bool = True) -> dict[str, Any]:
     """Run the session with the trace hooks; return ticks, slow callbacks and searches."""
     from rv_te_bench.launch import pacing
     from rv_te_bench.launch.session import build_session, run_single_process
@@ -88,15 +93,26 @@ def trace(duration_s: float, priority: int, switch_s: float | None) -> dict[str,
             f'RecorderNode.{n}()', m(self, state)))
     submit = compensation_node.CompensationNode._submit
 
-    def traced_submit(self: Any, name: str, fn: Any) -> None:
-        def job() -> Any:
-            t, c = time.monotonic(), time.thread_time()
-            try:
-                return fn()
-            finally:
-                searches.append((name, t - t0, time.monotonic() - t, time.thread_time() - c,
-                                 os.sched_getscheduler(0)))
+    def worker_cpu_s(pid: int | None) -> float:
+        if pid is None:   # (searches on a thread: not separable from the process's CPU)
+            return float('nan')
+        try:
+            f = Path(f'/proc/{pid}/stat').read_text().rsplit(')', 1)[1].split()
+            return (int(f[11]) + int(f[12])) / os.sysconf('SC_CLK_TCK')
+        except (OSError, IndexError, ValueError):
+            return float('nan')
+
+    def traced_submit(self: Any, name: str, job: Any) -> None:
+        # from submission to result: a search queued behind another counts its wait too
+        pid = self.searches.worker_pid
+        t, c = time.monotonic(), worker_cpu_s(pid)
         submit(self, name, job)
+        policy = os.sched_getscheduler(pid) if pid else -1
+
+        def done(_: Any) -> None:
+            searches.append((name, t - t0, time.monotonic() - t, worker_cpu_s(pid) - c,
+                             policy))
+        self.jobs[-1][1].add_done_callback(done)
 
     compensation_node.CompensationNode._submit = traced_submit  # type: ignore[method-assign]
     out = tempfile.mkdtemp(prefix='rv-te-trace-')
@@ -104,7 +120,7 @@ def trace(duration_s: float, priority: int, switch_s: float | None) -> dict[str,
         'bench.te_mode=nlte', 'bench.sample_rate_hz=10000', 'bench.block_size=100',
         f'bench.duration_s={duration_s}', 'bench.time_mode=realtime',
         f'bench.realtime_priority={priority}', f'recorder.output_dir={out}',
-        'recorder.bag_name=bag'])
+        'recorder.bag_name=bag', f'compensation.search_process={str(search_process).lower()}'])
     code = run_single_process(spec)
     return {'code': code, 'ticks': ticks, 'slow': slow, 'searches': searches}
 
@@ -135,10 +151,12 @@ def report(res: dict[str, Any], args: argparse.Namespace) -> None:
     for i in np.argsort(-lag_ms)[:8]:
         print(f'  {steady[i, 0]:.3f} s: {lag_ms[i]:.2f} ms, {int(steady[i, 2])} blocks, '
               f'{steady[i, 3] * 1e3:.2f} ms' + (' (search running)' if in_search[i] else ''))
-    print('\ncompensation searches (s from start: wall, CPU, policy of its thread):')
+    where = 'a thread of the session' if args.search_thread else 'the worker process'
+    print(f'\ncompensation searches, on {where} (s from start: wall from submission, CPU '
+          'of the worker process, its policy):')
     for name, at, wall, cpu, pol in res['searches']:
         print(f"  {at:.2f} s {name}: {wall:.3f} s wall, {cpu:.3f} s CPU, "
-              f"{'SCHED_FIFO' if pol == os.SCHED_FIFO else 'SCHED_OTHER'}")
+              f"{'-' if pol < 0 else 'SCHED_FIFO' if pol == os.SCHED_FIFO else 'SCHED_OTHER'}")
     print('\nother nodes\' callbacks > 5 ms (in the other nodes\' thread), by kind: n, max:')
     kinds: dict[str, list[float]] = {}
     for label, _, d in res['slow']:
@@ -156,9 +174,13 @@ def main() -> int:
     ap.add_argument('--switch-interval-s', type=float, default=None,
                     help="Python's switch interval while the session runs (default: the "
                          "launcher's, PACED_SWITCH_INTERVAL_S)")
+    ap.add_argument('--search-thread', action='store_true',
+                    help='the compensation searches on a thread of the session '
+                         '(compensation.search_process false: as before issue 41 s.4)')
     args = ap.parse_args()
     os.environ.setdefault('ROS_AUTOMATIC_DISCOVERY_RANGE', 'LOCALHOST')
-    report(trace(args.duration_s, args.priority, args.switch_interval_s), args)
+    report(trace(args.duration_s, args.priority, args.switch_interval_s,
+                 not args.search_thread), args)
     return 0
 
 

@@ -132,6 +132,11 @@ class PoorFitError(CompensationError):
         super().__init__(message)
         self.identification = identification
 
+    def __reduce__(self) -> tuple[Any, ...]:
+        """Pickled with its identification (the compensation node's search runs in a worker
+        process and hands its errors back)."""
+        return (type(self), (str(self), self.identification))
+
 
 @dataclass(frozen=True)
 class FitQuality:

@@ -10,7 +10,10 @@ Subscribes ``bench/info`` (preset and ratio), ``te/statistics`` (closed windows)
 * RV presets with a tooth-profile model (hu2020-rv): the Hu 2020 Eqs 24-27 tooth-profile
   compensation of the measured TE.
 
-Long searches run on a worker thread, off the executor; results are published from a timer.
+Long searches run off the executor, in a worker process of the node's own
+(:mod:`rv_te_bench.nodes.search_process`; ``search_process: false``: on a thread), on the
+pure functions of :mod:`rv_te_bench.core.compensation_search`; results are published from a
+timer.
 
 Advice only where the data holds it, gated as ``rv-te analyze`` gates it
 (:mod:`rv_te_bench.core.advice_gate`): advice from the measured TE is asked for on complete
@@ -24,13 +27,9 @@ finished search waits (at most :data:`SPECTRUM_WAIT_S`) for the spectrum of its 
 
 from __future__ import annotations
 
-import contextlib
 import math
-import os
 import sys
-import threading
 import time
-from concurrent.futures import Future, ThreadPoolExecutor
 from dataclasses import replace
 from typing import TYPE_CHECKING, Any
 
@@ -40,6 +39,7 @@ from rclpy.node import Node
 from rv_te_msgs.msg import BenchInfo, CompensationAdvice, TeSpectrum, TransmissionError
 from std_msgs.msg import String
 
+from rv_te_bench.core import compensation_search
 from rv_te_bench.core.advice import advice_kind
 from rv_te_bench.core.advice_gate import check_cause, dominant_line, is_mesh_line, likely_source
 from rv_te_bench.errors import BagError, RvTeError, YamlInputError
@@ -54,12 +54,14 @@ from rv_te_bench.nodes.common import (
     run_node,
 )
 from rv_te_bench.nodes.params.compensation import PARAMS, CompensationParams
+from rv_te_bench.nodes.search_process import Cancelled, SearchJob, SearchRunner
 from rv_te_bench.params import params_record
 from rv_te_bench.safe_yaml import DOCUMENT_LIMITS, load_yaml
 from sim.bench_info import BenchInfoData
 
 if TYPE_CHECKING:
     from collections.abc import Callable
+    from concurrent.futures import Future
 
     from rv_te_bench.core.advice import Advice, AdviceKind
     from sim.presets import Preset
@@ -70,6 +72,8 @@ _MAX_SAMPLES = 2_000_000  # bound on the decimated TE kept for identification
 SPECTRUM_WAIT_S = 2.0
 #: Advice computed from the measured TE (gated); the preset's optimum is a prediction.
 _MEASURED = ('tooth-profile', 'identified-assembly-phases')
+#: The kinds of search (and of advice).
+KINDS = ('assembly-phases', 'identified-assembly-phases', 'tooth-profile')
 
 
 def check_config(p: CompensationParams) -> None:
@@ -85,12 +89,8 @@ def check_config(p: CompensationParams) -> None:
         load_preset(p.preset, list(p.overrides))
 
 
-class _Cancelled(Exception):  # noqa: N818 - a control-flow signal, not an error
-    """Raised inside a search's progress callback when the node shuts down."""
-
-
 class CompensationNode(Node):
-    """Advice from the measured TE; searches on a worker thread."""
+    """Advice from the measured TE; searches in a worker process (or thread)."""
 
     def __init__(self, **kwargs: Any) -> None:
         """Declare parameters and topics; ``kwargs`` go to ``Node``."""
@@ -98,18 +98,17 @@ class CompensationNode(Node):
         self.p = params_record(CompensationParams, declare_from_specs(self, PARAMS))
         reject_invalid_changes(self, PARAMS)
         self.drops = DropCounter(self)
-        #: Niceness the search thread got (None: not set, e.g. not Linux)
-        self.search_nice: int | None = None
-        self.pool = ThreadPoolExecutor(max_workers=1, thread_name_prefix='compensation',
-                                       initializer=self._lower_search_priority)
-        self._cancel = threading.Event()
+        #: Where the searches run: a worker process (the node's interpreter lock stays
+        #: free), or with ``search_process: false`` a thread; niced by ``search_nice``.
+        self.searches = SearchRunner(KINDS, in_process=not self.p.search_process,
+                                     nice=int(self.p.search_nice))
         self.jobs: list[tuple[str, Future[Advice]]] = []
         #: A request of a kind whose search still runs: the newest one (a builder of the job
         #: from the data at the time it starts), run when the current search ends.
-        self.pending: dict[str, Callable[[], Callable[[], Advice]]] = {}
+        self.pending: dict[str, Callable[[], SearchJob]] = {}
         #: Requests folded into a later run of the same kind, by kind.
         self.coalesced: dict[str, int] = {}
-        self.progress: dict[str, float] = {}
+        self._submitted: set[str] = set()   # kinds submitted at least once
         self.preset: Any = None
         self.model_name = ''
         self.advice: AdviceKind | None = None
@@ -151,33 +150,23 @@ class CompensationNode(Node):
         if self.p.preset:   # a bad preset parameter stops the node at start-up
             from sim.presets import load_preset
 
-            self._set_preset(self.p.preset,
-                             lambda: load_preset(self.p.preset, list(self.p.overrides)),
-                             strict=True)
+            try:
+                self._set_preset(self.p.preset,
+                                 lambda: load_preset(self.p.preset, list(self.p.overrides)),
+                                 strict=True)
+            except BaseException:
+                self.searches.shutdown(wait=False)   # (its worker process ends with it)
+                raise
 
-    def _lower_search_priority(self) -> None:
-        """On the worker thread: raise its niceness by ``search_nice`` (Linux sets the
-        priority of one thread by its thread id). A search after each window costs about a
-        CPU second (2K-V identification); four benches' searches at once starved the benches
-        on 2 cores (issue #23 item 1), while the advice is not urgent.
+    @property
+    def search_nice(self) -> int | None:
+        """Niceness the searches run at (None: not set, e.g. not Linux)."""
+        return self.searches.search_nice
 
-        A worker started from a real-time thread inherits SCHED_FIFO (in a one-process
-        session the bench's pacing thread is one; issue 41 item 4: a search of 0.4-0.8 s
-        then ran on SCHED_FIFO 50, where no niceness applies): it goes back to the normal
-        policy first."""
-        if sys.platform.startswith('linux') and os.sched_getscheduler(0) != os.SCHED_OTHER:
-            with contextlib.suppress(OSError):   # (lowering needs no permission)
-                os.sched_setscheduler(0, os.SCHED_OTHER, os.sched_param(0))
-        want = int(self.p.search_nice)
-        if want <= 0 or not sys.platform.startswith('linux'):
-            return
-        tid = threading.get_native_id()
-        try:
-            now = os.getpriority(os.PRIO_PROCESS, tid)
-            os.setpriority(os.PRIO_PROCESS, tid, min(19, now + want))
-            self.search_nice = os.getpriority(os.PRIO_PROCESS, tid)
-        except OSError:
-            pass
+    @property
+    def progress(self) -> dict[str, float]:
+        """Fraction done of the latest search of each kind submitted (0..1)."""
+        return {k: self.searches.progress(k) for k in KINDS if k in self._submitted}
 
     # -- inputs ---------------------------------------------------------------------------
     def _set_preset(self, name: str, load: Callable[[], Preset], *,
@@ -198,7 +187,7 @@ class CompensationNode(Node):
         self.advice = advice_kind(self.model_name)
         self.get_logger().info(f'preset {self.preset.name} (model {self.model_name})')
         if self.advice == 'assembly-phases' and self.p.optimize_phases:
-            self._submit('assembly-phases', self._job_phases)
+            self._submit('assembly-phases', self._job_phases())
 
     def _on_info(self, msg: BenchInfo) -> None:
         self.bench_id = msg.bench_id
@@ -316,24 +305,16 @@ class CompensationNode(Node):
         if self.advice == 'assembly-phases' and self.p.identify and self._te:
             self._request('identified-assembly-phases', self._identify_job)
         elif self.advice == 'tooth-profile' and math.isfinite(measured) and measured > 0:
-            self._request('tooth-profile', lambda: lambda: self._job_tooth(measured))
+            self._request('tooth-profile', lambda: self._job_tooth(measured))
 
-    def _identify_job(self) -> Callable[[], Advice]:
+    def _identify_job(self) -> SearchJob:
         """The identification job on all the decimated TE received so far."""
         te = np.concatenate(self._te)
         ph = np.concatenate(self._phase)
-        return lambda: self._job_identify(ph, te)
+        return self._job_identify(ph, te)
 
-    # -- jobs (worker thread) -------------------------------------------------------------
-    def _progress(self, name: str) -> Callable[[float], None]:
-        """A progress callback for job ``name`` that also aborts it on shutdown."""
-        def report(fraction: float) -> None:
-            if self._cancel.is_set():
-                raise _Cancelled
-            self.progress[name] = float(fraction)
-        return report
-
-    def _request(self, name: str, build: Callable[[], Callable[[], Advice]]) -> None:
+    # -- jobs (core.compensation_search, run by self.searches) ----------------------------
+    def _request(self, name: str, build: Callable[[], SearchJob]) -> None:
         """Run the job ``build()`` returns now, or, while a search of this kind still runs,
         once it ends, on the data there is then (issue #15: a request that came during a
         search was dropped, and the last advice missed the last windows)."""
@@ -346,36 +327,28 @@ class CompensationNode(Node):
             return
         self._submit(name, build())
 
-    def _submit(self, name: str, fn: Callable[[], Advice]) -> None:
-        self.progress[name] = 0.0
-        fut = self.pool.submit(fn)
+    def _submit(self, name: str, job: SearchJob) -> None:
+        self._submitted.add(name)
+        fut = self.searches.submit(job)
         self._job_window[fut] = self._last_window
         self.jobs.append((name, fut))
 
-    def _job_phases(self) -> Advice:
-        from rv_te_bench.core.phases import optimise_phases
-        from sim.wang2020 import Wang2kvParams
+    def _job_phases(self) -> SearchJob:
+        return SearchJob('assembly-phases', compensation_search.preset_phases_advice,
+                         (self.preset,), {'step_deg': self.p.step_deg,
+                                          'refine': self.p.refine})
 
-        params = Wang2kvParams.from_preset(self.preset)
-        result = optimise_phases(
-            params, step_deg=self.p.step_deg, refine=self.p.refine,
-            progress=self._progress('assembly-phases'))
-        return result.to_advice(self.preset.name)
-
-    def _job_identify(self, phase_out_rad: np.ndarray, te_rad: np.ndarray) -> Advice:
-        from rv_te_bench.core.identify import identified_advice
-        from sim.wang2020 import Wang2kvParams
-
-        params = Wang2kvParams.from_preset(self.preset)
+    def _job_identify(self, phase_out_rad: np.ndarray, te_rad: np.ndarray) -> SearchJob:
         # the same search as the preset's optimum: the two then differ only in the unit
-        return identified_advice(phase_out_rad, te_rad, params, preset_name=self.preset.name,
-                                 step_deg=self.p.step_deg, refine=self.p.refine,
-                                 progress=self._progress('identified-assembly-phases'))
+        return SearchJob('identified-assembly-phases',
+                         compensation_search.identified_phases_advice,
+                         (self.preset, phase_out_rad, te_rad),
+                         {'step_deg': self.p.step_deg, 'refine': self.p.refine})
 
-    def _job_tooth(self, measured_rad: float) -> Advice:
-        from rv_te_bench.core.tooth_compensation import tooth_profile_advice
-
-        return tooth_profile_advice(self.preset, measured_rad, te_metric=self.p.te_metric)
+    def _job_tooth(self, measured_rad: float) -> SearchJob:
+        return SearchJob('tooth-profile', compensation_search.tooth_advice,
+                         (self.preset, measured_rad), {'te_metric': self.p.te_metric},
+                         progress=False)
 
     # -- outputs (executor thread) --------------------------------------------------------
     def _collect(self) -> None:
@@ -389,9 +362,9 @@ class CompensationNode(Node):
                 continue
             self._job_window.pop(fut, None)
             self._done_at.pop(fut, None)
-            self.progress[name] = 1.0
+            self.searches.set_progress(name, 1.0)
             exc = fut.exception()
-            if isinstance(exc, _Cancelled):
+            if isinstance(exc, Cancelled):
                 continue
             if exc is not None:
                 self.errors.append(f'{name}: {exc}')
@@ -442,8 +415,7 @@ class CompensationNode(Node):
             self.get_logger().error(why)
             self.errors.append(why)
             self._publish_diagnostics()
-        self._cancel.set()
-        self.pool.shutdown(wait=not reason, cancel_futures=True)
+        self.searches.shutdown(wait=not reason)
         super().destroy_node()
 
 

@@ -166,6 +166,8 @@ class RecorderNode(Node):
         self.exit_code = 0
         self.bag_path, self._writer = self._open_bag(p)
         self.write_errors = 0
+        #: Messages handed to a callback after the bag was closed (not recorded).
+        self.after_close = 0
         self._duration_s = p.duration_s
         self._start = self.get_clock().now()
         self._sim_clock_ns = 0
@@ -374,7 +376,16 @@ class RecorderNode(Node):
         return on_message
 
     def _record(self, state: _TopicState, t_ns: int, data: bytes) -> None:
-        """Write one message at log time ``t_ns`` and count it (a failed write is logged)."""
+        """Write one message at log time ``t_ns`` and count it (a failed write is logged).
+
+        After :meth:`close` a message is not recorded and not a write failure: close()
+        destroys the subscriptions first, but an executor may still hand over a message it
+        took before (in a one-process session the EventsExecutor dispatched one of another
+        session's /diagnostics after the recorder had left it, which logged "bag write
+        failed: Bag ... is closed"); it is counted in ``after_close``."""
+        if self.finished:
+            self.after_close += 1
+            return
         try:
             self._writer.write(state.name, t_ns, data)
         except BagError as exc:

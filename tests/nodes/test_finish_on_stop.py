@@ -81,10 +81,14 @@ def test_a_request_during_a_search_runs_after_it_on_all_data(ros_context) -> Non
 
     from rv_te_bench.nodes import qos
     from rv_te_bench.nodes.compensation_node import CompensationNode
+    from rv_te_bench.nodes.search_process import SearchJob
     from tests.nodes.rosutil import spin_until
 
+    # searches on a thread: the spy below is a closure (a worker process takes only
+    # importable functions); where the search runs is not what this test is about
     node = CompensationNode(context=ros_context, parameter_overrides=[
-        Parameter('preset', value='wang2020-2kv'), Parameter('optimize_phases', value=False)])
+        Parameter('preset', value='wang2020-2kv'), Parameter('optimize_phases', value=False),
+        Parameter('search_process', value=False)])
     calls: list[int] = []
     release = threading.Event()
 
@@ -93,7 +97,8 @@ def test_a_request_during_a_search_runs_after_it_on_all_data(ros_context) -> Non
         release.wait(20.0)   # the first search runs until the test lets it end
         raise RuntimeError('spy search')
 
-    node._job_identify = spy
+    node._job_identify = lambda ph, te: SearchJob('identified-assembly-phases', spy, (ph, te),
+                                                  progress=False)
     probe = rclpy.create_node('probe', context=ros_context)
     pub_samples = probe.create_publisher(TransmissionError, 'te/samples', qos.ENCODER_QOS)
     pub_windows = probe.create_publisher(TransmissionError, 'te/statistics', qos.LATCHED_QOS)

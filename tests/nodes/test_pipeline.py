@@ -297,33 +297,32 @@ def test_compensation_node_aborts_a_running_search_on_shutdown(ros_context) -> N
 
 
 @pytest.mark.skipif(not sys.platform.startswith('linux'), reason='per-thread nice is Linux')
-def test_compensation_search_thread_runs_niced(ros_context) -> None:
+@pytest.mark.parametrize('in_worker', [True, False], ids=['process', 'thread'])
+def test_compensation_search_runs_niced(ros_context, in_worker: bool) -> None:
     """The searches yield the cores to the benches' data path (issue #23 item 1): the worker
-    thread runs at the node's niceness + search_nice; the node's own thread is unchanged."""
+    process (or, with search_process false, thread) runs at the node's niceness +
+    search_nice; the node's own thread is unchanged."""
     import os
-    import threading
 
     from rv_te_bench.nodes.compensation_node import CompensationNode
+    from rv_te_bench.nodes.search_process import SearchJob, current_nice
 
-    base = os.getpriority(os.PRIO_PROCESS, threading.get_native_id())
-    node = CompensationNode(context=ros_context, parameter_overrides=[
-        Parameter('preset', value='hu2020-rv'), Parameter('search_nice', value=5)])
-    try:
-        seen = node.pool.submit(
-            lambda: os.getpriority(os.PRIO_PROCESS, threading.get_native_id())).result(10)
-        assert seen == min(19, base + 5) == node.search_nice
-        assert os.getpriority(os.PRIO_PROCESS, threading.get_native_id()) == base
-    finally:
-        node.destroy_node()
-    off = CompensationNode(context=ros_context, parameter_overrides=[
-        Parameter('preset', value='hu2020-rv'), Parameter('search_nice', value=0)])
-    try:
-        seen = off.pool.submit(
-            lambda: os.getpriority(os.PRIO_PROCESS, threading.get_native_id())).result(10)
-        assert seen == base
-        assert off.search_nice is None
-    finally:
-        off.destroy_node()
+    base = current_nice()
+    for nice, want in ((5, min(19, base + 5)), (0, base)):
+        node = CompensationNode(context=ros_context, parameter_overrides=[
+            Parameter('preset', value='hu2020-rv'), Parameter('search_nice', value=nice),
+            Parameter('search_process', value=in_worker)])
+        try:
+            seen = node.searches.submit(SearchJob('tooth-profile', current_nice,
+                                                  progress=False)).result(60)
+            pid = node.searches.submit(SearchJob('tooth-profile', os.getpid,
+                                                 progress=False)).result(60)
+            assert seen == want
+            assert node.search_nice == (want if nice else None)
+            assert (pid != os.getpid()) is in_worker
+            assert current_nice() == base
+        finally:
+            node.destroy_node()
 
 
 def test_realtime_bench_reports_a_late_tick_as_lag(graph) -> None:

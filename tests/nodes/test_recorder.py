@@ -145,6 +145,40 @@ def test_malformed_encoder_block_is_recorded_and_counted(ros_context: Any,
     assert stream.partial
 
 
+def test_a_message_handed_over_after_close_is_not_a_write_failure(ros_context: Any,
+                                                                  tmp_path: Path) -> None:
+    """Issue 41 item 4: a one-process session's teardown logged "bag write failed: Bag ...
+    is closed": the executor handed the recorder a message it had taken before the recorder
+    closed its bag (close() destroys the subscriptions first). Such a message is counted as
+    after the close, not recorded, and is no write error; the bag keeps what it had."""
+    topic = f'/late_{os.getpid()}/bench/encoders'
+    pub_node = rclpy.create_node('late_pub', context=ros_context)
+    pub = pub_node.create_publisher(EncoderBlock, topic, qos.ENCODER_QOS)
+    recorder = RecorderNode(context=ros_context, parameter_overrides=[
+        Parameter('output_dir', value=str(tmp_path)), Parameter('bag_name', value='bag'),
+        Parameter('topics', value=[topic]),
+        Parameter('topic_types', value=[f'{topic}=rv_te_msgs/msg/EncoderBlock'])])
+    executor = EventsExecutor(context=ros_context)
+    executor.add_node(pub_node)
+    executor.add_node(recorder)
+    try:
+        assert spin_until(executor, lambda: pub.get_subscription_count() >= 1, 15.0)
+        pub.publish(encoder_cdr(0, 10))
+        assert spin_until(executor, lambda: recorder.counts.get(topic) == 1, 10.0)
+        late = recorder._subscriptions_by_topic[topic].callback   # as the executor holds it
+        executor.remove_node(recorder)
+        recorder.close()
+        late(encoder_cdr(1, 10))                                    # dispatched after close
+        assert recorder.write_errors == 0
+        assert recorder.after_close == 1
+        assert recorder.counts[topic] == 1
+    finally:
+        recorder.destroy_node()
+        pub_node.destroy_node()
+        executor.shutdown()
+    assert [b.seq for b in read_encoder_blocks(tmp_path / 'bag')] == [0]
+
+
 def _recorder_process(tmp_path: Path, ns: str, domain: int) -> subprocess.Popen[str]:
     env = dict(os.environ)
     env.pop('_ROS_WHEELS_BOOTSTRAP_COMPLETE', None)

@@ -36,10 +36,15 @@ class CompensationParams:
         choices=('pp', 'amplitude'))
     diagnostics_period_s: float = param(
         1.0, 'Diagnostics period [s]', min_value=0.05, max_value=60.0)
+    search_process: bool = param(
+        True,
+        'Run the searches in a worker process of the node (off its interpreter lock: in a '
+        'one-process session the bench paces without waiting for them); false: on a thread '
+        'of the node\'s process')
     search_nice: int = param(
         10,
-        'Niceness of the search thread (Linux): the searches yield the cores to the '
-        'data path of the benches (0: same priority as the node) [-]',
+        'Niceness added to the searches\' process or thread (Linux): the searches yield the '
+        'cores to the data path of the benches (0: same priority as the node) [-]',
         min_value=0, max_value=19)
 
 
