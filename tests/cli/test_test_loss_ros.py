@@ -120,12 +120,16 @@ SETPOINT_TOL = {'no_load_torque_max_nm': 0.003, 'efficiency_at_max_load': 5e-4,
                 'temperature_rise_k': 0.01, 'trend_alarms': 0.0}
 
 
-def _temperatures(sim: dict[str, Any], ros: dict[str, Any]) -> list[tuple[float, ...]]:
-    """(speed, sim torque, sim case temperature, setpoint-route torque, its temperature)
-    per no-load row, for the message of a failed comparison."""
-    rows = [next(s for s in x['steps'] if s['kind'] == 'no_load')['rows'] for x in (sim, ros)]
-    return [(a['speed_rpm'], a['torque_nm'], a['temp_case_degc'], b['torque_nm'],
-             b['temp_case_degc']) for a, b in zip(*rows, strict=True)]
+def _temperatures(sim: dict[str, Any], ros: dict[str, Any]) -> list[tuple[Any, ...]]:
+    """(step, speed, load, sim value, sim case temperature, setpoint-route value, its
+    temperature) per no-load and efficiency row, for the message of a failed comparison."""
+    out: list[tuple[Any, ...]] = []
+    for kind, key in (('no_load', 'torque_nm'), ('efficiency', 'efficiency')):
+        rows = [next(s for s in x['steps'] if s['kind'] == kind)['rows'] for x in (sim, ros)]
+        out += [(kind, a['speed_rpm'], a.get('load_nm', 0.0), a.get(key),
+                 a.get('temp_case_degc'), b.get(key), b.get('temp_case_degc'))
+                for a, b in zip(*rows, strict=True)]
+    return out
 
 
 def _drag_at_sim_temperature(sim: dict[str, Any], ros: dict[str, Any]) -> float:
