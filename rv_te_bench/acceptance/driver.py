@@ -280,8 +280,12 @@ class ProgramDriver:
                 if seg['kind'] == 'output_speed':
                     setpoint = self._setpoint(seg, float(t[-1]))
                 break
-            parts.append((self.index, k, end))
-            self.boundaries.append((self.reached_at, float(t[end - 1])))
+            if end > k:
+                parts.append((self.index, k, end))
+            # the segment's last sample: in this block, or (its end time fell between two
+            # blocks) the previous block's last
+            last_t = float(t[end - 1]) if end > 0 else float(self._tail_t[-1])
+            self.boundaries.append((self.reached_at, last_t))
             k = end
             self.index += 1
             self.reached_at = None

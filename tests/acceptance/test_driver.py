@@ -176,3 +176,23 @@ def test_a_speed_passing_through_the_target_is_not_reached() -> None:
     # on average: taken for reached before; now reached at 80 + 10 ms
     assert d.boundaries[0][0] == pytest.approx(0.090, abs=1e-12)
     assert upd.parts[0] == (0, 90, 120)
+
+
+def test_a_segment_ending_between_two_blocks() -> None:
+    """The segment of the cut above, read back in two blocks split right after its last
+    sample (63 ms): its time range ends at 63 ms, not at the next block's last sample (a
+    recomputation from the bag took that block into the segment: 410 samples where the
+    live test had 400), and the next block gives it no empty slice."""
+    prog = [{'kind': 'torque', 'torque_nm': 100.0, 'duration_s': 0.05},
+            {'kind': 'torque', 'torque_nm': 0.0, 'duration_s': 0.05}]
+    d = ProgramDriver(prog, limits=SafetyLimits(1.0, 500.0), settings=DriverSettings(
+        window_s=0.005), sample_rate_hz=1000.0)
+    d.start()
+    t = np.arange(200) / 1000.0
+    applied = np.where(t < 0.010, 0.0, np.where(t < 0.070, 100.0, 0.0))
+    first = d.push(t[:64], np.zeros(64), np.zeros(64), applied[:64])
+    assert first.parts == [(0, 14, 64)]
+    second = d.push(t[64:], np.zeros(136), np.zeros(136), applied[64:])
+    assert d.boundaries[0] == pytest.approx((0.014, 0.063), abs=1e-12)
+    assert all(seg != 0 for seg, _, _ in second.parts), second.parts
+    assert sum(b - a for seg, a, b in [*first.parts, *second.parts] if seg == 0) == 50
