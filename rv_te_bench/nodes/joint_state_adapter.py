@@ -308,13 +308,16 @@ class JointStateAdapterNode(Node):
         self.blocks_published += 1
 
     def _check_subscribers(self) -> None:
-        """Release the held blocks once the waited-for nodes subscribe (or on time-out)."""
+        """Release the held blocks once the waited-for nodes subscribe and our writers
+        matched them (or on time-out)."""
         if self._held is None:
             return
         ns = self.get_namespace()
         have = {i.node_name for i in self.get_subscriptions_info_by_topic(
             self.pub_blocks.topic_name) if i.node_namespace == ns}
         missing = sorted(set(self.p.wait_for_nodes) - have)
+        if not missing:
+            missing = self._not_matched(ns)
         waited = time.monotonic() - self._start
         if missing and waited < self.p.wait_timeout_s:
             return
@@ -322,6 +325,24 @@ class JointStateAdapterNode(Node):
             self.get_logger().warning(f'publishing without {missing} on '
                                       f'{self.pub_blocks.topic_name} after {waited:.1f} s')
         self._release()
+
+    def _not_matched(self, ns: str) -> list[str]:
+        """What is still missing once the waited-for nodes subscribe to bench/encoders: our
+        writers matched to the readers in the graph (a block sent before is lost to them),
+        and, where blocks have channels, the session's recorder on bench/channels and
+        matched. The recorder subscribes to each topic as it finds it: the first channels,
+        sent once it had bench/encoders, went unrecorded, and ``rv-te unit-report`` could
+        not compute a temperature rise from the bag that the live test had."""
+        out = []
+        for pub in (self.pub_blocks, self.pub_channels):
+            if pub is not None and pub.get_subscription_count() < len(
+                    self.get_subscriptions_info_by_topic(pub.topic_name)):
+                out.append(f'({pub.topic_name} matching)')
+        if self.pub_channels is not None and 'recorder' in self.p.wait_for_nodes and not any(
+                i.node_name == 'recorder' and i.node_namespace == ns
+                for i in self.get_subscriptions_info_by_topic(self.pub_channels.topic_name)):
+            out.append(f'recorder ({self.pub_channels.topic_name})')
+        return out
 
     def _release(self) -> None:
         held, self._held = self._held, None

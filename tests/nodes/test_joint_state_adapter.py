@@ -378,6 +378,44 @@ def test_first_blocks_held_until_the_session_subscribers_are_up(graph) -> None:
     assert [b.seq for b in blocks[:3]] == [0, 1, 2]
 
 
+@pytest.mark.timeout(60)
+def test_first_blocks_held_until_the_recorder_takes_the_channels(graph, tmp_path) -> None:
+    """With loss channels, the adapter holds its first blocks until the session's recorder
+    has bench/channels too (it subscribes to each topic as it finds it): every block the
+    recorder gets has its channels. Before, the blocks left once the recorder had
+    bench/encoders, and a bag lacked the first 24 blocks' channels (rv-te unit-report then
+    found no temperature rise that the live test had measured)."""
+    from rv_te_msgs.msg import BenchChannels
+
+    from tests.nodes.real_bench import LOSS_DESCRIPTION
+
+    desc = tmp_path / 'bench.yaml'
+    desc.write_text(LOSS_DESCRIPTION, encoding='utf-8')
+    ctx, ex, add = graph
+    src = add(rclpy.create_node('js_source', context=ctx))
+    pub = src.create_publisher(JointState, 'joint_states', qos.JOINT_STATE_QOS)
+    adapter = add(JointStateAdapterNode(context=ctx, parameter_overrides=[
+        Parameter('bench_description', value=str(desc)),
+        Parameter('wait_for_nodes', value=['recorder'])]))
+    assert adapter.pub_channels is not None
+    assert spin_until(ex, lambda: pub.get_subscription_count() >= 1, 10.0)
+    rate = adapter.config.sample_rate_hz
+    n = 3 * adapter.config.block_size + 50
+    stamps = [1_700_000_000_000_000_000 + round(i * 1e9 / rate) for i in range(n)]
+    for i in range(n):
+        pub.publish(_js(stamps[i], ['input_joint', 'output_joint'], [1e-3 * i, 1e-5 * i]))
+    assert spin_until(ex, lambda: adapter.assembler.counters['blocks'] == 3, 10.0)
+    rec = add(rclpy.create_node('recorder', context=ctx))
+    blocks: list[EncoderBlock] = []
+    chans: list[BenchChannels] = []
+    rec.create_subscription(EncoderBlock, 'bench/encoders', blocks.append, qos.ENCODER_QOS)
+    spin_for(ex, 1.5)     # the recorder has bench/encoders only: still held
+    assert adapter.blocks_published == 0 and not blocks
+    rec.create_subscription(BenchChannels, 'bench/channels', chans.append, qos.ENCODER_QOS)
+    assert spin_until(ex, lambda: len(blocks) >= 3 and len(chans) >= 3, 10.0)
+    assert [b.seq for b in blocks[:3]] == [c.seq for c in chans[:3]] == [0, 1, 2]
+
+
 @pytest.mark.timeout(30)
 @pytest.mark.parametrize(('name', 'value', 'needle'), [
     ('output', 'joint_states', 'output'),
