@@ -59,9 +59,10 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 
-from bench_pipeline import cpu_s
 
 NODES = ('bench', 'te_node', 'compensation', 'recorder')
+#: The driver's own CPU (this process; the node processes are its children).
+DRIVER = 'driver (probes)'
 PROBE = 'multibench_probe'
 #: The process layouts of a session: one process per node (``rv-te launch``), or all four
 #: nodes in one process on one executor (``rv-te launch --single-process``).
@@ -75,8 +76,28 @@ def cdr_stamp_s(data: bytes) -> float:
     return sec + nsec * 1e-9
 
 
+def cpu_tree_s(pid: int, *, children: bool = True) -> float:
+    """utime + stime of a process and of its children, those still running and those it
+    has waited for [s] (0 when it is gone): a node's compensation searches run in a worker
+    process of its own (issue 41 item 4), which is the node's cost too."""
+    try:
+        fields = Path(f'/proc/{pid}/stat').read_text().rsplit(')', 1)[1].split()
+    except OSError:
+        return 0.0
+    if not children:
+        return (int(fields[11]) + int(fields[12])) / os.sysconf('SC_CLK_TCK')
+    total = sum(int(f) for f in fields[11:15]) / os.sysconf('SC_CLK_TCK')
+    try:
+        kids = [int(k) for t in Path(f'/proc/{pid}/task').iterdir()
+                for k in (t / 'children').read_text().split()]
+    except OSError:
+        kids = []
+    return total + sum(cpu_tree_s(k) for k in kids)
+
+
 class CpuMeter:
-    """CPU of named processes from a start (after warm-up) to their last reading alive."""
+    """CPU of named processes (with their children: :func:`cpu_tree_s`) from a start (after
+    warm-up) to their last reading alive."""
 
     def __init__(self) -> None:
         """Nothing measured yet."""
@@ -86,13 +107,14 @@ class CpuMeter:
     def begin(self, pids: dict[str, int]) -> None:
         """Take the first reading of every process."""
         now = time.monotonic()
-        self.start = {n: (cpu_s(p), now) for n, p in pids.items()}
+        self.start = {n: (cpu_tree_s(p, children=not n.startswith(DRIVER)), now)
+                      for n, p in pids.items()}
 
     def sample(self, pids: dict[str, int], alive: dict[str, bool]) -> None:
         """Keep the last reading of each live process (a bench exits at its end)."""
         now = time.monotonic()
         for n, p in pids.items():
-            c = cpu_s(p)
+            c = cpu_tree_s(p, children=not n.startswith(DRIVER))   # (its children: nodes)
             if c > 0 and alive.get(n, True):
                 self.end[n] = (c, now)
 
@@ -280,7 +302,7 @@ def run_benches(n_benches: int, rate_hz: float, block: int, duration_s: float,
         def pids() -> dict[str, int]:
             d = {f'{ns}/{n}': p.proc.pid for ns, s in sessions.items()
                  for n, p in s.procs.items()}
-            d['driver (probes)'] = os.getpid()
+            d[DRIVER] = os.getpid()
             return d
 
         def alive() -> dict[str, bool]:

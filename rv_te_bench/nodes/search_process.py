@@ -339,9 +339,10 @@ class _Worker:
             assert self.proc.stdin is not None
             _send(self.proc.stdin, ('cancel',))
 
-    def close(self, *, wait: bool, timeout_s: float = 10.0) -> None:
-        """Close its input (it ends after the search under way); ``wait``: wait for it
-        (killed after ``timeout_s``), else kill it now."""
+    def close(self, *, wait: bool, timeout_s: float = 2.0) -> None:
+        """Close its input (it stops the search under way at its next progress report and
+        ends); ``wait``: wait for that (killed after ``timeout_s``: a node that stops must
+        not wait long for a search it no longer wants), else kill it now."""
         with contextlib.suppress(OSError, ValueError):
             assert self.proc.stdin is not None
             self.proc.stdin.close()
