@@ -426,8 +426,29 @@ class Session:
         """Start every node process (recorder first). Nothing waits here: the bench starts
         its clock once the session's readers (the recorder, the TE node) subscribe
         (``wait_for_nodes``), and their latched topics reach a late reader; a fixed 0.5 s
-        after the recorder's start (it imports for ~1 s) guaranteed nothing."""
+        after the recorder's start (it imports for ~1 s) guaranteed nothing.
+
+        A Ctrl-C or SIGTERM while the nodes start is held until the process just started
+        is in :attr:`procs` (then raised again, and no further node starts): one that came
+        between a process's start and its registration left it out of the stop, and the
+        session's parameter files went from under it (a traceback: "Couldn't parse params
+        file")."""
+        held: list[int] = []
+        main = threading.current_thread() is threading.main_thread()
+        old = {s: signal.signal(s, lambda sig, _frame: held.append(sig))
+               for s in (signal.SIGINT, signal.SIGTERM)} if main else {}
+        try:
+            self._start_nodes(held)
+        finally:
+            for sig, handler in old.items():
+                signal.signal(sig, signal.SIG_DFL if handler is None else handler)
+            if held:
+                signal.raise_signal(held[0])
+
+    def _start_nodes(self, held: list[int]) -> None:
         for node in [n for n in NODE_TYPES if n in self.spec.nodes]:
+            if held:
+                return
             module, _ = NODE_TYPES[node]
             # (through _entry: a stop while the node still imports ends it quietly)
             cmd = [sys.executable, '-m', 'rv_te_bench.nodes._entry', module,

@@ -309,3 +309,38 @@ def test_ctrl_c_while_the_session_starts(tmp_path: Path, ros_domain_id: int,
     print(f"delay {delay_s} s: {len(nodes)} node processes seen")
     left = {p: _cmdline(p)[-120:] for p in nodes if alive(p)}
     assert not left, left
+
+
+@pytest.mark.timeout(60)
+def test_ctrl_c_between_a_node_start_and_its_registration(
+        tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    """The race behind a traceback of test_ctrl_c_while_the_session_starts under load
+    ("Couldn't parse params file"): a Ctrl-C that comes right after a node process started
+    and before the session listed it left that process out of the stop, and the session's
+    parameter files went from under it. Planted here: the SIGINT sent the moment the
+    recorder's process exists. The interrupt comes once the recorder is listed (the stop
+    then ends it) and no further node starts."""
+    from rv_te_bench.launch import session as session_module
+    from rv_te_bench.launch.session import Session, SessionSpec
+
+    spec = SessionSpec(nodes=('recorder', 'bench'),
+                       parameters={'recorder': {'output_dir': str(tmp_path),
+                                                'bag_name': 'bag'}})
+    real = subprocess.Popen
+
+    def popen(*args: object, **kw: object) -> subprocess.Popen:
+        proc = real(*args, **kw)   # type: ignore[call-overload]
+        os.kill(os.getpid(), signal.SIGINT)
+        return proc
+
+    monkeypatch.setattr(session_module.subprocess, 'Popen', popen)
+    with (tmp_path / 'session.log').open('wb') as log:
+        s = Session(spec, stdout=log)
+        try:
+            with pytest.raises(KeyboardInterrupt):
+                s.start()
+            assert list(s.procs) == ['recorder']
+        finally:
+            pids = [p.proc.pid for p in s.procs.values()]
+            s.stop()
+    assert not any(alive(p) for p in pids)
