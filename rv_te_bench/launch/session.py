@@ -436,7 +436,8 @@ class Session:
         held: list[int] = []
         main = threading.current_thread() is threading.main_thread()
         old = {s: signal.signal(s, lambda sig, _frame: held.append(sig))
-               for s in (signal.SIGINT, signal.SIGTERM)} if main else {}
+               for s in (signal.SIGINT, signal.SIGTERM)
+               if main and signal.getsignal(s) is not signal.SIG_IGN}   # ignored stays so
         try:
             self._start_nodes(held)
         finally:

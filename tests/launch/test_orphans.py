@@ -334,13 +334,53 @@ def test_ctrl_c_between_a_node_start_and_its_registration(
         return proc
 
     monkeypatch.setattr(session_module.subprocess, 'Popen', popen)
-    with (tmp_path / 'session.log').open('wb') as log:
-        s = Session(spec, stdout=log)
-        try:
-            with pytest.raises(KeyboardInterrupt):
+    # Ctrl-C as in a terminal (a pytest-xdist worker ignores SIGINT)
+    before = signal.signal(signal.SIGINT, signal.default_int_handler)
+    try:
+        with (tmp_path / 'session.log').open('wb') as log:
+            s = Session(spec, stdout=log)
+            try:
+                with pytest.raises(KeyboardInterrupt):
+                    s.start()
+                assert list(s.procs) == ['recorder']
+            finally:
+                pids = [p.proc.pid for p in s.procs.values()]
+                s.stop()
+    finally:
+        signal.signal(signal.SIGINT, before)
+    assert not any(alive(p) for p in pids)
+
+
+@pytest.mark.timeout(60)
+def test_an_ignored_sigint_stays_ignored_while_the_nodes_start(
+        tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    """A launcher that ignores SIGINT (started with nohup, or in the background) starts
+    every node although a SIGINT comes while it starts them."""
+    from rv_te_bench.launch import session as session_module
+    from rv_te_bench.launch.session import Session, SessionSpec
+
+    spec = SessionSpec(nodes=('recorder', 'bench'),
+                       parameters={'recorder': {'output_dir': str(tmp_path),
+                                                'bag_name': 'bag'}})
+    real = subprocess.Popen
+
+    def popen(*args: object, **kw: object) -> subprocess.Popen:
+        proc = real(*args, **kw)   # type: ignore[call-overload]
+        os.kill(os.getpid(), signal.SIGINT)
+        return proc
+
+    monkeypatch.setattr(session_module.subprocess, 'Popen', popen)
+    before = signal.signal(signal.SIGINT, signal.SIG_IGN)
+    try:
+        with (tmp_path / 'session.log').open('wb') as log:
+            s = Session(spec, stdout=log)
+            try:
                 s.start()
-            assert list(s.procs) == ['recorder']
-        finally:
-            pids = [p.proc.pid for p in s.procs.values()]
-            s.stop()
+                assert sorted(s.procs) == ['bench', 'recorder']
+                assert signal.getsignal(signal.SIGINT) is signal.SIG_IGN
+            finally:
+                pids = [p.proc.pid for p in s.procs.values()]
+                s.stop()
+    finally:
+        signal.signal(signal.SIGINT, before)
     assert not any(alive(p) for p in pids)
