@@ -423,10 +423,14 @@ class Session:
         return path
 
     def start(self) -> None:
-        """Start every node process (recorder first). Nothing waits here: the bench starts
-        its clock once the session's readers (the recorder, the TE node) subscribe
-        (``wait_for_nodes``), and their latched topics reach a late reader; a fixed 0.5 s
-        after the recorder's start (it imports for ~1 s) guaranteed nothing.
+        """Start every node process, the recorder first and 0.5 s ahead of the others.
+
+        The bench starts its clock once the session's readers (the recorder, the TE node)
+        subscribe (``wait_for_nodes``), but the recorder subscribes to each topic as it
+        finds it: without its head start it could still be busy doing so (up to ~0.3 s)
+        when a fast bench's first blocks came, and they were logged at a later session
+        clock (a fast session's bag of one output revolution spanned 15.5 s of its 15.8 s:
+        1 full suite in 3 without the head start).
 
         A Ctrl-C or SIGTERM while the nodes start is held until the process just started
         is in :attr:`procs` (then raised again, and no further node starts): one that came
@@ -467,6 +471,8 @@ class Session:
             proc = subprocess.Popen(cmd, env=env, stdout=self._stdout,
                                     stderr=self._stdout, start_new_session=True)
             self.procs[node] = NodeProcess(node, proc)
+            if node == 'recorder':
+                time.sleep(0.5)   # (a Ctrl-C meanwhile is held: no further node starts)
 
     def _failure_path(self, node: str) -> Path:
         return Path(self._tmp.name) / f'{node}.failure'
