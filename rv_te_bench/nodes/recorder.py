@@ -536,7 +536,6 @@ class RecorderNode(Node):
         """Stop recording and finalise the bag (idempotent)."""
         if self.finished:
             return
-        self.finished = True
         for sub in self._subscriptions_by_topic.values():
             if sub is not None:
                 self.destroy_subscription(sub)
@@ -547,6 +546,9 @@ class RecorderNode(Node):
                 self.get_logger().warning(f'no /clock received (use_sim_time): '
                                           f'{len(self._held)} messages recorded at time 0')
             self._release_held(t_ns)
+        # only now: the held messages above are written, what an executor hands over from
+        # here on is not (see _record)
+        self.finished = True
         try:
             self._writer.close()
         except BagError as exc:
