@@ -307,6 +307,15 @@ class JointStateAdapterNode(Node):
         self.pub_blocks.publish(msg)
         self.blocks_published += 1
 
+    @property
+    def busy(self) -> bool:
+        """Blocks held for the session's readers. A stop waits for them (run_node: work
+        under way, FINISH_MAX_S at most): a short fast session's bench can be done before
+        the recorder subscribed to bench/encoders, and the held blocks were lost with the
+        adapter (a bag of 0 blocks, 1 full suite in 5 once the fixed 2 s after the bench
+        went)."""
+        return bool(self._held)
+
     def _check_subscribers(self) -> None:
         """Release the held blocks once the waited-for nodes subscribe and our writers
         matched them (or on time-out)."""

@@ -411,9 +411,11 @@ def test_first_blocks_held_until_the_recorder_takes_the_channels(graph, tmp_path
     rec.create_subscription(EncoderBlock, 'bench/encoders', blocks.append, qos.ENCODER_QOS)
     spin_for(ex, 1.5)     # the recorder has bench/encoders only: still held
     assert adapter.blocks_published == 0 and not blocks
+    assert adapter.busy   # (a stop now waits for the recorder: run_node's work under way)
     rec.create_subscription(BenchChannels, 'bench/channels', chans.append, qos.ENCODER_QOS)
     assert spin_until(ex, lambda: len(blocks) >= 3 and len(chans) >= 3, 10.0)
     assert [b.seq for b in blocks[:3]] == [c.seq for c in chans[:3]] == [0, 1, 2]
+    assert not adapter.busy
 
 
 @pytest.mark.timeout(30)
