@@ -474,19 +474,25 @@ def _feed_by_time(runner: StepRunner, step: dict[str, Any], spans: list[tuple[fl
                   blocks: dict[int, tuple[np.ndarray, np.ndarray, np.ndarray,
                                           np.ndarray | None, np.ndarray | None]],
                   times: dict[int, np.ndarray]) -> None:
-    """The step's blocks cut into its segments by their recorded time ranges, as live."""
+    """The step's blocks cut into its segments by their recorded time ranges, as live.
+
+    A block of the step missing from the bag leaves a hole from the last sample before it
+    to the first sample after it (the step's start and end where there is none): every
+    segment whose time range reaches into that hole is marked, and so not measured across
+    it; a hole between two segments (the bench moving to the next setpoint) costs none."""
     lo = np.array([a for a, _ in spans])
     hi = np.array([b for _, b in spans])
     last = -1
-    prev_end = None
+    prev_end = -math.inf
+    missing: int | None = None     # the first missing block of the hole not yet marked
     for seq in range(int(step['first_seq']), int(step['last_seq']) + 1):
         block, t = blocks.get(seq), times.get(seq)
         if block is None or t is None:
-            if prev_end is not None:   # the segments this gap falls into lose data
-                for i in np.flatnonzero(hi > prev_end):
-                    runner.mark(int(i), f'block {seq} of the step is not in the bag')
-                    break
+            missing = seq if missing is None else missing
             continue
+        if missing is not None:
+            _mark_hole(runner, lo, hi, prev_end, float(t[0]), missing)
+            missing = None
         prev_end = float(t[-1])
         for i in np.flatnonzero((hi >= t[0]) & (lo <= t[-1])):
             keep = (t >= lo[i]) & (t <= hi[i])
@@ -500,4 +506,13 @@ def _feed_by_time(runner: StepRunner, step: dict[str, Any], spans: list[tuple[fl
                      for x in (block[3] if len(block) > 3 else None,
                                block[4] if len(block) > 4 else None)]
             runner.feed(int(i), block[0][keep], block[1][keep], tq, *extra)
+    if missing is not None:
+        _mark_hole(runner, lo, hi, prev_end, math.inf, missing)
+
+
+def _mark_hole(runner: StepRunner, lo: np.ndarray, hi: np.ndarray, after_s: float,
+               before_s: float, seq: int) -> None:
+    """Mark the segments reaching into the hole between ``after_s`` and ``before_s``."""
+    for i in np.flatnonzero((hi > after_s) & (lo < before_s)):
+        runner.mark(int(i), f'block {seq} of the step is not in the bag')
 
