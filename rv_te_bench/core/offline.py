@@ -131,6 +131,7 @@ class _SpectraThread:
         self._work = SpectrumWorkspace()            # used by the worker thread only
         self._jobs: dict[int, Future[OrderSpectrum]] = {}   # window index -> its spectrum
         self._on_thread: Future[OrderSpectrum] | None = None   # the thread's latest job
+        self._on_thread_index = -1                              # ... its window
         self._thread_arrays: tuple[np.ndarray, np.ndarray] | None = None   # ... its arrays
         # the thread's jobs' arguments (phi, te, duration), to compute one here instead
         self._args: dict[int, tuple[np.ndarray, np.ndarray, float]] = {}
@@ -154,7 +155,7 @@ class _SpectraThread:
         ana = self._analyzer
         n = buf.n
         duration_s = buf.t_last - buf.t_first
-        if self._on_thread is not None and not self._on_thread.done():
+        if self._thread_busy():
             job: Future[OrderSpectrum] = Future()
             try:   # with the caller's own workspace
                 job.set_result(ana.window_spectrum(
@@ -172,6 +173,14 @@ class _SpectraThread:
         self._args[index] = (phi[:n], te[:n], duration_s)
         self._on_thread = self._jobs[index] = self._pool.submit(
             ana.window_spectrum, phi[:n], te[:n], duration_s, self._work)
+        self._on_thread_index = index
+
+    def _thread_busy(self) -> bool:
+        """Whether the thread's latest job still needs its arrays: not done, or cancelled
+        (an executor that declines a job, or one taken back) and not yet computed here."""
+        job = self._on_thread
+        return job is not None and (not job.done() or (
+            job.cancelled() and self._on_thread_index in self._args))
 
     def closed(self, windows: Iterable[WindowResult]) -> None:
         """Queue closed windows; hand on those at the head whose spectrum is done."""

@@ -138,20 +138,24 @@ def session_info(path: str | Path) -> SessionInfo:
                        imported_from=str(custom.get('imported_from') or ''))
 
 
-def analysis_path(path: str | Path) -> Literal['helper', 'one thread']:
-    """Which of its two paths :func:`analyze_bag` takes for the bag at ``path``: the helper
-    thread (reading ahead, window spectra) where two cores are allowed and the bag's files
-    hold at least ``HELPER_MIN_BAG_BYTES``, else everything on the calling thread
-    (:mod:`rv_te_bench.io._cores`; ``RV_TE_READ_AHEAD`` overrides). Never raises: a bag
+def analysis_path(path: str | Path) -> Literal['helper', 'one thread', 'machine decides']:
+    """Which of its two paths :func:`analyze_bag` takes for the bag at ``path``:
+    ``'one thread'`` (everything on the calling thread) where one core is allowed or the
+    bag's files hold less than ``HELPER_MIN_BAG_BYTES``; else ``'machine decides'``: it
+    starts on one thread and starts the helper thread (reading ahead, window spectra) after
+    ~40 ms if the machine has room for it (:mod:`rv_te_bench.io._cores`); ``'helper'``
+    from the start with ``RV_TE_READ_AHEAD=1`` (``0``: one thread). Never raises: a bag
     that cannot be opened gets the one-thread path (its analysis reports why)."""
-    from rv_te_bench.io._cores import analysis_uses_helper
+    from rv_te_bench.io._cores import analysis_uses_helper, helper_forced
     from rv_te_bench.io.bag_reader import open_bag
 
     try:
         size = sum(f.stat().st_size for f in open_bag(path).files)
     except (BagError, OSError):
         return 'one thread'
-    return 'helper' if analysis_uses_helper(size) else 'one thread'
+    if not analysis_uses_helper(size):
+        return 'one thread'
+    return 'helper' if helper_forced() else 'machine decides'
 
 
 def analyze_bag(
@@ -206,12 +210,11 @@ def analyze_bag(
             head angles that cannot be averaged (HeadLayoutError); a calibration for
             another scale or expired (EncoderCalibrationError).
     """
-    from concurrent.futures import ThreadPoolExecutor
-
     from rv_te_bench.core.offline import analyze_blocks
     from rv_te_bench.core.plausibility import check_measured_ratio
     from rv_te_bench.core.stream_records import TeAnalysisConfig
     from rv_te_bench.core.te_zero import TeZero
+    from rv_te_bench.io._helper import HelperThread
     from rv_te_bench.io.bag_reader import (
         open_bag,
         read_encoder_batches,
@@ -237,9 +240,10 @@ def analyze_bag(
     # one helper thread reads the bag ahead and computes window spectra: with the caller,
     # two runnable threads on two cores (a third preempts the caller: issue 23); where one
     # core is allowed (affinity, cgroup quota), or the bag is too small for the helper to
-    # pay, no thread at all, no read-ahead (issue 41)
-    helper = ThreadPoolExecutor(max_workers=1, thread_name_prefix='te-helper') \
-        if analysis_path(path) == 'helper' else None
+    # pay, no thread at all, no read-ahead; else it starts once the machine is seen to
+    # have room for it, one thread meanwhile (issue 41)
+    plan = analysis_path(path)
+    helper = None if plan == 'one thread' else HelperThread(decide=plan == 'machine decides')
     try:
         stream = read_encoder_batches(path, topic, strict=False, executor=helper,
                                       read_ahead=helper is not None, merge=True)
@@ -247,6 +251,8 @@ def analyze_bag(
         fold = AngleFold() if with_advice and bench.reducer_type == '2kv' else None
         # the shaft angles formed from the read heads (and the calibration) before anything
         items = stream if combiner is None else combine_stream(stream, combiner)
+        if helper is not None:      # (it may start when the machine has room)
+            items = helper.watch(items)
         reader = _GuardedBlocks(zero.stream(items), bench.gear_ratio, progress=progress,
                                 t_start=t_start, fold=fold, max_points=MAX_TRACE_POINTS)
         averager = SpectrumAverager()

@@ -206,14 +206,17 @@ def test_analyze_bag_helper_thread_follows_the_read_ahead_switch(
         big: bool, spectra: str, reads: str) -> None:
     """analyze_bag reads ahead and computes spectra on one helper thread, shared (no third
     thread on two cores), when the bag is big enough for it to pay (HELPER_MIN_BAG_BYTES;
-    here the limit is set just below or above the test bag's size), unless
+    here the limit is set just below or above the test bag's size) and the machine has
+    room for it (planted here), unless
     RV_TE_READ_AHEAD=0 (a fleet worker per core: nothing off the main thread) or the
     process may run on one core only (taskset, a cpuset, a cgroup quota): then all on the
     main thread, the reader's read-ahead too (issue 41; it ran on a thread of the reader's
     own before). RV_TE_READ_AHEAD=1 forces the helper on small bags too (two cores)."""
     from rv_te_bench.io import _mcap_scan
+    from rv_te_bench.io._helper import HelperThread
     from rv_te_bench.io.bag_reader import READ_AHEAD_ENV
     from rv_te_bench.report.analysis import analyze_bag
+    from tests.io.test_helper_thread import _IDLE_CORE, plant_machine
     from tests.unit_bags import write_unit_bag
 
     if env is None:
@@ -237,14 +240,18 @@ def test_analyze_bag_helper_thread_follows_the_read_ahead_switch(
     # what is handed to a pool (which thread then runs it is timing: the caller takes back
     # a job the helper has not started, see test_a_job_the_thread_has_not_started_...)
     submitted: set[tuple[str, str]] = set()
-    real_submit = ThreadPoolExecutor.submit
+    real_submit = HelperThread.submit
 
-    def submit(pool: ThreadPoolExecutor, fn: object, /, *args: object, **kwargs: object):
+    def submit(pool: HelperThread, fn: object, /, *args: object, **kwargs: object):
         name = getattr(fn, '__name__', '')
-        submitted.add((pool._thread_name_prefix, 'read' if name == 'call' and args
+        submitted.add(('te-helper', 'read' if name == 'call' and args
                        and isinstance(args[0], memoryview) else name))
         return real_submit(pool, fn, *args, **kwargs)
-    monkeypatch.setattr(ThreadPoolExecutor, 'submit', submit)
+    monkeypatch.setattr(HelperThread, 'submit', submit)
+    # unset switch: the machine decides whether the helper starts; here it has room at the
+    # first job handed over (the decision itself: tests/io/test_helper_thread.py)
+    plant_machine(monkeypatch, _IDLE_CORE)
+    monkeypatch.setattr('rv_te_bench.io._cores.DECIDE_AFTER_S', 0.0)
     # 4 output revolutions of an independently generated unit (2 kHz, 1 crank-order line)
     rate = 2000.0
     t = np.arange(int(4 * 15.8 * rate)) / rate
@@ -304,3 +311,34 @@ def test_a_job_the_helper_has_not_started_is_done_by_the_caller(tmp_path: object
     assert [_full_key(w) for w in taken.windows] == [_full_key(w) for w in inline.windows]
     assert taken.counters == inline.counters
     assert taken.cumulative == inline.cumulative
+
+
+def test_jobs_an_executor_declines_are_done_by_the_caller(tmp_path: object) -> None:
+    """An executor that hands every job back cancelled (the analysis's helper once it has
+    decided against starting, issue 41): each spectrum is computed by the caller, none is
+    lost, and a window's arrays are not reused for the next window before its spectrum is
+    computed. Fails on the code before, which took a cancelled job's arrays for free:
+    windows came out with a wrong spectrum or none."""
+    from concurrent.futures import Executor, Future
+
+    from rv_te_bench.io.bag_reader import read_encoder_batches
+    from tests.unit_bags import write_unit_bag
+
+    class Declining(Executor):
+        def submit(self, fn, /, *args, **kwargs):   # type: ignore[no-untyped-def]
+            job: Future[object] = Future()
+            job.cancel()
+            return job
+
+    rate = 2000.0
+    t = np.arange(int(5 * 15.8 * rate)) / rate
+    theta_in = 2 * math.pi * (300 / 60) * t
+    theta_out = theta_in / 79.0 + 1e-4 * np.cos(25 * theta_in / 79.0)
+    bag = write_unit_bag(tmp_path / 'bag', theta_in, theta_out, rate_hz=rate, block=500)
+    config = TeAnalysisConfig(orders=ORDERS)
+    inline = analyze_blocks(read_encoder_batches(bag, read_ahead=False), config)
+    assert sum(w.spectrum is not None for w in inline.windows) >= 4
+    declined = analyze_blocks(read_encoder_batches(bag, executor=Declining(), read_ahead=True),
+                              config, spectra_thread=Declining())
+    assert [_full_key(w) for w in declined.windows] == [_full_key(w) for w in inline.windows]
+    assert declined.counters == inline.counters
