@@ -135,7 +135,11 @@ def _run(args: argparse.Namespace, busy: bool) -> int:
     tuned = tune_for_batch_work() if args.allocator == 'tuned' else False
     from rv_te_bench.core.stream_records import EncoderBatch
     from rv_te_bench.io.bag_reader import read_encoder_batches
-    from rv_te_bench.report.analysis import analysis_path, analyze_bag
+    from rv_te_bench.report.analysis import analyze_bag
+
+    sys.path.insert(0, str(ROOT / 'benchmarks'))
+    from _taken import Taken
+    taken = Taken()
 
     base_core = None
     if args.baseline:
@@ -211,12 +215,13 @@ def _run(args: argparse.Namespace, busy: bool) -> int:
         cpu: dict[str, list[float]] = {name: [] for name, _fn in paths}
         for _ in range(args.repeats):   # interleaved, so machine noise hits all alike
             for name, fn in paths:
-                if name == 'analyze':
-                    chose[block].append(analysis_path(bag) == 'helper')
+                taken.clear()
                 c0, t0 = time.process_time(), time.perf_counter()
                 got = fn()
                 wall[name].append(time.perf_counter() - t0)
                 cpu[name].append(time.process_time() - c0)
+                if name == 'analyze':
+                    chose[block].append(taken.path() == 'helper')
                 if got < n * 0.99:
                     print(f'ERROR: {name} saw {got} of {n} samples', file=sys.stderr)
                     return 1

@@ -149,7 +149,6 @@ def sample_machine(proc: Path | None = None) -> MachineSample | None:
     tests). None when ``/proc/stat`` cannot be read or parsed; never raises."""
     proc = _PROC if proc is None else proc
     try:
-        t_s = _now()
         text = (proc / 'stat').read_bytes()
         cpus = os.sched_getaffinity(0) if hasattr(os, 'sched_getaffinity') else None
         idle, seen, running = 0, 0, None
@@ -169,7 +168,9 @@ def sample_machine(proc: Path | None = None) -> MachineSample | None:
         delay: int | None = int((proc / 'thread-self' / 'schedstat').read_bytes().split()[1])
     except (OSError, ValueError, IndexError):
         delay = None
-    return MachineSample(t_s=t_s, idle_ticks=idle, run_delay_ns=delay, procs_running=running)
+    # (the time after the wait read: the waits of two readings are that far apart)
+    return MachineSample(t_s=_now(), idle_ticks=idle, run_delay_ns=delay,
+                         procs_running=running)
 
 
 def helper_has_room(before: MachineSample, after: MachineSample) -> tuple[bool, str]:
