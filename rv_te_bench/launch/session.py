@@ -224,6 +224,15 @@ def _check_wildcard(values: dict[str, Any], f: str | Path, wanted: Sequence[str]
             params[n].setdefault(key, coerce_parameters(node_specs(n), {key: value})[key])
 
 
+def bench_is_paced(spec: SessionSpec) -> bool:
+    """True when the session's bench paces to the wall clock on real-time scheduling
+    (``realtime_priority`` > 0, real time mode): its node process then talks over UDP only
+    (:func:`rv_te_bench.nodes.middleware.use_paced_transport`)."""
+    values = spec.parameters.get('bench', {})
+    return 'bench' in spec.nodes and int(values.get('realtime_priority', 0) or 0) > 0 \
+        and values.get('time_mode', 'realtime') == 'realtime'
+
+
 def node_parameters(spec: SessionSpec, node: str) -> dict[str, Any]:
     """A node's parameters in a session: the validated ones plus the session's defaults."""
     values = dict(spec.parameters.get(node, {}))
@@ -461,6 +470,12 @@ class Session:
             # own process group: a terminal Ctrl-C reaches the launcher only, which then
             # stops the nodes in data-flow order (recorder last)
             env = child_env()
+            if node == 'bench' and bench_is_paced(self.spec):
+                # its SCHED_FIFO thread must not wait for shared-memory ports' locks held
+                # by time-shared processes (issue 41 item 4: publish() held 10-650 ms)
+                from rv_te_bench.nodes.middleware import use_paced_transport
+
+                use_paced_transport(env)
             env['RV_TE_SESSION'] = self.token
             env[FAILURE_FILE_ENV] = str(self._failure_path(node))
             if threading.current_thread() is threading.main_thread():
