@@ -42,6 +42,14 @@ helper wall / one-thread wall:
 * two CPU-bound processes (with the analysis, three runnable on two cores): 0.87 / 0.77
   / 0.85 / 0.84; three: 0.88 / 0.78 / 0.70 / 0.80; five: 0.82 / 0.71 / 0.66 / 0.72.
 
+The wait threshold lies between those cases: one thread beside k CPU-bound processes on
+two cores waits (k - 1) / (k + 1) of the time under a fair scheduler: 0 for k = 1 (helper
+0.98-1.14x one thread above), 1/3 for k = 2 (0.77-0.87x). With the rule in place
+(``benchmarks/README.md``, "Which path"): beside one busy core one thread 9 of 9 times at
+every size, 0.96-1.03x the forced one-thread path; both cores free the helper from 60 s,
+0.66x one thread at 600 s; two or four CPU-bound processes the helper in most repeats,
+0.72-0.93x one thread at 600 s.
+
 The interval is short enough that a 60-s session (~60 ms on a free machine, ~40 of them
 reading) can still gain from the helper, long enough that ``/proc/stat``'s 10-ms ticks
 tell an idle core (3 ticks in 30 ms; a tickless kernel keeps idle time in us and shows it
