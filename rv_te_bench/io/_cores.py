@@ -19,7 +19,7 @@ Then the machine decides (:func:`helper_has_room`, used by
 :class:`rv_te_bench.io._helper.HelperThread`). The analysis starts on one thread (jobs for
 the helper wait, and the caller takes back each one it reaches first, so nothing waits for
 the decision); once :data:`DECIDE_AFTER_S` have passed it compares two readings of the
-machine (:func:`sample_machine`, ~0.1 ms each) and starts the helper or does without it:
+machine (:func:`sample_machine`, ~0.04 ms each) and starts the helper or does without it:
 
 * **the other core was idle** (at least :data:`FREE_CORE_MIN` of a core idle over the
   interval, ``/proc/stat`` idle + iowait of the CPUs this process may use): helper;
