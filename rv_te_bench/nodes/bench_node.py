@@ -312,9 +312,14 @@ class BenchNode(Node):
 
     def _realtime_scheduling(self) -> str:
         """``realtime_priority`` > 0: SCHED_FIFO for this thread (the node's, which then
-        spins the executor: its timer thread inherits it), nice -10 for the middleware's
-        threads. Only in realtime mode: a real-time thread that simulates as fast as it can
-        (fast mode) would take a core from every other process."""
+        spins the executor: its timer thread inherits it), SCHED_FIFO ``middleware_priority``
+        (by default one below) for the middleware's threads, nice -10 for any other. Only
+        in realtime mode: a real-time thread that simulates as fast as it can (fast mode)
+        would take a core from every other process.
+
+        Raises:
+            ParameterFileError: ``middleware_priority`` not below ``realtime_priority``.
+        """
         want = int(self.p.realtime_priority)
         if want == 0:
             return 'normal'
@@ -325,7 +330,13 @@ class BenchNode(Node):
             return 'normal (fast time mode)'
         from rv_te_bench.nodes.scheduling import realtime_scheduling
 
-        got = realtime_scheduling(want)
+        below = int(self.p.middleware_priority)
+        below = want - 1 if below < 0 else below
+        if below >= want:
+            msg = (f'middleware_priority {below} must be below realtime_priority {want} '
+                   '(or -1: one below, or 0: nice -10)')
+            raise ParameterFileError(msg)
+        got = realtime_scheduling(want, middleware_priority=below)
         if got.startswith('normal') or 'not permitted' in got:
             self.get_logger().warning(f'scheduling: {got}')
         else:

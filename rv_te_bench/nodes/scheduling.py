@@ -35,6 +35,18 @@ import threading
 MIDDLEWARE_NICE = -10
 
 
+#: How Fast DDS names its threads (``dds.ev.0``, ``dds.udp.7400``, ``dds.asyn.0.0``...).
+FAST_DDS_PREFIX = 'dds.'
+
+
+def _thread_name(tid: int) -> str:
+    try:
+        with open(f'/proc/self/task/{tid}/comm', encoding='utf-8') as f:
+            return f.read().strip()
+    except OSError:
+        return ''
+
+
 def _thread_ids() -> list[int]:
     try:
         return sorted(int(t) for t in os.listdir('/proc/self/task'))
@@ -42,20 +54,33 @@ def _thread_ids() -> list[int]:
         return []
 
 
-def realtime_scheduling(priority: int, middleware_nice: int = MIDDLEWARE_NICE) -> str:
+def realtime_scheduling(priority: int, middleware_nice: int = MIDDLEWARE_NICE,
+                        middleware_priority: int = 0) -> str:
     """Put the calling thread on ``SCHED_FIFO`` at ``priority``, the other threads at nice
-    ``middleware_nice``; return one line saying what took effect.
+    ``middleware_nice`` (or on ``SCHED_FIFO`` at ``middleware_priority``); return one line
+    saying what took effect.
+
+    A ``middleware_priority`` below ``priority`` keeps the pacing thread first while a
+    middleware thread that holds a lock it needs (the writer's) runs before every
+    time-shared thread: traced with eight per-node sessions (benchmarks/README.md), the
+    bench's publishes waited up to 429 ms for the writer's mutexes held by its own
+    middleware threads at nice -10.
 
     Args:
         priority: 1..99 (``sched_get_priority_max(SCHED_FIFO)``); 0 leaves everything alone.
         middleware_nice: -20..19 for the threads that exist already.
+        middleware_priority: 0 (nice ``middleware_nice``) or 1..``priority`` - 1:
+            ``SCHED_FIFO`` at that priority for the middleware's threads that exist already
+            (Fast DDS names them ``dds.*``; any other thread, e.g. the thread that runs the
+            other nodes of a one-process session, gets nice ``middleware_nice``).
 
     Returns:
         ``'SCHED_FIFO 50, middleware threads nice -10'``, ``'normal'`` (priority 0), or
         ``'normal (SCHED_FIFO 50 not permitted: ...)'``: never raises for a missing permission.
 
     Raises:
-        ValueError: ``priority`` outside 0..99 or ``middleware_nice`` outside -20..19 (named).
+        ValueError: ``priority`` outside 0..99, ``middleware_nice`` outside -20..19 or
+            ``middleware_priority`` not 0 or below ``priority`` (named).
     """
     if isinstance(priority, bool) or not isinstance(priority, int) or not 0 <= priority <= 99:
         msg = f'realtime priority must be an integer 0..99, got {priority!r}'
@@ -63,6 +88,11 @@ def realtime_scheduling(priority: int, middleware_nice: int = MIDDLEWARE_NICE) -
     if isinstance(middleware_nice, bool) or not isinstance(middleware_nice, int) \
             or not -20 <= middleware_nice <= 19:
         msg = f'middleware nice must be an integer -20..19, got {middleware_nice!r}'
+        raise ValueError(msg)
+    if isinstance(middleware_priority, bool) or not isinstance(middleware_priority, int) \
+            or not (middleware_priority == 0 or 1 <= middleware_priority < priority):
+        msg = (f'middleware priority must be 0 or an integer 1..{max(priority - 1, 1)} (below '
+               f'the pacing thread\'s {priority}), got {middleware_priority!r}')
         raise ValueError(msg)
     if priority == 0:
         return 'normal'
@@ -82,13 +112,18 @@ def realtime_scheduling(priority: int, middleware_nice: int = MIDDLEWARE_NICE) -
         if tid == own:
             continue
         try:
-            os.setpriority(os.PRIO_PROCESS, tid, middleware_nice)
+            if middleware_priority and _thread_name(tid).startswith(FAST_DDS_PREFIX):
+                os.sched_setscheduler(tid, os.SCHED_FIFO, os.sched_param(middleware_priority))
+            else:
+                os.setpriority(os.PRIO_PROCESS, tid, middleware_nice)
             niced += 1
         except PermissionError:
             refused += 1
         except ProcessLookupError:   # a thread that ended meanwhile
             continue
+    want = (f'SCHED_FIFO {middleware_priority} (the others nice {middleware_nice})'
+            if middleware_priority else f'nice {middleware_nice}')
     if refused:
-        return (f'SCHED_FIFO {priority}, middleware threads nice 0 (nice {middleware_nice} '
-                f'not permitted for {refused} of {niced + refused})')
-    return f'SCHED_FIFO {priority}, middleware threads nice {middleware_nice}'
+        return (f'SCHED_FIFO {priority}, middleware threads nice 0 ({want} not permitted '
+                f'for {refused} of {niced + refused})')
+    return f'SCHED_FIFO {priority}, middleware threads {want}'

@@ -51,28 +51,40 @@ def may_set_fifo(priority: int) -> bool:
 
 
 CHILD = r'''
-import json, os, sys, threading
+import ctypes, json, os, sys, threading
 from rv_te_bench.nodes.scheduling import realtime_scheduling
-go = threading.Event()
+go, named = threading.Event(), threading.Event()
+
+def as_fast_dds():   # a thread named as Fast DDS names its own (prctl PR_SET_NAME)
+    ctypes.CDLL(None).prctl(15, b'dds.ev.0', 0, 0, 0)
+    named.set()
+    go.wait()
+
 before = [threading.Thread(target=go.wait) for _ in range(2)]
 for t in before:
     t.start()
-line = realtime_scheduling(int(sys.argv[1]))
+dds = threading.Thread(target=as_fast_dds)
+dds.start()
+named.wait()
+line = realtime_scheduling(int(sys.argv[1]), middleware_priority=int(sys.argv[2]))
 after = threading.Thread(target=go.wait)
 after.start()
 print(json.dumps({'line': line, 'main': threading.get_native_id(),
-                  'before': [t.native_id for t in before], 'after': after.native_id}),
+                  'before': [t.native_id for t in before], 'after': after.native_id,
+                  'dds': dds.native_id}),
       flush=True)
 sys.stdin.readline()        # the test reads /proc meanwhile
 go.set()
 '''
 
 
-def run_child(priority: int, prefix: tuple[str, ...] = ()) -> tuple[dict, dict]:
+def run_child(priority: int, prefix: tuple[str, ...] = (),
+              middleware_priority: int = 0) -> tuple[dict, dict]:
     """CHILD in a process (optionally under ``prefix``, e.g. setpriv): its report and the
     scheduling of its threads from /proc."""
     env = dict(os.environ, PYTHONPATH=str(ROOT))
-    p = subprocess.Popen([*prefix, sys.executable, '-c', CHILD, str(priority)], cwd=ROOT,
+    p = subprocess.Popen([*prefix, sys.executable, '-c', CHILD, str(priority),
+                          str(middleware_priority)], cwd=ROOT,
                          env=env, text=True, stdin=subprocess.PIPE, stdout=subprocess.PIPE,
                          stderr=subprocess.PIPE)
     try:
@@ -119,11 +131,39 @@ def test_pacing_thread_fifo_middleware_threads_niced() -> None:
     if may_set_fifo(7):
         assert report['line'] == 'SCHED_FIFO 7, middleware threads nice -10'
         assert seen[main][:2] == (SCHED_FIFO, 7)
-        assert [seen[t] for t in before] == [(SCHED_OTHER, 0, -10)] * 2
+        assert [seen[t] for t in (*before, report['dds'])] == [(SCHED_OTHER, 0, -10)] * 3
         assert seen[after][:2] == (SCHED_FIFO, 7)
     else:
         assert report['line'].startswith('normal (SCHED_FIFO 7 not permitted')
         assert {seen[t][:2] for t in (main, *before, after)} == {(SCHED_OTHER, 0)}
+
+
+@linux
+def test_middleware_threads_on_fifo_below_the_pacing_thread() -> None:
+    """With a middleware priority Fast DDS's threads (named dds.*) that existed before get
+    SCHED_FIFO at it (below the pacing thread, not niced); other threads that existed (in
+    one process: the thread of the other nodes) nice -10 as without it; a thread started
+    afterwards inherits the pacing thread's."""
+    report, seen = run_child(7, middleware_priority=3)
+    main, before, after = report['main'], report['before'], report['after']
+    if may_set_fifo(7):
+        assert report['line'] == ('SCHED_FIFO 7, middleware threads SCHED_FIFO 3 (the others '
+                                  'nice -10)')
+        assert seen[main][:2] == (SCHED_FIFO, 7)
+        assert seen[report['dds']] == (SCHED_FIFO, 3, 0)
+        assert [seen[t] for t in before] == [(SCHED_OTHER, 0, -10)] * 2
+        assert seen[after][:2] == (SCHED_FIFO, 7)
+    else:
+        assert report['line'].startswith('normal (SCHED_FIFO 7 not permitted')
+
+
+@pytest.mark.parametrize(('priority', 'middleware', 'message'), [
+    (7, 7, 'below the pacing thread'), (7, 9, 'got 9'), (0, 3, 'got 3'), (7, -1, 'got -1'),
+    (7, True, 'got True')])
+def test_a_middleware_priority_not_below_the_pacing_thread_is_named(
+        priority: int, middleware: object, message: str) -> None:
+    with pytest.raises(ValueError, match=message):
+        realtime_scheduling(priority, middleware_priority=middleware)  # type: ignore[arg-type]
 
 
 @linux
@@ -168,16 +208,20 @@ def test_bench_node_process_runs_its_pacing_thread_on_fifo(ros_domain_id: int) -
             lines.append(line)
             if 'scheduling:' in line or not line:
                 break
-        assert any('scheduling: SCHED_FIFO 20, middleware threads nice -10' in x
-                   for x in lines), ''.join(lines)
+        assert any('scheduling: SCHED_FIFO 20, middleware threads SCHED_FIFO 19 (the others '
+                   'nice -10)' in x for x in lines), ''.join(lines)
         time.sleep(1.0)   # the executor and its timer thread are up
         seen = task_sched(p.pid)
+        names = {int(t): Path(f'/proc/{p.pid}/task/{t}/comm').read_text().strip()
+                 for t in os.listdir(f'/proc/{p.pid}/task')}
         assert seen[p.pid][:2] == (SCHED_FIFO, 20)
-        others = [v for t, v in seen.items() if t != p.pid]
-        assert others, 'no middleware threads seen'
+        fast_dds = [v for t, v in seen.items() if names.get(t, '').startswith('dds.')]
+        assert fast_dds, names   # (middleware_priority -1: one below the pacing thread)
+        assert all(v[:2] == (SCHED_FIFO, 19) for v in fast_dds), (seen, names)
+        others = [v for t, v in seen.items()
+                  if t != p.pid and not names.get(t, '').startswith('dds.')]
         assert all(v[:2] == (SCHED_FIFO, 20) or (v[0] == SCHED_OTHER and v[2] <= -10)
                    for v in others), seen
-        assert any(v[0] == SCHED_OTHER and v[2] == -10 for v in others), seen
     finally:
         p.terminate()
         try:
@@ -200,6 +244,28 @@ def test_fast_mode_bench_keeps_normal_scheduling(graph) -> None:
         Parameter('time_mode', value='fast'), Parameter('realtime_priority', value=20),
         Parameter('duration_s', value=1.0)]))
     assert bench.scheduling == 'normal (fast time mode)'
+    assert (os.sched_getscheduler(0), os.getpriority(os.PRIO_PROCESS, 0)) == before
+
+
+@pytest.mark.ros
+@pytest.mark.parametrize('middleware', [20, 25])
+def test_a_middleware_priority_not_below_the_benches_is_refused(graph, middleware: int) -> None:
+    """A middleware priority at or above the pacing thread's would let a busy middleware
+    thread hold the pacing thread off the core: the bench refuses to start, naming both
+    (before anything's scheduling changed)."""
+    from rclpy.parameter import Parameter
+
+    from rv_te_bench.errors import ParameterFileError
+    from rv_te_bench.nodes.bench_node import BenchNode
+
+    ctx, _ex, _add = graph
+    before = (os.sched_getscheduler(0), os.getpriority(os.PRIO_PROCESS, 0))
+    with pytest.raises(ParameterFileError, match=f'middleware_priority {middleware} must be '
+                       'below realtime_priority 20'):
+        BenchNode(context=ctx, parameter_overrides=[
+            Parameter('time_mode', value='realtime'), Parameter('realtime_priority', value=20),
+            Parameter('middleware_priority', value=middleware),
+            Parameter('duration_s', value=1.0)])
     assert (os.sched_getscheduler(0), os.getpriority(os.PRIO_PROCESS, 0)) == before
 
 
@@ -317,8 +383,8 @@ def test_one_process_session_paces_the_bench_on_its_own_fifo_thread(
             lines.append(line)
             if 'scheduling:' in line or not line:
                 break
-        assert any('scheduling: SCHED_FIFO 20, middleware threads nice -10' in x
-                   for x in lines), ''.join(lines)
+        assert any('scheduling: SCHED_FIFO 20, middleware threads SCHED_FIFO 19 (the others '
+                   'nice -10)' in x for x in lines), ''.join(lines)
         time.sleep(0.5)   # the bench's executor and its timer thread are up
         seen = task_sched(p.pid)
         assert seen[p.pid] == (SCHED_OTHER, 0, -10), seen         # the other nodes' thread

@@ -205,6 +205,13 @@ class BenchParams:
         'normal scheduling. Keeps a bench on time beside other benches on a shared PC '
         '[-]',
         min_value=0, max_value=99)
+    middleware_priority: int = param(
+        -1,
+        'with realtime_priority: SCHED_FIFO priority of the middleware (Fast DDS) threads of '
+        'the bench process, below the pacing thread, so that one holding the writer\'s lock '
+        'is not preempted by time-shared work; -1 = realtime_priority - 1; 0 = nice -10 '
+        'instead (as before issue 41) [-]',
+        min_value=-1, max_value=98)
 
 
 PARAMS = param_specs(BenchParams)
