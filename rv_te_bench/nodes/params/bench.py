@@ -200,7 +200,7 @@ class BenchParams:
     realtime_priority: int = param(
         0,
         'realtime time mode: SCHED_FIFO priority of the thread that paces and '
-        'publishes the blocks, its middleware threads at nice -10 (Linux; needs '
+        'publishes the blocks, its middleware threads below it (middleware_priority; Linux; needs '
         'CAP_SYS_NICE or an rtprio limit, as ros2_control\'s thread_priority); 0 = '
         'normal scheduling. Keeps a bench on time beside other benches on a shared PC '
         '[-]',
