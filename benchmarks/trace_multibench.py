@@ -27,6 +27,7 @@ import tempfile
 import time
 from collections import defaultdict
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
@@ -46,15 +47,18 @@ def run(args: argparse.Namespace) -> Path:
     with open(out / 'multibench.txt', 'w') as log, open(out / 'multibench.err', 'w') as err:
         proc = subprocess.Popen(cmd, env=env, stdout=log, stderr=err)
         perf = None
-        if args.stacks_s > 0:   # the traced bench's switches with their call stacks
-            pid_file = out / f'pid-{args.bench}'
-            while not pid_file.exists() and proc.poll() is None:
+        if args.stacks_s > 0:   # the benches' pacing threads' switches, with call stacks
+            names = [f'bench{k + 1}' for k in range(args.benches)] if args.bench == 'all' \
+                else [args.bench]
+            while proc.poll() is None and not all((out / f'pid-{n}').exists() for n in names):
                 time.sleep(0.5)
             time.sleep(args.perf_at_s)
+            tids = ','.join((out / f'pid-{n}').read_text().strip() for n in names
+                            if (out / f'pid-{n}').exists())
             perf = subprocess.Popen(
                 ['perf', 'record', '-q', '-m', '1024', '-e', 'sched:sched_switch',
-                 '--call-graph', 'dwarf,16384', '-k', 'CLOCK_MONOTONIC',
-                 '-p', pid_file.read_text().strip(), '-o', str(out / 'stacks.data'), '--',
+                 '--call-graph', f'dwarf,{4096 if args.bench == "all" else 16384}',
+                 '-k', 'CLOCK_MONOTONIC', '-t', tids, '-o', str(out / 'stacks.data'), '--',
                  'sleep', str(args.stacks_s)], stdout=subprocess.DEVNULL, stderr=err)
             perf.wait()
         proc.wait()
@@ -125,9 +129,15 @@ def analyse(folder: Path, bench: str | None) -> None:
     for line in first['threads']:
         print('  ' + str(line))
     stacks = folder / 'stacks.data'
-    if not stacks.exists() or bench not in data:
+    if not stacks.exists():
         return
-    d = data[bench]
+    for name in sorted(data) if bench == 'all' else [bench]:
+        if name in data:
+            explain_stacks(name, data[name], stacks)
+
+
+def explain_stacks(name: str, d: Any, stacks: Path) -> None:
+    """What the bench's pacing thread slept on inside its publishes > LATE_MS."""
     recs = read_stacks(stacks, int(d['main_tid']))
     if not recs:
         return
@@ -142,7 +152,7 @@ def analyse(folder: Path, bench: str | None) -> None:
             kinds[what_it_waited_for(r[2])].append((x[3] - x[2]) * 1e3)
         if not waits:
             kinds['(no switch recorded)'].append((x[3] - x[2]) * 1e3)
-    print(f'\n{bench}: publishes > {LATE_MS:g} ms in the {hi - lo:.0f} s with stacks: '
+    print(f'\n{name}: publishes > {LATE_MS:g} ms in the {hi - lo:.0f} s with stacks: '
           f'{len(slow)}; where its thread slept in them (sleeps, the publishes\' longest):')
     for k, v in sorted(kinds.items(), key=lambda kv: -len(kv[1])):
         print(f'  {len(v)} x {k} (up to {max(v):.1f} ms)')
@@ -160,7 +170,9 @@ def main() -> int:
                          '(perf --call-graph dwarf) for this long, --perf-at-s after its '
                          'first tick')
     ap.add_argument('--analyse', type=Path, help='analyse an earlier run\'s folder')
-    ap.add_argument('--bench', default='bench1', help='the bench whose stacks are recorded')
+    ap.add_argument('--bench', default='bench1',
+                    help="the bench whose pacing thread's stacks are recorded ('all': every "
+                         "bench's, with 4 KiB of stack each)")
     ap.add_argument('extra', nargs='*', help='more arguments for bench_multibench.py')
     args = ap.parse_args()
     folder = args.analyse or run(args)
