@@ -10,7 +10,6 @@ the helper is considered at all; our writer, zstd, as the recorder writes)."""
 
 from __future__ import annotations
 
-import json
 import sys
 import threading
 from pathlib import Path
@@ -19,8 +18,8 @@ import pytest
 
 from rv_te_bench.io import _cores, _helper
 from rv_te_bench.report.analysis import analyze_bag
-from rv_te_bench.report.html import report_json
 from tests.io.test_helper_thread import _BUSY_CORE, _IDLE_CORE, plant_machine
+from tests.report.analysis_doc import analysis_doc
 
 ROOT = Path(__file__).resolve().parents[2]
 SAMPLE = ROOT / 'bags' / 'sample'
@@ -53,14 +52,6 @@ def two_cores(monkeypatch: pytest.MonkeyPatch) -> list[str]:
         real(thread)
     monkeypatch.setattr(threading.Thread, 'start', start)
     return started
-
-
-def _doc(bag: Path) -> str:
-    doc = report_json([analyze_bag(bag)])
-    doc.pop('generated_utc', None)
-    for b in doc['bags']:
-        b.pop('elapsed_s', None)
-    return json.dumps(doc, sort_keys=True)
 
 
 def _decisions(monkeypatch: pytest.MonkeyPatch) -> list[_helper.HelperThread]:
@@ -109,13 +100,13 @@ def test_the_analysis_is_the_same_whenever_the_helper_starts(
     bag = SAMPLE if bag_name == 'sample' else big_bag
     monkeypatch.setattr(_cores, 'HELPER_MIN_BAG_BYTES', 0)   # (the sample bag: 0.5 MB)
     monkeypatch.setenv(_cores.READ_AHEAD_ENV, '0')
-    want = _doc(bag)
+    want = analysis_doc(bag)
     assert not two_cores
     monkeypatch.delenv(_cores.READ_AHEAD_ENV)
     # never decided (the bag over before): how many times the helper read its clock
     clock = plant_machine(monkeypatch, _IDLE_CORE)
     monkeypatch.setattr(_cores, 'DECIDE_AFTER_S', 1e9)
-    assert _doc(bag) == want
+    assert analysis_doc(bag) == want
     assert not two_cores
     n = len(clock)               # (the sample bag: 5, the 58-s session: 26)
     assert n >= 4
@@ -126,7 +117,7 @@ def test_the_analysis_is_the_same_whenever_the_helper_starts(
         plant_machine(monkeypatch, machine)
         monkeypatch.setattr(_cores, 'DECIDE_AFTER_S', at * 0.010 - 0.001)
         made = _decisions(monkeypatch)
-        got = _doc(bag)
+        got = analysis_doc(bag)
         decision = made[0].decision
         assert ('te-helper' in two_cores) is (machine == _IDLE_CORE), (machine, at, decision)
         assert got == want, (machine, at, decision)

@@ -6,25 +6,15 @@ every sample, whose noise estimate depends on where the record is cut), on both 
 
 from __future__ import annotations
 
-import json
 from pathlib import Path
 
 import numpy as np
 import pytest
 
 from rv_te_bench.io import bag_reader
-from rv_te_bench.report.analysis import analyze_bag
-from rv_te_bench.report.html import report_json
 from tests import wang2020_reference as ref
+from tests.report.analysis_doc import analysis_doc
 from tests.unit_bags import unit_bag
-
-
-def _doc(bag: Path) -> str:
-    doc = report_json([analyze_bag(bag)])
-    doc.pop('generated_utc', None)
-    for b in doc['bags']:
-        b.pop('elapsed_s', None)
-    return json.dumps(doc, sort_keys=True)
 
 
 @pytest.mark.parametrize('helper', ['0', '1'])
@@ -37,10 +27,10 @@ def test_merged_batches_give_the_same_analysis(tmp_path: Path, helper: str,
     merged = [i.n_samples for i in bag_reader.read_encoder_batches(bag, merge=True)]
     chunkwise = [i.n_samples for i in bag_reader.read_encoder_batches(bag)]
     assert len(merged) < len(chunkwise)          # the bag's chunks were merged
-    got = _doc(bag)
+    got = analysis_doc(bag)
     monkeypatch.setattr(bag_reader, 'MERGE_SAMPLES', 1)   # each chunk its own batch
     assert [i.n_samples for i in bag_reader.read_encoder_batches(bag, merge=True)] \
         == chunkwise
-    want = _doc(bag)
+    want = analysis_doc(bag)
     assert '"identification"' in want
     assert got == want
