@@ -279,7 +279,9 @@ def run_benches(n_benches: int, rate_hz: float, block: int, duration_s: float,
 
     sessions: dict[str, Any] = {
         ns: OneProcessSession(ns, overrides[ns]) if layout == 'single'
-        else Session(specs[ns], log=lambda s: print(s, file=sys.stderr)) for ns in names}
+        # (each node's output in its own file: a crash report shows the node's last lines)
+        else Session(specs[ns], log=lambda s: print(s, file=sys.stderr),
+                     log_dir=out_dir / 'logs' / ns) for ns in names}
     kinds = ('session',) if layout == 'single' else NODES
     ends = 'session' if layout == 'single' else 'bench'
     meter = CpuMeter()
@@ -350,7 +352,11 @@ def run_benches(n_benches: int, rate_hz: float, block: int, duration_s: float,
             except subprocess.TimeoutExpired:
                 spy.kill()
                 spy.wait()
-        codes = {ns: s.stop() for ns, s in sessions.items()}
+        codes, stop_wall = {}, {}
+        for ns, s in sessions.items():
+            t_stop = time.monotonic()
+            codes[ns] = s.stop()
+            stop_wall[ns] = time.monotonic() - t_stop
         ex.shutdown()
         for p in [*probes, watch]:
             p.destroy_node()
@@ -397,7 +403,11 @@ def run_benches(n_benches: int, rate_hz: float, block: int, duration_s: float,
             'lag_max_s': bench_diag.get('lag_max_s'),
             'steady_lag_max_s': steady_lag.get(f'/{ns}/bench: bench'),
             'scheduling': bench_diag.get('scheduling', '?'),
-            'crashed': ns in crashed or any(c not in (0, None) for c in codes[ns].values()),
+            # (a node that did not stop on SIGTERM failed its stop even if it exited 0)
+            'crashed': ns in crashed or bool(sessions[ns].failures)
+            or any(c not in (0, None) for c in codes[ns].values()),
+            'crash_report': crash_report(sessions[ns], codes[ns], out_dir / 'logs' / ns),
+            'stop_s': stop_wall[ns], 'node_stop_s': dict(getattr(sessions[ns], 'stop_s', {})),
             'cpu': {n: cpu.get(f'{ns}/{n}', float('nan')) for n in kinds},
             'probe_lag_max_ms': float(np.nanmax(steady)) * 1e3,
             'probe_lag_p99_ms': float(np.nanpercentile(steady, 99)) * 1e3,
@@ -412,6 +422,29 @@ def run_benches(n_benches: int, rate_hz: float, block: int, duration_s: float,
             'measured_s': max((w for _, w in meter.end.values()), default=0.0)
             - min((w for _, w in meter.start.values()), default=0.0),
             'profiles': sorted((out_dir / 'profile').glob('*.txt')) if profile_s else []}
+
+
+def crash_report(session: Any, codes: dict[str, int | None], log_dir: Path,
+                 tail: int = 40) -> list[str]:
+    """What went wrong in one session: its failures (a node that ended on its own, or did
+    not stop on SIGTERM: where it was in its stop), each node that ended with an error (exit
+    code or signal, how long its stop took) with the last lines of its output; [] if none."""
+    from rv_te_bench.launch.session import exit_text
+
+    lines = list(session.failures)
+    stop_s = getattr(session, 'stop_s', {})
+    for node, code in codes.items():
+        if code in (0, None):
+            continue
+        took = stop_s.get(node)
+        lines.append(f'node {node!r} ended {exit_text(code)}'
+                     + (f', {took:.1f} s after its SIGTERM' if took is not None else
+                        ' before the stop'))
+        log = log_dir / f'{node}.log'
+        with contextlib.suppress(OSError):
+            last = log.read_text(encoding='utf-8', errors='replace').splitlines()[-tail:]
+            lines += [f'  {node}: {x[:300]}' for x in last]
+    return lines
 
 
 def rt_probe(seconds: float, period_s: float, priority: int) -> int:
@@ -570,6 +603,19 @@ def print_benches(res: dict[str, Any], args: argparse.Namespace) -> bool:
                  f"{b['probe_late']} of {b['probe_n']} | "
                  f"{_f(b['lat_median_ms'], '{:.2f}')} / "
                  f"{_f(b['lat_p99_ms'], '{:.2f}')} ms |"))
+    for b in res['benches']:
+        if b['crash_report']:
+            print(f"\n{b['ns']} crashed:")
+            for line in b['crash_report']:
+                print(f'  {line}')
+    stops = [(b['stop_s'], b['ns']) for b in res['benches']]
+    node_stops = [(t, f"{b['ns']}/{n}") for b in res['benches']
+                  for n, t in b['node_stop_s'].items() if t is not None]
+    if stops:
+        print(f'\nsession stops (one after another): {min(stops)[0]:.1f}-{max(stops)[0]:.1f} s'
+              f' each (slowest {max(stops)[1]})'
+              + (f'; slowest node {max(node_stops)[1]} {max(node_stops)[0]:.1f} s after its '
+                 'SIGTERM' if node_stops else ''))
     scheds = sorted({str(b['scheduling']) for b in res['benches']})
     print(f"\nbench scheduling (diagnostics): {'; '.join(scheds)}")
     fl = res.get('rt_floor')

@@ -17,6 +17,7 @@ There is no ``launch`` / ``ros2 launch`` on PyPI, so this module does what a lau
 
 from __future__ import annotations
 
+import contextlib
 import importlib
 import os
 import signal
@@ -33,7 +34,7 @@ from rv_te_bench.errors import ParameterFileError, YamlInputError, YamlLimitErro
 from rv_te_bench.launch.checks import check_namespace, check_node_config, check_ros_names
 from rv_te_bench.launch.node_specs import NODE_TYPES, node_specs, ros_arguments
 from rv_te_bench.launch.pacing import PacedNode
-from rv_te_bench.nodes.params import FAILURE_FILE_ENV
+from rv_te_bench.nodes.params import FAILURE_FILE_ENV, STOP_PHASE_FILE_ENV
 from rv_te_bench.params import (
     ParamSpec,
     check_parameters,
@@ -382,6 +383,7 @@ def child_env() -> dict[str, str]:
     env.pop('RV_TE_LAUNCHER_PID', None)   # set by Session.start for its own children only
     env.pop('RV_TE_SESSION', None)
     env.pop(FAILURE_FILE_ENV, None)
+    env.pop(STOP_PHASE_FILE_ENV, None)
     env.setdefault('ROS_AUTOMATIC_DISCOVERY_RANGE', 'LOCALHOST')
     env.setdefault('PYTHONUNBUFFERED', '1')
     return env
@@ -400,11 +402,17 @@ class Session:
     """A running session (process per node). Use as a context manager or call stop()."""
 
     def __init__(self, spec: SessionSpec, *, log: Callable[[str], None] | None = None,
-                 stdout: IO[Any] | int | None = None) -> None:
-        """Prepare; nothing starts until :meth:`start`."""
+                 stdout: IO[Any] | int | None = None, log_dir: Path | None = None) -> None:
+        """Prepare; nothing starts until :meth:`start`. ``log_dir``: each node's output
+        goes to ``<log_dir>/<node>.log`` (instead of ``stdout``), kept after the stop."""
         self.spec = spec
         self.log = log or (lambda s: print(s, file=sys.stderr))
         self._stdout = stdout
+        self.log_dir = log_dir
+        self._logs: list[IO[Any]] = []
+        #: Seconds each node took to end after its SIGTERM in :meth:`stop` (None: it had
+        #: ended before).
+        self.stop_s: dict[str, float | None] = {}
         self._tmp = tempfile.TemporaryDirectory(prefix='rv-te-session-')
         self.procs: dict[str, NodeProcess] = {}
         self.failures: list[str] = []
@@ -478,19 +486,35 @@ class Session:
                 use_paced_transport(env)
             env['RV_TE_SESSION'] = self.token
             env[FAILURE_FILE_ENV] = str(self._failure_path(node))
+            env[STOP_PHASE_FILE_ENV] = str(self._phase_path(node))
             if threading.current_thread() is threading.main_thread():
                 # the nodes die with this process (Linux parent-death signal, set by the
                 # node itself: rv_te_bench.nodes.common.die_with_launcher). The signal
                 # follows the thread that started the child, so only from the main thread.
                 env['RV_TE_LAUNCHER_PID'] = str(os.getpid())
-            proc = subprocess.Popen(cmd, env=env, stdout=self._stdout,
-                                    stderr=self._stdout, start_new_session=True)
+            out = self._stdout
+            if self.log_dir is not None:
+                self.log_dir.mkdir(parents=True, exist_ok=True)
+                out = open(self.log_dir / f'{node}.log', 'wb')   # noqa: SIM115 - closed in stop
+                self._logs.append(out)
+            proc = subprocess.Popen(cmd, env=env, stdout=out, stderr=out,
+                                    start_new_session=True)
             self.procs[node] = NodeProcess(node, proc)
             if node == 'recorder':
                 time.sleep(0.5)   # (a Ctrl-C meanwhile is held: no further node starts)
 
     def _failure_path(self, node: str) -> Path:
         return Path(self._tmp.name) / f'{node}.failure'
+
+    def _phase_path(self, node: str) -> Path:
+        return Path(self._tmp.name) / f'{node}.stopping'
+
+    def stop_phase(self, node: str) -> str:
+        """The step of its stop a node last noted (one line; '' if none)."""
+        try:
+            return self._phase_path(node).read_text(encoding='utf-8').strip()
+        except OSError:
+            return ''
 
     def failure_reason(self, node: str) -> str:
         """The reason a node that ended with an error left (one line; '' if none)."""
@@ -581,6 +605,8 @@ class Session:
             if main:
                 for sig, handler in old.items():
                     signal.signal(sig, handler)
+        for f in self._logs:
+            f.close()
         self._tmp.cleanup()
         return codes
 
@@ -599,15 +625,39 @@ class Session:
                     while time.monotonic() < end and self._hurried_at is None:
                         time.sleep(0.05)
                 np_.proc.send_signal(signal.SIGTERM)
+                t0 = time.monotonic()
                 if not self._wait(np_, grace_s):
+                    waited = time.monotonic() - t0
+                    phase = self.stop_phase(name)
+                    if phase:   # (it runs run_node's stop: its stacks go to its output)
+                        self._dump_stacks(np_)
+                    phase = phase or 'no step of its stop noted'
                     np_.proc.terminate()
                     if not self._wait(np_, 3.0):
                         np_.proc.kill()
                         np_.proc.wait()
+                        end = 'killed (SIGKILL)'
+                    else:
+                        end = f'ended {exit_text(np_.proc.returncode)} after a second SIGTERM'
                     if self._hurried_at is None or name == 'recorder':
-                        self.failures.append(f'node {name!r} did not stop on SIGTERM')
+                        self.failures.append(
+                            f'node {name!r} did not stop on SIGTERM within {waited:.1f} s '
+                            f'(at: {phase}); {end}')
+                self.stop_s[name] = time.monotonic() - t0
+            else:
+                self.stop_s.setdefault(name, None)
             codes[name] = np_.proc.returncode
         return codes
+
+    def _dump_stacks(self, np_: NodeProcess) -> None:
+        """Ask a node that does not stop to print its threads' stacks to its output."""
+        from rv_te_bench.nodes.common import STACKS_SIGNAL
+
+        with contextlib.suppress(OSError):
+            np_.proc.send_signal(STACKS_SIGNAL)
+            self.log(f'[launch] node {np_.name!r} does not stop: its threads\' stacks '
+                     'follow in its output')
+            self._wait(np_, 0.5)
 
     def __enter__(self) -> Session:
         """Start the session."""
@@ -617,6 +667,18 @@ class Session:
     def __exit__(self, *exc: object) -> None:
         """Stop the session."""
         self.stop()
+
+
+def exit_text(code: int | None) -> str:
+    """A process's end in words: 'with code 1', 'by SIGKILL', 'still running'."""
+    if code is None:
+        return 'still running'
+    if code < 0:
+        try:
+            return f'by {signal.Signals(-code).name}'
+        except ValueError:
+            return f'by signal {-code}'
+    return f'with code {code}'
 
 
 def stop_grace_s() -> float:

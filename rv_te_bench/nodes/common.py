@@ -298,6 +298,7 @@ def run_node(factory: Callable[[Context], Node], args: Sequence[str] | None = No
     if main_thread:
         old_int = signal.signal(signal.SIGINT, request_stop)
         old_term = signal.signal(signal.SIGTERM, request_stop)
+        dump_stacks_on_request()
     node: Any = None
     code = 0
     try:
@@ -332,6 +333,7 @@ def run_node(factory: Callable[[Context], Node], args: Sequence[str] | None = No
             executor.spin_until_future_complete(Future(), timeout_sec=0.1)
         # Linger (reliable delivery of our last messages), and on a stop request drain what
         # is already queued for us so that it is analysed / recorded, not dropped.
+        note_stop_phase('draining what is queued for it')
         taken = count_messages_taken(node)
         start = time.monotonic()
         linger_end = start + linger_s
@@ -341,6 +343,7 @@ def run_node(factory: Callable[[Context], Node], args: Sequence[str] | None = No
         # publishes the result before it goes, within FINISH_MAX_S (issue #15 item 4)
         finish_by = start + FINISH_MAX_S
         cut_off = False
+        finishing = False
         last_count, last_taken, quiet_passes = taken[0], start, 0
         while context.ok():
             now = time.monotonic()
@@ -355,6 +358,9 @@ def run_node(factory: Callable[[Context], Node], args: Sequence[str] | None = No
                     node.get_logger().error('the launcher died: work under way is cut off, '
                                             'not finished')
             if getattr(node, 'busy', False) and now < finish_by:
+                if not finishing:
+                    finishing = True
+                    note_stop_phase('finishing work under way')
                 end = max(end, now + drain_max_s)   # and a drain after the last result
                 last_taken, quiet_passes = now, 0
             elif now >= end or (stop['requested'] and now >= linger_end
@@ -366,14 +372,18 @@ def run_node(factory: Callable[[Context], Node], args: Sequence[str] | None = No
                 last_count, last_taken, quiet_passes = taken[0], time.monotonic(), 0
             else:
                 quiet_passes += 1
+        note_stop_phase('shutting down its executor')
         executor.shutdown()
         if not launcher_gone():   # (its recorder stops at the same moment: nobody to wait for)
+            note_stop_phase('publishing its final status')
             publish_final_status(node)
+            note_stop_phase("waiting for its readers' acknowledgements")
             wait_for_readers(node)
     except (KeyboardInterrupt, ExternalShutdownException):
         pass
     finally:
         if node is not None:
+            note_stop_phase('destroying the node')
             node.destroy_node()   # (a recorder sets its exit code when it closes the bag)
             code = int(getattr(node, 'exit_code', 0) or 0)
             if code:
@@ -381,7 +391,9 @@ def run_node(factory: Callable[[Context], Node], args: Sequence[str] | None = No
         if main_thread:
             signal.signal(signal.SIGINT, old_int)
             signal.signal(signal.SIGTERM, old_term)
+        note_stop_phase('shutting down its ROS context')
         rclpy.try_shutdown(context=context)
+        note_stop_phase('exiting its process')
     if launcher_gone():
         _exit_without_waiting_for_workers(code)
     return code
@@ -434,6 +446,48 @@ def wait_for_readers(node: Node, timeout_s: float = READERS_ACK_MAX_S) -> bool:
         except Exception:  # noqa: BLE001 - a publisher destroyed or a context shut down
             ok = False
     return ok
+
+
+#: The signal on which a node process of a session prints its threads' Python stacks to
+#: its output (the launcher sends it to a node that does not stop, before it kills it).
+STACKS_SIGNAL = signal.SIGUSR1
+
+
+def dump_stacks_on_request() -> bool:
+    """In a node process of a session (a launcher reads its stop steps): print every
+    thread's stack on :data:`STACKS_SIGNAL`. True when set up."""
+    import faulthandler
+
+    from rv_te_bench.nodes.params import STOP_PHASE_FILE_ENV
+
+    if not os.environ.get(STOP_PHASE_FILE_ENV):
+        return False
+    try:
+        faulthandler.register(STACKS_SIGNAL, file=sys.stderr, all_threads=True)
+    except (OSError, ValueError, AttributeError, RuntimeError):
+        return False   # (no real stderr file, or not on this platform)
+    return True
+
+
+_stop_clock = {'t0': 0.0}
+
+
+def note_stop_phase(phase: str) -> None:
+    """Note the step of its stop this node process is at (one line, with the seconds since
+    the stop began) where its launcher reads it when the node is slow to end."""
+    from rv_te_bench.nodes.params import STOP_PHASE_FILE_ENV
+
+    path = os.environ.get(STOP_PHASE_FILE_ENV)
+    if not path:
+        return
+    now = time.monotonic()
+    if not _stop_clock['t0']:
+        _stop_clock['t0'] = now
+    try:
+        with open(path, 'w', encoding='utf-8') as f:
+            f.write(f'{phase} ({now - _stop_clock["t0"]:.1f} s into its stop)\n')
+    except OSError:
+        pass   # the launcher then names the exit code only
 
 
 def report_failure(reason: str) -> None:

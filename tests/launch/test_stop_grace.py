@@ -10,6 +10,8 @@ such a node, stopped by the launcher's own stop().
 
 from __future__ import annotations
 
+import os
+import signal
 import subprocess
 import sys
 import time
@@ -54,3 +56,50 @@ def test_a_node_finishing_its_work_then_slow_to_exit_is_waited_for(tmp_path: Pat
     assert session.failures == [], session.failures
     assert codes == {'compensation': 0}
     assert FINISH_MAX_S + 2.0 < took < FINISH_MAX_S + 10.0, took
+
+
+#: A node that notes a step of its stop (as run_node does) and then never ends on SIGTERM.
+STUCK_STOP = '''
+import os, signal, sys, time
+signal.signal(signal.SIGTERM, lambda *_: None)
+from rv_te_bench.nodes.common import dump_stacks_on_request, note_stop_phase
+assert dump_stacks_on_request()
+note_stop_phase("waiting for its readers' acknowledgements")
+print('ready', flush=True)
+while True:
+    time.sleep(0.01)
+'''
+
+
+@pytest.mark.timeout(60)
+def test_a_node_that_does_not_stop_is_named_with_where_it_was(tmp_path: Path) -> None:
+    """The stop says which node did not stop, how long it was waited for, the step of its
+    stop it was at, and how it ended, and the node prints its threads' stacks before it is
+    killed: a benchmark once saw a session end with "a node's non-zero exit" and could not
+    tell which node, or why."""
+    from rv_te_bench.nodes.params import STOP_PHASE_FILE_ENV
+
+    spec = simulated_session_spec(tmp_path, preset='li2023-rv', te_mode='dte')
+    session = Session(spec, log=lambda _s: None)
+    env = dict(os.environ, **{STOP_PHASE_FILE_ENV: str(session._phase_path('te_node'))})
+    err = tmp_path / 'te_node.err'
+    with err.open('wb') as f:
+        proc = subprocess.Popen([sys.executable, '-c', STUCK_STOP], stdout=subprocess.PIPE,
+                                stderr=f, env=env)
+    try:
+        assert proc.stdout is not None and proc.stdout.readline().strip() == b'ready'
+        session.procs['te_node'] = NodeProcess('te_node', proc)
+        codes = session.stop(grace_s=1.0, settle_s=0.0)
+    finally:
+        if proc.poll() is None:
+            proc.kill()
+            proc.wait()
+    assert codes == {'te_node': -signal.SIGKILL}
+    assert len(session.failures) == 1, session.failures
+    msg = session.failures[0]
+    assert msg.startswith("node 'te_node' did not stop on SIGTERM within 1."), msg
+    assert "(at: waiting for its readers' acknowledgements (0.0 s into its stop))" in msg, msg
+    assert msg.endswith('; killed (SIGKILL)'), msg
+    assert session.stop_s['te_node'] is not None and session.stop_s['te_node'] >= 4.0
+    stacks = err.read_text(encoding='utf-8')
+    assert '(most recent call first)' in stacks and 'File "<string>", line 9' in stacks, stacks
