@@ -536,10 +536,6 @@ class RecorderNode(Node):
         """Stop recording and finalise the bag (idempotent)."""
         if self.finished:
             return
-        for sub in self._subscriptions_by_topic.values():
-            if sub is not None:
-                self.destroy_subscription(sub)
-        self._subscriptions_by_topic.clear()
         if self._held:   # (sim time and /clock never came: time 0 is all there is)
             t_ns = self._log_time_ns()
             if not t_ns:
@@ -573,6 +569,15 @@ class RecorderNode(Node):
         if self._summary_file:
             self._write_summary_file()
         self._publish_final_status()
+        # The subscriptions go last, once the bag is closed and the summary written (what
+        # the executor hands over from now on is counted, not recorded: see _record).
+        # Destroying one blocked for ~20 s inside rclpy / Fast DDS at load 20-40 (eight
+        # benches, 2026-11-28), and the launcher killed the recorder before it had closed
+        # its bag: 6895 of 9000 blocks in it, the session's stop failed.
+        for sub in self._subscriptions_by_topic.values():
+            if sub is not None:
+                self.destroy_subscription(sub)
+        self._subscriptions_by_topic.clear()
 
     def _publish_final_status(self) -> None:
         """The 'closed' status once, waited for until acknowledged (at most

@@ -179,6 +179,52 @@ def test_a_message_handed_over_after_close_is_not_a_write_failure(ros_context: A
     assert [b.seq for b in read_encoder_blocks(tmp_path / 'bag')] == [0]
 
 
+def test_the_bag_is_closed_before_the_subscriptions_are_destroyed(ros_context: Any,
+                                                                  tmp_path: Path) -> None:
+    """Eight benches at load 20-40: destroying one of the recorder's subscriptions in
+    close() blocked ~20 s inside the middleware, before the bag was closed; the launcher
+    killed the recorder (its stop's grace ran out) and the bag kept 6895 of 9000 blocks.
+    The bag is now closed and the summary written before any subscription is destroyed:
+    planted here, a destroy_subscription that first reads back the bag and the summary."""
+    topic = f'/order_{os.getpid()}/bench/encoders'
+    summary = tmp_path / 'summary.yaml'
+    pub_node = rclpy.create_node('order_pub', context=ros_context)
+    pub = pub_node.create_publisher(EncoderBlock, topic, qos.ENCODER_QOS)
+    recorder = RecorderNode(context=ros_context, parameter_overrides=[
+        Parameter('output_dir', value=str(tmp_path)), Parameter('bag_name', value='bag'),
+        Parameter('topics', value=[topic]), Parameter('summary_file', value=str(summary)),
+        Parameter('topic_types', value=[f'{topic}=rv_te_msgs/msg/EncoderBlock'])])
+    executor = EventsExecutor(context=ros_context)
+    executor.add_node(pub_node)
+    executor.add_node(recorder)
+    seen: list[tuple[list[int], Any]] = []
+    real = recorder.destroy_subscription
+
+    def planted(sub: Any) -> bool:
+        # (what a launcher's SIGKILL at this moment would leave)
+        blocks = [b.seq for b in read_encoder_blocks(tmp_path / 'bag')]
+        seen.append((blocks, yaml.safe_load(summary.read_text()) if summary.exists()
+                     else None))
+        return real(sub)
+
+    try:
+        assert spin_until(executor, lambda: pub.get_subscription_count() >= 1, 15.0)
+        for seq in range(5):
+            pub.publish(encoder_cdr(seq, 10))
+        assert spin_until(executor, lambda: recorder.counts.get(topic) == 5, 10.0)
+        executor.remove_node(recorder)
+        recorder.destroy_subscription = planted   # type: ignore[method-assign]
+        recorder.close()
+    finally:
+        recorder.destroy_node()
+        pub_node.destroy_node()
+        executor.shutdown()
+    assert seen, 'close() destroyed no subscription'
+    blocks, written = seen[0]
+    assert blocks == [0, 1, 2, 3, 4]
+    assert written is not None and written['messages_on_disk'][topic] == 5, written
+
+
 def _recorder_process(tmp_path: Path, ns: str, domain: int) -> subprocess.Popen[str]:
     env = dict(os.environ)
     env.pop('_ROS_WHEELS_BOOTSTRAP_COMPLETE', None)
