@@ -42,7 +42,12 @@ from rv_te_bench.io.files import write_atomic
 from rv_te_bench.io.msgdefs import ENCODER_BLOCK
 from rv_te_bench.nodes import qos
 from rv_te_bench.nodes.backpressure import BlockAcks
-from rv_te_bench.nodes.common import DRAIN_MAX_S, declare_from_specs, run_node
+from rv_te_bench.nodes.common import (
+    DRAIN_MAX_S,
+    declare_from_specs,
+    note_stop_phase,
+    run_node,
+)
 from rv_te_bench.nodes.convert import message_class
 from rv_te_bench.nodes.params.recorder import DEFAULT_TOPICS, PARAMS, RecorderParams
 from rv_te_bench.params import params_record, params_values
@@ -574,6 +579,7 @@ class RecorderNode(Node):
         # Destroying one blocked for ~20 s inside rclpy / Fast DDS at load 20-40 (eight
         # benches, 2026-11-28), and the launcher killed the recorder before it had closed
         # its bag: 6895 of 9000 blocks in it, the session's stop failed.
+        note_stop_phase('bag closed and summary written; destroying its subscriptions')
         for sub in self._subscriptions_by_topic.values():
             if sub is not None:
                 self.destroy_subscription(sub)

@@ -180,14 +180,19 @@ def test_a_message_handed_over_after_close_is_not_a_write_failure(ros_context: A
 
 
 def test_the_bag_is_closed_before_the_subscriptions_are_destroyed(ros_context: Any,
-                                                                  tmp_path: Path) -> None:
+                                                                  tmp_path: Path,
+                                                                  monkeypatch: Any) -> None:
     """Eight benches at load 20-40: destroying one of the recorder's subscriptions in
     close() blocked ~20 s inside the middleware, before the bag was closed; the launcher
     killed the recorder (its stop's grace ran out) and the bag kept 6895 of 9000 blocks.
     The bag is now closed and the summary written before any subscription is destroyed:
     planted here, a destroy_subscription that first reads back the bag and the summary."""
+    from rv_te_bench.nodes.params import STOP_PHASE_FILE_ENV
+
     topic = f'/order_{os.getpid()}/bench/encoders'
     summary = tmp_path / 'summary.yaml'
+    phase = tmp_path / 'recorder.stopping'   # (what the launcher reads if it hangs there)
+    monkeypatch.setenv(STOP_PHASE_FILE_ENV, str(phase))
     pub_node = rclpy.create_node('order_pub', context=ros_context)
     pub = pub_node.create_publisher(EncoderBlock, topic, qos.ENCODER_QOS)
     recorder = RecorderNode(context=ros_context, parameter_overrides=[
@@ -197,14 +202,14 @@ def test_the_bag_is_closed_before_the_subscriptions_are_destroyed(ros_context: A
     executor = EventsExecutor(context=ros_context)
     executor.add_node(pub_node)
     executor.add_node(recorder)
-    seen: list[tuple[list[int], Any]] = []
+    seen: list[tuple[list[int], Any, str]] = []
     real = recorder.destroy_subscription
 
     def planted(sub: Any) -> bool:
         # (what a launcher's SIGKILL at this moment would leave)
         blocks = [b.seq for b in read_encoder_blocks(tmp_path / 'bag')]
         seen.append((blocks, yaml.safe_load(summary.read_text()) if summary.exists()
-                     else None))
+                     else None, phase.read_text() if phase.exists() else ''))
         return real(sub)
 
     try:
@@ -220,9 +225,10 @@ def test_the_bag_is_closed_before_the_subscriptions_are_destroyed(ros_context: A
         pub_node.destroy_node()
         executor.shutdown()
     assert seen, 'close() destroyed no subscription'
-    blocks, written = seen[0]
+    blocks, written, step = seen[0]
     assert blocks == [0, 1, 2, 3, 4]
     assert written is not None and written['messages_on_disk'][topic] == 5, written
+    assert step.startswith('bag closed and summary written; destroying its subscriptions'), step
 
 
 def _recorder_process(tmp_path: Path, ns: str, domain: int) -> subprocess.Popen[str]:
