@@ -201,6 +201,24 @@ def build_simulator(p: BenchParams) -> tuple[BenchSimulator, float]:
     return sim, duration_s
 
 
+def _middleware_priority(p: BenchParams) -> int:
+    """The SCHED_FIFO priority of the bench's middleware threads (``middleware_priority``;
+    -1: one below ``realtime_priority``; 0: nice -10 instead).
+
+    Raises:
+        ParameterFileError: Not below ``realtime_priority`` (where that is in effect: real
+            time mode, ``realtime_priority`` > 0).
+    """
+    want = int(p.realtime_priority)
+    below = int(p.middleware_priority)
+    below = want - 1 if below < 0 else below
+    if want > 0 and p.time_mode != 'fast' and below >= want:
+        msg = (f'middleware_priority {below} must be below realtime_priority {want} '
+               '(or -1: one below, or 0: nice -10)')
+        raise ParameterFileError(msg)
+    return below
+
+
 class BenchNode(Node):
     """Simulated bench publishing encoder blocks from :class:`sim.bench.BenchSimulator`."""
 
@@ -213,6 +231,9 @@ class BenchNode(Node):
         super().__init__('bench', **kwargs)
         self.p = params_record(BenchParams, declare_from_specs(self, PARAMS))
         reject_invalid_changes(self, PARAMS)
+        # refused before any publisher exists: a bench that does not start leaves no
+        # bench/encoders writer behind in its process (where a second bench then saw it)
+        self._middleware_priority = _middleware_priority(self.p)
         self.add_post_set_parameters_callback(self._on_params_set)
         self.sim, self.duration_s = build_simulator(self.p)
         info = self.sim.info
@@ -315,11 +336,7 @@ class BenchNode(Node):
         spins the executor: its timer thread inherits it), SCHED_FIFO ``middleware_priority``
         (by default one below) for the middleware's threads, nice -10 for any other. Only
         in realtime mode: a real-time thread that simulates as fast as it can (fast mode)
-        would take a core from every other process.
-
-        Raises:
-            ParameterFileError: ``middleware_priority`` not below ``realtime_priority``.
-        """
+        would take a core from every other process."""
         want = int(self.p.realtime_priority)
         if want == 0:
             return 'normal'
@@ -330,13 +347,7 @@ class BenchNode(Node):
             return 'normal (fast time mode)'
         from rv_te_bench.nodes.scheduling import realtime_scheduling
 
-        below = int(self.p.middleware_priority)
-        below = want - 1 if below < 0 else below
-        if below >= want:
-            msg = (f'middleware_priority {below} must be below realtime_priority {want} '
-                   '(or -1: one below, or 0: nice -10)')
-            raise ParameterFileError(msg)
-        got = realtime_scheduling(want, middleware_priority=below)
+        got = realtime_scheduling(want, middleware_priority=self._middleware_priority)
         if got.startswith('normal') or 'not permitted' in got:
             self.get_logger().warning(f'scheduling: {got}')
         else:

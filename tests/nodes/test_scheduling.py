@@ -267,6 +267,13 @@ def test_a_middleware_priority_not_below_the_benches_is_refused(graph, middlewar
             Parameter('middleware_priority', value=middleware),
             Parameter('duration_s', value=1.0)])
     assert (os.sched_getscheduler(0), os.getpriority(os.PRIO_PROCESS, 0)) == before
+    # refused before it made its writers: none is left behind in this process (a later
+    # session in it saw such a bench/encoders writer as a foreign publisher)
+    from rclpy.node import Node
+
+    probe = _add(Node('probe', context=ctx))
+    assert probe.count_publishers('/bench/encoders') == 0
+    assert probe.count_publishers('/bench/info') == 0
 
 
 @linux
