@@ -245,3 +245,37 @@ def test_program_bench_waits_for_a_slow_recorder(ros_context: Any, tmp_path: Pat
         caller.destroy_node()
         bench.destroy_node()
         recorder.destroy_node()
+
+
+@pytest.mark.timeout(60)
+def test_first_block_waits_for_each_reader_to_take_it(ros_context: Any) -> None:
+    """A reader's side of the match can come after the bench's: the bench sends its first
+    block, then waits until every holding reader has acknowledged it (blocks sent before
+    reached a sim-time recorder late, logged at a later clock). A reader that has not
+    taken block 0 keeps the bench at one block; once it acknowledges, the bench runs."""
+    ns = f'/bpfirst_{os.getpid()}_{time.monotonic_ns() % 10**6}'
+    seen: list[int] = []
+    taking = threading.Event()
+    reader = rclpy.create_node('te_node', namespace=ns, context=ros_context)
+
+    reader.create_subscription(EncoderBlock, 'bench/encoders',
+                               lambda m: seen.append(int(m.seq)), qos.ENCODER_QOS)
+    # it acknowledges what it took only once `taking` is set (a reader not matched yet)
+    BlockAcks(reader, lambda: seen[-1] if seen and taking.is_set() else None)
+    bench = _bench(ros_context, ns, ['te_node'], ack_timeout_s=30.0,
+                   duration_s=FREE_BLOCKS * 100 / 10000.0)
+    ex = SingleThreadedExecutor(context=ros_context)
+    ex.add_node(bench)
+    ex.add_node(reader)
+    try:
+        assert spin_until(ex, lambda: bench.blocks_published >= 1, 30.0)
+        spin_for(ex, 1.0)
+        assert bench.blocks_published == 1, 'ran on before its reader took the first block'
+        taking.set()
+        assert spin_until(ex, lambda: bench.finished, 25.0), 'still held after the ack'
+        assert bench.blocks_published == FREE_BLOCKS
+        assert bench.gate is not None and bench.gate.released == []   # (not by the timeout)
+    finally:
+        ex.shutdown()
+        reader.destroy_node()
+        bench.destroy_node()
