@@ -27,12 +27,15 @@ from std_msgs.msg import UInt64
 
 from rv_te_bench.nodes import qos
 
-__all__ = ['ACK_PERIOD_S', 'ACK_TOPIC_PREFIX', 'ACK_WINDOW_BLOCKS', 'AckGate', 'BlockAcks']
+__all__ = ['ACK_PERIOD_S', 'ACK_REPEAT_PERIODS', 'ACK_TOPIC_PREFIX', 'ACK_WINDOW_BLOCKS', 'AckGate',
+           'BlockAcks']
 
 #: Topic (relative to the session's namespace) + node name of a consumer's acknowledgements.
 ACK_TOPIC_PREFIX = 'bench/acked/'
 #: How often a consumer says how far it is [s].
 ACK_PERIOD_S = 0.05
+#: A consumer whose position stands says it again after this many periods (0.5 s).
+ACK_REPEAT_PERIODS = 10
 #: Blocks the bench may be ahead of its slowest consumer: half the encoder queue, so an
 #: acknowledgement that is one period old still leaves room in the reader's queue.
 ACK_WINDOW_BLOCKS = qos.ENCODER_QUEUE_DEPTH // 2
@@ -44,11 +47,13 @@ ACK_QOS = QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=1,
 
 class BlockAcks:
     """Consumer side: publish ``last_seq()`` on ``bench/acked/<node name>`` every
-    :data:`ACK_PERIOD_S` (steady clock) when it moved; ``None`` = no block yet."""
+    :data:`ACK_PERIOD_S` (steady clock) when it moved, and every :data:`ACK_REPEAT_PERIODS`
+    periods when it did not; ``None`` = no block yet."""
 
     def __init__(self, node: Node, last_seq: Callable[[], int | None]) -> None:
         self._last_seq = last_seq
         self._sent: int | None = None
+        self._quiet = 0     # timer periods since the last acknowledgement sent
         self._pub = node.create_publisher(UInt64, ACK_TOPIC_PREFIX + node.get_name(),
                                           ACK_QOS)
         node.create_timer(ACK_PERIOD_S, self._on_timer,
@@ -60,8 +65,15 @@ class BlockAcks:
 
     def _on_timer(self) -> None:
         seq = self._last_seq()
-        if seq is not None and seq != self._sent:
+        if seq is None:
+            return
+        self._quiet += 1
+        # when it moved, and again every ACK_REPEAT_PERIODS while it stands: an
+        # acknowledgement sent before the bench's reader matched ours is lost, and a bench
+        # held at its first block (AckGate) would wait for it until its ack timeout
+        if seq != self._sent or self._quiet >= ACK_REPEAT_PERIODS:
             self._sent = seq
+            self._quiet = 0
             self._pub.publish(UInt64(data=seq))
 
 

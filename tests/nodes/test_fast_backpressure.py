@@ -279,3 +279,32 @@ def test_first_block_waits_for_each_reader_to_take_it(ros_context: Any) -> None:
         ex.shutdown()
         reader.destroy_node()
         bench.destroy_node()
+
+
+@pytest.mark.timeout(60)
+def test_an_acknowledgement_that_stands_is_said_again(ros_context: Any) -> None:
+    """An acknowledgement sent before the bench's reader matched is lost; one that does not
+    move is said again every ACK_REPEAT_PERIODS periods (0.5 s), so a bench held at its
+    first block does not wait for its ack timeout."""
+    from std_msgs.msg import UInt64
+
+    from rv_te_bench.nodes.backpressure import ACK_PERIOD_S, ACK_QOS, ACK_REPEAT_PERIODS
+
+    ns = f'/bprepeat_{os.getpid()}_{time.monotonic_ns() % 10**6}'
+    reader = rclpy.create_node('te_node', namespace=ns, context=ros_context)
+    BlockAcks(reader, lambda: 0)                      # took block 0, and nothing since
+    got: list[int] = []
+    bench = rclpy.create_node('bench', namespace=ns, context=ros_context)
+    ex = SingleThreadedExecutor(context=ros_context)
+    ex.add_node(reader)
+    ex.add_node(bench)
+    try:
+        spin_for(ex, 1.0)                             # the first ack went before we listened
+        bench.create_subscription(UInt64, 'bench/acked/te_node',
+                                  lambda m: got.append(int(m.data)), ACK_QOS)
+        assert spin_until(ex, lambda: bool(got), 20 * ACK_REPEAT_PERIODS * ACK_PERIOD_S)
+        assert got[0] == 0
+    finally:
+        ex.shutdown()
+        reader.destroy_node()
+        bench.destroy_node()
